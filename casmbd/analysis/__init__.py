@@ -1,0 +1,1 @@
+"""Analyses: they use the compiled model; the model never imports them."""

@@ -1,0 +1,159 @@
+"""Position, velocity and acceleration analysis at one instant.
+
+Assembly solves C(q, t) = 0 by Newton-Raphson keeping chosen coordinates fixed: each iteration
+solves the sparse system of seed 000, eq. 6.201,
+
+    [C_q; I_d] δq = [−C; 0],
+
+where I_d selects the fixed (independent) coordinates.  When the free part of C_q is square the
+step comes from a sparse LU factorisation; otherwise (more free coordinates than equations, as
+when assembling an undriven mechanism from approximate positions) it is the minimum-norm step,
+so the mechanism moves as little as possible.  A backtracking line search on ‖C‖ guards against
+overshooting from rough guesses.  Velocities follow from C_q q̇ = −C_t (eq. 6.204) and
+accelerations from C_q q̈ = γ (eq. 6.138).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from casmbd.errors import AssemblyError, ModelError, SingularConfigurationError
+
+
+@dataclass
+class AssemblyReport:
+    """Outcome of a position analysis."""
+
+    q: np.ndarray
+    iterations: int
+    residual: float
+    change: np.ndarray
+
+
+def coordinate_indices(model, fixed: Sequence[str | int] | None) -> np.ndarray:
+    """Indices of the coordinates named ``body.x``/``body.y``/``body.angle`` (or given as ints)."""
+    names = model.system.coordinate_names
+    out = []
+    for item in fixed or ():
+        if isinstance(item, (int, np.integer)):
+            if not 0 <= item < len(names):
+                raise ModelError(f"fixed coordinate index {item} out of range 0..{len(names) - 1}")
+            out.append(int(item))
+        elif item in names:
+            out.append(names.index(item))
+        else:
+            raise ModelError(f"unknown coordinate '{item}' (coordinates are named like "
+                             f"'{names[0]}')")
+    return np.array(sorted(set(out)), dtype=int)
+
+
+def _worst_equations(model, residual: np.ndarray, count: int = 3) -> str:
+    labels = model.system.constraint_labels
+    order = np.argsort(-np.abs(residual))[:count]
+    return "; ".join(f"{labels[i]} residual {residual[i]:.3g}" for i in order)
+
+
+def solve_linear(matrix: sp.spmatrix, rhs: np.ndarray, what: str, t: float) -> np.ndarray:
+    """Solve a square sparse system, or the minimum-norm least-squares problem otherwise."""
+    m, n = matrix.shape
+    if m == n:
+        try:
+            lu = spla.splu(sp.csc_matrix(matrix))
+            x = lu.solve(rhs)
+            if np.all(np.isfinite(x)):
+                return x
+        except RuntimeError:
+            pass
+        raise SingularConfigurationError(f"{what} is singular at t = {t:g}")
+    x, *_ = sla.lstsq(matrix.toarray(), rhs, lapack_driver="gelsd")
+    return x
+
+
+def assemble(model, q0: np.ndarray, t: float = 0.0, fixed: Sequence[str | int] | None = None,
+             tol: float = 1e-11, max_iter: int = 50) -> AssemblyReport:
+    """Newton-Raphson on C(q, t) = 0 from ``q0`` keeping the ``fixed`` coordinates.
+
+    Raises
+    ------
+    AssemblyError
+        If the iteration does not converge; the message names the constraint equations with the
+        largest residuals and the time.
+    """
+    q = np.array(q0, dtype=float)
+    if not np.all(np.isfinite(q)):
+        raise AssemblyError(f"assembly at t = {t:g}: the initial coordinates are not finite")
+    idx_fixed = coordinate_indices(model, fixed)
+    free = np.setdiff1d(np.arange(model.nq), idx_fixed)
+    if model.nc == 0:
+        return AssemblyReport(q, 0, 0.0, np.zeros_like(q))
+    c = model.constraints(q, t)
+    norm = float(np.max(np.abs(c)))
+    it = 0
+    while it < max_iter:
+        if not np.all(np.isfinite(c)):
+            raise AssemblyError(f"assembly at t = {t:g}: constraints are not finite at iteration "
+                                f"{it}: {_worst_equations(model, np.nan_to_num(c, nan=np.inf))}")
+        if norm <= tol:
+            break
+        jac = model.constraint_jacobian(q, t)[:, free]
+        try:
+            step = solve_linear(jac, -c, "constraint Jacobian", t)
+        except SingularConfigurationError:
+            x, *_ = sla.lstsq(jac.toarray(), -c, lapack_driver="gelsd")
+            step = x
+        alpha, accepted = 1.0, False
+        for _ in range(12):
+            trial = q.copy()
+            trial[free] += alpha * step
+            c_trial = model.constraints(trial, t)
+            n_trial = float(np.max(np.abs(c_trial)))
+            if (np.isfinite(n_trial) and n_trial < norm * (1 - 1e-4 * alpha)) or n_trial <= tol:
+                accepted = True
+                break
+            alpha *= 0.5
+        it += 1
+        if not accepted:
+            break
+        q, c, norm = trial, c_trial, n_trial
+    if norm > tol:
+        raise AssemblyError(f"cannot assemble at t = {t:g} after {it} Newton iterations "
+                            f"(max |C| = {norm:.3g}); largest residuals: "
+                            f"{_worst_equations(model, c)}")
+    return AssemblyReport(q, it, norm, q - np.asarray(q0, float))
+
+
+def velocities(model, q: np.ndarray, t: float, v_guess: np.ndarray | None = None,
+               fixed: Sequence[str | int] | None = None) -> np.ndarray:
+    """Velocities satisfying C_q q̇ = −C_t closest to ``v_guess`` (fixed entries kept exactly).
+
+    With as many independent equations as coordinates the guess is irrelevant; otherwise the
+    guess is projected onto the constraint tangent space with the smallest Euclidean change.
+    """
+    v0 = np.zeros(model.nq) if v_guess is None else np.array(v_guess, dtype=float)
+    if model.nc == 0:
+        return v0
+    idx_fixed = coordinate_indices(model, fixed)
+    free = np.setdiff1d(np.arange(model.nq), idx_fixed)
+    jac = model.constraint_jacobian(q, t)
+    residual = -model.constraint_time_derivative(q, t) - jac @ v0
+    dv = solve_linear(jac[:, free], residual, "constraint Jacobian", t)
+    v = v0.copy()
+    v[free] += dv
+    return v
+
+
+def accelerations(model, q: np.ndarray, v: np.ndarray, t: float,
+                  a_guess: np.ndarray | None = None) -> np.ndarray:
+    """Accelerations satisfying C_q q̈ = γ closest to ``a_guess`` (zero by default)."""
+    a0 = np.zeros(model.nq) if a_guess is None else np.array(a_guess, dtype=float)
+    if model.nc == 0:
+        return a0
+    jac = model.constraint_jacobian(q, t)
+    residual = model.acceleration_rhs(q, v, t) - jac @ a0
+    return a0 + solve_linear(jac, residual, "constraint Jacobian", t)

@@ -1,0 +1,152 @@
+"""Kinematic analysis of a kinematically driven mechanism over a time grid.
+
+With drivers for every degree of freedom, C(q, t) = 0 determines q(t); at each time the
+positions are found by Newton-Raphson from a second-order prediction, the velocities from
+C_q q̇ = −C_t and the accelerations from C_q q̈ = γ (seed 000, "Inverse dynamics": the
+kinematic analysis that precedes the computation of driving forces).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from casmbd.analysis.assembly import accelerations, assemble, velocities
+from casmbd.analysis.redundancy import rank_report
+from casmbd.compiled.model import NumericModel
+from casmbd.errors import AnalysisError, AssemblyError, CasmbdError, RedundantConstraintError
+from casmbd.results import Result
+
+
+def _model(mechanism_or_model, analysis: str, mode: str) -> NumericModel:
+    if isinstance(mechanism_or_model, NumericModel):
+        return mechanism_or_model
+    return NumericModel(mechanism_or_model, analysis, mode=mode)
+
+
+def dependent_equations(model: NumericModel, q: np.ndarray, t: float) -> list[dict]:
+    """Rows of C_q that depend on earlier rows, as ``{"kind", "joint", "equation"}`` dicts."""
+    labels = model.system.constraint_labels
+    rep = rank_report(model.constraint_jacobian(q, t))
+    return [{"kind": labels[i].kind, "joint": labels[i].element, "equation": labels[i].label}
+            for i in rep.dependent_rows]
+
+
+def check_rank(model: NumericModel, q: np.ndarray, t: float):
+    """Raise :class:`RedundantConstraintError` naming the dependent equations, if any."""
+    rep = rank_report(model.constraint_jacobian(q, t))
+    if rep.dependent_rows:
+        labels = model.system.constraint_labels
+        dep = [(labels[i].element, labels[i].label) for i in rep.dependent_rows]
+        joints = sorted({labels[i].element for i in rep.dependent_rows})
+        text = ", ".join(f"{labels[i]}" for i in rep.dependent_rows)
+        raise RedundantConstraintError(
+            f"the constraint Jacobian is rank deficient at t = {t:g} (rank {rep.rank} of "
+            f"{rep.n_equations} equations): dependent equations of {', '.join(joints)}: {text}",
+            dep)
+    return rep
+
+
+def info(mechanism_or_model, mode: str = "auto") -> dict:
+    """Coordinates, constraints, degrees of freedom and dependent equations of a mechanism.
+
+    The rank is evaluated at the assembled initial configuration (at the initial guess if it
+    cannot be assembled; then ``"assembly_error"`` says why).  Never raises for redundancy.
+    """
+    model = _model(mechanism_or_model, "info", mode)
+    mech = model.system.mechanism
+    q = mech.initial_coordinates()
+    out: dict = {"name": mech.name, "dimension": mech.dimension}
+    try:
+        q = assemble(model, q, 0.0).q
+        out["assembled"] = True
+    except AssemblyError as exc:
+        out["assembled"] = False
+        out["assembly_error"] = str(exc)
+    rep = rank_report(model.constraint_jacobian(q, 0.0))
+    labels = model.system.constraint_labels
+    out.update({
+        "bodies": list(mech.bodies), "joints": list(mech.joints), "drivers": list(mech.drivers),
+        "forces": list(mech.forces), "actuators": list(mech.actuators),
+        "markers": list(mech.markers), "parameters": dict(mech.parameters),
+        "coordinates": model.system.coordinate_names,
+        "constraints": [{"kind": lab.kind, "joint": lab.element, "equation": lab.label}
+                        for lab in labels],
+        "n_coordinates": model.nq, "n_constraints": model.nc, "rank": rep.rank,
+        "degrees_of_freedom": rep.degrees_of_freedom,
+        "redundant_equations": [{"kind": labels[i].kind, "joint": labels[i].element,
+                                 "equation": labels[i].label} for i in rep.dependent_rows],
+        "initial_coordinates": q.tolist(),
+        "stats": model.report_dict,
+    })
+    return out
+
+
+def kinematics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.0,
+               mode: str = "auto", tol: float = 1e-12) -> Result:
+    """Positions, velocities and accelerations of a fully driven mechanism on a time grid.
+
+    Parameters
+    ----------
+    mechanism_or_model : Mechanism or NumericModel
+    t_end : float
+        Final time; the grid has ``steps + 1`` points from ``t_start`` to ``t_end`` inclusive.
+    steps : int
+        Number of intervals (>= 1).
+    mode : str
+        Compilation mode of the equations ("auto", "compiled", "vm").
+
+    Raises
+    ------
+    AnalysisError
+        When the drivers leave degrees of freedom free.
+    RedundantConstraintError
+        When C_q is rank deficient (names the dependent joints' equations).
+    AssemblyError, SingularConfigurationError
+        When a position cannot be found or C_q becomes singular (with the time).
+    """
+    if not (isinstance(steps, (int, np.integer)) and steps >= 1):
+        raise AnalysisError(f"steps must be an integer >= 1, got {steps!r}")
+    if not (np.isfinite(t_end) and np.isfinite(t_start) and t_end > t_start):
+        raise AnalysisError(f"t_end must be finite and > t_start = {t_start}, got {t_end!r}")
+    model = _model(mechanism_or_model, "kinematics", mode)
+    mech = model.system.mechanism
+    t0 = time.perf_counter()
+    grid = np.linspace(t_start, t_end, int(steps) + 1)
+    q = assemble(model, mech.initial_coordinates(), grid[0], tol=tol).q
+    rep = check_rank(model, q, grid[0])
+    if rep.degrees_of_freedom > 0:
+        raise AnalysisError(
+            f"kinematic analysis needs a driver for every degree of freedom: mechanism "
+            f"'{mech.name}' has {rep.degrees_of_freedom} free degree(s) of freedom "
+            f"({model.nq} coordinates, {rep.rank} independent constraints)")
+    n = len(grid)
+    qs, vs, as_ = (np.zeros((n, model.nq)) for _ in range(3))
+    violation = np.zeros(n)
+    newton = 0
+    v = a = np.zeros(model.nq)
+    for k, t in enumerate(grid):
+        if k > 0:
+            h = t - grid[k - 1]
+            guess = q + h * v + 0.5 * h * h * a
+            try:
+                res = assemble(model, guess, t, tol=tol)
+            except CasmbdError as exc:
+                raise type(exc)(f"kinematics at t = {t:g}: {exc}") from None
+            q = res.q
+            newton += res.iterations
+        v = velocities(model, q, t)
+        a = accelerations(model, q, v, t)
+        qs[k], vs[k], as_[k] = q, v, a
+        violation[k] = float(np.max(np.abs(model.constraints(q, t)))) if model.nc else 0.0
+    solve_seconds = time.perf_counter() - t0
+    outputs = model.outputs(qs, vs, as_, grid)
+    system = model.system
+    names = {"coordinates": system.coordinate_names, "bodies": system.body_names,
+             "markers": list(mech.markers), "joints": system.joint_coordinate_names,
+             "all_joints": list(mech.joints)}
+    stats = {"solve_seconds": solve_seconds, "newton_iterations": newton, "steps": int(steps),
+             **model.report_dict}
+    return Result("kinematics", grid, {"q": qs, "v": vs, "a": as_, **outputs,
+                                       "constraint_violation": violation}, names, stats)

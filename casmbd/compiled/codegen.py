@@ -1,0 +1,415 @@
+"""Compile CasADi functions to a shared library and cache it on disk.
+
+:func:`compile_functions` generates C code for a list of :class:`casadi.Function` objects into
+one source file with :class:`casadi.CodeGenerator`, compiles it with the system C compiler into
+a shared library, and loads every function back with :func:`casadi.external`.  The library is
+cached in :func:`cache_dir` under a name derived from a hash of the generated source, the
+compiler flags, the compiler path, the CasADi version and the platform, so that a later call (in
+this or another process) with the same functions loads it without compiling again.
+
+Environment variables
+---------------------
+``CASMBD_CACHE_DIR``
+    Directory of the cache (default ``$XDG_CACHE_HOME/casmbd`` or ``~/.cache/casmbd``).
+``CASMBD_COMPILE``
+    ``0`` makes ``mode="auto"`` fall back to the CasADi virtual machine without compiling.
+``CASMBD_CFLAGS``
+    Space separated optimisation flags replacing the default ``-O2``.
+``CC``
+    C compiler to use; when unset or not found, ``cc``, ``gcc`` and ``clang`` are tried.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import os
+import pathlib
+import platform
+import re
+import shlex
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import casadi
+
+from casmbd.errors import CompileError
+
+__all__ = ["COMPILE_COUNT", "BuildReport", "cache_dir", "compile_functions"]
+
+#: Number of times the C compiler has run in this process (for tests and diagnostics).
+COMPILE_COUNT: int = 0
+
+#: Flags used when neither ``flags`` nor ``$CASMBD_CFLAGS`` is given.
+DEFAULT_FLAGS: tuple[str, ...] = ("-O2",)
+
+#: Flags always added to make a loadable shared library.
+SHARED_FLAGS: tuple[str, ...] = ("-shared", "-fPIC")
+
+#: Libraries linked after the source file.
+LINK_LIBS: tuple[str, ...] = ("-lm",)
+
+#: Seconds after which a compiler run is abandoned.
+COMPILE_TIMEOUT: float = 600.0
+
+_MODES = ("auto", "compiled", "vm")
+_CODEGEN_OPTIONS = {"with_header": False, "casadi_real": "double", "casadi_int": "long long int"}
+# Placeholder name given to the code generator; replaced by ``{name}_{key[:16]}`` afterwards so
+# that the internal C symbols are unique per model while the key is computed from the source.
+_PREFIX_MARKER = "casmbdprefixf7c2e9a41d"
+_NAME_RE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
+_STDERR_TAIL = 4000
+
+
+@dataclass
+class BuildReport:
+    """What :func:`compile_functions` did.
+
+    Attributes
+    ----------
+    mode : str
+        ``"compiled"`` when the returned functions come from the shared library, ``"vm"`` when
+        they are the original functions evaluated by the CasADi virtual machine.
+    cache_hit : bool
+        True when the library was loaded from the cache without compiling.
+    compiled : bool
+        True when this call ran the C compiler.
+    codegen_seconds : float
+        Time spent generating (and hashing) the C source.
+    compile_seconds : float
+        Time spent in the C compiler (0.0 on a cache hit).
+    load_seconds : float
+        Time spent loading the functions from the library.
+    library : str or None
+        Path of the shared library, None in ``"vm"`` mode.
+    key : str
+        Hex SHA-256 key of the build (empty when no code was generated).
+    """
+
+    mode: str
+    cache_hit: bool
+    compiled: bool
+    codegen_seconds: float
+    compile_seconds: float
+    load_seconds: float
+    library: str | None
+    key: str
+
+
+def cache_dir() -> pathlib.Path:
+    """Return the directory of compiled libraries, creating it if needed.
+
+    Returns
+    -------
+    pathlib.Path
+        ``$CASMBD_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/casmbd``, else
+        ``~/.cache/casmbd``.
+    """
+    env = os.environ.get("CASMBD_CACHE_DIR")
+    if env:
+        path = pathlib.Path(env).expanduser()
+    else:
+        xdg = os.environ.get("XDG_CACHE_HOME")
+        base = pathlib.Path(xdg).expanduser() if xdg else pathlib.Path.home() / ".cache"
+        path = base / "casmbd"
+    path.mkdir(parents=True, exist_ok=True)
+    return path
+
+
+def _find_compiler() -> list[str] | None:
+    """Return the compiler command (absolute executable first) or None if there is none.
+
+    ``$CC`` may hold a command with arguments (e.g. ``"ccache gcc"``); when it is unset or its
+    executable cannot be found, ``cc``, ``gcc`` and ``clang`` are looked up on ``PATH``.
+    """
+    env_cc = os.environ.get("CC", "").strip()
+    if env_cc:
+        try:
+            parts = shlex.split(env_cc)
+        except ValueError:
+            parts = []
+        if parts:
+            exe = shutil.which(parts[0])
+            if exe is not None:
+                return [exe, *parts[1:]]
+    for candidate in ("cc", "gcc", "clang"):
+        exe = shutil.which(candidate)
+        if exe is not None:
+            return [exe]
+    return None
+
+
+def _resolve_flags(flags: Sequence[str] | None) -> list[str]:
+    """Return the optimisation flags: ``flags``, else ``$CASMBD_CFLAGS``, else ``-O2``."""
+    if flags is not None:
+        if isinstance(flags, str):
+            raise TypeError("flags must be a sequence of strings, not a single string")
+        return [str(flag) for flag in flags]
+    env = os.environ.get("CASMBD_CFLAGS")
+    if env is not None and env.strip():
+        return env.split()
+    return list(DEFAULT_FLAGS)
+
+
+def _platform_tag() -> str:
+    """Return a description of the platform that determines binary compatibility."""
+    return f"{sys.platform}-{platform.machine()}-{platform.system()}"
+
+
+def _compute_key(template: str, name: str, compiler: list[str], flags: list[str]) -> str:
+    """Hash everything that determines the content of the shared library."""
+    digest = hashlib.sha256()
+    parts = [
+        "casmbd-codegen-v1",
+        name,
+        "\x1f".join(compiler),
+        "\x1f".join([*flags, *SHARED_FLAGS, *LINK_LIBS]),
+        casadi.__version__,
+        _platform_tag(),
+        repr(sorted(_CODEGEN_OPTIONS.items())),
+    ]
+    for part in parts:
+        digest.update(part.encode("utf-8"))
+        digest.update(b"\x00")
+    digest.update(template.encode("utf-8"))
+    return digest.hexdigest()
+
+
+def _generate_template(functions: Sequence[casadi.Function]) -> str:
+    """Generate the C source of all functions with a placeholder symbol prefix."""
+    generator = casadi.CodeGenerator(f"{_PREFIX_MARKER}.c", dict(_CODEGEN_OPTIONS))
+    for function in functions:
+        generator.add(function)
+    return generator.dump()
+
+
+def _vm_result(
+    functions: Sequence[casadi.Function], codegen_seconds: float = 0.0, key: str = ""
+) -> tuple[dict[str, casadi.Function], BuildReport]:
+    report = BuildReport(
+        mode="vm",
+        cache_hit=False,
+        compiled=False,
+        codegen_seconds=codegen_seconds,
+        compile_seconds=0.0,
+        load_seconds=0.0,
+        library=None,
+        key=key,
+    )
+    return {function.name(): function for function in functions}, report
+
+
+def _load(names: list[str], library: pathlib.Path) -> dict[str, casadi.Function]:
+    """Load every function of ``names`` from ``library`` with :func:`casadi.external`."""
+    return {fname: casadi.external(fname, str(library)) for fname in names}
+
+
+def _write_atomic(path: pathlib.Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file and :func:`os.replace`."""
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as handle:
+            handle.write(text)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+def _run_compiler(command: list[str], source: pathlib.Path, library: pathlib.Path) -> float:
+    """Compile ``source`` into ``library`` atomically; return the seconds spent compiling."""
+    global COMPILE_COUNT
+    fd, tmp = tempfile.mkstemp(dir=library.parent, prefix=f".{library.stem}.", suffix=".so.tmp")
+    os.close(fd)
+    try:
+        full = [*command, str(source), "-o", tmp, *LINK_LIBS]
+        COMPILE_COUNT += 1
+        start = time.perf_counter()
+        try:
+            result = subprocess.run(
+                full, capture_output=True, text=True, timeout=COMPILE_TIMEOUT, check=False
+            )
+        except subprocess.TimeoutExpired as exc:
+            raise CompileError(
+                f"C compiler timed out after {COMPILE_TIMEOUT:g} s compiling {source.name}: "
+                f"{shlex.join(full)}"
+            ) from exc
+        except OSError as exc:
+            raise CompileError(f"cannot run the C compiler {command[0]!r}: {exc}") from exc
+        elapsed = time.perf_counter() - start
+        if result.returncode != 0:
+            output = (result.stderr or "") + (result.stdout or "")
+            tail = output[-_STDERR_TAIL:].strip()
+            raise CompileError(
+                f"C compiler failed with exit code {result.returncode} compiling "
+                f"{source.name}: {shlex.join(full)}\n{tail}"
+            )
+        os.chmod(tmp, 0o755)
+        os.replace(tmp, library)
+        return elapsed
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+def _build(
+    functions: Sequence[casadi.Function],
+    names: list[str],
+    name: str,
+    flags: Sequence[str] | None,
+) -> tuple[dict[str, casadi.Function], BuildReport]:
+    """Generate, compile (unless cached) and load; raise CompileError on any failure."""
+    compiler = _find_compiler()
+    if compiler is None:
+        raise CompileError(
+            "no C compiler found: set $CC or install cc, gcc or clang (checked $CC="
+            f"{os.environ.get('CC', '')!r} and PATH)"
+        )
+    resolved_flags = _resolve_flags(flags)
+    command = [*compiler, *resolved_flags, *SHARED_FLAGS]
+
+    start = time.perf_counter()
+    try:
+        template = _generate_template(functions)
+    except RuntimeError as exc:
+        raise CompileError(f"CasADi cannot generate C code for {name!r}: {exc}") from exc
+    key = _compute_key(template, name, compiler, resolved_flags)
+    stem = f"{name}_{key[:16]}"
+    source_text = template.replace(_PREFIX_MARKER, stem)
+    codegen_seconds = time.perf_counter() - start
+
+    directory = cache_dir()
+    library = directory / f"{stem}.so"
+    kept_source = directory / f"{stem}.c"
+
+    if library.exists():
+        start = time.perf_counter()
+        try:
+            loaded = _load(names, library)
+        except (RuntimeError, OSError):
+            loaded = None  # unreadable cache entry: rebuild it below
+        if loaded is not None:
+            report = BuildReport(
+                mode="compiled",
+                cache_hit=True,
+                compiled=False,
+                codegen_seconds=codegen_seconds,
+                compile_seconds=0.0,
+                load_seconds=time.perf_counter() - start,
+                library=str(library),
+                key=key,
+            )
+            return loaded, report
+
+    with tempfile.TemporaryDirectory(prefix="casmbd_cg_") as tmpdir:
+        source = pathlib.Path(tmpdir) / f"{stem}.c"
+        source.write_text(source_text, encoding="utf-8")
+        compile_seconds = _run_compiler(command, source, library)
+    with contextlib.suppress(OSError):
+        _write_atomic(kept_source, source_text)
+
+    start = time.perf_counter()
+    try:
+        loaded = _load(names, library)
+    except (RuntimeError, OSError) as exc:
+        raise CompileError(f"cannot load compiled library {library}: {exc}") from exc
+    report = BuildReport(
+        mode="compiled",
+        cache_hit=False,
+        compiled=True,
+        codegen_seconds=codegen_seconds,
+        compile_seconds=compile_seconds,
+        load_seconds=time.perf_counter() - start,
+        library=str(library),
+        key=key,
+    )
+    return loaded, report
+
+
+def compile_functions(
+    functions: Sequence[casadi.Function],
+    name: str = "casmbd_model",
+    *,
+    mode: str = "auto",
+    flags: Sequence[str] | None = None,
+) -> tuple[dict[str, casadi.Function], BuildReport]:
+    """Compile CasADi functions into one cached shared library and load them back.
+
+    Parameters
+    ----------
+    functions : sequence of casadi.Function
+        Functions to compile; their names must be distinct valid C identifiers.
+    name : str, optional
+        Name of the model, a C identifier; it prefixes the library file and the internal C
+        symbols (together with the hash key, so models never collide in one process).
+    mode : {"auto", "compiled", "vm"}, optional
+        ``"auto"`` compiles and falls back to the original functions with a
+        :class:`RuntimeWarning` when no C compiler is found or compilation fails (and always
+        when ``$CASMBD_COMPILE`` is ``0``); ``"compiled"`` compiles or raises
+        :class:`~casmbd.errors.CompileError`; ``"vm"`` returns the functions unchanged.
+    flags : sequence of str, optional
+        Optimisation flags; default ``$CASMBD_CFLAGS`` split on spaces, else ``-O2``.
+        ``-shared -fPIC`` are always added.
+
+    Returns
+    -------
+    functions : dict of str to casadi.Function
+        The loaded (or original, in ``"vm"`` mode) functions keyed by their names; compiled
+        functions have the same input/output names and sparsity as the originals.
+    report : BuildReport
+        What was done and how long it took.
+
+    Raises
+    ------
+    CompileError
+        In ``"compiled"`` mode when no compiler is found, code generation, compilation (stderr
+        tail in the message) or loading fails, or the compiler times out.
+    ValueError
+        For an unknown mode, an invalid model name, no functions or duplicate names.
+    TypeError
+        When an element of ``functions`` is not a :class:`casadi.Function`.
+    """
+    if mode not in _MODES:
+        raise ValueError(f"mode must be one of {', '.join(map(repr, _MODES))}, got {mode!r}")
+    if not isinstance(name, str) or not _NAME_RE.match(name):
+        raise ValueError(f"model name must be a C identifier, got {name!r}")
+    functions = list(functions)
+    if not functions:
+        raise ValueError(f"compile_functions({name!r}) needs at least one function")
+    names: list[str] = []
+    for index, function in enumerate(functions):
+        if not isinstance(function, casadi.Function):
+            raise TypeError(
+                f"functions[{index}] of {name!r} is {type(function).__name__}, not casadi.Function"
+            )
+        fname = function.name()
+        if not _NAME_RE.match(fname):
+            raise ValueError(f"function name {fname!r} of {name!r} is not a C identifier")
+        if fname in names:
+            raise ValueError(f"duplicate function name {fname!r} in {name!r}")
+        names.append(fname)
+
+    if mode == "vm":
+        return _vm_result(functions)
+    if mode == "auto" and os.environ.get("CASMBD_COMPILE", "").strip() == "0":
+        return _vm_result(functions)
+
+    try:
+        return _build(functions, names, name, flags)
+    except CompileError as exc:
+        if mode == "compiled":
+            raise
+        warnings.warn(
+            f"casmbd: compiling {name!r} failed, using the CasADi virtual machine instead: {exc}",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+        return _vm_result(functions)

@@ -1,0 +1,140 @@
+"""The compiled numeric model: the runnable counterpart of a symbolic :class:`System`.
+
+Like Pinocchio's ``Model``/``Data`` split, :class:`NumericModel` holds only what runs: the
+compiled (or virtual-machine) CasADi Functions an analysis asked for, their sparsity patterns,
+and the parameter values.  Matrices come back as ``scipy.sparse`` CSC matrices built from the
+fixed sparsity pattern of the generated code.
+"""
+
+from __future__ import annotations
+
+import re
+import time
+from collections.abc import Iterable
+
+import casadi as ca
+import numpy as np
+import scipy.sparse as sp
+
+from casmbd.compiled.codegen import BuildReport, compile_functions
+from casmbd.errors import ModelError
+from casmbd.system.equations import System
+
+#: Functions each analysis needs; nothing else is generated or compiled for it.
+NEEDS: dict[str, tuple[str, ...]] = {
+    "info": ("constraints", "constraint_jacobian"),
+    "kinematics": ("constraints", "constraint_jacobian", "constraint_time_derivative",
+                   "acceleration_rhs", "outputs"),
+}
+
+
+def _c_name(name: str) -> str:
+    out = re.sub(r"[^A-Za-z0-9_]", "_", name)
+    return "casmbd_" + out[:40]
+
+
+class NumericModel:
+    """Compiled equations of a mechanism, built only for the requested Functions.
+
+    Parameters
+    ----------
+    system : System or Mechanism
+        The symbolic equations (a Mechanism is wrapped in a System).
+    functions : iterable of str or str
+        Names of the Functions to build (see :data:`casmbd.system.SIGNATURES`, plus
+        ``"outputs"``) or the name of an analysis in :data:`NEEDS`.
+    mode : {"auto", "compiled", "vm"}
+        Compile to C (with on-disk cache), or use CasADi's virtual machine.
+    """
+
+    def __init__(self, system, functions: Iterable[str] | str = "kinematics",
+                 mode: str = "auto"):
+        t0 = time.perf_counter()
+        self.system = system if isinstance(system, System) else System(system)
+        names = NEEDS.get(functions, (functions,)) if isinstance(functions, str) else functions
+        names = list(dict.fromkeys(names))
+        symbolic = [self.system.function(n) for n in names]
+        t1 = time.perf_counter()
+        self.functions, self.report = compile_functions(
+            symbolic, name=_c_name(self.system.mechanism.name), mode=mode)
+        t2 = time.perf_counter()
+        self.symbolic_seconds = t1 - t0
+        self.build_seconds = t2 - t0
+        self.p = self.system.parameter_values.copy()
+        self.nq, self.nc = self.system.nq, self.system.nc
+        self._patterns = {n: f.sparsity_out(0) for n, f in self.functions.items()}
+
+    # ------------------------------------------------------------------ bookkeeping
+    @property
+    def report_dict(self) -> dict:
+        """Build statistics for result files and JSON output."""
+        r: BuildReport = self.report
+        return {"build_seconds": self.build_seconds, "symbolic_seconds": self.symbolic_seconds,
+                "codegen_seconds": r.codegen_seconds, "compile_seconds": r.compile_seconds,
+                "load_seconds": r.load_seconds, "compiled": r.compiled,
+                "cache_hit": r.cache_hit, "mode": r.mode}
+
+    def function(self, name: str) -> ca.Function:
+        """The (compiled) Function ``name``; raise if it was not built for this model."""
+        try:
+            return self.functions[name]
+        except KeyError:
+            raise ModelError(f"function '{name}' was not built for this analysis (built: "
+                             f"{', '.join(self.functions)})") from None
+
+    def set_parameters(self, **values: float) -> None:
+        """Change parameter values by name."""
+        names = list(self.system.mechanism.parameters)
+        for key, val in values.items():
+            if key not in names:
+                raise ModelError(f"unknown parameter '{key}' (known: {', '.join(names)})")
+            self.p[names.index(key)] = float(val)
+
+    def _sparse(self, name: str, dm: ca.DM) -> sp.csc_matrix:
+        sparsity = self._patterns[name]
+        return sp.csc_matrix((np.array(dm.nonzeros()), sparsity.row(), sparsity.colind()),
+                             shape=sparsity.shape)
+
+    # ------------------------------------------------------------------ equations
+    def constraints(self, q, t: float) -> np.ndarray:
+        """C(q, t)."""
+        return np.asarray(self.function("constraints")(q, t, self.p)).reshape(-1)
+
+    def constraint_jacobian(self, q, t: float) -> sp.csc_matrix:
+        """C_q(q, t) as a sparse matrix."""
+        return self._sparse("constraint_jacobian",
+                            self.function("constraint_jacobian")(q, t, self.p))
+
+    def constraint_time_derivative(self, q, t: float) -> np.ndarray:
+        """C_t(q, t)."""
+        return np.asarray(self.function("constraint_time_derivative")(q, t, self.p)).reshape(-1)
+
+    def acceleration_rhs(self, q, v, t: float) -> np.ndarray:
+        """γ(q, v, t) with C_q q̈ = γ."""
+        return np.asarray(self.function("acceleration_rhs")(q, v, t, self.p)).reshape(-1)
+
+    def mass_matrix(self, q) -> sp.csc_matrix:
+        """M(q) as a sparse matrix."""
+        return self._sparse("mass_matrix", self.function("mass_matrix")(q, self.p))
+
+    def applied_forces(self, q, v, t: float, u=None) -> np.ndarray:
+        """Q_e(q, v, t, u)."""
+        u = np.zeros(len(self.system.mechanism.actuators)) if u is None else u
+        return np.asarray(self.function("applied_forces")(q, v, t, u, self.p)).reshape(-1)
+
+    def quadratic_velocity_forces(self, q, v) -> np.ndarray:
+        """Q_v(q, v)."""
+        return np.asarray(self.function("quadratic_velocity_forces")(q, v, self.p)).reshape(-1)
+
+    def outputs(self, q: np.ndarray, v: np.ndarray, a: np.ndarray, t: np.ndarray) -> dict:
+        """Body, marker and joint outputs at many time points in one mapped call.
+
+        ``q``, ``v``, ``a`` have shape (n_t, n_q); every output has time as first axis.
+        """
+        f = self.function("outputs")
+        n = len(t)
+        if n == 0:
+            raise ModelError("outputs: no time points")
+        res = f.map(n)(q.T, v.T, a.T, np.reshape(t, (1, n)), np.tile(self.p[:, None], (1, n)))
+        res = res if isinstance(res, (list, tuple)) else [res]
+        return {name: np.asarray(res[i]).T for i, name in enumerate(f.name_out())}

@@ -1,0 +1,47 @@
+"""Exception classes of casmbd.
+
+Every error a user can provoke with bad input derives from :class:`CasmbdError`, so that
+programs can catch one class, and every message names the body, joint, field or time at fault.
+"""
+
+from __future__ import annotations
+
+
+class CasmbdError(Exception):
+    """Base class of every error raised by casmbd on bad input or failed analyses."""
+
+
+class SceneError(CasmbdError):
+    """A scene file is malformed or inconsistent; the message names table, entry and key."""
+
+
+class ExpressionError(SceneError):
+    """An expression string cannot be parsed or uses something that is not allowed."""
+
+
+class ModelError(CasmbdError):
+    """The mechanism built with the Python API is invalid (bad mass, unknown body, ...)."""
+
+
+class AssemblyError(CasmbdError):
+    """Newton-Raphson could not satisfy the constraints C(q, t) = 0."""
+
+
+class RedundantConstraintError(CasmbdError):
+    """The constraint Jacobian is rank deficient; ``dependent`` lists (joint, equation) pairs."""
+
+    def __init__(self, message: str, dependent: list[tuple[str, str]] | None = None):
+        super().__init__(message)
+        self.dependent = list(dependent or [])
+
+
+class SingularConfigurationError(CasmbdError):
+    """A linear system of the analysis (Jacobian, KKT matrix) is singular at some time."""
+
+
+class CompileError(CasmbdError):
+    """Generated C code could not be compiled or loaded."""
+
+
+class AnalysisError(CasmbdError):
+    """An analysis cannot run on this mechanism (e.g. kinematics of an undriven mechanism)."""

@@ -1,0 +1,1 @@
+"""Input/output: expression strings and scene files."""

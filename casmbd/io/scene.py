@@ -1,0 +1,374 @@
+"""Scene files (TOML, format version 1): validate a scene and build a :class:`Mechanism`.
+
+The loader builds exactly the object the Python API builds.  Every error is a
+:class:`~casmbd.errors.SceneError` naming the table, the entry and the key, e.g.
+``[[bodies]] entry 2 ('crank') key 'mass': must be > 0, got -1.0``.  Expression strings are
+parsed by :mod:`casmbd.io.expressions` (never Python ``eval``).
+
+Contract (SI units, angles in radians)::
+
+    [scene]       name, dimension = 2, gravity = [gx, gy], format = 1
+    [parameters]  k = 100.0 ...
+    [[bodies]]    name, mass, inertia, position, angle, velocity, angular_velocity,
+                  reference_point
+    [[markers]]   name, body, point
+    [[joints]]    name, type = revolute|prismatic|rigid|distance|fixed, body1, body2, point,
+                  point1, point2, length (distance), axis (prismatic), body (fixed)
+    [[drivers]]   name, joint | body + coordinate (x|y|angle), position (expression of t)
+    [[forces]]    name, type = force|torque|spring_damper|rotational_spring_damper, ...
+    [[actuators]] name, joint
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tomllib
+from pathlib import Path
+from typing import Any
+
+from casmbd.errors import CasmbdError, ExpressionError, SceneError
+from casmbd.io.expressions import evaluate_number
+from casmbd.model import GROUND, Mechanism
+
+FORMAT = 1
+
+_TABLES = {"scene", "parameters", "bodies", "markers", "joints", "drivers", "forces",
+           "actuators", "ocp", "simulation", "meta"}
+_SCENE_KEYS = {"name", "dimension", "gravity", "format", "description", "coordinates"}
+_BODY_KEYS = {"name", "mass", "inertia", "position", "angle", "velocity", "angular_velocity",
+              "reference_point", "description"}
+_MARKER_KEYS = {"name", "body", "point", "description"}
+_JOINT_KEYS = {
+    "revolute": {"point"},
+    "prismatic": {"point", "axis"},
+    "rigid": {"point"},
+    "fixed": {"point", "body"},
+    "distance": {"point1", "point2", "length"},
+}
+_DRIVER_KEYS = {"name", "joint", "body", "coordinate", "position", "description"}
+_FORCE_KEYS = {
+    "force": {"body", "point", "value", "frame"},
+    "torque": {"body", "value"},
+    "spring_damper": {"body1", "body2", "point1", "point2", "stiffness", "damping",
+                      "free_length", "actuator"},
+    "rotational_spring_damper": {"joint", "stiffness", "damping", "free_angle", "actuator"},
+}
+_ACTUATOR_KEYS = {"name", "joint", "description"}
+
+
+class _Entry:
+    """One table entry with its location, for error messages."""
+
+    def __init__(self, table: str, index: int | None, data: Any, params: dict[str, float]):
+        self.table, self.index, self.params = table, index, params
+        if not isinstance(data, dict):
+            raise SceneError(f"{self.where_table}: expected a table, got {type(data).__name__}")
+        self.data = data
+        name = data.get("name")
+        self.name = name if isinstance(name, str) else None
+
+    @property
+    def where_table(self) -> str:
+        if self.index is None:
+            return f"[{self.table}]"
+        return f"[[{self.table}]] entry {self.index + 1}"
+
+    @property
+    def where(self) -> str:
+        return self.where_table + (f" ('{self.name}')" if self.name else "")
+
+    def error(self, key: str | None, why: str) -> SceneError:
+        return SceneError(f"{self.where}" + (f" key '{key}'" if key else "") + f": {why}")
+
+    def check_keys(self, allowed: set[str]) -> None:
+        for key in self.data:
+            if key not in allowed:
+                raise self.error(key, f"unknown key (allowed: {', '.join(sorted(allowed))})")
+
+    def has(self, key: str) -> bool:
+        return key in self.data
+
+    def require(self, key: str) -> Any:
+        if key not in self.data:
+            raise self.error(key, "missing required key")
+        return self.data[key]
+
+    def string(self, key: str, default: str | None = None, required: bool = True) -> str | None:
+        if key not in self.data:
+            if required and default is None:
+                raise self.error(key, "missing required key")
+            return default
+        val = self.data[key]
+        if not isinstance(val, str) or not val.strip():
+            raise self.error(key, f"expected a non-empty string, got {val!r}")
+        return val
+
+    def number(self, key: str, default: float | None = None, required: bool = True) -> float:
+        """A finite number (or an expression string of the parameters evaluated now)."""
+        if key not in self.data:
+            if default is None and required:
+                raise self.error(key, "missing required key")
+            return default
+        return self._number(self.data[key], key)
+
+    def _number(self, val: Any, key: str) -> float:
+        where = f"{self.where} key '{key}'"
+        if isinstance(val, bool):
+            raise self.error(key, f"expected a number, got {val!r}")
+        if isinstance(val, (int, float)):
+            if not math.isfinite(val):
+                raise self.error(key, f"must be finite, got {val!r}")
+            return float(val)
+        if isinstance(val, str):
+            return evaluate_number(val, self.params, where=where)
+        raise self.error(key, f"expected a number, got {type(val).__name__}")
+
+    def value(self, key: str, default: Any = None, required: bool = True) -> Any:
+        """A number or an expression string (kept as text, parsed when equations are built)."""
+        if key not in self.data:
+            if default is None and required:
+                raise self.error(key, "missing required key")
+            return default
+        val = self.data[key]
+        if isinstance(val, bool) or not isinstance(val, (int, float, str)):
+            raise self.error(key, f"expected a number or an expression string, got {val!r}")
+        if isinstance(val, (int, float)) and not math.isfinite(val):
+            raise self.error(key, f"must be finite, got {val!r}")
+        if isinstance(val, str):
+            self._check_expression(val, key)
+        return val
+
+    def _check_expression(self, text: str, key: str) -> None:
+        import casadi as ca
+
+        from casmbd.io.expressions import parse_expression
+
+        symbols = {name: ca.SX.sym(name) for name in self.params}
+        symbols["t"] = ca.SX.sym("t")
+        parse_expression(text, symbols, where=f"{self.where} key '{key}'")
+
+    def vector(self, key: str, size: int = 2, default=None, required: bool = True):
+        if key not in self.data:
+            if default is None and required:
+                raise self.error(key, "missing required key")
+            return default
+        val = self.data[key]
+        if not isinstance(val, list) or len(val) != size:
+            raise self.error(key, f"expected a list of {size} numbers, got {val!r}")
+        return [self._number(x, key) for x in val]
+
+
+def _name(entry: _Entry) -> str:
+    return entry.string("name")
+
+
+def _build(data: dict, source: str) -> Mechanism:
+    for key in data:
+        if key not in _TABLES:
+            raise SceneError(f"{source}: unknown table [{key}] (allowed: "
+                             f"{', '.join(sorted(_TABLES))})")
+    if "scene" not in data:
+        raise SceneError(f"{source}: missing table [scene]")
+    params_raw = data.get("parameters", {})
+    if not isinstance(params_raw, dict):
+        raise SceneError("[parameters]: expected a table of named numbers")
+    params: dict[str, float] = {}
+    for key, val in params_raw.items():
+        if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val):
+            raise SceneError(f"[parameters] key '{key}': expected a finite number, got {val!r}")
+        params[key] = float(val)
+
+    scene = _Entry("scene", None, data["scene"], params)
+    scene.check_keys(_SCENE_KEYS)
+    fmt = scene.data.get("format", FORMAT)
+    if fmt != FORMAT:
+        raise scene.error("format", f"unsupported format {fmt!r} (this casmbd reads {FORMAT})")
+    dim = scene.data.get("dimension", 2)
+    if dim != 2:
+        raise scene.error("dimension", f"unsupported dimension {dim!r} (planar scenes: 2)")
+    coords = scene.data.get("coordinates", "absolute")
+    if coords != "absolute":
+        raise scene.error("coordinates", f"unsupported coordinates {coords!r} for planar "
+                          "scenes (supported: 'absolute')")
+    name = scene.string("name", default=Path(source).stem or "scene")
+    mech = Mechanism(name, gravity=scene.vector("gravity", default=[0.0, 0.0]))
+
+    def guarded(entry: _Entry, action):
+        try:
+            return action()
+        except SceneError:
+            raise
+        except CasmbdError as exc:
+            raise SceneError(f"{entry.where}: {exc}") from None
+
+    for pname, pval in params.items():
+        guarded(_Entry("parameters", None, {}, params),
+                lambda pname=pname, pval=pval: mech.add_parameter(pname, pval))
+
+    def entries(table: str):
+        raw = data.get(table, [])
+        if not isinstance(raw, list):
+            raise SceneError(f"[[{table}]]: expected an array of tables ([[{table}]]), got "
+                             f"{type(raw).__name__}")
+        return [_Entry(table, i, item, params) for i, item in enumerate(raw)]
+
+    for e in entries("bodies"):
+        e.check_keys(_BODY_KEYS)
+        for key in ("mass", "inertia"):
+            val = e.value(key)
+            num = e.number(key)
+            if num <= 0.0:
+                raise e.error(key, f"must be > 0, got {num:g}" + (f" ({val!r})"
+                                                                 if isinstance(val, str) else ""))
+        guarded(e, lambda e=e: mech.add_body(
+            _name(e), mass=e.value("mass"), inertia=e.value("inertia"),
+            position=e.vector("position"), angle=e.number("angle", 0.0),
+            velocity=e.vector("velocity", default=[0.0, 0.0]),
+            angular_velocity=e.number("angular_velocity", 0.0),
+            reference_point=e.vector("reference_point", default=[0.0, 0.0])))
+
+    for e in entries("markers"):
+        e.check_keys(_MARKER_KEYS)
+        guarded(e, lambda e=e: mech.add_marker(_name(e), e.string("body"), e.vector("point")))
+
+    for e in entries("joints"):
+        jtype = e.string("type")
+        if jtype not in _JOINT_KEYS:
+            raise e.error("type", f"unknown joint type {jtype!r} (allowed: "
+                          f"{', '.join(_JOINT_KEYS)})")
+        e.check_keys({"name", "type", "body1", "body2", "description"} | _JOINT_KEYS[jtype])
+        _add_joint(mech, e, jtype, guarded)
+
+    for e in entries("drivers"):
+        e.check_keys(_DRIVER_KEYS)
+        guarded(e, lambda e=e: mech.add_driver(
+            _name(e), e.value("position"), joint=e.string("joint", required=False),
+            body=e.string("body", required=False),
+            coordinate=e.string("coordinate", required=False)))
+
+    for e in entries("forces"):
+        ftype = e.string("type")
+        if ftype not in _FORCE_KEYS:
+            raise e.error("type", f"unknown force type {ftype!r} (allowed: "
+                          f"{', '.join(_FORCE_KEYS)})")
+        e.check_keys({"name", "type", "description"} | _FORCE_KEYS[ftype])
+        _add_force(mech, e, ftype, guarded)
+
+    for e in entries("actuators"):
+        e.check_keys(_ACTUATOR_KEYS)
+        guarded(e, lambda e=e: mech.add_actuator(_name(e), e.string("joint")))
+
+    if not mech.bodies:
+        raise SceneError(f"{source}: the scene has no [[bodies]]")
+    try:
+        mech.validate()
+    except CasmbdError as exc:
+        raise SceneError(f"{source}: {exc}") from None
+    return mech
+
+
+def _add_joint(mech: Mechanism, e: _Entry, jtype: str, guarded) -> None:
+    name = _name(e)
+    if jtype == "fixed":
+        if e.has("body"):
+            body = e.string("body")
+            guarded(e, lambda: mech.add_fixed(name, body, point=e.vector("point", default=None,
+                                                                        required=False)))
+            return
+        b1, b2 = e.string("body1"), e.string("body2")
+        point = e.vector("point", required=False)
+        if GROUND in (b1, b2):
+            other = b2 if b1 == GROUND else b1
+            guarded(e, lambda: mech.add_fixed(name, other, point=point))
+        else:
+            guarded(e, lambda: mech.add_rigid(name, b1, b2, point=point))
+        return
+    b1, b2 = e.string("body1"), e.string("body2")
+    if jtype == "revolute":
+        guarded(e, lambda: mech.add_revolute(name, b1, b2, e.vector("point")))
+    elif jtype == "prismatic":
+        guarded(e, lambda: mech.add_prismatic(name, b1, b2, e.vector("point"),
+                                              e.vector("axis")))
+    elif jtype == "rigid":
+        guarded(e, lambda: mech.add_rigid(name, b1, b2, e.vector("point", required=False)))
+    else:
+        length = e.number("length", required=False)
+        guarded(e, lambda: mech.add_distance(name, b1, b2, e.vector("point1"),
+                                             e.vector("point2"), length=length))
+
+
+def _add_force(mech: Mechanism, e: _Entry, ftype: str, guarded) -> None:
+    name = _name(e)
+    if ftype == "force":
+        raw = e.require("value")
+        if not isinstance(raw, list) or len(raw) != 2:
+            raise e.error("value", f"expected a list of 2 numbers or expressions, got {raw!r}")
+        value = [_component(e, x) for x in raw]
+        guarded(e, lambda: mech.add_force(name, e.string("body"), value,
+                                          point=e.vector("point", required=False),
+                                          frame=e.string("frame", default="global")))
+    elif ftype == "torque":
+        guarded(e, lambda: mech.add_torque(name, e.string("body"), e.value("value")))
+    elif ftype == "spring_damper":
+        guarded(e, lambda: mech.add_spring_damper(
+            name, e.string("body1"), e.string("body2"), e.vector("point1"), e.vector("point2"),
+            stiffness=_nonneg(e, "stiffness"), damping=_nonneg(e, "damping"),
+            free_length=e.value("free_length", required=False),
+            actuator=e.value("actuator", 0.0)))
+    else:
+        guarded(e, lambda: mech.add_rotational_spring_damper(
+            name, e.string("joint"), stiffness=_nonneg(e, "stiffness"),
+            damping=_nonneg(e, "damping"), free_angle=e.value("free_angle", 0.0),
+            actuator=e.value("actuator", 0.0)))
+
+
+def _component(e: _Entry, raw: Any):
+    if isinstance(raw, bool) or not isinstance(raw, (int, float, str)):
+        raise e.error("value", f"expected a number or an expression string, got {raw!r}")
+    if isinstance(raw, (int, float)) and not math.isfinite(raw):
+        raise e.error("value", f"must be finite, got {raw!r}")
+    if isinstance(raw, str):
+        e._check_expression(raw, "value")
+    return raw
+
+
+def _nonneg(e: _Entry, key: str):
+    val = e.value(key, 0.0)
+    try:
+        num = e.number(key, 0.0)
+    except ExpressionError:
+        return val  # depends on t: only checked when equations are built
+    if num < 0.0:
+        raise e.error(key, f"must be >= 0, got {num:g}")
+    return val
+
+
+def loads_scene(text: str, source: str = "<string>") -> Mechanism:
+    """Build a :class:`Mechanism` from TOML text.
+
+    Raises
+    ------
+    SceneError
+        Malformed TOML or any invalid table, entry or key (named in the message).
+    """
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"{source}: malformed TOML: {exc}") from None
+    mech = _build(data, source)
+    mech.scene_text = text
+    mech.scene_data = data
+    return mech
+
+
+def load_scene(path: str | os.PathLike) -> Mechanism:
+    """Read a scene file and build its :class:`Mechanism` (see :func:`loads_scene`)."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise SceneError(f"scene file '{path}' not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SceneError(f"scene file '{path}' cannot be read: {exc}") from None
+    return loads_scene(text, source=str(path))

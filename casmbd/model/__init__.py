@@ -1,0 +1,18 @@
+"""Modelling layer: the user's description of a mechanism (no analysis imports here)."""
+
+from casmbd.model.bodies import GROUND, Body, Marker
+from casmbd.model.drivers import Driver
+from casmbd.model.forces import (
+    Actuator,
+    PointForce,
+    RotationalSpringDamper,
+    SpringDamper,
+    Torque,
+    UserForce,
+)
+from casmbd.model.joints import Distance, Fixed, Joint, Prismatic, Revolute, Rigid
+from casmbd.model.mechanism import Mechanism
+
+__all__ = ["GROUND", "Actuator", "Body", "Distance", "Driver", "Fixed", "Joint", "Marker",
+           "Mechanism", "PointForce", "Prismatic", "Revolute", "Rigid", "RotationalSpringDamper",
+           "SpringDamper", "Torque", "UserForce"]

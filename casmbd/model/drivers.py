@@ -1,0 +1,43 @@
+"""Drivers: rheonomic constraints C(q, t) = s(q) − f(t) that prescribe a coordinate in time.
+
+Seed 000, "Driving constraints": a driving constraint adds one equation whose multiplier gives
+the effort (force or torque) needed to impose the motion (section "Inverse dynamics").
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from casmbd.errors import ModelError
+from casmbd.model.values import Value, check_value
+
+BODY_COORDINATES = ("x", "y", "angle")
+
+
+@dataclass
+class Driver:
+    """Prescribe a joint coordinate (``joint``) or a body coordinate (``body`` + ``coordinate``).
+
+    ``position`` is a value of time (number, expression string over ``t`` and parameters, or
+    callable ``f(t)`` / ``f(t, p)``).
+    """
+
+    name: str
+    position: Value
+    joint: str | None = None
+    body: str | None = None
+    coordinate: str | None = None
+
+    def __post_init__(self):
+        where = f"driver '{self.name}'"
+        self.position = check_value(self.position, f"{where} field 'position'")
+        if (self.joint is None) == (self.body is None):
+            raise ModelError(f"{where}: give either 'joint' or 'body' + 'coordinate'")
+        if self.body is not None and self.coordinate not in BODY_COORDINATES:
+            raise ModelError(f"{where} field 'coordinate': expected one of "
+                             f"{', '.join(BODY_COORDINATES)}, got {self.coordinate!r}")
+
+    @property
+    def target(self) -> str:
+        """Human-readable name of the driven coordinate."""
+        return f"joint '{self.joint}'" if self.joint else f"body '{self.body}' {self.coordinate}"

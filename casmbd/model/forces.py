@@ -1,0 +1,137 @@
+"""Force elements and actuators; each gives its generalized force by virtual work.
+
+For a force F applied at a body point P and a torque T on a body, δW = Fᵀ δr_P + T δθ, so the
+generalized force is Q = (∂r_P/∂q)ᵀ F + (∂θ/∂q)ᵀ T (seed 000, "Generalized forces", eqs.
+6.40–6.48).  A force element acting along a scalar measure s(q) (the length of a spring, a joint
+coordinate) with magnitude f resisting an increase of s gives Q = −f (∂s/∂q)ᵀ.  The Jacobians
+are taken by CasADi's algorithmic differentiation, never by hand.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from casmbd.errors import ModelError
+from casmbd.model.bodies import vector2
+from casmbd.model.values import Value, check_value
+
+FORCE_TYPES = ("force", "torque", "spring_damper", "rotational_spring_damper", "user")
+FRAMES = ("global", "body")
+
+
+@dataclass
+class PointForce:
+    """A force (two values, global or body frame) applied at a body point."""
+
+    name: str
+    body: str
+    value: tuple[Value, Value]
+    point: np.ndarray | None = None
+    frame: str = "global"
+
+    def __post_init__(self):
+        where = f"force '{self.name}'"
+        if not isinstance(self.value, (list, tuple)) or len(self.value) != 2:
+            raise ModelError(f"{where} field 'value': expected 2 components, got {self.value!r}")
+        self.value = tuple(check_value(v, f"{where} field 'value'") for v in self.value)
+        if self.point is not None:
+            self.point = vector2(self.point, f"{where} field 'point'")
+        if self.frame not in FRAMES:
+            raise ModelError(f"{where} field 'frame': expected 'global' or 'body', "
+                             f"got {self.frame!r}")
+
+
+@dataclass
+class Torque:
+    """A torque on a body (counter-clockwise positive)."""
+
+    name: str
+    body: str
+    value: Value
+
+    def __post_init__(self):
+        self.value = check_value(self.value, f"torque '{self.name}' field 'value'")
+
+
+@dataclass
+class SpringDamper:
+    """Translational spring-damper-actuator between point1 (body1) and point2 (body2).
+
+    Tension f = k (l − l0) + c l̇ + a(t) pulls the points together; potential ½ k (l − l0)²
+    (seed 000 / 001, "Spring-damper-actuator elements").
+    """
+
+    name: str
+    body1: str
+    body2: str
+    point1: np.ndarray
+    point2: np.ndarray
+    stiffness: Value = 0.0
+    damping: Value = 0.0
+    free_length: Value | None = None
+    actuator: Value = 0.0
+
+    def __post_init__(self):
+        where = f"force '{self.name}'"
+        self.point1 = vector2(self.point1, f"{where} field 'point1'")
+        self.point2 = vector2(self.point2, f"{where} field 'point2'")
+        if self.free_length is None:
+            self.free_length = float(np.linalg.norm(self.point2 - self.point1))
+        for key in ("stiffness", "damping", "free_length", "actuator"):
+            setattr(self, key, check_value(getattr(self, key), f"{where} field '{key}'"))
+
+
+@dataclass
+class RotationalSpringDamper:
+    """Rotational spring-damper-actuator at a joint with a coordinate φ (revolute).
+
+    Moment T = k (φ − φ0) + c φ̇ + a(t) resisting an increase of φ; potential ½ k (φ − φ0)².
+    ``free_angle`` defaults to 0.
+    """
+
+    name: str
+    joint: str
+    stiffness: Value = 0.0
+    damping: Value = 0.0
+    free_angle: Value = 0.0
+    actuator: Value = 0.0
+
+    def __post_init__(self):
+        where = f"force '{self.name}'"
+        for key in ("stiffness", "damping", "free_angle", "actuator"):
+            setattr(self, key, check_value(getattr(self, key), f"{where} field '{key}'"))
+
+
+@dataclass
+class UserForce:
+    """A force given as CasADi expressions of the state.
+
+    ``function(ctx)`` receives the assembly context (``ctx.q``, ``ctx.v``, ``ctx.t``, ``ctx.u``
+    and ``ctx.p`` dicts by name, and helpers ``ctx.position(body, point)``,
+    ``ctx.velocity(body, point)``, ``ctx.angle(body)``, ``ctx.joint_coordinate(name)``).
+    With ``body`` given it returns the force (2-vector, global) at ``point`` — or a pair
+    (force, torque); without ``body`` it returns a generalized force vector of length n_q.
+    """
+
+    name: str
+    function: Callable
+    body: str | None = None
+    point: np.ndarray | None = None
+
+    def __post_init__(self):
+        if not callable(self.function):
+            raise ModelError(f"force '{self.name}' field 'function': expected a callable")
+        if self.point is not None:
+            self.point = vector2(self.point, f"force '{self.name}' field 'point'")
+
+
+@dataclass
+class Actuator:
+    """A generalized force input u along a joint coordinate (for inverse dynamics and control)."""
+
+    name: str
+    joint: str
+    bounds: tuple[float, float] = field(default_factory=lambda: (-np.inf, np.inf))

@@ -1,0 +1,349 @@
+"""Assemble the symbolic equations of motion of a mechanism as CasADi Functions.
+
+From the model and CasADi's algorithmic differentiation only (seed 000, "Dynamic equations of
+motion", eqs. 6.124 and 6.136–6.138):
+
+* mass matrix M(q, p), block diagonal, M_i = m J_Gᵀ J_G + I_G e_θ e_θᵀ with J_G = ∂r_G/∂q_i
+  (eqs. 6.22–6.23: for a non-centroidal frame this couples translation and rotation);
+* quadratic-velocity forces Q_v(q, v, p) = −Σ m J_Gᵀ (J̇_G v) (eqs. 6.34–6.37);
+* applied forces Q_e(q, v, t, u, p) by virtual work (eqs. 6.40–6.48);
+* constraints C(q, t, p), Jacobian C_q, C_t and the acceleration right-hand side
+  γ = −(C_q v)_q v − 2 C_qt v − C_tt, written γ = −∂(C_q v + C_t)/∂q · v − ∂(C_q v + C_t)/∂t,
+  so that C_q q̈ = γ (eq. 6.138, Shabana's Q_d).
+
+Every expression is built on demand: an analysis that needs only the constraints never builds
+the mass matrix.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import casadi as ca
+import numpy as np
+
+from casmbd.errors import ModelError
+from casmbd.model.bodies import GROUND
+from casmbd.model.forces import (
+    PointForce,
+    RotationalSpringDamper,
+    SpringDamper,
+    Torque,
+    UserForce,
+)
+from casmbd.model.values import resolve
+from casmbd.system.context import Context
+
+
+@dataclass(frozen=True)
+class Equation:
+    """Label of one constraint equation: which element ('joint'/'driver') and which row."""
+
+    kind: str
+    element: str
+    label: str
+
+    def __str__(self) -> str:
+        return f"{self.kind} '{self.element}' equation '{self.label}'"
+
+
+#: name -> (input names, output name) of every Function the system can build
+SIGNATURES: dict[str, tuple[tuple[str, ...], str]] = {
+    "mass_matrix": (("q", "p"), "M"),
+    "applied_forces": (("q", "v", "t", "u", "p"), "Qe"),
+    "quadratic_velocity_forces": (("q", "v", "p"), "Qv"),
+    "constraints": (("q", "t", "p"), "C"),
+    "constraint_jacobian": (("q", "t", "p"), "Cq"),
+    "constraint_time_derivative": (("q", "t", "p"), "Ct"),
+    "acceleration_rhs": (("q", "v", "t", "p"), "gamma"),
+    "kinetic_energy": (("q", "v", "p"), "T"),
+    "potential_energy": (("q", "t", "p"), "V"),
+}
+
+
+class System:
+    """Symbolic equations of a planar mechanism in absolute coordinates.
+
+    Parameters
+    ----------
+    mechanism : casmbd.model.Mechanism
+        The validated description.
+    """
+
+    def __init__(self, mechanism):
+        mechanism.validate()
+        self.mechanism = mechanism
+        self.body_names = list(mechanism.bodies)
+        self.nq = 3 * len(self.body_names)
+        self.q = ca.SX.sym("q", self.nq)
+        self.v = ca.SX.sym("v", self.nq)
+        self.t = ca.SX.sym("t")
+        self.u = ca.SX.sym("u", len(mechanism.actuators))
+        self.p = ca.SX.sym("p", len(mechanism.parameters))
+        self.ctx = Context(mechanism, self.q, self.v, self.t, self.u, self.p)
+        self.coordinate_names = [f"{b}.{c}" for b in self.body_names for c in ("x", "y", "angle")]
+        self._functions: dict[str, ca.Function] = {}
+
+    # ------------------------------------------------------------------ helpers
+    def _value(self, value, where: str) -> ca.SX:
+        return resolve(value, self.t, self.ctx.p, where)
+
+    def _generalized(self, expr: ca.SX, weight: ca.SX) -> ca.SX:
+        """(∂expr/∂q)ᵀ weight: the generalized force of ``weight`` acting along ``expr``."""
+        return ca.mtimes(ca.jacobian(expr, self.q).T, weight)
+
+    @property
+    def parameter_values(self) -> np.ndarray:
+        """Default values of the parameters p."""
+        return np.array(list(self.mechanism.parameters.values()), dtype=float)
+
+    # ------------------------------------------------------------------ constraints
+    @cached_property
+    def _constraint_parts(self) -> tuple[ca.SX, list[Equation]]:
+        rows, labels = [], []
+        for joint in self.mechanism.joints.values():
+            eqs = ca.vec(joint.equations(self.ctx))
+            if eqs.numel() != len(joint.labels):
+                raise ModelError(f"joint '{joint.name}': {eqs.numel()} equations for labels "
+                                 f"{joint.labels}")
+            rows.append(eqs)
+            labels += [Equation("joint", joint.name, lab) for lab in joint.labels]
+        for driver in self.mechanism.drivers.values():
+            if driver.joint is not None:
+                coord = self.mechanism.joints[driver.joint].coordinate(self.ctx)
+            else:
+                k = ("x", "y", "angle").index(driver.coordinate)
+                coord = self.ctx.coordinates(driver.body)[k]
+            target = self._value(driver.position, f"driver '{driver.name}' field 'position'")
+            rows.append(coord - target)
+            labels.append(Equation("driver", driver.name, driver.coordinate or "coordinate"))
+        c = ca.vertcat(*rows) if rows else ca.SX(0, 1)
+        return c, labels
+
+    @property
+    def constraint_labels(self) -> list[Equation]:
+        """One :class:`Equation` per row of C."""
+        return self._constraint_parts[1]
+
+    @property
+    def nc(self) -> int:
+        """Number of constraint equations (joints and drivers)."""
+        return len(self.constraint_labels)
+
+    @cached_property
+    def constraints(self) -> ca.SX:
+        """C(q, t, p)."""
+        return self._constraint_parts[0]
+
+    @cached_property
+    def constraint_jacobian(self) -> ca.SX:
+        """C_q = ∂C/∂q, sparse."""
+        return ca.jacobian(self.constraints, self.q)
+
+    @cached_property
+    def constraint_time_derivative(self) -> ca.SX:
+        """C_t = ∂C/∂t (non-zero only on rheonomic rows)."""
+        return ca.jacobian(self.constraints, self.t)
+
+    @cached_property
+    def acceleration_rhs(self) -> ca.SX:
+        """γ with C_q q̈ = γ: γ = −∂(C_q v + C_t)/∂q · v − ∂(C_q v + C_t)/∂t."""
+        cdot = ca.mtimes(self.constraint_jacobian, self.v) + self.constraint_time_derivative
+        return -(ca.jtimes(cdot, self.q, self.v) + ca.jacobian(cdot, self.t))
+
+    # ------------------------------------------------------------------ inertia
+    def _mass_inertia(self, body) -> tuple[ca.SX, ca.SX]:
+        where = f"body '{body.name}' field"
+        return (self._value(body.mass, f"{where} 'mass'"),
+                self._value(body.inertia, f"{where} 'inertia'"))
+
+    @cached_property
+    def mass_matrix(self) -> ca.SX:
+        """Block-diagonal M(q, p) (seed 000, eqs. 6.22–6.23)."""
+        blocks = []
+        for name in self.body_names:
+            body = self.mechanism.bodies[name]
+            m, inertia = self._mass_inertia(body)
+            qi = self.ctx.coordinates(name)
+            jg = ca.jacobian(self.ctx.centre_of_mass(name), qi)
+            e_theta = ca.DM([[0.0], [0.0], [1.0]])
+            blocks.append(m * ca.mtimes(jg.T, jg) + inertia * ca.mtimes(e_theta, e_theta.T))
+        return ca.diagcat(*blocks)
+
+    @cached_property
+    def quadratic_velocity_forces(self) -> ca.SX:
+        """Q_v = −Σ m J_Gᵀ (J̇_G q̇): zero for centroidal frames (seed 000, eq. 6.37)."""
+        parts = []
+        for name in self.body_names:
+            body = self.mechanism.bodies[name]
+            i = self.ctx.index[name]
+            if body.is_centroidal:
+                parts.append(ca.SX.zeros(3))
+                continue
+            m, _ = self._mass_inertia(body)
+            qi, vi = self.q[i:i + 3], self.v[i:i + 3]
+            vel = ca.jtimes(self.ctx.centre_of_mass(name), qi, vi)
+            acc_quadratic = ca.jtimes(vel, qi, vi)
+            parts.append(-m * ca.mtimes(ca.jacobian(self.ctx.centre_of_mass(name), qi).T,
+                                        acc_quadratic))
+        return ca.vertcat(*parts)
+
+    @cached_property
+    def kinetic_energy(self) -> ca.SX:
+        """T = ½ vᵀ M v."""
+        return 0.5 * ca.bilin(self.mass_matrix, self.v, self.v)
+
+    # ------------------------------------------------------------------ forces
+    def _point_local(self, body: str, point) -> np.ndarray:
+        if point is None:
+            return np.zeros(2)
+        return self.ctx.local(body, point)
+
+    @cached_property
+    def applied_forces(self) -> ca.SX:
+        """Q_e(q, v, t, u, p): gravity, force elements, user forces and actuators."""
+        ctx, mech = self.ctx, self.mechanism
+        total = ca.SX.zeros(self.nq)
+        g = ca.DM(mech.gravity)
+        if np.any(mech.gravity):
+            for name in self.body_names:
+                m, _ = self._mass_inertia(mech.bodies[name])
+                total += self._generalized(ctx.centre_of_mass(name), m * g)
+        for force in mech.forces.values():
+            total += self._element_force(force)
+        for i, act in enumerate(mech.actuators.values()):
+            total += self._generalized(mech.joints[act.joint].coordinate(ctx), self.u[i])
+        return total
+
+    def _element_force(self, force) -> ca.SX:
+        ctx, where = self.ctx, f"force '{force.name}' field"
+        if isinstance(force, PointForce):
+            value = ca.vertcat(*[self._value(v, f"{where} 'value'") for v in force.value])
+            if force.frame == "body" and force.body != GROUND:
+                value = ca.mtimes(ctx.rotation(force.body), value)
+            pos = ctx.point(force.body, self._point_local(force.body, force.point))
+            return self._generalized(pos, value) if force.body != GROUND else 0
+        if isinstance(force, Torque):
+            value = self._value(force.value, f"{where} 'value'")
+            return self._generalized(ctx.angle(force.body), value)
+        if isinstance(force, SpringDamper):
+            length = self._spring_length(force)
+            rate = ca.jtimes(length, self.q, self.v)
+            tension = (self._value(force.stiffness, f"{where} 'stiffness'")
+                       * (length - self._value(force.free_length, f"{where} 'free_length'"))
+                       + self._value(force.damping, f"{where} 'damping'") * rate
+                       + self._value(force.actuator, f"{where} 'actuator'"))
+            return self._generalized(length, -tension)
+        if isinstance(force, RotationalSpringDamper):
+            phi = self.mechanism.joints[force.joint].coordinate(ctx)
+            rate = ca.jtimes(phi, self.q, self.v)
+            moment = (self._value(force.stiffness, f"{where} 'stiffness'")
+                      * (phi - self._value(force.free_angle, f"{where} 'free_angle'"))
+                      + self._value(force.damping, f"{where} 'damping'") * rate
+                      + self._value(force.actuator, f"{where} 'actuator'"))
+            return self._generalized(phi, -moment)
+        if isinstance(force, UserForce):
+            return self._user_force(force)
+        raise ModelError(f"force '{force.name}': unsupported type {type(force).__name__}")
+
+    def _spring_length(self, force: SpringDamper) -> ca.SX:
+        p1 = self.ctx.point(force.body1, self.ctx.local(force.body1, force.point1))
+        p2 = self.ctx.point(force.body2, self.ctx.local(force.body2, force.point2))
+        d = p2 - p1
+        return ca.sqrt(ca.dot(d, d))
+
+    def _user_force(self, force: UserForce) -> ca.SX:
+        where = f"force '{force.name}'"
+        try:
+            out = force.function(self.ctx)
+        except ModelError:
+            raise
+        except Exception as exc:  # a user's callable may raise anything
+            raise ModelError(f"{where}: the user function raised {type(exc).__name__}: "
+                             f"{exc}") from exc
+        if force.body is None:
+            vec = ca.SX(out)
+            if vec.shape != (self.nq, 1):
+                raise ModelError(f"{where}: generalized force must have shape ({self.nq}, 1), "
+                                 f"got {vec.shape}")
+            return vec
+        torque = None
+        if isinstance(out, tuple):
+            out, torque = out
+        vec = ca.SX(out)
+        if vec.numel() != 2:
+            raise ModelError(f"{where}: the force must have 2 components, got {vec.shape}")
+        pos = self.ctx.point(force.body, self._point_local(force.body, force.point))
+        total = self._generalized(pos, ca.vec(vec))
+        if torque is not None:
+            total += self._generalized(self.ctx.angle(force.body), ca.SX(torque))
+        return total
+
+    @cached_property
+    def potential_energy(self) -> ca.SX:
+        """V(q, t, p) of gravity and springs (other forces are not conservative)."""
+        ctx, mech = self.ctx, self.mechanism
+        total = ca.SX(0.0)
+        for name in self.body_names:
+            m, _ = self._mass_inertia(mech.bodies[name])
+            total -= m * ca.dot(ca.DM(mech.gravity), ctx.centre_of_mass(name))
+        for force in mech.forces.values():
+            where = f"force '{force.name}' field"
+            if isinstance(force, SpringDamper):
+                stretch = (self._spring_length(force)
+                           - self._value(force.free_length, f"{where} 'free_length'"))
+            elif isinstance(force, RotationalSpringDamper):
+                stretch = (mech.joints[force.joint].coordinate(ctx)
+                           - self._value(force.free_angle, f"{where} 'free_angle'"))
+            else:
+                continue
+            total += 0.5 * self._value(force.stiffness, f"{where} 'stiffness'") * stretch**2
+        return total
+
+    # ------------------------------------------------------------------ outputs
+    @cached_property
+    def joint_coordinate_names(self) -> list[str]:
+        """Joints that define a scalar coordinate, in declaration order."""
+        return [j.name for j in self.mechanism.joints.values() if j.has_coordinate]
+
+    def outputs_function(self) -> ca.Function:
+        """Body, marker and joint outputs of (q, v, a, t, p), every output a column.
+
+        Positions are stacked per point (x0, y0, x1, y1, …); velocities are J v and
+        accelerations J a + J̇ v of the same expressions.
+        """
+        if "outputs" not in self._functions:
+            ctx, mech = self.ctx, self.mechanism
+            a = ca.SX.sym("a", self.nq)
+            com = ca.vertcat(*[ctx.centre_of_mass(b) for b in self.body_names])
+            angles = ca.vertcat(*[ctx.angle(b) for b in self.body_names])
+            mk = [ctx.position(m.body, m.point) for m in mech.markers.values()]
+            markers = ca.vertcat(*mk) if mk else ca.SX(0, 1)
+            jc = [mech.joints[j].coordinate(ctx) for j in self.joint_coordinate_names]
+            joints = ca.vertcat(*jc) if jc else ca.SX(0, 1)
+            names, exprs = [], []
+            for label, expr in (("body_", com), ("angle_", angles), ("marker_", markers),
+                                ("joint_", joints)):
+                vel = ca.jtimes(expr, self.q, self.v)
+                acc = ca.jtimes(expr, self.q, a) + ca.jtimes(vel, self.q, self.v)
+                exprs += [expr, vel, acc]
+                names += [label + "positions", label + "velocities", label + "accelerations"]
+            self._functions["outputs"] = ca.Function(
+                "outputs", [self.q, self.v, a, self.t, self.p], exprs,
+                ["q", "v", "a", "t", "p"], names)
+        return self._functions["outputs"]
+
+    # ------------------------------------------------------------------ functions
+    def function(self, name: str) -> ca.Function:
+        """The named equation as a ``casadi.Function`` with named inputs and output."""
+        if name == "outputs":
+            return self.outputs_function()
+        if name not in SIGNATURES:
+            raise ModelError(f"unknown equation '{name}' (known: {', '.join(SIGNATURES)})")
+        if name not in self._functions:
+            inputs, output = SIGNATURES[name]
+            syms = [getattr(self, s) for s in inputs]
+            expr = getattr(self, name)
+            self._functions[name] = ca.Function(name, syms, [expr], list(inputs), [output])
+        return self._functions[name]
