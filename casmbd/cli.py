@@ -1,0 +1,198 @@
+"""Command-line interface: ``casmbd VERB SCENE [options]``.
+
+Verbs: ``info`` (coordinates, constraints, degrees of freedom, dependent equations) and
+``kinematics`` (positions, velocities and accelerations on a time grid).  Every verb prints a
+readable summary, or with ``--json`` exactly one JSON object on stdout; ``--out FILE.npz`` saves
+every array.  Errors end with a non-zero exit status and one ``error: …`` line on stderr
+(a traceback only with ``--debug``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from collections.abc import Sequence
+
+import numpy as np
+
+from casmbd.errors import CasmbdError
+
+EXIT_ERROR = 1
+EXIT_USAGE = 2
+
+
+class _UsageError(Exception):
+    pass
+
+
+class _Parser(argparse.ArgumentParser):
+    """ArgumentParser that reports one ``error: …`` line instead of usage + exit."""
+
+    def error(self, message: str):
+        raise _UsageError(message)
+
+
+def _positive_int(text: str) -> int:
+    try:
+        val = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if val < 1:
+        raise argparse.ArgumentTypeError(f"must be >= 1, got {val}")
+    return val
+
+
+def _positive_float(text: str) -> float:
+    try:
+        val = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(val) or val <= 0:
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
+    return val
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the ``casmbd`` command."""
+    parser = _Parser(prog="casmbd", description="Dynamics of constrained mechanisms on CasADi.")
+    parser.add_argument("--version", action="store_true", help="print the version and exit")
+    sub = parser.add_subparsers(dest="verb", parser_class=_Parser)
+
+    def common(p):
+        p.add_argument("scene", help="scene file (TOML)")
+        p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+        p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+        p.add_argument("--mode", choices=("auto", "compiled", "vm"), default="auto",
+                       help="compile equations to C (default auto) or use CasADi's VM")
+
+    p = sub.add_parser("info", help="coordinates, constraints, degrees of freedom")
+    common(p)
+    p = sub.add_parser("kinematics", help="kinematic analysis of a driven mechanism")
+    common(p)
+    p.add_argument("--t-end", type=_positive_float, required=True, help="final time [s]")
+    p.add_argument("--steps", type=_positive_int, required=True,
+                   help="number of intervals (N + 1 output times from 0 to T)")
+    p.add_argument("--out", help="save every array to this .npz file")
+    return parser
+
+
+# ---------------------------------------------------------------------- verbs
+def _load(args):
+    from casmbd.io.scene import load_scene
+
+    return load_scene(args.scene)
+
+
+def _cmd_info(args) -> tuple[dict, str]:
+    from casmbd.analysis.kinematics import info
+
+    data = info(_load(args), mode=args.mode)
+    lines = [f"mechanism '{data['name']}' (planar, {len(data['bodies'])} bodies)",
+             f"  coordinates ({data['n_coordinates']}): {', '.join(data['coordinates'])}",
+             f"  constraints: {data['n_constraints']} equations, rank {data['rank']}",
+             f"  degrees of freedom: {data['degrees_of_freedom']}"]
+    if data["redundant_equations"]:
+        lines.append("  redundant equations: " + ", ".join(
+            f"{d['joint']}.{d['equation']}" for d in data["redundant_equations"]))
+    else:
+        lines.append("  redundant equations: none")
+    if not data["assembled"]:
+        lines.append(f"  warning: {data['assembly_error']}")
+    return data, "\n".join(lines)
+
+
+def _summary_table(result) -> list[str]:
+    lines = []
+    for name in result.names["bodies"]:
+        b = result.body(name)
+        pos, ang = b["position"], b["angle"]
+        lines.append(f"  body {name:<14} x [{pos[:, 0].min():+.4g}, {pos[:, 0].max():+.4g}]  "
+                     f"y [{pos[:, 1].min():+.4g}, {pos[:, 1].max():+.4g}]  "
+                     f"angle [{ang.min():+.4g}, {ang.max():+.4g}]")
+    for name in result.names["joints"]:
+        c = result.joint(name)["coordinate"]
+        lines.append(f"  joint {name:<13} coordinate [{c.min():+.4g}, {c.max():+.4g}]")
+    return lines
+
+
+def _cmd_kinematics(args) -> tuple[dict, str]:
+    from casmbd.analysis.kinematics import kinematics
+
+    mech = _load(args)
+    result = kinematics(mech, t_end=args.t_end, steps=args.steps, mode=args.mode)
+    result.scene = getattr(mech, "scene_text", "")
+    if args.out:
+        result.save(args.out)
+    data = result.to_json()
+    s = result.stats
+    lines = [f"kinematics of '{mech.name}': {len(result.t)} times from {result.t[0]:g} to "
+             f"{result.t[-1]:g} s",
+             *_summary_table(result),
+             f"  max constraint violation {data['constraint_violation']:.3g}",
+             f"  build {s['build_seconds']:.3f} s ({'cache hit' if s['cache_hit'] else s['mode']})"
+             f", solve {s['solve_seconds']:.3f} s"]
+    if args.out:
+        lines.append(f"  saved {args.out}")
+    return data, "\n".join(lines)
+
+
+VERBS = {"info": _cmd_info, "kinematics": _cmd_kinematics}
+
+
+def _json_default(obj):
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, (np.floating, np.integer)):
+        return obj.item()
+    if isinstance(obj, np.bool_):
+        return bool(obj)
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``casmbd`` command; returns the exit status."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in argv
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except _UsageError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    if args.version:
+        from casmbd import __version__
+
+        print(__version__)
+        return 0
+    if not args.verb:
+        print("error: missing verb (one of: " + ", ".join(VERBS) + "); see casmbd --help",
+              file=sys.stderr)
+        return EXIT_USAGE
+    t0 = time.perf_counter()
+    try:
+        data, text = VERBS[args.verb](args)
+    except CasmbdError as exc:
+        if debug:
+            raise
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_ERROR
+    except Exception as exc:  # an unexpected failure still gets one clear line
+        if debug:
+            raise
+        print(f"error: internal error ({type(exc).__name__}): {exc}; rerun with --debug",
+              file=sys.stderr)
+        return EXIT_ERROR
+    if isinstance(data.get("stats"), dict):
+        data["stats"]["total_seconds"] = time.perf_counter() - t0
+    if args.json:
+        sys.stdout.write(json.dumps(data, default=_json_default, allow_nan=False) + "\n")
+    else:
+        print(text)
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
