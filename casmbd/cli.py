@@ -15,13 +15,15 @@ import math
 import sys
 import time
 from collections.abc import Sequence
+from pathlib import Path
 
 import numpy as np
 
-from casmbd.errors import CasmbdError
+from casmbd.errors import AnalysisError, CasmbdError
 
 EXIT_ERROR = 1
 EXIT_USAGE = 2
+MAX_STEPS = 10_000_000
 
 
 class _UsageError(Exception):
@@ -40,8 +42,8 @@ def _positive_int(text: str) -> int:
         val = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
-    if val < 1:
-        raise argparse.ArgumentTypeError(f"must be >= 1, got {val}")
+    if not 1 <= val <= MAX_STEPS:
+        raise argparse.ArgumentTypeError(f"must be between 1 and {MAX_STEPS}, got {text}")
     return val
 
 
@@ -80,7 +82,28 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 # ---------------------------------------------------------------------- verbs
+def _check_out(args) -> None:
+    """Fail before the analysis when ``--out`` cannot be written."""
+    out = getattr(args, "out", None)
+    if not out:
+        return
+    path = Path(out)
+    if path.is_dir():
+        raise AnalysisError(f"--out '{out}' is a directory; give a file name such as run.npz")
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir():
+        raise AnalysisError(f"--out '{out}': folder '{parent}' does not exist")
+
+
+def _save(result, out: str) -> None:
+    try:
+        result.save(out)
+    except OSError as exc:
+        raise AnalysisError(f"cannot write --out '{out}': {exc.strerror or exc}") from None
+
+
 def _load(args):
+    _check_out(args)
     from casmbd.io.scene import load_scene
 
     return load_scene(args.scene)
@@ -125,7 +148,7 @@ def _cmd_kinematics(args) -> tuple[dict, str]:
     result = kinematics(mech, t_end=args.t_end, steps=args.steps, mode=args.mode)
     result.scene = getattr(mech, "scene_text", "")
     if args.out:
-        result.save(args.out)
+        _save(result, args.out)
     data = result.to_json()
     s = result.stats
     lines = [f"kinematics of '{mech.name}': {len(result.t)} times from {result.t[0]:g} to "

@@ -59,6 +59,16 @@ def _worst_equations(model, residual: np.ndarray, count: int = 3) -> str:
     return "; ".join(f"{labels[i]} residual {residual[i]:.3g}" for i in order)
 
 
+def _finite_rows(model, values: np.ndarray, what: str, t: float) -> np.ndarray:
+    """Return ``values`` or raise naming the constraint equations where they are not finite."""
+    bad = np.flatnonzero(~np.isfinite(values))
+    if bad.size:
+        labels = model.system.constraint_labels
+        names = "; ".join(f"{labels[i]} ({what} = {values[i]})" for i in bad[:3])
+        raise AssemblyError(f"non-finite {what} at t = {t:g}: {names}")
+    return values
+
+
 def solve_linear(matrix: sp.spmatrix, rhs: np.ndarray, what: str, t: float) -> np.ndarray:
     """Solve a square sparse system, or the minimum-norm least-squares problem otherwise."""
     m, n = matrix.shape
@@ -97,8 +107,9 @@ def assemble(model, q0: np.ndarray, t: float = 0.0, fixed: Sequence[str | int] |
     it = 0
     while it < max_iter:
         if not np.all(np.isfinite(c)):
+            shown = np.where(np.isfinite(c), c, np.inf)
             raise AssemblyError(f"assembly at t = {t:g}: constraints are not finite at iteration "
-                                f"{it}: {_worst_equations(model, np.nan_to_num(c, nan=np.inf))}")
+                                f"{it}: {_worst_equations(model, shown)}")
         if norm <= tol:
             break
         jac = model.constraint_jacobian(q, t)[:, free]
@@ -141,7 +152,8 @@ def velocities(model, q: np.ndarray, t: float, v_guess: np.ndarray | None = None
     idx_fixed = coordinate_indices(model, fixed)
     free = np.setdiff1d(np.arange(model.nq), idx_fixed)
     jac = model.constraint_jacobian(q, t)
-    residual = -model.constraint_time_derivative(q, t) - jac @ v0
+    ct = _finite_rows(model, model.constraint_time_derivative(q, t), "C_t", t)
+    residual = -ct - jac @ v0
     dv = solve_linear(jac[:, free], residual, "constraint Jacobian", t)
     v = v0.copy()
     v[free] += dv
@@ -155,5 +167,6 @@ def accelerations(model, q: np.ndarray, v: np.ndarray, t: float,
     if model.nc == 0:
         return a0
     jac = model.constraint_jacobian(q, t)
-    residual = model.acceleration_rhs(q, v, t) - jac @ a0
+    gamma = _finite_rows(model, model.acceleration_rhs(q, v, t), "gamma", t)
+    residual = gamma - jac @ a0
     return a0 + solve_linear(jac, residual, "constraint Jacobian", t)

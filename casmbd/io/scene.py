@@ -57,6 +57,17 @@ _FORCE_KEYS = {
 _ACTUATOR_KEYS = {"name", "joint", "description"}
 
 
+def _finite(val: Any) -> float | None:
+    """float(val) if it is a finite real number (not bool), else None (also for huge ints)."""
+    if isinstance(val, bool) or not isinstance(val, (int, float)):
+        return None
+    try:
+        out = float(val)
+    except OverflowError:
+        return None
+    return out if math.isfinite(out) else None
+
+
 class _Entry:
     """One table entry with its location, for error messages."""
 
@@ -117,9 +128,10 @@ class _Entry:
         if isinstance(val, bool):
             raise self.error(key, f"expected a number, got {val!r}")
         if isinstance(val, (int, float)):
-            if not math.isfinite(val):
-                raise self.error(key, f"must be finite, got {val!r}")
-            return float(val)
+            out = _finite(val)
+            if out is None:
+                raise self.error(key, f"must be a finite number, got {str(val)[:40]}")
+            return out
         if isinstance(val, str):
             return evaluate_number(val, self.params, where=where)
         raise self.error(key, f"expected a number, got {type(val).__name__}")
@@ -133,10 +145,12 @@ class _Entry:
         val = self.data[key]
         if isinstance(val, bool) or not isinstance(val, (int, float, str)):
             raise self.error(key, f"expected a number or an expression string, got {val!r}")
-        if isinstance(val, (int, float)) and not math.isfinite(val):
-            raise self.error(key, f"must be finite, got {val!r}")
-        if isinstance(val, str):
-            self._check_expression(val, key)
+        if isinstance(val, (int, float)):
+            out = _finite(val)
+            if out is None:
+                raise self.error(key, f"must be a finite number, got {str(val)[:40]}")
+            return out
+        self._check_expression(val, key)
         return val
 
     def _check_expression(self, text: str, key: str) -> None:
@@ -175,17 +189,19 @@ def _build(data: dict, source: str) -> Mechanism:
         raise SceneError("[parameters]: expected a table of named numbers")
     params: dict[str, float] = {}
     for key, val in params_raw.items():
-        if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val):
-            raise SceneError(f"[parameters] key '{key}': expected a finite number, got {val!r}")
-        params[key] = float(val)
+        num = _finite(val)
+        if num is None:
+            raise SceneError(f"[parameters] key '{key}': expected a finite number, got "
+                             f"{str(val)[:40]!r}")
+        params[key] = num
 
     scene = _Entry("scene", None, data["scene"], params)
     scene.check_keys(_SCENE_KEYS)
     fmt = scene.data.get("format", FORMAT)
-    if fmt != FORMAT:
+    if isinstance(fmt, bool) or fmt != FORMAT:
         raise scene.error("format", f"unsupported format {fmt!r} (this casmbd reads {FORMAT})")
     dim = scene.data.get("dimension", 2)
-    if dim != 2:
+    if isinstance(dim, bool) or dim != 2:
         raise scene.error("dimension", f"unsupported dimension {dim!r} (planar scenes: 2)")
     coords = scene.data.get("coordinates", "absolute")
     if coords != "absolute":
@@ -276,6 +292,8 @@ def _add_joint(mech: Mechanism, e: _Entry, jtype: str, guarded) -> None:
             guarded(e, lambda: mech.add_fixed(name, body, point=e.vector("point", default=None,
                                                                         required=False)))
             return
+        if not (e.has("body1") and e.has("body2")):
+            raise e.error("body", "missing required key (or give 'body1' and 'body2')")
         b1, b2 = e.string("body1"), e.string("body2")
         point = e.vector("point", required=False)
         if GROUND in (b1, b2):
@@ -326,8 +344,11 @@ def _add_force(mech: Mechanism, e: _Entry, ftype: str, guarded) -> None:
 def _component(e: _Entry, raw: Any):
     if isinstance(raw, bool) or not isinstance(raw, (int, float, str)):
         raise e.error("value", f"expected a number or an expression string, got {raw!r}")
-    if isinstance(raw, (int, float)) and not math.isfinite(raw):
-        raise e.error("value", f"must be finite, got {raw!r}")
+    if isinstance(raw, (int, float)):
+        out = _finite(raw)
+        if out is None:
+            raise e.error("value", f"must be a finite number, got {str(raw)[:40]}")
+        return out
     if isinstance(raw, str):
         e._check_expression(raw, "value")
     return raw
@@ -366,7 +387,7 @@ def load_scene(path: str | os.PathLike) -> Mechanism:
     """Read a scene file and build its :class:`Mechanism` (see :func:`loads_scene`)."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")
     except FileNotFoundError:
         raise SceneError(f"scene file '{path}' not found") from None
     except (OSError, UnicodeDecodeError) as exc:

@@ -31,7 +31,7 @@ def vector2(value, where: str) -> np.ndarray:
     """Validate a finite 2-vector."""
     try:
         arr = np.asarray(value, dtype=float).reshape(-1)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise ModelError(f"{where}: expected a vector of 2 numbers, got {value!r}") from None
     if arr.shape != (2,):
         raise ModelError(f"{where}: expected a vector of 2 numbers, got {value!r}")
@@ -46,7 +46,7 @@ def scalar(value, where: str) -> float:
         raise ModelError(f"{where}: expected a number, got {value!r}")
     try:
         out = float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise ModelError(f"{where}: expected a number, got {value!r}") from None
     if not math.isfinite(out):
         raise ModelError(f"{where}: must be finite, got {value!r}")

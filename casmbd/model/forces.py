@@ -80,6 +80,10 @@ class SpringDamper:
         self.point2 = vector2(self.point2, f"{where} field 'point2'")
         if self.free_length is None:
             self.free_length = float(np.linalg.norm(self.point2 - self.point1))
+        if np.allclose(self.point1, self.point2):
+            raise ModelError(f"{where} fields 'point1', 'point2': the points coincide, so the "
+                             "line of action is undefined (use a rotational spring or offset "
+                             "the points)")
         for key in ("stiffness", "damping", "free_length", "actuator"):
             setattr(self, key, check_value(getattr(self, key), f"{where} field '{key}'"))
 

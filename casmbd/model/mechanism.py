@@ -61,17 +61,23 @@ class Mechanism:
     def _unique(self, table: dict, kind: str, name: str) -> str:
         if not isinstance(name, str) or not name:
             raise ModelError(f"{kind} name must be a non-empty string, got {name!r}")
-        if name in table or (kind == "body" and name == GROUND):
+        if kind == "body" and name == GROUND:
+            raise ModelError(f"body name '{GROUND}' is reserved for the ground")
+        if name in table:
             raise ModelError(f"duplicate {kind} name '{name}'")
         return name
 
     def _body(self, name: str, where: str) -> str:
+        if not isinstance(name, str):
+            raise ModelError(f"{where}: expected a body name (string), got {name!r}")
         if name != GROUND and name not in self.bodies:
             known = ", ".join([GROUND, *self.bodies]) or GROUND
             raise ModelError(f"{where}: unknown body '{name}' (known: {known})")
         return name
 
     def _joint(self, name: str, where: str, coordinate: bool = True) -> Joint:
+        if not isinstance(name, str):
+            raise ModelError(f"{where}: expected a joint name (string), got {name!r}")
         if name not in self.joints:
             known = ", ".join(self.joints) or "none"
             raise ModelError(f"{where}: unknown joint '{name}' (known: {known})")
@@ -87,6 +93,13 @@ class Mechanism:
         if body1 == body2:
             raise ModelError(f"{where}: body1 and body2 are the same body '{body1}'")
 
+    @staticmethod
+    def _nonnegative(name: str, **values) -> None:
+        for key, value in values.items():
+            value = check_value(value, f"force '{name}' field '{key}'")
+            if isinstance(value, float) and value < 0.0:
+                raise ModelError(f"force '{name}' field '{key}': must be >= 0, got {value}")
+
     # ------------------------------------------------------------------ parameters
     def add_parameter(self, name: str, value: float) -> str:
         """Declare a named symbolic parameter p with a default value."""
@@ -95,7 +108,7 @@ class Mechanism:
             raise ModelError(f"parameter '{name}': not a valid parameter name")
         try:
             val = float(value)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise ModelError(f"parameter '{name}': expected a number, got {value!r}") from None
         if isinstance(value, bool) or not math.isfinite(val):
             raise ModelError(f"parameter '{name}': must be a finite number, got {value!r}")
@@ -206,6 +219,7 @@ class Mechanism:
         """Translational spring-damper-actuator between two points (tension positive)."""
         self._unique(self.forces, "force", name)
         self._pair(body1, body2, f"force '{name}'")
+        self._nonnegative(name, stiffness=stiffness, damping=damping)
         return self._add_force(SpringDamper(name, body1, body2, point1, point2, stiffness,
                                             damping, free_length, actuator))
 
@@ -214,6 +228,7 @@ class Mechanism:
                                      actuator: Value = 0.0) -> RotationalSpringDamper:
         """Rotational spring-damper-actuator on the coordinate of a revolute joint."""
         self._unique(self.forces, "force", name)
+        self._nonnegative(name, stiffness=stiffness, damping=damping)
         joint_obj = self._joint(joint, f"force '{name}' field 'joint'")
         if not isinstance(joint_obj, Revolute):
             raise ModelError(f"force '{name}' field 'joint': joint '{joint}' is not revolute")

@@ -28,9 +28,13 @@ def check_value(value: Value, where: str) -> Value:
         raise ModelError(f"{where}: expected a number, an expression string or a callable, "
                          f"got {value!r}")
     if isinstance(value, (int, float)):
-        if not math.isfinite(value):
-            raise ModelError(f"{where}: value must be finite, got {value!r}")
-        return float(value)
+        try:
+            out = float(value)
+        except OverflowError:
+            out = math.inf
+        if not math.isfinite(out):
+            raise ModelError(f"{where}: value must be a finite number, got {str(value)[:40]}")
+        return out
     if isinstance(value, str) or callable(value) or isinstance(value, ca.SX):
         return value
     raise ModelError(f"{where}: expected a number, an expression string or a callable, "
