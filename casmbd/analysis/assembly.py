@@ -89,6 +89,8 @@ def assemble(model, q0: np.ndarray, t: float = 0.0, fixed: Sequence[str | int] |
              tol: float = 1e-11, max_iter: int = 50) -> AssemblyReport:
     """Newton-Raphson on C(q, t) = 0 from ``q0`` keeping the ``fixed`` coordinates.
 
+    Converged when max |C| <= ``tol`` · max(1, largest |x|, |y|): relative to the mechanism's size.
+
     Raises
     ------
     AssemblyError
@@ -102,6 +104,9 @@ def assemble(model, q0: np.ndarray, t: float = 0.0, fixed: Sequence[str | int] |
     free = np.setdiff1d(np.arange(model.nq), idx_fixed)
     if model.nc == 0:
         return AssemblyReport(q, 0, 0.0, np.zeros_like(q))
+    # residuals are lengths (or angles): scale the tolerance with the size of the mechanism
+    lengths = [i for i, n in enumerate(model.system.coordinate_names) if not n.endswith("angle")]
+    tol = tol * max(1.0, float(np.max(np.abs(q[lengths]), initial=0.0)))
     c = model.constraints(q, t)
     norm = float(np.max(np.abs(c)))
     it = 0

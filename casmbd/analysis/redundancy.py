@@ -47,12 +47,19 @@ def rank_report(jacobian, rtol: float = RANK_RTOL) -> RankReport:
     ----------
     jacobian : array or sparse matrix, shape (n_c, n_q)
     rtol : float
-        A singular value (or Gram–Schmidt residual norm) below ``rtol * σ_max`` counts as zero.
+        A singular value (or Gram–Schmidt residual norm) below ``rtol * σ_max`` of the row- and
+        column-equilibrated matrix counts as zero.
     """
     a = _dense(jacobian)
     m, n = a.shape
     if m == 0:
         return RankReport(n, 0, 0, [], 0.0, 0.0)
+    # Equilibrate rows and columns (rank-preserving) so that mixed units — lengths and angles,
+    # millimetres and kilometres — do not decide what counts as zero.
+    for axis in (1, 0):
+        norms = np.linalg.norm(a, axis=axis)
+        norms[norms == 0.0] = 1.0
+        a = a / (norms[:, None] if axis == 1 else norms[None, :])
     sigma = np.linalg.svd(a, compute_uv=False)
     smax = float(sigma[0]) if sigma.size else 0.0
     tol = rtol * max(smax, 1e-300)

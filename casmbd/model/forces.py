@@ -113,8 +113,8 @@ class RotationalSpringDamper:
 class UserForce:
     """A force given as CasADi expressions of the state.
 
-    ``function(ctx)`` receives the assembly context (``ctx.q``, ``ctx.v``, ``ctx.t``, ``ctx.u``
-    and ``ctx.p`` dicts by name, and helpers ``ctx.position(body, point)``,
+    ``function(ctx)`` receives the assembly context (CasADi symbols ``ctx.q``, ``ctx.v``,
+    ``ctx.t``; dicts by name ``ctx.u`` and ``ctx.p``; and helpers ``ctx.position(body, point)``,
     ``ctx.velocity(body, point)``, ``ctx.angle(body)``, ``ctx.joint_coordinate(name)``).
     With ``body`` given it returns the force (2-vector, global) at ``point`` — or a pair
     (force, torque); without ``body`` it returns a generalized force vector of length n_q.
