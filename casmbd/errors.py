@@ -45,3 +45,23 @@ class CompileError(CasmbdError):
 
 class AnalysisError(CasmbdError):
     """An analysis cannot run on this mechanism (e.g. kinematics of an undriven mechanism)."""
+
+
+class IntegratorError(CasmbdError):
+    """The time integrator failed; carries the time, the solver's flag and partial results.
+
+    Attributes
+    ----------
+    time : float
+        Time the integrator had reached (the last good output time if it is unknown).
+    flag : str
+        The solver's own return flag (e.g. ``CV_TOO_MUCH_WORK``).
+    partial : casmbd.results.Result or None
+        Results on the output grid up to the last time reached.
+    """
+
+    def __init__(self, message: str, time: float, flag: str, partial=None):
+        super().__init__(message)
+        self.time = time
+        self.flag = flag
+        self.partial = partial

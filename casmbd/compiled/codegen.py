@@ -206,8 +206,13 @@ def _vm_result(
 
 
 def _load(names: list[str], library: pathlib.Path) -> dict[str, casadi.Function]:
-    """Load every function of ``names`` from ``library`` with :func:`casadi.external`."""
-    return {fname: casadi.external(fname, str(library)) for fname in names}
+    """Load every function of ``names`` from ``library`` with :func:`casadi.external`.
+
+    A function compiled together with its ``jac_<name>`` companion gets exact Jacobians from
+    it; otherwise derivatives fall back to finite differences (``enable_fd``), which
+    integrators need only to set themselves up when no Newton iteration is used.
+    """
+    return {fname: casadi.external(fname, str(library), {"enable_fd": True}) for fname in names}
 
 
 def _write_atomic(path: pathlib.Path, text: str) -> None:

@@ -25,6 +25,9 @@ NEEDS: dict[str, tuple[str, ...]] = {
     "info": ("constraints", "constraint_jacobian"),
     "kinematics": ("constraints", "constraint_jacobian", "constraint_time_derivative",
                    "acceleration_rhs", "outputs"),
+    "dynamics": ("mass_matrix", "applied_forces", "quadratic_velocity_forces", "constraints",
+                 "constraint_jacobian", "constraint_time_derivative", "acceleration_rhs",
+                 "kinetic_energy", "potential_energy", "outputs", "joint_reactions"),
 }
 
 
@@ -45,15 +48,17 @@ class NumericModel:
         ``"outputs"``) or the name of an analysis in :data:`NEEDS`.
     mode : {"auto", "compiled", "vm"}
         Compile to C (with on-disk cache), or use CasADi's virtual machine.
+    extra : iterable of casadi.Function
+        Further Functions compiled into the same library (e.g. a dynamics formulation).
     """
 
     def __init__(self, system, functions: Iterable[str] | str = "kinematics",
-                 mode: str = "auto"):
+                 mode: str = "auto", extra: Iterable[ca.Function] = ()):
         t0 = time.perf_counter()
         self.system = system if isinstance(system, System) else System(system)
         names = NEEDS.get(functions, (functions,)) if isinstance(functions, str) else functions
         names = list(dict.fromkeys(names))
-        symbolic = [self.system.function(n) for n in names]
+        symbolic = [self.system.function(n) for n in names] + list(extra)
         t1 = time.perf_counter()
         self.functions, self.report = compile_functions(
             symbolic, name=_c_name(self.system.mechanism.name), mode=mode)
@@ -121,6 +126,14 @@ class NumericModel:
         """Q_e(q, v, t, u)."""
         u = np.zeros(len(self.system.mechanism.actuators)) if u is None else u
         return np.asarray(self.function("applied_forces")(q, v, t, u, self.p)).reshape(-1)
+
+    def kinetic_energy(self, q, v) -> float:
+        """T = ½ vᵀ M v."""
+        return float(self.function("kinetic_energy")(q, v, self.p))
+
+    def potential_energy(self, q, t: float) -> float:
+        """V(q, t) of gravity and springs."""
+        return float(self.function("potential_energy")(q, t, self.p))
 
     def quadratic_velocity_forces(self, q, v) -> np.ndarray:
         """Q_v(q, v)."""

@@ -334,11 +334,61 @@ class System:
                 ["q", "v", "a", "t", "p"], names)
         return self._functions["outputs"]
 
+    @cached_property
+    def joint_rows(self) -> dict[str, list[int]]:
+        """Rows of C belonging to each joint."""
+        rows: dict[str, list[int]] = {name: [] for name in self.mechanism.joints}
+        for i, lab in enumerate(self.constraint_labels):
+            if lab.kind == "joint":
+                rows[lab.element].append(i)
+        return rows
+
+    @cached_property
+    def driver_rows(self) -> dict[str, int]:
+        """Row of C of each driver."""
+        return {lab.element: i for i, lab in enumerate(self.constraint_labels)
+                if lab.kind == "driver"}
+
+    def reactions_function(self) -> ca.Function:
+        """Joint reactions (F_x, F_y, M) from the multipliers, one column per joint.
+
+        The generalized constraint force of joint k on body b is Q_c = −C_q,kbᵀ λ_k (seed 000,
+        eq. 6.145): a force (F_x, F_y) at the reference point R and a moment about R.  The
+        equipollent system at the joint point P is the same force and the moment
+        M_P = M_R − (r_P − R) × F (eqs. 6.146–6.151).  It is the action of body1 on body2,
+        expressed in the global frame (minus the action on body1 when body2 is the ground).
+        Driver multipliers are not included: a driver's effort is reported on its own.
+        """
+        if "joint_reactions" not in self._functions:
+            lam = ca.SX.sym("lambda", self.nc)
+            cq = self.constraint_jacobian
+            cols = []
+            for name, rows in self.joint_rows.items():
+                joint = self.mechanism.joints[name]
+                body, sign = (joint.body2, 1.0) if joint.body2 in self.ctx.index else \
+                    (joint.body1, -1.0)
+                i = self.ctx.index[body]
+                q_c = -ca.mtimes(cq[rows, i:i + 3].T, lam[rows]) * sign
+                point = joint.reaction_point()
+                if point is None:
+                    point = self.ctx.initial_position(joint.body2)
+                r_p = self.ctx.point(body, self.ctx.local(body, point))
+                arm = r_p - self.q[i:i + 2]
+                moment = q_c[2] - (arm[0] * q_c[1] - arm[1] * q_c[0])
+                cols.append(ca.vertcat(q_c[0], q_c[1], moment))
+            out = ca.horzcat(*cols) if cols else ca.SX(3, 0)
+            self._functions["joint_reactions"] = ca.Function(
+                "joint_reactions", [self.q, self.t, self.p, lam], [out],
+                ["q", "t", "p", "lambda"], ["reactions"])
+        return self._functions["joint_reactions"]
+
     # ------------------------------------------------------------------ functions
     def function(self, name: str) -> ca.Function:
         """The named equation as a ``casadi.Function`` with named inputs and output."""
         if name == "outputs":
             return self.outputs_function()
+        if name == "joint_reactions":
+            return self.reactions_function()
         if name not in SIGNATURES:
             raise ModelError(f"unknown equation '{name}' (known: {', '.join(SIGNATURES)})")
         if name not in self._functions:

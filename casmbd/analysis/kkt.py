@@ -1,0 +1,90 @@
+"""Accelerations and Lagrange multipliers from the sparse KKT system at one state.
+
+Seed 000, eq. 6.138::
+
+    [ M    C_qᵀ ] [ q̈ ]   [ Q_e + Q_v ]
+    [ C_q   0   ] [ λ  ] = [ γ         ]
+
+solved by sparse LU; when the matrix is singular (redundant constraints, singular poses) the
+minimum-norm least-squares solution is used, which gives the right q̈ and one admissible λ.
+The consistent start of a simulation (:func:`consistent_state`) assembles q, projects the
+initial velocities mass-orthogonally onto C_q q̇ = −C_t (seed 003, "mass-orthogonal
+projections"), and solves this system for q̈ and λ.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg as sla
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from casmbd.analysis.assembly import assemble
+
+
+def _solve_saddle(top_left: sp.spmatrix, cq: sp.spmatrix, rhs: np.ndarray) -> np.ndarray:
+    n, m = top_left.shape[0], cq.shape[0]
+    kkt = sp.bmat([[top_left, cq.T], [cq, None]], format="csc")
+    if m == 0:
+        return spla.spsolve(sp.csc_matrix(top_left), rhs).reshape(-1)
+    try:
+        with np.errstate(all="ignore"):
+            sol = spla.splu(kkt).solve(rhs)
+        if np.all(np.isfinite(sol)) and np.linalg.norm(kkt @ sol - rhs) <= \
+                1e-8 * max(1.0, np.linalg.norm(rhs)):
+            return sol
+    except RuntimeError:
+        pass
+    sol, *_ = sla.lstsq(kkt.toarray(), rhs, lapack_driver="gelsd")
+    del n
+    return sol
+
+
+def accelerations_and_multipliers(model, q, v, t: float, u=None) -> tuple[np.ndarray,
+                                                                           np.ndarray]:
+    """q̈ and λ of the augmented equations at (q, v, t) with actuator inputs ``u``."""
+    m_mat = model.mass_matrix(q)
+    force = model.applied_forces(q, v, t, u) + model.quadratic_velocity_forces(q, v)
+    if model.nc == 0:
+        return spla.spsolve(sp.csc_matrix(m_mat), force).reshape(-1), np.zeros(0)
+    cq = model.constraint_jacobian(q, t)
+    rhs = np.concatenate([force, model.acceleration_rhs(q, v, t)])
+    sol = _solve_saddle(m_mat, cq, rhs)
+    return sol[:model.nq], sol[model.nq:]
+
+
+def project_velocities(model, q, v, t: float) -> np.ndarray:
+    """Mass-orthogonal projection: argmin (v* − v)ᵀ M (v* − v) subject to C_q v* = −C_t."""
+    if model.nc == 0:
+        return np.array(v, dtype=float)
+    m_mat = model.mass_matrix(q)
+    cq = model.constraint_jacobian(q, t)
+    rhs = np.concatenate([m_mat @ v, -model.constraint_time_derivative(q, t)])
+    return _solve_saddle(m_mat, cq, rhs)[:model.nq]
+
+
+@dataclass
+class ConsistentState:
+    """A state that satisfies the constraints at position, velocity and acceleration level."""
+
+    q: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    lam: np.ndarray
+    position_change: float
+    velocity_change: float
+    assembly_iterations: int
+
+
+def consistent_state(model, q0, v0, t: float = 0.0, u=None,
+                     fixed=None) -> ConsistentState:
+    """Assemble q, project v and compute q̈, λ; report how much q and v were changed."""
+    q0 = np.asarray(q0, dtype=float)
+    v0 = np.asarray(v0, dtype=float)
+    rep = assemble(model, q0, t, fixed=fixed)
+    v = project_velocities(model, rep.q, v0, t)
+    a, lam = accelerations_and_multipliers(model, rep.q, v, t, u)
+    return ConsistentState(rep.q, v, a, lam, float(np.max(np.abs(rep.q - q0), initial=0.0)),
+                           float(np.max(np.abs(v - v0), initial=0.0)), rep.iterations)

@@ -1,0 +1,372 @@
+"""Forward dynamics: ``simulate`` and the reusable :class:`Simulator`.
+
+The run is: build the formulation (:mod:`casmbd.system.formulations`) and the post-processing
+Functions, compiled together into one cached library; find a consistent start (assemble q,
+project v mass-orthogonally, solve the KKT system for q̈ and λ — reported in ``stats``);
+integrate on the output grid in one call of the chosen integrator; then, at every output time,
+q̈ and λ from the sparse KKT system, joint reactions (seed 000, eqs. 6.145–6.151), driver
+efforts (−λ of the driver row: the generalized force the driver exerts along its coordinate),
+kinetic and potential energy, and the position and velocity constraint violations.
+"""
+
+from __future__ import annotations
+
+import re
+import time
+from collections.abc import Mapping
+
+import casadi as ca
+import numpy as np
+
+from casmbd.analysis import integrators as integ
+from casmbd.analysis.assembly import assemble
+from casmbd.analysis.kkt import (
+    accelerations_and_multipliers,
+    consistent_state,
+    project_velocities,
+)
+from casmbd.compiled.model import NumericModel
+from casmbd.errors import AnalysisError, CasmbdError, IntegratorError
+from casmbd.model.values import resolve
+from casmbd.results import Result
+from casmbd.system.equations import System
+from casmbd.system.formulations import FORMULATIONS, build
+
+#: default formulation and, per formulation, the default integrator (chosen by measurement:
+#: docs/performance.md)
+DEFAULT_FORMULATION = "index1"
+DEFAULT_INTEGRATOR = {"index1": "idas", "ggl": "idas", "kkt_ode": "adams",
+                      "augmented_lagrangian": "adams"}
+ODE_INTEGRATORS = ("cvodes", "adams", "rk4", "abm", "idas")
+DAE_INTEGRATORS = ("idas",)
+
+
+def _input_function(system: System, inputs: Mapping | None) -> ca.Function:
+    """u(t, p) of the actuators: given values/expressions, zero for the others."""
+    inputs = dict(inputs or {})
+    names = list(system.mechanism.actuators)
+    for key in inputs:
+        if key not in names:
+            raise AnalysisError(f"inputs: unknown actuator '{key}' (known: "
+                                f"{', '.join(names) or 'none'})")
+    exprs = [resolve(inputs[n], system.t, system.ctx.p, f"input of actuator '{n}'")
+             if n in inputs else ca.SX(0.0) for n in names]
+    u = ca.vertcat(*exprs) if exprs else ca.SX(0, 1)
+    return ca.Function("actuator_inputs", [system.t, system.p], [u], ["t", "p"], ["u"])
+
+
+def _with_inputs(dyn: ca.Function, ufun: ca.Function, n_params: int) -> ca.Function:
+    """Dynamics with p = parameters only: the actuator inputs come from u(t, p)."""
+    t = ca.MX.sym("t")
+    x = ca.MX.sym("x", dyn.sparsity_in("x"))
+    z = ca.MX.sym("z", dyn.sparsity_in("z"))
+    p = ca.MX.sym("p", n_params)
+    u = ca.MX.sym("u", dyn.sparsity_in("u"))
+    out = dyn(t=t, x=x, z=z, p=ca.vertcat(ufun(t, p), p), u=u)
+    return ca.Function("dynamics", [t, x, z, p, u],
+                       [out["ode"], out["alg"], out["quad"], out["zero"]],
+                       ca.dyn_in(), ca.dyn_out())
+
+
+_FLAG = re.compile(r'returned "([A-Z_]+)"')
+
+
+class Simulator:
+    """A mechanism compiled for one formulation, ready to integrate many times.
+
+    Parameters
+    ----------
+    mechanism : Mechanism or System
+    formulation : str
+        One of :data:`casmbd.system.formulations.FORMULATIONS` (default ``index1``).
+    inputs : mapping, optional
+        Actuator name -> value (number, expression string of ``t`` and parameters, callable).
+    mode : str
+        Compilation mode ("auto", "compiled", "vm").
+    formulation_options : mapping, optional
+        e.g. ``{"alpha": 5.0, "beta": 10.0}`` (Baumgarte), ``{"penalty": 1e8}``.
+    """
+
+    def __init__(self, mechanism, formulation: str | None = None, inputs: Mapping | None = None,
+                 mode: str = "auto", formulation_options: Mapping | None = None):
+        t0 = time.perf_counter()
+        self.formulation_name = formulation or DEFAULT_FORMULATION
+        if self.formulation_name not in FORMULATIONS:
+            raise AnalysisError(f"unknown formulation '{self.formulation_name}' (known: "
+                                f"{', '.join(FORMULATIONS)})")
+        system = mechanism if isinstance(mechanism, System) else System(mechanism)
+        self.formulation = build(system, self.formulation_name,
+                                 **dict(formulation_options or {}))
+        self.model = NumericModel(system, "dynamics", mode=mode,
+                                  extra=self.formulation.functions)
+        self.system = system
+        self.ufun = _input_function(system, inputs)
+        self.dyn = _with_inputs(self.model.function(self.formulation.function.name()),
+                                self.ufun, len(system.mechanism.parameters))
+        self.build_seconds = time.perf_counter() - t0
+
+    # ------------------------------------------------------------------ helpers
+    def inputs_at(self, t: float) -> np.ndarray:
+        """Actuator inputs u(t)."""
+        return np.asarray(self.ufun(t, self.model.p)).reshape(-1)
+
+    def _z0(self, a: np.ndarray, lam: np.ndarray) -> np.ndarray:
+        if self.formulation.kind == "ode":
+            return np.zeros(0)
+        z = [a, lam]
+        if self.formulation_name == "ggl":
+            z.append(np.zeros_like(lam))
+        return np.concatenate(z)
+
+    def _integrator_name(self, integrator: str | None) -> str:
+        name = integrator or DEFAULT_INTEGRATOR[self.formulation_name]
+        allowed = DAE_INTEGRATORS if self.formulation.kind == "dae" else ODE_INTEGRATORS
+        if name not in allowed:
+            raise AnalysisError(f"integrator '{name}' cannot integrate the "
+                                f"{self.formulation.kind.upper()} formulation "
+                                f"'{self.formulation_name}' (use one of {', '.join(allowed)})")
+        return name
+
+    # ------------------------------------------------------------------ run
+    def run(self, t_end: float, steps: int, t_start: float = 0.0,
+            integrator: str | None = None, rtol: float = 1e-8, atol: float | None = None,
+            q0=None, v0=None, projection: bool = False, step: float | None = None,
+            max_steps: int = 1_000_000) -> Result:
+        """Integrate from ``t_start`` to ``t_end`` with ``steps`` + 1 output times.
+
+        Raises
+        ------
+        IntegratorError
+            With the time, the solver's flag and message, and the results up to that time.
+        """
+        if not (isinstance(steps, (int, np.integer)) and steps >= 1):
+            raise AnalysisError(f"steps must be an integer >= 1, got {steps!r}")
+        if not (np.isfinite(t_end) and np.isfinite(t_start) and t_end > t_start):
+            raise AnalysisError(f"t_end must be finite and > t_start = {t_start}, got {t_end!r}")
+        for key, val in (("rtol", rtol), ("atol", atol if atol is not None else rtol)):
+            if not (np.isfinite(val) and val > 0):
+                raise AnalysisError(f"{key} must be a finite number > 0, got {val!r}")
+        atol = rtol if atol is None else atol
+        name = self._integrator_name(integrator)
+        mech = self.system.mechanism
+        model = self.model
+        grid = np.linspace(t_start, t_end, int(steps) + 1)
+        q0 = mech.initial_coordinates() if q0 is None else np.asarray(q0, float)
+        v0 = mech.initial_velocities() if v0 is None else np.asarray(v0, float)
+        start = consistent_state(model, q0, v0, t_start, self.inputs_at(t_start))
+        x0 = np.concatenate([start.q, start.v])
+        z0 = self._z0(start.a, start.lam)
+        nq = model.nq
+        stats: dict = {"formulation": self.formulation_name, "integrator": name,
+                       "rtol": rtol, "atol": atol, "projection": projection,
+                       "start_position_change": start.position_change,
+                       "start_velocity_change": start.velocity_change}
+        t0 = time.perf_counter()
+        failure = None
+        try:
+            xs, solver_stats = self._integrate(name, grid, x0, z0, rtol, atol, projection,
+                                               step, max_steps)
+        except (RuntimeError, CasmbdError) as exc:
+            failure = exc
+            xs, solver_stats = self._partial(name, grid, x0, z0, rtol, atol, step, max_steps)
+        solve_seconds = time.perf_counter() - t0
+        stats.update(solver_stats)
+        stats["solve_seconds"] = solve_seconds
+        stats["build_seconds"] = self.build_seconds
+        stats.update({k: v for k, v in model.report_dict.items() if k != "build_seconds"})
+        n_ok = xs.shape[0]
+        result = self._post(grid[:n_ok], xs[:, :nq], xs[:, nq:], stats)
+        if failure is not None:
+            t_fail = float(solver_stats.get("failure_time", grid[n_ok - 1]))
+            match = _FLAG.search(str(failure))
+            flag = match.group(1) if match else type(failure).__name__
+            msg = str(failure).strip().splitlines()[-1] if str(failure).strip() else flag
+            raise IntegratorError(
+                f"integrator '{name}' ({self.formulation_name}) failed at t = {t_fail:.6g} with "
+                f"{flag}: {msg}; results kept up to t = {grid[n_ok - 1]:.6g} "
+                f"({n_ok} of {len(grid)} output times)", t_fail, flag, result)
+        return result
+
+    def _params(self, t_k: float | None = None) -> np.ndarray:
+        p = self.model.p
+        return p if t_k is None else np.append(p, t_k)
+
+    def _integrate(self, name, grid, x0, z0, rtol, atol, projection, step, max_steps):
+        if projection:
+            return self._interval_by_interval(name, grid, x0, z0, rtol, atol, step, max_steps,
+                                              project=True)
+        if name in ("rk4", "abm"):
+            interval = grid[1] - grid[0]
+            n_sub = integ.substeps_for(interval, step)
+            f = integ.fixed_step_grid(self.dyn, name, interval, n_sub, len(grid) - 1)
+            xf = np.asarray(f(x0, self.model.p, grid[0]))
+            xs = np.vstack([x0, xf.T])
+            if not np.all(np.isfinite(xs)):
+                bad = int(np.argmax(~np.all(np.isfinite(xs), axis=1)))
+                raise IntegratorError(f"fixed-step {name} produced non-finite states",
+                                      grid[bad], "NON_FINITE", None)
+            n_rhs = (len(grid) - 1) * n_sub * (4 if name == "rk4" else 2)
+            return xs, {"steps": (len(grid) - 1) * n_sub, "rhs_evaluations": n_rhs,
+                        "jacobian_evaluations": 0, "step_size": interval / n_sub}
+        solver = integ.sundials(self.dyn, name, grid[0], grid[1:], rtol, atol, max_steps)
+        res = solver(x0=x0, z0=z0, p=self.model.p)
+        xs = np.vstack([x0, np.asarray(res["xf"]).T])
+        return xs, self._solver_stats(solver.stats())
+
+    @staticmethod
+    def _solver_stats(st: dict) -> dict:
+        return {"steps": int(st.get("nsteps", 0)),
+                "rhs_evaluations": int(st.get("nfevals", 0)),
+                "jacobian_evaluations": int(st.get("n_call_jacF", 0)),
+                "linear_setups": int(st.get("nlinsetups", 0)),
+                "error_test_failures": int(st.get("netfails", 0)),
+                "nonlinear_iterations": int(st.get("nniters", 0))}
+
+    def _interval_by_interval(self, name, grid, x0, z0, rtol, atol, step, max_steps,
+                              project: bool):
+        interval = grid[1] - grid[0]
+        model, nq = self.model, self.model.nq
+        shifted = integ.shifted(self.dyn)
+        if name in ("rk4", "abm"):
+            n_sub = integ.substeps_for(interval, step)
+            one = (integ.rk4 if name == "rk4" else integ.abm)(shifted, interval, n_sub)
+
+            def advance(x, z, t_k):
+                return np.asarray(one(x, self._params(t_k), 0.0)).reshape(-1), z, {}
+        else:
+            solver = integ.sundials(shifted, name, 0.0, [interval], rtol, atol, max_steps)
+
+            def advance(x, z, t_k):
+                r = solver(x0=x, z0=z, p=self._params(t_k))
+                return (np.asarray(r["xf"]).reshape(-1), np.asarray(r["zf"]).reshape(-1),
+                        self._solver_stats(solver.stats()))
+        xs = [np.asarray(x0, float)]
+        x, z = xs[0], z0
+        totals: dict = {}
+        for k in range(len(grid) - 1):
+            x, z, st = advance(x, z, grid[k])
+            for key, val in st.items():
+                totals[key] = totals.get(key, 0) + val
+            if project:
+                t = grid[k + 1]
+                q = assemble(model, x[:nq], t).q
+                v = project_velocities(model, q, x[nq:], t)
+                x = np.concatenate([q, v])
+                if self.formulation.kind == "dae":
+                    a, lam = accelerations_and_multipliers(model, q, v, t, self.inputs_at(t))
+                    z = self._z0(a, lam)
+            xs.append(x)
+        return np.vstack(xs), totals
+
+    def _partial(self, name, grid, x0, z0, rtol, atol, step, max_steps):
+        """Re-integrate interval by interval to keep every output before the failure."""
+        interval = grid[1] - grid[0]
+        shifted = integ.shifted(self.dyn)
+        xs = [np.asarray(x0, float)]
+        x, z = xs[0], z0
+        stats: dict = {}
+        if name in ("rk4", "abm"):
+            one = (integ.rk4 if name == "rk4" else integ.abm)(
+                shifted, interval, integ.substeps_for(interval, step))
+        else:
+            solver = integ.sundials(shifted, name, 0.0, [interval], rtol, atol, max_steps)
+        for k in range(len(grid) - 1):
+            try:
+                if name in ("rk4", "abm"):
+                    x = np.asarray(one(x, self._params(grid[k]), 0.0)).reshape(-1)
+                    if not np.all(np.isfinite(x)):
+                        raise RuntimeError('fixed step returned "NON_FINITE" states')
+                else:
+                    r = solver(x0=x, z0=z, p=self._params(grid[k]))
+                    x = np.asarray(r["xf"]).reshape(-1)
+                    z = np.asarray(r["zf"]).reshape(-1)
+            except RuntimeError:
+                if name not in ("rk4", "abm"):
+                    stats["failure_time"] = grid[k] + float(solver.stats().get("tcur", 0.0))
+                else:
+                    stats["failure_time"] = grid[k + 1]
+                break
+            xs.append(x)
+        return np.vstack(xs), stats
+
+    # ------------------------------------------------------------------ post-processing
+    def _post(self, grid, qs, vs, stats) -> Result:
+        model, system = self.model, self.system
+        n = len(grid)
+        acc = np.zeros_like(qs)
+        lam = np.zeros((n, model.nc))
+        pos_viol = np.zeros(n)
+        vel_viol = np.zeros(n)
+        kin = np.zeros(n)
+        pot = np.zeros(n)
+        us = np.zeros((n, len(system.mechanism.actuators)))
+        for k, t in enumerate(grid):
+            us[k] = self.inputs_at(t)
+            acc[k], lam[k] = accelerations_and_multipliers(model, qs[k], vs[k], t, us[k])
+            if model.nc:
+                pos_viol[k] = np.max(np.abs(model.constraints(qs[k], t)))
+                cdot = model.constraint_jacobian(qs[k], t) @ vs[k] + \
+                    model.constraint_time_derivative(qs[k], t)
+                vel_viol[k] = np.max(np.abs(cdot))
+            kin[k] = model.kinetic_energy(qs[k], vs[k])
+            pot[k] = model.potential_energy(qs[k], t)
+        outputs = model.outputs(qs, vs, acc, grid)
+        reac_f = model.function("joint_reactions").map(n)
+        reac = np.asarray(reac_f(qs.T, grid[None, :], np.tile(model.p[:, None], (1, n)),
+                                 lam.T)) if system.mechanism.joints else np.zeros((3, 0))
+        n_j = len(system.mechanism.joints)
+        reactions = reac.reshape(3, n, n_j, order="F").transpose(1, 2, 0) if n_j else \
+            np.zeros((n, 0, 3))
+        drivers = list(system.mechanism.drivers)
+        efforts = np.column_stack([-lam[:, system.driver_rows[d]] for d in drivers]) \
+            if drivers else np.zeros((n, 0))
+        names = {"coordinates": system.coordinate_names, "bodies": system.body_names,
+                 "markers": list(system.mechanism.markers),
+                 "joints": system.joint_coordinate_names,
+                 "all_joints": list(system.mechanism.joints), "drivers": drivers,
+                 "actuators": list(system.mechanism.actuators),
+                 "constraints": [str(lab) for lab in system.constraint_labels]}
+        arrays = {"q": qs, "v": vs, "a": acc, "lambda": lam, **outputs,
+                  "joint_reactions": reactions, "driver_efforts": efforts,
+                  "actuator_inputs": us, "kinetic_energy": kin, "potential_energy": pot,
+                  "total_energy": kin + pot, "constraint_violation": pos_viol,
+                  "velocity_violation": vel_viol}
+        return Result("simulation", grid, arrays, names, stats)
+
+
+def simulate(mechanism, t_end: float, steps: int, *, formulation: str | None = None,
+             integrator: str | None = None, rtol: float = 1e-8, atol: float | None = None,
+             t_start: float = 0.0, inputs: Mapping | None = None, projection: bool = False,
+             step: float | None = None, mode: str = "auto",
+             formulation_options: Mapping | None = None,
+             max_steps: int = 1_000_000) -> Result:
+    """Forward dynamics of a mechanism on a uniform output grid (one entry point).
+
+    Parameters
+    ----------
+    mechanism : Mechanism
+    t_end, steps : float, int
+        ``steps + 1`` output times from ``t_start`` to ``t_end`` inclusive.
+    formulation : str
+        ``index1`` (default), ``ggl``, ``kkt_ode``, ``augmented_lagrangian``.
+    integrator : str
+        ``idas``, ``cvodes``, ``adams``, ``rk4``, ``abm`` (default per formulation).
+    rtol, atol : float
+        Tolerances of the variable-step integrators.
+    inputs : mapping
+        Actuator inputs by name (number, expression of ``t``, callable).
+    projection : bool
+        Project q onto C = 0 and v onto C_q v + C_t = 0 at every output time.
+    step : float
+        Step size of the fixed-step integrators (default: output interval / 10).
+
+    Returns
+    -------
+    Result
+        ``kind == "simulation"`` with q, v, a, λ, joint reactions, driver efforts, energies,
+        constraint violations and solver statistics.
+    """
+    sim = Simulator(mechanism, formulation, inputs=inputs, mode=mode,
+                    formulation_options=formulation_options)
+    return sim.run(t_end, steps, t_start=t_start, integrator=integrator, rtol=rtol, atol=atol,
+                   projection=projection, step=step, max_steps=max_steps)
