@@ -97,13 +97,29 @@ class Result:
             joints[name]["coordinate"] = _list(j["coordinate"])
             if "velocity" in j:
                 joints[name]["velocity"] = _list(j["velocity"])
+        if "joint_reactions" in self.arrays:
+            for k, name in enumerate(self.names.get("all_joints", [])):
+                joints[name]["reaction"] = _list(self.arrays["joint_reactions"][:, k, :])
         markers = {name: {"position": _list(self.marker(name)["position"])}
                    for name in self.names["markers"]}
         cv = self.arrays.get("constraint_violation", np.zeros(len(self.t)))
-        return {"kind": self.kind, "t": _list(self.t), "bodies": bodies, "joints": joints,
-                "markers": markers,
-                "constraint_violation": float(np.max(cv)) if cv.size else 0.0,
-                "stats": self.stats}
+        out = {"kind": self.kind, "t": _list(self.t), "bodies": bodies, "joints": joints,
+               "markers": markers,
+               "constraint_violation": float(np.max(cv)) if cv.size else 0.0,
+               "stats": self.stats}
+        if "driver_efforts" in self.arrays:
+            out["drivers"] = {name: {"effort": _list(self.arrays["driver_efforts"][:, k])}
+                              for k, name in enumerate(self.names.get("drivers", []))}
+        if "actuator_inputs" in self.arrays:
+            out["actuators"] = {name: {"input": _list(self.arrays["actuator_inputs"][:, k])}
+                                for k, name in enumerate(self.names.get("actuators", []))}
+        if "kinetic_energy" in self.arrays:
+            out["energy"] = {key: _list(self.arrays[f"{key}_energy"])
+                             for key in ("kinetic", "potential", "total")}
+        if "velocity_violation" in self.arrays:
+            vv = self.arrays["velocity_violation"]
+            out["velocity_violation"] = float(np.max(vv)) if vv.size else 0.0
+        return out
 
     # ------------------------------------------------------------------ files
     def save(self, path: str | os.PathLike) -> Path:

@@ -102,6 +102,44 @@ def abm(dyn: ca.Function, interval: float, substeps: int) -> ca.Function:
     return ca.Function("abm", [x0, p, t0], [out[:nx, -1]])
 
 
+class CapturedOutput:
+    """Capture what C code (SUNDIALS) writes to file descriptor 2 inside a ``with`` block.
+
+    The solver's own diagnostic ("At t = … the corrector convergence failed …") becomes part
+    of the error message instead of stray lines on the terminal.
+    """
+
+    def __init__(self):
+        self.text = ""
+
+    def __enter__(self):
+        import os
+        import sys
+        import tempfile
+
+        sys.stderr.flush()
+        self._file = tempfile.TemporaryFile(mode="w+b")
+        self._saved = os.dup(2)
+        os.dup2(self._file.fileno(), 2)
+        return self
+
+    def __exit__(self, *exc):
+        import os
+
+        os.dup2(self._saved, 2)
+        os.close(self._saved)
+        self._file.seek(0)
+        self.text = self._file.read().decode("utf-8", "replace")
+        self._file.close()
+        return False
+
+    @property
+    def last_line(self) -> str:
+        """The last non-empty captured line."""
+        lines = [ln.strip() for ln in self.text.splitlines() if ln.strip()]
+        return lines[-1] if lines else ""
+
+
 def substeps_for(interval: float, step: float | None) -> int:
     """Number of fixed steps per output interval for a requested step size."""
     if step is None:
@@ -112,14 +150,23 @@ def substeps_for(interval: float, step: float | None) -> int:
 
 
 def sundials(dyn: ca.Function, plugin: str, t0: float, tout, rtol: float, atol: float,
-             max_steps: int) -> ca.Function:
-    """A CasADi SUNDIALS integrator from ``t0`` with outputs at the times ``tout``."""
+             max_steps: int, xdot0=None) -> ca.Function:
+    """A CasADi SUNDIALS integrator from ``t0`` with outputs at the times ``tout``.
+
+    For IDAS, ``xdot0`` (the state derivative at a consistent start) skips IDACalcIC, which
+    cannot handle index-2 systems; without it IDACalcIC computes the consistent derivatives.
+    """
     opts = {"reltol": rtol, "abstol": atol, "max_num_steps": max_steps,
-            "print_stats": False, "show_eval_warnings": False}
+            "print_stats": False, "show_eval_warnings": False,
+            "disable_internal_warnings": True}
     if plugin == "idas":
         name = "idas"
         # keep q̈ and λ out of the error test (they are determined by q and v)
-        opts.update({"suppress_algebraic": True, "calc_ic": True})
+        opts["suppress_algebraic"] = True
+        if xdot0 is None:
+            opts["calc_ic"] = True
+        else:
+            opts.update({"calc_ic": False, "init_xdot": [float(x) for x in xdot0]})
     elif plugin == "cvodes":
         name = "cvodes"
         opts.update({"linear_multistep_method": "bdf"})

@@ -36,7 +36,9 @@ from casmbd.system.formulations import FORMULATIONS, build
 #: docs/performance.md)
 DEFAULT_FORMULATION = "index1"
 DEFAULT_INTEGRATOR = {"index1": "idas", "ggl": "idas", "kkt_ode": "adams",
-                      "augmented_lagrangian": "adams"}
+                      "augmented_lagrangian": "adams", "partitioning": "adams",
+                      "nullspace": "adams"}
+NUMERIC_INTEGRATORS = ("cvodes", "adams")
 ODE_INTEGRATORS = ("cvodes", "adams", "rk4", "abm", "idas")
 DAE_INTEGRATORS = ("idas",)
 
@@ -120,7 +122,8 @@ class Simulator:
 
     def _integrator_name(self, integrator: str | None) -> str:
         name = integrator or DEFAULT_INTEGRATOR[self.formulation_name]
-        allowed = DAE_INTEGRATORS if self.formulation.kind == "dae" else ODE_INTEGRATORS
+        allowed = {"dae": DAE_INTEGRATORS, "ode": ODE_INTEGRATORS,
+                   "numeric": NUMERIC_INTEGRATORS}[self.formulation.kind]
         if name not in allowed:
             raise AnalysisError(f"integrator '{name}' cannot integrate the "
                                 f"{self.formulation.kind.upper()} formulation "
@@ -163,12 +166,16 @@ class Simulator:
                        "start_velocity_change": start.velocity_change}
         t0 = time.perf_counter()
         failure = None
+        captured = integ.CapturedOutput()
         try:
-            xs, solver_stats = self._integrate(name, grid, x0, z0, rtol, atol, projection,
-                                               step, max_steps)
+            with captured:
+                xs, solver_stats = self._integrate(name, grid, x0, z0, rtol, atol, projection,
+                                                   step, max_steps)
         except (RuntimeError, CasmbdError) as exc:
             failure = exc
-            xs, solver_stats = self._partial(name, grid, x0, z0, rtol, atol, step, max_steps)
+            with integ.CapturedOutput():
+                xs, solver_stats = self._partial(name, grid, x0, z0, rtol, atol, step,
+                                                 max_steps)
         solve_seconds = time.perf_counter() - t0
         stats.update(solver_stats)
         stats["solve_seconds"] = solve_seconds
@@ -180,10 +187,11 @@ class Simulator:
             t_fail = float(solver_stats.get("failure_time", grid[n_ok - 1]))
             match = _FLAG.search(str(failure))
             flag = match.group(1) if match else type(failure).__name__
-            msg = str(failure).strip().splitlines()[-1] if str(failure).strip() else flag
+            msg = captured.last_line or (str(failure).strip().splitlines()[-1]
+                                         if str(failure).strip() else flag)
             raise IntegratorError(
                 f"integrator '{name}' ({self.formulation_name}) failed at t = {t_fail:.6g} with "
-                f"{flag}: {msg}; results kept up to t = {grid[n_ok - 1]:.6g} "
+                f"{flag} ({msg}); results kept up to t = {grid[n_ok - 1]:.6g} "
                 f"({n_ok} of {len(grid)} output times)", t_fail, flag, result)
         return result
 
@@ -192,6 +200,11 @@ class Simulator:
         return p if t_k is None else np.append(p, t_k)
 
     def _integrate(self, name, grid, x0, z0, rtol, atol, projection, step, max_steps):
+        if self.formulation.kind == "numeric":
+            from casmbd.analysis import partitioning
+
+            return partitioning.integrate(self, name, grid, x0, rtol, atol, max_steps,
+                                          projection=projection)
         if projection:
             return self._interval_by_interval(name, grid, x0, z0, rtol, atol, step, max_steps,
                                               project=True)
@@ -260,6 +273,10 @@ class Simulator:
 
     def _partial(self, name, grid, x0, z0, rtol, atol, step, max_steps):
         """Re-integrate interval by interval to keep every output before the failure."""
+        if self.formulation.kind == "numeric":
+            from casmbd.analysis import partitioning
+
+            return partitioning.partial(self, name, grid, x0, rtol, atol, max_steps)
         interval = grid[1] - grid[0]
         shifted = integ.shifted(self.dyn)
         xs = [np.asarray(x0, float)]

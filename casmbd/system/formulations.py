@@ -31,7 +31,11 @@ import numpy as np
 from casmbd.errors import ModelError
 from casmbd.system.equations import System
 
-FORMULATIONS = ("index1", "ggl", "kkt_ode", "augmented_lagrangian")
+FORMULATIONS = ("index1", "ggl", "kkt_ode", "augmented_lagrangian", "partitioning",
+                "nullspace")
+#: formulations whose right-hand side is evaluated numerically (not a CasADi expression);
+#: they are integrated by :mod:`casmbd.analysis.partitioning`
+NUMERIC_FORMULATIONS = ("partitioning", "nullspace")
 
 
 @dataclass
@@ -194,6 +198,13 @@ def build(system: System, name: str, **options) -> Formulation:
     """Build the formulation ``name`` (one of :data:`FORMULATIONS`)."""
     builders = {"index1": index1, "ggl": ggl, "kkt_ode": kkt_ode,
                 "augmented_lagrangian": augmented_lagrangian}
+    if name in NUMERIC_FORMULATIONS:
+        # the numeric formulations use the model's equations only; the symbolic KKT ODE is
+        # kept as the Function compiled alongside (used for fixed-step references)
+        form = kkt_ode(system)
+        form.name = name
+        form.kind = "numeric"
+        return form
     if name not in builders:
         raise ModelError(f"unknown formulation '{name}' (known: {', '.join(FORMULATIONS)})")
     return builders[name](system, **options)
