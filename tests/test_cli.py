@@ -248,9 +248,9 @@ def test_missing_and_unknown_verb(capsys):
     status, _, err = run(capsys)
     assert status == 2
     assert_one_error_line(err, "verb")
-    status, _, err = run(capsys, "simulate", SLIDER_CRANK)
+    status, _, err = run(capsys, "teleport", SLIDER_CRANK)
     assert status == 2
-    assert_one_error_line(err, "simulate")
+    assert_one_error_line(err, "teleport")
 
 
 def test_scene_with_unknown_body(capsys, tmp_path):
