@@ -34,7 +34,7 @@ from casmbd.system.formulations import FORMULATIONS, build
 
 #: default formulation and, per formulation, the default integrator (chosen by measurement:
 #: docs/performance.md)
-DEFAULT_FORMULATION = "index1"
+DEFAULT_FORMULATION = "augmented_lagrangian"
 DEFAULT_INTEGRATOR = {"index1": "idas", "ggl": "idas", "kkt_ode": "adams",
                       "augmented_lagrangian": "adams", "partitioning": "adams",
                       "nullspace": "adams"}
@@ -43,7 +43,7 @@ ODE_INTEGRATORS = ("cvodes", "adams", "rk4", "abm", "idas")
 DAE_INTEGRATORS = ("idas",)
 
 
-def _input_function(system: System, inputs: Mapping | None) -> ca.Function:
+def _input_expression(system: System, inputs: Mapping | None) -> ca.SX:
     """u(t, p) of the actuators: given values/expressions, zero for the others."""
     inputs = dict(inputs or {})
     names = list(system.mechanism.actuators)
@@ -53,24 +53,11 @@ def _input_function(system: System, inputs: Mapping | None) -> ca.Function:
                                 f"{', '.join(names) or 'none'})")
     exprs = [resolve(inputs[n], system.t, system.ctx.p, f"input of actuator '{n}'")
              if n in inputs else ca.SX(0.0) for n in names]
-    u = ca.vertcat(*exprs) if exprs else ca.SX(0, 1)
-    return ca.Function("actuator_inputs", [system.t, system.p], [u], ["t", "p"], ["u"])
-
-
-def _with_inputs(dyn: ca.Function, ufun: ca.Function, n_params: int) -> ca.Function:
-    """Dynamics with p = parameters only: the actuator inputs come from u(t, p)."""
-    t = ca.MX.sym("t")
-    x = ca.MX.sym("x", dyn.sparsity_in("x"))
-    z = ca.MX.sym("z", dyn.sparsity_in("z"))
-    p = ca.MX.sym("p", n_params)
-    u = ca.MX.sym("u", dyn.sparsity_in("u"))
-    out = dyn(t=t, x=x, z=z, p=ca.vertcat(ufun(t, p), p), u=u)
-    return ca.Function("dynamics", [t, x, z, p, u],
-                       [out["ode"], out["alg"], out["quad"], out["zero"]],
-                       ca.dyn_in(), ca.dyn_out())
+    return ca.vertcat(*exprs) if exprs else ca.SX(0, 1)
 
 
 _FLAG = re.compile(r'returned "([A-Z_]+)"')
+_AT_T = re.compile(r"t = ([-+0-9.eE]+)")
 
 
 class Simulator:
@@ -97,15 +84,25 @@ class Simulator:
             raise AnalysisError(f"unknown formulation '{self.formulation_name}' (known: "
                                 f"{', '.join(FORMULATIONS)})")
         system = mechanism if isinstance(mechanism, System) else System(mechanism)
-        self.formulation = build(system, self.formulation_name,
+        u_expr = _input_expression(system, inputs)
+        self.ufun = ca.Function("actuator_inputs", [system.t, system.p], [u_expr],
+                                ["t", "p"], ["u"])
+        self.formulation = build(system, self.formulation_name, inputs=u_expr,
                                  **dict(formulation_options or {}))
         self.model = NumericModel(system, "dynamics", mode=mode,
                                   extra=self.formulation.functions)
         self.system = system
-        self.ufun = _input_function(system, inputs)
-        self.dyn = _with_inputs(self.model.function(self.formulation.function.name()),
-                                self.ufun, len(system.mechanism.parameters))
+        self.dyn = self.model.function(self.formulation.function.name())
+        self._solvers: dict = {}
         self.build_seconds = time.perf_counter() - t0
+
+    def _solver(self, key, factory):
+        """Integrator objects are built once per (method, grid, tolerances) and reused."""
+        if key not in self._solvers:
+            t0 = time.perf_counter()
+            self._solvers[key] = factory()
+            self._setup_seconds += time.perf_counter() - t0
+        return self._solvers[key]
 
     # ------------------------------------------------------------------ helpers
     def inputs_at(self, t: float) -> np.ndarray:
@@ -164,6 +161,7 @@ class Simulator:
                        "rtol": rtol, "atol": atol, "projection": projection,
                        "start_position_change": start.position_change,
                        "start_velocity_change": start.velocity_change}
+        self._setup_seconds = 0.0
         t0 = time.perf_counter()
         failure = None
         captured = integ.CapturedOutput()
@@ -176,15 +174,19 @@ class Simulator:
             with integ.CapturedOutput():
                 xs, solver_stats = self._partial(name, grid, x0, z0, rtol, atol, step,
                                                  max_steps)
-        solve_seconds = time.perf_counter() - t0
+        solve_seconds = time.perf_counter() - t0 - self._setup_seconds
         stats.update(solver_stats)
         stats["solve_seconds"] = solve_seconds
+        stats["setup_seconds"] = self._setup_seconds
         stats["build_seconds"] = self.build_seconds
         stats.update({k: v for k, v in model.report_dict.items() if k != "build_seconds"})
         n_ok = xs.shape[0]
         result = self._post(grid[:n_ok], xs[:, :nq], xs[:, nq:], stats)
         if failure is not None:
             t_fail = float(solver_stats.get("failure_time", grid[n_ok - 1]))
+            when = _AT_T.search(captured.text)
+            if when and not projection:
+                t_fail = float(when.group(1))
             match = _FLAG.search(str(failure))
             flag = match.group(1) if match else type(failure).__name__
             msg = captured.last_line or (str(failure).strip().splitlines()[-1]
@@ -211,7 +213,8 @@ class Simulator:
         if name in ("rk4", "abm"):
             interval = grid[1] - grid[0]
             n_sub = integ.substeps_for(interval, step)
-            f = integ.fixed_step_grid(self.dyn, name, interval, n_sub, len(grid) - 1)
+            f = self._solver((name, interval, n_sub, len(grid) - 1), lambda: integ.fixed_step_grid(
+                self.dyn, name, interval, n_sub, len(grid) - 1))
             xf = np.asarray(f(x0, self.model.p, grid[0]))
             xs = np.vstack([x0, xf.T])
             if not np.all(np.isfinite(xs)):
@@ -221,7 +224,9 @@ class Simulator:
             n_rhs = (len(grid) - 1) * n_sub * (4 if name == "rk4" else 2)
             return xs, {"steps": (len(grid) - 1) * n_sub, "rhs_evaluations": n_rhs,
                         "jacobian_evaluations": 0, "step_size": interval / n_sub}
-        solver = integ.sundials(self.dyn, name, grid[0], grid[1:], rtol, atol, max_steps)
+        solver = self._solver(
+            (name, tuple(grid), rtol, atol, max_steps),
+            lambda: integ.sundials(self.dyn, name, grid[0], grid[1:], rtol, atol, max_steps))
         res = solver(x0=x0, z0=z0, p=self.model.p)
         xs = np.vstack([x0, np.asarray(res["xf"]).T])
         return xs, self._solver_stats(solver.stats())
@@ -239,15 +244,21 @@ class Simulator:
                               project: bool):
         interval = grid[1] - grid[0]
         model, nq = self.model, self.model.nq
-        shifted = integ.shifted(self.dyn)
+        shifted = self._solver("shifted", lambda: integ.shifted(self.dyn))
         if name in ("rk4", "abm"):
             n_sub = integ.substeps_for(interval, step)
-            one = (integ.rk4 if name == "rk4" else integ.abm)(shifted, interval, n_sub)
+            one = self._solver((name, "interval", interval, n_sub), lambda: (
+                integ.rk4 if name == "rk4" else integ.abm)(shifted, interval, n_sub))
 
             def advance(x, z, t_k):
-                return np.asarray(one(x, self._params(t_k), 0.0)).reshape(-1), z, {}
+                x_new = np.asarray(one(x, self._params(t_k), 0.0)).reshape(-1)
+                return x_new, z, {"steps": n_sub, "rhs_evaluations":
+                                  n_sub * (4 if name == "rk4" else 2),
+                                  "jacobian_evaluations": 0}
         else:
-            solver = integ.sundials(shifted, name, 0.0, [interval], rtol, atol, max_steps)
+            solver = self._solver(
+                (name, "interval", interval, rtol, atol, max_steps),
+                lambda: integ.sundials(shifted, name, 0.0, [interval], rtol, atol, max_steps))
 
             def advance(x, z, t_k):
                 r = solver(x0=x, z0=z, p=self._params(t_k))

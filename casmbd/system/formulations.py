@@ -1,8 +1,9 @@
 """Forward-dynamics formulations built from the same symbolic equations.
 
 Every formulation is a CasADi Function with the integrator signature ``(t, x, z, p, u) ->
-(ode, alg, quad, zero)`` (``casadi.dyn_in()``/``dyn_out()``), where ``p`` stacks the actuator
-inputs and the model parameters.  The equations of motion are seed 000's augmented form
+(ode, alg, quad, zero)`` (``casadi.dyn_in()``/``dyn_out()``), where ``p`` are the model
+parameters; the actuator inputs are substituted as expressions of (t, p) before code generation,
+so the integrator calls one compiled function.  The equations of motion are seed 000's augmented form
 (eq. 6.138)::
 
     M q̈ + C_qᵀ λ = Q_e + Q_v,     C_q q̈ = γ
@@ -57,9 +58,7 @@ class Formulation:
 
 
 def _sym_inputs(system: System):
-    t, q, v = system.t, system.q, system.v
-    pu = ca.vertcat(system.u, system.p)
-    return t, q, v, pu
+    return system.t, system.q, system.v, system.p
 
 
 def _baumgarte_gamma(system: System, alpha: float, beta: float) -> ca.SX:
@@ -70,8 +69,13 @@ def _baumgarte_gamma(system: System, alpha: float, beta: float) -> ca.SX:
     return gamma - 2.0 * alpha * cdot - beta**2 * system.constraints
 
 
-def _forces(system: System) -> ca.SX:
-    return system.applied_forces + system.quadratic_velocity_forces
+def _forces(system: System, inputs: ca.SX | None) -> ca.SX:
+    """Q_e + Q_v with the actuator inputs u replaced by their expressions of (t, p)."""
+    forces = system.applied_forces + system.quadratic_velocity_forces
+    if system.u.numel() == 0:
+        return forces
+    u_expr = ca.SX.zeros(system.u.numel()) if inputs is None else inputs
+    return ca.substitute(forces, system.u, u_expr)
 
 
 def _dyn(name: str, t, x, z, p, ode, alg) -> ca.Function:
@@ -81,21 +85,22 @@ def _dyn(name: str, t, x, z, p, ode, alg) -> ca.Function:
                        ca.dyn_in(), ca.dyn_out())
 
 
-def index1(system: System, alpha: float = 0.0, beta: float = 0.0) -> Formulation:
+def index1(system: System, alpha: float = 0.0, beta: float = 0.0,
+           inputs: ca.SX | None = None) -> Formulation:
     """Semi-explicit index-1 DAE: x = (q, v), z = (q̈, λ)."""
     t, q, v, pu = _sym_inputs(system)
     a = ca.SX.sym("a", system.nq)
     lam = ca.SX.sym("lambda", system.nc)
     alg = ca.vertcat(
         ca.mtimes(system.mass_matrix, a) + ca.mtimes(system.constraint_jacobian.T, lam)
-        - _forces(system),
+        - _forces(system, inputs),
         ca.mtimes(system.constraint_jacobian, a) - _baumgarte_gamma(system, alpha, beta))
     f = _dyn("dyn_index1", t, ca.vertcat(q, v), ca.vertcat(a, lam), pu, ca.vertcat(v, a), alg)
     return Formulation("index1", "dae", f, system.nq, system.nq + system.nc, [f.jacobian()],
                        {"alpha": alpha, "beta": beta})
 
 
-def ggl(system: System) -> Formulation:
+def ggl(system: System, inputs: ca.SX | None = None) -> Formulation:
     """Gear–Gupta–Leimkuhler index-2 DAE: x = (q, v), z = (q̈, λ, μ)."""
     t, q, v, pu = _sym_inputs(system)
     a = ca.SX.sym("a", system.nq)
@@ -103,7 +108,7 @@ def ggl(system: System) -> Formulation:
     mu = ca.SX.sym("mu", system.nc)
     cq = system.constraint_jacobian
     alg = ca.vertcat(
-        ca.mtimes(system.mass_matrix, a) + ca.mtimes(cq.T, lam) - _forces(system),
+        ca.mtimes(system.mass_matrix, a) + ca.mtimes(cq.T, lam) - _forces(system, inputs),
         system.constraints,
         ca.mtimes(cq, v) + system.constraint_time_derivative)
     ode = ca.vertcat(v - ca.mtimes(cq.T, mu), a)
@@ -124,18 +129,19 @@ def _block_inverse(system: System) -> ca.SX:
     return ca.diagcat(*blocks)
 
 
-def kkt_ode(system: System, alpha: float = 0.0, beta: float = 0.0) -> Formulation:
+def kkt_ode(system: System, alpha: float = 0.0, beta: float = 0.0,
+            inputs: ca.SX | None = None) -> Formulation:
     """ODE on (q, v) with λ from the sparse Schur complement and an LDLᵀ solve."""
     t, q, v, pu = _sym_inputs(system)
     q_dot = v
     if system.nc == 0:
-        a = ca.mtimes(_block_inverse(system), _forces(system))
+        a = ca.mtimes(_block_inverse(system), _forces(system, inputs))
         f = _dyn("dyn_kkt_ode", t, ca.vertcat(q, v), ca.SX(0, 1), pu, ca.vertcat(q_dot, a),
                  ca.SX(0, 1))
         return Formulation("kkt_ode", "ode", f, system.nq, 0)
     minv = _block_inverse(system)
     cq = system.constraint_jacobian
-    minv_q = ca.mtimes(minv, _forces(system))
+    minv_q = ca.mtimes(minv, _forces(system, inputs))
     minv_ct = ca.mtimes(minv, cq.T)
     schur = ca.mtimes(cq, minv_ct)
     rhs = ca.mtimes(cq, minv_q) - _baumgarte_gamma(system, alpha, beta)
@@ -152,7 +158,8 @@ def kkt_ode(system: System, alpha: float = 0.0, beta: float = 0.0) -> Formulatio
 
 
 def augmented_lagrangian(system: System, penalty: float | None = None, iterations: int = 3,
-                         alpha: float = 5.0, beta: float = 10.0) -> Formulation:
+                         alpha: float = 20.0, beta: float = 20.0,
+                         inputs: ca.SX | None = None) -> Formulation:
     """ODE on (q, v) by the augmented-Lagrangian iteration with Baumgarte terms.
 
     ``penalty`` defaults to 1e7 times the ratio of the mean mass-matrix diagonal to the mean
@@ -160,7 +167,7 @@ def augmented_lagrangian(system: System, penalty: float | None = None, iteration
     """
     t, q, v, pu = _sym_inputs(system)
     if system.nc == 0:
-        return kkt_ode(system)
+        return kkt_ode(system, inputs=inputs)
     cq = system.constraint_jacobian
     if penalty is None:
         penalty = _default_penalty(system)
@@ -168,7 +175,7 @@ def augmented_lagrangian(system: System, penalty: float | None = None, iteration
         raise ModelError(f"augmented_lagrangian: penalty must be > 0, got {penalty}")
     gamma_b = _baumgarte_gamma(system, alpha, beta)
     k_mat = system.mass_matrix + penalty * ca.mtimes(cq.T, cq)
-    parts = ca.Function("al_parts", [t, q, v, pu], [k_mat, _forces(system), cq, gamma_b])
+    parts = ca.Function("al_parts", [t, q, v, pu], [k_mat, _forces(system, inputs), cq, gamma_b])
     tm, qm, vm, pm = (ca.MX.sym(n, s.sparsity()) for n, s in
                       (("t", t), ("q", q), ("v", v), ("p", pu)))
     k_x, f_x, cq_x, g_x = parts(tm, qm, vm, pm)
@@ -201,7 +208,7 @@ def build(system: System, name: str, **options) -> Formulation:
     if name in NUMERIC_FORMULATIONS:
         # the numeric formulations use the model's equations only; the symbolic KKT ODE is
         # kept as the Function compiled alongside (used for fixed-step references)
-        form = kkt_ode(system)
+        form = kkt_ode(system, inputs=options.get("inputs"))
         form.name = name
         form.kind = "numeric"
         return form

@@ -1,0 +1,199 @@
+"""Forward dynamics: closed forms, conservation laws and agreement between formulations."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.special import ellipk
+
+import casmbd
+from casmbd.analysis.simulate import Simulator, simulate
+from casmbd.errors import AnalysisError, IntegratorError
+
+G = 9.81
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _cache(tmp_path_factory):
+    mp = pytest.MonkeyPatch()
+    mp.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.mktemp("cache_dynamics")))
+    yield
+    mp.undo()
+
+
+def pendulum(length: float = 1.0, mass: float = 1.0) -> casmbd.Mechanism:
+    """Slender rod pinned at one end to the ground, released horizontally."""
+    m = casmbd.Mechanism("pendulum", gravity=(0.0, -G))
+    m.add_body("rod", mass, mass * length**2 / 12, (length / 2, 0.0))
+    m.add_revolute("pivot", "ground", "rod", (0.0, 0.0))
+    return m
+
+
+def double_pendulum() -> casmbd.Mechanism:
+    return casmbd.load_scene("examples/double_pendulum.toml")
+
+
+def physical_pendulum_period(length: float = 1.0) -> float:
+    """T = 4 sqrt(l_eq / g) K(k²=1/2) for release from the horizontal, l_eq = 2L/3."""
+    return 4.0 * np.sqrt((2.0 * length / 3.0) / G) * ellipk(0.5)
+
+
+def _crossing_time(t, angle):
+    """Time at which the angle comes back up through 0 (the end of the first period)."""
+    k = np.flatnonzero((angle[:-1] < 0.0) & (angle[1:] >= 0.0))[-1]
+    # cubic Hermite would need rates; a secant on a fine grid around the root is enough here
+    return t[k] - angle[k] * (t[k + 1] - t[k]) / (angle[k + 1] - angle[k])
+
+
+CASES = [("index1", "idas"), ("kkt_ode", "adams"), ("kkt_ode", "cvodes"),
+         ("augmented_lagrangian", "adams"), ("kkt_ode", "rk4"), ("kkt_ode", "abm")]
+
+
+@pytest.mark.parametrize(("formulation", "integrator"), CASES)
+def test_pendulum_period_elliptic_integral(formulation, integrator):
+    """Released horizontally, the rod passes the bottom at T/4 and 3T/4, T = 4 sqrt(l/g) K.
+
+    At the bottom the angular velocity is largest (ω² = 3g/L), so the angle error there turns
+    into a time error δt = δθ / ω; the period must hold to 1e-8 relative.
+    """
+    period = physical_pendulum_period()
+    sim = Simulator(pendulum(), formulation)
+    res = sim.run(period, 4, integrator=integrator, rtol=1e-12, atol=1e-12,
+                  step=period / 8000)
+    angle = res.body("rod")["angle"]
+    omega_bottom = np.sqrt(3 * G / 1.0)
+    for k in (1, 3):
+        time_error = abs(angle[k] + np.pi / 2) / omega_bottom
+        assert time_error / period <= 1e-8, (k, time_error)
+    assert abs(res.body("rod")["angular_velocity"][-1]) <= 1e-7
+
+
+def four_bar_undriven() -> casmbd.Mechanism:
+    """The crank-rocker example without its driver: a conservative one-DOF loop."""
+    m = casmbd.load_scene("examples/four_bar.toml")
+    m.drivers.clear()
+    m.bodies["crank"].angular_velocity = 3.0
+    return m
+
+
+@pytest.mark.parametrize("scene", ["pendulum", "four_bar"])
+def test_energy_drift_conservative(scene):
+    """Default formulation, 10 s at rtol 1e-10 (atol 1e-12): energy drift <= 1e-8 relative.
+
+    The scale is the larger of |E(0)| and the largest kinetic energy.  (The drift of every
+    formulation is tabulated in docs/performance.md.)
+    """
+    mech = pendulum() if scene == "pendulum" else four_bar_undriven()
+    res = simulate(mech, 10.0, 200, rtol=1e-10, atol=1e-12)
+    energy = res["total_energy"]
+    scale = max(abs(energy[0]), np.max(res["kinetic_energy"]))
+    assert np.max(np.abs(energy - energy[0])) / scale <= 1e-8
+
+
+def test_energy_drift_chaotic_double_pendulum():
+    """The chaotic double pendulum drifts more: <= 1e-7 of m g L over 10 s at 1e-10."""
+    res = simulate(double_pendulum(), 10.0, 200, formulation="kkt_ode", rtol=1e-10,
+                   atol=1e-10)
+    energy = res["total_energy"]
+    assert np.max(np.abs(energy - energy[0])) / (2 * G) <= 1e-7
+
+
+def test_free_two_rods_conserve_momentum():
+    """Two rods joined by a frictionless pin move freely (seed 003, §5.1): P and H constant."""
+    m = casmbd.Mechanism("two_rods")
+    m.add_body("a", 1.0, 1 / 12, (0.5, 0.0), velocity=(0.3, -0.2), angular_velocity=2.0)
+    m.add_body("b", 2.0, 2 * 0.25 / 12, (1.25, 0.0), angle=0.0, velocity=(-0.1, 0.4),
+               angular_velocity=-1.0)
+    m.add_revolute("pin", "a", "b", (1.0, 0.0))
+    res = simulate(m, 5.0, 100, formulation="kkt_ode", rtol=1e-12, atol=1e-12)
+    masses = np.array([1.0, 2.0])
+    inertias = np.array([1 / 12, 2 * 0.25 / 12])
+    pos = res["body_positions"].reshape(len(res.t), 2, 2)
+    vel = res["body_velocities"].reshape(len(res.t), 2, 2)
+    omega = res["angle_velocities"]
+    momentum = np.einsum("b,tbi->ti", masses, vel)
+    ang = (np.einsum("b,tb->t", masses, pos[:, :, 0] * vel[:, :, 1] - pos[:, :, 1] * vel[:, :, 0])
+           + omega @ inertias)
+    assert np.max(np.abs(momentum - momentum[0])) <= 1e-10
+    assert np.max(np.abs(ang - ang[0])) <= 1e-10
+
+
+def test_hanging_pendulum_reaction_equals_weight():
+    """At rest hanging down the pin carries m g upwards, no moment: 1e-10."""
+    m = casmbd.Mechanism("hanging", gravity=(0.0, -G))
+    m.add_body("rod", 2.5, 2.5 / 12, (0.0, -0.5), angle=-np.pi / 2)
+    m.add_revolute("pivot", "ground", "rod", (0.0, 0.0))
+    res = simulate(m, 1.0, 10, rtol=1e-10)
+    reaction = res["joint_reactions"][:, 0, :]
+    assert np.max(np.abs(reaction[:, 0])) <= 1e-10
+    assert np.max(np.abs(reaction[:, 1] - 2.5 * G)) <= 1e-10
+    assert np.max(np.abs(reaction[:, 2])) <= 1e-10
+
+
+def test_formulations_agree_on_double_pendulum():
+    """Every formulation reproduces the same motion at tight tolerance (1e-7)."""
+    ref = simulate(double_pendulum(), 2.0, 20, formulation="kkt_ode", integrator="adams",
+                   rtol=1e-12, atol=1e-12)
+    for formulation, integrator in [("index1", "idas"), ("augmented_lagrangian", "adams"),
+                                    ("kkt_ode", "cvodes"), ("kkt_ode", "rk4")]:
+        res = simulate(double_pendulum(), 2.0, 20, formulation=formulation,
+                       integrator=integrator, rtol=1e-11, atol=1e-11, step=1e-4)
+        assert np.max(np.abs(res["q"] - ref["q"])) <= 1e-7, formulation
+
+
+def test_driver_effort_of_driven_crank_matches_inverse_balance():
+    """A rod driven at constant speed in gravity: effort = m g (L/2) cos θ (no inertia)."""
+    m = casmbd.Mechanism("driven", gravity=(0.0, -G))
+    m.add_body("rod", 1.5, 1.5 / 12, (0.5, 0.0))
+    m.add_revolute("pivot", "ground", "rod", (0.0, 0.0))
+    m.add_driver("motor", "2*t", joint="pivot")
+    res = simulate(m, 1.0, 20, rtol=1e-10)
+    theta = 2.0 * res.t
+    assert np.max(np.abs(res["driver_efforts"][:, 0] - 1.5 * G * 0.5 * np.cos(theta))) < 1e-8
+
+
+def test_consistent_start_projects_velocities():
+    """An inconsistent initial velocity is projected (mass-orthogonally) and reported."""
+    m = pendulum()
+    m.bodies["rod"].velocity = np.array([1.0, 1.0])  # not tangent to the circle
+    res = simulate(m, 0.1, 2, rtol=1e-10)
+    assert res.stats["start_velocity_change"] > 0.1
+    assert res["velocity_violation"][0] < 1e-12
+
+
+def test_integrator_failure_keeps_partial_results(tmp_path):
+    res = None
+    with pytest.raises(IntegratorError) as info:
+        simulate(double_pendulum(), 5.0, 50, formulation="kkt_ode", integrator="adams",
+                 rtol=1e-10, max_steps=60)
+    err = info.value
+    assert err.flag == "CV_TOO_MUCH_WORK"
+    assert 0.0 < err.time < 5.0
+    assert "t = " in str(err)
+    res = err.partial
+    assert res is not None and 1 <= len(res.t) < 51
+    assert res.t[-1] <= err.time + 1e-12
+    assert err.time < res.t[-1] + 0.1 + 1e-12  # failed inside the next output interval
+    path = res.save(tmp_path / "partial.npz")
+    assert np.array_equal(casmbd.load(path)["q"], res["q"])
+
+
+def test_bad_options_raise():
+    with pytest.raises(AnalysisError, match="integrator 'rk4'"):
+        simulate(pendulum(), 1.0, 2, formulation="index1", integrator="rk4")
+    with pytest.raises(AnalysisError, match="formulation 'magic'"):
+        simulate(pendulum(), 1.0, 2, formulation="magic")
+    with pytest.raises(AnalysisError, match="rtol"):
+        simulate(pendulum(), 1.0, 2, rtol=-1.0)
+    with pytest.raises(AnalysisError, match="unknown actuator 'nope'"):
+        simulate(pendulum(), 1.0, 2, inputs={"nope": 1.0})
+
+
+def test_actuator_input_expression():
+    """A constant torque T on a free rotor: θ = T t² / (2 I) (1e-9)."""
+    m = casmbd.Mechanism("rotor")
+    m.add_body("disc", 1.0, 0.5, (0.0, 0.0))
+    m.add_revolute("axle", "ground", "disc", (0.0, 0.0))
+    m.add_actuator("motor", "axle")
+    res = simulate(m, 1.0, 10, inputs={"motor": "0.25"}, rtol=1e-12, atol=1e-12)
+    assert np.max(np.abs(res.body("disc")["angle"] - 0.25 * res.t**2 / (2 * 0.5))) < 1e-9
