@@ -3,8 +3,8 @@
 Every formulation is a CasADi Function with the integrator signature ``(t, x, z, p, u) ->
 (ode, alg, quad, zero)`` (``casadi.dyn_in()``/``dyn_out()``), where ``p`` are the model
 parameters; the actuator inputs are substituted as expressions of (t, p) before code generation,
-so the integrator calls one compiled function.  The equations of motion are seed 000's augmented form
-(eq. 6.138)::
+so the integrator calls one compiled function.  The equations of motion are seed 000's
+augmented form (eq. 6.138)::
 
     M q̈ + C_qᵀ λ = Q_e + Q_v,     C_q q̈ = γ
 
