@@ -197,3 +197,20 @@ def test_actuator_input_expression():
     m.add_actuator("motor", "axle")
     res = simulate(m, 1.0, 10, inputs={"motor": "0.25"}, rtol=1e-12, atol=1e-12)
     assert np.max(np.abs(res.body("disc")["angle"] - 0.25 * res.t**2 / (2 * 0.5))) < 1e-9
+
+
+@pytest.mark.parametrize("rtol", [1e-6, 1e-8, 1e-10])
+def test_parallelogram_stays_on_branch_default_formulation(rtol):
+    """Unit parallelogram, 10 s: ten collinear (singular) passes, the coupler never rotates.
+
+    On the anti-parallelogram branch the coupler angle and crank − rocker are O(1) radians, so
+    1e-3 separates the branches with a wide margin at every tolerance.
+    """
+    res = simulate(casmbd.load_scene("examples/parallelogram.toml"), 10.0, 1000, rtol=rtol)
+    crank = res.body("crank")["angle"]
+    rocker = res.body("rocker")["angle"]
+    coupler = res.body("coupler")["angle"]
+    passes = np.count_nonzero(np.diff(np.floor(crank / np.pi)) != 0)
+    assert passes == 10
+    assert np.max(np.abs(coupler)) <= 1e-3
+    assert np.max(np.abs(crank - rocker)) <= 1e-3
