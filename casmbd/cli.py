@@ -98,6 +98,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="project positions and velocities onto the constraints at every output")
     p.add_argument("--step", type=_positive_float, default=None,
                    help="step size of the fixed-step integrators rk4/abm")
+    p.add_argument("--max-steps", type=_positive_int, default=1_000_000,
+                   help="most steps per output interval of the variable-step integrators")
     p.add_argument("--out", help="save every array to this .npz file")
     return parser
 
@@ -191,7 +193,8 @@ def _cmd_simulate(args) -> tuple[dict, str]:
     try:
         result = simulate(mech, t_end=args.t_end, steps=args.steps, formulation=args.formulation,
                           integrator=args.integrator, rtol=args.rtol, atol=args.atol,
-                          projection=args.projection, step=args.step, mode=args.mode)
+                          projection=args.projection, step=args.step, mode=args.mode,
+                          max_steps=args.max_steps)
     except IntegratorError as exc:
         if args.out and exc.partial is not None:
             exc.partial.scene = getattr(mech, "scene_text", "")

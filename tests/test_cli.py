@@ -302,3 +302,49 @@ def test_absurd_step_count(capsys):
     assert status in (1, 2)
     line = assert_one_error_line(err, "steps")
     assert "internal error" not in line
+
+
+DOUBLE_PENDULUM = str(REPO_ROOT / "examples" / "double_pendulum.toml")
+
+
+def test_simulate_json_contract(capsys, tmp_path):
+    """simulate --json: the foundation keys plus reactions, efforts, energy and solver stats."""
+    out = tmp_path / "dp.npz"
+    status, stdout, _ = run(capsys, "simulate", DOUBLE_PENDULUM, "--t-end", "1", "--steps",
+                            "10", "--rtol", "1e-9", "--json", "--out", str(out))
+    assert status == 0
+    data = json.loads(stdout)
+    assert len(data["t"]) == 11 and data["t"][-1] == 1.0
+    for key in ("bodies", "joints", "drivers", "energy", "constraint_violation", "stats"):
+        assert key in data
+    for key in ("solve_seconds", "build_seconds", "steps", "rhs_evaluations",
+                "jacobian_evaluations"):
+        assert key in data["stats"]
+    assert len(data["joints"]["shoulder"]["reaction"]) == 11
+    assert len(data["joints"]["shoulder"]["reaction"][0]) == 3
+    # released at rest: the total energy stays at its initial value (zero) to the tolerance
+    assert max(abs(e) for e in data["energy"]["total"]) < 1e-6
+    assert data["constraint_violation"] < 1e-6
+    reloaded = results.load(out)
+    assert np.allclose(reloaded["total_energy"], data["energy"]["total"], rtol=0, atol=0)
+
+
+def test_simulate_rejects_bad_pairing(capsys):
+    status, _, err = run(capsys, "simulate", DOUBLE_PENDULUM, "--t-end", "1", "--steps", "2",
+                         "--formulation", "index1", "--integrator", "rk4")
+    assert status == 1
+    assert_one_error_line(err, "rk4", "index1")
+
+
+def test_simulate_failure_saves_partial_results(capsys, tmp_path):
+    """An integrator failure: one error line with time and flag, partial results saved."""
+    out = tmp_path / "partial.npz"
+    status, stdout, err = run(capsys, "simulate", DOUBLE_PENDULUM, "--t-end", "5", "--steps",
+                              "50", "--rtol", "1e-10", "--formulation", "kkt_ode",
+                              "--integrator", "adams", "--max-steps", "60", "--out", str(out))
+    assert status == 1
+    line = assert_one_error_line(err, "t = ", "CV_TOO_MUCH_WORK")
+    assert "partial results saved" in line
+    assert stdout == ""
+    partial = results.load(out)
+    assert len(partial.t) < 51
