@@ -98,8 +98,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="project positions and velocities onto the constraints at every output")
     p.add_argument("--step", type=_positive_float, default=None,
                    help="step size of the fixed-step integrators rk4/abm")
-    p.add_argument("--max-steps", type=_positive_int, default=1_000_000,
-                   help="most steps per output interval of the variable-step integrators")
+    p.add_argument("--max-steps", type=_positive_int, default=None,
+                   help="most steps per output interval of the variable-step integrators "
+                        "(default 500000; 20000 for partitioning/nullspace)")
     p.add_argument("--out", help="save every array to this .npz file")
     return parser
 

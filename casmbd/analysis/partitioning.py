@@ -1,41 +1,50 @@
 """Forward dynamics without multipliers in the state: coordinate partitioning and null space.
 
-Both formulations evaluate their right-hand side numerically (scipy/numpy around the compiled
-model equations) and are integrated by SUNDIALS CVODES through a :class:`casadi.Callback`
-(forward evaluation only; ``enable_fd`` lets CasADi difference it when CVODES-BDF asks for a
-Jacobian — Adams with functional iteration never does).  One integrator object covers a single
-output interval [0, h] on shifted time τ = t − t_k (t_k is the integrator's parameter), so the
-run goes output interval by output interval with the same object; between intervals the
-independent set may be re-selected and, with ``projection=True``, the state projected.
+Both formulations evaluate their right-hand side numerically (numpy around the compiled model
+equations) and are integrated by SUNDIALS CVODES through a :class:`casadi.Callback` (forward
+evaluation only; ``enable_fd`` lets CasADi difference it when CVODES-BDF asks for a Jacobian —
+Adams with functional iteration never does).  One integrator object covers one output interval
+[0, h] on shifted time τ = t − t_k (t_k is its parameter), so the run goes output interval by
+output interval with the same object; between intervals the independent set may be re-selected
+and, with ``projection=True``, q is assembled and v projected mass-orthogonally.  The model
+equations needed by a right-hand side are bundled into two CasADi Functions called through
+``Function.buffer`` (one call ≈ 1 µs instead of ≈ 50–100 µs per model Function).
 
 Generalized coordinate partitioning (Wehage; seed 000, "Elimination of Lagrange multipliers" and
 "Algorithm and sparse matrix implementation", eqs. 6.200–6.205)
 -----------------------------------------------------------------------------------------
 *Selection.*  Gaussian elimination with full (complete) pivoting on the dense C_q: at step k the
 entry of largest magnitude in the remaining block is swapped into the pivot position (row and
-column exchange).  After r = rank(C_q) steps the r pivot columns form the best-conditioned
-square block C_q,d found by the elimination; their coordinates are the *dependent* ones, the
-n_q − r columns never chosen as pivots are the *independent* coordinates q_i, and the r pivot
-rows are the independent equations (any remaining rows are redundant and are dropped).  The
-rank itself comes from :func:`casmbd.analysis.redundancy.rank_report` (SVD of the equilibrated
-Jacobian), so redundant constraints are handled.
+column exchange).  After r = rank(C_q) steps the r pivot columns give a square, well-conditioned
+block C_q,d; their coordinates are the *dependent* ones, the n_q − r columns never chosen as
+pivots are the *independent* coordinates q_i, and the r pivot rows are the independent
+equations (the other rows are redundant and are dropped).  The rank comes from
+:func:`casmbd.analysis.redundancy.rank_report` (SVD of the equilibrated Jacobian), so
+redundant constraints are handled.
 
 *State and right-hand side.*  The ODE state is y = (q_i, v_i).  At each evaluation
 
-1. q_i is set and the dependent q_d solved from C(q, t) = 0 by Newton-Raphson with the square
-   sparse matrix of eq. 6.201, [C_q; I_d] δq = [−C; 0] (I_d selects the independent
-   coordinates, so δq_i = 0), warm-started from the previous solution and re-using the previous
-   factorisation as long as it contracts (simplified Newton), re-factorising otherwise;
-2. the dependent velocities from the same matrix at the converged q (eq. 6.204):
-   [C_q; I_d] v = [−C_t; v_i];
-3. q̈ from the KKT system (:func:`casmbd.analysis.kkt.accelerations_and_multipliers`,
-   eq. 6.205), and the derivative (v_i, q̈_i) is returned.
+1. q_i is set and the dependent q_d solved from C(q, t) = 0 by Newton-Raphson, warm-started
+   from the previous solution.  The matrix of eq. 6.201, [C_q; I_d] δq = [−C; 0], forces
+   δq_i = 0, so each iteration is the dense LU solve C_q,d δq_d = −C (independent rows);
+2. the dependent velocities from the same block at the converged q (eqs. 6.202–6.204):
+   C_q,d v_d = −C_t − C_q,i v_i;
+3. q̈ from the KKT system of eq. 6.205 with the independent rows (:func:`kkt_accelerations`:
+   the equations and minimum-norm fallback of
+   :func:`casmbd.analysis.kkt.accelerations_and_multipliers`, dense), and (v_i, q̈_i) is
+   returned.
 
-*Re-selection* (seed 000, "Singular configurations").  After every output interval the
-condition number of the dependent block C_q,d is checked; when it exceeds
-``min(COND_LIMIT, COND_GROWTH × its value at selection)`` the independent set is chosen again at
-that state and the integration continues from it.  A failed interval is also retried once with a
-new selection.  ``stats["reselections"]`` counts the selections that changed the set.
+*Re-selection* (seed 000, "Singular configurations").  A partition is kept while cond(C_q,d)
+stays below its limit ``max(min(COND_LIMIT, COND_GROWTH·c₀), 10·c₀)`` (c₀: the value at
+selection).  After every output interval the limit is checked and, if exceeded, the independent
+set is chosen again at that state.  Inside an interval the right-hand side stops CVODES as soon
+as the limit is exceeded or Newton fails (a set that goes bad between two checks also makes the
+dependent solution jump between branches near the singular pose, which CVODES would otherwise
+grind through with tiny steps); the interval is then redone from its start with a fresh
+selection, in two halves with a check in between (recursively, at most ``MAX_SPLITS`` times).
+At a true singular configuration (rank drop of C_q, e.g. the collinear parallelogram) no
+independent set works and the run ends with an :class:`~casmbd.errors.IntegratorError`.
+``stats["reselections"]`` counts the selections that changed the set.
 
 Null-space (embedding) formulation (seed 000, "Elimination of Lagrange multipliers", SVD)
 ---------------------------------------------------------------------------------------
@@ -57,6 +66,10 @@ for long runs.
 
 from __future__ import annotations
 
+import contextlib
+import io
+import re
+import sys
 import weakref
 from dataclasses import dataclass
 
@@ -74,14 +87,21 @@ from casmbd.errors import AssemblyError, IntegratorError
 COND_LIMIT = 1e6
 #: re-select also when cond(C_q,d) grew by this factor since the selection
 COND_GROWTH = 100.0
-#: Newton tolerance on max |C| for the dependent coordinates, relative to the mechanism's size
-NEWTON_RTOL = 1e-13
+#: how often a failing interval may be halved (after a re-selection) before giving up
+MAX_SPLITS = 8
+#: Newton tolerance on max |C| for the dependent coordinates, relative to the mechanism's size:
+#: converged to round-off (the dependent coordinates amplify the residual by cond(C_q,d), and
+#: noise in them makes CVODES crawl near singular poses) ...
+NEWTON_RTOL = 1e-15
+#: ... or stalled (no more progress) below this residual
+NEWTON_FLOOR = 1e-11
 NEWTON_MAX_ITER = 30
 
 
 class _RhsError(Exception):
-    """The right-hand side cannot be evaluated at this (trial) state: reported to CVODES as
-    non-finite derivatives, so that it reduces the step instead of stopping."""
+    """The right-hand side cannot be evaluated at this state (no dependent solution, singular
+    or ill-conditioned dependent block, non-finite values).  Raised inside the callback it stops
+    CVODES with CV_RHSFUNC_FAIL (returning NaN instead would let CVODES accept NaN steps)."""
 
 
 # ---------------------------------------------------------------------------- CasADi bridge
@@ -95,6 +115,7 @@ class _RhsCallback(ca.Callback):
         self.calls = 0
         self.failures = 0
         self.t_last = 0.0
+        self.error: Exception | None = None
         self.construct(name, {"enable_fd": True, "fd_method": "forward"})
 
     def get_n_in(self):
@@ -122,9 +143,10 @@ class _RhsCallback(ca.Callback):
         x = np.asarray(arg[1], dtype=float).reshape(-1)
         try:
             out = self._rhs(t, x)
-        except (_RhsError, AssemblyError, np.linalg.LinAlgError, RuntimeError):
+        except (_RhsError, np.linalg.LinAlgError) as exc:
             self.failures += 1
-            out = np.full(self._nx, np.nan)
+            self.error = exc
+            raise
         return [out]
 
 
@@ -261,6 +283,11 @@ class Partition:
     rows: np.ndarray
     condition: float
 
+    @property
+    def limit(self) -> float:
+        """cond(C_q,d) beyond which the set is re-selected."""
+        return max(min(COND_LIMIT, COND_GROWTH * self.condition), 10.0 * self.condition)
+
     def names(self, coordinate_names) -> list[str]:
         """Names of the independent coordinates."""
         return [coordinate_names[i] for i in self.independent]
@@ -349,26 +376,24 @@ class _Partitioned:
         part = self.part
         q = self.q.copy()
         q[part.independent] = qi
-        # residuals are lengths (or angles): tolerance relative to the mechanism's size
-        tol = NEWTON_RTOL * max(1.0, float(np.max(np.abs(q[self.lengths]), initial=0.0)))
-        prev, step = np.inf, np.inf
+        # residuals are lengths (or angles): tolerances relative to the mechanism's size
+        scale = max(1.0, float(np.max(np.abs(q[self.lengths]), initial=0.0)))
+        prev = np.inf
         for it in range(NEWTON_MAX_ITER + 1):
             c, cq, ct = self.eq.kinematics(q, t)
             c = c[part.rows]
             norm = float(np.max(np.abs(c), initial=0.0))
             if not np.isfinite(norm):
                 raise _RhsError(f"non-finite constraints at t = {t:g}")
-            # converged, or stalled at round-off level after a negligible step
-            if norm <= tol or (step <= 1e-15 * max(1.0, float(np.max(np.abs(q))))
-                               and norm <= 1e3 * tol):
+            # converged to round-off, or no more progress at a round-off-sized residual
+            if norm <= NEWTON_RTOL * scale or (norm <= NEWTON_FLOOR * scale and
+                                               norm > 0.5 * prev):
                 self.q = q
                 return q, cq, ct
             if it == NEWTON_MAX_ITER or (it >= 2 and norm >= prev):
                 break
-            dq = _solve(cq[np.ix_(part.rows, part.dependent)], -c,
-                        "the dependent block of C_q", t)
-            q[part.dependent] += dq
-            step = float(np.max(np.abs(dq)))
+            q[part.dependent] += _solve(cq[np.ix_(part.rows, part.dependent)], -c,
+                                        "the dependent block of C_q", t)
             prev = norm
             self.newton_iterations += 1
         raise _RhsError(f"dependent coordinates did not converge at t = {t:g} "
@@ -381,6 +406,10 @@ class _Partitioned:
         v[part.independent] = vi
         if part.rows.size:
             block = cq[part.rows]
+            cond = np.linalg.cond(block[:, part.dependent])
+            if not cond <= part.limit:
+                raise _RhsError(f"the dependent block of C_q is ill-conditioned at t = {t:g} "
+                                f"(cond = {cond:.3g})")
             v[part.dependent] = _solve(block[:, part.dependent],
                                        -ct[part.rows] - block[:, part.independent] @ vi,
                                        "the dependent block of C_q", t)
@@ -466,6 +495,116 @@ class _Nullspace:
 _FAILED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
+class _Run:
+    """Output interval by output interval with one CVODES object per span length."""
+
+    def __init__(self, sim, name, grid, x0, rtol, atol, max_steps):
+        self.sim, self.model, self.nq = sim, sim.model, sim.model.nq
+        self.name, self.rtol, self.atol, self.max_steps = name, rtol, atol, max_steps
+        self.interval = float(grid[1] - grid[0])
+        self.partitioning = sim.formulation_name == "partitioning"
+        equations = _Equations(sim)
+        self.reselections = 0
+        if self.partitioning:
+            self.ode = _Partitioned(sim, equations, x0[:self.nq], float(grid[0]))
+            self.nx = 2 * self.ode.dof
+        else:
+            self.ode = _Nullspace(sim, equations)
+            self.nx = 2 * self.nq
+        self.callback = _RhsCallback("numeric_rhs_" + sim.formulation_name, self.nx,
+                                     self.ode) if self.nx else None
+        self.solvers: dict[int, ca.Function] = {}
+        self.totals = {"steps": 0, "rhs_evaluations": 0, "jacobian_evaluations": 0,
+                       "error_test_failures": 0, "nonlinear_iterations": 0}
+        self.splits = 0
+
+    # -------------------------------------------------------------- pieces
+    def _solver(self, depth: int) -> ca.Function:
+        if depth not in self.solvers:
+            self.solvers[depth] = _integrator(self.callback, self.nx, self.name,
+                                              self.interval / 2 ** depth, self.rtol, self.atol,
+                                              self.max_steps)
+        return self.solvers[depth]
+
+    def _attempt(self, x: np.ndarray, t: float, depth: int) -> np.ndarray:
+        """Integrate one span of length interval / 2**depth from (x, t); full state at its end."""
+        t_end = t + self.interval / 2 ** depth
+        y = self.ode.reduce(x) if self.partitioning else x
+        if self.nx:
+            solver = self._solver(depth)
+            self.callback.error = None
+            captured = io.StringIO()
+            try:
+                # a Python exception in the callback is printed by CasADi: keep it quiet
+                with contextlib.redirect_stderr(captured):
+                    res = solver(x0=y, p=t)
+            except RuntimeError as exc:
+                err = self.callback.error
+                if err is None:
+                    sys.stderr.write(captured.getvalue())
+                    raise
+                match = _FLAG.search(str(exc))
+                flag = match.group(1) if match else "CV_RHSFUNC_FAIL"
+                raise _RhsError(f'{err} (CVode returned "{flag}")') from exc
+            sys.stderr.write(captured.getvalue())
+            _add_solver_stats(self.totals, solver.stats())
+            y = np.asarray(res["xf"], dtype=float).reshape(-1)
+        x_new = self.ode.expand(t_end, y) if self.partitioning else y
+        if not np.all(np.isfinite(x_new)):
+            raise _RhsError(f"non-finite state at t = {t_end:g}")
+        return x_new
+
+    def reselect(self, x: np.ndarray, t: float) -> None:
+        """A fresh selection at (x, t); counted when the independent set changes."""
+        ode = self.ode
+        part = select_partition(self.model, x[:self.nq], t, ode.part.rows.size)
+        if not np.array_equal(part.independent, ode.part.independent):
+            self.reselections += 1
+        ode.set_partition(part)
+
+    def check(self, x: np.ndarray, t: float) -> None:
+        """Re-select when cond(C_q,d) exceeds the partition's limit."""
+        if self.partitioning and self.ode.part.rows.size:
+            cond = self.ode.condition(x[:self.nq], t)
+            if not cond <= self.ode.part.limit:
+                self.reselect(x, t)
+
+    def span(self, x: np.ndarray, t: float, depth: int = 0) -> np.ndarray:
+        """One span; when it fails (partitioning only), re-select and do it in two halves."""
+        try:
+            return self._attempt(x, t, depth)
+        except (RuntimeError, _RhsError) as exc:
+            # the step limit is the user's: not a reason to re-select
+            if not self.partitioning or depth >= MAX_SPLITS or "CV_TOO_MUCH_WORK" in str(exc):
+                raise
+        self.splits += 1
+        self.reselect(x, t)
+        half = self.interval / 2 ** (depth + 1)
+        x_mid = self.span(x, t, depth + 1)
+        self.check(x_mid, t + half)
+        return self.span(x_mid, t + half, depth + 1)
+
+    def stats(self, extra: dict) -> dict:
+        stats = dict(self.totals)
+        cb = self.callback
+        stats["rhs_callback_evaluations"] = cb.calls if cb else 0
+        stats["rhs_failures"] = cb.failures if cb else 0
+        stats["interval_splits"] = self.splits
+        if self.partitioning:
+            stats["reselections"] = self.reselections
+            stats["independent_coordinates"] = self.ode.part.names(
+                self.sim.system.coordinate_names)
+            stats["newton_iterations"] = self.ode.newton_iterations
+            stats["dependent_condition"] = self.ode.part.condition
+        else:
+            stats["constraint_rank"] = self.ode.rank
+        stats.update(extra)
+        return stats
+
+
+_FLAG = re.compile(r'returned "([A-Z_]+)"')
+
+
 def _project(model, x: np.ndarray, t: float) -> np.ndarray:
     nq = model.nq
     q = assemble(model, x[:nq], t).q
@@ -482,91 +621,36 @@ def _add_solver_stats(totals: dict, st: dict) -> None:
 
 
 def _run(sim, name, grid, x0, rtol, atol, max_steps, projection: bool, keep_partial: bool):
-    model, nq = sim.model, sim.model.nq
     grid = np.asarray(grid, dtype=float)
-    interval = float(grid[1] - grid[0])
     x = np.array(x0, dtype=float)
+    run = _Run(sim, name, grid, x, rtol, atol, max_steps)
     xs = [x]
-    totals = {"steps": 0, "rhs_evaluations": 0, "jacobian_evaluations": 0,
-              "error_test_failures": 0, "nonlinear_iterations": 0}
-    partitioning = sim.formulation_name == "partitioning"
-    equations = _Equations(sim)
-    if partitioning:
-        ode = _Partitioned(sim, equations, x[:nq], float(grid[0]))
-        nx = 2 * ode.dof
-        reselections = 0
-    else:
-        ode = _Nullspace(sim, equations)
-        nx = 2 * nq
-    callback = _RhsCallback("numeric_rhs_" + sim.formulation_name, nx, ode) if nx else None
-    solver = _integrator(callback, nx, name, interval, rtol, atol, max_steps) if nx else None
-
-    def finish(stats_extra: dict) -> dict:
-        stats = dict(totals)
-        stats["rhs_callback_evaluations"] = callback.calls if callback else 0
-        stats["rhs_failures"] = callback.failures if callback else 0
-        if partitioning:
-            stats["reselections"] = reselections
-            stats["independent_coordinates"] = ode.part.names(sim.system.coordinate_names)
-            stats["newton_iterations"] = ode.newton_iterations
-            stats["condition_number"] = ode.part.condition
-        else:
-            stats["constraint_rank"] = ode.rank
-        stats.update(stats_extra)
-        return stats
-
-    def advance(x: np.ndarray, t_k: float) -> np.ndarray:
-        t_next = t_k + interval
-        if partitioning:
-            y = ode.reduce(x)
-            if nx:
-                res = solver(x0=y, p=t_k)
-                _add_solver_stats(totals, solver.stats())
-                y = np.asarray(res["xf"], dtype=float).reshape(-1)
-            return ode.expand(t_next, y)
-        res = solver(x0=x, p=t_k)
-        _add_solver_stats(totals, solver.stats())
-        return np.asarray(res["xf"], dtype=float).reshape(-1)
-
     for k in range(len(grid) - 1):
         t_k, t_next = float(grid[k]), float(grid[k + 1])
         try:
-            try:
-                x_new = advance(x, t_k)
-            except (RuntimeError, _RhsError):
-                if not partitioning:
-                    raise
-                # retry once from the interval start with a fresh selection
-                part = select_partition(model, x[:nq], t_k, ode.part.rows.size)
-                if np.array_equal(part.independent, ode.part.independent):
-                    raise
-                ode.set_partition(part)
-                reselections += 1
-                x_new = advance(x, t_k)
-            if not np.all(np.isfinite(x_new)):
-                raise _RhsError(f"non-finite state at t = {t_next:g}")
+            x_new = run.span(x, t_k)
+            if projection:
+                x_new = _project(run.model, x_new, t_next)
         except (RuntimeError, _RhsError, AssemblyError) as exc:
-            t_fail = max(t_k, min(callback.t_last if callback else t_k, t_next))
+            t_fail = min(max(run.callback.t_last, t_k), t_next) if run.callback else t_k
+            stats = run.stats({"failure_time": t_fail})
             if keep_partial:
-                return np.vstack(xs), finish({"failure_time": t_fail})
-            _FAILED[sim] = ((name, grid.tobytes(), np.asarray(x0, float).tobytes(), rtol, atol,
-                             max_steps), np.vstack(xs), finish({"failure_time": t_fail}))
+                return np.vstack(xs), stats
+            _FAILED[sim] = (_key(name, grid, x0, rtol, atol, max_steps), np.vstack(xs), stats)
             if isinstance(exc, RuntimeError):
                 raise
-            flag = "RHS_FAILURE"
-            raise IntegratorError(str(exc), t_fail, flag, None) from exc
+            match = _FLAG.search(str(exc))
+            raise IntegratorError(str(exc), t_fail, match.group(1) if match else
+                                  type(exc).__name__, None) from exc
         x = x_new
-        if projection:
-            x = _project(model, x, t_next)
-        if partitioning and ode.part.rows.size:
-            cond = ode.condition(x[:nq], t_next)
-            if cond > min(COND_LIMIT, COND_GROWTH * ode.part.condition):
-                part = select_partition(model, x[:nq], t_next, ode.part.rows.size)
-                if not np.array_equal(part.independent, ode.part.independent):
-                    reselections += 1
-                ode.set_partition(part)
+        run.check(x, t_next)
         xs.append(x)
-    return np.vstack(xs), finish({})
+    return np.vstack(xs), run.stats({})
+
+
+def _key(name, grid, x0, rtol, atol, max_steps) -> tuple:
+    return (name, np.asarray(grid, float).tobytes(), np.asarray(x0, float).tobytes(), rtol,
+            atol, max_steps)
 
 
 def integrate(sim, name: str, grid, x0, rtol: float, atol: float, max_steps: int,
@@ -589,15 +673,20 @@ def integrate(sim, name: str, grid, x0, rtol: float, atol: float, max_steps: int
     xs : array, shape (len(grid), 2 n_q)
         Full [q; v] at the output times.
     stats : dict
-        ``steps``, ``rhs_evaluations``, ``jacobian_evaluations`` (summed over the intervals),
-        and for partitioning ``reselections`` and ``independent_coordinates`` (last set).
+        ``steps``, ``rhs_evaluations``, ``jacobian_evaluations``, ``error_test_failures``,
+        ``nonlinear_iterations`` (CVODES counters summed over the intervals),
+        ``rhs_callback_evaluations`` (including finite differences), ``rhs_failures``,
+        ``interval_splits``; for partitioning ``reselections``, ``independent_coordinates``
+        (names, last set), ``newton_iterations`` and ``dependent_condition`` (cond(C_q,d) at
+        the last selection); for null space ``constraint_rank``.
 
     Raises
     ------
     RuntimeError
         The CasADi/CVODES failure message (the caller then calls :func:`partial`).
     IntegratorError
-        When the dependent coordinates cannot be found at an output time.
+        When the right-hand side itself fails (no dependent solution, ill-conditioned block
+        even after re-selection and halving): flag ``CV_RHSFUNC_FAIL``.
     """
     return _run(sim, name, grid, x0, rtol, atol, max_steps, projection, keep_partial=False)
 
@@ -609,8 +698,7 @@ def partial(sim, name: str, grid, x0, rtol: float, atol: float,
     Re-uses the outputs of a failed :func:`integrate` call with the same arguments instead of
     integrating again.
     """
-    key = (name, np.asarray(grid, float).tobytes(), np.asarray(x0, float).tobytes(), rtol, atol,
-           max_steps)
+    key = _key(name, grid, x0, rtol, atol, max_steps)
     cached = _FAILED.pop(sim, None)
     if cached is not None and cached[0] == key:
         return cached[1], cached[2]

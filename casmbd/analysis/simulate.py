@@ -131,7 +131,7 @@ class Simulator:
     def run(self, t_end: float, steps: int, t_start: float = 0.0,
             integrator: str | None = None, rtol: float = 1e-8, atol: float | None = None,
             q0=None, v0=None, projection: bool = False, step: float | None = None,
-            max_steps: int = 1_000_000) -> Result:
+            max_steps: int | None = None) -> Result:
         """Integrate from ``t_start`` to ``t_end`` with ``steps`` + 1 output times.
 
         Raises
@@ -148,6 +148,9 @@ class Simulator:
                 raise AnalysisError(f"{key} must be a finite number > 0, got {val!r}")
         atol = rtol if atol is None else atol
         name = self._integrator_name(integrator)
+        if max_steps is None:
+            # numeric right-hand sides are ~100x dearer: fail in seconds, not minutes
+            max_steps = 20_000 if self.formulation.kind == "numeric" else 500_000
         mech = self.system.mechanism
         model = self.model
         grid = np.linspace(t_start, t_end, int(steps) + 1)
@@ -367,7 +370,7 @@ def simulate(mechanism, t_end: float, steps: int, *, formulation: str | None = N
              t_start: float = 0.0, inputs: Mapping | None = None, projection: bool = False,
              step: float | None = None, mode: str = "auto",
              formulation_options: Mapping | None = None,
-             max_steps: int = 1_000_000) -> Result:
+             max_steps: int | None = None) -> Result:
     """Forward dynamics of a mechanism on a uniform output grid (one entry point).
 
     Parameters
@@ -376,7 +379,8 @@ def simulate(mechanism, t_end: float, steps: int, *, formulation: str | None = N
     t_end, steps : float, int
         ``steps + 1`` output times from ``t_start`` to ``t_end`` inclusive.
     formulation : str
-        ``index1`` (default), ``ggl``, ``kkt_ode``, ``augmented_lagrangian``.
+        ``augmented_lagrangian`` (default), ``kkt_ode``, ``index1``, ``ggl`` (compiled), or
+        ``partitioning``, ``nullspace`` (numeric right-hand sides; ``adams``/``cvodes`` only).
     integrator : str
         ``idas``, ``cvodes``, ``adams``, ``rk4``, ``abm`` (default per formulation).
     rtol, atol : float
