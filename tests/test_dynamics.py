@@ -214,3 +214,41 @@ def test_parallelogram_stays_on_branch_default_formulation(rtol):
     assert passes == 10
     assert np.max(np.abs(coupler)) <= 1e-3
     assert np.max(np.abs(crank - rocker)) <= 1e-3
+
+
+def test_ggl_pendulum_period():
+    """The GGL index-2 DAE on IDAS also gives the elliptic-integral period (at rtol 1e-10;
+    tighter tolerances fail inside IDAS, see docs/dynamics.md)."""
+    period = physical_pendulum_period()
+    res = Simulator(pendulum(), "ggl").run(period, 4, rtol=1e-10, atol=1e-10)
+    angle = res.body("rod")["angle"]
+    for k in (1, 3):
+        assert abs(angle[k] + np.pi / 2) / np.sqrt(3 * G) / period <= 1e-8
+
+
+@pytest.mark.parametrize(("formulation", "integrator", "rtol", "bound"), [
+    ("augmented_lagrangian", "adams", 1e-11, 1e-8),
+    ("kkt_ode", "adams", 1e-11, 1e-7),
+    ("index1", "idas", 1e-11, 1e-7),
+    ("kkt_ode", "rk4", 1e-8, 1e-8),
+])
+def test_chain8_tip_matches_minimal_coordinate_reference(formulation, integrator, rtol, bound):
+    """8-rod chain, tip at t = 2 s against the independent Lagrange reference (1e-13)."""
+    from benchmarks.chains import pendulum_chain
+    from benchmarks.references import load_reference
+
+    tip_ref = np.array(load_reference("pendulum_chain_n8")["results"]["tip_position"])
+    res = simulate(pendulum_chain(8), 2.0, 4, formulation=formulation, integrator=integrator,
+                   rtol=rtol, atol=rtol, step=2.5e-4)
+    assert np.linalg.norm(res.marker("tip")["position"][-1] - tip_ref) <= bound
+
+
+def test_parallelogram_crank_angle_matches_closed_form():
+    """Default formulation at rtol 1e-12: crank angle at t = 10 s within 1e-7 of the
+    elliptic-integral solution on the parallelogram branch."""
+    from benchmarks.references import load_reference
+
+    phi_ref = load_reference("parallelogram_four_bar")["results"]["phi_end"]
+    res = simulate(casmbd.load_scene("examples/parallelogram.toml"), 10.0, 10, rtol=1e-12,
+                   atol=1e-12)
+    assert abs(res.body("crank")["angle"][-1] - phi_ref) <= 1e-7
