@@ -30,7 +30,7 @@ from casmbd.errors import AnalysisError, CasmbdError, IntegratorError
 from casmbd.model.values import resolve
 from casmbd.results import Result
 from casmbd.system.equations import System
-from casmbd.system.formulations import FORMULATIONS, build
+from casmbd.system.formulations import FORMULATIONS, build, post_processing
 
 #: default formulation and, per formulation, the default integrator (chosen by measurement:
 #: docs/performance.md)
@@ -90,7 +90,8 @@ class Simulator:
         self.formulation = build(system, self.formulation_name, inputs=u_expr,
                                  **dict(formulation_options or {}))
         self.model = NumericModel(system, "dynamics", mode=mode,
-                                  extra=self.formulation.functions)
+                                  extra=[*self.formulation.functions,
+                                         post_processing(system, u_expr)])
         self.system = system
         self.dyn = self.model.function(self.formulation.function.name())
         self._solvers: dict = {}
@@ -324,23 +325,17 @@ class Simulator:
     def _post(self, grid, qs, vs, stats) -> Result:
         model, system = self.model, self.system
         n = len(grid)
-        acc = np.zeros_like(qs)
-        lam = np.zeros((n, model.nc))
-        pos_viol = np.zeros(n)
-        vel_viol = np.zeros(n)
-        kin = np.zeros(n)
-        pot = np.zeros(n)
-        us = np.zeros((n, len(system.mechanism.actuators)))
-        for k, t in enumerate(grid):
-            us[k] = self.inputs_at(t)
-            acc[k], lam[k] = accelerations_and_multipliers(model, qs[k], vs[k], t, us[k])
-            if model.nc:
-                pos_viol[k] = np.max(np.abs(model.constraints(qs[k], t)))
-                cdot = model.constraint_jacobian(qs[k], t) @ vs[k] + \
-                    model.constraint_time_derivative(qs[k], t)
-                vel_viol[k] = np.max(np.abs(cdot))
-            kin[k] = model.kinetic_energy(qs[k], vs[k])
-            pot[k] = model.potential_energy(qs[k], t)
+        p_all = np.tile(model.p[:, None], (1, n))
+        post = model.function("post").map(n)(qs.T, vs.T, grid[None, :], p_all)
+        acc, lam = np.asarray(post[0]).T.copy(), np.asarray(post[1]).T.reshape(n, -1).copy()
+        residual = np.asarray(post[2]).ravel()
+        kin, pot, pos_viol, vel_viol = (np.asarray(x).ravel() for x in post[3:7])
+        us = np.asarray(self.ufun.map(n)(grid[None, :], p_all)).T.reshape(n, -1)
+        # singular KKT matrices (redundant constraints, singular poses): minimum-norm solve
+        scale = 1.0 + np.max(np.abs(np.concatenate([acc, lam], axis=1)), axis=1,
+                             initial=0.0)
+        for k in np.flatnonzero(~np.isfinite(residual) | (residual > 1e-8 * scale)):
+            acc[k], lam[k] = accelerations_and_multipliers(model, qs[k], vs[k], grid[k], us[k])
         outputs = model.outputs(qs, vs, acc, grid)
         reac_f = model.function("joint_reactions").map(n)
         reac = np.asarray(reac_f(qs.T, grid[None, :], np.tile(model.p[:, None], (1, n)),
