@@ -8,8 +8,8 @@
 * ``abm`` — fixed-step fourth-order Adams–Bashforth–Moulton predictor–corrector in PECE mode,
   started with three RK4 steps (seed 000, "Adams methods", eqs. 6.194–6.199).
 
-The fixed-step methods are CasADi Functions (``mapaccum`` over steps), so the whole run is one
-call into the (compiled) dynamics; they are teaching tools and independent references.
+The fixed-step methods run as CasADi ``fold``s of at most :data:`CHUNK` steps over the
+(compiled) dynamics; they are teaching tools and independent references.
 
 Every integrator is built once for a uniform output interval ``h`` on shifted time τ = t − t_k:
 the dynamics receive the interval start t_k as an extra parameter, so the same object integrates
@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 
 import casadi as ca
+import numpy as np
 
 from casmbd.errors import ModelError
 
@@ -40,66 +41,86 @@ def shifted(dyn: ca.Function) -> ca.Function:
                        ca.dyn_in(), ca.dyn_out())
 
 
-def _rk4_step(dyn: ca.Function):
-    x = ca.MX.sym("x", dyn.size1_in("x"))
-    t = ca.MX.sym("t")
-    p = ca.MX.sym("p", dyn.size1_in("p"))
-    h = ca.MX.sym("h")
+#: fixed steps per compiled chunk: memory of a CasADi fold grows with its length
+CHUNK = 64
 
+
+def _rhs(dyn: ca.Function, p: ca.MX):
     def f(tt, xx):
         return dyn(t=tt, x=xx, p=p)["ode"]
+    return f
 
+
+def rk4_step(dyn: ca.Function) -> ca.Function:
+    """One classical RK4 step on the state s = (x, t): s -> s(t + h)."""
+    nx = dyn.size1_in("x")
+    s = ca.MX.sym("s", nx + 1)
+    p = ca.MX.sym("p", dyn.size1_in("p"))
+    h = ca.MX.sym("h")
+    f = _rhs(dyn, p)
+    x, t = s[:nx], s[nx]
     k1 = f(t, x)
     k2 = f(t + h / 2, x + h / 2 * k1)
     k3 = f(t + h / 2, x + h / 2 * k2)
     k4 = f(t + h, x + h * k3)
-    xt = ca.vertcat(x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4), t + h)
-    return ca.Function("rk4_step", [ca.vertcat(x, t), p, h], [xt]), f, x, t, p, h
+    return ca.Function("rk4_step", [s, p, h],
+                       [ca.vertcat(x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4), t + h)])
 
 
-def rk4(dyn: ca.Function, interval: float, substeps: int) -> ca.Function:
-    """F(x0, p, t0) -> x after ``substeps`` RK4 steps of size interval / substeps."""
-    step, *_ = _rk4_step(dyn)
+def abm_step(dyn: ca.Function) -> ca.Function:
+    """One ABM4 PECE step on s = (x, t, f_n, f_{n-1}, f_{n-2}, f_{n-3})."""
     nx = dyn.size1_in("x")
-    x0 = ca.MX.sym("x0", nx)
+    s = ca.MX.sym("s", 5 * nx + 1)
     p = ca.MX.sym("p", dyn.size1_in("p"))
-    t0 = ca.MX.sym("t0")
-    h = interval / substeps
-    acc = step.mapaccum("rk4_steps", substeps)
-    xt = acc(ca.vertcat(x0, t0), p, h)
-    return ca.Function("rk4", [x0, p, t0], [xt[:nx, -1]])
+    h = ca.MX.sym("h")
+    f = _rhs(dyn, p)
+    x, t = s[:nx], s[nx]
+    fn, f1, f2, f3 = (s[nx + 1 + k * nx: nx + 1 + (k + 1) * nx] for k in range(4))
+    xp = x + h / 24 * (55 * fn - 59 * f1 + 37 * f2 - 9 * f3)          # predict (AB4)
+    xc = x + h / 24 * (9 * f(t + h, xp) + 19 * fn - 5 * f1 + f2)        # correct (AM4)
+    return ca.Function("abm_step", [s, p, h],
+                       [ca.vertcat(xc, t + h, f(t + h, xc), fn, f1, f2)])
 
 
-def abm(dyn: ca.Function, interval: float, substeps: int) -> ca.Function:
-    """F(x0, p, t0) -> x after ``substeps`` ABM4 PECE steps (RK4 start) of size interval/n."""
-    nx = dyn.size1_in("x")
-    step_rk, *_ = _rk4_step(dyn)
-    p = ca.MX.sym("p", dyn.size1_in("p"))
-    h = interval / substeps
+class FixedStep:
+    """Fixed-step RK4 or ABM4 driven in compiled chunks of at most :data:`CHUNK` steps.
 
-    def f(tt, xx):
-        return dyn(t=tt, x=xx, p=p)["ode"]
+    ABM4 starts with three RK4 steps and then carries its history across output times, so
+    the run is one multistep integration, not a restart per output.
+    """
 
-    # history state: x_n, t_n, f_n, f_{n-1}, f_{n-2}, f_{n-3}
-    xs = ca.MX.sym("s", 5 * nx + 1)
-    x, t = xs[:nx], xs[nx]
-    fn, f1, f2, f3 = (xs[nx + 1 + k * nx: nx + 1 + (k + 1) * nx] for k in range(4))
-    xp = x + h / 24 * (55 * fn - 59 * f1 + 37 * f2 - 9 * f3)
-    xc = x + h / 24 * (9 * f(t + h, xp) + 19 * fn - 5 * f1 + f2)
-    fc = f(t + h, xc)
-    step = ca.Function("abm_step", [xs, p], [ca.vertcat(xc, t + h, fc, fn, f1, f2)])
-    x0 = ca.MX.sym("x0", nx)
-    t0 = ca.MX.sym("t0")
-    if substeps < 4:
-        return rk4(dyn, interval, substeps)
-    hist = [ca.vertcat(x0, t0)]
-    for _ in range(3):
-        hist.append(step_rk(hist[-1], p, h))
-    fs = [f(hk[nx], hk[:nx]) for hk in hist]
-    s0 = ca.vertcat(hist[3], fs[3], fs[2], fs[1], fs[0])
-    acc = step.mapaccum("abm_steps", substeps - 3)
-    out = acc(s0, p)
-    return ca.Function("abm", [x0, p, t0], [out[:nx, -1]])
+    def __init__(self, dyn: ca.Function, method: str):
+        self.method = method
+        self.nx = dyn.size1_in("x")
+        self.rk = rk4_step(dyn)
+        self.step = self.rk if method == "rk4" else abm_step(dyn)
+        t, x, p = ca.MX.sym("t"), ca.MX.sym("x", self.nx), ca.MX.sym("p", dyn.size1_in("p"))
+        self.f = ca.Function("rhs", [t, x, p], [dyn(t=t, x=x, p=p)["ode"]])
+        self._folds: dict[int, ca.Function] = {}
+
+    def _fold(self, count: int) -> ca.Function:
+        if count not in self._folds:
+            self._folds[count] = self.step.fold(count)
+        return self._folds[count]
+
+    def start(self, x0, t0: float, p, h: float):
+        """Initial chunk state; for ABM4 after three RK4 steps (returns steps used)."""
+        s = np.concatenate([np.asarray(x0, float).ravel(), [t0]])
+        if self.method == "rk4":
+            return s, 0
+        hist = [s]
+        for _ in range(3):
+            hist.append(np.asarray(self.rk(hist[-1], p, h)).ravel())
+        fs = [np.asarray(self.f(hk[self.nx], hk[:self.nx], p)).ravel() for hk in hist]
+        return np.concatenate([hist[3], fs[3], fs[2], fs[1], fs[0]]), 3
+
+    def advance(self, s, p, h: float, count: int):
+        """``count`` steps of size ``h`` from chunk state ``s``."""
+        while count > 0:
+            k = min(count, CHUNK)
+            s = np.asarray(self._fold(k)(s, p, h)).ravel()
+            count -= k
+        return s
 
 
 class CapturedOutput:
@@ -177,18 +198,3 @@ def sundials(dyn: ca.Function, plugin: str, t0: float, tout, rtol: float, atol: 
     else:  # pragma: no cover - guarded by the caller
         raise ModelError(f"unknown SUNDIALS integrator '{plugin}'")
     return ca.integrator("sim_" + plugin, name, dyn, float(t0), [float(t) for t in tout], opts)
-
-
-def fixed_step_grid(dyn: ca.Function, method: str, interval: float, substeps: int,
-                    n_intervals: int) -> ca.Function:
-    """F(x0, p, t0) -> states at the n_intervals output times (one column each)."""
-    one = (rk4 if method == "rk4" else abm)(dyn, interval, substeps)
-    nx = dyn.size1_in("x")
-    xt = ca.MX.sym("xt", nx + 1)
-    p = ca.MX.sym("p", dyn.size1_in("p"))
-    g = ca.Function("interval", [xt, p], [ca.vertcat(one(xt[:nx], p, xt[nx]), xt[nx] + interval)])
-    acc = g.mapaccum("intervals", n_intervals)
-    x0 = ca.MX.sym("x0", nx)
-    t0 = ca.MX.sym("t0")
-    out = acc(ca.vertcat(x0, t0), p)
-    return ca.Function(method + "_grid", [x0, p, t0], [out[:nx, :]], ["x0", "p", "t0"], ["xf"])

@@ -215,19 +215,7 @@ class Simulator:
             return self._interval_by_interval(name, grid, x0, z0, rtol, atol, step, max_steps,
                                               project=True)
         if name in ("rk4", "abm"):
-            interval = grid[1] - grid[0]
-            n_sub = integ.substeps_for(interval, step)
-            f = self._solver((name, interval, n_sub, len(grid) - 1), lambda: integ.fixed_step_grid(
-                self.dyn, name, interval, n_sub, len(grid) - 1))
-            xf = np.asarray(f(x0, self.model.p, grid[0]))
-            xs = np.vstack([x0, xf.T])
-            if not np.all(np.isfinite(xs)):
-                bad = int(np.argmax(~np.all(np.isfinite(xs), axis=1)))
-                raise IntegratorError(f"fixed-step {name} produced non-finite states",
-                                      grid[bad], "NON_FINITE", None)
-            n_rhs = (len(grid) - 1) * n_sub * (4 if name == "rk4" else 2)
-            return xs, {"steps": (len(grid) - 1) * n_sub, "rhs_evaluations": n_rhs,
-                        "jacobian_evaluations": 0, "step_size": interval / n_sub}
+            return self._fixed_step(name, grid, x0, step, project=False)
         solver = self._solver(
             (name, tuple(grid), rtol, atol, max_steps),
             lambda: integ.sundials(self.dyn, name, grid[0], grid[1:], rtol, atol, max_steps))
@@ -250,24 +238,15 @@ class Simulator:
         model, nq = self.model, self.model.nq
         shifted = self._solver("shifted", lambda: integ.shifted(self.dyn))
         if name in ("rk4", "abm"):
-            n_sub = integ.substeps_for(interval, step)
-            one = self._solver((name, "interval", interval, n_sub), lambda: (
-                integ.rk4 if name == "rk4" else integ.abm)(shifted, interval, n_sub))
+            return self._fixed_step(name, grid, x0, step, project=True)
+        solver = self._solver(
+            (name, "interval", interval, rtol, atol, max_steps),
+            lambda: integ.sundials(shifted, name, 0.0, [interval], rtol, atol, max_steps))
 
-            def advance(x, z, t_k):
-                x_new = np.asarray(one(x, self._params(t_k), 0.0)).reshape(-1)
-                return x_new, z, {"steps": n_sub, "rhs_evaluations":
-                                  n_sub * (4 if name == "rk4" else 2),
-                                  "jacobian_evaluations": 0}
-        else:
-            solver = self._solver(
-                (name, "interval", interval, rtol, atol, max_steps),
-                lambda: integ.sundials(shifted, name, 0.0, [interval], rtol, atol, max_steps))
-
-            def advance(x, z, t_k):
-                r = solver(x0=x, z0=z, p=self._params(t_k))
-                return (np.asarray(r["xf"]).reshape(-1), np.asarray(r["zf"]).reshape(-1),
-                        self._solver_stats(solver.stats()))
+        def advance(x, z, t_k):
+            r = solver(x0=x, z0=z, p=self._params(t_k))
+            return (np.asarray(r["xf"]).reshape(-1), np.asarray(r["zf"]).reshape(-1),
+                    self._solver_stats(solver.stats()))
         xs = [np.asarray(x0, float)]
         x, z = xs[0], z0
         totals: dict = {}
@@ -286,6 +265,41 @@ class Simulator:
             xs.append(x)
         return np.vstack(xs), totals
 
+    def _fixed_step(self, name, grid, x0, step, project: bool):
+        """RK4 / ABM4 over the output grid in compiled chunks; optional projection.
+
+        A non-finite state stops the run with an :class:`IntegratorError` that keeps the
+        outputs before it.
+        """
+        interval = grid[1] - grid[0]
+        n_sub = integ.substeps_for(interval, step)
+        h = interval / n_sub
+        runner = self._solver((name, "fixed"), lambda: integ.FixedStep(self.dyn, name))
+        p = self.model.p
+        nq, nx = self.model.nq, len(x0)
+        s, used = runner.start(x0, grid[0], p, h)
+        xs = [np.asarray(x0, float)]
+        for k in range(len(grid) - 1):
+            s = runner.advance(s, p, h, n_sub - used)
+            used = 0
+            x = s[:nx]
+            if not np.all(np.isfinite(x)):
+                partial = self._post(grid[:k + 1], np.vstack(xs)[:, :nq], np.vstack(xs)[:, nq:],
+                                     {"formulation": self.formulation_name, "integrator": name})
+                raise IntegratorError(
+                    f"fixed-step {name} (h = {h:.3g}) produced non-finite states between "
+                    f"t = {grid[k]:.6g} and {grid[k + 1]:.6g}; results kept up to "
+                    f"t = {grid[k]:.6g}", grid[k + 1], "NON_FINITE", partial)
+            if project:
+                t = grid[k + 1]
+                q = assemble(self.model, x[:nq], t).q
+                x = np.concatenate([q, project_velocities(self.model, q, x[nq:], t)])
+                s, used = runner.start(x, t, p, h)
+            xs.append(x)
+        n_steps = (len(grid) - 1) * n_sub
+        return np.vstack(xs), {"steps": n_steps, "jacobian_evaluations": 0, "step_size": h,
+                               "rhs_evaluations": n_steps * (4 if name == "rk4" else 2)}
+
     def _partial(self, name, grid, x0, z0, rtol, atol, step, max_steps):
         """Re-integrate interval by interval to keep every output before the failure."""
         if self.formulation.kind == "numeric":
@@ -297,26 +311,14 @@ class Simulator:
         xs = [np.asarray(x0, float)]
         x, z = xs[0], z0
         stats: dict = {}
-        if name in ("rk4", "abm"):
-            one = (integ.rk4 if name == "rk4" else integ.abm)(
-                shifted, interval, integ.substeps_for(interval, step))
-        else:
-            solver = integ.sundials(shifted, name, 0.0, [interval], rtol, atol, max_steps)
+        solver = integ.sundials(shifted, name, 0.0, [interval], rtol, atol, max_steps)
         for k in range(len(grid) - 1):
             try:
-                if name in ("rk4", "abm"):
-                    x = np.asarray(one(x, self._params(grid[k]), 0.0)).reshape(-1)
-                    if not np.all(np.isfinite(x)):
-                        raise RuntimeError('fixed step returned "NON_FINITE" states')
-                else:
-                    r = solver(x0=x, z0=z, p=self._params(grid[k]))
-                    x = np.asarray(r["xf"]).reshape(-1)
-                    z = np.asarray(r["zf"]).reshape(-1)
+                r = solver(x0=x, z0=z, p=self._params(grid[k]))
+                x = np.asarray(r["xf"]).reshape(-1)
+                z = np.asarray(r["zf"]).reshape(-1)
             except RuntimeError:
-                if name not in ("rk4", "abm"):
-                    stats["failure_time"] = grid[k] + float(solver.stats().get("tcur", 0.0))
-                else:
-                    stats["failure_time"] = grid[k + 1]
+                stats["failure_time"] = grid[k] + float(solver.stats().get("tcur", 0.0))
                 break
             xs.append(x)
         return np.vstack(xs), stats

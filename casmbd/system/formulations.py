@@ -18,8 +18,9 @@ augmented form (eq. 6.138)::
   M⁻¹ is block diagonal (3×3 blocks), so nothing dense is ever formed.
 * ``augmented_lagrangian`` — ODE x = (q, v) from the augmented-Lagrangian iteration of Bayo and
   García de Jalón (seed 003, mass-orthogonal projections): (M + α C_qᵀ C_q) q̈ = Q − C_qᵀ λ_i +
-  α C_qᵀ γ_b, λ_{i+1} = λ_i + α (C_q q̈ − γ_b), with Baumgarte-stabilised γ_b, four iterations.  The matrix stays
-  positive definite at singular configurations and with redundant constraints.
+  α C_qᵀ γ_b, λ_{i+1} = λ_i + α (C_q q̈ − γ_b), with Baumgarte-stabilised γ_b, four
+  iterations.  The matrix stays positive definite at singular configurations and with
+  redundant constraints.
 """
 
 from __future__ import annotations
