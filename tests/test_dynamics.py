@@ -46,7 +46,8 @@ def _crossing_time(t, angle):
 
 
 CASES = [("index1", "idas"), ("kkt_ode", "adams"), ("kkt_ode", "cvodes"),
-         ("augmented_lagrangian", "adams"), ("kkt_ode", "rk4"), ("kkt_ode", "abm")]
+         ("augmented_lagrangian", "adams"), ("kkt_ode", "rk4"), ("kkt_ode", "abm"),
+         ("partitioning", "adams"), ("nullspace", "adams")]
 
 
 @pytest.mark.parametrize(("formulation", "integrator"), CASES)
