@@ -253,3 +253,15 @@ def test_parallelogram_crank_angle_matches_closed_form():
     res = simulate(casmbd.load_scene("examples/parallelogram.toml"), 10.0, 10, rtol=1e-12,
                    atol=1e-12)
     assert abs(res.body("crank")["angle"][-1] - phi_ref) <= 1e-7
+
+
+def test_fixed_step_blow_up_is_reported_with_partial_results():
+    """ABM with a far too large step on the parallelogram diverges: NON_FINITE, outputs kept."""
+    with pytest.raises(IntegratorError) as info:
+        simulate(casmbd.load_scene("examples/parallelogram.toml"), 10.0, 100,
+                 formulation="kkt_ode", integrator="abm", step=0.01)
+    err = info.value
+    assert err.flag == "NON_FINITE"
+    assert err.partial is not None and len(err.partial.t) >= 2
+    assert err.partial.t[-1] < err.time <= 10.0
+    assert np.all(np.isfinite(err.partial["q"]))

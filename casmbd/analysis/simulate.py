@@ -173,6 +173,14 @@ class Simulator:
             with captured:
                 xs, solver_stats = self._integrate(name, grid, x0, z0, rtol, atol, projection,
                                                    step, max_steps)
+        except IntegratorError as exc:
+            if exc.partial is not None:  # fixed-step runs keep their own partial results
+                exc.partial.stats.update(stats)
+                raise
+            failure = exc
+            with integ.CapturedOutput():
+                xs, solver_stats = self._partial(name, grid, x0, z0, rtol, atol, step,
+                                                 max_steps)
         except (RuntimeError, CasmbdError) as exc:
             failure = exc
             with integ.CapturedOutput():
