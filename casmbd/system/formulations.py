@@ -163,12 +163,14 @@ def augmented_lagrangian(system: System, penalty: float | None = None, iteration
                          inputs: ca.SX | None = None) -> Formulation:
     """ODE on (q, v) by the augmented-Lagrangian iteration with Baumgarte terms.
 
-    ``penalty`` defaults to 1e4 times the ratio of the mean mass-matrix diagonal to the mean
+    ``penalty`` defaults to 1e5 times the ratio of the mean mass-matrix diagonal to the mean
     diagonal of C_qᵀ C_q at the initial guess, so that it is unit-consistent.  Measured
     trade-off (docs/performance.md): a larger penalty converges in fewer iterations but makes
     M + α C_qᵀC_q ill-conditioned (cond ≈ α), which puts noise of ≈ cond·ε into every
-    right-hand side; 1e7 with 3 iterations floored the 8-rod chain's tip error at 6e-10 and
-    cost 25 000 Adams steps at rtol 1e-12, 1e4 with 4 iterations reaches 7e-11 in 1 900.
+    right-hand side; a smaller one leaves weakly constrained modes unconverged.  At rtol 1e-12:
+    1e7 with 3 iterations floored the 8-rod chain's tip error at 6e-10 (25 000 Adams steps);
+    1e4 with 4 floored the 32-rod chain at 5e-7; 1e5 with 4 reaches 8e-12 (8 rods) and 1e-10
+    (32 rods).
     """
     t, q, v, pu = _sym_inputs(system)
     if system.nc == 0:
@@ -203,7 +205,7 @@ def _default_penalty(system: System) -> float:
                     [ca.diag(system.mass_matrix), ca.sum1(system.constraint_jacobian**2).T])
     m_diag, c_diag = (np.asarray(x).ravel() for x in f(q0, system.parameter_values))
     c_mean = float(np.mean(c_diag[c_diag > 0])) if np.any(c_diag > 0) else 1.0
-    return 1e4 * float(np.mean(m_diag)) / c_mean
+    return 1e5 * float(np.mean(m_diag)) / c_mean
 
 
 def build(system: System, name: str, **options) -> Formulation:
