@@ -63,6 +63,17 @@ STEPS = {"chain": [4e-3, 1e-3, 2.5e-4, 6.25e-5],
          "fourbar": [1e-2, 2.5e-3, 6.25e-4, 1.5625e-4]}
 PROBLEMS = ["chain2", "chain8", "chain32", "fourbar"]
 
+#: figures quoted in the forward-dynamics issue for the best peer on this machine class
+#: (seconds to reach the error level; None: not quoted) and the issue's own targets
+PEERS = {
+    "chain2": {1e-6: (2.4e-3, "Exudyn KinematicTree DOPRI5"),
+               1e-9: (5.4e-3, "Exudyn KinematicTree DOPRI5")},
+    "chain8": {1e-6: (11.3e-3, "MuJoCo RK4"), 1e-9: (42.7e-3, "MuJoCo RK4")},
+    "chain32": {1e-6: (13.8e-3, "MuJoCo RK4"), 1e-9: (71.7e-3, "MuJoCo RK4")},
+    "fourbar": {1e-6: (263e-3, "MuJoCo, hand-stiffened constraints"), 1e-9: None},
+}
+TARGETS = {("chain8", 1e-6): 6e-3, ("chain8", 1e-9): 20e-3}
+
 
 def problem(name: str):
     """(mechanism, t_end, error function, description) of a benchmark problem."""
@@ -155,6 +166,20 @@ def write_csv(rows: list[dict], path: Path) -> None:
         writer.writerows(rows)
 
 
+def read_csv(path: Path) -> list[dict]:
+    """Rows written by :func:`write_csv`, with numbers converted back."""
+    rows = []
+    with open(path, newline="", encoding="utf-8") as fh:
+        for row in csv.DictReader(fh):
+            for key in ("tolerance", "step", "solve_seconds", "error", "drift", "velocity_drift",
+                        "setup_seconds", "build_seconds"):
+                row[key] = float(row[key]) if row.get(key) not in (None, "") else ""
+            for key in ("steps", "rhs_evaluations"):
+                row[key] = int(float(row[key])) if row.get(key) not in (None, "") else 0
+            rows.append(row)
+    return rows
+
+
 def plot(rows: list[dict], problems) -> list[Path]:
     """One log-log plot per problem: solve time against error, one line per method."""
     import matplotlib
@@ -228,6 +253,23 @@ def markdown(rows: list[dict], problems, command: str) -> str:
             best = best_time(rows, pname, target)
             cells.append(f"{1e3 * best[0]:.2f} ms ({best[1]})" if best else "not reached")
         lines.append(f"| {pname} | {cells[0]} | {cells[1]} |")
+    lines += ["", "### Against the peers' figures quoted in the issue", "",
+              "Peer times are the issue's figures (measured on a machine like this one, not in "
+              "this run); ratio = casmbd / peer (below 1: casmbd faster).", "",
+              "| problem | error | casmbd best | peer | ratio | issue target |",
+              "| --- | --- | --- | --- | --- | --- |"]
+    for pname in problems:
+        for target in (1e-6, 1e-9):
+            best = best_time(rows, pname, target)
+            peer = PEERS.get(pname, {}).get(target)
+            ours = f"{1e3 * best[0]:.2f} ms ({best[1]})" if best else "not reached"
+            theirs = f"{1e3 * peer[0]:.1f} ms ({peer[1]})" if peer else "—"
+            ratio = f"{best[0] / peer[0]:.2f}" if best and peer else "—"
+            goal = TARGETS.get((pname, target))
+            goal_text = (f"≤ {1e3 * goal:.0f} ms: {'met' if best and best[0] <= goal else 'missed'}"
+                         if goal else "")
+            lines.append(f"| {pname} | {target:.0e} | {ours} | {theirs} | {ratio} | "
+                         f"{goal_text} |")
     lines += ["", "### Every case", "",
               "| problem | formulation | integrator | tol / step | time [ms] | error | drift "
               "| steps |", "| --- | --- | --- | --- | --- | --- | --- | --- |"]
@@ -269,14 +311,20 @@ def main(argv=None) -> int:
     parser.add_argument("--quick", action="store_true", help="two tolerances per method")
     parser.add_argument("--csv", default=str(RESULTS / "work_precision.csv"))
     parser.add_argument("--update-docs", action="store_true")
+    parser.add_argument("--from-csv", action="store_true",
+                        help="regenerate plots and docs from the CSV of an earlier run")
     args = parser.parse_args(argv)
     methods = METHODS if args.methods is None else [tuple(m.split("/")) for m in args.methods]
-    rows = sweep(args.problems, methods, args.repeat, args.quick)
-    write_csv(rows, Path(args.csv))
+    if args.from_csv:
+        rows = read_csv(Path(args.csv))
+    else:
+        rows = sweep(args.problems, methods, args.repeat, args.quick)
+        write_csv(rows, Path(args.csv))
     plot(rows, args.problems)
     if args.update_docs:
-        command = "python -m benchmarks.work_precision " + " ".join(
-            a for a in (argv if argv is not None else sys.argv[1:]))
+        args_text = [a for a in (argv if argv is not None else sys.argv[1:])
+                     if a != "--from-csv"]
+        command = "python -m benchmarks.work_precision " + " ".join(args_text)
         update_docs(markdown(rows, args.problems, command.strip()))
     bad = [r for r in rows if r["status"] == "ok" and not math.isfinite(r["error"])]
     return 1 if bad else 0
