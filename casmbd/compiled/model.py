@@ -68,6 +68,7 @@ class NumericModel:
         self.p = self.system.parameter_values.copy()
         self.nq, self.nc = self.system.nq, self.system.nc
         self._patterns = {n: f.sparsity_out(0) for n, f in self.functions.items()}
+        self._buffers: dict = {}
 
     # ------------------------------------------------------------------ bookkeeping
     @property
@@ -95,49 +96,86 @@ class NumericModel:
                 raise ModelError(f"unknown parameter '{key}' (known: {', '.join(names)})")
             self.p[names.index(key)] = float(val)
 
-    def _sparse(self, name: str, dm: ca.DM) -> sp.csc_matrix:
-        sparsity = self._patterns[name]
-        return sp.csc_matrix((np.array(dm.nonzeros()), sparsity.row(), sparsity.colind()),
-                             shape=sparsity.shape)
+    def _eval(self, name: str, *args) -> np.ndarray:
+        """Non-zeros of output 0 of ``name``, evaluated through a preallocated buffer.
+
+        ``Function.buffer()`` binds numpy arrays to the inputs and outputs, which avoids the
+        conversion of every argument to a CasADi matrix (50–150 µs a call from Python
+        against 0.1–3 µs for the compiled code itself; docs/performance.md).
+        """
+        entry = self._buffers.get(name)
+        if entry is None:
+            f = self.function(name)
+            buf, trigger = f.buffer()
+            ins = [np.zeros(f.nnz_in(i)) for i in range(f.n_in())]
+            outs = [np.zeros(f.nnz_out(i)) for i in range(f.n_out())]
+            for i, arr in enumerate(ins):
+                buf.set_arg(i, memoryview(arr))
+            for i, arr in enumerate(outs):
+                buf.set_res(i, memoryview(arr))
+            sparsity = f.sparsity_out(0)
+            pattern = (np.asarray(sparsity.row(), dtype=np.int32),
+                       np.asarray(sparsity.colind(), dtype=np.int32), sparsity.shape,
+                       sparsity.is_dense())
+            entry = (buf, trigger, ins, outs, pattern)
+            self._buffers[name] = entry
+        buf, trigger, ins, outs, _ = entry
+        for arr, val in zip(ins, args):
+            arr[:] = np.ravel(val) if np.ndim(val) else val
+        trigger()
+        return outs[0].copy()
+
+    def _vector(self, name: str, *args) -> np.ndarray:
+        nz = self._eval(name, *args)
+        rows, _, shape, dense = self._buffers[name][4]
+        if dense:
+            return nz
+        out = np.zeros(shape[0] * shape[1])
+        out[rows] = nz
+        return out
+
+    def _sparse(self, name: str, *args) -> sp.csc_matrix:
+        nz = self._eval(name, *args)
+        rows, colind, shape, _ = self._buffers[name][4]
+        return sp.csc_matrix((nz, rows, colind), shape=shape)
 
     # ------------------------------------------------------------------ equations
     def constraints(self, q, t: float) -> np.ndarray:
         """C(q, t)."""
-        return np.asarray(self.function("constraints")(q, t, self.p)).reshape(-1)
+        return self._vector("constraints", q, t, self.p)
 
     def constraint_jacobian(self, q, t: float) -> sp.csc_matrix:
         """C_q(q, t) as a sparse matrix."""
-        return self._sparse("constraint_jacobian",
-                            self.function("constraint_jacobian")(q, t, self.p))
+        return self._sparse("constraint_jacobian", q, t, self.p)
 
     def constraint_time_derivative(self, q, t: float) -> np.ndarray:
         """C_t(q, t)."""
-        return np.asarray(self.function("constraint_time_derivative")(q, t, self.p)).reshape(-1)
+        return self._vector("constraint_time_derivative", q, t, self.p)
 
     def acceleration_rhs(self, q, v, t: float) -> np.ndarray:
         """γ(q, v, t) with C_q q̈ = γ."""
-        return np.asarray(self.function("acceleration_rhs")(q, v, t, self.p)).reshape(-1)
+        return self._vector("acceleration_rhs", q, v, t, self.p)
 
     def mass_matrix(self, q) -> sp.csc_matrix:
         """M(q) as a sparse matrix."""
-        return self._sparse("mass_matrix", self.function("mass_matrix")(q, self.p))
+        return self._sparse("mass_matrix", q, self.p)
 
     def applied_forces(self, q, v, t: float, u=None) -> np.ndarray:
         """Q_e(q, v, t, u)."""
         u = np.zeros(len(self.system.mechanism.actuators)) if u is None else u
-        return np.asarray(self.function("applied_forces")(q, v, t, u, self.p)).reshape(-1)
+        return self._vector("applied_forces", q, v, t, u, self.p)
 
     def kinetic_energy(self, q, v) -> float:
         """T = ½ vᵀ M v."""
-        return float(self.function("kinetic_energy")(q, v, self.p))
+        return float(self._vector("kinetic_energy", q, v, self.p)[0])
 
     def potential_energy(self, q, t: float) -> float:
         """V(q, t) of gravity and springs."""
-        return float(self.function("potential_energy")(q, t, self.p))
+        return float(self._vector("potential_energy", q, t, self.p)[0])
 
     def quadratic_velocity_forces(self, q, v) -> np.ndarray:
         """Q_v(q, v)."""
-        return np.asarray(self.function("quadratic_velocity_forces")(q, v, self.p)).reshape(-1)
+        return self._vector("quadratic_velocity_forces", q, v, self.p)
 
     def outputs(self, q: np.ndarray, v: np.ndarray, a: np.ndarray, t: np.ndarray) -> dict:
         """Body, marker and joint outputs at many time points in one mapped call.
