@@ -241,6 +241,17 @@ def _json_default(obj):
     raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
 
 
+def _finite_json(obj):
+    """Replace NaN/inf (e.g. reactions that cannot be determined) by null: strict JSON."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite_json(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite_json(v) for v in obj]
+    return obj
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``casmbd`` command; returns the exit status."""
     argv = list(sys.argv[1:] if argv is None else argv)
@@ -277,7 +288,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     if isinstance(data.get("stats"), dict):
         data["stats"]["total_seconds"] = time.perf_counter() - t0
     if args.json:
-        sys.stdout.write(json.dumps(data, default=_json_default, allow_nan=False) + "\n")
+        data = json.loads(json.dumps(data, default=_json_default))  # numpy -> builtins
+        sys.stdout.write(json.dumps(_finite_json(data), allow_nan=False) + "\n")
     else:
         print(text)
     return 0
