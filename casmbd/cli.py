@@ -79,6 +79,13 @@ def build_parser() -> argparse.ArgumentParser:
                    help="number of intervals (N + 1 output times from 0 to T)")
     p.add_argument("--out", help="save every array to this .npz file")
 
+    p = sub.add_parser("inverse", help="inverse dynamics: driver efforts and reactions")
+    common(p)
+    p.add_argument("--t-end", type=_positive_float, required=True, help="final time [s]")
+    p.add_argument("--steps", type=_positive_int, required=True,
+                   help="number of intervals (N + 1 output times from 0 to T)")
+    p.add_argument("--out", help="save every array to this .npz file")
+
     from casmbd.analysis.integrators import INTEGRATORS
     from casmbd.system.formulations import FORMULATIONS
 
@@ -228,7 +235,31 @@ def _cmd_simulate(args) -> tuple[dict, str]:
     return data, "\n".join(lines)
 
 
-VERBS = {"info": _cmd_info, "kinematics": _cmd_kinematics, "simulate": _cmd_simulate}
+def _cmd_inverse(args) -> tuple[dict, str]:
+    from casmbd.analysis.inverse import inverse_dynamics
+
+    mech = _load(args)
+    result = inverse_dynamics(mech, t_end=args.t_end, steps=args.steps, mode=args.mode)
+    result.scene = getattr(mech, "scene_text", "")
+    if args.out:
+        _save(result, args.out)
+    data = result.to_json()
+    lines = [f"inverse dynamics of '{mech.name}': {len(result.t)} times from {result.t[0]:g} "
+             f"to {result.t[-1]:g} s", *_summary_table(result)]
+    for k, name in enumerate(result.names["drivers"]):
+        eff = result["driver_efforts"][:, k]
+        lines.append(f"  driver {name:<12} effort [{eff.min():+.4g}, {eff.max():+.4g}]")
+    s = result.stats
+    lines.append(f"  build {s['build_seconds']:.3f} s "
+                 f"({'cache hit' if s['cache_hit'] else s['mode']}), solve "
+                 f"{s['solve_seconds']:.3f} s")
+    if args.out:
+        lines.append(f"  saved {args.out}")
+    return data, "\n".join(lines)
+
+
+VERBS = {"info": _cmd_info, "kinematics": _cmd_kinematics, "simulate": _cmd_simulate,
+         "inverse": _cmd_inverse}
 
 
 def _json_default(obj):

@@ -348,3 +348,17 @@ def test_simulate_failure_saves_partial_results(capsys, tmp_path):
     assert stdout == ""
     partial = results.load(out)
     assert len(partial.t) < 51
+
+
+def test_inverse_json_driver_effort(capsys):
+    """inverse --json: driver efforts on the grid; at t = 0 the crank is horizontal and at
+    rest in angular acceleration, so the torque holds the weights: g (m_c r/2 + …) > 0."""
+    status, stdout, _ = run(capsys, "inverse", SLIDER_CRANK, "--t-end", "1", "--steps", "4",
+                            "--json")
+    assert status == 0
+    data = json.loads(stdout)
+    effort = data["drivers"]["crank_speed"]["effort"]
+    assert len(effort) == 5
+    assert effort[0] > 0
+    assert abs(effort[0] - effort[-1]) < 1e-9  # periodic motion over one turn
+    assert len(data["joints"]["O"]["reaction"]) == 5

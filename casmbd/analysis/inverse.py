@@ -1,0 +1,90 @@
+"""Inverse dynamics of a kinematically driven mechanism: feedforward efforts and reactions.
+
+Seed 000, "Inverse dynamics": when drivers fix every degree of freedom, the kinematic analysis
+gives q, q̇, q̈ on the time grid; the equations of motion M q̈ + C_qᵀ λ = Q_e + Q_v are then
+linear in the multipliers alone,
+
+    C_qᵀ λ = Q_e + Q_v − M q̈,
+
+with C_q square and non-singular.  The driver rows of λ give the efforts the drivers must exert
+(effort = −λ_d, the generalized force along the driven coordinate, positive in the direction of
+increasing coordinate); the joint rows give the reactions (eqs. 6.145–6.151).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import scipy.sparse.linalg as spla
+
+from casmbd.analysis.kinematics import kinematics
+from casmbd.compiled.model import NEEDS, NumericModel
+from casmbd.errors import SingularConfigurationError
+from casmbd.results import Result
+
+
+def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.0,
+                     mode: str = "auto") -> Result:
+    """Driver efforts and joint reactions along the motion prescribed by the drivers.
+
+    Parameters
+    ----------
+    mechanism_or_model : Mechanism or NumericModel
+        A mechanism whose drivers fix every degree of freedom.
+    t_end, steps, t_start : float, int, float
+        ``steps + 1`` output times from ``t_start`` to ``t_end`` inclusive.
+
+    Returns
+    -------
+    Result
+        ``kind == "inverse_dynamics"``: the kinematic arrays plus ``lambda``,
+        ``driver_efforts`` (n_t × n_drivers), ``joint_reactions`` (n_t × n_joints × 3),
+        ``kinetic_energy`` and ``potential_energy``.
+
+    Raises
+    ------
+    AnalysisError, RedundantConstraintError, AssemblyError, SingularConfigurationError
+        As the kinematic analysis, and when C_qᵀ is singular at some time.
+    """
+    if isinstance(mechanism_or_model, NumericModel):
+        model = mechanism_or_model
+    else:
+        model = NumericModel(mechanism_or_model, NEEDS["dynamics"], mode=mode)
+    kin = kinematics(model, t_end, steps, t_start=t_start)
+    t0 = time.perf_counter()
+    grid, qs, vs, acc = kin.t, kin["q"], kin["v"], kin["a"]
+    n = len(grid)
+    lam = np.zeros((n, model.nc))
+    kin_e = np.zeros(n)
+    pot_e = np.zeros(n)
+    for k, t in enumerate(grid):
+        rhs = (model.applied_forces(qs[k], vs[k], t) + model.quadratic_velocity_forces(qs[k], vs[k])
+               - model.mass_matrix(qs[k]) @ acc[k])
+        try:
+            lam[k] = spla.splu(model.constraint_jacobian(qs[k], t).T.tocsc()).solve(rhs)
+        except RuntimeError:
+            raise SingularConfigurationError(
+                f"inverse dynamics at t = {t:g}: the constraint Jacobian is singular") from None
+        kin_e[k] = model.kinetic_energy(qs[k], vs[k])
+        pot_e[k] = model.potential_energy(qs[k], t)
+    system = model.system
+    n_j = len(system.mechanism.joints)
+    if n_j:
+        reac = np.asarray(model.function("joint_reactions").map(n)(
+            qs.T, grid[None, :], np.tile(model.p[:, None], (1, n)), lam.T))
+        reactions = reac.reshape(3, n, n_j, order="F").transpose(1, 2, 0)
+    else:
+        reactions = np.zeros((n, 0, 3))
+    drivers = list(system.mechanism.drivers)
+    efforts = (np.column_stack([-lam[:, system.driver_rows[d]] for d in drivers])
+               if drivers else np.zeros((n, 0)))
+    arrays = dict(kin.arrays)
+    arrays.update({"lambda": lam, "driver_efforts": efforts, "joint_reactions": reactions,
+                   "kinetic_energy": kin_e, "potential_energy": pot_e,
+                   "total_energy": kin_e + pot_e})
+    names = dict(kin.names)
+    names["drivers"] = drivers
+    stats = dict(kin.stats)
+    stats["solve_seconds"] += time.perf_counter() - t0
+    return Result("inverse_dynamics", grid, arrays, names, stats)
