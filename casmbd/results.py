@@ -110,7 +110,10 @@ class Result:
         if "driver_efforts" in self.arrays:
             out["drivers"] = {name: {"effort": _list(self.arrays["driver_efforts"][:, k])}
                               for k, name in enumerate(self.names.get("drivers", []))}
-        if "actuator_inputs" in self.arrays:
+        if "actuator_efforts" in self.arrays:
+            out["actuators"] = {name: {"effort": _list(self.arrays["actuator_efforts"][:, k])}
+                                for k, name in enumerate(self.names.get("actuators", []))}
+        elif "actuator_inputs" in self.arrays:
             out["actuators"] = {name: {"input": _list(self.arrays["actuator_inputs"][:, k])}
                                 for k, name in enumerate(self.names.get("actuators", []))}
         if "kinetic_energy" in self.arrays:

@@ -20,8 +20,36 @@ import scipy.sparse.linalg as spla
 
 from casmbd.analysis.kinematics import kinematics
 from casmbd.compiled.model import NEEDS, NumericModel
-from casmbd.errors import SingularConfigurationError
+from casmbd.errors import AnalysisError, SingularConfigurationError
 from casmbd.results import Result
+
+
+def _actuator_efforts(model, grid, qs, vs, acc) -> np.ndarray:
+    """Mixed case: the drivers prescribe the motion, the actuators must produce it.
+
+    The driver multipliers are set to zero (the drivers only describe the motion) and the
+    actuator inputs u join the unknowns: [C_q,jᵀ  −B] [λ_j; u] = Q_e(u = 0) + Q_v − M q̈,
+    B = ∂Q_e/∂u.  Square when there are as many actuators as drivers (the classic robot case);
+    otherwise the least-squares solution is returned and its residual checked.
+    """
+    system = model.system
+    joint_rows = [i for i, lab in enumerate(system.constraint_labels) if lab.kind == "joint"]
+    n_u = len(system.mechanism.actuators)
+    out = np.zeros((len(grid), n_u))
+    for k, t in enumerate(grid):
+        rhs = (model.applied_forces(qs[k], vs[k], t) + model.quadratic_velocity_forces(qs[k], vs[k])
+               - model.mass_matrix(qs[k]) @ acc[k])
+        cq = model.constraint_jacobian(qs[k], t)[joint_rows, :]
+        mat = np.hstack([cq.T.toarray(), -model.input_matrix(qs[k], vs[k], t).toarray()])
+        sol, *_ = np.linalg.lstsq(mat, rhs, rcond=None)
+        residual = np.max(np.abs(mat @ sol - rhs))
+        if residual > 1e-8 * max(1.0, np.max(np.abs(rhs))):
+            raise AnalysisError(
+                f"inverse dynamics at t = {t:g}: the actuators "
+                f"({', '.join(system.mechanism.actuators)}) cannot produce the prescribed "
+                f"motion (residual {residual:.3g}); put them on the driven coordinates")
+        out[k] = sol[len(joint_rows):]
+    return out
 
 
 def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.0,
@@ -69,6 +97,8 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
         kin_e[k] = model.kinetic_energy(qs[k], vs[k])
         pot_e[k] = model.potential_energy(qs[k], t)
     system = model.system
+    actuators = list(system.mechanism.actuators)
+    u_eff = _actuator_efforts(model, grid, qs, vs, acc) if actuators else np.zeros((n, 0))
     n_j = len(system.mechanism.joints)
     if n_j:
         reac = np.asarray(model.function("joint_reactions").map(n)(
@@ -81,10 +111,12 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
                if drivers else np.zeros((n, 0)))
     arrays = dict(kin.arrays)
     arrays.update({"lambda": lam, "driver_efforts": efforts, "joint_reactions": reactions,
+                   "actuator_efforts": u_eff,
                    "kinetic_energy": kin_e, "potential_energy": pot_e,
                    "total_energy": kin_e + pot_e})
     names = dict(kin.names)
     names["drivers"] = drivers
+    names["actuators"] = actuators
     stats = dict(kin.stats)
     stats["solve_seconds"] += time.perf_counter() - t0
     return Result("inverse_dynamics", grid, arrays, names, stats)

@@ -27,7 +27,8 @@ NEEDS: dict[str, tuple[str, ...]] = {
                    "acceleration_rhs", "outputs"),
     "dynamics": ("mass_matrix", "applied_forces", "quadratic_velocity_forces", "constraints",
                  "constraint_jacobian", "constraint_time_derivative", "acceleration_rhs",
-                 "kinetic_energy", "potential_energy", "outputs", "joint_reactions"),
+                 "kinetic_energy", "potential_energy", "outputs", "joint_reactions",
+                 "input_matrix"),
 }
 
 
@@ -164,6 +165,11 @@ class NumericModel:
         """Q_e(q, v, t, u)."""
         u = np.zeros(len(self.system.mechanism.actuators)) if u is None else u
         return self._vector("applied_forces", q, v, t, u, self.p)
+
+    def input_matrix(self, q, v, t: float, u=None) -> sp.csc_matrix:
+        """B = ∂Q_e/∂u (n_q × n_u)."""
+        u = np.zeros(len(self.system.mechanism.actuators)) if u is None else u
+        return self._sparse("input_matrix", q, v, t, u, self.p)
 
     def kinetic_energy(self, q, v) -> float:
         """T = ½ vᵀ M v."""

@@ -30,6 +30,7 @@ from typing import Any
 from casmbd.errors import CasmbdError, ExpressionError, SceneError
 from casmbd.io.expressions import evaluate_number
 from casmbd.model import GROUND, Mechanism
+from casmbd.model.values import Samples
 
 FORMAT = 1
 
@@ -259,7 +260,7 @@ def _build(data: dict, source: str) -> Mechanism:
     for e in entries("drivers"):
         e.check_keys(_DRIVER_KEYS)
         guarded(e, lambda e=e: mech.add_driver(
-            _name(e), e.value("position"), joint=e.string("joint", required=False),
+            _name(e), _position(e), joint=e.string("joint", required=False),
             body=e.string("body", required=False),
             coordinate=e.string("coordinate", required=False)))
 
@@ -339,6 +340,25 @@ def _add_force(mech: Mechanism, e: _Entry, ftype: str, guarded) -> None:
             name, e.string("joint"), stiffness=_nonneg(e, "stiffness"),
             damping=_nonneg(e, "damping"), free_angle=e.value("free_angle", 0.0),
             actuator=e.value("actuator", 0.0)))
+
+
+def _position(e: _Entry):
+    """A driver position: a number, an expression of t, or {times = [...], values = [...]}."""
+    raw = e.require("position")
+    if isinstance(raw, dict):
+        unknown = set(raw) - {"times", "values"}
+        if unknown or not {"times", "values"} <= set(raw):
+            raise e.error("position", "a sampled trajectory needs exactly the keys 'times' "
+                          f"and 'values' (got {', '.join(sorted(raw))})")
+        times, values = raw["times"], raw["values"]
+        for key, arr in (("times", times), ("values", values)):
+            if not isinstance(arr, list) or any(_finite(x) is None for x in arr):
+                raise e.error("position", f"'{key}' must be a list of finite numbers")
+        try:
+            return Samples(times, values, name=f"driver_{e.name or e.index}")
+        except CasmbdError as exc:
+            raise e.error("position", str(exc)) from None
+    return e.value("position")
 
 
 def _component(e: _Entry, raw: Any):

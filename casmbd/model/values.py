@@ -16,10 +16,43 @@ import math
 from collections.abc import Callable, Mapping
 
 import casadi as ca
+import numpy as np
 
 from casmbd.errors import ModelError
 
-Value = float | int | str | Callable | ca.SX
+
+class Samples:
+    """A sampled trajectory f(t) (times, values), interpolated by a cubic B-spline (C²).
+
+    The spline is CasADi's ``bspline`` interpolant, which interpolates the samples and has
+    continuous first and second derivatives, as drivers need for velocities and accelerations
+    (γ contains ∂²C/∂t²).  Valid between the first and last sample time.
+    """
+
+    def __init__(self, times, values, name: str = "samples"):
+        t = np.asarray(times, dtype=float).ravel()
+        v = np.asarray(values, dtype=float).ravel()
+        if t.size != v.size:
+            raise ModelError(f"{name}: {t.size} times but {v.size} values")
+        if t.size < 4:
+            raise ModelError(f"{name}: a cubic spline needs at least 4 samples, got {t.size}")
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(v))):
+            raise ModelError(f"{name}: times and values must be finite")
+        if np.any(np.diff(t) <= 0):
+            raise ModelError(f"{name}: times must be strictly increasing")
+        self.times, self.values, self.name = t, v, name
+        self._function = ca.interpolant(name.replace(" ", "_").replace("'", ""), "bspline",
+                                        [t], v)
+
+    def __call__(self, t):
+        return self._function(t)
+
+    def __repr__(self) -> str:
+        return (f"Samples({self.times.size} points on [{self.times[0]:g}, "
+                f"{self.times[-1]:g}])")
+
+
+Value = float | int | str | Callable | ca.SX | Samples
 
 
 def check_value(value: Value, where: str) -> Value:
@@ -35,7 +68,7 @@ def check_value(value: Value, where: str) -> Value:
         if not math.isfinite(out):
             raise ModelError(f"{where}: value must be a finite number, got {str(value)[:40]}")
         return out
-    if isinstance(value, str) or callable(value) or isinstance(value, ca.SX):
+    if isinstance(value, (str, ca.SX, Samples)) or callable(value):
         return value
     raise ModelError(f"{where}: expected a number, an expression string or a callable, "
                      f"got {type(value).__name__}")
@@ -49,6 +82,8 @@ def resolve(value: Value, t: ca.SX, params: Mapping[str, ca.SX], where: str) -> 
         return ca.SX(float(value))
     if isinstance(value, ca.SX):
         return value
+    if isinstance(value, Samples):
+        return ca.SX(value(t))
     if isinstance(value, str):
         symbols = dict(params)
         symbols["t"] = t

@@ -59,6 +59,7 @@ SIGNATURES: dict[str, tuple[tuple[str, ...], str]] = {
     "acceleration_rhs": (("q", "v", "t", "p"), "gamma"),
     "kinetic_energy": (("q", "v", "p"), "T"),
     "potential_energy": (("q", "t", "p"), "V"),
+    "input_matrix": (("q", "v", "t", "u", "p"), "B"),
 }
 
 
@@ -281,6 +282,11 @@ class System:
         if torque is not None:
             total += self._generalized(self.ctx.angle(force.body), ca.SX(torque))
         return total
+
+    @cached_property
+    def input_matrix(self) -> ca.SX:
+        """B = ∂Q_e/∂u: how the actuator inputs enter the generalized forces."""
+        return ca.jacobian(self.applied_forces, self.u)
 
     @cached_property
     def potential_energy(self) -> ca.SX:
