@@ -86,6 +86,12 @@ def build_parser() -> argparse.ArgumentParser:
                    help="number of intervals (N + 1 output times from 0 to T)")
     p.add_argument("--out", help="save every array to this .npz file")
 
+    p = sub.add_parser("statics", help="static equilibrium, reactions and stability")
+    common(p)
+    p.add_argument("--method", choices=("augmented", "reduced"), default="augmented",
+                   help="Newton on (q, lambda) (default) or on the independent coordinates")
+    p.add_argument("--out", help="accepted for uniformity; statics saves no arrays")
+
     from casmbd.analysis.integrators import INTEGRATORS
     from casmbd.system.formulations import FORMULATIONS
 
@@ -109,6 +115,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="most steps per output interval of the variable-step integrators "
                         "(default 500000; 20000 for partitioning/nullspace)")
     p.add_argument("--out", help="save every array to this .npz file")
+    p = sub.add_parser("linearize", help="natural frequencies and linearized equations about "
+                                         "the initial configuration")
+    common(p)
     return parser
 
 
@@ -258,8 +267,64 @@ def _cmd_inverse(args) -> tuple[dict, str]:
     return data, "\n".join(lines)
 
 
+def _cmd_statics(args) -> tuple[dict, str]:
+    from casmbd.analysis.statics import static_equilibrium
+
+    mech = _load(args)
+    result = static_equilibrium(mech, method=args.method, mode=args.mode)
+    data = result.to_json()
+    stable = {True: "stable", False: "unstable", None: "neutral"}[result.stable]
+    lines = [f"static equilibrium of '{mech.name}' ({result.method} Newton, "
+             f"{result.iterations} iterations, residual {result.residual:.3g}): {stable}"]
+    for name, b in data["bodies"].items():
+        x, y = b["position"]
+        lines.append(f"  body {name:<14} x {x:+.6g}  y {y:+.6g}  angle {b['angle']:+.6g}")
+    for name, j in data["joints"].items():
+        coord = f"coordinate {j['coordinate']:+.6g}  " if "coordinate" in j else ""
+        fx, fy, mz = (x + 0.0 for x in j["reaction"])  # no "-0"
+        lines.append(f"  joint {name:<13} {coord}reaction Fx {fx:+.6g}  Fy {fy:+.6g}  "
+                     f"M {mz:+.6g}")
+    eig = ", ".join(f"{e:.4g}" for e in result.eigenvalues) or "none (no degrees of freedom)"
+    lines.append(f"  stiffness eigenvalues: {eig}")
+    s = result.stats
+    lines.append(f"  build {s['build_seconds']:.3f} s "
+                 f"({'cache hit' if s['cache_hit'] else s['mode']}), solve "
+                 f"{s['solve_seconds']:.3f} s")
+    return data, "\n".join(lines)
+
+
 VERBS = {"info": _cmd_info, "kinematics": _cmd_kinematics, "simulate": _cmd_simulate,
          "inverse": _cmd_inverse}
+VERBS["statics"] = _cmd_statics
+
+
+def _cmd_linearize(args) -> tuple[dict, str]:
+    """Linearize about the scene's assembled initial configuration with zero velocity.
+
+    The initial configuration should be an equilibrium: place the scene at the equilibrium or
+    use the statics verb first (about any other state the matrices are still the first-order
+    expansion, but the frequencies are not those of oscillations about a rest position).
+    """
+    from casmbd.analysis.linearize import linearize
+
+    mech = _load(args)
+    lin = linearize(mech, mode=args.mode)
+    data = lin.to_json()
+    s = lin.stats
+    lines = [f"linearization of '{mech.name}' about the initial configuration (v = 0): "
+             f"{lin.n_dof} degrees of freedom, {'stable' if lin.stable else 'UNSTABLE'}"]
+    for k, (f, z) in enumerate(zip(lin.frequencies_hz, lin.damping_ratios)):
+        lines.append(f"  mode {k + 1:<3} frequency {f:.6g} Hz  damping ratio {z:.4g}")
+    if not s["equilibrium"]:
+        lines.append("  warning: this state is not an equilibrium; place the scene at the "
+                     "equilibrium or use the statics verb first")
+    lines.append(f"  build {s['build_seconds']:.3f} s "
+                 f"({'cache hit' if s['cache_hit'] else s['mode']}), solve "
+                 f"{s['solve_seconds']:.3f} s")
+    return data, "\n".join(lines)
+
+
+VERBS["linearize"] = _cmd_linearize
 
 
 def _json_default(obj):
