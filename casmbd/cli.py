@@ -312,7 +312,8 @@ def _cmd_linearize(args) -> tuple[dict, str]:
     data = lin.to_json()
     s = lin.stats
     lines = [f"linearization of '{mech.name}' about the initial configuration (v = 0): "
-             f"{lin.n_dof} degrees of freedom, {'stable' if lin.stable else 'UNSTABLE'}"]
+             f"{lin.n_dof} degree{'' if lin.n_dof == 1 else 's'} of freedom, "
+             f"{'stable' if lin.stable else 'UNSTABLE'}"]
     for k, (f, z) in enumerate(zip(lin.frequencies_hz, lin.damping_ratios)):
         lines.append(f"  mode {k + 1:<3} frequency {f:.6g} Hz  damping ratio {z:.4g}")
     if not s["equilibrium"]:
