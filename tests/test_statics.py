@@ -1,0 +1,148 @@
+"""Static equilibrium: torsional-spring pendulum against brentq, stability, failures, CLI."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+
+import casmbd
+from casmbd.analysis.statics import static_equilibrium
+from casmbd.cli import main
+from casmbd.errors import AnalysisError
+from casmbd.io.scene import load_scene
+
+G = 9.81
+CHAIN = "examples/hanging_chain.toml"
+
+
+@pytest.fixture(autouse=True)
+def _cache(tmp_path, monkeypatch):
+    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path / "cache"))
+
+
+def pendulum(k: float = 0.0, up: bool | None = None) -> casmbd.Mechanism:
+    """Rod L = 1 m, m = 1 kg pinned at the origin; horizontal, hanging (up=False) or inverted."""
+    m = casmbd.Mechanism("p", gravity=(0, -G))
+    if up is None:
+        m.add_body("rod", 1.0, 1 / 12, (0.5, 0.0))
+    else:
+        s = 1.0 if up else -1.0
+        m.add_body("rod", 1.0, 1 / 12, (0.0, 0.5 * s), angle=s * np.pi / 2)
+    m.add_revolute("pivot", "ground", "rod", (0, 0))
+    if k:
+        m.add_rotational_spring_damper("spring", "pivot", stiffness=k)
+    return m
+
+
+@pytest.mark.parametrize("method", ["augmented", "reduced"])
+@pytest.mark.parametrize("k", [2.0, 10.0, 100.0])
+def test_torsional_spring_pendulum(method, k):
+    """θ counter-clockwise from +x, gravity −y: V = m g (L/2) sin θ + ½ k θ², so V'(θ) = 0 gives
+    k θ = −m g (L/2) cos θ (the spring moment −kθ balances the gravity moment −m g (L/2) cos θ).
+    For k > m g L/2 the root in (−π/2, 0) is unique."""
+    mass, length = 1.0, 1.0
+    ref = brentq(lambda th: k * th + mass * G * length / 2 * np.cos(th), -np.pi / 2, 0.0,
+                 xtol=1e-15, rtol=4 * np.finfo(float).eps)
+    r = static_equilibrium(pendulum(k), method=method, mode="vm")
+    assert r.method == method
+    assert abs(r.q[2] - ref) < 1e-12
+    assert np.allclose(r.q[:2], 0.5 * np.array([np.cos(ref), np.sin(ref)]), atol=1e-12)
+    assert r.residual < 1e-10 and r.iterations <= 20
+    # reaction: the pin carries the weight and no moment (the spring is a force element)
+    assert np.allclose(r.joint_reactions[0], [0.0, mass * G, 0.0], atol=1e-9)
+    assert r.stable is True
+    # V''(θ) = k − m g (L/2) sin θ > 0; the unit tangent of the constraint manifold is
+    # (−(L/2) sin θ, (L/2) cos θ, 1) / √(1 + (L/2)²), so K̄ = V''(θ) / (1 + (L/2)²)
+    expected = (k - mass * G * length / 2 * np.sin(ref)) / (1 + (length / 2) ** 2)
+    assert r.eigenvalues == pytest.approx([expected], rel=1e-9)
+
+
+@pytest.mark.parametrize("method", ["augmented", "reduced"])
+def test_hanging_stable_inverted_unstable(method):
+    down = static_equilibrium(pendulum(up=False), method=method, mode="vm")
+    up = static_equilibrium(pendulum(up=True), method=method, mode="vm")
+    for r in (down, up):
+        assert r.residual < 1e-10
+        assert np.allclose(r.q[:2], [0.0, 0.5 * np.sign(r.q[1])], atol=1e-12)
+        assert np.allclose(r.joint_reactions[0], [0.0, G, 0.0], atol=1e-9)
+        assert r.iterations <= 1  # the initial pose is already the equilibrium
+    # V''(θ) = ∓ m g L/2 over the metric 1 + (L/2)² of the unit tangent
+    assert down.stable is True and down.eigenvalues[0] == pytest.approx(G / 2 / 1.25)
+    assert up.stable is False and up.eigenvalues[0] == pytest.approx(-G / 2 / 1.25)
+
+
+@pytest.mark.parametrize("method", ["augmented", "reduced"])
+def test_free_body_has_no_equilibrium(method):
+    m = casmbd.Mechanism("free", gravity=(0, -G))
+    m.add_body("b", 1.0, 0.1, (0.0, 0.0))
+    with pytest.raises(AnalysisError) as exc:
+        static_equilibrium(m, method=method, max_iter=10, mode="vm")
+    msg = str(exc.value)
+    assert "residual" in msg and "b.y" in msg and "iterations" in msg
+
+
+@pytest.mark.parametrize("method", ["augmented", "reduced"])
+def test_double_pendulum_from_horizontal(method):
+    """Released horizontally the stiffness is singular (Newton alone stalls); the descent step
+    moves it off, and Newton then converges to an equilibrium with both rods vertical."""
+    r = static_equilibrium(load_scene("examples/double_pendulum.toml"), method=method,
+                           mode="vm")
+    assert r.residual < 1e-9
+    assert np.allclose(np.cos(r.q[[2, 5]]), 0.0, atol=1e-9)
+    assert r.joint_reactions[0, 1] == pytest.approx(2 * G, abs=1e-9)
+    assert r.stable is bool(r.q[1] < 0 and r.q[4] < r.q[1])  # stable only hanging down
+
+
+def test_unknown_method():
+    with pytest.raises(AnalysisError, match="unknown statics method"):
+        static_equilibrium(pendulum(5.0), method="bogus", mode="vm")
+
+
+@pytest.mark.parametrize("method", ["augmented", "reduced"])
+def test_hanging_chain(method):
+    mech = load_scene(CHAIN)
+    r = static_equilibrium(mech, method=method, mode="auto")
+    assert r.residual < 1e-9 and r.stable is True
+    assert len(r.eigenvalues) == 1 and r.eigenvalues[0] > 0
+    total = sum(float(b.mass) for b in mech.bodies.values())
+    # vertical force of the ground on the chain (reaction = action of body1 on body2)
+    lift = 0.0
+    for k, joint in enumerate(mech.joints.values()):
+        if joint.body1 == "ground":
+            lift += r.joint_reactions[k, 1]
+        elif joint.body2 == "ground":
+            lift -= r.joint_reactions[k, 1]
+    assert lift == pytest.approx(total * G, abs=1e-9)
+    # both methods find the same equilibrium
+    other = static_equilibrium(mech, method="reduced" if method == "augmented" else "augmented",
+                               mode="vm")
+    assert np.allclose(r.q, other.q, atol=1e-10)
+
+
+def test_cli_statics_json(capsys):
+    assert main(["statics", CHAIN, "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    for key in ("bodies", "joints", "lagrange_multipliers", "stable", "iterations", "residual",
+                "eigenvalues", "method", "stats"):
+        assert key in data
+    assert data["stable"] is True and data["method"] == "augmented"
+    assert set(data["bodies"]) == {"rod1", "rod2", "rod3"}
+    assert set(data["bodies"]["rod1"]) == {"position", "angle"}
+    assert set(data["joints"]) == {"anchor_a", "knee_1", "knee_2", "anchor_b"}
+    assert {"coordinate", "reaction"} <= set(data["joints"]["anchor_a"])
+    assert len(data["joints"]["anchor_a"]["reaction"]) == 3
+    assert len(data["lagrange_multipliers"]) == 8
+    assert main(["statics", CHAIN, "--method", "reduced"]) == 0
+    assert "stable" in capsys.readouterr().out
+
+
+def test_cli_statics_error(tmp_path, capsys):
+    scene = tmp_path / "free.toml"
+    scene.write_text('[scene]\nname = "free"\ndimension = 2\ngravity = [0.0, -9.81]\n\n'
+                     '[[bodies]]\nname = "b"\nmass = 1.0\ninertia = 0.1\nposition = [0.0, 0.0]\n')
+    assert main(["statics", str(scene), "--mode", "vm"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("error:") and "residual" in err[0]
