@@ -209,3 +209,24 @@ point = [0.0, 0.0]
     assert cli.main(["linearize", str(scene), "--mode", "vm"]) == 0
     text = capsys.readouterr().out
     assert "Hz" in text and "hanging" in text
+
+
+def test_spring_pendulum_frequency_at_the_static_equilibrium():
+    """Issue 4 acceptance: torsional spring k at the pivot; at the equilibrium θ* (k θ* =
+    −m g (L/2) cos θ*) the small-oscillation frequency is sqrt(V''(θ*) / (m L²/3)) with
+    V'' = k − m g (L/2) sin θ* (hand formula), to 1e-9."""
+    import casmbd
+    from casmbd.analysis.linearize import linearize
+    from casmbd.analysis.statics import static_equilibrium
+
+    k, m_, length, g = 10.0, 1.0, 1.0, 9.81
+    mech = casmbd.Mechanism("spring_pendulum", gravity=(0.0, -g))
+    mech.add_body("rod", m_, m_ * length**2 / 12, (length / 2, 0.0))
+    mech.add_revolute("pivot", "ground", "rod", (0.0, 0.0))
+    mech.add_rotational_spring_damper("spring", "pivot", stiffness=k)
+    eq = static_equilibrium(mech)
+    theta = float(eq.q[2])
+    assert abs(k * theta + m_ * g * length / 2 * np.cos(theta)) <= 1e-12
+    lin = linearize(mech, q=eq.q)
+    omega2 = (k - m_ * g * length / 2 * np.sin(theta)) / (m_ * length**2 / 3)
+    assert abs((2 * np.pi * lin.frequencies_hz[0]) ** 2 / omega2 - 1.0) <= 1e-9
