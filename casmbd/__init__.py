@@ -5,12 +5,16 @@ The layers, each importing only the ones before it:
 * :mod:`casmbd.model` — what the user builds (bodies, joints, forces, drivers);
 * :mod:`casmbd.system` — the symbolic equations (M, Q_e, Q_v, C, C_q, C_t, γ);
 * :mod:`casmbd.compiled` — generated C code, the disk cache and the numeric model;
-* :mod:`casmbd.analysis` — kinematics (and the other analyses);
+* :mod:`casmbd.analysis` — kinematics, forward and inverse dynamics, statics, linearisation;
 * :mod:`casmbd.results`, :mod:`casmbd.io`, :mod:`casmbd.cli` — results, scene files, the CLI.
 """
 
 from casmbd.analysis.assembly import accelerations, assemble, velocities
+from casmbd.analysis.inverse import inverse_dynamics
 from casmbd.analysis.kinematics import info, kinematics
+from casmbd.analysis.linearize import linearize
+from casmbd.analysis.simulate import Simulator, simulate
+from casmbd.analysis.statics import static_equilibrium
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import (
     AnalysisError,
@@ -18,6 +22,7 @@ from casmbd.errors import (
     CasmbdError,
     CompileError,
     ExpressionError,
+    IntegratorError,
     ModelError,
     RedundantConstraintError,
     SceneError,
@@ -31,6 +36,8 @@ from casmbd.system import System
 __version__ = "0.1.0"
 
 __all__ = ["AnalysisError", "AssemblyError", "CasmbdError", "CompileError", "ExpressionError",
-           "Mechanism", "ModelError", "NumericModel", "RedundantConstraintError", "Result",
-           "SceneError", "SingularConfigurationError", "System", "accelerations", "assemble",
-           "info", "kinematics", "load", "load_scene", "loads_scene", "velocities"]
+           "IntegratorError", "Mechanism", "ModelError", "NumericModel",
+           "RedundantConstraintError", "Result", "SceneError", "Simulator",
+           "SingularConfigurationError", "System", "accelerations", "assemble", "info",
+           "inverse_dynamics", "kinematics", "linearize", "load", "load_scene", "loads_scene",
+           "simulate", "static_equilibrium", "velocities"]

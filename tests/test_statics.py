@@ -146,3 +146,20 @@ def test_cli_statics_error(tmp_path, capsys):
     assert main(["statics", str(scene), "--mode", "vm"]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("error:") and "residual" in err[0]
+
+
+def test_five_hinged_arch_is_the_unstable_mirror_of_the_hanging_chain():
+    """Seed 003 §5.3: the hanging four-rod chain is a stable equilibrium; mirrored upwards it
+    is still an equilibrium (the arch) and unstable, with a real positive eigenvalue."""
+    import sys
+
+    sys.path.insert(0, "examples")
+    from five_hinged_arch import study
+
+    out = study()
+    assert out["hanging"].stable is True
+    assert out["arch"].stable is False
+    mirrored = out["hanging_points"] * np.array([1.0, -1.0])
+    assert np.max(np.abs(out["arch_points"] - mirrored)) <= 1e-9
+    growth = max(e.real for e in out["arch_linear"].eigenvalues)
+    assert growth > 1.0
