@@ -1,7 +1,9 @@
 """Command-line interface: ``casmbd VERB SCENE [options]``.
 
-Verbs: ``info`` (coordinates, constraints, degrees of freedom, dependent equations) and
-``kinematics`` (positions, velocities and accelerations on a time grid).  Every verb prints a
+Verbs: ``info`` (coordinates, constraints, degrees of freedom, dependent equations),
+``kinematics`` (positions, velocities and accelerations on a time grid), ``simulate`` (forward
+dynamics), ``inverse`` (driver and actuator efforts), ``statics`` (equilibrium and its
+stability) and ``linearize`` (frequencies, damping ratios, state space).  Every verb prints a
 readable summary, or with ``--json`` exactly one JSON object on stdout; ``--out FILE.npz`` saves
 every array.  Errors end with a non-zero exit status and one ``error: …`` line on stderr
 (a traceback only with ``--debug``).
