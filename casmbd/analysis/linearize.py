@@ -41,7 +41,7 @@ import scipy.linalg as sla
 
 from casmbd.analysis.assembly import assemble
 from casmbd.analysis.kkt import accelerations_and_multipliers
-from casmbd.analysis.redundancy import RANK_RTOL
+from casmbd.analysis.redundancy import RANK_RTOL, null_space_basis
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, ModelError, SingularConfigurationError
 from casmbd.system.equations import System
@@ -52,25 +52,6 @@ NEEDED = ("mass_matrix", "applied_forces", "quadratic_velocity_forces", "constra
 
 #: |Im s| below this times max(1, |s|max) counts as a real eigenvalue
 IMAG_RTOL = 1e-9
-
-
-def null_space_basis(jacobian, rtol: float = RANK_RTOL) -> tuple[np.ndarray, int]:
-    """Orthonormal basis N of ker C_q (columns) and the rank of C_q.
-
-    Rows are normalised first (which does not change the null space) so that equations in
-    different units weigh alike; a singular value counts as zero below ``rtol · σ_max``.
-    """
-    a = jacobian.toarray() if hasattr(jacobian, "toarray") else np.asarray(jacobian, float)
-    m, n = a.shape
-    if m == 0:
-        return np.eye(n), 0
-    norms = np.linalg.norm(a, axis=1)
-    norms[norms == 0.0] = 1.0
-    a = a / norms[:, None]
-    _, sigma, vt = np.linalg.svd(a, full_matrices=True)
-    smax = float(sigma[0]) if sigma.size else 0.0
-    rank = int(np.sum(sigma > rtol * max(smax, 1e-300)))
-    return vt[rank:].T.copy(), rank
 
 
 def _linearization_function(system: System) -> ca.Function:

@@ -81,3 +81,22 @@ def rank_report(jacobian, rtol: float = RANK_RTOL) -> RankReport:
                 basis[:, k] = r / norm
                 k += 1
     return RankReport(n, m, rank, dependent, smin, smax)
+
+
+def null_space_basis(jacobian, rtol: float = RANK_RTOL) -> tuple[np.ndarray, int]:
+    """Orthonormal basis N of ker C_q (columns) and the rank of C_q.
+
+    Rows are normalised first (which does not change the null space) so that equations in
+    different units weigh alike; a singular value counts as zero below ``rtol · σ_max``.
+    """
+    a = jacobian.toarray() if hasattr(jacobian, "toarray") else np.asarray(jacobian, float)
+    m, n = a.shape
+    if m == 0:
+        return np.eye(n), 0
+    norms = np.linalg.norm(a, axis=1)
+    norms[norms == 0.0] = 1.0
+    a = a / norms[:, None]
+    _, sigma, vt = np.linalg.svd(a, full_matrices=True)
+    smax = float(sigma[0]) if sigma.size else 0.0
+    rank = int(np.sum(sigma > rtol * max(smax, 1e-300)))
+    return vt[rank:].T.copy(), rank

@@ -47,6 +47,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from casmbd.analysis.assembly import assemble
+from casmbd.analysis.redundancy import null_space_basis
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, AssemblyError
 
@@ -185,9 +186,10 @@ def _solve(matrix: sp.spmatrix, rhs: np.ndarray) -> np.ndarray:
 
 
 def _null_space(cq: np.ndarray, nq: int) -> np.ndarray:
+    """Orthonormal basis of ker C_q (shared rank tolerance of :mod:`redundancy`)."""
     if cq.shape[0] == 0:
         return np.eye(nq)
-    return sla.null_space(cq, rcond=1e-10)
+    return null_space_basis(cq)[0]
 
 
 def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol: float = 1e-10,
