@@ -169,6 +169,13 @@ def _cmd_info(args) -> tuple[dict, str]:
     return data, "\n".join(lines)
 
 
+def _timing(stats: dict, digits: int = 3) -> str:
+    """The build/solve line every verb prints."""
+    origin = "cache hit" if stats.get("cache_hit") else stats.get("mode", "")
+    return (f"  build {stats['build_seconds']:.3f} s ({origin}), "
+            f"solve {stats['solve_seconds']:.{digits}f} s")
+
+
 def _summary_table(result) -> list[str]:
     lines = []
     for name in result.names["bodies"]:
@@ -197,8 +204,7 @@ def _cmd_kinematics(args) -> tuple[dict, str]:
              f"{result.t[-1]:g} s",
              *_summary_table(result),
              f"  max constraint violation {data['constraint_violation']:.3g}",
-             f"  build {s['build_seconds']:.3f} s ({'cache hit' if s['cache_hit'] else s['mode']})"
-             f", solve {s['solve_seconds']:.3f} s"]
+             _timing(s)]
     if args.out:
         lines.append(f"  saved {args.out}")
     return data, "\n".join(lines)
@@ -236,8 +242,7 @@ def _cmd_simulate(args) -> tuple[dict, str]:
              f"  max constraint violation: position {data['constraint_violation']:.3g}, "
              f"velocity {data['velocity_violation']:.3g}",
              f"  steps {s.get('steps', 0)}, rhs evaluations {s.get('rhs_evaluations', 0)}",
-             f"  build {s['build_seconds']:.3f} s ({'cache hit' if s['cache_hit'] else s['mode']})"
-             f", solve {s['solve_seconds']:.4f} s"]
+             _timing(s, 4)]
     if s.get("start_position_change", 0) > 1e-12 or s.get("start_velocity_change", 0) > 1e-12:
         lines.append(f"  consistent start changed q by {s['start_position_change']:.3g} and v by "
                      f"{s['start_velocity_change']:.3g}")
@@ -261,9 +266,7 @@ def _cmd_inverse(args) -> tuple[dict, str]:
         eff = result["driver_efforts"][:, k]
         lines.append(f"  driver {name:<12} effort [{eff.min():+.4g}, {eff.max():+.4g}]")
     s = result.stats
-    lines.append(f"  build {s['build_seconds']:.3f} s "
-                 f"({'cache hit' if s['cache_hit'] else s['mode']}), solve "
-                 f"{s['solve_seconds']:.3f} s")
+    lines.append(_timing(s))
     if args.out:
         lines.append(f"  saved {args.out}")
     return data, "\n".join(lines)
@@ -289,9 +292,7 @@ def _cmd_statics(args) -> tuple[dict, str]:
     eig = ", ".join(f"{e:.4g}" for e in result.eigenvalues) or "none (no degrees of freedom)"
     lines.append(f"  stiffness eigenvalues: {eig}")
     s = result.stats
-    lines.append(f"  build {s['build_seconds']:.3f} s "
-                 f"({'cache hit' if s['cache_hit'] else s['mode']}), solve "
-                 f"{s['solve_seconds']:.3f} s")
+    lines.append(_timing(s))
     return data, "\n".join(lines)
 
 
@@ -321,9 +322,7 @@ def _cmd_linearize(args) -> tuple[dict, str]:
     if not s["equilibrium"]:
         lines.append("  warning: this state is not an equilibrium; place the scene at the "
                      "equilibrium or use the statics verb first")
-    lines.append(f"  build {s['build_seconds']:.3f} s "
-                 f"({'cache hit' if s['cache_hit'] else s['mode']}), solve "
-                 f"{s['solve_seconds']:.3f} s")
+    lines.append(_timing(s))
     return data, "\n".join(lines)
 
 
