@@ -314,6 +314,14 @@ def quaternion_from_matrix(A: ArrayOrSym) -> np.ndarray:
 _X, _Y, _Z = (1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)
 
 
+def _body_sequence(axes, angles) -> Any:
+    """Euler parameters of successive rotations about the current (body) axes."""
+    p = quaternion_from_axis_angle(axes[0], angles[0])
+    for axis, angle in zip(axes[1:], angles[1:]):
+        p = quaternion_multiply(p, quaternion_from_axis_angle(axis, angle))
+    return p
+
+
 def euler_zxz_to_quaternion(phi: ArrayOrSym, theta: ArrayOrSym, psi: ArrayOrSym) -> Any:
     """Euler parameters of the Z–X–Z Euler angles ``(φ, θ, ψ)``.
 
@@ -331,10 +339,7 @@ def euler_zxz_to_quaternion(phi: ArrayOrSym, theta: ArrayOrSym, psi: ArrayOrSym)
     numpy.ndarray or casadi.SX/MX, 4 elements
         Unit Euler parameters (``e0`` not sign-normalized).
     """
-    qa = quaternion_from_axis_angle(_Z, phi)
-    qb = quaternion_from_axis_angle(_X, theta)
-    qc = quaternion_from_axis_angle(_Z, psi)
-    return quaternion_multiply(quaternion_multiply(qa, qb), qc)
+    return _body_sequence((_Z, _X, _Z), (phi, theta, psi))
 
 
 def quaternion_to_euler_zxz(p: ArrayOrSym) -> tuple[float, float, float]:
@@ -396,10 +401,7 @@ def euler_xyz_to_quaternion(phi: ArrayOrSym, theta: ArrayOrSym, psi: ArrayOrSym)
     numpy.ndarray or casadi.SX/MX, 4 elements
         Unit Euler parameters (``e0`` not sign-normalized).
     """
-    qa = quaternion_from_axis_angle(_X, phi)
-    qb = quaternion_from_axis_angle(_Y, theta)
-    qc = quaternion_from_axis_angle(_Z, psi)
-    return quaternion_multiply(quaternion_multiply(qa, qb), qc)
+    return _body_sequence((_X, _Y, _Z), (phi, theta, psi))
 
 
 def quaternion_to_euler_xyz(p: ArrayOrSym) -> tuple[float, float, float]:
