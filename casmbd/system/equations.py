@@ -176,20 +176,24 @@ class System:
 
     @cached_property
     def quadratic_velocity_forces(self) -> ca.SX:
-        """Q_v = −Σ m J_Gᵀ (J̇_G q̇): zero for centroidal frames (seed 000, eq. 6.37)."""
+        """Q_v = ∂T/∂q − Ṁ q̇ from the kinetic energy T = ½ q̇ᵀ M q̇, body by body.
+
+        Lagrange's equations give M q̈ = Q_e + Q_v with Q_v = ∂T/∂q − (∂/∂q (M q̇)) q̇
+        (seed 000, eqs. 6.24 and 6.33–6.37); written this way by AD it holds for any body
+        description (planar absolute coordinates here, Euler parameters or natural
+        coordinates later) and is structurally zero for centroidal planar frames.
+        """
         parts = []
-        for name in self.body_names:
-            body = self.mechanism.bodies[name]
-            i = self.ctx.index[name]
-            if body.is_centroidal:
-                parts.append(ca.SX.zeros(3))
+        m = self.mass_matrix
+        for i, name in enumerate(self.body_names):
+            if self.mechanism.bodies[name].is_centroidal:
+                parts.append(ca.SX(3, 1))  # constant mass matrix: structurally zero
                 continue
-            m, _ = self._mass_inertia(body)
-            qi, vi = self.q[i:i + 3], self.v[i:i + 3]
-            vel = ca.jtimes(self.ctx.centre_of_mass(name), qi, vi)
-            acc_quadratic = ca.jtimes(vel, qi, vi)
-            parts.append(-m * ca.mtimes(ca.jacobian(self.ctx.centre_of_mass(name), qi).T,
-                                        acc_quadratic))
+            sl = slice(3 * i, 3 * i + 3)
+            qi, vi = self.q[sl], self.v[sl]
+            mv = ca.mtimes(m[sl, sl], vi)
+            kinetic = 0.5 * ca.dot(vi, mv)
+            parts.append(ca.jacobian(kinetic, qi).T - ca.jtimes(mv, qi, vi))
         return ca.vertcat(*parts)
 
     @cached_property
