@@ -72,36 +72,33 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--mode", choices=("auto", "compiled", "vm"), default="auto",
                        help="compile equations to C (default auto) or use CasADi's VM")
 
+    def grid(p):
+        p.add_argument("--t-end", type=_positive_float, required=True, help="final time [s]")
+        p.add_argument("--steps", type=_positive_int, required=True,
+                       help="number of output intervals (N + 1 output times from 0 to T)")
+        p.add_argument("--out", help="save every array to this .npz file")
+
     p = sub.add_parser("info", help="coordinates, constraints, degrees of freedom")
     common(p)
     p = sub.add_parser("kinematics", help="kinematic analysis of a driven mechanism")
     common(p)
-    p.add_argument("--t-end", type=_positive_float, required=True, help="final time [s]")
-    p.add_argument("--steps", type=_positive_int, required=True,
-                   help="number of intervals (N + 1 output times from 0 to T)")
-    p.add_argument("--out", help="save every array to this .npz file")
+    grid(p)
 
     p = sub.add_parser("inverse", help="inverse dynamics: driver efforts and reactions")
     common(p)
-    p.add_argument("--t-end", type=_positive_float, required=True, help="final time [s]")
-    p.add_argument("--steps", type=_positive_int, required=True,
-                   help="number of intervals (N + 1 output times from 0 to T)")
-    p.add_argument("--out", help="save every array to this .npz file")
+    grid(p)
 
     p = sub.add_parser("statics", help="static equilibrium, reactions and stability")
     common(p)
     p.add_argument("--method", choices=("augmented", "reduced"), default="augmented",
                    help="Newton on (q, lambda) (default) or on the independent coordinates")
-    p.add_argument("--out", help="accepted for uniformity; statics saves no arrays")
 
     from casmbd.analysis.integrators import INTEGRATORS
     from casmbd.system.formulations import FORMULATIONS
 
     p = sub.add_parser("simulate", help="forward dynamics")
     common(p)
-    p.add_argument("--t-end", type=_positive_float, required=True, help="final time [s]")
-    p.add_argument("--steps", type=_positive_int, required=True,
-                   help="number of output intervals (N + 1 output times from 0 to T)")
+    grid(p)
     p.add_argument("--rtol", type=_positive_float, default=1e-8, help="relative tolerance")
     p.add_argument("--atol", type=_positive_float, default=None,
                    help="absolute tolerance (default: rtol)")
@@ -116,7 +113,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-steps", type=_positive_int, default=None,
                    help="most steps per output interval of the variable-step integrators "
                         "(default 500000; 20000 for partitioning/nullspace)")
-    p.add_argument("--out", help="save every array to this .npz file")
     p = sub.add_parser("linearize", help="natural frequencies and linearized equations about "
                                          "the initial configuration")
     common(p)
