@@ -157,7 +157,7 @@ BUILDERS = {"slider_crank": slider_crank, "forced_four_bar": forced_four_bar,
 def random_states(system: System, seed: int, n: int = N_STATES):
     """(q, v, t, u) with q near the initial pose, v and u of order 1, t in [0, 2]."""
     rng = np.random.default_rng(seed)
-    q0 = system.mechanism.initial_coordinates()
+    q0 = system.initial_coordinates()
     for _ in range(n):
         yield (q0 + rng.uniform(-0.3, 0.3, q0.size), rng.uniform(-2.0, 2.0, q0.size),
                float(rng.uniform(0.0, 2.0)), rng.uniform(-1.0, 1.0, system.u.numel()))

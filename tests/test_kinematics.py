@@ -25,6 +25,7 @@ from casmbd import (
     Mechanism,
     NumericModel,
     RedundantConstraintError,
+    System,
     assemble,
     info,
     kinematics,
@@ -325,7 +326,7 @@ def four_bar_api(crank_angle: float = 1.2, driver: bool = True, name: str = "fb_
 def test_assembly_from_perturbed_coordinates():
     mech = four_bar_api(driver=True, name="fb_assembly")
     model = NumericModel(mech, "kinematics")
-    q_exact = mech.initial_coordinates()
+    q_exact = System(mech).initial_coordinates()
     assert np.max(np.abs(model.constraints(q_exact, 0.0))) <= 1e-15
     rng = np.random.default_rng(7)
     for _ in range(3):
@@ -343,8 +344,8 @@ def test_assembly_keeps_fixed_coordinate_exactly():
     mech = four_bar_api(crank_angle=1.2, driver=False, name="fb_fixed")
     model = NumericModel(mech, "kinematics")
     target = 1.2 + 0.25
-    ref = four_bar_api(crank_angle=target, driver=False, name="fb_ref").initial_coordinates()
-    q0 = mech.initial_coordinates()
+    ref = System(four_bar_api(crank_angle=target, driver=False, name="fb_ref")).initial_coordinates()
+    q0 = System(mech).initial_coordinates()
     q0[2] = target  # new crank angle, every other coordinate is now off
     rng = np.random.default_rng(11)
     q0[[0, 1, 3, 4, 5, 6, 7, 8]] += rng.uniform(-0.01, 0.01, size=8)

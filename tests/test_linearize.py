@@ -173,7 +173,7 @@ def test_null_space_basis_orthonormal():
 
 def test_rejects_unassembled_configuration():
     mech = pendulum()
-    q = mech.initial_coordinates() + np.array([0.1, 0.0, 0.0])
+    q = casmbd.System(mech).initial_coordinates() + np.array([0.1, 0.0, 0.0])
     with pytest.raises(AnalysisError, match="violates the constraints"):
         linearize(mech, q=q, mode="vm")
 

@@ -170,7 +170,7 @@ def test_reselection_double_pendulum():
     """Full pivoting first picks (b.y, b.angle); b.y stops determining the pose when rod a passes
     the vertical, and the run switches to the two angles."""
     sim = Simulator(double_pendulum(), "partitioning")
-    q0 = sim.system.mechanism.initial_coordinates()
+    q0 = sim.system.initial_coordinates()
     first = part.select_partition(sim.model, q0, 0.0)
     assert first.names(sim.system.coordinate_names) == ["b.y", "b.angle"]
     res = sim.run(2.0, 20, integrator="adams", rtol=1e-10)
@@ -293,7 +293,7 @@ def test_full_pivoting_selection():
     m.add_revolute("pivot2", "ground", "rod", (0.0, 0.0))
     sim = Simulator(m, "partitioning")
     model = sim.model
-    q = sim.system.mechanism.initial_coordinates()
+    q = sim.system.initial_coordinates()
     sel = part.select_partition(model, q, 0.0)
     assert list(sel.independent) == [2] and list(sel.dependent) == [0, 1]
     assert sel.rows.size == 2

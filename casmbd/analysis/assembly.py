@@ -105,7 +105,7 @@ def assemble(model, q0: np.ndarray, t: float = 0.0, fixed: Sequence[str | int] |
     if model.nc == 0:
         return AssemblyReport(q, 0, 0.0, np.zeros_like(q))
     # residuals are lengths (or angles): scale the tolerance with the size of the mechanism
-    lengths = [i for i, n in enumerate(model.system.coordinate_names) if not n.endswith("angle")]
+    lengths = model.system.length_indices
     tol = tol * max(1.0, float(np.max(np.abs(q[lengths]), initial=0.0)))
     c = model.constraints(q, t)
     norm = float(np.max(np.abs(c)))

@@ -56,7 +56,7 @@ def info(mechanism_or_model, mode: str = "auto") -> dict:
     """
     model = _model(mechanism_or_model, "info", mode)
     mech = model.system.mechanism
-    q = mech.initial_coordinates()
+    q = model.system.initial_coordinates()
     out: dict = {"name": mech.name, "dimension": mech.dimension}
     try:
         q = assemble(model, q, 0.0).q
@@ -114,7 +114,7 @@ def kinematics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.
     mech = model.system.mechanism
     t0 = time.perf_counter()
     grid = np.linspace(t_start, t_end, int(steps) + 1)
-    q = assemble(model, mech.initial_coordinates(), grid[0], tol=tol).q
+    q = assemble(model, model.system.initial_coordinates(), grid[0], tol=tol).q
     rep = check_rank(model, q, grid[0])
     if rep.degrees_of_freedom > 0:
         raise AnalysisError(

@@ -250,7 +250,7 @@ def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "au
     nq = model.nq
     t = float(t)
     if q is None:
-        q = assemble(model, system.mechanism.initial_coordinates(), t).q
+        q = assemble(model, system.initial_coordinates(), t).q
     q = np.array(q, dtype=float).reshape(-1)
     v = np.zeros(nq) if v is None else np.array(v, dtype=float).reshape(-1)
     nu = len(system.mechanism.actuators)
@@ -262,7 +262,7 @@ def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "au
             raise ModelError(f"linearize: {name} is not finite")
     if model.nc:
         c = model.constraints(q, t)
-        lengths = [i for i, n in enumerate(system.coordinate_names) if not n.endswith("angle")]
+        lengths = system.length_indices
         tol = 1e-8 * max(1.0, float(np.max(np.abs(q[lengths]), initial=0.0)))
         if not np.all(np.isfinite(c)) or float(np.max(np.abs(c))) > tol:
             raise AnalysisError(f"linearize: q violates the constraints at t = {t:g} (max |C| = "

@@ -341,8 +341,7 @@ def select_partition(model, q: np.ndarray, t: float, rank: int | None = None) ->
 
 
 def _length_indices(model) -> np.ndarray:
-    return np.array([i for i, n in enumerate(model.system.coordinate_names)
-                     if not n.endswith("angle")], dtype=int)
+    return model.system.length_indices
 
 
 class _Partitioned:

@@ -155,8 +155,8 @@ class Simulator:
         mech = self.system.mechanism
         model = self.model
         grid = np.linspace(t_start, t_end, int(steps) + 1)
-        q0 = mech.initial_coordinates() if q0 is None else np.asarray(q0, float)
-        v0 = mech.initial_velocities() if v0 is None else np.asarray(v0, float)
+        q0 = model.system.initial_coordinates() if q0 is None else np.asarray(q0, float)
+        v0 = model.system.initial_velocities() if v0 is None else np.asarray(v0, float)
         start = consistent_state(model, q0, v0, t_start, self.inputs_at(t_start))
         x0 = np.concatenate([start.q, start.v])
         z0 = self._z0(start.a, start.lam)

@@ -143,8 +143,7 @@ class _Problem:
         names = model.system.coordinate_names
         self.labels = ([f"equilibrium of coordinate '{n}'" for n in names]
                        + [str(lab) for lab in model.system.constraint_labels])
-        lengths = [i for i, n in enumerate(names) if not n.endswith("angle")]
-        self.length_idx = np.array(lengths, dtype=int)
+        self.length_idx = model.system.length_indices
 
     def forces(self, q) -> np.ndarray:
         return self.model._vector("statics_forces", q, self.t, self.model.p)
@@ -240,7 +239,7 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
     t0 = time.perf_counter()
     prob = _Problem(model, t)
     mech = model.system.mechanism
-    q = assemble(model, mech.initial_coordinates(), t).q
+    q = assemble(model, model.system.initial_coordinates(), t).q
     fscale = tol * max(1.0, float(np.max(np.abs(prob.forces(q)), initial=0.0)))
     lscale = tol * max(1.0, float(np.max(np.abs(q[prob.length_idx]), initial=0.0)))
     solver = _augmented if method == "augmented" else _reduced

@@ -11,12 +11,14 @@ from dataclasses import dataclass
 from casmbd.errors import ModelError
 from casmbd.model.values import Value, check_value
 
-BODY_COORDINATES = ("x", "y", "angle")
+BODY_COORDINATES = {2: ("x", "y", "angle"), 3: ("x", "y", "z")}
 
 
 @dataclass
 class Driver:
-    """Prescribe a joint coordinate (``joint``) or a body coordinate (``body`` + ``coordinate``).
+    """Prescribe a joint coordinate (``joint``, with ``coordinate`` naming one of a
+    multi-coordinate joint's coordinates) or a body coordinate (``body`` + ``coordinate``: x, y
+    and angle in the plane, x, y and z of the reference point in space).
 
     ``position`` is a value of time (number, expression string over ``t`` and parameters, or
     callable ``f(t)`` / ``f(t, p)``).
@@ -33,11 +35,14 @@ class Driver:
         self.position = check_value(self.position, f"{where} field 'position'")
         if (self.joint is None) == (self.body is None):
             raise ModelError(f"{where}: give either 'joint' or 'body' + 'coordinate'")
-        if self.body is not None and self.coordinate not in BODY_COORDINATES:
+        known = BODY_COORDINATES[2] + ("z",)
+        if self.body is not None and self.coordinate not in known:
             raise ModelError(f"{where} field 'coordinate': expected one of "
-                             f"{', '.join(BODY_COORDINATES)}, got {self.coordinate!r}")
+                             f"{', '.join(known)}, got {self.coordinate!r}")
 
     @property
     def target(self) -> str:
         """Human-readable name of the driven coordinate."""
-        return f"joint '{self.joint}'" if self.joint else f"body '{self.body}' {self.coordinate}"
+        if self.joint:
+            return f"joint '{self.joint}'" + (f" {self.coordinate}" if self.coordinate else "")
+        return f"body '{self.body}' {self.coordinate}"

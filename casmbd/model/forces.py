@@ -15,16 +15,22 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from casmbd.errors import ModelError
-from casmbd.model.bodies import vector2
+from casmbd.model.bodies import vector
 from casmbd.model.values import Value, check_value
 
 FORCE_TYPES = ("force", "torque", "spring_damper", "rotational_spring_damper", "user")
 FRAMES = ("global", "body")
 
 
+def _point(value, where: str) -> np.ndarray:
+    """A point of 2 (plane) or 3 (space) numbers; the mechanism checks which."""
+    size = len(value) if hasattr(value, "__len__") and len(value) in (2, 3) else 2
+    return vector(value, where, size)
+
+
 @dataclass
 class PointForce:
-    """A force (two values, global or body frame) applied at a body point."""
+    """A force (2 or 3 values, global or body frame) applied at a body point."""
 
     name: str
     body: str
@@ -34,11 +40,12 @@ class PointForce:
 
     def __post_init__(self):
         where = f"force '{self.name}'"
-        if not isinstance(self.value, (list, tuple)) or len(self.value) != 2:
-            raise ModelError(f"{where} field 'value': expected 2 components, got {self.value!r}")
+        if not isinstance(self.value, (list, tuple)) or len(self.value) not in (2, 3):
+            raise ModelError(f"{where} field 'value': expected 2 (plane) or 3 (space) "
+                             f"components, got {self.value!r}")
         self.value = tuple(check_value(v, f"{where} field 'value'") for v in self.value)
         if self.point is not None:
-            self.point = vector2(self.point, f"{where} field 'point'")
+            self.point = _point(self.point, f"{where} field 'point'")
         if self.frame not in FRAMES:
             raise ModelError(f"{where} field 'frame': expected 'global' or 'body', "
                              f"got {self.frame!r}")
@@ -46,14 +53,23 @@ class PointForce:
 
 @dataclass
 class Torque:
-    """A torque on a body (counter-clockwise positive)."""
+    """A torque on a body: one value in the plane (counter-clockwise positive), three in space
+    (global or body frame).  Its generalized force is (∂ω/∂q̇)ᵀ T (virtual rotation)."""
 
     name: str
     body: str
-    value: Value
+    value: Value | tuple
+    frame: str = "global"
 
     def __post_init__(self):
-        self.value = check_value(self.value, f"torque '{self.name}' field 'value'")
+        where = f"force '{self.name}' field"
+        values = self.value if isinstance(self.value, (list, tuple)) else (self.value,)
+        if len(values) not in (1, 3):
+            raise ModelError(f"{where} 'value': expected 1 (plane) or 3 (space) components, "
+                             f"got {self.value!r}")
+        self.value = tuple(check_value(v, f"{where} 'value'") for v in values)
+        if self.frame not in FRAMES:
+            raise ModelError(f"{where} 'frame': expected 'global' or 'body', got {self.frame!r}")
 
 
 @dataclass
@@ -76,8 +92,8 @@ class SpringDamper:
 
     def __post_init__(self):
         where = f"force '{self.name}'"
-        self.point1 = vector2(self.point1, f"{where} field 'point1'")
-        self.point2 = vector2(self.point2, f"{where} field 'point2'")
+        self.point1 = _point(self.point1, f"{where} field 'point1'")
+        self.point2 = _point(self.point2, f"{where} field 'point2'")
         if self.free_length is None:
             self.free_length = float(np.linalg.norm(self.point2 - self.point1))
         if np.allclose(self.point1, self.point2):
@@ -90,7 +106,8 @@ class SpringDamper:
 
 @dataclass
 class RotationalSpringDamper:
-    """Rotational spring-damper-actuator at a joint with a coordinate φ (revolute).
+    """Rotational spring-damper-actuator at a joint with an angle coordinate φ (revolute,
+    cylindrical).
 
     Moment T = k (φ − φ0) + c φ̇ + a(t) resisting an increase of φ; potential ½ k (φ − φ0)².
     ``free_angle`` defaults to 0.
@@ -102,6 +119,7 @@ class RotationalSpringDamper:
     damping: Value = 0.0
     free_angle: Value = 0.0
     actuator: Value = 0.0
+    coordinate: str | None = None
 
     def __post_init__(self):
         where = f"force '{self.name}'"
@@ -129,7 +147,7 @@ class UserForce:
         if not callable(self.function):
             raise ModelError(f"force '{self.name}' field 'function': expected a callable")
         if self.point is not None:
-            self.point = vector2(self.point, f"force '{self.name}' field 'point'")
+            self.point = _point(self.point, f"force '{self.name}' field 'point'")
 
 
 @dataclass
@@ -139,3 +157,4 @@ class Actuator:
     name: str
     joint: str
     bounds: tuple[float, float] = field(default_factory=lambda: (-np.inf, np.inf))
+    coordinate: str | None = None

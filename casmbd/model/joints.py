@@ -15,7 +15,7 @@ import casadi as ca
 import numpy as np
 
 from casmbd.errors import ModelError
-from casmbd.model.bodies import scalar, vector2
+from casmbd.model.bodies import scalar, vector, vector2
 
 JOINT_TYPES = ("revolute", "prismatic", "rigid", "distance", "fixed")
 
@@ -23,6 +23,15 @@ JOINT_TYPES = ("revolute", "prismatic", "rigid", "distance", "fixed")
 def _perp(vec):
     """Rotate a planar vector by +90 degrees."""
     return ca.vertcat(-vec[1], vec[0]) if isinstance(vec, ca.SX) else np.array([-vec[1], vec[0]])
+
+
+def _relative_rotation(ctx, body1: str, body2: str) -> ca.SX:
+    """Planar relative rotation since the initial pose: linear in the angles when they are
+    coordinates, its sine otherwise (natural coordinates)."""
+    if ctx.has_angle(body1) and ctx.has_angle(body2):
+        rel0 = ctx.initial_angle(body2) - ctx.initial_angle(body1)
+        return ctx.angle(body2) - ctx.angle(body1) - rel0
+    return ctx.relative_rotation(body1, body2)[0]
 
 
 @dataclass
@@ -35,16 +44,37 @@ class Joint:
 
     #: labels of the constraint equations, in order
     labels: tuple[str, ...] = ()
-    #: True when the joint defines a scalar joint coordinate (drivers, actuators, springs)
-    has_coordinate: bool = False
+    #: names of the joint's coordinates (drivers, actuators, springs); the first is the default
+    coordinate_names: tuple[str, ...] = ()
+
+    @property
+    def has_coordinate(self) -> bool:
+        """True when the joint defines at least one joint coordinate."""
+        return bool(self.coordinate_names)
 
     def equations(self, ctx) -> ca.SX:
         """Constraint vector C_joint(q) as a column (same order as ``labels``)."""
         raise NotImplementedError
 
-    def coordinate(self, ctx) -> ca.SX:
-        """Scalar joint coordinate as an expression of q."""
-        raise ModelError(f"joint '{self.name}' ({type(self).__name__}) has no joint coordinate")
+    def _which(self, which: str | None) -> str:
+        if not self.coordinate_names:
+            raise ModelError(f"joint '{self.name}' ({type(self).__name__}) has no joint "
+                             "coordinate")
+        if which is None:
+            return self.coordinate_names[0]
+        if which not in self.coordinate_names:
+            raise ModelError(f"joint '{self.name}' has no coordinate '{which}' (known: "
+                             f"{', '.join(self.coordinate_names)})")
+        return which
+
+    def coordinate(self, ctx, which: str | None = None) -> ca.SX:
+        """Joint coordinate ``which`` (default: the first) as an expression of q."""
+        self._which(which)
+        raise NotImplementedError
+
+    def driver_residual(self, ctx, target, which: str | None = None) -> ca.SX:
+        """Residual of the driving constraint coordinate = target (unit slope at the root)."""
+        return self.coordinate(ctx, which) - target
 
     def reaction_point(self) -> np.ndarray | None:
         """Global location (initial pose) at which reactions are reported."""
@@ -57,7 +87,7 @@ class Revolute(Joint):
 
     point: np.ndarray = field(default_factory=lambda: np.zeros(2))
     labels: tuple[str, ...] = ("x", "y")
-    has_coordinate: bool = True
+    coordinate_names: tuple[str, ...] = ("angle",)
 
     def __post_init__(self):
         self.point = vector2(self.point, f"joint '{self.name}' field 'point'")
@@ -67,8 +97,13 @@ class Revolute(Joint):
         p2 = ctx.point(self.body2, ctx.local(self.body2, self.point))
         return p1 - p2
 
-    def coordinate(self, ctx):
-        return ctx.angle(self.body2) - ctx.angle(self.body1)
+    def coordinate(self, ctx, which=None):
+        self._which(which)
+        return ctx.relative_angle(self.body1, self.body2)
+
+    def driver_residual(self, ctx, target, which=None):
+        self._which(which)
+        return ctx.angle_residual(self.body1, self.body2, target)
 
 
 @dataclass
@@ -83,7 +118,7 @@ class Prismatic(Joint):
     point: np.ndarray = field(default_factory=lambda: np.zeros(2))
     axis: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0]))
     labels: tuple[str, ...] = ("angle", "normal")
-    has_coordinate: bool = True
+    coordinate_names: tuple[str, ...] = ("translation",)
 
     def __post_init__(self):
         self.point = vector2(self.point, f"joint '{self.name}' field 'point'")
@@ -101,11 +136,11 @@ class Prismatic(Joint):
 
     def equations(self, ctx):
         d, axis = self._separation(ctx)
-        rel0 = ctx.initial_angle(self.body2) - ctx.initial_angle(self.body1)
-        angle = ctx.angle(self.body2) - ctx.angle(self.body1) - rel0
-        return ca.vertcat(angle, ca.dot(_perp(axis), d))
+        return ca.vertcat(_relative_rotation(ctx, self.body1, self.body2),
+                          ca.dot(_perp(axis), d))
 
-    def coordinate(self, ctx):
+    def coordinate(self, ctx, which=None):
+        self._which(which)
         d, axis = self._separation(ctx)
         return ca.dot(axis, d)
 
@@ -125,8 +160,7 @@ class Rigid(Joint):
         point = self.point if self.point is not None else ctx.initial_position(self.body2)
         p1 = ctx.point(self.body1, ctx.local(self.body1, point))
         p2 = ctx.point(self.body2, ctx.local(self.body2, point))
-        rel0 = ctx.initial_angle(self.body2) - ctx.initial_angle(self.body1)
-        return ca.vertcat(p1 - p2, ctx.angle(self.body2) - ctx.angle(self.body1) - rel0)
+        return ca.vertcat(p1 - p2, _relative_rotation(ctx, self.body1, self.body2))
 
     def reaction_point(self):
         return self.point
@@ -148,11 +182,13 @@ class Distance(Joint):
     point2: np.ndarray = field(default_factory=lambda: np.zeros(2))
     length: float | None = None
     labels: tuple[str, ...] = ("length",)
-    has_coordinate: bool = True
+    coordinate_names: tuple[str, ...] = ("length",)
+    dimension: int = 2
 
     def __post_init__(self):
-        self.point1 = vector2(self.point1, f"joint '{self.name}' field 'point1'")
-        self.point2 = vector2(self.point2, f"joint '{self.name}' field 'point2'")
+        where = f"joint '{self.name}' field"
+        self.point1 = vector(self.point1, f"{where} 'point1'", self.dimension)
+        self.point2 = vector(self.point2, f"{where} 'point2'", self.dimension)
         if self.length is None:
             self.length = float(np.linalg.norm(self.point2 - self.point1))
         self.length = scalar(self.length, f"joint '{self.name}' field 'length'")
@@ -169,7 +205,8 @@ class Distance(Joint):
         d = self._separation(ctx)
         return (ca.dot(d, d) - self.length**2) / (2.0 * self.length)
 
-    def coordinate(self, ctx):
+    def coordinate(self, ctx, which=None):
+        self._which(which)
         d = self._separation(ctx)
         return ca.sqrt(ca.dot(d, d))
 

@@ -19,8 +19,8 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from casmbd.errors import ModelError
-from casmbd.model.bodies import GROUND, Body, Marker, vector2
-from casmbd.model.drivers import Driver
+from casmbd.model.bodies import GROUND, Body, Marker, SpatialBody, scalar, vector
+from casmbd.model.drivers import BODY_COORDINATES, Driver
 from casmbd.model.forces import (
     Actuator,
     PointForce,
@@ -30,25 +30,49 @@ from casmbd.model.forces import (
     UserForce,
 )
 from casmbd.model.joints import Distance, Fixed, Joint, Prismatic, Revolute, Rigid
+from casmbd.model.rotations import euler_zxz_to_quaternion, inertia_tensor
+from casmbd.model.spatial_joints import (
+    Cylindrical,
+    SpatialFixed,
+    SpatialPrismatic,
+    SpatialRevolute,
+    SpatialRigid,
+    Spherical,
+    Universal,
+)
 from casmbd.model.values import Value, check_value, numeric
 
 
 class Mechanism:
-    """A planar mechanism: bodies in absolute coordinates, joints, drivers, forces, actuators.
+    """A planar or spatial mechanism: bodies, joints, drivers, forces, actuators.
 
     Parameters
     ----------
     name : str
         Name of the mechanism (used for compiled-code file names).
-    gravity : sequence of 2 floats
+    gravity : sequence of 2 or 3 floats
         Gravitational acceleration vector, default zero.
+    dimension : {2, 3}, optional
+        Planar or spatial; by default the length of ``gravity`` (2 when it is not given).
+    coordinates : {"absolute", "natural"}
+        Default choice of generalized coordinates of the systems built from it
+        (:mod:`casmbd.system.descriptions`); a description property, not a model one.
     """
 
-    dimension = 2
-
-    def __init__(self, name: str = "mechanism", gravity: Sequence[float] = (0.0, 0.0)):
+    def __init__(self, name: str = "mechanism", gravity: Sequence[float] | None = None,
+                 dimension: int | None = None, coordinates: str = "absolute"):
         self.name = str(name)
-        self.gravity = vector2(gravity, "mechanism field 'gravity'")
+        if dimension is None:
+            dimension = 2 if gravity is None else len(gravity)
+        if dimension not in (2, 3):
+            raise ModelError(f"mechanism field 'dimension': expected 2 or 3, got {dimension!r}")
+        self.dimension = int(dimension)
+        if coordinates not in ("absolute", "natural"):
+            raise ModelError(f"mechanism field 'coordinates': expected 'absolute' or "
+                             f"'natural', got {coordinates!r}")
+        self.coordinates = coordinates
+        gravity = np.zeros(self.dimension) if gravity is None else gravity
+        self.gravity = vector(gravity, "mechanism field 'gravity'", self.dimension)
         self.parameters: dict[str, float] = {}
         self.bodies: dict[str, Body] = {}
         self.markers: dict[str, Marker] = {}
@@ -87,6 +111,14 @@ class Mechanism:
                              "joint coordinate")
         return joint
 
+    def _vec(self, value, where: str) -> np.ndarray:
+        return vector(value, where, self.dimension)
+
+    def _spatial(self, kind: str, name: str) -> None:
+        if self.dimension != 3:
+            raise ModelError(f"joint '{name}': a {kind} joint needs a spatial mechanism "
+                             "(dimension = 3)")
+
     def _pair(self, body1: str, body2: str, where: str) -> None:
         self._body(body1, f"{where} field 'body1'")
         self._body(body2, f"{where} field 'body2'")
@@ -116,17 +148,49 @@ class Mechanism:
         return name
 
     # ------------------------------------------------------------------ bodies
-    def add_body(self, name: str, mass: Value, inertia: Value, position: Sequence[float],
-                 angle: float = 0.0, velocity: Sequence[float] = (0.0, 0.0),
-                 angular_velocity: float = 0.0,
-                 reference_point: Sequence[float] = (0.0, 0.0)) -> Body:
-        """Add a planar rigid body (centre of mass at ``position``); see :class:`Body`."""
+    def add_body(self, name: str, mass: Value, inertia, position: Sequence[float],
+                 angle: float = 0.0, velocity: Sequence[float] | None = None,
+                 angular_velocity=None, reference_point: Sequence[float] | None = None,
+                 orientation: Sequence[float] | None = None,
+                 euler_zxz: Sequence[float] | None = None) -> Body | SpatialBody:
+        """Add a rigid body with its centre of mass at ``position``.
+
+        In the plane: ``inertia`` is the moment of inertia about the centre of mass, ``angle``
+        the orientation (:class:`~casmbd.model.bodies.Body`).  In space: ``inertia`` is
+        [Ixx, Iyy, Izz] or [Ixx, Iyy, Izz, Ixy, Ixz, Iyz] about the centre of mass in body axes,
+        the orientation a unit quaternion ``orientation`` [w, x, y, z] or Euler angles
+        ``euler_zxz`` [φ, θ, ψ] (rad), velocities in global components
+        (:class:`~casmbd.model.bodies.SpatialBody`).
+        """
         self._unique(self.bodies, "body", name)
-        body = Body(name, mass, inertia, position, angle, velocity, angular_velocity,
-                    reference_point)
-        for key in ("mass", "inertia"):
-            value = getattr(body, key)
-            if isinstance(value, float) and value <= 0.0:
+        dim = self.dimension
+        zeros = (0.0,) * dim
+        velocity = zeros if velocity is None else velocity
+        reference_point = zeros if reference_point is None else reference_point
+        if dim == 2:
+            for key, value in (("orientation", orientation), ("euler_zxz", euler_zxz)):
+                if value is not None:
+                    raise ModelError(f"body '{name}' field '{key}': planar bodies have an "
+                                     "'angle'")
+            body = Body(name, mass, inertia, position, angle,
+                        velocity, 0.0 if angular_velocity is None else angular_velocity,
+                        reference_point)
+        else:
+            if angle:
+                raise ModelError(f"body '{name}' field 'angle': spatial bodies take "
+                                 "'orientation' (quaternion) or 'euler_zxz'")
+            if orientation is not None and euler_zxz is not None:
+                raise ModelError(f"body '{name}': give 'orientation' or 'euler_zxz', not both")
+            if euler_zxz is not None:
+                angles = vector(euler_zxz, f"body '{name}' field 'euler_zxz'", 3)
+                orientation = euler_zxz_to_quaternion(*angles)
+            body = SpatialBody(name, mass, inertia, position,
+                               (1.0, 0.0, 0.0, 0.0) if orientation is None else orientation,
+                               velocity, zeros if angular_velocity is None else angular_velocity,
+                               reference_point)
+        values = [body.mass] + (list(body.inertia) if dim == 3 else [body.inertia])
+        for key, value in zip(["mass"] + ["inertia"] * (len(values) - 1), values, strict=True):
+            if isinstance(value, float) and value <= 0.0 and (key == "mass" or dim == 2):
                 raise ModelError(f"body '{name}' field '{key}': must be > 0, got {value}")
         self.bodies[name] = body
         return body
@@ -135,7 +199,7 @@ class Mechanism:
         """Add a named point on ``body`` at the global location ``point`` (initial pose)."""
         self._unique(self.markers, "marker", name)
         self._body(body, f"marker '{name}' field 'body'")
-        marker = Marker(name, body, point)
+        marker = Marker(name, body, point, self.dimension)
         self.markers[name] = marker
         return marker
 
@@ -144,49 +208,96 @@ class Mechanism:
         self.joints[joint.name] = joint
         return joint
 
-    def add_revolute(self, name: str, body1: str, body2: str, point: Sequence[float]) -> Joint:
-        """Revolute (pin) joint at the global ``point``; coordinate θ2 − θ1."""
+    def _new_joint(self, name: str, body1: str, body2: str) -> None:
         self._unique(self.joints, "joint", name)
         self._pair(body1, body2, f"joint '{name}'")
-        return self._add_joint(Revolute(name, body1, body2, point=point))
+
+    def add_revolute(self, name: str, body1: str, body2: str, point: Sequence[float],
+                     axis: Sequence[float] | None = None) -> Joint:
+        """Revolute (pin) joint at the global ``point``; in space about the global ``axis``.
+
+        Coordinate: θ2 − θ1 in the plane; the rotation about the axis since the initial pose
+        in space.
+        """
+        self._new_joint(name, body1, body2)
+        if self.dimension == 2:
+            if axis is not None:
+                raise ModelError(f"joint '{name}' field 'axis': a planar revolute joint has "
+                                 "no axis")
+            return self._add_joint(Revolute(name, body1, body2, point=point))
+        if axis is None:
+            raise ModelError(f"joint '{name}' field 'axis': a spatial revolute joint needs "
+                             "its axis")
+        return self._add_joint(SpatialRevolute(name, body1, body2, point=point, axis=axis))
 
     def add_prismatic(self, name: str, body1: str, body2: str, point: Sequence[float],
                       axis: Sequence[float]) -> Joint:
         """Prismatic (translational) joint along the global ``axis`` through ``point``."""
-        self._unique(self.joints, "joint", name)
-        self._pair(body1, body2, f"joint '{name}'")
-        return self._add_joint(Prismatic(name, body1, body2, point=point, axis=axis))
+        self._new_joint(name, body1, body2)
+        cls = Prismatic if self.dimension == 2 else SpatialPrismatic
+        return self._add_joint(cls(name, body1, body2, point=point, axis=axis))
+
+    def add_cylindrical(self, name: str, body1: str, body2: str, point: Sequence[float],
+                        axis: Sequence[float]) -> Joint:
+        """Cylindrical joint (slide along and turn about ``axis``); coordinates
+        ``translation`` and ``angle``.  Spatial only."""
+        self._spatial("cylindrical", name)
+        self._new_joint(name, body1, body2)
+        return self._add_joint(Cylindrical(name, body1, body2, point=point, axis=axis))
+
+    def add_spherical(self, name: str, body1: str, body2: str, point: Sequence[float]) -> Joint:
+        """Spherical (ball) joint at ``point``.  Spatial only."""
+        self._spatial("spherical", name)
+        self._new_joint(name, body1, body2)
+        return self._add_joint(Spherical(name, body1, body2, point=point))
+
+    def add_universal(self, name: str, body1: str, body2: str, point: Sequence[float],
+                      axis1: Sequence[float], axis2: Sequence[float]) -> Joint:
+        """Universal joint at ``point``: ``axis1`` on body1 ⟂ ``axis2`` on body2.  Spatial
+        only."""
+        self._spatial("universal", name)
+        self._new_joint(name, body1, body2)
+        return self._add_joint(Universal(name, body1, body2, point=point, axis1=axis1,
+                                         axis2=axis2))
 
     def add_rigid(self, name: str, body1: str, body2: str,
                   point: Sequence[float] | None = None) -> Joint:
         """Weld body2 to body1 in their initial relative pose."""
-        self._unique(self.joints, "joint", name)
-        self._pair(body1, body2, f"joint '{name}'")
-        return self._add_joint(Rigid(name, body1, body2, point=point))
+        self._new_joint(name, body1, body2)
+        cls = Rigid if self.dimension == 2 else SpatialRigid
+        return self._add_joint(cls(name, body1, body2, point=point))
 
     def add_fixed(self, name: str, body: str, point: Sequence[float] | None = None) -> Joint:
         """Fix ``body`` to the ground in its initial pose."""
-        self._unique(self.joints, "joint", name)
-        self._pair(GROUND, body, f"joint '{name}'")
-        return self._add_joint(Fixed(name, GROUND, body, point=point))
+        self._new_joint(name, GROUND, body)
+        cls = Fixed if self.dimension == 2 else SpatialFixed
+        return self._add_joint(cls(name, GROUND, body, point=point))
 
     def add_distance(self, name: str, body1: str, body2: str, point1: Sequence[float],
                      point2: Sequence[float], length: float | None = None) -> Joint:
         """Massless link between two points; ``length`` defaults to the initial distance."""
-        self._unique(self.joints, "joint", name)
-        self._pair(body1, body2, f"joint '{name}'")
+        self._new_joint(name, body1, body2)
         return self._add_joint(Distance(name, body1, body2, point1=point1, point2=point2,
-                                        length=length))
+                                        length=length, dimension=self.dimension))
 
     # ------------------------------------------------------------------ drivers
     def add_driver(self, name: str, position: Value, joint: str | None = None,
                    body: str | None = None, coordinate: str | None = None) -> Driver:
-        """Prescribe a joint coordinate or a body coordinate (x, y, angle) as f(t)."""
+        """Prescribe a joint coordinate (``coordinate`` picks one of a multi-coordinate joint)
+        or a body coordinate (x, y, angle in the plane; x, y, z in space) as f(t)."""
         self._unique(self.drivers, "driver", name)
         driver = Driver(name, position, joint=joint, body=body, coordinate=coordinate)
         if joint is not None:
-            self._joint(joint, f"driver '{name}' field 'joint'")
+            joint_obj = self._joint(joint, f"driver '{name}' field 'joint'")
+            if coordinate is not None and coordinate not in joint_obj.coordinate_names:
+                raise ModelError(f"driver '{name}' field 'coordinate': joint '{joint}' has "
+                                 f"coordinates {', '.join(joint_obj.coordinate_names)}, not "
+                                 f"{coordinate!r}")
         else:
+            if coordinate not in BODY_COORDINATES[self.dimension]:
+                raise ModelError(f"driver '{name}' field 'coordinate': expected one of "
+                                 f"{', '.join(BODY_COORDINATES[self.dimension])}, got "
+                                 f"{coordinate!r}")
             if body == GROUND:
                 raise ModelError(f"driver '{name}' field 'body': the ground cannot be driven")
             self._body(body, f"driver '{name}' field 'body'")
@@ -200,17 +311,32 @@ class Mechanism:
 
     def add_force(self, name: str, body: str, value: Sequence[Value],
                   point: Sequence[float] | None = None, frame: str = "global") -> PointForce:
-        """Point force (2 components, ``frame`` 'global' or 'body') at ``point`` of ``body``
-        (default: its centre of mass)."""
+        """Point force (2 or 3 components, ``frame`` 'global' or 'body') at ``point`` of
+        ``body`` (default: its centre of mass)."""
         self._unique(self.forces, "force", name)
         self._body(body, f"force '{name}' field 'body'")
-        return self._add_force(PointForce(name, body, value, point=point, frame=frame))
+        force = PointForce(name, body, value, point=point, frame=frame)
+        self._dimension_of(name, "value", len(force.value))
+        if force.point is not None:
+            self._dimension_of(name, "point", len(force.point))
+        return self._add_force(force)
 
-    def add_torque(self, name: str, body: str, value: Value) -> Torque:
-        """Torque on ``body``."""
+    def add_torque(self, name: str, body: str, value, frame: str = "global") -> Torque:
+        """Torque on ``body``: one value in the plane, three (global or body ``frame``) in
+        space."""
         self._unique(self.forces, "force", name)
         self._body(body, f"force '{name}' field 'body'")
-        return self._add_force(Torque(name, body, value))
+        torque = Torque(name, body, value, frame=frame)
+        if len(torque.value) != (1 if self.dimension == 2 else 3):
+            raise ModelError(f"force '{name}' field 'value': a torque has "
+                             f"{1 if self.dimension == 2 else 3} component(s) in "
+                             f"{self.dimension} dimensions, got {len(torque.value)}")
+        return self._add_force(torque)
+
+    def _dimension_of(self, name: str, key: str, size: int) -> None:
+        if size != self.dimension:
+            raise ModelError(f"force '{name}' field '{key}': expected {self.dimension} "
+                             f"components, got {size}")
 
     def add_spring_damper(self, name: str, body1: str, body2: str, point1: Sequence[float],
                           point2: Sequence[float], stiffness: Value = 0.0, damping: Value = 0.0,
@@ -220,20 +346,25 @@ class Mechanism:
         self._unique(self.forces, "force", name)
         self._pair(body1, body2, f"force '{name}'")
         self._nonnegative(name, stiffness=stiffness, damping=damping)
-        return self._add_force(SpringDamper(name, body1, body2, point1, point2, stiffness,
-                                            damping, free_length, actuator))
+        force = SpringDamper(name, body1, body2, point1, point2, stiffness, damping,
+                             free_length, actuator)
+        self._dimension_of(name, "point1", len(force.point1))
+        self._dimension_of(name, "point2", len(force.point2))
+        return self._add_force(force)
 
     def add_rotational_spring_damper(self, name: str, joint: str, stiffness: Value = 0.0,
                                      damping: Value = 0.0, free_angle: Value = 0.0,
                                      actuator: Value = 0.0) -> RotationalSpringDamper:
-        """Rotational spring-damper-actuator on the coordinate of a revolute joint."""
+        """Rotational spring-damper-actuator on the angle of a revolute (or cylindrical)
+        joint."""
         self._unique(self.forces, "force", name)
         self._nonnegative(name, stiffness=stiffness, damping=damping)
         joint_obj = self._joint(joint, f"force '{name}' field 'joint'")
-        if not isinstance(joint_obj, Revolute):
+        if "angle" not in joint_obj.coordinate_names:
             raise ModelError(f"force '{name}' field 'joint': joint '{joint}' is not revolute")
         return self._add_force(RotationalSpringDamper(name, joint, stiffness, damping,
-                                                      free_angle, actuator))
+                                                      free_angle, actuator,
+                                                      coordinate="angle"))
 
     def add_user_force(self, name: str, function: Callable, body: str | None = None,
                        point: Sequence[float] | None = None) -> UserForce:
@@ -243,11 +374,15 @@ class Mechanism:
             self._body(body, f"force '{name}' field 'body'")
         return self._add_force(UserForce(name, function, body=body, point=point))
 
-    def add_actuator(self, name: str, joint: str) -> Actuator:
-        """A generalized-force input u along the coordinate of ``joint``."""
+    def add_actuator(self, name: str, joint: str, coordinate: str | None = None) -> Actuator:
+        """A generalized-force input u along a coordinate of ``joint`` (default its first)."""
         self._unique(self.actuators, "actuator", name)
-        self._joint(joint, f"actuator '{name}' field 'joint'")
-        actuator = Actuator(name, joint)
+        joint_obj = self._joint(joint, f"actuator '{name}' field 'joint'")
+        if coordinate is not None and coordinate not in joint_obj.coordinate_names:
+            raise ModelError(f"actuator '{name}' field 'coordinate': joint '{joint}' has "
+                             f"coordinates {', '.join(joint_obj.coordinate_names)}, not "
+                             f"{coordinate!r}")
+        actuator = Actuator(name, joint, coordinate=coordinate)
         self.actuators[name] = actuator
         return actuator
 
@@ -257,23 +392,25 @@ class Mechanism:
         if not self.bodies:
             raise ModelError(f"mechanism '{self.name}' has no moving body")
         for body in self.bodies.values():
-            for key in ("mass", "inertia"):
-                where = f"body '{body.name}' field '{key}'"
-                value = numeric(getattr(body, key), self.parameters, where)
-                if value <= 0.0:
-                    raise ModelError(f"{where}: must be > 0, got {value}")
+            where = f"body '{body.name}' field"
+            mass = numeric(body.mass, self.parameters, f"{where} 'mass'")
+            if mass <= 0.0:
+                raise ModelError(f"{where} 'mass': must be > 0, got {mass}")
+            if body.dimension == 2:
+                inertia = numeric(body.inertia, self.parameters, f"{where} 'inertia'")
+                if inertia <= 0.0:
+                    raise ModelError(f"{where} 'inertia': must be > 0, got {inertia}")
+            else:
+                values = [numeric(v, self.parameters, f"{where} 'inertia'")
+                          for v in body.inertia]
+                try:
+                    inertia_tensor(values)
+                except ModelError as exc:
+                    raise ModelError(f"{where} 'inertia': {exc}") from None
         for force in self.forces.values():
             for key in ("stiffness", "damping"):
                 if hasattr(force, key):
                     check_value(getattr(force, key), f"force '{force.name}' field '{key}'")
-
-    def initial_coordinates(self) -> np.ndarray:
-        """Stacked q from the bodies' initial poses (approximate, before assembly)."""
-        return np.concatenate([b.initial_coordinates() for b in self.bodies.values()])
-
-    def initial_velocities(self) -> np.ndarray:
-        """Stacked q̇ from the bodies' initial velocities."""
-        return np.concatenate([b.initial_velocities() for b in self.bodies.values()])
 
     def __repr__(self) -> str:
         return (f"Mechanism({self.name!r}: {len(self.bodies)} bodies, {len(self.joints)} joints, "

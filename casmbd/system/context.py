@@ -1,9 +1,11 @@
 """Symbolic kinematics of the bodies, handed to joints, drivers and forces while assembling.
 
-The context owns the symbols q, v, t, u, p and writes body-point positions
-r_P = r_G(q) + A(θ) u_P, with r_G = R − A(θ) s for a body whose reference point R is offset by s
-from its centre of mass (seed 000, eq. 6.16).  Sines and cosines are created once per body so
-that every element shares them.
+The context owns the symbols q, v, t, u, p and, for each body, its description
+(:mod:`casmbd.system.descriptions`): which block of q it owns, its reference point R(q_i) and
+rotation matrix A(q_i).  Body points are r_P = r_G + A u_P with r_G = R − A s (seed 000, eq.
+6.16; seed 001, eq. 1); directions are A a.  Joints, drivers and forces are written only with
+these helpers, so the same element serves planar and spatial bodies in absolute or natural
+coordinates.  Rotation matrices are created once per body and shared by every element.
 """
 
 from __future__ import annotations
@@ -12,48 +14,93 @@ import casadi as ca
 import numpy as np
 
 from casmbd.errors import ModelError
-from casmbd.model.bodies import GROUND, rotation
+from casmbd.model.bodies import GROUND
 
 
 class Context:
-    """Symbols and per-body kinematic expressions of a planar mechanism."""
+    """Symbols and per-body kinematic expressions of a mechanism.
 
-    def __init__(self, mechanism, q, v, t, u, p):
+    Parameters
+    ----------
+    mechanism : casmbd.model.Mechanism
+    descriptions : dict of str to Description
+        One description per moving body, in the order of ``mechanism.bodies``.
+    q, v, t, u, p : casadi.SX
+        Coordinates, velocities, time, actuator inputs and parameters.
+    """
+
+    def __init__(self, mechanism, descriptions, q, v, t, u, p):
         self.mechanism = mechanism
+        self.dimension = mechanism.dimension
+        self.descriptions = descriptions
         self.q, self.v, self.t = q, v, t
         self.u = {name: u[i] for i, name in enumerate(mechanism.actuators)}
         self.p = {name: p[i] for i, name in enumerate(mechanism.parameters)}
-        self.index = {name: 3 * i for i, name in enumerate(mechanism.bodies)}
-        self._rot: dict[str, ca.SX] = {}
+        self.index: dict[str, int] = {}
+        offset = 0
+        for name, desc in descriptions.items():
+            self.index[name] = offset
+            offset += desc.size
+        self.nq = offset
+        self._frames: dict[str, tuple[ca.SX, ca.SX]] = {}
 
     # ---------------------------------------------------------------- coordinates
-    def coordinates(self, body: str) -> ca.SX:
-        """(x_R, y_R, θ) of a moving body."""
+    def block(self, body: str) -> slice:
+        """Slice of q owned by a moving body."""
         i = self.index[body]
-        return self.q[i:i + 3]
+        return slice(i, i + self.descriptions[body].size)
 
-    def angle(self, body: str):
-        """Rotation angle θ of the body frame (0 for the ground)."""
-        if body == GROUND:
-            return ca.SX(0.0)
-        return self.q[self.index[body] + 2]
+    def coordinates(self, body: str) -> ca.SX:
+        """q_i of a moving body."""
+        return self.q[self.block(body)]
+
+    def rates(self, body: str) -> ca.SX:
+        """v_i = q̇_i of a moving body."""
+        return self.v[self.block(body)]
+
+    def _frame(self, body: str) -> tuple[ca.SX, ca.SX]:
+        if body not in self._frames:
+            self._frames[body] = self.descriptions[body].frame(self.coordinates(body))
+        return self._frames[body]
 
     def rotation(self, body: str) -> ca.SX:
-        """A(θ) of a body, built once."""
-        if body not in self._rot:
-            th = self.angle(body)
-            c, s = ca.cos(th), ca.sin(th)
-            self._rot[body] = ca.vertcat(ca.horzcat(c, -s), ca.horzcat(s, c))
-        return self._rot[body]
+        """A(q_i) of a body (identity for the ground), built once."""
+        if body == GROUND:
+            return ca.SX.eye(self.dimension)
+        return self._frame(body)[1]
+
+    def reference(self, body: str) -> ca.SX:
+        """Global position of the body's reference point R."""
+        return self._frame(body)[0]
 
     def centre_of_mass(self, body: str) -> ca.SX:
-        """Global centre-of-mass position r_G = R − A(θ) s."""
-        i = self.index[body]
-        ref = self.q[i:i + 2]
-        s = self.mechanism.bodies[body].reference_point
+        """Global centre-of-mass position r_G = R − A s."""
+        if body == GROUND:
+            return ca.SX.zeros(self.dimension)
+        ref, rot = self._frame(body)
+        s = self.descriptions[body].offset
         if not np.any(s):
             return ref
-        return ref - self.rotation(body) @ ca.DM(s)
+        return ref - ca.mtimes(rot, ca.DM(s))
+
+    def angle(self, body: str) -> ca.SX:
+        """Planar rotation angle θ of the body frame (0 for the ground)."""
+        if self.dimension != 2:
+            raise ModelError(f"body '{body}': a rotation angle exists only in the plane")
+        if body == GROUND:
+            return ca.SX(0.0)
+        return self.descriptions[body].angle(self.coordinates(body))
+
+    def has_angle(self, body: str) -> bool:
+        """True when the planar angle of ``body`` is a coordinate (or the body is ground)."""
+        return body == GROUND or self.descriptions[body].has_angle
+
+    def angular_velocity(self, body: str) -> ca.SX:
+        """Global angular velocity (a scalar in the plane), linear in v."""
+        if body == GROUND:
+            return ca.SX.zeros(1 if self.dimension == 2 else 3)
+        return self.descriptions[body].angular_velocity(self.coordinates(body),
+                                                         self.rates(body))
 
     # ---------------------------------------------------------------- points and directions
     def point(self, body: str, local) -> ca.SX:
@@ -63,14 +110,20 @@ class Context:
             return ca.SX(ca.DM(local))
         if not np.any(local):
             return self.centre_of_mass(body)
-        return self.centre_of_mass(body) + self.rotation(body) @ ca.DM(local)
+        return self.centre_of_mass(body) + ca.mtimes(self.rotation(body), ca.DM(local))
 
     def direction(self, body: str, local) -> ca.SX:
-        """Global components A(θ) a of a body-fixed direction."""
+        """Global components A a of a body-fixed direction."""
         local = np.asarray(local, float)
         if body == GROUND:
             return ca.SX(ca.DM(local))
-        return self.rotation(body) @ ca.DM(local)
+        return ca.mtimes(self.rotation(body), ca.DM(local))
+
+    def initial_rotation(self, body: str) -> np.ndarray:
+        """A of a body at its initial pose."""
+        if body == GROUND:
+            return np.eye(self.dimension)
+        return self.mechanism.bodies[body].initial_rotation
 
     def local(self, body: str, point_global) -> np.ndarray:
         """Body-frame coordinates (about G) of a global point at the initial pose."""
@@ -80,17 +133,68 @@ class Context:
 
     def local_direction(self, body: str, direction_global) -> np.ndarray:
         """Body-frame components of a global direction at the initial pose."""
-        if body == GROUND:
-            return np.asarray(direction_global, float)
-        return rotation(self.mechanism.bodies[body].angle).T @ np.asarray(direction_global, float)
+        return self.initial_rotation(body).T @ np.asarray(direction_global, float)
 
     def initial_angle(self, body: str) -> float:
-        """Angle of a body at its initial pose."""
+        """Planar angle of a body at its initial pose."""
         return 0.0 if body == GROUND else self.mechanism.bodies[body].angle
 
     def initial_position(self, body: str) -> np.ndarray:
         """Centre-of-mass position of a body at its initial pose."""
-        return np.zeros(2) if body == GROUND else self.mechanism.bodies[body].position
+        if body == GROUND:
+            return np.zeros(self.dimension)
+        return self.mechanism.bodies[body].position
+
+    # ---------------------------------------------------------------- relative rotation
+    def relative_rotation(self, body1: str, body2: str, axis=None) -> tuple[ca.SX, ca.SX]:
+        """(sin φ, cos φ) of the rotation of body2 relative to body1 since the initial pose.
+
+        In the plane φ is (θ2 − θ1) − (θ2 − θ1)₀; in space it is the rotation about the
+        global ``axis`` (given at the initial pose, fixed on body1), measured with a unit
+        vector f normal to the axis: sin φ = (A1 f̄1 × A2 f̄2)·(A1 h̄1), cos φ = (A1 f̄1)·(A2 f̄2),
+        f̄1 and f̄2 being the body-frame components of f on each body at the initial pose.
+        """
+        if self.dimension == 2:
+            f = np.array([1.0, 0.0])
+            f1 = self.direction(body1, self.local_direction(body1, f))
+            f2 = self.direction(body2, self.local_direction(body2, f))
+            return f1[0] * f2[1] - f1[1] * f2[0], ca.dot(f1, f2)
+        h = np.asarray(axis, float)
+        f = normal_to(h)
+        h1 = self.direction(body1, self.local_direction(body1, h))
+        f1 = self.direction(body1, self.local_direction(body1, f))
+        f2 = self.direction(body2, self.local_direction(body2, f))
+        return ca.dot(ca.cross(f1, f2), h1), ca.dot(f1, f2)
+
+    def relative_angle(self, body1: str, body2: str, axis=None) -> ca.SX:
+        """Rotation angle of body2 relative to body1.
+
+        In the plane: θ2 − θ1 (continuous when both angles are coordinates; otherwise the
+        initial value plus the change, wrapped to (−π, π]).  In space: the rotation about
+        ``axis`` since the initial pose, wrapped to (−π, π].
+        """
+        if self.dimension == 2 and self.has_angle(body1) and self.has_angle(body2):
+            return self.angle(body2) - self.angle(body1)
+        sin, cos = self.relative_rotation(body1, body2, axis)
+        start = 0.0
+        if self.dimension == 2:
+            start = self.initial_angle(body2) - self.initial_angle(body1)
+        return start + ca.atan2(sin, cos)
+
+    def angle_residual(self, body1: str, body2: str, target: ca.SX, axis=None) -> ca.SX:
+        """Residual of the driving constraint φ = target.
+
+        φ − target when φ is a difference of coordinates; otherwise
+        sin(φ − target) = sin φ cos target − cos φ sin target, which is free of the wrap of
+        atan2, has unit slope at the solution (so its multiplier is the driving torque) and
+        stays regular through any number of turns (the angle driver of natural coordinates).
+        """
+        if self.dimension == 2 and self.has_angle(body1) and self.has_angle(body2):
+            return self.angle(body2) - self.angle(body1) - target
+        sin, cos = self.relative_rotation(body1, body2, axis)
+        if self.dimension == 2:
+            target = target - (self.initial_angle(body2) - self.initial_angle(body1))
+        return sin * ca.cos(target) - cos * ca.sin(target)
 
     # ---------------------------------------------------------------- user-facing helpers
     def _known(self, body: str) -> None:
@@ -101,7 +205,7 @@ class Context:
         """Global position of a body point given globally at the initial pose (default G)."""
         self._known(body)
         if point is None:
-            return self.point(body, np.zeros(2)) if body != GROUND else ca.SX.zeros(2)
+            return self.centre_of_mass(body)
         return self.point(body, self.local(body, point))
 
     def velocity(self, body: str, point=None) -> ca.SX:
@@ -117,3 +221,13 @@ class Context:
         if name not in self.mechanism.joints:
             raise ModelError(f"unknown joint '{name}' in a user expression")
         return self.mechanism.joints[name].coordinate(self)
+
+
+def normal_to(axis) -> np.ndarray:
+    """A unit vector normal to ``axis`` (deterministic: from the axis' smallest component)."""
+    h = np.asarray(axis, float)
+    h = h / np.linalg.norm(h)
+    trial = np.zeros(3)
+    trial[int(np.argmin(np.abs(h)))] = 1.0
+    f = trial - h * np.dot(trial, h)
+    return f / np.linalg.norm(f)

@@ -34,6 +34,7 @@ from casmbd.model.forces import (
 )
 from casmbd.model.values import resolve
 from casmbd.system.context import Context
+from casmbd.system.descriptions import COORDINATE_CHOICES, describe
 
 
 @dataclass(frozen=True)
@@ -64,27 +65,57 @@ SIGNATURES: dict[str, tuple[tuple[str, ...], str]] = {
 
 
 class System:
-    """Symbolic equations of a planar mechanism in absolute coordinates.
+    """Symbolic equations of a mechanism: planar or spatial, absolute or natural coordinates.
 
     Parameters
     ----------
     mechanism : casmbd.model.Mechanism
         The validated description.
+    coordinates : {"absolute", "natural"}, optional
+        How body poses become generalized coordinates (default: the mechanism's choice, see
+        :mod:`casmbd.system.descriptions`).
     """
 
-    def __init__(self, mechanism):
+    def __init__(self, mechanism, coordinates: str | None = None):
         mechanism.validate()
         self.mechanism = mechanism
+        self.dimension = mechanism.dimension
+        self.coordinates = coordinates or getattr(mechanism, "coordinates", "absolute")
+        if self.coordinates not in COORDINATE_CHOICES:
+            raise ModelError(f"unknown coordinate choice {self.coordinates!r} (known: "
+                             f"{', '.join(COORDINATE_CHOICES)})")
         self.body_names = list(mechanism.bodies)
-        self.nq = 3 * len(self.body_names)
+        self.descriptions = {name: describe(body, self.coordinates)
+                             for name, body in mechanism.bodies.items()}
+        self.nq = sum(d.size for d in self.descriptions.values())
         self.q = ca.SX.sym("q", self.nq)
         self.v = ca.SX.sym("v", self.nq)
         self.t = ca.SX.sym("t")
         self.u = ca.SX.sym("u", len(mechanism.actuators))
         self.p = ca.SX.sym("p", len(mechanism.parameters))
-        self.ctx = Context(mechanism, self.q, self.v, self.t, self.u, self.p)
-        self.coordinate_names = [f"{b}.{c}" for b in self.body_names for c in ("x", "y", "angle")]
+        self.ctx = Context(mechanism, self.descriptions, self.q, self.v, self.t, self.u, self.p)
+        self.coordinate_names = [f"{b}.{c}" for b, d in self.descriptions.items()
+                                 for c in d.names]
         self._functions: dict[str, ca.Function] = {}
+
+    # ------------------------------------------------------------------ coordinates
+    def body_slice(self, body: str) -> slice:
+        """Slice of q owned by ``body``."""
+        return self.ctx.block(body)
+
+    @cached_property
+    def length_indices(self) -> np.ndarray:
+        """Indices of the coordinates that are lengths (positions of reference points)."""
+        return np.array([self.ctx.index[b] + k for b, d in self.descriptions.items()
+                         for k, is_length in enumerate(d.lengths) if is_length], dtype=int)
+
+    def initial_coordinates(self) -> np.ndarray:
+        """Stacked q from the bodies' initial poses (approximate, before assembly)."""
+        return np.concatenate([d.initial() for d in self.descriptions.values()])
+
+    def initial_velocities(self) -> np.ndarray:
+        """Stacked q̇ from the bodies' initial velocities and angular velocities."""
+        return np.concatenate([d.initial_rates() for d in self.descriptions.values()])
 
     # ------------------------------------------------------------------ helpers
     def _value(self, value, where: str) -> ca.SX:
@@ -103,6 +134,11 @@ class System:
     @cached_property
     def _constraint_parts(self) -> tuple[ca.SX, list[Equation]]:
         rows, labels = [], []
+        for name, desc in self.descriptions.items():
+            eqs, names = desc.constraints(self.ctx.coordinates(name))
+            if names:
+                rows.append(ca.vec(eqs))
+                labels += [Equation("body", name, lab) for lab in names]
         for joint in self.mechanism.joints.values():
             eqs = ca.vec(joint.equations(self.ctx))
             if eqs.numel() != len(joint.labels):
@@ -111,13 +147,16 @@ class System:
             rows.append(eqs)
             labels += [Equation("joint", joint.name, lab) for lab in joint.labels]
         for driver in self.mechanism.drivers.values():
-            if driver.joint is not None:
-                coord = self.mechanism.joints[driver.joint].coordinate(self.ctx)
-            else:
-                k = ("x", "y", "angle").index(driver.coordinate)
-                coord = self.ctx.coordinates(driver.body)[k]
             target = self._value(driver.position, f"driver '{driver.name}' field 'position'")
-            rows.append(coord - target)
+            if driver.joint is not None:
+                residual = self.mechanism.joints[driver.joint].driver_residual(
+                    self.ctx, target, driver.coordinate)
+            elif driver.coordinate == "angle":
+                residual = self.ctx.angle_residual(GROUND, driver.body, target)
+            else:
+                k = ("x", "y", "z").index(driver.coordinate)
+                residual = self.ctx.reference(driver.body)[k] - target
+            rows.append(residual)
             labels.append(Equation("driver", driver.name, driver.coordinate or "coordinate"))
         c = ca.vertcat(*rows) if rows else ca.SX(0, 1)
         return c, labels
@@ -156,22 +195,35 @@ class System:
     # ------------------------------------------------------------------ inertia
     def _mass_inertia(self, body) -> tuple[ca.SX, ca.SX]:
         where = f"body '{body.name}' field"
-        return (self._value(body.mass, f"{where} 'mass'"),
-                self._value(body.inertia, f"{where} 'inertia'"))
+        mass = self._value(body.mass, f"{where} 'mass'")
+        if body.dimension == 2:
+            return mass, self._value(body.inertia, f"{where} 'inertia'")
+        vals = [self._value(v, f"{where} 'inertia'") for v in body.inertia]
+        ixx, iyy, izz = vals[:3]
+        ixy, ixz, iyz = vals[3:] if len(vals) == 6 else (0.0, 0.0, 0.0)
+        tensor = ca.vertcat(ca.horzcat(ixx, ixy, ixz), ca.horzcat(ixy, iyy, iyz),
+                            ca.horzcat(ixz, iyz, izz))
+        return mass, tensor
+
+    def _body_energy(self, name: str) -> ca.SX:
+        body = self.mechanism.bodies[name]
+        mass, inertia = self._mass_inertia(body)
+        return self.descriptions[name].kinetic_energy(
+            self.ctx.coordinates(name), self.ctx.rates(name), mass, inertia)
 
     @cached_property
     def mass_matrix(self) -> ca.SX:
-        """Block-diagonal M(q, p) (seed 000, eqs. 6.22–6.23)."""
+        """Block-diagonal M(q, p): M_i = ∂²T_i/∂v_i² of each body's kinetic energy.
+
+        T_i = ½ m |ṙ_G|² + rotational energy as written by the body's description (seed 000,
+        eqs. 6.22–6.23 in the plane; 4 Gᵀ J G for Euler parameters, seed 001; the constant
+        pseudo-inertia form of natural coordinates, seed 003).  T_i is quadratic in v_i, so the
+        Hessian is exact and structurally sparse.
+        """
         blocks = []
         for name in self.body_names:
-            body = self.mechanism.bodies[name]
-            m, inertia = self._mass_inertia(body)
-            qi = self.ctx.coordinates(name)
-            jg = ca.jacobian(self.ctx.centre_of_mass(name), qi)
-            # structurally sparse: only the (θ, θ) entry; a dense column would add six
-            # explicit zeros per block (3× the non-zeros, 6× the compile time at N = 128)
-            e_theta = ca.DM(ca.Sparsity.triplet(3, 1, [2], [0]), 1.0)
-            blocks.append(m * ca.mtimes(jg.T, jg) + inertia * ca.mtimes(e_theta, e_theta.T))
+            vi = self.ctx.rates(name)
+            blocks.append(ca.hessian(self._body_energy(name), vi)[0])
         return ca.diagcat(*blocks)
 
     @cached_property
@@ -179,17 +231,18 @@ class System:
         """Q_v = ∂T/∂q − Ṁ q̇ from the kinetic energy T = ½ q̇ᵀ M q̇, body by body.
 
         Lagrange's equations give M q̈ = Q_e + Q_v with Q_v = ∂T/∂q − (∂/∂q (M q̇)) q̇
-        (seed 000, eqs. 6.24 and 6.33–6.37); written this way by AD it holds for any body
-        description (planar absolute coordinates here, Euler parameters or natural
-        coordinates later) and is structurally zero for centroidal planar frames.
+        (seed 000, eqs. 6.24 and 6.33–6.37); written this way by AD it holds for every body
+        description and is structurally zero where the mass matrix is constant (centroidal
+        planar frames, natural coordinates).
         """
         parts = []
         m = self.mass_matrix
-        for i, name in enumerate(self.body_names):
-            if self.mechanism.bodies[name].is_centroidal:
-                parts.append(ca.SX(3, 1))  # constant mass matrix: structurally zero
+        for name in self.body_names:
+            sl = self.body_slice(name)
+            desc = self.descriptions[name]
+            if desc.constant_mass:
+                parts.append(ca.SX(desc.size, 1))  # constant mass matrix: structurally zero
                 continue
-            sl = slice(3 * i, 3 * i + 3)
             qi, vi = self.q[sl], self.v[sl]
             mv = ca.mtimes(m[sl, sl], vi)
             kinetic = 0.5 * ca.dot(vi, mv)
@@ -204,8 +257,16 @@ class System:
     # ------------------------------------------------------------------ forces
     def _point_local(self, body: str, point) -> np.ndarray:
         if point is None:
-            return np.zeros(2)
+            return np.zeros(self.dimension)
         return self.ctx.local(body, point)
+
+    def _torque(self, body: str, torque: ca.SX) -> ca.SX:
+        """Generalized force of a torque (global components): (∂ω/∂v)ᵀ T, seed 001 eq. on the
+        virtual rotation δπ (ω linear in v, so ∂ω/∂v maps δq to the virtual rotation)."""
+        if body == GROUND:
+            return ca.SX.zeros(self.nq)
+        omega = self.ctx.angular_velocity(body)
+        return ca.mtimes(ca.jacobian(omega, self.v).T, ca.vec(torque))
 
     @cached_property
     def applied_forces(self) -> ca.SX:
@@ -220,7 +281,8 @@ class System:
         for force in mech.forces.values():
             total += self._element_force(force)
         for i, act in enumerate(mech.actuators.values()):
-            total += self._generalized(mech.joints[act.joint].coordinate(ctx), self.u[i])
+            coord = mech.joints[act.joint].coordinate(ctx, act.coordinate)
+            total += self._generalized(coord, self.u[i])
         return total
 
     def _element_force(self, force) -> ca.SX:
@@ -232,8 +294,10 @@ class System:
             pos = ctx.point(force.body, self._point_local(force.body, force.point))
             return self._generalized(pos, value) if force.body != GROUND else 0
         if isinstance(force, Torque):
-            value = self._value(force.value, f"{where} 'value'")
-            return self._generalized(ctx.angle(force.body), value)
+            value = ca.vertcat(*[self._value(v, f"{where} 'value'") for v in force.value])
+            if force.frame == "body" and force.body != GROUND:
+                value = ca.mtimes(ctx.rotation(force.body), value)
+            return self._torque(force.body, value)
         if isinstance(force, SpringDamper):
             length = self._spring_length(force)
             rate = ca.jtimes(length, self.q, self.v)
@@ -243,7 +307,7 @@ class System:
                        + self._value(force.actuator, f"{where} 'actuator'"))
             return self._generalized(length, -tension)
         if isinstance(force, RotationalSpringDamper):
-            phi = self.mechanism.joints[force.joint].coordinate(ctx)
+            phi = self.mechanism.joints[force.joint].coordinate(ctx, force.coordinate)
             rate = ca.jtimes(phi, self.q, self.v)
             moment = (self._value(force.stiffness, f"{where} 'stiffness'")
                       * (phi - self._value(force.free_angle, f"{where} 'free_angle'"))
@@ -279,12 +343,18 @@ class System:
         if isinstance(out, tuple):
             out, torque = out
         vec = ca.SX(out)
-        if vec.numel() != 2:
-            raise ModelError(f"{where}: the force must have 2 components, got {vec.shape}")
+        if vec.numel() != self.dimension:
+            raise ModelError(f"{where}: the force must have {self.dimension} components, got "
+                             f"{vec.shape}")
         pos = self.ctx.point(force.body, self._point_local(force.body, force.point))
         total = self._generalized(pos, ca.vec(vec))
         if torque is not None:
-            total += self._generalized(self.ctx.angle(force.body), ca.SX(torque))
+            torque = ca.vec(ca.SX(torque))
+            size = 1 if self.dimension == 2 else 3
+            if torque.numel() != size:
+                raise ModelError(f"{where}: the torque must have {size} component(s), got "
+                                 f"{torque.shape}")
+            total += self._torque(force.body, torque)
         return total
 
     @cached_property
@@ -306,7 +376,7 @@ class System:
                 stretch = (self._spring_length(force)
                            - self._value(force.free_length, f"{where} 'free_length'"))
             elif isinstance(force, RotationalSpringDamper):
-                stretch = (mech.joints[force.joint].coordinate(ctx)
+                stretch = (mech.joints[force.joint].coordinate(ctx, force.coordinate)
                            - self._value(force.free_angle, f"{where} 'free_angle'"))
             else:
                 continue
@@ -316,31 +386,50 @@ class System:
     # ------------------------------------------------------------------ outputs
     @cached_property
     def joint_coordinate_names(self) -> list[str]:
-        """Joints that define a scalar coordinate, in declaration order."""
-        return [j.name for j in self.mechanism.joints.values() if j.has_coordinate]
+        """Joint coordinates, in declaration order: the joint's name for its first coordinate,
+        ``joint.coordinate`` for further ones (the angle of a cylindrical joint)."""
+        out = []
+        for joint in self.mechanism.joints.values():
+            for k, coord in enumerate(joint.coordinate_names):
+                out.append(joint.name if k == 0 else f"{joint.name}.{coord}")
+        return out
+
+    def _joint_coordinate(self, key: str) -> ca.SX:
+        name, _, coord = key.partition(".")
+        return self.mechanism.joints[name].coordinate(self.ctx, coord or None)
 
     def outputs_function(self) -> ca.Function:
         """Body, marker and joint outputs of (q, v, a, t, p), every output a column.
 
         Positions are stacked per point (x0, y0, x1, y1, …); velocities are J v and
-        accelerations J a + J̇ v of the same expressions.
+        accelerations J a + J̇ v of the same expressions.  Planar bodies give their angle
+        (``angle_*``); spatial bodies their rotation matrix (``rotation_matrices``, 9 per body,
+        row by row) and global angular velocity and acceleration (3 per body).
         """
         if "outputs" not in self._functions:
             ctx, mech = self.ctx, self.mechanism
             a = ca.SX.sym("a", self.nq)
             com = ca.vertcat(*[ctx.centre_of_mass(b) for b in self.body_names])
-            angles = ca.vertcat(*[ctx.angle(b) for b in self.body_names])
             mk = [ctx.position(m.body, m.point) for m in mech.markers.values()]
             markers = ca.vertcat(*mk) if mk else ca.SX(0, 1)
-            jc = [mech.joints[j].coordinate(ctx) for j in self.joint_coordinate_names]
+            jc = [self._joint_coordinate(j) for j in self.joint_coordinate_names]
             joints = ca.vertcat(*jc) if jc else ca.SX(0, 1)
+            groups = [("body_", com)]
+            if self.dimension == 2:
+                groups.append(("angle_", ca.vertcat(*[ctx.angle(b) for b in self.body_names])))
+            groups += [("marker_", markers), ("joint_", joints)]
             names, exprs = [], []
-            for label, expr in (("body_", com), ("angle_", angles), ("marker_", markers),
-                                ("joint_", joints)):
+            for label, expr in groups:
                 vel = ca.jtimes(expr, self.q, self.v)
                 acc = ca.jtimes(expr, self.q, a) + ca.jtimes(vel, self.q, self.v)
                 exprs += [expr, vel, acc]
                 names += [label + "positions", label + "velocities", label + "accelerations"]
+            if self.dimension == 3:
+                rot = ca.vertcat(*[ca.vec(ctx.rotation(b).T) for b in self.body_names])
+                omega = ca.vertcat(*[ctx.angular_velocity(b) for b in self.body_names])
+                alpha = ca.jtimes(omega, self.q, self.v) + ca.jtimes(omega, self.v, a)
+                exprs += [rot, omega, alpha]
+                names += ["rotation_matrices", "angular_velocities", "angular_accelerations"]
             self._functions["outputs"] = ca.Function(
                 "outputs", [self.q, self.v, a, self.t, self.p], exprs,
                 ["q", "v", "a", "t", "p"], names)
@@ -361,34 +450,53 @@ class System:
         return {lab.element: i for i, lab in enumerate(self.constraint_labels)
                 if lab.kind == "driver"}
 
+    def _wrench_map(self, body: str) -> ca.SX:
+        """S_bᵀ: maps a generalized force on the body's coordinates to the force and the moment
+        about G that do the same virtual work on every rigid motion (ṙ_G, ω) of the body."""
+        desc = self.descriptions[body]
+        vel = ca.SX.sym("vg", self.dimension)
+        omega = ca.SX.sym("om", 1 if self.dimension == 2 else 3)
+        twist = ca.vertcat(vel, omega)
+        rates = desc.rates(self.ctx.coordinates(body), vel, omega)
+        return ca.jacobian(rates, twist).T
+
     def reactions_function(self) -> ca.Function:
-        """Joint reactions (F_x, F_y, M) from the multipliers, one column per joint.
+        """Joint reactions from the multipliers, one column per joint.
 
         The generalized constraint force of joint k on body b is Q_c = −C_q,kbᵀ λ_k (seed 000,
-        eq. 6.145): a force (F_x, F_y) at the reference point R and a moment about R.  The
-        equipollent system at the joint point P is the same force and the moment
-        M_P = M_R − (r_P − R) × F (eqs. 6.146–6.151).  It is the action of body1 on body2,
-        expressed in the global frame (minus the action on body1 when body2 is the ground).
-        Driver multipliers are not included: a driver's effort is reported on its own.
+        eq. 6.145).  The force F and the moment M_G about the centre of mass doing the same
+        virtual work on every rigid motion are (F; M_G) = S_bᵀ Q_c, S_b the map from the twist
+        (ṙ_G, ω) to q̇_b; the equipollent system at the joint point P is F and
+        M_P = M_G − (r_P − r_G) × F (eqs. 6.146–6.151).  It is the action of body1 on body2,
+        in global components: (F_x, F_y, M) in the plane, (F_x, F_y, F_z, M_x, M_y, M_z) in
+        space (minus the action on body1 when body2 is the ground).  Driver multipliers are
+        not included: a driver's effort is reported on its own.
         """
         if "joint_reactions" not in self._functions:
             lam = ca.SX.sym("lambda", self.nc)
             cq = self.constraint_jacobian
+            dim = self.dimension
             cols = []
             for name, rows in self.joint_rows.items():
                 joint = self.mechanism.joints[name]
                 body, sign = (joint.body2, 1.0) if joint.body2 in self.ctx.index else \
                     (joint.body1, -1.0)
-                i = self.ctx.index[body]
-                q_c = -ca.mtimes(cq[rows, i:i + 3].T, lam[rows]) * sign
+                sl = self.body_slice(body)
+                q_c = -ca.mtimes(cq[rows, sl].T, lam[rows]) * sign
+                wrench = ca.mtimes(self._wrench_map(body), q_c)
+                force, moment = wrench[:dim], wrench[dim:]
                 point = joint.reaction_point()
                 if point is None:
                     point = self.ctx.initial_position(joint.body2)
-                r_p = self.ctx.point(body, self.ctx.local(body, point))
-                arm = r_p - self.q[i:i + 2]
-                moment = q_c[2] - (arm[0] * q_c[1] - arm[1] * q_c[0])
-                cols.append(ca.vertcat(q_c[0], q_c[1], moment))
-            out = ca.horzcat(*cols) if cols else ca.SX(3, 0)
+                arm = (self.ctx.point(body, self.ctx.local(body, point))
+                       - self.ctx.centre_of_mass(body))
+                if dim == 2:
+                    moment = moment - (arm[0] * force[1] - arm[1] * force[0])
+                else:
+                    moment = moment - ca.cross(arm, force)
+                cols.append(ca.vertcat(force, moment))
+            size = 3 if dim == 2 else 6
+            out = ca.horzcat(*cols) if cols else ca.SX(size, 0)
             self._functions["joint_reactions"] = ca.Function(
                 "joint_reactions", [self.q, self.t, self.p, lam], [out],
                 ["q", "t", "p", "lambda"], ["reactions"])

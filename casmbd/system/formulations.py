@@ -118,12 +118,13 @@ def ggl(system: System, inputs: ca.SX | None = None) -> Formulation:
 
 
 def _block_inverse(system: System) -> ca.SX:
-    """M⁻¹ block by block (3×3 per body); constant and diagonal for centroidal bodies."""
+    """M⁻¹ block by block; diagonal blocks (centroidal planar frames) invert entry-wise."""
     m = system.mass_matrix
     blocks = []
-    for i, name in enumerate(system.body_names):
-        block = m[3 * i:3 * i + 3, 3 * i:3 * i + 3]
-        if system.mechanism.bodies[name].is_centroidal:
+    for name in system.body_names:
+        sl = system.body_slice(name)
+        block = m[sl, sl]
+        if block.sparsity().is_diag():
             blocks.append(ca.diag(1.0 / ca.diag(block)))
         else:
             blocks.append(ca.inv(block))
@@ -200,7 +201,7 @@ def augmented_lagrangian(system: System, penalty: float | None = None, iteration
 
 
 def _default_penalty(system: System) -> float:
-    q0 = system.mechanism.initial_coordinates()
+    q0 = system.initial_coordinates()
     f = ca.Function("scale", [system.q, system.p],
                     [ca.diag(system.mass_matrix), ca.sum1(system.constraint_jacobian**2).T])
     m_diag, c_diag = (np.asarray(x).ravel() for x in f(q0, system.parameter_values))
