@@ -344,7 +344,8 @@ def test_assembly_keeps_fixed_coordinate_exactly():
     mech = four_bar_api(crank_angle=1.2, driver=False, name="fb_fixed")
     model = NumericModel(mech, "kinematics")
     target = 1.2 + 0.25
-    ref = System(four_bar_api(crank_angle=target, driver=False, name="fb_ref")).initial_coordinates()
+    reference = four_bar_api(crank_angle=target, driver=False, name="fb_ref")
+    ref = System(reference).initial_coordinates()
     q0 = System(mech).initial_coordinates()
     q0[2] = target  # new crank angle, every other coordinate is now off
     rng = np.random.default_rng(11)

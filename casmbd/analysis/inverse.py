@@ -103,9 +103,9 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
     if n_j:
         reac = np.asarray(model.function("joint_reactions").map(n)(
             qs.T, grid[None, :], np.tile(model.p[:, None], (1, n)), lam.T))
-        reactions = reac.reshape(3, n, n_j, order="F").transpose(1, 2, 0)
+        reactions = reac.reshape(system.reaction_size, n, n_j, order="F").transpose(1, 2, 0)
     else:
-        reactions = np.zeros((n, 0, 3))
+        reactions = np.zeros((n, 0, system.reaction_size))
     drivers = list(system.mechanism.drivers)
     efforts = (np.column_stack([-lam[:, system.driver_rows[d]] for d in drivers])
                if drivers else np.zeros((n, 0)))

@@ -152,7 +152,6 @@ class Simulator:
         if max_steps is None:
             # numeric right-hand sides are ~100x dearer: fail in seconds, not minutes
             max_steps = 20_000 if self.formulation.kind == "numeric" else 500_000
-        mech = self.system.mechanism
         model = self.model
         grid = np.linspace(t_start, t_end, int(steps) + 1)
         q0 = model.system.initial_coordinates() if q0 is None else np.asarray(q0, float)
@@ -350,9 +349,9 @@ class Simulator:
         reac_f = model.function("joint_reactions").map(n)
         reac = np.asarray(reac_f(qs.T, grid[None, :], np.tile(model.p[:, None], (1, n)),
                                  lam.T)) if system.mechanism.joints else np.zeros((3, 0))
-        n_j = len(system.mechanism.joints)
-        reactions = reac.reshape(3, n, n_j, order="F").transpose(1, 2, 0) if n_j else \
-            np.zeros((n, 0, 3))
+        n_j, size = len(system.mechanism.joints), system.reaction_size
+        reactions = reac.reshape(size, n, n_j, order="F").transpose(1, 2, 0) if n_j else \
+            np.zeros((n, 0, size))
         drivers = list(system.mechanism.drivers)
         efforts = np.column_stack([-lam[:, system.driver_rows[d]] for d in drivers]) \
             if drivers else np.zeros((n, 0))

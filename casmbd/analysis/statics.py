@@ -50,6 +50,7 @@ from casmbd.analysis.assembly import assemble
 from casmbd.analysis.redundancy import null_space_basis
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, AssemblyError
+from casmbd.system.descriptions import quaternions_from_matrices
 
 METHODS = ("augmented", "reduced")
 #: relative tolerance on the projected stiffness eigenvalues (times the largest |eigenvalue|)
@@ -78,8 +79,10 @@ class StaticsResult:
         True (stable), False (unstable) or None (neutral: a zero eigenvalue).
     eigenvalues : ndarray
         Eigenvalues of the projected stiffness K̄ = Nᵀ K N, ascending.
-    joint_reactions : ndarray (n_joints, 3)
-        (F_x, F_y, M) of each joint, action of body1 on body2 (see
+    body_angles, body_quaternions : ndarray
+        Planar angles (n_bodies,) or spatial unit quaternions (n_bodies, 4).
+    joint_reactions : ndarray (n_joints, 3 or 6)
+        (F_x, F_y, M) or (F, M) of each joint, action of body1 on body2 (see
         :meth:`casmbd.system.equations.System.reactions_function`).
     """
 
@@ -97,14 +100,19 @@ class StaticsResult:
     names: dict = field(default_factory=dict)
     body_positions: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     body_angles: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    body_quaternions: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
     joint_coordinates: np.ndarray = field(default_factory=lambda: np.zeros(0))
     stats: dict = field(default_factory=dict)
 
     def to_json(self) -> dict:
         """The JSON object of the ``casmbd statics`` command."""
-        bodies = {name: {"position": [float(x) for x in self.body_positions[k]],
-                         "angle": float(self.body_angles[k])}
-                  for k, name in enumerate(self.names.get("bodies", []))}
+        bodies = {}
+        for k, name in enumerate(self.names.get("bodies", [])):
+            bodies[name] = {"position": [float(x) for x in self.body_positions[k]]}
+            if len(self.body_quaternions):
+                bodies[name]["quaternion"] = [float(x) for x in self.body_quaternions[k]]
+            else:
+                bodies[name]["angle"] = float(self.body_angles[k])
         joints: dict = {name: {} for name in self.names.get("all_joints", [])}
         for k, name in enumerate(self.names.get("joints", [])):
             joints[name]["coordinate"] = float(self.joint_coordinates[k])
@@ -268,7 +276,7 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
     if all_joints:
         reactions = np.asarray(model.function("joint_reactions")(q, t, model.p, lam)).T
     else:
-        reactions = np.zeros((0, 3))
+        reactions = np.zeros((0, model.system.reaction_size))
     out = model.outputs(q[None, :], np.zeros((1, prob.nq)), np.zeros((1, prob.nq)),
                         np.array([t]))
     nb = len(system.body_names)
@@ -282,8 +290,11 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
                                                                             initial=0.0)),
         residual_history=history, method=method, stable=stable, eigenvalues=eig,
         joint_reactions=reactions, t=t, potential_energy=model.potential_energy(q, t),
-        names=names, body_positions=np.reshape(out["body_positions"][0], (nb, 2)),
-        body_angles=np.ravel(out["angle_positions"][0]),
+        names=names, body_positions=np.reshape(out["body_positions"][0], (nb, system.dimension)),
+        body_angles=np.ravel(out["angle_positions"][0]) if system.dimension == 2 else
+        np.zeros(0),
+        body_quaternions=quaternions_from_matrices(out["rotation_matrices"][0].reshape(nb, 9))
+        if system.dimension == 3 else np.zeros((0, 4)),
         joint_coordinates=np.ravel(out["joint_positions"][0]), stats=stats)
 
 

@@ -19,7 +19,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from casmbd.errors import ModelError
-from casmbd.model.bodies import GROUND, Body, Marker, SpatialBody, scalar, vector
+from casmbd.model.bodies import GROUND, Body, Marker, SpatialBody, vector
 from casmbd.model.drivers import BODY_COORDINATES, Driver
 from casmbd.model.forces import (
     Actuator,

@@ -103,6 +103,12 @@ class System:
         """Slice of q owned by ``body``."""
         return self.ctx.block(body)
 
+    @property
+    def reaction_size(self) -> int:
+        """Components of a joint reaction: (F_x, F_y, M) in the plane, force and moment (6) in
+        space."""
+        return 3 if self.dimension == 2 else 6
+
     @cached_property
     def length_indices(self) -> np.ndarray:
         """Indices of the coordinates that are lengths (positions of reference points)."""

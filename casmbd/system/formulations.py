@@ -202,9 +202,9 @@ def augmented_lagrangian(system: System, penalty: float | None = None, iteration
 
 def _default_penalty(system: System) -> float:
     q0 = system.initial_coordinates()
-    f = ca.Function("scale", [system.q, system.p],
+    f = ca.Function("scale", [system.q, system.t, system.p],
                     [ca.diag(system.mass_matrix), ca.sum1(system.constraint_jacobian**2).T])
-    m_diag, c_diag = (np.asarray(x).ravel() for x in f(q0, system.parameter_values))
+    m_diag, c_diag = (np.asarray(x).ravel() for x in f(q0, 0.0, system.parameter_values))
     c_mean = float(np.mean(c_diag[c_diag > 0])) if np.any(c_diag > 0) else 1.0
     return 1e5 * float(np.mean(m_diag)) / c_mean
 
