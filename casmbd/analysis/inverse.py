@@ -33,7 +33,8 @@ def _actuator_efforts(model, grid, qs, vs, acc) -> np.ndarray:
     otherwise the least-squares solution is returned and its residual checked.
     """
     system = model.system
-    joint_rows = [i for i, lab in enumerate(system.constraint_labels) if lab.kind == "joint"]
+    # joints and the bodies' own equations (Euler-parameter normalisation, natural coordinates)
+    joint_rows = [i for i, lab in enumerate(system.constraint_labels) if lab.kind != "driver"]
     n_u = len(system.mechanism.actuators)
     out = np.zeros((len(grid), n_u))
     for k, t in enumerate(grid):
