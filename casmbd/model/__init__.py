@@ -1,6 +1,6 @@
 """Modelling layer: the user's description of a mechanism (no analysis imports here)."""
 
-from casmbd.model.bodies import GROUND, Body, Marker
+from casmbd.model.bodies import GROUND, Body, Marker, SpatialBody
 from casmbd.model.drivers import Driver
 from casmbd.model.forces import (
     Actuator,
@@ -12,7 +12,18 @@ from casmbd.model.forces import (
 )
 from casmbd.model.joints import Distance, Fixed, Joint, Prismatic, Revolute, Rigid
 from casmbd.model.mechanism import Mechanism
+from casmbd.model.spatial_joints import (
+    Cylindrical,
+    SpatialFixed,
+    SpatialPrismatic,
+    SpatialRevolute,
+    SpatialRigid,
+    Spherical,
+    Universal,
+)
 
-__all__ = ["GROUND", "Actuator", "Body", "Distance", "Driver", "Fixed", "Joint", "Marker",
-           "Mechanism", "PointForce", "Prismatic", "Revolute", "Rigid", "RotationalSpringDamper",
-           "SpringDamper", "Torque", "UserForce"]
+__all__ = ["GROUND", "Actuator", "Body", "Cylindrical", "Distance", "Driver", "Fixed", "Joint",
+           "Marker", "Mechanism", "PointForce", "Prismatic", "Revolute", "Rigid",
+           "RotationalSpringDamper", "SpatialBody", "SpatialFixed", "SpatialPrismatic",
+           "SpatialRevolute", "SpatialRigid", "Spherical", "SpringDamper", "Torque", "Universal",
+           "UserForce"]
