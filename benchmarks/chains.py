@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from casmbd.model import Mechanism
 
-__all__ = ["body_name", "joint_name", "pendulum_chain"]
+__all__ = ["body_name", "joint_name", "pendulum_chain", "spatial_chain"]
 
 
 def body_name(i: int) -> str:
@@ -82,4 +82,33 @@ def pendulum_chain(
         mech.add_revolute(joint_name(i), previous, body, point=(i * length, 0.0))
         previous = body
     mech.add_marker("tip", previous, point=(n * length, 0.0))
+    return mech
+
+
+def spatial_chain(n: int, length: float = 1.0, mass: float = 1.0, gravity: float = 9.81,
+                  coordinates: str = "absolute") -> Mechanism:
+    """N slender rods joined by spherical joints, hanging from the ground: a spatial chain.
+
+    Rod ``i`` lies along +x with its centre at ``((i + 0.5) length, 0, 0)``; ``"pin0"`` is a
+    spherical joint to the ground at the origin and ``"pin{i}"`` joins ``rod{i-1}`` and
+    ``rod{i}`` at ``(i length, 0, 0)``.  The inertia is that of a rod of radius length/20
+    (``I_xx = m r²/2``, ``I_yy = I_zz = m (3 r² + L²)/12``) so that the spin about the rod axis
+    is a genuine degree of freedom.  Gravity is ``(0, 0, −gravity)``; a marker ``"tip"`` sits
+    on the free end.  The chain has ``3 n`` degrees of freedom; with Euler parameters
+    ``7 n`` coordinates and ``4 n`` constraint equations (natural coordinates: ``12 n`` and
+    ``9 n``).
+    """
+    if int(n) < 1:
+        raise ValueError(f"spatial_chain needs n >= 1, got {n!r}")
+    n = int(n)
+    radius = length / 20.0
+    i_axis = mass * radius**2 / 2.0
+    i_trans = mass * (3.0 * radius**2 + length**2) / 12.0
+    mech = Mechanism(f"spatial_chain{n}", gravity=(0.0, 0.0, -gravity), coordinates=coordinates)
+    for i in range(n):
+        mech.add_body(body_name(i), mass=mass, inertia=[i_axis, i_trans, i_trans],
+                      position=((i + 0.5) * length, 0.0, 0.0))
+        mech.add_spherical(joint_name(i), "ground" if i == 0 else body_name(i - 1),
+                           body_name(i), point=(i * length, 0.0, 0.0))
+    mech.add_marker("tip", body_name(n - 1), (n * length, 0.0, 0.0))
     return mech

@@ -250,6 +250,11 @@ class System:
                 parts.append(ca.SX(desc.size, 1))  # constant mass matrix: structurally zero
                 continue
             qi, vi = self.q[sl], self.v[sl]
+            closed = desc.quadratic_velocity_forces(qi, vi, *self._mass_inertia(
+                self.mechanism.bodies[name]))
+            if closed is not None:
+                parts.append(closed)
+                continue
             mv = ca.mtimes(m[sl, sl], vi)
             kinetic = 0.5 * ca.dot(vi, mv)
             parts.append(ca.jacobian(kinetic, qi).T - ca.jtimes(mv, qi, vi))
