@@ -60,7 +60,7 @@ class Context:
 
     def _frame(self, body: str) -> tuple[ca.SX, ca.SX]:
         if body not in self._frames:
-            self._frames[body] = self.descriptions[body].frame(self.coordinates(body))
+            self._frames[body] = self.descriptions[body].pose(self, body)
         return self._frames[body]
 
     def rotation(self, body: str) -> ca.SX:
@@ -89,7 +89,7 @@ class Context:
             raise ModelError(f"body '{body}': a rotation angle exists only in the plane")
         if body == GROUND:
             return ca.SX(0.0)
-        return self.descriptions[body].angle(self.coordinates(body))
+        return self.descriptions[body].planar_angle(self, body)
 
     def has_angle(self, body: str) -> bool:
         """True when the planar angle of ``body`` is a coordinate (or the body is ground)."""
@@ -99,8 +99,7 @@ class Context:
         """Global angular velocity (a scalar in the plane), linear in v."""
         if body == GROUND:
             return ca.SX.zeros(1 if self.dimension == 2 else 3)
-        return self.descriptions[body].angular_velocity(self.coordinates(body),
-                                                         self.rates(body))
+        return self.descriptions[body].omega(self, body)
 
     # ---------------------------------------------------------------- points and directions
     def point(self, body: str, local) -> ca.SX:

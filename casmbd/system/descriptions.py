@@ -79,10 +79,27 @@ class Description:
         self.dimension = body.dimension
         self.offset = np.asarray(body.reference_point, float)
 
+    #: True when the body's own block q_i fixes its pose (absolute and natural coordinates);
+    #: False for joint coordinates, where the pose depends on the parents' coordinates too
+    local = True
+
     @property
     def size(self) -> int:
         """Number of coordinates of the body."""
         return len(self.names)
+
+    # -------------------------------------------------------------- context-level hooks
+    def pose(self, ctx, name: str) -> tuple[ca.SX, ca.SX]:
+        """(R, A) of body ``name`` in the context ``ctx`` (from its own block by default)."""
+        return self.frame(ctx.coordinates(name))
+
+    def omega(self, ctx, name: str) -> ca.SX:
+        """Global angular velocity of body ``name`` in the context ``ctx``."""
+        return self.angular_velocity(ctx.coordinates(name), ctx.rates(name))
+
+    def planar_angle(self, ctx, name: str) -> ca.SX:
+        """Planar rotation angle of body ``name`` in the context ``ctx``."""
+        return self.angle(ctx.coordinates(name))
 
     # -------------------------------------------------------------- pose
     def frame(self, q: ca.SX) -> tuple[ca.SX, ca.SX]:

@@ -226,11 +226,27 @@ class System:
         pseudo-inertia form of natural coordinates, seed 003).  T_i is quadratic in v_i, so the
         Hessian is exact and structurally sparse.
         """
+        if not self.local:
+            return ca.hessian(self._total_energy, self.v)[0]
         blocks = []
         for name in self.body_names:
             vi = self.ctx.rates(name)
             blocks.append(ca.hessian(self._body_energy(name), vi)[0])
         return ca.diagcat(*blocks)
+
+    @property
+    def local(self) -> bool:
+        """True when every body's pose depends on its own coordinates only (block-diagonal M)."""
+        return all(d.local for d in self.descriptions.values())
+
+    @cached_property
+    def _total_energy(self) -> ca.SX:
+        """Σ T_i as expressions of the whole (q, v) (joint coordinates)."""
+        total = ca.SX(0.0)
+        for name in self.body_names:
+            body = self.mechanism.bodies[name]
+            total += self.descriptions[name].energy(self.ctx, name, *self._mass_inertia(body))
+        return total
 
     @cached_property
     def quadratic_velocity_forces(self) -> ca.SX:
@@ -241,8 +257,12 @@ class System:
         description and is structurally zero where the mass matrix is constant (centroidal
         planar frames, natural coordinates).
         """
-        parts = []
         m = self.mass_matrix
+        if not self.local:
+            mv = ca.mtimes(m, self.v)
+            return (ca.jacobian(0.5 * ca.dot(self.v, mv), self.q).T
+                    - ca.jtimes(mv, self.q, self.v))
+        parts = []
         for name in self.body_names:
             sl = self.body_slice(name)
             desc = self.descriptions[name]
