@@ -67,10 +67,12 @@ class Mechanism:
         if dimension not in (2, 3):
             raise ModelError(f"mechanism field 'dimension': expected 2 or 3, got {dimension!r}")
         self.dimension = int(dimension)
-        if coordinates not in ("absolute", "natural"):
-            raise ModelError(f"mechanism field 'coordinates': expected 'absolute' or "
-                             f"'natural', got {coordinates!r}")
+        if coordinates not in ("absolute", "natural", "joint"):
+            raise ModelError(f"mechanism field 'coordinates': expected 'absolute', 'natural' "
+                             f"or 'joint', got {coordinates!r}")
         self.coordinates = coordinates
+        #: joints that must belong to the spanning tree of joint coordinates (optional)
+        self.tree: list[str] = []
         gravity = np.zeros(self.dimension) if gravity is None else gravity
         self.gravity = vector(gravity, "mechanism field 'gravity'", self.dimension)
         self.parameters: dict[str, float] = {}

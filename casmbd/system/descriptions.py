@@ -45,7 +45,7 @@ import numpy as np
 from casmbd.errors import ModelError
 from casmbd.model.rotations import E_matrix, G_matrix, quaternion_from_matrix, rotation_matrix
 
-COORDINATE_CHOICES = ("absolute", "natural")
+COORDINATE_CHOICES = ("absolute", "natural", "joint")
 
 
 def _perp(vec):
@@ -73,6 +73,9 @@ class Description:
     lengths: tuple[bool, ...] = ()
     #: True when the planar rotation angle is one of the coordinates
     has_angle = False
+    #: prefix of the coordinate names (the body's name unless set: joint coordinates use the
+    #: joint's name)
+    prefix: str | None = None
 
     def __init__(self, body):
         self.body = body

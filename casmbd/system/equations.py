@@ -35,6 +35,7 @@ from casmbd.model.forces import (
 from casmbd.model.values import resolve
 from casmbd.system.context import Context
 from casmbd.system.descriptions import COORDINATE_CHOICES, describe
+from casmbd.system.tree import tree_descriptions
 
 
 @dataclass(frozen=True)
@@ -85,8 +86,14 @@ class System:
             raise ModelError(f"unknown coordinate choice {self.coordinates!r} (known: "
                              f"{', '.join(COORDINATE_CHOICES)})")
         self.body_names = list(mechanism.bodies)
-        self.descriptions = {name: describe(body, self.coordinates)
-                             for name, body in mechanism.bodies.items()}
+        #: joints whose equations the coordinates satisfy identically (the spanning tree)
+        self.tree_joints: list[str] = []
+        if self.coordinates == "joint":
+            self.descriptions, self.tree_joints = tree_descriptions(
+                mechanism, getattr(mechanism, "tree", None))
+        else:
+            self.descriptions = {name: describe(body, self.coordinates)
+                                 for name, body in mechanism.bodies.items()}
         self.nq = sum(d.size for d in self.descriptions.values())
         self.q = ca.SX.sym("q", self.nq)
         self.v = ca.SX.sym("v", self.nq)
@@ -94,7 +101,7 @@ class System:
         self.u = ca.SX.sym("u", len(mechanism.actuators))
         self.p = ca.SX.sym("p", len(mechanism.parameters))
         self.ctx = Context(mechanism, self.descriptions, self.q, self.v, self.t, self.u, self.p)
-        self.coordinate_names = [f"{b}.{c}" for b, d in self.descriptions.items()
+        self.coordinate_names = [f"{d.prefix or b}.{c}" for b, d in self.descriptions.items()
                                  for c in d.names]
         self._functions: dict[str, ca.Function] = {}
 
@@ -120,8 +127,25 @@ class System:
         return np.concatenate([d.initial() for d in self.descriptions.values()])
 
     def initial_velocities(self) -> np.ndarray:
-        """Stacked q̇ from the bodies' initial velocities and angular velocities."""
-        return np.concatenate([d.initial_rates() for d in self.descriptions.values()])
+        """Stacked q̇ from the bodies' initial velocities and angular velocities.
+
+        In joint coordinates the body velocities are J(q₀) q̇ (centre-of-mass velocities and
+        angular velocities of every body); q̇ is the least-squares solution, exact when the
+        given velocities are compatible with the tree joints.
+        """
+        if self.local:
+            return np.concatenate([d.initial_rates() for d in self.descriptions.values()])
+        twists, given = [], []
+        for name in self.body_names:
+            body = self.mechanism.bodies[name]
+            twists += [ca.jtimes(self.ctx.centre_of_mass(name), self.q, self.v),
+                       self.ctx.angular_velocity(name)]
+            given += [np.ravel(body.velocity), np.ravel(body.angular_velocity)]
+        jac = ca.Function("twists", [self.q, self.p],
+                          [ca.jacobian(ca.vertcat(*twists), self.v)])
+        matrix = np.asarray(jac(self.initial_coordinates(), self.parameter_values))
+        rates, *_ = np.linalg.lstsq(matrix, np.concatenate(given), rcond=None)
+        return rates
 
     # ------------------------------------------------------------------ helpers
     def _value(self, value, where: str) -> ca.SX:
@@ -146,6 +170,8 @@ class System:
                 rows.append(ca.vec(eqs))
                 labels += [Equation("body", name, lab) for lab in names]
         for joint in self.mechanism.joints.values():
+            if joint.name in self.tree_joints:
+                continue  # satisfied identically by the joint coordinates
             eqs = ca.vec(joint.equations(self.ctx))
             if eqs.numel() != len(joint.labels):
                 raise ModelError(f"joint '{joint.name}': {eqs.numel()} equations for labels "

@@ -1,0 +1,318 @@
+"""Joint (relative) coordinates: a spanning tree of the joint graph and its recursive kinematics.
+
+With ``coordinates = "joint"`` a body's pose is written from its parent's pose and the
+coordinates of the tree joint between them (seed 001, "Recursive methods", eqs. 256–290: the
+absolute velocities and accelerations of body i follow from those of body i−1 and the joint
+rates).  The joints of the spanning tree are absorbed by the coordinates and write no
+equation; the remaining joints close loops and keep their constraint equations, written with
+the same context helpers as in absolute coordinates (seed 002, "Closed Loop Equations of
+Motion").
+
+Each joint moves its child relative to its parent from the design pose: the joint motion in the
+design frame is x ↦ J₀ + Δd + ΔR (x − J₀) about the joint point J₀ (ΔR a rotation, Δd a
+translation, both functions of the joint coordinates), carried along with the parent:
+
+    A_C = A_P A_P0ᵀ ΔR A_C0,
+    r_C = r_P + A_P A_P0ᵀ (J₀ + Δd + ΔR (r_C0 − J₀) − r_P0),
+    ω_C = ω_P + A_P A_P0ᵀ ω_rel,
+
+with ω_rel the angular velocity of ΔR in the design frame.  A body with no tree joint to a
+parent is a floating root: its block is an absolute description (x, y, θ in the plane; position
+and Euler parameters in space).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from casmbd.errors import ModelError
+from casmbd.model.bodies import GROUND
+from casmbd.model.joints import Fixed, Prismatic, Revolute, Rigid
+from casmbd.model.rotations import E_matrix, rotation_matrix
+from casmbd.model.spatial_joints import (
+    Cylindrical,
+    SpatialFixed,
+    SpatialPrismatic,
+    SpatialRevolute,
+    SpatialRigid,
+    Spherical,
+    Universal,
+)
+from casmbd.system.descriptions import Description, PlanarAbsolute, SpatialAbsolute
+
+#: joint types that can carry a body in the tree (a distance joint cannot: it leaves 5 DOF)
+TREE_TYPES = (Revolute, Prismatic, Rigid, Fixed, SpatialRevolute, SpatialPrismatic, Cylindrical,
+              Universal, Spherical, SpatialRigid, SpatialFixed)
+
+
+@dataclass(frozen=True)
+class TreeEdge:
+    """Body ``child`` hangs from ``parent`` through ``joint`` (None: a floating root)."""
+
+    child: str
+    parent: str
+    joint: str | None
+
+
+def spanning_tree(mechanism, tree=None) -> tuple[list[TreeEdge], list[str]]:
+    """Choose the spanning tree of the joint graph, breadth first from the ground.
+
+    Parameters
+    ----------
+    mechanism : Mechanism
+    tree : sequence of str, optional
+        Joints that must belong to the tree (the rest is completed automatically).
+
+    Returns
+    -------
+    edges : list of TreeEdge
+        One per body, parents before children.
+    loop_joints : list of str
+        Joints left out of the tree (loop-closing and non-tree types), declaration order.
+
+    Raises
+    ------
+    ModelError
+        If a named joint is unknown, cannot carry a body or would close a loop.
+    """
+    joints = mechanism.joints
+    named = list(tree or ())
+    for name in named:
+        if name not in joints:
+            raise ModelError(f"tree: unknown joint '{name}' (known: {', '.join(joints)})")
+        if not isinstance(joints[name], TREE_TYPES):
+            raise ModelError(f"tree: joint '{name}' ({type(joints[name]).__name__}) cannot be a "
+                             "tree joint")
+    candidates = named + [n for n, j in joints.items()
+                          if n not in named and isinstance(j, TREE_TYPES)]
+    parent_of: dict[str, TreeEdge] = {}
+    order: list[str] = []
+    reached = {GROUND}
+
+    def grow(start: list[str]) -> None:
+        queue = list(start)
+        while queue:
+            node = queue.pop(0)
+            for name in candidates:
+                joint = joints[name]
+                if node not in (joint.body1, joint.body2):
+                    continue
+                other = joint.body2 if joint.body1 == node else joint.body1
+                if other in reached:
+                    continue
+                reached.add(other)
+                parent_of[other] = TreeEdge(other, node, name)
+                order.append(other)
+                queue.append(other)
+
+    grow([GROUND])
+    for body in mechanism.bodies:  # bodies not connected to the ground: floating roots
+        if body not in reached:
+            reached.add(body)
+            parent_of[body] = TreeEdge(body, GROUND, None)
+            order.append(body)
+            grow([body])
+    in_tree = {e.joint for e in parent_of.values() if e.joint}
+    missing = [n for n in named if n not in in_tree]
+    if missing:
+        raise ModelError(f"tree: joints {', '.join(missing)} would close a loop; name a tree "
+                         "without cycles")
+    loops = [n for n in joints if n not in in_tree]
+    return [parent_of[b] for b in order], loops
+
+
+def _rodrigues(axis: np.ndarray, angle: ca.SX) -> ca.SX:
+    """Rotation by ``angle`` about the unit ``axis``: I + sin φ h̃ + (1 − cos φ) h̃²."""
+    skew = ca.DM([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return ca.DM.eye(3) + ca.sin(angle) * skew + (1 - ca.cos(angle)) * ca.mtimes(skew, skew)
+
+
+def _planar_rotation(angle: ca.SX) -> ca.SX:
+    c, s = ca.cos(angle), ca.sin(angle)
+    return ca.vertcat(ca.horzcat(c, -s), ca.horzcat(s, c))
+
+
+class TreeJointDescription(Description):
+    """The coordinates of the tree joint that carries one body (see the module docstring)."""
+
+    local = False
+
+    def __init__(self, body, edge: TreeEdge, joint, mechanism):
+        super().__init__(body)
+        self.offset = np.zeros(body.dimension)  # the pose is written for the centre of mass
+        self.edge = edge
+        self.joint = joint
+        self.parent = edge.parent
+        dim = body.dimension
+        self.prefix = joint.name
+        parent_body = mechanism.bodies.get(edge.parent)
+        rot_p0 = np.eye(dim) if parent_body is None else parent_body.initial_rotation
+        pos_p0 = np.zeros(dim) if parent_body is None else np.asarray(parent_body.position)
+        self.rot_p0_t = rot_p0.T
+        self.pos_p0 = pos_p0
+        self.rot_c0 = body.initial_rotation
+        self.pos_c0 = np.asarray(body.position, float)
+        point = getattr(joint, "point", None)
+        self.point = self.pos_c0.copy() if point is None else np.asarray(point, float)
+        self.kind_name = type(joint).__name__
+        self.names, self.lengths = self._layout()
+        if dim == 2:
+            self.has_angle = True
+            angle_p0 = 0.0 if parent_body is None else parent_body.angle
+            self.angle_offset = body.angle - angle_p0
+
+    # -------------------------------------------------------------- layout
+    def _layout(self) -> tuple[tuple[str, ...], tuple[bool, ...]]:
+        j = self.joint
+        if isinstance(j, (Revolute, SpatialRevolute)):
+            return ("angle",), (False,)
+        if isinstance(j, (Prismatic, SpatialPrismatic)):
+            return ("translation",), (True,)
+        if isinstance(j, Cylindrical):
+            return ("translation", "angle"), (True, False)
+        if isinstance(j, Universal):
+            return ("angle1", "angle2"), (False, False)
+        if isinstance(j, Spherical):
+            return ("e0", "e1", "e2", "e3"), (False,) * 4
+        return (), ()  # rigid, fixed
+
+    def initial(self) -> np.ndarray:
+        if isinstance(self.joint, Spherical):
+            return np.array([1.0, 0.0, 0.0, 0.0])
+        return np.zeros(self.size)
+
+    def initial_rates(self) -> np.ndarray:
+        raise NotImplementedError("tree rates are found for all bodies at once")
+
+    # -------------------------------------------------------------- the joint motion
+    def _axis(self, which: str = "axis") -> np.ndarray:
+        """A joint axis fixed on the parent (``axis``/``parent``) or on the child (``child``)."""
+        j = self.joint
+        if isinstance(j, Universal):
+            parent_is_body1 = j.body1 == self.parent
+            first, second = (j.axis1, j.axis2) if parent_is_body1 else (j.axis2, j.axis1)
+            return first if which in ("axis", "parent") else second
+        axis = getattr(j, "axis", None)
+        return np.array([1.0, 0.0]) if axis is None else np.asarray(axis, float)
+
+    def _motion(self, q: ca.SX, v: ca.SX | None = None):
+        """(ΔR, Δd, ω_rel) in the design frame; ω_rel only when ``v`` is given."""
+        j, dim = self.joint, self.dimension
+        zero_d = ca.SX.zeros(dim)
+        omega = None
+        if dim == 2:
+            if isinstance(j, Revolute):
+                rot = _planar_rotation(q[0])
+                omega = v[0] if v is not None else None
+                return rot, zero_d, omega
+            if isinstance(j, Prismatic):
+                return ca.SX.eye(2), q[0] * ca.DM(self._axis()), ca.SX(0.0)
+            return ca.SX.eye(2), zero_d, ca.SX(0.0)
+        if isinstance(j, SpatialRevolute):
+            h = self._axis()
+            omega = ca.DM(h) * v[0] if v is not None else None
+            return _rodrigues(h, q[0]), zero_d, omega
+        if isinstance(j, SpatialPrismatic):
+            return ca.SX.eye(3), q[0] * ca.DM(self._axis()), ca.SX.zeros(3)
+        if isinstance(j, Cylindrical):
+            h = self._axis()
+            omega = ca.DM(h) * v[1] if v is not None else None
+            return _rodrigues(h, q[1]), q[0] * ca.DM(h), omega
+        if isinstance(j, Universal):
+            a_p, a_c = self._axis("parent"), self._axis("child")
+            first = _rodrigues(a_p, q[0])
+            rot = ca.mtimes(first, _rodrigues(a_c, q[1]))
+            if v is not None:
+                omega = ca.DM(a_p) * v[0] + ca.mtimes(first, ca.DM(a_c)) * v[1]
+            return rot, zero_d, omega
+        if isinstance(j, Spherical):
+            omega = 2.0 * ca.mtimes(E_matrix(q), v) if v is not None else None
+            return rotation_matrix(q), zero_d, omega
+        return ca.SX.eye(3), zero_d, ca.SX.zeros(3)
+
+    def _parent_pose(self, ctx) -> tuple[ca.SX, ca.SX]:
+        if self.parent == GROUND:
+            return ca.SX.zeros(self.dimension), ca.SX.eye(self.dimension)
+        return ctx.centre_of_mass(self.parent), ctx.rotation(self.parent)
+
+    def pose(self, ctx, name):
+        rot_rel, shift, _ = self._motion(ctx.coordinates(name))
+        pos_p, rot_p = self._parent_pose(ctx)
+        carry = ca.mtimes(rot_p, ca.DM(self.rot_p0_t))
+        arm = ca.DM(self.point - self.pos_p0) + shift \
+            + ca.mtimes(rot_rel, ca.DM(self.pos_c0 - self.point))
+        rot = ca.mtimes(carry, ca.mtimes(rot_rel, ca.DM(self.rot_c0)))
+        return pos_p + ca.mtimes(carry, arm), rot
+
+    def omega(self, ctx, name):
+        _, _, rel = self._motion(ctx.coordinates(name), ctx.rates(name))
+        parent = ctx.angular_velocity(self.parent)
+        if self.dimension == 2:
+            return parent + rel
+        _, rot_p = self._parent_pose(ctx)
+        return parent + ca.mtimes(ca.mtimes(rot_p, ca.DM(self.rot_p0_t)), rel)
+
+    def planar_angle(self, ctx, name):
+        rel = ctx.coordinates(name)[0] if isinstance(self.joint, Revolute) else 0.0
+        return ctx.angle(self.parent) + self.angle_offset + rel
+
+    def energy(self, ctx, name, mass, inertia) -> ca.SX:
+        """T = ½ m |ṙ_G|² + ½ ωᵀ (A J Aᵀ) ω (+ ½ c (pᵀṗ)² for a ball joint's parameters)."""
+        vel = ca.jtimes(ctx.centre_of_mass(name), ctx.q, ctx.v)
+        omega = ctx.angular_velocity(name)
+        total = 0.5 * mass * ca.dot(vel, vel)
+        if self.dimension == 2:
+            return total + 0.5 * inertia * omega**2
+        omega_b = ca.mtimes(ctx.rotation(name).T, omega)
+        total += 0.5 * ca.bilin(inertia, omega_b, omega_b)
+        if isinstance(self.joint, Spherical):
+            p, pdot = ctx.coordinates(name), ctx.rates(name)
+            total += 0.5 * (4.0 / 3.0) * ca.trace(inertia) * ca.dot(p, pdot) ** 2
+        return total
+
+    def constraints(self, q):
+        if isinstance(self.joint, Spherical):
+            return 0.5 * (ca.dot(q, q) - 1.0), ("normalization",)
+        return ca.SX(0, 1), ()
+
+
+class FloatingRoot:
+    """Mix-in giving an absolute description the joint-coordinate energy interface."""
+
+    local = False
+    parent = GROUND
+    joint = None
+
+    def energy(self, ctx, name, mass, inertia) -> ca.SX:
+        return self.kinetic_energy(ctx.coordinates(name), ctx.rates(name), mass, inertia)
+
+
+class PlanarFloating(FloatingRoot, PlanarAbsolute):
+    """A planar body without a tree joint: (x, y, θ) of its centre of mass."""
+
+
+class SpatialFloating(FloatingRoot, SpatialAbsolute):
+    """A spatial body without a tree joint: position and Euler parameters."""
+
+
+def tree_descriptions(mechanism, tree=None) -> tuple[dict[str, Description], list[str]]:
+    """Descriptions of every body in joint coordinates, in the order of ``mechanism.bodies``,
+    and the names of the joints the tree absorbs."""
+    edges, _ = spanning_tree(mechanism, tree)
+    by_child = {e.child: e for e in edges}
+    out: dict[str, Description] = {}
+    for name in [e.child for e in edges]:  # parents first: poses are built recursively
+        body, edge = mechanism.bodies[name], by_child[name]
+        if edge.joint is None:
+            cls = PlanarFloating if body.dimension == 2 else SpatialFloating
+            desc = cls(body)
+            desc.offset = np.zeros(body.dimension)
+            desc.prefix = name
+            out[name] = desc
+        else:
+            out[name] = TreeJointDescription(body, edge, mechanism.joints[edge.joint], mechanism)
+    absorbed = [e.joint for e in edges if e.joint]
+    return {name: out[name] for name in mechanism.bodies}, absorbed
