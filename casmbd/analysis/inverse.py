@@ -30,13 +30,16 @@ def _actuator_efforts(model, grid, qs, vs, acc) -> np.ndarray:
     The driver multipliers are set to zero (the drivers only describe the motion) and the
     actuator inputs u join the unknowns: [C_q,jᵀ  −B] [λ_j; u] = Q_e(u = 0) + Q_v − M q̈,
     B = ∂Q_e/∂u.  Square when there are as many actuators as drivers (the classic robot case);
-    otherwise the least-squares solution is returned and its residual checked.
+    otherwise the least-squares solution is returned and its residual checked.  Returns the
+    efforts u and the multipliers (driver rows zero) that give the joint reactions of the
+    machine driven by its actuators.
     """
     system = model.system
     # joints and the bodies' own equations (Euler-parameter normalisation, natural coordinates)
     joint_rows = [i for i, lab in enumerate(system.constraint_labels) if lab.kind != "driver"]
     n_u = len(system.mechanism.actuators)
     out = np.zeros((len(grid), n_u))
+    lam = np.zeros((len(grid), system.nc))
     for k, t in enumerate(grid):
         rhs = (model.applied_forces(qs[k], vs[k], t) + model.quadratic_velocity_forces(qs[k], vs[k])
                - model.mass_matrix(qs[k]) @ acc[k])
@@ -50,7 +53,8 @@ def _actuator_efforts(model, grid, qs, vs, acc) -> np.ndarray:
                 f"({', '.join(system.mechanism.actuators)}) cannot produce the prescribed "
                 f"motion (residual {residual:.3g}); put them on the driven coordinates")
         out[k] = sol[len(joint_rows):]
-    return out
+        lam[k, joint_rows] = sol[:len(joint_rows)]
+    return out, lam
 
 
 def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.0,
@@ -99,11 +103,16 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
         pot_e[k] = model.potential_energy(qs[k], t)
     system = model.system
     actuators = list(system.mechanism.actuators)
-    u_eff = _actuator_efforts(model, grid, qs, vs, acc) if actuators else np.zeros((n, 0))
+    lam_reac = lam
+    if actuators:  # the actuators produce the motion: reactions with their efforts
+        u_eff, lam_reac = _actuator_efforts(model, grid, qs, vs, acc)
+    else:
+        u_eff = np.zeros((n, 0))
     n_j = len(system.mechanism.joints)
     if n_j:
         reac = np.asarray(model.function("joint_reactions").map(n)(
-            qs.T, grid[None, :], np.tile(model.p[:, None], (1, n)), lam.T))
+            qs.T, vs.T, acc.T, grid[None, :], u_eff.T, np.tile(model.p[:, None], (1, n)),
+            lam_reac.T))
         reactions = reac.reshape(system.reaction_size, n, n_j, order="F").transpose(1, 2, 0)
     else:
         reactions = np.zeros((n, 0, system.reaction_size))

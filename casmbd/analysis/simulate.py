@@ -347,8 +347,9 @@ class Simulator:
             acc[k], lam[k] = accelerations_and_multipliers(model, qs[k], vs[k], grid[k], us[k])
         outputs = model.outputs(qs, vs, acc, grid)
         reac_f = model.function("joint_reactions").map(n)
-        reac = np.asarray(reac_f(qs.T, grid[None, :], np.tile(model.p[:, None], (1, n)),
-                                 lam.T)) if system.mechanism.joints else np.zeros((3, 0))
+        reac = np.asarray(reac_f(qs.T, vs.T, acc.T, grid[None, :], us.T,
+                                 np.tile(model.p[:, None], (1, n)), lam.T)) \
+            if system.mechanism.joints else np.zeros((3, 0))
         n_j, size = len(system.mechanism.joints), system.reaction_size
         reactions = reac.reshape(size, n, n_j, order="F").transpose(1, 2, 0) if n_j else \
             np.zeros((n, 0, size))

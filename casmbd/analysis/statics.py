@@ -274,7 +274,9 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
     system = model.system
     all_joints = list(mech.joints)
     if all_joints:
-        reactions = np.asarray(model.function("joint_reactions")(q, t, model.p, lam)).T
+        zero = np.zeros(prob.nq)
+        reactions = np.asarray(model.function("joint_reactions")(
+            q, zero, zero, t, np.zeros(len(mech.actuators)), model.p, lam)).T
     else:
         reactions = np.zeros((0, model.system.reaction_size))
     out = model.outputs(q[None, :], np.zeros((1, prob.nq)), np.zeros((1, prob.nq)),

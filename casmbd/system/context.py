@@ -10,6 +10,8 @@ coordinates.  Rotation matrices are created once per body and shared by every el
 
 from __future__ import annotations
 
+import copy
+
 import casadi as ca
 import numpy as np
 
@@ -43,6 +45,7 @@ class Context:
             offset += desc.size
         self.nq = offset
         self._frames: dict[str, tuple[ca.SX, ca.SX]] = {}
+        self._angles: dict[str, ca.SX] = {}
 
     # ---------------------------------------------------------------- coordinates
     def block(self, body: str) -> slice:
@@ -89,7 +92,9 @@ class Context:
             raise ModelError(f"body '{body}': a rotation angle exists only in the plane")
         if body == GROUND:
             return ca.SX(0.0)
-        return self.descriptions[body].planar_angle(self, body)
+        if body not in self._angles:
+            self._angles[body] = self.descriptions[body].planar_angle(self, body)
+        return self._angles[body]
 
     def has_angle(self, body: str) -> bool:
         """True when the planar angle of ``body`` is a coordinate (or the body is ground)."""
@@ -100,6 +105,41 @@ class Context:
         if body == GROUND:
             return ca.SX.zeros(1 if self.dimension == 2 else 3)
         return self.descriptions[body].omega(self, body)
+
+    def perturbed(self, body: str) -> tuple[Context, ca.SX]:
+        """A copy in which ``body`` alone is displaced by a virtual twist e = (δr_G, δθ).
+
+        The centre of mass moves by δr_G and the rotation becomes (I + δθ̃) A (δθ a scalar in
+        the plane), every other body keeping its pose.  An expression written with the copy
+        and differentiated with respect to e at e = 0 gives the virtual displacement of that
+        expression under a rigid motion of ``body``: the force (first ``dimension`` entries)
+        and the moment about the centre of mass (the rest) that ``body`` feels from a term
+        whose generalized force is (∂expr/∂q)ᵀ w are (∂expr/∂e)ᵀ w (principle of virtual work,
+        seed 000 eqs. 6.40–6.48; seed 001, virtual rotations).
+        """
+        for name in self.descriptions:  # freeze every pose so that e moves one body only
+            self._frame(name)
+            if self.dimension == 2:
+                self.angle(name)
+        dim = self.dimension
+        e = ca.SX.sym(f"e_{body}", dim + (1 if dim == 2 else 3))
+        other = copy.copy(self)
+        other._frames = dict(self._frames)
+        other._angles = dict(self._angles)
+        _, rot = self._frames[body]
+        dth = e[dim:]
+        if dim == 2:
+            spin = ca.vertcat(ca.horzcat(0, -dth[0]), ca.horzcat(dth[0], 0))
+            other._angles[body] = self._angles[body] + dth[0]
+        else:
+            spin = ca.vertcat(ca.horzcat(0, -dth[2], dth[1]), ca.horzcat(dth[2], 0, -dth[0]),
+                              ca.horzcat(-dth[1], dth[0], 0))
+        moved = rot + ca.mtimes(spin, rot)
+        com = self.centre_of_mass(body) + e[:dim]
+        s = self.descriptions[body].offset
+        ref = com + ca.mtimes(moved, ca.DM(s)) if np.any(s) else com
+        other._frames[body] = (ref, moved)
+        return other, e
 
     # ---------------------------------------------------------------- points and directions
     def point(self, body: str, local) -> ca.SX:

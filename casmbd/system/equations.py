@@ -38,6 +38,18 @@ from casmbd.system.descriptions import COORDINATE_CHOICES, describe
 from casmbd.system.tree import tree_descriptions
 
 
+@dataclass
+class _Term:
+    """One virtual-work term of an applied force: ``measure`` (Q = (∂expr/∂q)ᵀ weight),
+    ``torque`` (weight a torque on ``body``) or ``generalized`` (weight a vector of n_q)."""
+
+    kind: str
+    expr: ca.SX | None
+    weight: ca.SX
+    body: str | None = None
+    name: str = ""
+
+
 @dataclass(frozen=True)
 class Equation:
     """Label of one constraint equation: which element ('joint'/'driver') and which row."""
@@ -163,16 +175,20 @@ class System:
     # ------------------------------------------------------------------ constraints
     @cached_property
     def _constraint_parts(self) -> tuple[ca.SX, list[Equation]]:
+        return self._constraints_with(self.ctx)
+
+    def _constraints_with(self, ctx) -> tuple[ca.SX, list[Equation]]:
+        """C and its labels written with ``ctx`` (the system's context or a perturbed copy)."""
         rows, labels = [], []
         for name, desc in self.descriptions.items():
-            eqs, names = desc.constraints(self.ctx.coordinates(name))
+            eqs, names = desc.constraints(ctx.coordinates(name))
             if names:
                 rows.append(ca.vec(eqs))
                 labels += [Equation("body", name, lab) for lab in names]
         for joint in self.mechanism.joints.values():
             if joint.name in self.tree_joints:
                 continue  # satisfied identically by the joint coordinates
-            eqs = ca.vec(joint.equations(self.ctx))
+            eqs = ca.vec(joint.equations(ctx))
             if eqs.numel() != len(joint.labels):
                 raise ModelError(f"joint '{joint.name}': {eqs.numel()} equations for labels "
                                  f"{joint.labels}")
@@ -182,12 +198,12 @@ class System:
             target = self._value(driver.position, f"driver '{driver.name}' field 'position'")
             if driver.joint is not None:
                 residual = self.mechanism.joints[driver.joint].driver_residual(
-                    self.ctx, target, driver.coordinate)
+                    ctx, target, driver.coordinate)
             elif driver.coordinate == "angle":
-                residual = self.ctx.angle_residual(GROUND, driver.body, target)
+                residual = ctx.angle_residual(GROUND, driver.body, target)
             else:
                 k = ("x", "y", "z").index(driver.coordinate)
-                residual = self.ctx.reference(driver.body)[k] - target
+                residual = ctx.reference(driver.body)[k] - target
             rows.append(residual)
             labels.append(Equation("driver", driver.name, driver.coordinate or "coordinate"))
         c = ca.vertcat(*rows) if rows else ca.SX(0, 1)
@@ -327,61 +343,92 @@ class System:
 
     @cached_property
     def applied_forces(self) -> ca.SX:
-        """Q_e(q, v, t, u, p): gravity, force elements, user forces and actuators."""
-        ctx, mech = self.ctx, self.mechanism
+        """Q_e(q, v, t, u, p): gravity, force elements, user forces and actuators.
+
+        Each force contributes by virtual work, Q = (∂s/∂q)ᵀ w for a term acting with weight w
+        along the measure s(q) (a point's position, a spring's length, a joint coordinate), and
+        Q = (∂ω/∂q̇)ᵀ T for a torque (seed 000, eqs. 6.40–6.48).
+        """
         total = ca.SX.zeros(self.nq)
+        for term in self._force_terms(self.ctx):
+            if term.kind == "measure":
+                total += self._generalized(term.expr, term.weight)
+            elif term.kind == "torque":
+                total += self._torque(term.body, term.weight)
+            else:
+                total += term.weight
+        return total
+
+    def _force_terms(self, ctx) -> list[_Term]:
+        """The virtual-work terms of every applied force, measures written with ``ctx`` (the
+        system's context or a perturbed copy), weights with the system's context."""
+        mech = self.mechanism
+        terms: list[_Term] = []
         g = ca.DM(mech.gravity)
         if np.any(mech.gravity):
             for name in self.body_names:
                 m, _ = self._mass_inertia(mech.bodies[name])
-                total += self._generalized(ctx.centre_of_mass(name), m * g)
+                terms.append(_Term("measure", ctx.centre_of_mass(name), m * g))
         for force in mech.forces.values():
-            total += self._element_force(force)
+            terms += self._element_terms(force, ctx)
         for i, act in enumerate(mech.actuators.values()):
             coord = mech.joints[act.joint].coordinate(ctx, act.coordinate)
-            total += self._generalized(coord, self.u[i])
-        return total
+            terms.append(_Term("measure", coord, self.u[i]))
+        return terms
 
-    def _element_force(self, force) -> ca.SX:
-        ctx, where = self.ctx, f"force '{force.name}' field"
+    def _element_terms(self, force, ctx) -> list[_Term]:
+        base, where = self.ctx, f"force '{force.name}' field"
         if isinstance(force, PointForce):
+            if force.body == GROUND:
+                return []
             value = ca.vertcat(*[self._value(v, f"{where} 'value'") for v in force.value])
-            if force.frame == "body" and force.body != GROUND:
-                value = ca.mtimes(ctx.rotation(force.body), value)
+            if force.frame == "body":
+                value = ca.mtimes(base.rotation(force.body), value)
             pos = ctx.point(force.body, self._point_local(force.body, force.point))
-            return self._generalized(pos, value) if force.body != GROUND else 0
+            return [_Term("measure", pos, value)]
         if isinstance(force, Torque):
             value = ca.vertcat(*[self._value(v, f"{where} 'value'") for v in force.value])
             if force.frame == "body" and force.body != GROUND:
-                value = ca.mtimes(ctx.rotation(force.body), value)
-            return self._torque(force.body, value)
+                value = ca.mtimes(base.rotation(force.body), value)
+            return [_Term("torque", None, value, force.body)]
         if isinstance(force, SpringDamper):
-            length = self._spring_length(force)
+            length = self._spring_length(force, base)
             rate = ca.jtimes(length, self.q, self.v)
             tension = (self._value(force.stiffness, f"{where} 'stiffness'")
                        * (length - self._value(force.free_length, f"{where} 'free_length'"))
                        + self._value(force.damping, f"{where} 'damping'") * rate
                        + self._value(force.actuator, f"{where} 'actuator'"))
-            return self._generalized(length, -tension)
+            return [_Term("measure", self._spring_length(force, ctx), -tension)]
         if isinstance(force, RotationalSpringDamper):
-            phi = self.mechanism.joints[force.joint].coordinate(ctx, force.coordinate)
+            joint = self.mechanism.joints[force.joint]
+            phi = joint.coordinate(base, force.coordinate)
             rate = ca.jtimes(phi, self.q, self.v)
             moment = (self._value(force.stiffness, f"{where} 'stiffness'")
                       * (phi - self._value(force.free_angle, f"{where} 'free_angle'"))
                       + self._value(force.damping, f"{where} 'damping'") * rate
                       + self._value(force.actuator, f"{where} 'actuator'"))
-            return self._generalized(phi, -moment)
+            return [_Term("measure", joint.coordinate(ctx, force.coordinate), -moment)]
         if isinstance(force, UserForce):
-            return self._user_force(force)
+            return self._user_terms(force, ctx)
         raise ModelError(f"force '{force.name}': unsupported type {type(force).__name__}")
 
-    def _spring_length(self, force: SpringDamper) -> ca.SX:
-        p1 = self.ctx.point(force.body1, self.ctx.local(force.body1, force.point1))
-        p2 = self.ctx.point(force.body2, self.ctx.local(force.body2, force.point2))
+    def _spring_length(self, force: SpringDamper, ctx=None) -> ca.SX:
+        ctx = ctx or self.ctx
+        p1 = ctx.point(force.body1, ctx.local(force.body1, force.point1))
+        p2 = ctx.point(force.body2, ctx.local(force.body2, force.point2))
         d = p2 - p1
         return ca.sqrt(ca.dot(d, d))
 
-    def _user_force(self, force: UserForce) -> ca.SX:
+    @cached_property
+    def _user_outputs(self) -> dict[str, tuple]:
+        """What each user force function returns, called once with the system's context."""
+        out = {}
+        for force in self.mechanism.forces.values():
+            if isinstance(force, UserForce):
+                out[force.name] = self._call_user(force)
+        return out
+
+    def _call_user(self, force: UserForce) -> tuple:
         where = f"force '{force.name}'"
         try:
             out = force.function(self.ctx)
@@ -395,24 +442,31 @@ class System:
             if vec.shape != (self.nq, 1):
                 raise ModelError(f"{where}: generalized force must have shape ({self.nq}, 1), "
                                  f"got {vec.shape}")
-            return vec
+            return vec, None
         torque = None
         if isinstance(out, tuple):
             out, torque = out
-        vec = ca.SX(out)
+        vec = ca.vec(ca.SX(out))
         if vec.numel() != self.dimension:
             raise ModelError(f"{where}: the force must have {self.dimension} components, got "
                              f"{vec.shape}")
-        pos = self.ctx.point(force.body, self._point_local(force.body, force.point))
-        total = self._generalized(pos, ca.vec(vec))
         if torque is not None:
             torque = ca.vec(ca.SX(torque))
             size = 1 if self.dimension == 2 else 3
             if torque.numel() != size:
                 raise ModelError(f"{where}: the torque must have {size} component(s), got "
                                  f"{torque.shape}")
-            total += self._torque(force.body, torque)
-        return total
+        return vec, torque
+
+    def _user_terms(self, force: UserForce, ctx) -> list[_Term]:
+        vec, torque = self._user_outputs[force.name]
+        if force.body is None:
+            return [_Term("generalized", None, vec, None, force.name)]
+        pos = ctx.point(force.body, self._point_local(force.body, force.point))
+        terms = [_Term("measure", pos, vec)]
+        if torque is not None:
+            terms.append(_Term("torque", None, torque, force.body))
+        return terms
 
     @cached_property
     def input_matrix(self) -> ca.SX:
@@ -507,57 +561,171 @@ class System:
         return {lab.element: i for i, lab in enumerate(self.constraint_labels)
                 if lab.kind == "driver"}
 
-    def _wrench_map(self, body: str) -> ca.SX:
-        """S_bᵀ: maps a generalized force on the body's coordinates to the force and the moment
-        about G that do the same virtual work on every rigid motion (ṙ_G, ω) of the body."""
-        desc = self.descriptions[body]
-        vel = ca.SX.sym("vg", self.dimension)
-        omega = ca.SX.sym("om", 1 if self.dimension == 2 else 3)
-        twist = ca.vertcat(vel, omega)
-        rates = desc.rates(self.ctx.coordinates(body), vel, omega)
-        return ca.jacobian(rates, twist).T
+    # ------------------------------------------------------------------ reactions
+    def _cross(self, arm: ca.SX, force: ca.SX) -> ca.SX:
+        if self.dimension == 2:
+            return arm[0] * force[1] - arm[1] * force[0]
+        return ca.cross(arm, force)
+
+    def _perturbation(self, body: str):
+        if not hasattr(self, "_perturbed"):
+            self._perturbed: dict[str, tuple] = {}
+        if body not in self._perturbed:
+            self._perturbed[body] = self.ctx.perturbed(body)
+        return self._perturbed[body]
+
+    def _constraint_wrench(self, body: str, lam: ca.SX, rows=None) -> ca.SX:
+        """Force and moment about G that constraint rows (with multipliers λ) exert on ``body``:
+        −(∂C/∂e)ᵀ λ, the virtual-work counterpart of Q_c = −C_qᵀ λ (seed 000, eq. 6.145)."""
+        ctx, e = self._perturbation(body)
+        cons, _ = self._constraints_with(ctx)
+        rows = list(range(self.nc)) if rows is None else rows
+        if not rows:
+            return ca.SX.zeros(e.numel())
+        jac = ca.jacobian(cons[rows], e)
+        return ca.substitute(-ca.mtimes(jac.T, lam[rows]), e, ca.DM.zeros(e.numel()))
+
+    def _applied_wrench(self, body: str) -> tuple[ca.SX, list[str]]:
+        """Force and moment about G of every applied force on ``body``, and the names of user
+        generalized forces that cannot be attributed to bodies."""
+        ctx, e = self._perturbation(body)
+        total = ca.SX.zeros(e.numel())
+        unknown = []
+        dim = self.dimension
+        for term in self._force_terms(ctx):
+            if term.kind == "measure":
+                total += ca.mtimes(ca.jacobian(term.expr, e).T, term.weight)
+            elif term.kind == "torque":
+                if term.body == body:
+                    total[dim:] += term.weight
+            else:
+                unknown.append(term.name)
+        return ca.substitute(total, e, ca.DM.zeros(e.numel())), unknown
+
+    def _inertial_wrench(self, body: str, a: ca.SX) -> ca.SX:
+        """(m a_G, Ḣ_G): Newton–Euler's rate of momentum of ``body`` (seed 001; seed 004)."""
+        ctx = self.ctx
+        mass, inertia = self._mass_inertia(self.mechanism.bodies[body])
+        r_g = ctx.centre_of_mass(body)
+        vel = ca.jtimes(r_g, self.q, self.v)
+        acc = ca.jtimes(vel, self.q, self.v) + ca.jtimes(r_g, self.q, a)
+        omega = ctx.angular_velocity(body)
+        alpha = ca.jtimes(omega, self.q, self.v) + ca.jtimes(omega, self.v, a)
+        if self.dimension == 2:
+            return ca.vertcat(mass * acc, inertia * alpha)
+        rot = ctx.rotation(body)
+        tensor = ca.mtimes([rot, inertia, rot.T])
+        h_dot = ca.mtimes(tensor, alpha) + ca.cross(omega, ca.mtimes(tensor, omega))
+        return ca.vertcat(mass * acc, h_dot)
+
+    def _reaction_point(self, joint, body: str) -> ca.SX:
+        point = joint.reaction_point()
+        if point is None:
+            point = self.ctx.initial_position(joint.body2)
+        return self.ctx.point(body, self.ctx.local(body, point))
 
     def reactions_function(self) -> ca.Function:
-        """Joint reactions from the multipliers, one column per joint.
+        """Joint reactions, one column per joint: the action of body1 on body2 at the joint
+        point, global components — (F_x, F_y, M) in the plane, (F, M) in space.
 
-        The generalized constraint force of joint k on body b is Q_c = −C_q,kbᵀ λ_k (seed 000,
-        eq. 6.145).  The force F and the moment M_G about the centre of mass doing the same
-        virtual work on every rigid motion are (F; M_G) = S_bᵀ Q_c, S_b the map from the twist
-        (ṙ_G, ω) to q̇_b; the equipollent system at the joint point P is F and
-        M_P = M_G − (r_P − r_G) × F (eqs. 6.146–6.151).  It is the action of body1 on body2,
-        in global components: (F_x, F_y, M) in the plane, (F_x, F_y, F_z, M_x, M_y, M_z) in
-        space (minus the action on body1 when body2 is the ground).  Driver multipliers are
-        not included: a driver's effort is reported on its own.
+        Joints with constraint rows (absolute and natural coordinates, loop joints of joint
+        coordinates): the force and moment about G of body2 (body1 when body2 is the ground,
+        with the sign changed) are −(∂C_k/∂e)ᵀ λ_k for a virtual rigid displacement e of that
+        body — the virtual-work form of Q_c = −C_qᵀ λ (seed 000, eq. 6.145) — and the moment
+        is carried to the joint point, M_P = M_G − (r_P − r_G) × F (eqs. 6.146–6.151).
+
+        Joints of the spanning tree (joint coordinates) have no multipliers: their reactions
+        follow from Newton–Euler body by body, from the leaves to the root (seed 002, "Joint
+        Forces Calculation"): F = m a_G − F_applied − F_constraints + Σ F_children,
+        M_G = Ḣ_G − M_applied − M_constraints + Σ (M_child + (r_child − r_G) × F_child).
+        Driver multipliers are not included: a driver's effort is reported on its own.  A user
+        generalized force that is not attached to a body makes tree reactions undeterminable
+        (NaN).
         """
         if "joint_reactions" not in self._functions:
             lam = ca.SX.sym("lambda", self.nc)
-            cq = self.constraint_jacobian
-            dim = self.dimension
-            cols = []
+            a = ca.SX.sym("a", self.nq)
+            cols: dict[str, ca.SX] = {}
+            mech = self.mechanism
+            joint_only = [i for i, lab in enumerate(self.constraint_labels)
+                          if lab.kind == "joint"]
             for name, rows in self.joint_rows.items():
-                joint = self.mechanism.joints[name]
-                body, sign = (joint.body2, 1.0) if joint.body2 in self.ctx.index else \
+                if name in self.tree_joints:
+                    continue
+                joint = mech.joints[name]
+                body, sign = (joint.body2, 1.0) if joint.body2 != GROUND else \
                     (joint.body1, -1.0)
-                sl = self.body_slice(body)
-                q_c = -ca.mtimes(cq[rows, sl].T, lam[rows]) * sign
-                wrench = ca.mtimes(self._wrench_map(body), q_c)
-                force, moment = wrench[:dim], wrench[dim:]
-                point = joint.reaction_point()
-                if point is None:
-                    point = self.ctx.initial_position(joint.body2)
-                arm = (self.ctx.point(body, self.ctx.local(body, point))
-                       - self.ctx.centre_of_mass(body))
-                if dim == 2:
-                    moment = moment - (arm[0] * force[1] - arm[1] * force[0])
-                else:
-                    moment = moment - ca.cross(arm, force)
-                cols.append(ca.vertcat(force, moment))
-            size = 3 if dim == 2 else 6
-            out = ca.horzcat(*cols) if cols else ca.SX(size, 0)
+                wrench = sign * self._constraint_wrench(body, lam, rows)
+                cols[name] = self._at_point(joint, body, wrench)
+            if self.tree_joints:
+                cols.update(self._tree_reactions(a, lam, joint_only))
+            size = self.reaction_size
+            out = ca.horzcat(*[cols[n] for n in mech.joints]) if mech.joints else \
+                ca.SX(size, 0)
             self._functions["joint_reactions"] = ca.Function(
-                "joint_reactions", [self.q, self.t, self.p, lam], [out],
-                ["q", "t", "p", "lambda"], ["reactions"])
+                "joint_reactions", [self.q, self.v, a, self.t, self.u, self.p, lam], [out],
+                ["q", "v", "a", "t", "u", "p", "lambda"], ["reactions"])
         return self._functions["joint_reactions"]
+
+    def _at_point(self, joint, body: str, wrench: ca.SX) -> ca.SX:
+        """Carry a wrench (force, moment about G of ``body``) to the joint's point."""
+        dim = self.dimension
+        force, moment = wrench[:dim], wrench[dim:]
+        arm = self._reaction_point(joint, body) - self.ctx.centre_of_mass(body)
+        return ca.vertcat(force, moment - self._cross(arm, force))
+
+    def _tree_reactions(self, a: ca.SX, lam: ca.SX, rows: list[int]) -> dict[str, ca.SX]:
+        """Reactions of the tree joints by the recursion from the leaves (see
+        :meth:`reactions_function`); ``rows`` are the loop-joint rows whose multipliers act
+        on the bodies (driver rows excluded, like in absolute coordinates)."""
+        dim = self.dimension
+        order = [name for name in self.body_names]
+        children: dict[str, list[str]] = {name: [] for name in order}
+        for name in order:
+            parent = self.descriptions[name].parent
+            if parent != GROUND:
+                children[parent].append(name)
+        # bodies after their parents: reverse topological order for the recursion
+        ranked, seen = [], set()
+
+        def visit(name):
+            if name in seen:
+                return
+            parent = self.descriptions[name].parent
+            if parent != GROUND:
+                visit(parent)
+            seen.add(name)
+            ranked.append(name)
+
+        for name in order:
+            visit(name)
+        driver_rows = [i for i, lab in enumerate(self.constraint_labels) if lab.kind == "driver"]
+        joint_wrench: dict[str, ca.SX] = {}  # on the body from its parent, about the joint pt
+        out: dict[str, ca.SX] = {}
+        for name in reversed(ranked):
+            desc = self.descriptions[name]
+            applied, unknown = self._applied_wrench(name)
+            # drivers act inside their joints: like absolute coordinates, reactions exclude
+            # the driver efforts, so driver rows count with the applied loads here
+            loads = applied + self._constraint_wrench(name, lam, rows + driver_rows)
+            wrench = self._inertial_wrench(name, a) - loads
+            r_g = self.ctx.centre_of_mass(name)
+            for child in children[name]:
+                child_joint = self.mechanism.joints[self.descriptions[child].joint.name]
+                on_child = joint_wrench[child]
+                point = self._reaction_point(child_joint, child)
+                force = on_child[:dim]
+                moment = on_child[dim:] + self._cross(point - r_g, force)
+                wrench = wrench + ca.vertcat(force, moment)
+            if desc.joint is None:
+                continue
+            joint = self.mechanism.joints[desc.joint.name]
+            at_point = self._at_point(joint, name, wrench)
+            if unknown:
+                at_point = at_point * ca.nan
+            joint_wrench[name] = at_point
+            out[joint.name] = at_point if joint.body2 == name else -at_point
+        return out
 
     # ------------------------------------------------------------------ functions
     def function(self, name: str) -> ca.Function:
