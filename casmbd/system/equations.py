@@ -269,7 +269,7 @@ class System:
         Hessian is exact and structurally sparse.
         """
         if not self.local:
-            return ca.hessian(self._total_energy, self.v)[0]
+            return self._kane[0]
         blocks = []
         for name in self.body_names:
             vi = self.ctx.rates(name)
@@ -280,6 +280,61 @@ class System:
     def local(self) -> bool:
         """True when every body's pose depends on its own coordinates only (block-diagonal M)."""
         return all(d.local for d in self.descriptions.values())
+
+    @cached_property
+    def _kane(self) -> tuple[ca.SX, ca.SX]:
+        """M and Q_v of a coupled (joint-coordinate) system by Kane's equations.
+
+        Each body's twist is linear in the joint rates, t_i = (ṙ_G, ω) = J_i(q) q̇ (seed 001,
+        eqs. 256–290: the velocity influence matrices).  With D_i = diag(m 1, A J Aᵀ), the
+        generalized inertia forces give (seed 002, "Open Loop Equations of Motion")
+
+            M = Σ J_iᵀ D_i J_i,   Q_v = −Σ J_iᵀ (D_i J̇_i q̇ + (0, ω × (A J Aᵀ) ω)),
+
+        with J̇_i q̇ = ∂t_i/∂q · q̇.  Q_v is formed by one reverse-mode product Jᵀ w, linear in
+        the number of bodies; differentiating ½ q̇ᵀ M q̇ instead would cost O(N⁴).  Ball-joint
+        Euler parameters add c p pᵀ to M and −c |ṗ|² p to Q_v (the term ½ c (pᵀṗ)², see
+        :mod:`casmbd.system.descriptions`).
+        """
+        ctx, q, v = self.ctx, self.q, self.v
+        twists, weights, blocks = [], [], []
+        for name in self.body_names:
+            mass, inertia = self._mass_inertia(self.mechanism.bodies[name])
+            vel = ca.jtimes(ctx.centre_of_mass(name), q, v)
+            omega = ctx.angular_velocity(name)
+            acc = ca.jtimes(vel, q, v)
+            alpha = ca.jtimes(omega, q, v)
+            if self.dimension == 2:
+                tensor = inertia
+                spin = ca.SX(0.0)
+                block = ca.diagcat(mass * ca.SX.eye(2), tensor)
+                moment = tensor * alpha
+            else:
+                rot = ctx.rotation(name)
+                tensor = ca.mtimes([rot, inertia, rot.T])
+                spin = ca.cross(omega, ca.mtimes(tensor, omega))
+                block = ca.diagcat(mass * ca.SX.eye(3), tensor)
+                moment = ca.mtimes(tensor, alpha) + spin
+            twists.append(ca.vertcat(vel, omega))
+            weights.append(ca.vertcat(mass * acc, moment))
+            blocks.append(block)
+        twist = ca.vertcat(*twists)
+        jac = ca.jacobian(twist, v)
+        mass_matrix = ca.mtimes([jac.T, ca.diagcat(*blocks), jac])
+        qv = -ca.jtimes(twist, v, ca.vertcat(*weights), True)
+        for name, desc in self.descriptions.items():
+            extra = getattr(desc, "normalization_inertia", None)
+            c = extra(self._mass_inertia(self.mechanism.bodies[name])[1]) if extra else None
+            if c is None:
+                continue
+            sl = self.body_slice(name)
+            p, pdot = q[sl][-4:], v[sl][-4:]
+            idx = list(range(sl.stop - 4, sl.stop))
+            pad = ca.SX(self.nq, 4)
+            pad[idx, :] = c * ca.mtimes(p, p.T)
+            mass_matrix[:, idx] = mass_matrix[:, idx] + pad
+            qv[idx] = qv[idx] - c * ca.dot(pdot, pdot) * p
+        return mass_matrix, qv
 
     @cached_property
     def _total_energy(self) -> ca.SX:
@@ -301,9 +356,7 @@ class System:
         """
         m = self.mass_matrix
         if not self.local:
-            mv = ca.mtimes(m, self.v)
-            return (ca.jacobian(0.5 * ca.dot(self.v, mv), self.q).T
-                    - ca.jtimes(mv, self.q, self.v))
+            return self._kane[1]
         parts = []
         for name in self.body_names:
             sl = self.body_slice(name)

@@ -273,6 +273,12 @@ class TreeJointDescription(Description):
             total += 0.5 * (4.0 / 3.0) * ca.trace(inertia) * ca.dot(p, pdot) ** 2
         return total
 
+    def normalization_inertia(self, inertia) -> ca.SX | None:
+        """c of the term ½ c (pᵀṗ)² for a ball joint's Euler parameters (else None)."""
+        if isinstance(self.joint, Spherical):
+            return 4.0 / 3.0 * ca.trace(inertia)
+        return None
+
     def constraints(self, q):
         if isinstance(self.joint, Spherical):
             return 0.5 * (ca.dot(q, q) - 1.0), ("normalization",)
@@ -285,6 +291,10 @@ class FloatingRoot:
     local = False
     parent = GROUND
     joint = None
+
+    def normalization_inertia(self, inertia) -> ca.SX | None:
+        """c of the term ½ c (pᵀṗ)² of the Euler parameters of a spatial floating body."""
+        return 4.0 / 3.0 * ca.trace(inertia) if self.dimension == 3 else None
 
     def energy(self, ctx, name, mass, inertia) -> ca.SX:
         return self.kinetic_energy(ctx.coordinates(name), ctx.rates(name), mass, inertia)
