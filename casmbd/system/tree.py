@@ -86,17 +86,55 @@ def spanning_tree(mechanism, tree=None) -> tuple[list[TreeEdge], list[str]]:
         if not isinstance(joints[name], TREE_TYPES):
             raise ModelError(f"tree: joint '{name}' ({type(joints[name]).__name__}) cannot be a "
                              "tree joint")
-    candidates = named + [n for n, j in joints.items()
-                          if n not in named and isinstance(j, TREE_TYPES)]
+    # union–find: the named joints first (they must not close a loop), then the others in
+    # breadth-first order from the ground so that the tree is shallow
+    root = {name: name for name in [GROUND, *mechanism.bodies]}
+
+    def find(x: str) -> str:
+        while root[x] != x:
+            root[x] = root[root[x]]
+            x = root[x]
+        return x
+
+    chosen: list[str] = []
+    for name in named:
+        a, b = find(joints[name].body1), find(joints[name].body2)
+        if a == b:
+            raise ModelError(f"tree: joint '{name}' would close a loop with the other named "
+                             "joints; name a tree without cycles")
+        root[a] = b
+        chosen.append(name)
+    others = [n for n, j in joints.items() if n not in named and isinstance(j, TREE_TYPES)]
+    frontier, seen = [GROUND], {GROUND}
+    while frontier:
+        node = frontier.pop(0)
+        for name in others:
+            joint = joints[name]
+            if node not in (joint.body1, joint.body2):
+                continue
+            other = joint.body2 if joint.body1 == node else joint.body1
+            a, b = find(joint.body1), find(joint.body2)
+            if a != b:
+                root[a] = b
+                chosen.append(name)
+            if other not in seen:
+                seen.add(other)
+                frontier.append(other)
+    for name in others:  # components not connected to the ground
+        a, b = find(joints[name].body1), find(joints[name].body2)
+        if a != b:
+            root[a] = b
+            chosen.append(name)
+    # orient the chosen edges away from the ground (floating roots for detached components)
     parent_of: dict[str, TreeEdge] = {}
     order: list[str] = []
     reached = {GROUND}
 
-    def grow(start: list[str]) -> None:
-        queue = list(start)
+    def grow(start: str) -> None:
+        queue = [start]
         while queue:
             node = queue.pop(0)
-            for name in candidates:
+            for name in chosen:
                 joint = joints[name]
                 if node not in (joint.body1, joint.body2):
                     continue
@@ -108,18 +146,14 @@ def spanning_tree(mechanism, tree=None) -> tuple[list[TreeEdge], list[str]]:
                 order.append(other)
                 queue.append(other)
 
-    grow([GROUND])
-    for body in mechanism.bodies:  # bodies not connected to the ground: floating roots
+    grow(GROUND)
+    for body in mechanism.bodies:
         if body not in reached:
             reached.add(body)
             parent_of[body] = TreeEdge(body, GROUND, None)
             order.append(body)
-            grow([body])
+            grow(body)
     in_tree = {e.joint for e in parent_of.values() if e.joint}
-    missing = [n for n in named if n not in in_tree]
-    if missing:
-        raise ModelError(f"tree: joints {', '.join(missing)} would close a loop; name a tree "
-                         "without cycles")
     loops = [n for n in joints if n not in in_tree]
     return [parent_of[b] for b in order], loops
 
