@@ -130,7 +130,7 @@ class SpatialRevolute(_AxisJoint):
 
     Coordinate ``angle``: the rotation of body2 relative to body1 about the axis since the
     initial pose (right-hand rule), wrapped to (−π, π]; a driver on it uses the
-    sin(φ − f(t)) residual and turns without limit.
+    wrapped residual atan2(sin(φ − f), cos(φ − f)) and turns without limit.
     """
 
     labels: tuple[str, ...] = ("x", "y", "z", "axis f", "axis g")

@@ -223,17 +223,25 @@ class Context:
     def angle_residual(self, body1: str, body2: str, target: ca.SX, axis=None) -> ca.SX:
         """Residual of the driving constraint φ = target.
 
-        φ − target when φ is a difference of coordinates; otherwise
-        sin(φ − target) = sin φ cos target − cos φ sin target, which is free of the wrap of
-        atan2, has unit slope at the solution (so its multiplier is the driving torque) and
-        stays regular through any number of turns (the angle driver of natural coordinates).
+        φ − target when φ is a difference of coordinates; otherwise the wrapped difference
+        atan2(sin(φ − target), cos(φ − target)) with sin(φ − target) = sin φ cos target −
+        cos φ sin target and cos(φ − target) = cos φ cos target + sin φ sin target (the angle
+        driver of natural coordinates and Euler parameters).  It is free of the wrap of
+        atan2(sin φ, cos φ) (its cut lies half a turn away from the solution, so it stays
+        regular through any number of turns), has unit slope at the solution (its multiplier is
+        the driving torque, as in absolute coordinates) and is insensitive to the scale of
+        (sin φ, cos φ) off the rigid-body constraints.  The bare sin(φ − target) has a second,
+        spurious root at φ = target + π, where Newton's method converges from a guess more than
+        a quarter turn off (a crank started opposite its driver, a coarse kinematic grid) and
+        the driving torque changes sign.
         """
         if self.dimension == 2 and self.has_angle(body1) and self.has_angle(body2):
             return self.angle(body2) - self.angle(body1) - target
         sin, cos = self.relative_rotation(body1, body2, axis)
         if self.dimension == 2:
             target = target - (self.initial_angle(body2) - self.initial_angle(body1))
-        return sin * ca.cos(target) - cos * ca.sin(target)
+        c, s = ca.cos(target), ca.sin(target)
+        return ca.atan2(sin * c - cos * s, cos * c + sin * s)
 
     # ---------------------------------------------------------------- user-facing helpers
     def _known(self, body: str) -> None:
