@@ -150,10 +150,17 @@ def _load(args):
 def _cmd_info(args) -> tuple[dict, str]:
     from casmbd.analysis.kinematics import info
 
-    data = info(_load(args), mode=args.mode)
-    lines = [f"mechanism '{data['name']}' (planar, {len(data['bodies'])} bodies)",
+    mech = _load(args)
+    data = info(mech, mode=args.mode)
+    data.setdefault("coordinate_choice", mech.coordinates)
+    kind = "planar" if data.get("dimension", 2) == 2 else "spatial"
+    n_body_rows = sum(1 for row in data["constraints"] if row["kind"] == "body")
+    body_rows = f" ({n_body_rows} of the bodies' own)" if n_body_rows else ""
+    lines = [f"mechanism '{data['name']}' ({kind}, {len(data['bodies'])} bodies, "
+             f"{data['coordinate_choice']} coordinates)",
              f"  coordinates ({data['n_coordinates']}): {', '.join(data['coordinates'])}",
-             f"  constraints: {data['n_constraints']} equations, rank {data['rank']}",
+             f"  constraints: {data['n_constraints']} equations{body_rows}, "
+             f"rank {data['rank']}",
              f"  degrees of freedom: {data['degrees_of_freedom']}"]
     if data["redundant_equations"]:
         lines.append("  redundant equations: " + ", ".join(
@@ -172,17 +179,28 @@ def _timing(stats: dict, digits: int = 3) -> str:
             f"solve {stats['solve_seconds']:.{digits}f} s")
 
 
+def _range(label: str, values: np.ndarray) -> str:
+    return f"{label} [{values.min():+.4g}, {values.max():+.4g}]"
+
+
 def _summary_table(result) -> list[str]:
+    """One line per body (coordinate ranges of the centre of mass, and the angle range in the
+    plane or the final quaternion in space) and per joint coordinate."""
     lines = []
+    spatial = result.dimension == 3
     for name in result.names["bodies"]:
         b = result.body(name)
-        pos, ang = b["position"], b["angle"]
-        lines.append(f"  body {name:<14} x [{pos[:, 0].min():+.4g}, {pos[:, 0].max():+.4g}]  "
-                     f"y [{pos[:, 1].min():+.4g}, {pos[:, 1].max():+.4g}]  "
-                     f"angle [{ang.min():+.4g}, {ang.max():+.4g}]")
+        pos = b["position"]
+        parts = [_range(axis, pos[:, k]) for k, axis in enumerate("xyz"[:pos.shape[1]])]
+        if spatial and "quaternion" in b and len(b["quaternion"]):
+            quat = ", ".join(f"{x:+.4f}" for x in b["quaternion"][-1])
+            parts.append(f"final quaternion [{quat}]")
+        elif "angle" in b:
+            parts.append(_range("angle", b["angle"]))
+        lines.append(f"  body {name:<14} " + "  ".join(parts))
     for name in result.names["joints"]:
-        c = result.joint(name)["coordinate"]
-        lines.append(f"  joint {name:<13} coordinate [{c.min():+.4g}, {c.max():+.4g}]")
+        c = result["joint_positions"][:, result.names["joints"].index(name)]
+        lines.append(f"  joint {name:<13} {_range('coordinate', c)}")
     return lines
 
 
@@ -261,6 +279,9 @@ def _cmd_inverse(args) -> tuple[dict, str]:
     for k, name in enumerate(result.names["drivers"]):
         eff = result["driver_efforts"][:, k]
         lines.append(f"  driver {name:<12} effort [{eff.min():+.4g}, {eff.max():+.4g}]")
+    for k, name in enumerate(result.names.get("actuators", [])):
+        eff = result["actuator_efforts"][:, k]
+        lines.append(f"  actuator {name:<10} effort [{eff.min():+.4g}, {eff.max():+.4g}]")
     s = result.stats
     lines.append(_timing(s))
     if args.out:
@@ -278,13 +299,19 @@ def _cmd_statics(args) -> tuple[dict, str]:
     lines = [f"static equilibrium of '{mech.name}' ({result.method} Newton, "
              f"{result.iterations} iterations, residual {result.residual:.3g}): {stable}"]
     for name, b in data["bodies"].items():
-        x, y = b["position"]
-        lines.append(f"  body {name:<14} x {x:+.6g}  y {y:+.6g}  angle {b['angle']:+.6g}")
+        pos = "  ".join(f"{axis} {x:+.6g}" for axis, x in zip("xyz", b["position"]))
+        if "quaternion" in b:
+            orient = "quaternion [" + ", ".join(f"{x:+.6f}" for x in b["quaternion"]) + "]"
+        else:
+            orient = f"angle {b['angle']:+.6g}"
+        lines.append(f"  body {name:<14} {pos}  {orient}")
+    labels = ("Fx", "Fy", "M") if len(mech.gravity) == 2 else ("Fx", "Fy", "Fz", "Mx", "My",
+                                                               "Mz")
     for name, j in data["joints"].items():
-        coord = f"coordinate {j['coordinate']:+.6g}  " if "coordinate" in j else ""
-        fx, fy, mz = (x + 0.0 for x in j["reaction"])  # no "-0"
-        lines.append(f"  joint {name:<13} {coord}reaction Fx {fx:+.6g}  Fy {fy:+.6g}  "
-                     f"M {mz:+.6g}")
+        coords = "".join(f"{key} {j[key]:+.6g}  " for key in j if key != "reaction")
+        reaction = "  ".join(f"{label} {x + 0.0:+.6g}"  # no "-0"
+                             for label, x in zip(labels, j["reaction"]))
+        lines.append(f"  joint {name:<13} {coords}reaction {reaction}")
     eig = ", ".join(f"{e:.4g}" for e in result.eigenvalues) or "none (no degrees of freedom)"
     lines.append(f"  stiffness eigenvalues: {eig}")
     s = result.stats

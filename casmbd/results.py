@@ -2,7 +2,8 @@
 
 A :class:`Result` keeps every array of an analysis (time as the first axis), the names needed to
 read them, and statistics.  ``to_json`` gives the CLI contract (``"t"``, ``"bodies"``,
-``"joints"``, ``"constraint_violation"``, ``"stats"`` …); ``save`` writes every array to an npz
+``"joints"``, ``"constraint_violation"``, ``"stats"`` …; planar bodies report an ``"angle"``,
+spatial ones a ``"quaternion"`` [w, x, y, z]); ``save`` writes every array to an npz
 file atomically (temporary file + rename), and :func:`load` reads it back.
 """
 
@@ -31,11 +32,15 @@ class Result:
         Analysis that produced it ("kinematics", "simulation", ...).
     t : ndarray, shape (n_t,)
     arrays : dict of str to ndarray
-        ``q``, ``v``, ``a`` (n_t, n_q) and named outputs (``body_positions`` (n_t, 2 n_b),
-        ``body_angles`` (n_t, n_b), ``marker_positions``, ``joint_positions`` …,
-        ``constraint_violation`` (n_t,)).
+        ``q``, ``v``, ``a`` (n_t, n_q) and named outputs (``body_positions`` (n_t, dim n_b),
+        in the plane ``angle_positions`` (n_t, n_b), in space ``rotation_matrices``
+        (n_t, 9 n_b, A row by row) and ``angular_velocities`` (n_t, 3 n_b, global),
+        ``marker_positions``, ``joint_positions`` …, ``joint_reactions`` (n_t, n_joints, 3 in
+        the plane / 6 in space), ``constraint_violation`` (n_t,)).
     names : dict of str to list of str
-        ``coordinates``, ``bodies``, ``markers``, ``joints`` (joints with a coordinate).
+        ``coordinates``, ``bodies``, ``markers``, ``joints`` (one entry per joint coordinate:
+        the joint's name for its first, ``joint.angle`` for a cylindrical joint's second),
+        ``all_joints``; optionally ``dimension`` (else inferred, see :attr:`dimension`).
     stats : dict
         Timings and counters (``solve_seconds``, ``build_seconds`` …).
     """
@@ -51,52 +56,122 @@ class Result:
         return self.t if key == "t" else self.arrays[key]
 
     # ------------------------------------------------------------------ accessors
+    @property
+    def dimension(self) -> int:
+        """2 (planar) or 3 (spatial): ``names["dimension"]`` when the analysis stored it, else
+        read from the arrays (rotation matrices only in space, angles only in the plane, or
+        the width of ``body_positions`` per body)."""
+        dim = self.names.get("dimension")
+        if dim in (2, 3):
+            return int(dim)
+        if "rotation_matrices" in self.arrays:
+            return 3
+        if "angle_positions" in self.arrays:
+            return 2
+        n_b = len(self.names.get("bodies", []))
+        if n_b and "body_positions" in self.arrays:
+            return int(self.arrays["body_positions"].shape[1] // n_b)
+        return 2
+
     def body(self, name: str) -> dict[str, np.ndarray]:
-        """Position (n_t, 2), angle, velocity, angular velocity and accelerations of a body."""
+        """Pose and motion of a body on the grid.
+
+        Always ``position`` (n_t, dim) of the centre of mass and, when computed, ``velocity``
+        and ``acceleration`` (n_t, dim).  In the plane ``angle``, ``angular_velocity`` and
+        ``angular_acceleration`` (n_t,).  In space ``rotation`` (n_t, 3, 3), the matrix A
+        taking body components to global ones (r = r_G + A u, seed 001 eq. 1), ``quaternion``
+        (n_t, 4) [w, x, y, z] of A, sign-continuous in time
+        (:func:`casmbd.system.descriptions.quaternions_from_matrices`), and ``angular_velocity``
+        / ``angular_acceleration`` (n_t, 3) in global components.
+        """
         i = self.names["bodies"].index(name)
+        dim = self.dimension
         out = {}
         for key, src in (("position", "body_positions"), ("velocity", "body_velocities"),
                          ("acceleration", "body_accelerations")):
             if src in self.arrays:
-                out[key] = self.arrays[src][:, 2 * i:2 * i + 2]
-        for key, src in (("angle", "angle_positions"), ("angular_velocity", "angle_velocities"),
-                         ("angular_acceleration", "angle_accelerations")):
+                out[key] = self.arrays[src][:, dim * i:dim * i + dim]
+        if dim == 2:
+            for key, src in (("angle", "angle_positions"),
+                             ("angular_velocity", "angle_velocities"),
+                             ("angular_acceleration", "angle_accelerations")):
+                if src in self.arrays:
+                    out[key] = self.arrays[src][:, i]
+            return out
+        if "rotation_matrices" in self.arrays:
+            from casmbd.system.descriptions import quaternions_from_matrices
+
+            rot = self.arrays["rotation_matrices"][:, 9 * i:9 * i + 9]
+            out["rotation"] = rot.reshape(-1, 3, 3)
+            out["quaternion"] = quaternions_from_matrices(rot)
+        for key, src in (("angular_velocity", "angular_velocities"),
+                         ("angular_acceleration", "angular_accelerations")):
             if src in self.arrays:
-                out[key] = self.arrays[src][:, i]
+                out[key] = self.arrays[src][:, 3 * i:3 * i + 3]
         return out
 
     def marker(self, name: str) -> dict[str, np.ndarray]:
-        """Position, velocity and acceleration (n_t, 2) of a marker."""
-        i = self.names["markers"].index(name)
-        return {key: self.arrays[f"marker_{src}"][:, 2 * i:2 * i + 2]
+        """Position, velocity and acceleration (n_t, dim) of a marker."""
+        i, dim = self.names["markers"].index(name), self.dimension
+        return {key: self.arrays[f"marker_{src}"][:, dim * i:dim * i + dim]
                 for key, src in (("position", "positions"), ("velocity", "velocities"),
                                  ("acceleration", "accelerations"))
                 if f"marker_{src}" in self.arrays}
 
     def joint(self, name: str) -> dict[str, np.ndarray]:
-        """Coordinate, its rate and acceleration (n_t,) of a joint with a coordinate."""
-        i = self.names["joints"].index(name)
-        return {key: self.arrays[f"joint_{src}"][:, i]
-                for key, src in (("coordinate", "positions"), ("velocity", "velocities"),
-                                 ("acceleration", "accelerations"))
-                if f"joint_{src}" in self.arrays}
+        """Coordinate, its rate and acceleration (n_t,) of a joint with a coordinate.
+
+        A joint with a second coordinate (the angle of a cylindrical joint, column
+        ``"joint.angle"`` of ``joint_positions``) also gives ``angle``, ``angle_velocity`` and
+        ``angle_acceleration``; ``result.joint("joint.angle")`` reads that column alone.
+        """
+        columns = self.names["joints"]
+        i = columns.index(name)
+        out = {key: self.arrays[f"joint_{src}"][:, i]
+               for key, src in (("coordinate", "positions"), ("velocity", "velocities"),
+                                ("acceleration", "accelerations"))
+               if f"joint_{src}" in self.arrays}
+        for k, column in enumerate(columns):
+            prefix, _, coord = column.rpartition(".")
+            if prefix == name and column not in self._joint_names():
+                for key, src in (("", "positions"), ("_velocity", "velocities"),
+                                 ("_acceleration", "accelerations")):
+                    if f"joint_{src}" in self.arrays:
+                        out[coord + key] = self.arrays[f"joint_{src}"][:, k]
+        return out
+
+    def _joint_names(self) -> list[str]:
+        """Every joint's name (``all_joints``; results without it: the first-coordinate
+        columns)."""
+        if "all_joints" in self.names:
+            return list(self.names["all_joints"])
+        return [c for c in self.names["joints"] if c.rpartition(".")[0] not in
+                self.names["joints"]]
 
     # ------------------------------------------------------------------ views
     def to_json(self) -> dict:
         """The JSON object of the CLI contract."""
         bodies = {}
+        orientation = "angle" if self.dimension == 2 else "quaternion"
         for name in self.names["bodies"]:
             b = self.body(name)
-            bodies[name] = {"position": _list(b["position"]), "angle": _list(b["angle"])}
+            bodies[name] = {"position": _list(b["position"]),
+                            orientation: _list(b[orientation])}
             if "velocity" in b:
                 bodies[name]["velocity"] = _list(b["velocity"])
                 bodies[name]["angular_velocity"] = _list(b["angular_velocity"])
-        joints = {name: {} for name in self.names.get("all_joints", self.names["joints"])}
-        for name in self.names["joints"]:
-            j = self.joint(name)
-            joints[name]["coordinate"] = _list(j["coordinate"])
-            if "velocity" in j:
-                joints[name]["velocity"] = _list(j["velocity"])
+        all_joints = self._joint_names()
+        joints: dict = {name: {} for name in all_joints}
+        for k, column in enumerate(self.names["joints"]):
+            if column in joints:  # a joint's first coordinate
+                name, key = column, "coordinate"
+            else:  # a further coordinate "joint.angle" (cylindrical)
+                name, _, key = column.rpartition(".")
+                joints.setdefault(name, {})
+            joints[name][key] = _list(self.arrays["joint_positions"][:, k])
+            if "joint_velocities" in self.arrays:
+                joints[name]["velocity" if key == "coordinate" else f"{key}_velocity"] = \
+                    _list(self.arrays["joint_velocities"][:, k])
         if "joint_reactions" in self.arrays:
             for k, name in enumerate(self.names.get("all_joints", [])):
                 joints[name]["reaction"] = _list(self.arrays["joint_reactions"][:, k, :])

@@ -113,7 +113,7 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
         reac = np.asarray(model.function("joint_reactions").map(n)(
             qs.T, vs.T, acc.T, grid[None, :], u_eff.T, np.tile(model.p[:, None], (1, n)),
             lam_reac.T))
-        reactions = reac.reshape(system.reaction_size, n, n_j, order="F").transpose(1, 2, 0)
+        reactions = reac.reshape(system.reaction_size, n, n_j).transpose(1, 2, 0)
     else:
         reactions = np.zeros((n, 0, system.reaction_size))
     drivers = list(system.mechanism.drivers)

@@ -351,7 +351,7 @@ class Simulator:
                                  np.tile(model.p[:, None], (1, n)), lam.T)) \
             if system.mechanism.joints else np.zeros((3, 0))
         n_j, size = len(system.mechanism.joints), system.reaction_size
-        reactions = reac.reshape(size, n, n_j, order="F").transpose(1, 2, 0) if n_j else \
+        reactions = reac.reshape(size, n, n_j).transpose(1, 2, 0) if n_j else \
             np.zeros((n, 0, size))
         drivers = list(system.mechanism.drivers)
         efforts = np.column_stack([-lam[:, system.driver_rows[d]] for d in drivers]) \

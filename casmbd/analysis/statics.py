@@ -114,8 +114,9 @@ class StaticsResult:
             else:
                 bodies[name]["angle"] = float(self.body_angles[k])
         joints: dict = {name: {} for name in self.names.get("all_joints", [])}
-        for k, name in enumerate(self.names.get("joints", [])):
-            joints[name]["coordinate"] = float(self.joint_coordinates[k])
+        for k, name in enumerate(self.names.get("joints", [])):  # "joint.angle": 2nd coordinate
+            joint, key = (name, "coordinate") if name in joints else name.rsplit(".", 1)
+            joints.setdefault(joint, {})[key] = float(self.joint_coordinates[k])
         for k, name in enumerate(self.names.get("all_joints", [])):
             joints[name]["reaction"] = [float(x) for x in self.joint_reactions[k]]
         return {"kind": "statics", "t": float(self.t), "bodies": bodies, "joints": joints,

@@ -5,18 +5,26 @@ The loader builds exactly the object the Python API builds.  Every error is a
 ``[[bodies]] entry 2 ('crank') key 'mass': must be > 0, got -1.0``.  Expression strings are
 parsed by :mod:`casmbd.io.expressions` (never Python ``eval``).
 
-Contract (SI units, angles in radians)::
+Contract (SI units, angles in radians; vectors have ``dimension`` components)::
 
-    [scene]       name, dimension = 2, gravity = [gx, gy], format = 1
+    [scene]       name, dimension = 2|3, gravity = [gx, gy(, gz)], format = 1,
+                  coordinates = "absolute"|"natural"
     [parameters]  k = 100.0 ...
-    [[bodies]]    name, mass, inertia, position, angle, velocity, angular_velocity,
-                  reference_point
+    [[bodies]]    name, mass, inertia, position, velocity, reference_point,
+                  plane:  angle, angular_velocity (numbers)
+                  space:  inertia = [Ixx, Iyy, Izz(, Ixy, Ixz, Iyz)] (centre of mass, body axes),
+                          orientation = [w, x, y, z] | euler_zxz = [phi, theta, psi],
+                          angular_velocity = [wx, wy, wz] (global)
     [[markers]]   name, body, point
-    [[joints]]    name, type = revolute|prismatic|rigid|distance|fixed, body1, body2, point,
-                  point1, point2, length (distance), axis (prismatic), body (fixed)
-    [[drivers]]   name, joint | body + coordinate (x|y|angle), position (expression of t)
+    [[joints]]    name, type, body1, body2, point, ...
+                  plane: revolute|prismatic|rigid|distance|fixed
+                  space: also spherical|cylindrical|universal; axis (revolute, prismatic,
+                  cylindrical), axes = [[...], [...]] or axis1, axis2 (universal)
+    [[drivers]]   name, joint (+ coordinate for a multi-coordinate joint) |
+                  body + coordinate (x|y|angle; x|y|z in space), position (expression of t)
     [[forces]]    name, type = force|torque|spring_damper|rotational_spring_damper, ...
-    [[actuators]] name, joint
+                  (torque: value number in the plane, [tx, ty, tz] + frame in space)
+    [[actuators]] name, joint, coordinate (optional)
 """
 
 from __future__ import annotations
@@ -27,9 +35,10 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from casmbd.errors import CasmbdError, ExpressionError, SceneError
+from casmbd.errors import CasmbdError, ExpressionError, ModelError, SceneError
 from casmbd.io.expressions import evaluate_number
 from casmbd.model import GROUND, Mechanism
+from casmbd.model.rotations import inertia_tensor
 from casmbd.model.values import Samples
 
 FORMAT = 1
@@ -38,24 +47,29 @@ _TABLES = {"scene", "parameters", "bodies", "markers", "joints", "drivers", "for
            "actuators", "ocp", "simulation", "meta"}
 _SCENE_KEYS = {"name", "dimension", "gravity", "format", "description", "coordinates"}
 _BODY_KEYS = {"name", "mass", "inertia", "position", "angle", "velocity", "angular_velocity",
-              "reference_point", "description"}
+              "reference_point", "orientation", "euler_zxz", "description"}
+_COORDINATES = ("absolute", "natural")
 _MARKER_KEYS = {"name", "body", "point", "description"}
 _JOINT_KEYS = {
-    "revolute": {"point"},
+    "revolute": {"point", "axis"},
     "prismatic": {"point", "axis"},
     "rigid": {"point"},
     "fixed": {"point", "body"},
     "distance": {"point1", "point2", "length"},
+    "spherical": {"point"},
+    "cylindrical": {"point", "axis"},
+    "universal": {"point", "axes", "axis1", "axis2"},
 }
+_SPATIAL_JOINTS = {"spherical", "cylindrical", "universal"}
 _DRIVER_KEYS = {"name", "joint", "body", "coordinate", "position", "description"}
 _FORCE_KEYS = {
     "force": {"body", "point", "value", "frame"},
-    "torque": {"body", "value"},
+    "torque": {"body", "value", "frame"},
     "spring_damper": {"body1", "body2", "point1", "point2", "stiffness", "damping",
                       "free_length", "actuator"},
     "rotational_spring_damper": {"joint", "stiffness", "damping", "free_angle", "actuator"},
 }
-_ACTUATOR_KEYS = {"name", "joint", "description"}
+_ACTUATOR_KEYS = {"name", "joint", "coordinate", "description"}
 
 
 def _finite(val: Any) -> float | None:
@@ -173,6 +187,39 @@ class _Entry:
             raise self.error(key, f"expected a list of {size} numbers, got {val!r}")
         return [self._number(x, key) for x in val]
 
+    def values(self, key: str, sizes: tuple[int, ...], what: str = "numbers or expressions",
+               default=None, required: bool = True) -> list | None:
+        """A list of ``sizes[i]`` numbers or expression strings (kept as text)."""
+        if key not in self.data:
+            if default is None and required:
+                raise self.error(key, "missing required key")
+            return default
+        raw = self.data[key]
+        if not isinstance(raw, list) or len(raw) not in sizes:
+            count = " or ".join(str(n) for n in sizes)
+            raise self.error(key, f"expected a list of {count} {what}, got {raw!r}")
+        return [self._component(x, key) for x in raw]
+
+    def _component(self, raw: Any, key: str) -> float | str:
+        if isinstance(raw, bool) or not isinstance(raw, (int, float, str)):
+            raise self.error(key, f"expected a number or an expression string, got {raw!r}")
+        if isinstance(raw, str):
+            self._check_expression(raw, key)
+            return raw
+        out = _finite(raw)
+        if out is None:
+            raise self.error(key, f"must be a finite number, got {str(raw)[:40]}")
+        return out
+
+    def vectors(self, key: str, count: int, size: int) -> list[list[float]]:
+        """A list of ``count`` vectors of ``size`` numbers (e.g. the axes of a universal joint)."""
+        val = self.require(key)
+        if (not isinstance(val, list) or len(val) != count
+                or any(not isinstance(v, list) or len(v) != size for v in val)):
+            raise self.error(key, f"expected a list of {count} lists of {size} numbers, got "
+                             f"{val!r}")
+        return [[self._number(x, key) for x in v] for v in val]
+
 
 def _name(entry: _Entry) -> str:
     return entry.string("name")
@@ -202,14 +249,21 @@ def _build(data: dict, source: str) -> Mechanism:
     if isinstance(fmt, bool) or fmt != FORMAT:
         raise scene.error("format", f"unsupported format {fmt!r} (this casmbd reads {FORMAT})")
     dim = scene.data.get("dimension", 2)
-    if isinstance(dim, bool) or dim != 2:
-        raise scene.error("dimension", f"unsupported dimension {dim!r} (planar scenes: 2)")
+    if isinstance(dim, bool) or dim not in (2, 3):
+        raise scene.error("dimension", f"unsupported dimension {dim!r} (2: planar, 3: spatial)")
+    dim = int(dim)
     coords = scene.data.get("coordinates", "absolute")
-    if coords != "absolute":
-        raise scene.error("coordinates", f"unsupported coordinates {coords!r} for planar "
-                          "scenes (supported: 'absolute')")
+    if coords not in _COORDINATES:
+        raise scene.error("coordinates", f"unsupported coordinates {coords!r} (allowed: "
+                          f"{', '.join(repr(c) for c in _COORDINATES)})")
     name = scene.string("name", default=Path(source).stem or "scene")
-    mech = Mechanism(name, gravity=scene.vector("gravity", default=[0.0, 0.0]))
+    gravity = scene.data.get("gravity")
+    if isinstance(gravity, list) and len(gravity) in (2, 3) and len(gravity) != dim:
+        raise scene.error("gravity", f"expected a list of {dim} numbers with 'dimension' = "
+                          f"{dim}, got {gravity!r} (planar scenes: dimension = 2, spatial "
+                          "scenes: dimension = 3)")
+    mech = Mechanism(name, gravity=scene.vector("gravity", dim, default=[0.0] * dim),
+                     dimension=dim, coordinates=coords)
 
     def guarded(entry: _Entry, action):
         try:
@@ -232,28 +286,24 @@ def _build(data: dict, source: str) -> Mechanism:
 
     for e in entries("bodies"):
         e.check_keys(_BODY_KEYS)
-        for key in ("mass", "inertia"):
-            val = e.value(key)
-            num = e.number(key)
-            if num <= 0.0:
-                raise e.error(key, f"must be > 0, got {num:g}" + (f" ({val!r})"
-                                                                 if isinstance(val, str) else ""))
-        guarded(e, lambda e=e: mech.add_body(
-            _name(e), mass=e.value("mass"), inertia=e.value("inertia"),
-            position=e.vector("position"), angle=e.number("angle", 0.0),
-            velocity=e.vector("velocity", default=[0.0, 0.0]),
-            angular_velocity=e.number("angular_velocity", 0.0),
-            reference_point=e.vector("reference_point", default=[0.0, 0.0])))
+        if dim == 2:
+            _add_planar_body(mech, e, guarded)
+        else:
+            _add_spatial_body(mech, e, guarded)
 
     for e in entries("markers"):
         e.check_keys(_MARKER_KEYS)
-        guarded(e, lambda e=e: mech.add_marker(_name(e), e.string("body"), e.vector("point")))
+        guarded(e, lambda e=e: mech.add_marker(_name(e), e.string("body"),
+                                               e.vector("point", dim)))
 
     for e in entries("joints"):
         jtype = e.string("type")
         if jtype not in _JOINT_KEYS:
             raise e.error("type", f"unknown joint type {jtype!r} (allowed: "
                           f"{', '.join(_JOINT_KEYS)})")
+        if dim == 2 and jtype in _SPATIAL_JOINTS:
+            raise e.error("type", f"a {jtype} joint needs a spatial scene ([scene] "
+                          "dimension = 3)")
         e.check_keys({"name", "type", "body1", "body2", "description"} | _JOINT_KEYS[jtype])
         _add_joint(mech, e, jtype, guarded)
 
@@ -274,7 +324,8 @@ def _build(data: dict, source: str) -> Mechanism:
 
     for e in entries("actuators"):
         e.check_keys(_ACTUATOR_KEYS)
-        guarded(e, lambda e=e: mech.add_actuator(_name(e), e.string("joint")))
+        guarded(e, lambda e=e: mech.add_actuator(
+            _name(e), e.string("joint"), coordinate=e.string("coordinate", required=False)))
 
     if not mech.bodies:
         raise SceneError(f"{source}: the scene has no [[bodies]]")
@@ -285,18 +336,73 @@ def _build(data: dict, source: str) -> Mechanism:
     return mech
 
 
+def _positive(e: _Entry, key: str, val: float | str) -> None:
+    """Reject a mass or moment of inertia <= 0 (an expression is evaluated with the
+    parameters' values)."""
+    num = e._number(val, key)
+    if num <= 0.0:
+        raise e.error(key, f"must be > 0, got {num:g}" + (f" ({val!r})"
+                                                         if isinstance(val, str) else ""))
+
+
+def _add_planar_body(mech: Mechanism, e: _Entry, guarded) -> None:
+    for key in ("orientation", "euler_zxz"):
+        if e.has(key):
+            raise e.error(key, "planar bodies take 'angle' (spatial scenes: dimension = 3)")
+    for key in ("mass", "inertia"):
+        _positive(e, key, e.value(key))
+    guarded(e, lambda: mech.add_body(
+        _name(e), mass=e.value("mass"), inertia=e.value("inertia"),
+        position=e.vector("position"), angle=e.number("angle", 0.0),
+        velocity=e.vector("velocity", default=[0.0, 0.0]),
+        angular_velocity=e.number("angular_velocity", 0.0),
+        reference_point=e.vector("reference_point", default=[0.0, 0.0])))
+
+
+def _add_spatial_body(mech: Mechanism, e: _Entry, guarded) -> None:
+    """A spatial body: inertia [Ixx, Iyy, Izz(, Ixy, Ixz, Iyz)] about the centre of mass in
+    body axes, orientation as a unit quaternion [w, x, y, z] or Z-X-Z Euler angles."""
+    if e.has("angle"):
+        raise e.error("angle", "spatial bodies take 'orientation' (unit quaternion [w, x, y, "
+                      "z]) or 'euler_zxz' ([phi, theta, psi])")
+    if e.has("orientation") and e.has("euler_zxz"):
+        raise e.error("orientation", "give 'orientation' or 'euler_zxz', not both")
+    mass = e.value("mass")
+    _positive(e, "mass", mass)
+    inertia = e.values("inertia", (3, 6), what="moments (and products) of inertia")
+    for val in inertia[:3]:
+        _positive(e, "inertia", val)
+    try:
+        inertia_tensor([e._number(v, "inertia") for v in inertia])
+    except ModelError as exc:
+        raise e.error("inertia", str(exc)) from None
+    orientation = e.vector("orientation", 4, required=False)
+    if orientation is not None:
+        norm = math.sqrt(sum(x * x for x in orientation))
+        if abs(norm - 1.0) > 1e-3:
+            raise e.error("orientation", f"expected a unit quaternion [w, x, y, z], got norm "
+                          f"{norm:.6g}")
+    zeros = [0.0, 0.0, 0.0]
+    guarded(e, lambda: mech.add_body(
+        _name(e), mass=mass, inertia=inertia, position=e.vector("position", 3),
+        orientation=orientation, euler_zxz=e.vector("euler_zxz", 3, required=False),
+        velocity=e.vector("velocity", 3, default=zeros),
+        angular_velocity=e.vector("angular_velocity", 3, default=zeros),
+        reference_point=e.vector("reference_point", 3, default=zeros)))
+
+
 def _add_joint(mech: Mechanism, e: _Entry, jtype: str, guarded) -> None:
-    name = _name(e)
+    name, dim = _name(e), mech.dimension
     if jtype == "fixed":
         if e.has("body"):
             body = e.string("body")
-            guarded(e, lambda: mech.add_fixed(name, body, point=e.vector("point", default=None,
-                                                                        required=False)))
+            guarded(e, lambda: mech.add_fixed(name, body, point=e.vector(
+                "point", dim, default=None, required=False)))
             return
         if not (e.has("body1") and e.has("body2")):
             raise e.error("body", "missing required key (or give 'body1' and 'body2')")
         b1, b2 = e.string("body1"), e.string("body2")
-        point = e.vector("point", required=False)
+        point = e.vector("point", dim, required=False)
         if GROUND in (b1, b2):
             other = b2 if b1 == GROUND else b1
             guarded(e, lambda: mech.add_fixed(name, other, point=point))
@@ -305,33 +411,52 @@ def _add_joint(mech: Mechanism, e: _Entry, jtype: str, guarded) -> None:
         return
     b1, b2 = e.string("body1"), e.string("body2")
     if jtype == "revolute":
-        guarded(e, lambda: mech.add_revolute(name, b1, b2, e.vector("point")))
-    elif jtype == "prismatic":
-        guarded(e, lambda: mech.add_prismatic(name, b1, b2, e.vector("point"),
-                                              e.vector("axis")))
+        if dim == 2 and e.has("axis"):
+            raise e.error("axis", "a planar revolute joint has no axis (it turns about z)")
+        axis = e.vector("axis", 3) if dim == 3 else None
+        guarded(e, lambda: mech.add_revolute(name, b1, b2, e.vector("point", dim), axis=axis))
+    elif jtype in ("prismatic", "cylindrical"):
+        add = mech.add_prismatic if jtype == "prismatic" else mech.add_cylindrical
+        guarded(e, lambda: add(name, b1, b2, e.vector("point", dim), e.vector("axis", dim)))
+    elif jtype == "spherical":
+        guarded(e, lambda: mech.add_spherical(name, b1, b2, e.vector("point", 3)))
+    elif jtype == "universal":
+        if e.has("axes"):
+            for key in ("axis1", "axis2"):
+                if e.has(key):
+                    raise e.error(key, "give 'axes' or 'axis1' and 'axis2', not both")
+            axis1, axis2 = e.vectors("axes", 2, 3)
+        elif e.has("axis1") or e.has("axis2"):
+            axis1, axis2 = e.vector("axis1", 3), e.vector("axis2", 3)
+        else:
+            raise e.error("axes", "missing required key (axes = [[axis on body1], [axis on "
+                          "body2]], or 'axis1' and 'axis2')")
+        guarded(e, lambda: mech.add_universal(name, b1, b2, e.vector("point", 3), axis1, axis2))
     elif jtype == "rigid":
-        guarded(e, lambda: mech.add_rigid(name, b1, b2, e.vector("point", required=False)))
+        guarded(e, lambda: mech.add_rigid(name, b1, b2, e.vector("point", dim,
+                                                                 required=False)))
     else:
         length = e.number("length", required=False)
-        guarded(e, lambda: mech.add_distance(name, b1, b2, e.vector("point1"),
-                                             e.vector("point2"), length=length))
+        guarded(e, lambda: mech.add_distance(name, b1, b2, e.vector("point1", dim),
+                                             e.vector("point2", dim), length=length))
 
 
 def _add_force(mech: Mechanism, e: _Entry, ftype: str, guarded) -> None:
     name = _name(e)
+    dim = mech.dimension
     if ftype == "force":
-        raw = e.require("value")
-        if not isinstance(raw, list) or len(raw) != 2:
-            raise e.error("value", f"expected a list of 2 numbers or expressions, got {raw!r}")
-        value = [_component(e, x) for x in raw]
+        value = e.values("value", (dim,))
         guarded(e, lambda: mech.add_force(name, e.string("body"), value,
-                                          point=e.vector("point", required=False),
+                                          point=e.vector("point", dim, required=False),
                                           frame=e.string("frame", default="global")))
     elif ftype == "torque":
-        guarded(e, lambda: mech.add_torque(name, e.string("body"), e.value("value")))
+        value = e.value("value") if dim == 2 else e.values("value", (3,))
+        guarded(e, lambda: mech.add_torque(name, e.string("body"), value,
+                                           frame=e.string("frame", default="global")))
     elif ftype == "spring_damper":
         guarded(e, lambda: mech.add_spring_damper(
-            name, e.string("body1"), e.string("body2"), e.vector("point1"), e.vector("point2"),
+            name, e.string("body1"), e.string("body2"), e.vector("point1", dim),
+            e.vector("point2", dim),
             stiffness=_nonneg(e, "stiffness"), damping=_nonneg(e, "damping"),
             free_length=e.value("free_length", required=False),
             actuator=e.value("actuator", 0.0)))
@@ -359,19 +484,6 @@ def _position(e: _Entry):
         except CasmbdError as exc:
             raise e.error("position", str(exc)) from None
     return e.value("position")
-
-
-def _component(e: _Entry, raw: Any):
-    if isinstance(raw, bool) or not isinstance(raw, (int, float, str)):
-        raise e.error("value", f"expected a number or an expression string, got {raw!r}")
-    if isinstance(raw, (int, float)):
-        out = _finite(raw)
-        if out is None:
-            raise e.error("value", f"must be a finite number, got {str(raw)[:40]}")
-        return out
-    if isinstance(raw, str):
-        e._check_expression(raw, "value")
-    return raw
 
 
 def _nonneg(e: _Entry, key: str):
