@@ -110,6 +110,50 @@ class Result:
                 out[key] = self.arrays[src][:, 3 * i:3 * i + 3]
         return out
 
+    def euler_angles(self, name: str, sequence: str = "zxz") -> np.ndarray:
+        """Euler angles (n_t, 3) of a spatial body on the grid, in radians.
+
+        ``sequence="zxz"`` gives (φ, θ, ψ) of seed 001 eq. 32 (A = A_z(φ) A_x(θ) A_z(ψ), θ ∈
+        [0, π]); ``"xyz"`` the Cardan/Bryant angles (A = A_x(φ) A_y(θ) A_z(ψ), θ ∈ [−π/2, π/2]).
+        Angles are wrapped to (−π, π]; apply ``numpy.unwrap`` along axis 0 for a turning body.
+
+        Warns
+        -----
+        RuntimeWarning
+            Once, naming the body and the first time at which the set is singular (Z–X–Z:
+            sin θ ≈ 0; X–Y–Z: cos θ ≈ 0), where only a sum or difference of φ and ψ is
+            defined; there ψ is set to 0 (see :mod:`casmbd.model.rotations`).
+        """
+        import warnings
+
+        from casmbd.errors import AnalysisError
+        from casmbd.model import rotations
+
+        if self.dimension != 3:
+            raise AnalysisError(f"body '{name}': Euler angles exist for spatial bodies only; "
+                              "a planar body has 'angle'")
+        convert = {"zxz": rotations.quaternion_to_euler_zxz,
+                   "xyz": rotations.quaternion_to_euler_xyz}.get(sequence)
+        if convert is None:
+            raise AnalysisError(f"unknown Euler sequence {sequence!r} (known: 'zxz', 'xyz')")
+        quats = self.body(name).get("quaternion")
+        if quats is None:
+            raise AnalysisError(f"body '{name}': the result holds no orientations")
+        out = np.empty((len(quats), 3))
+        first = None
+        for k, p in enumerate(quats):
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                out[k] = convert(p)
+            if caught and first is None:
+                first = k
+        if first is not None:
+            when = f"t = {self.t[first]:.6g}"
+            warnings.warn(f"body '{name}': {sequence.upper()} Euler angles pass their "
+                          f"singularity (first at {when}); psi is set to 0 there",
+                          RuntimeWarning, stacklevel=2)
+        return out
+
     def marker(self, name: str) -> dict[str, np.ndarray]:
         """Position, velocity and acceleration (n_t, dim) of a marker."""
         i, dim = self.names["markers"].index(name), self.dimension

@@ -639,8 +639,8 @@ ERRORS.update({
                            ["[[bodies]] entry 1 ('rod')", "'orientation'", "angle"]),
     "planar-gravity-3": (_replace("[0.0, -9.81]", "[0.0, -9.81, 0.0]", PLANAR),
                          ["[scene]", "'gravity'", "dimension"]),
-    "planar-bad-coordinates": (_replace("dimension = 2", 'dimension = 2\ncoordinates = "joint"',
-                                        PLANAR), ["[scene]", "'coordinates'", "'joint'"]),
+    "planar-bad-coordinates": (_replace("dimension = 2", 'dimension = 2\ncoordinates = "relative"',
+                                        PLANAR), ["[scene]", "'coordinates'", "'relative'"]),
 })
 
 

@@ -171,3 +171,34 @@ def test_spatial_inverse_dynamics_energy_balance():
     assert np.max(np.abs(de - power[1:-1])) < 1e-3 * float(np.max(np.abs(power)))
     # reactions have force and moment in space
     assert res.arrays["joint_reactions"].shape == (401, 4, 6)
+
+
+def test_euler_angle_output_and_singularity_warning():
+    """Result.euler_angles: the X–Y–Z set of a rotation about z is (0, 0, planar angle) to
+    1e-8 with no warning; the Z–X–Z set is singular there (θ = 0) and says so once, naming the
+    body and the time, while still reproducing the rotation matrix to 1e-10."""
+    import warnings
+
+    from casmbd.errors import AnalysisError
+    from casmbd.model import rotations
+
+    planar = casmbd.simulate(double_pendulum(2), t_end=1.0, steps=10, rtol=1e-12)
+    spatial = casmbd.simulate(double_pendulum(3), t_end=1.0, steps=10, rtol=1e-12)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        xyz = spatial.euler_angles("rod1", "xyz")
+    assert xyz.shape == (11, 3)
+    assert np.max(np.abs(xyz[:, :2])) < 1e-8
+    diff = np.angle(np.exp(1j * (xyz[:, 2] - planar["angle_positions"][:, 1])))
+    assert np.max(np.abs(diff)) < 1e-8
+    with pytest.warns(RuntimeWarning, match=r"body 'rod1'.*ZXZ.*t = 0") as record:
+        zxz = spatial.euler_angles("rod1")
+    assert len(record) == 1
+    rot = spatial.body("rod1")["rotation"]
+    for k in range(len(zxz)):
+        back = rotations.rotation_matrix(rotations.euler_zxz_to_quaternion(*zxz[k]))
+        assert np.max(np.abs(np.asarray(back, dtype=float) - rot[k])) < 1e-10
+    with pytest.raises(AnalysisError, match="planar"):
+        planar.euler_angles("rod1")
+    with pytest.raises(AnalysisError, match="sequence"):
+        spatial.euler_angles("rod1", "yxz")

@@ -37,7 +37,7 @@ from casmbd.system.formulations import FORMULATIONS, build, post_processing
 DEFAULT_FORMULATION = "augmented_lagrangian"
 DEFAULT_INTEGRATOR = {"index1": "idas", "ggl": "idas", "kkt_ode": "adams",
                       "augmented_lagrangian": "adams", "partitioning": "adams",
-                      "nullspace": "adams"}
+                      "nullspace": "adams", "articulated": "adams"}
 NUMERIC_INTEGRATORS = ("cvodes", "adams")
 ODE_INTEGRATORS = ("cvodes", "adams", "rk4", "abm", "idas")
 DAE_INTEGRATORS = ("idas",)

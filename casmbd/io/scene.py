@@ -8,7 +8,8 @@ parsed by :mod:`casmbd.io.expressions` (never Python ``eval``).
 Contract (SI units, angles in radians; vectors have ``dimension`` components)::
 
     [scene]       name, dimension = 2|3, gravity = [gx, gy(, gz)], format = 1,
-                  coordinates = "absolute"|"natural"
+                  coordinates = "absolute"|"natural"|"joint",
+                  tree = ["joint", ...] (joints that must be tree joints, coordinates = "joint")
     [parameters]  k = 100.0 ...
     [[bodies]]    name, mass, inertia, position, velocity, reference_point,
                   plane:  angle, angular_velocity (numbers)
@@ -45,10 +46,11 @@ FORMAT = 1
 
 _TABLES = {"scene", "parameters", "bodies", "markers", "joints", "drivers", "forces",
            "actuators", "ocp", "simulation", "meta"}
-_SCENE_KEYS = {"name", "dimension", "gravity", "format", "description", "coordinates"}
+_SCENE_KEYS = {"name", "dimension", "gravity", "format", "description", "coordinates",
+               "tree"}
 _BODY_KEYS = {"name", "mass", "inertia", "position", "angle", "velocity", "angular_velocity",
               "reference_point", "orientation", "euler_zxz", "description"}
-_COORDINATES = ("absolute", "natural")
+_COORDINATES = ("absolute", "natural", "joint")
 _MARKER_KEYS = {"name", "body", "point", "description"}
 _JOINT_KEYS = {
     "revolute": {"point", "axis"},
@@ -329,6 +331,14 @@ def _build(data: dict, source: str) -> Mechanism:
 
     if not mech.bodies:
         raise SceneError(f"{source}: the scene has no [[bodies]]")
+    tree = scene.data.get("tree", [])
+    if not isinstance(tree, list) or not all(isinstance(j, str) for j in tree):
+        raise scene.error("tree", f"expected a list of joint names, got {tree!r}")
+    unknown = [j for j in tree if j not in mech.joints]
+    if unknown:
+        raise scene.error("tree", f"unknown joint(s) {', '.join(map(repr, unknown))} (known: "
+                          f"{', '.join(mech.joints) or 'none'})")
+    mech.tree = list(tree)
     try:
         mech.validate()
     except CasmbdError as exc:

@@ -35,7 +35,7 @@ from casmbd.model.forces import (
 from casmbd.model.values import resolve
 from casmbd.system.context import Context
 from casmbd.system.descriptions import COORDINATE_CHOICES, describe
-from casmbd.system.tree import tree_descriptions
+from casmbd.system.tree import TreeKinematics, tree_descriptions
 
 
 @dataclass
@@ -296,32 +296,26 @@ class System:
         Euler parameters add c p pᵀ to M and −c |ṗ|² p to Q_v (the term ½ c (pᵀṗ)², see
         :mod:`casmbd.system.descriptions`).
         """
-        ctx, q, v = self.ctx, self.q, self.v
-        twists, weights, blocks = [], [], []
+        ctx, q, v, dim = self.ctx, self.q, self.v, self.dimension
+        tk = self.tree_kinematics
+        nw = 1 if dim == 2 else 3
+        weights, blocks = [], []
         for name in self.body_names:
             mass, inertia = self._mass_inertia(self.mechanism.bodies[name])
-            vel = ca.jtimes(ctx.centre_of_mass(name), q, v)
-            omega = ctx.angular_velocity(name)
-            acc = ca.jtimes(vel, q, v)
-            alpha = ca.jtimes(omega, q, v)
-            if self.dimension == 2:
+            omega, alpha = tk.twist[name][:nw], tk.bias[name][:nw]
+            acc = tk.bias[name][nw:]
+            if dim == 2:
                 tensor = inertia
-                spin = ca.SX(0.0)
-                block = ca.diagcat(mass * ca.SX.eye(2), tensor)
                 moment = tensor * alpha
             else:
                 rot = ctx.rotation(name)
                 tensor = ca.mtimes([rot, inertia, rot.T])
-                spin = ca.cross(omega, ca.mtimes(tensor, omega))
-                block = ca.diagcat(mass * ca.SX.eye(3), tensor)
-                moment = ca.mtimes(tensor, alpha) + spin
-            twists.append(ca.vertcat(vel, omega))
-            weights.append(ca.vertcat(mass * acc, moment))
-            blocks.append(block)
-        twist = ca.vertcat(*twists)
-        jac = ca.jacobian(twist, v)
-        mass_matrix = ca.mtimes([jac.T, ca.diagcat(*blocks), jac])
-        qv = -ca.jtimes(twist, v, ca.vertcat(*weights), True)
+                moment = ca.mtimes(tensor, alpha) + ca.cross(omega, ca.mtimes(tensor, omega))
+            weights.append(ca.vertcat(moment, mass * acc))
+            blocks.append(ca.diagcat(tensor, mass * ca.SX.eye(dim)))
+        mass_matrix, qv = self._composite_bodies(tk, dict(zip(self.body_names, blocks,
+                                                               strict=True)),
+                                                 dict(zip(self.body_names, weights, strict=True)))
         for name, desc in self.descriptions.items():
             extra = getattr(desc, "normalization_inertia", None)
             c = extra(self._mass_inertia(self.mechanism.bodies[name])[1]) if extra else None
@@ -335,6 +329,91 @@ class System:
             mass_matrix[:, idx] = mass_matrix[:, idx] + pad
             qv[idx] = qv[idx] - c * ca.dot(pdot, pdot) * p
         return mass_matrix, qv
+
+    @cached_property
+    def tree_kinematics(self):
+        """Recursive twists, motion subspaces and bias accelerations (joint coordinates)."""
+        return TreeKinematics(self)
+
+    def _force_transport(self, child: str, parent: str) -> ca.SX:
+        """Xᵀ carrying a (moment, force) pair from ``child``'s centre of mass to ``parent``'s:
+        the moment gains d × F, d = r_child − r_parent."""
+        d = self.ctx.centre_of_mass(child) - self.ctx.centre_of_mass(parent)
+        if self.dimension == 2:
+            return ca.vertcat(ca.horzcat(1, -d[1], d[0]), ca.horzcat(0, 1, 0),
+                              ca.horzcat(0, 0, 1))
+        skew = ca.vertcat(ca.horzcat(0, -d[2], d[1]), ca.horzcat(d[2], 0, -d[0]),
+                          ca.horzcat(-d[1], d[0], 0))
+        return ca.vertcat(ca.horzcat(ca.SX.eye(3), skew),
+                          ca.horzcat(ca.SX.zeros(3, 3), ca.SX.eye(3)))
+
+    def _composite_bodies(self, tk, inertia: dict, weights: dict) -> tuple[ca.SX, ca.SX]:
+        """M by the composite-rigid-body recursion and Q_v = −Σ J_iᵀ w_i by accumulating the
+        bodies' inertia forces from the leaves (both O(1) operations per entry).
+
+        I^c_i = I_i + Σ_c X_cᵀ I^c_c X_c; for body i, F = I^c_i S_i gives M_ii = S_iᵀ F and,
+        carried to each ancestor j, M_ji = S_jᵀ F.  f_i = w_i + Σ_c X_cᵀ f_c and
+        Q_v,i = −S_iᵀ f_i (Featherstone's CRBA and RNEA in global components, centre-of-mass
+        reference points).
+        """
+        order = tk.order
+        parent = {name: self.descriptions[name].parent for name in order}
+        children: dict[str, list[str]] = {name: [] for name in order}
+        for name in order:
+            if parent[name] != GROUND:
+                children[parent[name]].append(name)
+        carry = {name: self._force_transport(name, parent[name])
+                 for name in order if parent[name] != GROUND}
+        composite, force = {}, {}
+        for name in reversed(order):
+            comp, f = inertia[name], weights[name]
+            for child in children[name]:
+                x_t = carry[child]
+                comp = comp + ca.mtimes([x_t, composite[child], x_t.T])
+                f = f + ca.mtimes(x_t, force[child])
+            composite[name], force[name] = comp, f
+        mass_matrix = ca.SX(self.nq, self.nq)
+        qv = ca.SX(self.nq, 1)
+        for name in order:
+            s_i = tk.motion[name]
+            if not s_i.size2():
+                continue
+            rows_i = self.body_slice(name)
+            qv[rows_i] = -ca.mtimes(s_i.T, force[name])
+            f_mat = ca.mtimes(composite[name], s_i)
+            mass_matrix[rows_i, rows_i] = ca.mtimes(s_i.T, f_mat)
+            node = name
+            while parent[node] != GROUND:
+                f_mat = ca.mtimes(carry[node], f_mat)
+                node = parent[node]
+                s_j = tk.motion[node]
+                if s_j.size2():
+                    block = ca.mtimes(s_j.T, f_mat)
+                    mass_matrix[self.body_slice(node), rows_i] = block
+                    mass_matrix[rows_i, self.body_slice(node)] = block.T
+        return mass_matrix, qv
+
+    def _twist_jacobian(self, name: str, tk) -> ca.SX:
+        """∂(ω, ṙ_G)/∂q̇ of body ``name``: the column block of each ancestor joint j is its
+        motion subspace carried to the body, (S_ω, S_v + S_ω × (r_i − r_j)), O(1) per entry."""
+        dim = self.dimension
+        nw = 1 if dim == 2 else 3
+        out = ca.SX(nw + dim, self.nq)
+        r_i = self.ctx.centre_of_mass(name)
+        node = name
+        while node != GROUND:
+            s_mat = tk.motion[node]
+            if s_mat.size2():
+                d = r_i - self.ctx.centre_of_mass(node)
+                ang = s_mat[:nw, :]
+                if dim == 2:
+                    lin = s_mat[nw:, :] + ca.vertcat(-d[1] * ang, d[0] * ang)
+                else:
+                    lin = s_mat[nw:, :] + ca.horzcat(*[ca.cross(ang[:, k], d)
+                                                       for k in range(ang.size2())])
+                out[:, self.body_slice(node)] = ca.vertcat(ang, lin)
+            node = self.descriptions[node].parent
+        return out
 
     @cached_property
     def _total_energy(self) -> ca.SX:
@@ -403,13 +482,23 @@ class System:
         Q = (∂ω/∂q̇)ᵀ T for a torque (seed 000, eqs. 6.40–6.48).
         """
         total = ca.SX.zeros(self.nq)
+        exprs, weights, omegas, torques = [], [], [], []
         for term in self._force_terms(self.ctx):
             if term.kind == "measure":
-                total += self._generalized(term.expr, term.weight)
+                exprs.append(ca.vec(term.expr))
+                weights.append(ca.vec(term.weight))
             elif term.kind == "torque":
-                total += self._torque(term.body, term.weight)
+                if term.body != GROUND:
+                    omegas.append(self.ctx.angular_velocity(term.body))
+                    torques.append(ca.vec(term.weight))
             else:
                 total += term.weight
+        # one reverse-mode sweep for all terms: Σ (∂s_k/∂q)ᵀ w_k = (∂s/∂q)ᵀ w, linear in the
+        # size of the expression graph (a Jacobian per term would cost O(N²) in a tree)
+        if exprs:
+            total += ca.jtimes(ca.vertcat(*exprs), self.q, ca.vertcat(*weights), True)
+        if omegas:
+            total += ca.jtimes(ca.vertcat(*omegas), self.v, ca.vertcat(*torques), True)
         return total
 
     def _force_terms(self, ctx) -> list[_Term]:
@@ -659,11 +748,19 @@ class System:
         """(m a_G, Ḣ_G): Newton–Euler's rate of momentum of ``body`` (seed 001; seed 004)."""
         ctx = self.ctx
         mass, inertia = self._mass_inertia(self.mechanism.bodies[body])
-        r_g = ctx.centre_of_mass(body)
-        vel = ca.jtimes(r_g, self.q, self.v)
-        acc = ca.jtimes(vel, self.q, self.v) + ca.jtimes(r_g, self.q, a)
-        omega = ctx.angular_velocity(body)
-        alpha = ca.jtimes(omega, self.q, self.v) + ca.jtimes(omega, self.v, a)
+        if not self.local:
+            nw = 1 if self.dimension == 2 else 3
+            if getattr(self, "_tree_acc", (None,))[0] is not a:
+                self._tree_acc = (a, self.tree_kinematics.accelerations(a))
+            full = self._tree_acc[1][body]
+            omega = self.tree_kinematics.twist[body][:nw]
+            alpha, acc = full[:nw], full[nw:]
+        else:
+            r_g = ctx.centre_of_mass(body)
+            vel = ca.jtimes(r_g, self.q, self.v)
+            acc = ca.jtimes(vel, self.q, self.v) + ca.jtimes(r_g, self.q, a)
+            omega = ctx.angular_velocity(body)
+            alpha = ca.jtimes(omega, self.q, self.v) + ca.jtimes(omega, self.v, a)
         if self.dimension == 2:
             return ca.vertcat(mass * acc, inertia * alpha)
         rot = ctx.rotation(body)

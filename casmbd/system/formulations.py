@@ -31,10 +31,11 @@ import casadi as ca
 import numpy as np
 
 from casmbd.errors import ModelError
+from casmbd.system.articulated import articulated_accelerations
 from casmbd.system.equations import System
 
 FORMULATIONS = ("index1", "ggl", "kkt_ode", "augmented_lagrangian", "partitioning",
-                "nullspace")
+                "nullspace", "articulated")
 #: formulations whose right-hand side is evaluated numerically (not a CasADi expression);
 #: they are integrated by :mod:`casmbd.analysis.partitioning`
 NUMERIC_FORMULATIONS = ("partitioning", "nullspace")
@@ -191,6 +192,19 @@ def _kkt_ode_coupled(system: System, alpha: float, beta: float,
     return Formulation("kkt_ode", "ode", f, system.nq, 0, [], {"alpha": alpha, "beta": beta})
 
 
+def articulated(system: System, inputs: ca.SX | None = None) -> Formulation:
+    """ODE on (q, v) of a tree in joint coordinates by the articulated-body recursion, O(N)
+    operations (:mod:`casmbd.system.articulated`)."""
+    t, q, v, pu = _sym_inputs(system)
+    acc = articulated_accelerations(system)
+    if system.u.numel():
+        u_expr = ca.SX.zeros(system.u.numel()) if inputs is None else inputs
+        acc = ca.substitute(acc, system.u, u_expr)
+    f = _dyn("dyn_articulated", t, ca.vertcat(q, v), ca.SX(0, 1), pu, ca.vertcat(v, acc),
+             ca.SX(0, 1))
+    return Formulation("articulated", "ode", f, system.nq, 0)
+
+
 def augmented_lagrangian(system: System, penalty: float | None = None, iterations: int = 4,
                          alpha: float = 20.0, beta: float = 20.0,
                          inputs: ca.SX | None = None) -> Formulation:
@@ -244,7 +258,7 @@ def _default_penalty(system: System) -> float:
 def build(system: System, name: str, **options) -> Formulation:
     """Build the formulation ``name`` (one of :data:`FORMULATIONS`)."""
     builders = {"index1": index1, "ggl": ggl, "kkt_ode": kkt_ode,
-                "augmented_lagrangian": augmented_lagrangian}
+                "augmented_lagrangian": augmented_lagrangian, "articulated": articulated}
     if name in NUMERIC_FORMULATIONS:
         # the numeric formulations use the model's equations only; the symbolic KKT ODE is
         # kept as the Function compiled alongside (used for fixed-step references)
