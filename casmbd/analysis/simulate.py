@@ -43,6 +43,21 @@ ODE_INTEGRATORS = ("cvodes", "adams", "rk4", "abm", "idas")
 DAE_INTEGRATORS = ("idas",)
 
 
+def default_formulation(system: System) -> str:
+    """The formulation used when none is named.
+
+    ``articulated`` (the O(N) articulated-body recursion) for a tree in joint coordinates
+    without constraint equations — measured faster than the KKT/LDLᵀ path on the pendulum
+    chains (docs/dynamics.md, "Joint coordinates") — and :data:`DEFAULT_FORMULATION`
+    otherwise.
+    """
+    from casmbd.system.articulated import supported
+
+    if system.coordinates == "joint" and supported(system) is None:
+        return "articulated"
+    return DEFAULT_FORMULATION
+
+
 def _input_expression(system: System, inputs: Mapping | None) -> ca.SX:
     """u(t, p) of the actuators: given values/expressions, zero for the others."""
     inputs = dict(inputs or {})
@@ -79,11 +94,11 @@ class Simulator:
     def __init__(self, mechanism, formulation: str | None = None, inputs: Mapping | None = None,
                  mode: str = "auto", formulation_options: Mapping | None = None):
         t0 = time.perf_counter()
-        self.formulation_name = formulation or DEFAULT_FORMULATION
+        system = mechanism if isinstance(mechanism, System) else System(mechanism)
+        self.formulation_name = formulation or default_formulation(system)
         if self.formulation_name not in FORMULATIONS:
             raise AnalysisError(f"unknown formulation '{self.formulation_name}' (known: "
                                 f"{', '.join(FORMULATIONS)})")
-        system = mechanism if isinstance(mechanism, System) else System(mechanism)
         u_expr = _input_expression(system, inputs)
         self.ufun = ca.Function("actuator_inputs", [system.t, system.p], [u_expr],
                                 ["t", "p"], ["u"])
