@@ -252,7 +252,7 @@ def _forced_arm() -> Mechanism:
     m.add_rotational_spring_damper("spring", "j3", stiffness=12.0, damping=0.7,
                                    free_angle=0.2)
     m.add_torque("twist", "l5", (0.1, -0.2, 0.3), frame="body")
-    m.add_force("push", "l5", (1.0, 2.0, -0.5), point=com_point(5) + [0.05, 0.02, 0.0])
+    m.add_force("push", "l5", (1.0, 2.0, -0.5), point=com_point(5) + np.array([0.05, 0.02, 0.0]))
     return m
 
 
@@ -304,3 +304,45 @@ def test_default_formulation_for_trees_and_energy_from_twists():
     t_twist, t_quad = (float(x) for x in f(rng.normal(size=6), rng.normal(size=6),
                                            system.parameter_values))
     assert abs(t_twist - t_quad) < 1e-12 * abs(t_quad)
+
+
+def triple_crank(coordinates: str) -> Mechanism:
+    """Three parallel unit cranks under one coupler: a parallelogram with a redundant third
+    crank (one dependent loop equation, mobility 1), a torsion spring on the first crank."""
+    m = Mechanism(f"triple_crank_{coordinates}", gravity=(0.0, -G), coordinates=coordinates)
+    for i in range(3):
+        m.add_body(f"c{i}", mass=1.0, inertia=1.0 / 12.0, position=(float(i), 0.5),
+                   angle=math.pi / 2)
+    m.add_body("coupler", mass=2.0, inertia=2.0 * 4.0 / 12.0, position=(1.0, 1.0))
+    for i in range(3):
+        m.add_revolute(f"g{i}", "ground", f"c{i}", point=(float(i), 0.0))
+        m.add_revolute(f"t{i}", f"c{i}", "coupler", point=(float(i), 1.0))
+    m.add_rotational_spring_damper("spring", "g0", stiffness=10.0, damping=0.5)
+    return m
+
+
+@pytest.mark.parametrize("coordinates", ["absolute", "joint"])
+def test_redundant_loop_reactions_are_flagged_not_zero(coordinates):
+    """The self-stress of the three parallel cranks (axial forces along the cranks, (1, −2, 1))
+    leaves the pin forces along the crank direction undetermined: at t = 0 (cranks vertical)
+    Fy only, later Fx and Fy, NaN with a warning naming the joints; the pin moments are
+    determined (zero) and at t = 0 the horizontal forces too (equal in both coordinate
+    choices, 1e-9); the motion equals the absolute-coordinate one (1e-8 m)."""
+    # t ≤ 0.5 s: the cranks reach the horizontal singular pose at t ≈ 0.687 s (issue 7)
+    ref = casmbd.simulate(triple_crank("absolute"), t_end=0.5, steps=10, rtol=1e-12)
+    with pytest.warns(RuntimeWarning, match=r"cannot be determined.*'g0'"):
+        out = casmbd.simulate(triple_crank(coordinates), t_end=0.5, steps=10, rtol=1e-12)
+    assert np.max(np.abs(out["body_positions"] - ref["body_positions"])) < 1e-8
+    reac = out["joint_reactions"]
+    assert np.all(np.isnan(reac[1:, :, :2])) and np.all(np.isnan(reac[0, :, 1]))
+    assert np.all(np.isfinite(reac[0, :, 0]))
+    assert np.max(np.abs(reac[0, :, 0] - ref["joint_reactions"][0, :, 0])) < 1e-9
+    assert np.all(np.isfinite(reac[:, :, 2])) and np.max(np.abs(reac[:, :, 2])) < 1e-9
+    flags = out.stats["undetermined_reactions"]
+    assert set(flags) == {"g0", "g1", "g2", "t0", "t1", "t2"}
+    assert all(comps == [0, 1] for comps in flags.values())
+    # a mechanism without redundancy flags nothing
+    four_bar = casmbd.simulate(casmbd.load_scene(f"{EXAMPLES}/four_bar.toml"), t_end=0.2,
+                               steps=4)
+    assert four_bar.stats["undetermined_reactions"] == {}
+    assert np.all(np.isfinite(four_bar["joint_reactions"]))

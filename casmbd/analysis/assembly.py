@@ -59,6 +59,24 @@ def _worst_equations(model, residual: np.ndarray, count: int = 3) -> str:
     return "; ".join(f"{labels[i]} residual {residual[i]:.3g}" for i in order)
 
 
+def _locked(model, q: np.ndarray, t: float, residual: np.ndarray, free: np.ndarray) -> str:
+    """A sentence for an assembly failure where C_q has full column rank at the last iterate:
+    no coordinate is left free, so an over-determined set of joints locks the mechanism."""
+    from casmbd.analysis.redundancy import rank_report
+
+    jac = model.constraint_jacobian(q, t)[:, free]
+    rep = rank_report(jac)
+    if rep.rank < len(free) or rep.n_equations <= rep.rank:
+        return ""
+    labels = model.system.constraint_labels
+    scale = float(np.max(np.abs(residual), initial=0.0))
+    joints = sorted({labels[i].element for i in np.flatnonzero(np.abs(residual) > 1e-3 * scale)})
+    return (f". The mechanism is locked: {rep.n_equations} equations of rank {rep.rank} = the "
+            f"number of free coordinates leave no motion, and the equations of "
+            f"{', '.join(repr(j) for j in joints)} cannot all be satisfied together "
+            "(remove or free one of these joints)")
+
+
 def _finite_rows(model, values: np.ndarray, what: str, t: float) -> np.ndarray:
     """Return ``values`` or raise naming the constraint equations where they are not finite."""
     bad = np.flatnonzero(~np.isfinite(values))
@@ -140,7 +158,7 @@ def assemble(model, q0: np.ndarray, t: float = 0.0, fixed: Sequence[str | int] |
     if norm > tol:
         raise AssemblyError(f"cannot assemble at t = {t:g} after {it} Newton iterations "
                             f"(max |C| = {norm:.3g}); largest residuals: "
-                            f"{_worst_equations(model, c)}")
+                            f"{_worst_equations(model, c)}{_locked(model, q, t, c, free)}")
     return AssemblyReport(q, it, norm, q - np.asarray(q0, float))
 
 

@@ -19,6 +19,7 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 from casmbd.analysis.kinematics import kinematics
+from casmbd.analysis.reactions import flag_undetermined
 from casmbd.compiled.model import NEEDS, NumericModel
 from casmbd.errors import AnalysisError, SingularConfigurationError
 from casmbd.results import Result
@@ -116,8 +117,11 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
         reactions = reac.reshape(system.reaction_size, n, n_j).transpose(1, 2, 0)
     else:
         reactions = np.zeros((n, 0, system.reaction_size))
+    reactions, flags = flag_undetermined(model, qs, vs, acc, grid, u_eff, lam_reac, reactions)
     drivers = list(system.mechanism.drivers)
-    efforts = (np.column_stack([-lam[:, system.driver_rows[d]] for d in drivers])
+    undetermined = set(flags["undetermined_rows"]) if lam_reac is lam else set()
+    efforts = (np.column_stack([np.full(n, np.nan) if system.driver_rows[d] in undetermined
+                                else -lam[:, system.driver_rows[d]] for d in drivers])
                if drivers else np.zeros((n, 0)))
     arrays = dict(kin.arrays)
     arrays.update({"lambda": lam, "driver_efforts": efforts, "joint_reactions": reactions,
@@ -128,5 +132,6 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
     names["drivers"] = drivers
     names["actuators"] = actuators
     stats = dict(kin.stats)
+    stats.update(flags)
     stats["solve_seconds"] += time.perf_counter() - t0
     return Result("inverse_dynamics", grid, arrays, names, stats)

@@ -100,3 +100,64 @@ def null_space_basis(jacobian, rtol: float = RANK_RTOL) -> tuple[np.ndarray, int
     smax = float(sigma[0]) if sigma.size else 0.0
     rank = int(np.sum(sigma > rtol * max(smax, 1e-300)))
     return vt[rank:].T.copy(), rank
+
+
+#: conditioning σ_r/σ_1 below which a configuration is reported as near-singular
+NEAR_SINGULAR = 1e-4
+#: above this many entries of C_q per step, :func:`conditioning` samples at most
+#: :data:`MAX_SAMPLES` output steps
+DENSE_LIMIT = 200_000
+MAX_SAMPLES = 200
+
+
+def equilibrated_singular_values(jacobian) -> np.ndarray:
+    """Singular values (descending) of C_q with unit-norm rows and columns."""
+    a = _dense(jacobian)
+    for axis in (1, 0):
+        norms = np.linalg.norm(a, axis=axis)
+        norms[norms == 0.0] = 1.0
+        a = a / (norms[:, None] if axis == 1 else norms[None, :])
+    return np.linalg.svd(a, compute_uv=False)
+
+
+def conditioning(model, qs: np.ndarray, grid: np.ndarray, rank: int | None = None,
+                 extra=()) -> np.ndarray:
+    """σ_rank/σ_1 of the equilibrated C_q along a trajectory (NaN where not evaluated).
+
+    ``rank`` is the rank of the regular configurations (default: at the first step), so that
+    redundant equations, which make C_q rank deficient everywhere, do not count as a
+    singularity: the ratio measures how close the independent equations come to losing rank
+    (seed 000, singular configurations of closed chains).  Small systems are checked at every
+    output step; large ones at :data:`MAX_SAMPLES` evenly spaced steps plus ``extra``.
+    """
+    n = len(grid)
+    out = np.full(n, np.nan)
+    if model.nc == 0 or n == 0:
+        return out
+    if model.nc * model.nq <= DENSE_LIMIT:
+        steps = np.arange(n)
+    else:
+        steps = np.unique(np.concatenate([np.linspace(0, n - 1, min(n, MAX_SAMPLES)).astype(int),
+                                          np.asarray(list(extra), dtype=int)]))
+    for k in steps:
+        sigma = equilibrated_singular_values(model.constraint_jacobian(qs[k], float(grid[k])))
+        if rank is None:
+            rank = int(np.sum(sigma > RANK_RTOL * sigma[0]))
+        out[k] = sigma[rank - 1] / sigma[0] if rank >= 1 and sigma[0] > 0 else np.nan
+    return out
+
+
+def near_singular_times(grid: np.ndarray, cond: np.ndarray,
+                        threshold: float = NEAR_SINGULAR) -> list[float]:
+    """Times of the local minima of ``cond`` below ``threshold`` (one per passage)."""
+    times = []
+    for k in range(len(grid)):
+        c = cond[k]
+        if not (np.isfinite(c) and c < threshold):
+            continue
+        left = cond[k - 1] if k > 0 else np.inf
+        right = cond[k + 1] if k + 1 < len(grid) else np.inf
+        if c <= (left if np.isfinite(left) else np.inf) and c < (
+                right if np.isfinite(right) else np.inf):
+            times.append(float(grid[k]))
+    return times

@@ -25,12 +25,26 @@ from casmbd.analysis.kkt import (
     consistent_state,
     project_velocities,
 )
+from casmbd.analysis.reactions import flag_undetermined, multiplier_null_space
+from casmbd.analysis.redundancy import (
+    NEAR_SINGULAR,
+    conditioning,
+    equilibrated_singular_values,
+    near_singular_times,
+    rank_report,
+)
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, CasmbdError, IntegratorError
 from casmbd.model.values import resolve
 from casmbd.results import Result
 from casmbd.system.equations import System
-from casmbd.system.formulations import FORMULATIONS, build, post_processing
+from casmbd.system.formulations import (
+    FORMULATIONS,
+    NUMERIC_FORMULATIONS,
+    build,
+    post_processing,
+)
+from casmbd.system.subset import ConstraintSubset
 
 #: default formulation and, per formulation, the default integrator (chosen by measurement:
 #: docs/performance.md)
@@ -41,6 +55,80 @@ DEFAULT_INTEGRATOR = {"index1": "idas", "ggl": "idas", "kkt_ode": "adams",
 NUMERIC_INTEGRATORS = ("cvodes", "adams")
 ODE_INTEGRATORS = ("cvodes", "adams", "rk4", "abm", "idas")
 DAE_INTEGRATORS = ("idas",)
+
+
+#: formulations that run with redundant constraint equations kept (minimum-norm multipliers
+#: or a rank-revealing choice of independent coordinates)
+KEEP_REDUNDANT = ("augmented_lagrangian", "partitioning", "nullspace")
+REDUNDANCY_OPTIONS = ("auto", "remove", "minimum_norm")
+#: above this many entries of C_q the dense rank check at build time is skipped
+RANK_CHECK_MAX_ENTRIES = 2_000_000
+
+
+def plan_redundancy(system: System, formulation: str, option: str = "auto") -> dict:
+    """Find redundant constraint equations at the assembled initial pose and decide their fate.
+
+    The rank of C_q comes from the SVD of the equilibrated matrix and the dependent rows from a
+    Gram–Schmidt sweep in declaration order (:func:`casmbd.analysis.redundancy.rank_report`;
+    seed 000, Gaussian elimination with full pivoting; seed 002, redundant constraint
+    equations).  Options:
+
+    ``"remove"``
+        drop the dependent rows from the equations the integrator sees
+        (:class:`~casmbd.system.subset.ConstraintSubset`); every formulation.
+    ``"minimum_norm"``
+        keep every equation; the augmented Lagrangian's multipliers stay in the range of C_q,
+        i.e. they are the minimum-norm multipliers (seed 002's orthogonalisation), and
+        ``partitioning``/``nullspace`` choose independent coordinates by rank.  Other
+        formulations need a regular KKT matrix and are refused.
+    ``"auto"``
+        ``minimum_norm`` for the formulations that accept it, ``remove`` for the others.
+
+    Returns
+    -------
+    dict
+        ``redundant_equations`` (labels), ``redundancy`` (what was done), ``kept_rows`` (row
+        indices for a removal, else None), and ``constraint_rank``.
+    """
+    from casmbd.analysis.assembly import assemble
+
+    if option not in REDUNDANCY_OPTIONS:
+        raise AnalysisError(f"redundancy must be one of {', '.join(REDUNDANCY_OPTIONS)}, "
+                            f"got {option!r}")
+    plan: dict = {"redundant_equations": [], "redundancy": "none", "kept_rows": None}
+    if system.nc == 0:
+        return plan
+    if system.nc * system.nq > RANK_CHECK_MAX_ENTRIES:
+        plan["redundancy"] = "not checked (C_q too large for the dense rank check)"
+        return plan
+    probe = NumericModel(system, "info", mode="vm")
+    q = system.initial_coordinates()
+    try:
+        q = assemble(probe, q, 0.0).q
+    except CasmbdError:
+        pass  # the run's own assembly reports the failure with its context
+    rep = rank_report(probe.constraint_jacobian(q, 0.0))
+    plan["constraint_rank"] = rep.rank
+    if not rep.dependent_rows:
+        return plan
+    labels = system.constraint_labels
+    plan["redundant_equations"] = [str(labels[i]) for i in rep.dependent_rows]
+    keeps = formulation in KEEP_REDUNDANT
+    if option == "minimum_norm" and not keeps:
+        raise AnalysisError(
+            f"formulation '{formulation}' needs a regular KKT matrix and cannot keep the "
+            f"redundant equations {', '.join(plan['redundant_equations'])}; use "
+            f"redundancy='remove' or one of {', '.join(KEEP_REDUNDANT)}")
+    if option == "remove" or (option == "auto" and not keeps):
+        if formulation in NUMERIC_FORMULATIONS:
+            plan["redundancy"] = "kept: independent coordinates chosen by rank"
+            return plan
+        plan["kept_rows"] = [i for i in range(system.nc) if i not in set(rep.dependent_rows)]
+        plan["redundancy"] = "removed"
+    else:
+        plan["redundancy"] = ("minimum-norm multipliers" if formulation == "augmented_lagrangian"
+                              else "kept: independent coordinates chosen by rank")
+    return plan
 
 
 def default_formulation(system: System) -> str:
@@ -92,17 +180,21 @@ class Simulator:
     """
 
     def __init__(self, mechanism, formulation: str | None = None, inputs: Mapping | None = None,
-                 mode: str = "auto", formulation_options: Mapping | None = None):
+                 mode: str = "auto", formulation_options: Mapping | None = None,
+                 redundancy: str = "auto"):
         t0 = time.perf_counter()
         system = mechanism if isinstance(mechanism, System) else System(mechanism)
         self.formulation_name = formulation or default_formulation(system)
         if self.formulation_name not in FORMULATIONS:
             raise AnalysisError(f"unknown formulation '{self.formulation_name}' (known: "
                                 f"{', '.join(FORMULATIONS)})")
+        self.redundancy = plan_redundancy(system, self.formulation_name, redundancy)
         u_expr = _input_expression(system, inputs)
         self.ufun = ca.Function("actuator_inputs", [system.t, system.p], [u_expr],
                                 ["t", "p"], ["u"])
-        self.formulation = build(system, self.formulation_name, inputs=u_expr,
+        keep = self.redundancy.get("kept_rows")
+        self._dyn_system = ConstraintSubset(system, keep) if keep is not None else system
+        self.formulation = build(self._dyn_system, self.formulation_name, inputs=u_expr,
                                  **dict(formulation_options or {}))
         self.model = NumericModel(system, "dynamics", mode=mode,
                                   extra=[*self.formulation.functions,
@@ -125,9 +217,13 @@ class Simulator:
         """Actuator inputs u(t)."""
         return np.asarray(self.ufun(t, self.model.p)).reshape(-1)
 
-    def _z0(self, a: np.ndarray, lam: np.ndarray) -> np.ndarray:
+    def _z0(self, q: np.ndarray, a: np.ndarray, lam: np.ndarray) -> np.ndarray:
         if self.formulation.kind == "ode":
             return np.zeros(0)
+        keep = self.redundancy.get("kept_rows")
+        if keep is not None:  # multipliers of the kept rows carrying the same C_qᵀ λ
+            cq = self.model.constraint_jacobian(q, 0.0).toarray()
+            lam = np.linalg.lstsq(cq[keep].T, cq.T @ lam, rcond=None)[0]
         z = [a, lam]
         if self.formulation_name == "ggl":
             z.append(np.zeros_like(lam))
@@ -173,9 +269,10 @@ class Simulator:
         v0 = model.system.initial_velocities() if v0 is None else np.asarray(v0, float)
         start = consistent_state(model, q0, v0, t_start, self.inputs_at(t_start))
         x0 = np.concatenate([start.q, start.v])
-        z0 = self._z0(start.a, start.lam)
+        z0 = self._z0(start.q, start.a, start.lam)
         nq = model.nq
         stats: dict = {"formulation": self.formulation_name, "integrator": name,
+                       **{k: v for k, v in self.redundancy.items() if k != "kept_rows"},
                        "rtol": rtol, "atol": atol, "projection": projection,
                        "start_position_change": start.position_change,
                        "start_velocity_change": start.velocity_change}
@@ -220,8 +317,33 @@ class Simulator:
             raise IntegratorError(
                 f"integrator '{name}' ({self.formulation_name}) failed at t = {t_fail:.6g} with "
                 f"{flag} ({msg}); results kept up to t = {grid[n_ok - 1]:.6g} "
-                f"({n_ok} of {len(grid)} output times)", t_fail, flag, result)
+                f"({n_ok} of {len(grid)} output times){self._diagnose(result, t_fail)}", t_fail,
+                flag,
+                result)
         return result
+
+    def _diagnose(self, result: Result, t_fail: float) -> str:
+        """Rank and conditioning of C_q where a run failed: at the state extrapolated from the
+        last kept output, q + h q̇ + ½ h² q̈ with h = t_fail − t_last (an estimate, accurate to
+        O(h³), enough to tell a singular pose)."""
+        if self.model.nc == 0 or not len(result.t):
+            return ""
+        t = float(result.t[-1])
+        h = max(0.0, float(t_fail) - t) if np.isfinite(t_fail) else 0.0
+        q = result["q"][-1] + h * result["v"][-1] + 0.5 * h * h * result["a"][-1]
+        t += h
+        rep = rank_report(self.model.constraint_jacobian(q, t))
+        sigma = equilibrated_singular_values(self.model.constraint_jacobian(q, t))
+        rank0 = self.redundancy.get("constraint_rank", rep.rank)
+        ratio = sigma[rank0 - 1] / sigma[0] if rank0 >= 1 and sigma[0] > 0 else float("nan")
+        text = (f"; at t ≈ {t:.6g} C_q has rank {rep.rank} of {rep.n_equations} equations "
+                f"(regular rank {rank0}), conditioning σ_min/σ_max = {ratio:.2e}")
+        if rep.rank < rank0 or ratio < NEAR_SINGULAR:
+            labels = self.system.constraint_labels
+            dep = ", ".join(str(labels[i]) for i in rep.dependent_rows[:4])
+            text += (": a singular configuration" + (f" (dependent: {dep})" if dep else "")
+                     + "; the augmented_lagrangian formulation passes singular poses")
+        return text
 
     def _params(self, t_k: float | None = None) -> np.ndarray:
         p = self.model.p
@@ -358,7 +480,8 @@ class Simulator:
         # singular KKT matrices (redundant constraints, singular poses): minimum-norm solve
         scale = 1.0 + np.max(np.abs(np.concatenate([acc, lam], axis=1)), axis=1,
                              initial=0.0)
-        for k in np.flatnonzero(~np.isfinite(residual) | (residual > 1e-8 * scale)):
+        singular = np.flatnonzero(~np.isfinite(residual) | (residual > 1e-8 * scale))
+        for k in singular:
             acc[k], lam[k] = accelerations_and_multipliers(model, qs[k], vs[k], grid[k], us[k])
         outputs = model.outputs(qs, vs, acc, grid)
         reac_f = model.function("joint_reactions").map(n)
@@ -368,8 +491,22 @@ class Simulator:
         n_j, size = len(system.mechanism.joints), system.reaction_size
         reactions = reac.reshape(size, n, n_j).transpose(1, 2, 0) if n_j else \
             np.zeros((n, 0, size))
+        if n_j and system.nc:
+            first = multiplier_null_space(model.constraint_jacobian(qs[0], float(grid[0])))
+            steps = range(n) if first.shape[1] else singular
+            reactions, flags = flag_undetermined(model, qs, vs, acc, grid, us, lam, reactions,
+                                                 steps)
+            stats = {**stats, **flags}
+        cond = conditioning(model, qs, grid, self.redundancy.get("constraint_rank"),
+                            extra=singular)
+        passes = near_singular_times(grid, cond)
+        stats = {**stats, "min_constraint_conditioning": float(np.nanmin(cond))
+                 if np.any(np.isfinite(cond)) else None, "near_singular_times": passes}
         drivers = list(system.mechanism.drivers)
-        efforts = np.column_stack([-lam[:, system.driver_rows[d]] for d in drivers]) \
+        undetermined = set(stats.get("undetermined_rows", ()))
+        efforts = np.column_stack([
+            np.full(n, np.nan) if system.driver_rows[d] in undetermined
+            else -lam[:, system.driver_rows[d]] for d in drivers]) \
             if drivers else np.zeros((n, 0))
         names = {"coordinates": system.coordinate_names, "bodies": system.body_names,
                  "markers": list(system.mechanism.markers),
@@ -381,7 +518,7 @@ class Simulator:
                   "joint_reactions": reactions, "driver_efforts": efforts,
                   "actuator_inputs": us, "kinetic_energy": kin, "potential_energy": pot,
                   "total_energy": kin + pot, "constraint_violation": pos_viol,
-                  "velocity_violation": vel_viol}
+                  "velocity_violation": vel_viol, "constraint_conditioning": cond}
         return Result("simulation", grid, arrays, names, stats)
 
 
@@ -390,7 +527,7 @@ def simulate(mechanism, t_end: float, steps: int, *, formulation: str | None = N
              t_start: float = 0.0, inputs: Mapping | None = None, projection: bool = False,
              step: float | None = None, mode: str = "auto",
              formulation_options: Mapping | None = None,
-             max_steps: int | None = None) -> Result:
+             max_steps: int | None = None, redundancy: str = "auto") -> Result:
     """Forward dynamics of a mechanism on a uniform output grid (one entry point).
 
     Parameters
@@ -411,6 +548,9 @@ def simulate(mechanism, t_end: float, steps: int, *, formulation: str | None = N
         Project q onto C = 0 and v onto C_q v + C_t = 0 at every output time.
     step : float
         Step size of the fixed-step integrators (default: output interval / 10).
+    redundancy : {"auto", "remove", "minimum_norm"}
+        What to do with redundant constraint equations (:func:`plan_redundancy`); the
+        result's ``stats`` give ``redundant_equations`` and ``redundancy``.
 
     Returns
     -------
@@ -419,6 +559,6 @@ def simulate(mechanism, t_end: float, steps: int, *, formulation: str | None = N
         constraint violations and solver statistics.
     """
     sim = Simulator(mechanism, formulation, inputs=inputs, mode=mode,
-                    formulation_options=formulation_options)
+                    formulation_options=formulation_options, redundancy=redundancy)
     return sim.run(t_end, steps, t_start=t_start, integrator=integrator, rtol=rtol, atol=atol,
                    projection=projection, step=step, max_steps=max_steps)

@@ -47,6 +47,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from casmbd.analysis.assembly import assemble
+from casmbd.analysis.reactions import flag_undetermined
 from casmbd.analysis.redundancy import null_space_basis
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, AssemblyError
@@ -276,8 +277,12 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
     all_joints = list(mech.joints)
     if all_joints:
         zero = np.zeros(prob.nq)
+        u0 = np.zeros(len(mech.actuators))
         reactions = np.asarray(model.function("joint_reactions")(
-            q, zero, zero, t, np.zeros(len(mech.actuators)), model.p, lam)).T
+            q, zero, zero, t, u0, model.p, lam)).T
+        reactions = flag_undetermined(model, q[None, :], zero[None, :], zero[None, :],
+                                      np.array([t]), u0[None, :], np.asarray(lam)[None, :],
+                                      reactions[None], steps=[0])[0][0]
     else:
         reactions = np.zeros((0, model.system.reaction_size))
     out = model.outputs(q[None, :], np.zeros((1, prob.nq)), np.zeros((1, prob.nq)),
