@@ -103,7 +103,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--atol", type=_positive_float, default=None,
                    help="absolute tolerance (default: rtol)")
     p.add_argument("--formulation", choices=FORMULATIONS, default=None,
-                   help="equations of motion (default index1)")
+                   help="equations of motion (default augmented_lagrangian; articulated for "
+                        "constraint-free trees in joint coordinates)")
+    p.add_argument("--redundancy", choices=("auto", "remove", "minimum_norm"), default="auto",
+                   help="redundant constraint equations: remove the dependent rows or keep them "
+                        "with minimum-norm multipliers (default: by formulation)")
     p.add_argument("--integrator", choices=INTEGRATORS, default=None,
                    help="time integrator (default per formulation)")
     p.add_argument("--projection", action="store_true",
@@ -233,7 +237,7 @@ def _cmd_simulate(args) -> tuple[dict, str]:
         result = simulate(mech, t_end=args.t_end, steps=args.steps, formulation=args.formulation,
                           integrator=args.integrator, rtol=args.rtol, atol=args.atol,
                           projection=args.projection, step=args.step, mode=args.mode,
-                          max_steps=args.max_steps)
+                          max_steps=args.max_steps, redundancy=args.redundancy)
     except IntegratorError as exc:
         if args.out and exc.partial is not None:
             exc.partial.scene = getattr(mech, "scene_text", "")
@@ -260,6 +264,17 @@ def _cmd_simulate(args) -> tuple[dict, str]:
     if s.get("start_position_change", 0) > 1e-12 or s.get("start_velocity_change", 0) > 1e-12:
         lines.append(f"  consistent start changed q by {s['start_position_change']:.3g} and v by "
                      f"{s['start_velocity_change']:.3g}")
+    if s.get("redundant_equations"):
+        lines.append(f"  redundant equations ({s['redundancy']}): "
+                     + ", ".join(s["redundant_equations"]))
+    if s.get("undetermined_reactions"):
+        lines.append("  undetermined reaction components (NaN): " + ", ".join(
+            f"{j} {c}" for j, c in s["undetermined_reactions"].items()))
+    if s.get("near_singular_times"):
+        times = s["near_singular_times"]
+        lines.append(f"  passed {len(times)} near-singular poses (conditioning < 1e-4) at t ≈ "
+                     + ", ".join(f"{t:.4g}" for t in times[:8]) + (" …" if len(times) > 8
+                                                                     else ""))
     if args.out:
         lines.append(f"  saved {args.out}")
     return data, "\n".join(lines)

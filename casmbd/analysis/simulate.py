@@ -30,7 +30,7 @@ from casmbd.analysis.redundancy import (
     NEAR_SINGULAR,
     conditioning,
     equilibrated_singular_values,
-    near_singular_times,
+    near_singular_passes,
     rank_report,
 )
 from casmbd.compiled.model import NumericModel
@@ -499,9 +499,11 @@ class Simulator:
             stats = {**stats, **flags}
         cond = conditioning(model, qs, grid, self.redundancy.get("constraint_rank"),
                             extra=singular)
-        passes = near_singular_times(grid, cond)
-        stats = {**stats, "min_constraint_conditioning": float(np.nanmin(cond))
-                 if np.any(np.isfinite(cond)) else None, "near_singular_times": passes}
+        passes = near_singular_passes(model, grid, qs, vs, cond,
+                                      self.redundancy.get("constraint_rank"))
+        stats = {**stats, "min_constraint_conditioning": min(
+            [float(np.nanmin(cond))] + [c for _, c in passes]) if np.any(np.isfinite(cond))
+            else None, "near_singular_times": [t for t, _ in passes]}
         drivers = list(system.mechanism.drivers)
         undetermined = set(stats.get("undetermined_rows", ()))
         efforts = np.column_stack([
