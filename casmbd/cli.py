@@ -120,6 +120,16 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("linearize", help="natural frequencies and linearized equations about "
                                          "the initial configuration")
     common(p)
+    p = sub.add_parser("ocp", help="trajectory optimisation: the scene's [ocp] table")
+    common(p)
+    p.add_argument("--out", help="save the solution (t, q, v, u, statistics) to this .npz file")
+    p.add_argument("--intervals", type=_positive_int, default=None,
+                   help="number of control intervals (overrides the table)")
+    p.add_argument("--transcription", choices=("radau", "legendre", "multiple_shooting"),
+                   default=None, help="overrides the table")
+    p.add_argument("--no-replay", action="store_true",
+                   help="skip the forward replay of the optimal controls")
+    p.add_argument("--plot", default=None, help="save a figure of coordinates and controls")
     return parser
 
 
@@ -365,6 +375,54 @@ def _cmd_linearize(args) -> tuple[dict, str]:
 
 
 VERBS["linearize"] = _cmd_linearize
+
+
+def _cmd_ocp(args) -> tuple[dict, str]:
+    """Solve the scene's ``[ocp]`` table; replay the controls with the forward simulator."""
+    from casmbd.errors import OptimizationError
+    from casmbd.io.ocp_table import ocp_from_scene
+
+    mech = _load(args)
+    table = dict(getattr(mech, "scene_data", {}).get("ocp") or {})
+    if args.intervals is not None:
+        table["intervals"] = args.intervals
+    if args.transcription is not None:
+        table["transcription"] = args.transcription
+    ocp = ocp_from_scene(mech, table, source=args.scene)
+    try:
+        sol = ocp.solve()
+    except OptimizationError as exc:
+        if args.out and exc.solution is not None:
+            exc.solution.save(args.out)
+        raise
+    if not args.no_replay:
+        sol.replay()
+    if args.out:
+        sol.save(args.out)
+    if args.plot:
+        sol.plot(args.plot)
+    data = sol.to_json()
+    s = sol.stats
+    replay = s.get("replay_error")
+    lines = [f"optimal control of '{mech.name}': {s['return_status']} after {s['iterations']} "
+             f"iterations, objective {sol.objective:.8g}",
+             f"  {s['transcription']}"
+             + (f" degree {s['degree']}" if s.get("degree") else "")
+             + f", {s['intervals']} intervals × {s['subintervals']} elements, final time "
+             f"{sol.t[-1] - sol.t[0]:.6g} s, {s['variables']} variables, "
+             f"{s['constraints']} constraints",
+             f"  max constraint violation {s['constraint_violation']:.3g}"
+             + (f", replay error {replay:.3g}" if replay is not None else ""),
+             f"  setup {s['setup_seconds']:.3g} s, NLP solve {s['solve_seconds']:.3g} s"]
+    for name in sol.controls:
+        u = sol.control(name)
+        lines.append(f"  control {name:12s} [{u.min():+.4g}, {u.max():+.4g}]")
+    if args.out:
+        lines.append(f"  saved {args.out}")
+    return data, "\n".join(lines)
+
+
+VERBS["ocp"] = _cmd_ocp
 
 
 def _json_default(obj):

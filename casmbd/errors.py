@@ -65,3 +65,15 @@ class IntegratorError(CasmbdError):
         self.time = time
         self.flag = flag
         self.partial = partial
+
+
+class OptimizationError(AnalysisError):
+    """The NLP solver of an optimal-control problem did not converge.
+
+    The message gives the solver's status, the most violated constraints and the bounds that
+    bind; ``solution`` holds the last iterate (an :class:`~casmbd.ocp.solution.OcpSolution`).
+    """
+
+    def __init__(self, message: str, solution=None):
+        super().__init__(message)
+        self.solution = solution

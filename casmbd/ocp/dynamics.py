@@ -1,0 +1,69 @@
+"""The constrained equations of motion as they enter a transcription.
+
+Collocation uses the implicit index-1 form at every collocation point (seed 000, eq. 6.138):
+
+    M(q) q̈ + C_qᵀ λ − Q_e(q, q̇, u, t) − Q_v(q, q̇) = 0,      C_q q̈ − γ(q, q̇, t) = 0,
+
+with q̈ and λ as NLP variables, so that no matrix is inverted symbolically.  The position and
+velocity constraints C(q, t) = 0 and C_q q̇ + C_t = 0 are imposed at every mesh node; to keep
+the NLP square-consistent (the index-1 dynamics preserve them only up to the discretisation
+error) each interval carries projection multipliers μ, ν with
+
+    q̇ = v + C_qᵀ μ,      v̇ = q̈ + C_qᵀ ν,
+
+the collocation analogue of the Gear–Gupta–Leimkuhler stabilisation: μ and ν are of the size of
+the discretisation error and vanish for the exact solution.  Shooting uses the explicit form
+q̈ = f(q, q̇, u, t) from the KKT system (or the articulated-body recursion for trees).
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+
+from casmbd.system.articulated import articulated_accelerations, supported
+
+
+def implicit_residual(system) -> ca.Function:
+    """``res(q, v, a, lam, u, t, p) -> (dyn [nq], acc [nc])`` of the index-1 equations."""
+    q, v, t, u, p = system.q, system.v, system.t, system.u, system.p
+    a = ca.SX.sym("a", system.nq)
+    lam = ca.SX.sym("lam", system.nc)
+    cq = system.constraint_jacobian
+    forces = system.applied_forces + system.quadratic_velocity_forces
+    dyn = ca.mtimes(system.mass_matrix, a) - forces
+    if system.nc:
+        dyn = dyn + ca.mtimes(cq.T, lam)
+        acc = ca.mtimes(cq, a) - system.acceleration_rhs
+    else:
+        acc = ca.SX(0, 1)
+    return ca.Function("ocp_residual", [q, v, a, lam, u, t, p], [dyn, acc],
+                       ["q", "v", "a", "lam", "u", "t", "p"], ["dyn", "acc"])
+
+
+def node_constraints(system) -> ca.Function:
+    """``node(q, v, t, p) -> (C, C_q v + C_t, C_qᵀ)`` at a mesh node."""
+    q, v, t, p = system.q, system.v, system.t, system.p
+    cq = system.constraint_jacobian
+    return ca.Function("ocp_node", [q, v, t, p],
+                       [system.constraints,
+                        ca.mtimes(cq, v) + system.constraint_time_derivative, cq.T],
+                       ["q", "v", "t", "p"], ["C", "Cdot", "CqT"])
+
+
+def explicit_accelerations(system) -> ca.Function:
+    """``acc(q, v, u, t, p) -> a``: the articulated-body recursion for a constraint-free tree,
+    else the KKT system solved symbolically (small systems: the problems of ``ocp/``)."""
+    q, v, t, u, p = system.q, system.v, system.t, system.u, system.p
+    if system.coordinates == "joint" and supported(system) is None:
+        acc = articulated_accelerations(system)
+    else:
+        forces = system.applied_forces + system.quadratic_velocity_forces
+        if system.nc:
+            cq = system.constraint_jacobian
+            kkt = ca.blockcat([[system.mass_matrix, cq.T],
+                               [cq, ca.SX(system.nc, system.nc)]])
+            sol = ca.solve(kkt, ca.vertcat(forces, system.acceleration_rhs))
+            acc = sol[:system.nq]
+        else:
+            acc = ca.solve(system.mass_matrix, forces)
+    return ca.Function("ocp_acc", [q, v, u, t, p], [acc], ["q", "v", "u", "t", "p"], ["a"])

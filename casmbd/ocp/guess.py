@@ -1,0 +1,186 @@
+"""Initial guesses for a transcription: boundary-state interpolation, forward simulation,
+inverse dynamics of the interpolated path, or a previous solution (warm start)."""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from casmbd.errors import AnalysisError
+
+
+def boundary_state(tr, which: str, start: np.ndarray) -> np.ndarray:
+    """A state (q, q̇) meeting C = 0, C_q q̇ + C_t = 0 and the named initial/final conditions
+    in the least-squares sense, by Gauss–Newton from ``start`` (for the guess only)."""
+    nq = tr.nq
+    x = ca.SX.sym("x", 2 * nq)
+    t = tr.ocp.t_start + (0.0 if which == "initial" else _horizon(tr))
+    u = ca.DM.zeros(tr.nu)
+    parts = []
+    if tr.nc:
+        c, cdot, _ = tr.node(x[:nq], x[nq:], t, tr.p)
+        parts += [c, cdot]
+    fn, values = ((tr.initial_fn, tr.initial_values) if which == "initial"
+                  else (tr.final_fn, tr.final_values))
+    if values.size:
+        parts.append(fn(x[:nq], x[nq:], t, u, tr.p) - values)
+    if not parts:
+        return start
+    res = ca.vertcat(*parts)
+    f = ca.Function("gn", [x], [res, ca.jacobian(res, x)])
+    xk = np.array(start, dtype=float)
+    for _ in range(50):
+        r, j = (np.asarray(v, dtype=float) for v in f(xk))
+        r = r.ravel()
+        if np.max(np.abs(r), initial=0.0) < 1e-12:
+            break
+        step = np.linalg.lstsq(j, -r, rcond=None)[0]
+        xk = xk + step
+        if np.max(np.abs(step)) < 1e-14:
+            break
+    return xk
+
+
+def _states(tr, kind):
+    """Boundary states and the state function x(s), s ∈ [0, 1] (fraction of the horizon)."""
+    system = tr.system
+    scene = np.concatenate([system.initial_coordinates(), system.initial_velocities()])
+    if tr.ocp._initial:
+        x_start = boundary_state(tr, "initial", scene)
+    else:
+        x_start = tr._scene_start()
+    x_end = boundary_state(tr, "final", x_start) if tr.ocp._final else x_start
+    return x_start, x_end
+
+
+def _horizon(tr) -> float:
+    h = tr.ocp.horizon
+    return float(h.guess) if tr.ocp.free_time else float(h)
+
+
+def initial_guess(tr, kind) -> np.ndarray:
+    """The vector w0 for ``kind`` ("linear", "simulation", "inverse" or an OcpSolution)."""
+    from casmbd.ocp.solution import OcpSolution
+
+    if isinstance(kind, OcpSolution):
+        return _warm(tr, kind)
+    nq, N = tr.nq, tr.N
+    x_start, x_end = _states(tr, kind)
+    T = _horizon(tr)
+    if kind == "simulation":
+        state = _simulated(tr, x_start, T)
+    else:
+        def state(s):
+            return (1.0 - s) * x_start + s * x_end
+    if kind == "inverse":
+        controls, mults = _inverse(tr, state, T)
+    else:
+        controls = mults = None
+    blocks = []
+    taus = getattr(tr, "tau", [0.0])
+    for name, w0 in zip(tr.b.names, tr.b.w0, strict=True):
+        val = w0.copy()
+        if name == "T":
+            val[:] = T
+        elif name.startswith("xc"):
+            k, j = (int(x) for x in name[2:].split("_"))
+            val[:] = state((k + taus[j]) / tr.M)
+        elif name.startswith("x"):
+            val[:] = state(int(name[1:]) / tr.M)
+        elif name.startswith("u") and controls is not None:
+            val[:] = controls(int(name[1:]) / N + 0.5 / N)
+        elif name.startswith("lam") and mults is not None and val.size:
+            k, j = (int(x) for x in name[3:].split("_"))
+            val[:] = mults((k + taus[j]) / tr.M)
+        elif name.startswith("a") and kind == "simulation":
+            k, j = (int(x) for x in name[1:].split("_"))
+            s = (k + taus[j]) / tr.M
+            ds = 1e-4
+            val[:] = (state(min(s + ds, 1.0))[nq:] - state(max(s - ds, 0.0))[nq:]) / (
+                (min(s + ds, 1.0) - max(s - ds, 0.0)) * T)
+        blocks.append(val)
+    return np.concatenate(blocks) if blocks else np.zeros(0)
+
+
+def _simulated(tr, x_start, T):
+    """x(s) of a forward simulation with zero inputs (linear interpolation between outputs)."""
+    from casmbd.analysis.simulate import simulate
+    from casmbd.errors import CasmbdError
+
+    nq = tr.nq
+    try:
+        res = simulate(tr.system, t_end=tr.ocp.t_start + T, t_start=tr.ocp.t_start,
+                       steps=4 * tr.N, rtol=1e-8)
+    except CasmbdError as exc:
+        raise AnalysisError(f"ocp guess 'simulation': the forward simulation failed: {exc}") \
+            from None
+    grid = (res.t - res.t[0]) / T
+    xs = np.hstack([res["q"], res["v"]])
+    xs[0, :] = x_start if len(x_start) == 2 * nq else xs[0, :]
+
+    def state(s):
+        return np.array([np.interp(s, grid, xs[:, i]) for i in range(2 * nq)])
+
+    return state
+
+
+def _inverse(tr, state, T):
+    """u(s), λ(s) from [B  −C_qᵀ] [u; λ] = M q̈ − Q along the guessed path (least squares):
+    gravity compensation for a linear path."""
+    from casmbd.compiled.model import NumericModel
+
+    model = NumericModel(tr.system, "dynamics", mode="vm")
+    nq, nc = tr.nq, tr.nc
+    samples = np.linspace(0.0, 1.0, 2 * tr.N + 1)
+    us, lams = [], []
+    ds = 1e-4
+    for s in samples:
+        x = state(s)
+        q, v = x[:nq], x[nq:]
+        a = (state(min(s + ds, 1.0))[nq:] - state(max(s - ds, 0.0))[nq:]) / (
+            (min(s + ds, 1.0) - max(s - ds, 0.0)) * T)
+        t = tr.ocp.t_start + s * T
+        u0 = np.zeros(tr.nu)
+        b = model.input_matrix(q, v, t, u0).toarray()
+        rhs = (model.mass_matrix(q) @ a - model.applied_forces(q, v, t, u0)
+               - model.quadratic_velocity_forces(q, v))
+        mat = b if not nc else np.hstack([b, -model.constraint_jacobian(q, t).toarray().T])
+        sol = np.linalg.lstsq(mat, rhs, rcond=None)[0]
+        us.append(sol[:tr.nu])
+        lams.append(-sol[tr.nu:] if nc else np.zeros(0))
+    us, lams = np.array(us), np.array(lams)
+
+    def interp(arr):
+        return lambda s: np.array([np.interp(s, samples, arr[:, i])
+                                   for i in range(arr.shape[1])])
+
+    return interp(us), interp(lams)
+
+
+def _warm(tr, sol) -> np.ndarray:
+    """A previous solution: its variables when the structure matches, else its states and
+    controls interpolated onto the new mesh."""
+    if sol.w is not None and len(sol.w) == tr.b.nw and sol.names == tr.b.names:
+        return np.array(sol.w, dtype=float)
+    grid = (sol.t - sol.t[0]) / (sol.t[-1] - sol.t[0])
+    xs = np.hstack([sol.q, sol.v])
+    tc = (sol.t[:-1] + sol.t[1:]) / 2.0
+    tc = (tc - sol.t[0]) / (sol.t[-1] - sol.t[0])
+    blocks = []
+    taus = getattr(tr, "tau", [0.0])
+    for name, w0 in zip(tr.b.names, tr.b.w0, strict=True):
+        val = w0.copy()
+        if name == "T":
+            val[:] = sol.t[-1] - sol.t[0]
+        elif name.startswith("xc") or (name.startswith("x") and name[1:].isdigit()):
+            if name.startswith("xc"):
+                k, j = (int(x) for x in name[2:].split("_"))
+                s = (k + taus[j]) / tr.M
+            else:
+                s = int(name[1:]) / tr.M
+            val[:] = [np.interp(s, grid, xs[:, i]) for i in range(xs.shape[1])]
+        elif name.startswith("u") and name[1:].isdigit():
+            s = (int(name[1:]) + 0.5) / tr.N
+            val[:] = [np.interp(s, tc, sol.u[:, i]) for i in range(sol.u.shape[1])]
+        blocks.append(val)
+    return np.concatenate(blocks)

@@ -1,0 +1,228 @@
+"""Optimal-control problems over a mechanism: the vocabulary.
+
+In the style of rockit (``Ocp``, ``subject_to``, ``solve``) and scipy's ``solve_ivp`` (one entry
+point, a result object)::
+
+    ocp = Ocp(mech, horizon=2.0, intervals=50)          # or horizon=FreeTime(guess=1.0)
+    ocp.control_bounds("tau1", -50, 50)
+    ocp.initial(shoulder=-pi/2, elbow=0, shoulder_dot=0, elbow_dot=0)
+    ocp.final(shoulder=pi/2, elbow=0, shoulder_dot=0, elbow_dot=0)
+    ocp.path("tip_y", upper=2.5)
+    ocp.minimize("effort")                              # ∫ uᵀu dt; "time", "energy", ...
+    sol = ocp.solve()                                   # OcpSolution
+
+Every expression is a string (or a callable of the quantity dict) over the names of
+:mod:`casmbd.ocp.quantities`.  The states are the model's (q, q̇) and the controls its actuator
+inputs u; the closed-loop constraints C(q, t) = 0 and C_q q̇ + C_t = 0 hold at every node.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass, field
+
+import casadi as ca
+
+from casmbd.errors import AnalysisError, ModelError
+from casmbd.ocp.quantities import quantities
+from casmbd.system.equations import System
+
+TRANSCRIPTIONS = ("radau", "legendre", "multiple_shooting")
+OBJECTIVES = ("effort", "time", "energy")
+GUESSES = ("linear", "simulation", "inverse")
+
+
+@dataclass
+class FreeTime:
+    """A free final time with its initial guess and bounds [s]."""
+
+    guess: float = 1.0
+    lower: float = 1e-3
+    upper: float = 1e3
+
+
+@dataclass
+class _Constraint:
+    expression: str | Callable
+    lower: float
+    upper: float
+    where: str
+
+
+@dataclass
+class _Term:
+    kind: str                       # "effort", "time", "energy", "lagrange", "mayer", "tracking"
+    weight: float = 1.0
+    expression: str | Callable | None = None
+    reference: str | Callable | None = None
+
+
+@dataclass
+class Ocp:
+    """An optimal-control problem over a mechanism.
+
+    Parameters
+    ----------
+    mechanism : Mechanism or System
+    horizon : float or FreeTime
+        Final time T (fixed) or a :class:`FreeTime`.
+    intervals : int
+        Number of control intervals N (piecewise-constant controls).
+    transcription : {"radau", "legendre", "multiple_shooting"}
+        Direct collocation on Radau IIA or Gauss–Legendre points of ``degree`` on
+        ``subintervals`` collocation elements per control interval (default 4: the swing-up's
+        replay error falls from 2e-2 with one element to 2e-5, the controls stay the same
+        N piecewise-constant values), or multiple shooting with ``integrator`` ("rk4":
+        ``steps`` fixed steps per interval with exact Hessians; "cvodes": CVODES with exact
+        first-order sensitivities and a limited-memory
+        Hessian).
+    """
+
+    mechanism: object
+    horizon: float | FreeTime = 1.0
+    intervals: int = 50
+    transcription: str = "radau"
+    degree: int = 3
+    subintervals: int = 4
+    integrator: str = "rk4"
+    steps: int = 4
+    t_start: float = 0.0
+    solver: str = "ipopt"
+    solver_options: dict = field(default_factory=dict)
+    _initial: dict = field(default_factory=dict, init=False)
+    _final: dict = field(default_factory=dict, init=False)
+    _control_bounds: dict = field(default_factory=dict, init=False)
+    _path: list = field(default_factory=list, init=False)
+    _terms: list = field(default_factory=list, init=False)
+    _guess: object = field(default="linear", init=False)
+
+    def __post_init__(self):
+        self.system = (self.mechanism if isinstance(self.mechanism, System)
+                       else System(self.mechanism))
+        if self.transcription not in TRANSCRIPTIONS:
+            raise AnalysisError(f"ocp: unknown transcription '{self.transcription}' (known: "
+                                f"{', '.join(TRANSCRIPTIONS)})")
+        if not (isinstance(self.intervals, int) and self.intervals >= 1):
+            raise AnalysisError(f"ocp: intervals must be an integer >= 1, got {self.intervals!r}")
+        if not (isinstance(self.subintervals, int) and self.subintervals >= 1):
+            raise AnalysisError(f"ocp: subintervals must be an integer >= 1, got "
+                                f"{self.subintervals!r}")
+        if not (isinstance(self.degree, int) and 1 <= self.degree <= 9):
+            raise AnalysisError(f"ocp: degree must be an integer in 1..9, got {self.degree!r}")
+        if self.integrator not in ("rk4", "cvodes"):
+            raise AnalysisError(f"ocp: integrator must be 'rk4' or 'cvodes', got "
+                                f"{self.integrator!r}")
+        if isinstance(self.horizon, FreeTime):
+            h = self.horizon
+            if not (0 < h.lower <= h.guess <= h.upper and math.isfinite(h.upper)):
+                raise AnalysisError(f"ocp: free time needs 0 < lower <= guess <= upper < inf, "
+                                    f"got {h}")
+        elif not (isinstance(self.horizon, (int, float)) and math.isfinite(self.horizon)
+                  and self.horizon > 0):
+            raise AnalysisError(f"ocp: horizon must be a finite time > 0 or FreeTime, got "
+                                f"{self.horizon!r}")
+        self.names = quantities(self.system)
+        self.controls = list(self.system.mechanism.actuators)
+        if not self.controls:
+            raise ModelError(f"ocp: mechanism '{self.system.mechanism.name}' has no actuators: "
+                             "nothing to optimise (add actuators on the driven joints)")
+
+    # ------------------------------------------------------------------ vocabulary
+    @property
+    def free_time(self) -> bool:
+        return isinstance(self.horizon, FreeTime)
+
+    def _check_name(self, expr, where: str) -> None:
+        if isinstance(expr, str) and expr.isidentifier() and expr not in self.names:
+            known = ", ".join(sorted(self.names)[:40])
+            raise ModelError(f"ocp {where}: unknown quantity '{expr}' (known: {known}, …)")
+
+    def initial(self, values: Mapping[str, float] | None = None, **kwargs: float) -> Ocp:
+        """Equalities at t_start, by quantity name (``shoulder=-pi/2, shoulder_dot=0``).  Without
+        any, the scene's assembled initial state (q, q̇) is imposed."""
+        for key, val in {**(values or {}), **kwargs}.items():
+            self._check_name(key, "initial")
+            self._initial[key] = val
+        return self
+
+    def final(self, values: Mapping[str, float] | None = None, **kwargs: float) -> Ocp:
+        """Equalities at the final time, by quantity name."""
+        for key, val in {**(values or {}), **kwargs}.items():
+            self._check_name(key, "final")
+            self._final[key] = val
+        return self
+
+    def control_bounds(self, actuator: str, lower: float = -math.inf,
+                       upper: float = math.inf) -> Ocp:
+        """Bounds on an actuator input."""
+        if actuator not in self.controls:
+            raise ModelError(f"ocp control_bounds: unknown actuator '{actuator}' (known: "
+                             f"{', '.join(self.controls)})")
+        if not lower <= upper:
+            raise ModelError(f"ocp control_bounds '{actuator}': lower {lower} > upper {upper}")
+        self._control_bounds[actuator] = (float(lower), float(upper))
+        return self
+
+    def path(self, expression: str | Callable, lower: float = -math.inf,
+             upper: float = math.inf) -> Ocp:
+        """lower ≤ expression ≤ upper at every node (an equality when lower == upper)."""
+        self._check_name(expression, "path")
+        if not lower <= upper:
+            raise ModelError(f"ocp path '{expression}': lower {lower} > upper {upper}")
+        self._path.append(_Constraint(expression, float(lower), float(upper), "path"))
+        return self
+
+    def minimize(self, kind: str, weight: float = 1.0, expression=None,
+                 reference=None) -> Ocp:
+        """Add an objective term.
+
+        ``"effort"`` ∫ uᵀu dt; ``"time"`` T; ``"energy"`` ∫ Σ |u_i ẏ_i| dt (absolute actuator
+        power, ẏ_i the rate of the actuated joint coordinate; exact by slack variables);
+        ``"lagrange"`` ∫ expression dt; ``"mayer"`` expression at the final time;
+        ``"tracking"`` ∫ (expression − reference(t))² dt.
+        """
+        if kind not in (*OBJECTIVES, "lagrange", "mayer", "tracking"):
+            raise ModelError(f"ocp minimize: unknown objective '{kind}' (known: "
+                             f"{', '.join(OBJECTIVES)}, lagrange, mayer, tracking)")
+        if kind == "time" and not self.free_time:
+            raise ModelError("ocp minimize('time') needs horizon=FreeTime(...)")
+        if kind in ("lagrange", "mayer", "tracking") and expression is None:
+            raise ModelError(f"ocp minimize('{kind}') needs an expression")
+        if expression is not None:
+            self._check_name(expression, kind)
+        self._terms.append(_Term(kind, float(weight), expression, reference))
+        return self
+
+    def guess(self, kind="linear") -> Ocp:
+        """Initial guess: "linear" (interpolate the boundary states), "simulation" (a forward
+        simulation with zero inputs), "inverse" (inverse dynamics of the linear path, when the
+        actuators can produce it) or an :class:`~casmbd.ocp.solution.OcpSolution` (warm
+        start)."""
+        if isinstance(kind, str) and kind not in GUESSES:
+            raise ModelError(f"ocp guess: unknown kind '{kind}' (known: {', '.join(GUESSES)}, "
+                             "or a previous solution)")
+        self._guess = kind
+        return self
+
+    # ------------------------------------------------------------------ expressions
+    def expression(self, expr, where: str) -> ca.SX:
+        """An SX expression of (q, v, t, u, p) from a string or a callable of the names."""
+        from casmbd.io.expressions import parse_expression
+
+        if callable(expr):
+            out = ca.SX(expr(self.names))
+        elif isinstance(expr, (int, float)):
+            out = ca.SX(float(expr))
+        else:
+            out = ca.SX(parse_expression(str(expr), self.names, where=f"ocp {where}"))
+        if out.numel() != 1:
+            raise ModelError(f"ocp {where}: expression is not a scalar ({out.shape})")
+        return out
+
+    def solve(self, **options):
+        """Transcribe, solve with the NLP solver and return an
+        :class:`~casmbd.ocp.solution.OcpSolution`."""
+        from casmbd.ocp.transcription import Transcription
+
+        return Transcription(self).solve(**options)

@@ -1,0 +1,230 @@
+"""The solution of an optimal-control problem: sample, interpolate, replay, plot, save."""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from casmbd.errors import AnalysisError
+
+
+class OcpSolution:
+    """States on the mesh, piecewise-constant controls and the solver's statistics.
+
+    Attributes
+    ----------
+    t : ndarray (N S + 1,)
+        Mesh times (S = ``stats["subintervals"]`` collocation elements per control interval).
+    q, v : ndarray (N S + 1, n_q)
+        Coordinates and velocities at the mesh nodes.
+    u : ndarray (N, n_u)
+        Control on each interval (actuator order of the mechanism).
+    objective : float
+    stats : dict
+        ``success``, ``return_status``, ``iterations``, ``constraint_violation``,
+        ``solve_seconds`` (NLP solver wall time), ``setup_seconds``, sizes, and after
+        :meth:`replay` ``replay_error``.
+    """
+
+    def __init__(self, t, q, v, u, stats, controls, coordinate_names, ocp=None, w=None,
+                 names=None):
+        self.t = np.asarray(t, dtype=float)
+        self.q = np.asarray(q, dtype=float)
+        self.v = np.asarray(v, dtype=float)
+        self.u = np.asarray(u, dtype=float)
+        self.stats = dict(stats)
+        self.controls = list(controls)
+        self.coordinate_names = list(coordinate_names)
+        self.ocp = ocp
+        self.w = w
+        self.names = names
+
+    @classmethod
+    def from_transcription(cls, tr, x: np.ndarray, info: dict, lam_g, g) -> OcpSolution:
+        b = tr.b
+        offsets = np.cumsum([0] + [w.numel() for w in b.w])
+
+        def block(index: int) -> np.ndarray:
+            return x[offsets[index]:offsets[index + 1]]
+
+        T = float(block(tr.T_block)[0]) if tr.T_block is not None else float(tr.ocp.horizon)
+        t = tr.ocp.t_start + np.linspace(0.0, T, tr.M + 1)
+        xs = np.array([block(idx) for _, idx in tr.X])
+        us = np.array([block(idx) for _, idx in tr.U]).reshape(tr.N, tr.nu)
+        info = dict(info)
+        info["final_time"] = T
+        info["subintervals"] = tr.S
+        return cls(t, xs[:, :tr.nq], xs[:, tr.nq:], us, info, tr.ocp.controls,
+                   tr.system.coordinate_names, tr.ocp, x, list(b.names))
+
+    # ------------------------------------------------------------------ access
+    @property
+    def subintervals(self) -> int:
+        """Collocation elements per control interval."""
+        return int(self.stats.get("subintervals", 1))
+
+    @property
+    def control_times(self) -> np.ndarray:
+        """Boundaries (N + 1,) of the control intervals."""
+        return self.t[::self.subintervals]
+
+    @property
+    def success(self) -> bool:
+        return bool(self.stats.get("success"))
+
+    @property
+    def objective(self) -> float:
+        return float(self.stats["objective"])
+
+    @property
+    def iterations(self) -> int:
+        return int(self.stats["iterations"])
+
+    def control(self, name: str) -> np.ndarray:
+        """Values (N,) of one actuator input on the intervals."""
+        if name not in self.controls:
+            raise AnalysisError(f"unknown actuator '{name}' (known: {', '.join(self.controls)})")
+        return self.u[:, self.controls.index(name)]
+
+    def value(self, expression) -> np.ndarray:
+        """A named expression (string or callable of the quantities) at every mesh node; the
+        control at node k is that of interval min(k, N − 1)."""
+        if self.ocp is None:
+            raise AnalysisError("this solution was loaded from a file; rebuild the problem to "
+                                "evaluate expressions")
+        system = self.ocp.system
+        expr = self.ocp.expression(expression, "value")
+        f = ca.Function("value", [system.q, system.v, system.t, system.u, system.p], [expr])
+        n = len(self.t)
+        u = self.u[np.minimum(np.arange(n) // self.subintervals, len(self.u) - 1)]
+        out = f.map(n)(self.q.T, self.v.T, self.t[None, :], u.T,
+                       np.tile(system.parameter_values[:, None], (1, n)))
+        return np.asarray(out).ravel()
+
+    sample = value
+
+    def interpolate(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(q, v, u) at times ``t``: cubic Hermite on (q, q̇) between nodes, u piecewise
+        constant."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        k = np.clip(np.searchsorted(self.t, t, side="right") - 1, 0, len(self.t) - 2)
+        ku = np.minimum(k // self.subintervals, len(self.u) - 1)
+        h = self.t[k + 1] - self.t[k]
+        s = ((t - self.t[k]) / h)[:, None]
+        h = h[:, None]
+        h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
+        h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
+        q = h00 * self.q[k] + h10 * h * self.v[k] + h01 * self.q[k + 1] + h11 * h * self.v[k + 1]
+        v = (self.v[k] * (1 - s) + self.v[k + 1] * s)
+        return q, v, self.u[ku]
+
+    def inputs(self) -> dict:
+        """Actuator inputs for :func:`casmbd.simulate`: piecewise-constant callables of t."""
+        knots = ca.DM(list(self.control_times[1:-1]))
+
+        def piecewise(vals):
+            return lambda t: ca.pw_const(t, knots, ca.DM(vals))
+
+        return {name: piecewise([float(x) for x in self.u[:, i]]) if knots.numel()
+                else float(self.u[0, i]) for i, name in enumerate(self.controls)}
+
+    # ------------------------------------------------------------------ replay
+    def replay(self, rtol: float = 1e-10, formulation: str = "index1",
+               integrator: str | None = None, steps_per_interval: int = 1):
+        """Forward-simulate the optimal controls from the optimal initial state.
+
+        The default is the index-1 DAE on IDAS (BDF, which restarts cleanly at the jumps of
+        the piecewise-constant controls; CVODES-Adams carries the jumps into its multistep
+        history: 5e-4 instead of 3e-5 on the double-pendulum swing-up).  Returns the simulation
+        :class:`~casmbd.results.Result` and stores ``stats["replay_error"]``: the largest
+        |q − q_ocp| and |q̇ − q̇_ocp| over the mesh nodes (a measure of the transcription's
+        discretisation error, amplified by the dynamics).
+        """
+        from casmbd.analysis.simulate import Simulator
+
+        if self.ocp is None:
+            raise AnalysisError("replay needs the problem (solution loaded from a file)")
+        sim = Simulator(self.ocp.system, formulation, inputs=self.inputs())
+        steps = steps_per_interval * (len(self.t) - 1)  # output at every mesh node
+        res = sim.run(self.t[-1], steps, t_start=self.t[0], integrator=integrator, rtol=rtol,
+                      atol=rtol, q0=self.q[0], v0=self.v[0])
+        idx = np.arange(0, steps + 1, steps_per_interval)
+        err = max(float(np.max(np.abs(res["q"][idx] - self.q))),
+                  float(np.max(np.abs(res["v"][idx] - self.v))))
+        self.stats["replay_error"] = err
+        return res
+
+    # ------------------------------------------------------------------ output
+    def to_json(self) -> dict:
+        """The CLI contract: success, objective, iterations, replay_error,
+        constraint_violation, stats, and the trajectory."""
+        stats = {k: v for k, v in self.stats.items() if _jsonable(v)}
+        return {"success": self.success, "objective": self.objective,
+                "iterations": self.iterations, "replay_error": self.stats.get("replay_error"),
+                "constraint_violation": self.stats.get("constraint_violation"),
+                "final_time": float(self.t[-1] - self.t[0]), "stats": stats,
+                "t": self.t.tolist(), "controls": {n: self.control(n).tolist()
+                                                   for n in self.controls},
+                "coordinates": {n: self.q[:, i].tolist()
+                                for i, n in enumerate(self.coordinate_names)}}
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Every array and the statistics in one npz file, written atomically."""
+        path = Path(path)
+        meta = {"stats": {k: v for k, v in self.stats.items() if _jsonable(v)},
+                "controls": self.controls, "coordinates": self.coordinate_names}
+        fd, tmp = tempfile.mkstemp(dir=path.parent or ".", suffix=".npz")
+        os.close(fd)
+        try:
+            np.savez(tmp, t=self.t, q=self.q, v=self.v, u=self.u,
+                     meta=np.array(json.dumps(meta)))
+            os.replace(tmp, path)
+        finally:
+            if os.path.exists(tmp):
+                os.remove(tmp)
+        return path
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> OcpSolution:
+        """A solution saved by :meth:`save` (without the problem: no expressions, no replay)."""
+        with np.load(path) as data:
+            meta = json.loads(str(data["meta"]))
+            return cls(data["t"], data["q"], data["v"], data["u"], meta["stats"],
+                       meta["controls"], meta["coordinates"])
+
+    def plot(self, path: str | os.PathLike | None = None):
+        """Coordinates and controls against time (matplotlib figure; saved when ``path``)."""
+        import matplotlib
+
+        if path is not None:
+            matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        fig, (ax1, ax2) = plt.subplots(2, 1, sharex=True, figsize=(6.4, 5.0))
+        for i, name in enumerate(self.coordinate_names):
+            ax1.plot(self.t, self.q[:, i], label=name)
+        ax1.set_ylabel("coordinates")
+        ax1.legend(fontsize=7)
+        for i, name in enumerate(self.controls):
+            ax2.step(self.control_times[:-1], self.u[:, i], where="post", label=name)
+        ax2.set_ylabel("controls")
+        ax2.set_xlabel("t [s]")
+        ax2.legend(fontsize=7)
+        fig.tight_layout()
+        if path is not None:
+            fig.savefig(path, dpi=110)
+            plt.close(fig)
+        return fig
+
+
+def _jsonable(value) -> bool:
+    try:
+        json.dumps(value)
+    except (TypeError, ValueError):
+        return False
+    return True

@@ -1,0 +1,399 @@
+"""Transcription of an :class:`~casmbd.ocp.problem.Ocp` into a nonlinear program.
+
+Direct collocation (Radau IIA or Gauss–Legendre points of degree d) on the implicit index-1
+equations of motion with q̈ and λ as variables at every collocation point, the position and
+velocity constraints imposed at every mesh node and per-interval projection multipliers μ, ν
+(:mod:`casmbd.ocp.dynamics`); or multiple shooting with RK4 (exact Hessians) or CVODES (exact
+first-order sensitivities, limited-memory Hessian).  Controls are piecewise constant on the N
+intervals.  The NLP is built in CasADi's SX (MX for CVODES) and solved by IPOPT (MUMPS) or any
+CasADi NLP solver by name.
+"""
+
+from __future__ import annotations
+
+import time
+
+import casadi as ca
+import numpy as np
+
+from casmbd.errors import AnalysisError, OptimizationError
+from casmbd.ocp.dynamics import explicit_accelerations, implicit_residual, node_constraints
+
+IPOPT_DEFAULTS = {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
+                  "ipopt.max_iter": 3000, "ipopt.tol": 1e-10}
+
+
+class _Builder:
+    """Decision variables and constraints with bounds, guesses and labels."""
+
+    def __init__(self, kind):
+        self.kind = kind
+        self.w, self.lbw, self.ubw, self.w0, self.wlabels = [], [], [], [], []
+        self.names: list[str] = []
+        self.g, self.lbg, self.ubg, self.glabels = [], [], [], []
+        self.nw = 0
+
+    def var(self, name: str, n: int, lower=-np.inf, upper=np.inf, guess=0.0):
+        sym = self.kind.sym(name, n)
+        self.w.append(sym)
+        self.names.append(name)
+        self.lbw.append(np.broadcast_to(np.asarray(lower, float), (n,)).copy())
+        self.ubw.append(np.broadcast_to(np.asarray(upper, float), (n,)).copy())
+        self.w0.append(np.broadcast_to(np.asarray(guess, float), (n,)).copy())
+        self.wlabels += [f"{name}[{i}]" for i in range(n)]
+        self.nw += n
+        return sym, len(self.w) - 1
+
+    def eq(self, expr, label: str, value=0.0):
+        self.ineq(expr, label, value, value)
+
+    def ineq(self, expr, label: str, lower, upper):
+        expr = ca.vec(expr)
+        n = expr.numel()
+        if n == 0:
+            return
+        self.g.append(expr)
+        self.lbg.append(np.broadcast_to(np.asarray(lower, float), (n,)).copy())
+        self.ubg.append(np.broadcast_to(np.asarray(upper, float), (n,)).copy())
+        self.glabels += [label if n == 1 else f"{label}[{i}]" for i in range(n)]
+
+
+class Transcription:
+    """The NLP of one problem; :meth:`solve` returns an OcpSolution."""
+
+    def __init__(self, ocp):
+        t0 = time.perf_counter()
+        self.ocp = ocp
+        system = ocp.system
+        self.system = system
+        self.nq, self.nc, self.nu = system.nq, system.nc, len(ocp.controls)
+        self.p = ca.DM(system.parameter_values)
+        self.N = ocp.intervals
+        shooting_ = ocp.transcription == "multiple_shooting"
+        self.S = 1 if shooting_ else ocp.subintervals
+        self.M = self.N * self.S   # collocation elements (mesh intervals)
+        shooting = ocp.transcription == "multiple_shooting"
+        kind = ca.MX if shooting and ocp.integrator == "cvodes" else ca.SX
+        self.b = _Builder(kind)
+        self._functions()
+        self._variables()
+        if shooting:
+            self._shooting()
+        else:
+            self._collocation()
+        self._boundary()
+        self._objective()
+        self.build_seconds = time.perf_counter() - t0
+
+    # ------------------------------------------------------------------ pieces
+    def _functions(self) -> None:
+        ocp, system = self.ocp, self.system
+        self.res = implicit_residual(system)
+        self.node = node_constraints(system)
+        args = [system.q, system.v, system.t, system.u, system.p]
+        self.args = args
+        self.input_matrix = ca.Function("ocp_b", args, [system.input_matrix])
+
+        def scalar_fn(name, exprs):
+            return ca.Function(name, args, [ca.vertcat(*exprs) if exprs else ca.SX(0, 1)])
+
+        self.path_fn = scalar_fn("ocp_path", [ocp.expression(c.expression, "path")
+                                              for c in ocp._path])
+        self.path_bounds = (np.array([c.lower for c in ocp._path]),
+                            np.array([c.upper for c in ocp._path]))
+        self.initial_fn = scalar_fn("ocp_initial", [ocp.expression(k, f"initial '{k}'")
+                                                    for k in ocp._initial])
+        self.initial_values = np.array([float(ocp.expression(v, f"initial '{k}'"))
+                                        for k, v in ocp._initial.items()])
+        self.final_fn = scalar_fn("ocp_final", [ocp.expression(k, f"final '{k}'")
+                                                for k in ocp._final])
+        self.final_values = np.array([float(ocp.expression(v, f"final '{k}'"))
+                                      for k, v in ocp._final.items()])
+        lagrange = []
+        for term in ocp._terms:
+            if term.kind == "lagrange":
+                lagrange.append(term.weight * ocp.expression(term.expression, "lagrange"))
+            elif term.kind == "tracking":
+                ref = ocp.expression(term.reference if term.reference is not None else 0.0,
+                                     "tracking reference")
+                diff = ocp.expression(term.expression, "tracking") - ref
+                lagrange.append(term.weight * diff * diff)
+        self.lagrange_fn = ca.Function("ocp_lagrange", args,
+                                       [ca.sum1(ca.vertcat(*lagrange)) if lagrange else 0.0])
+        mayer = [term.weight * ocp.expression(term.expression, "mayer")
+                 for term in ocp._terms if term.kind == "mayer"]
+        self.mayer_fn = ca.Function("ocp_mayer", args,
+                                    [ca.sum1(ca.vertcat(*mayer)) if mayer else 0.0])
+        self.energy = sum(term.weight for term in ocp._terms if term.kind == "energy")
+        self.effort = sum(term.weight for term in ocp._terms if term.kind == "effort")
+        self.time_weight = sum(term.weight for term in ocp._terms if term.kind == "time")
+        if not ocp._terms:
+            raise AnalysisError("ocp: no objective; call minimize('effort' | 'time' | …)")
+
+    def _variables(self) -> None:
+        ocp, b, nq, nu, N = self.ocp, self.b, self.nq, self.nu, self.N
+        if ocp.free_time:
+            h = ocp.horizon
+            self.T, self.T_block = b.var("T", 1, h.lower, h.upper, h.guess)
+        else:
+            self.T, self.T_block = ca.DM(float(ocp.horizon)), None
+        self.h = self.T / self.M   # element length
+        self.X, self.U = [], []
+        lo_u = np.array([ocp._control_bounds.get(c, (-np.inf, np.inf))[0]
+                         for c in ocp.controls])
+        up_u = np.array([ocp._control_bounds.get(c, (-np.inf, np.inf))[1]
+                         for c in ocp.controls])
+        for k in range(N):
+            self.U.append(b.var(f"u{k}", nu, lo_u, up_u))
+        for e in range(self.M + 1):
+            self.X.append(b.var(f"x{e}", 2 * nq))
+
+    def _t(self, k: int, tau: float = 0.0):
+        return self.ocp.t_start + (k + tau) * self.h
+
+    def _projection(self, q, mu, nu):
+        """(C_qᵀ μ, C_qᵀ ν) at q (the node function needs t only through C_t: unused here)."""
+        ct = self.node(q, ca.DM.zeros(self.nq), 0.0, self.p)[2]
+        return ca.mtimes(ct, mu), ca.mtimes(ct, nu)
+
+    def _collocation(self) -> None:
+        ocp, b, nq, nc, d = self.ocp, self.b, self.nq, self.nc, self.ocp.degree
+        tau = [0.0, *ca.collocation_points(d, ocp.transcription)]
+        C = np.zeros((d + 1, d + 1))
+        D = np.zeros(d + 1)
+        B = np.zeros(d + 1)
+        for j in range(d + 1):
+            coeff = np.poly1d([1.0])
+            for r in range(d + 1):
+                if r != j:
+                    coeff *= np.poly1d([1.0, -tau[r]]) / (tau[j] - tau[r])
+            D[j] = coeff(1.0)
+            deriv = np.polyder(coeff)
+            for r in range(d + 1):
+                C[j, r] = deriv(tau[r])
+            B[j] = np.polyint(coeff)(1.0)
+        self.tau, self.B = tau, B
+        self.colloc = []   # per interval: [(x, a, lam)] at the collocation points
+        self.quad = 0.0
+        self.energy_terms = 0.0
+        for k in range(self.M):
+            xk, uk = self.X[k][0], self.U[k // self.S][0]
+            pts = []
+            for j in range(1, d + 1):
+                x, _ = b.var(f"xc{k}_{j}", 2 * nq)
+                a, _ = b.var(f"a{k}_{j}", nq)
+                lam, _ = b.var(f"lam{k}_{j}", nc)
+                pts.append((x, a, lam))
+            if nc:
+                mu, _ = b.var(f"mu{k}", nc)
+                nu, _ = b.var(f"nu{k}", nc)
+            xs = [xk] + [p[0] for p in pts]
+            for j in range(1, d + 1):
+                x, a, lam = pts[j - 1]
+                q, v = x[:nq], x[nq:]
+                t = self._t(k, tau[j])
+                xp = sum(C[r, j] * xs[r] for r in range(d + 1))
+                qdot, vdot = v, a
+                if nc:
+                    pq, pv = self._projection(q, mu, nu)
+                    qdot, vdot = v + pq, a + pv
+                b.eq(self.h * ca.vertcat(qdot, vdot) - xp, f"collocation {k}.{j}")
+                dyn, acc = self.res(q, v, a, lam, uk, t, self.p)
+                b.eq(dyn, f"equations of motion {k}.{j}")
+                b.eq(acc, f"acceleration constraints {k}.{j}")
+                self._path_at(q, v, t, uk, f"path at interval {k} point {j}")
+                self.quad += B[j] * self.h * self.lagrange_fn(q, v, t, uk, self.p)
+                self._energy_at(q, v, t, uk, B[j] * self.h, f"{k}.{j}")
+            xend = sum(D[r] * xs[r] for r in range(d + 1))
+            b.eq(self.X[k + 1][0] - xend, f"continuity {k}")
+            self.colloc.append(pts)
+        self._nodes()
+
+    def _energy_at(self, q, v, t, u, weight, label) -> None:
+        """Absolute actuator power |u_i (B_iᵀ q̇)| by slacks s ≥ ±P_i (exact L1)."""
+        if not self.energy:
+            return
+        power = u * ca.mtimes(self.input_matrix(q, v, t, u, self.p).T, v)
+        s, _ = self.b.var(f"s{label}", self.nu, 0.0, np.inf)
+        self.b.ineq(s - power, f"energy slack + {label}", 0.0, np.inf)
+        self.b.ineq(s + power, f"energy slack - {label}", 0.0, np.inf)
+        self.energy_terms += weight * ca.sum1(s)
+
+    def _path_at(self, q, v, t, u, label) -> None:
+        if self.path_fn.numel_out(0):
+            self.b.ineq(self.path_fn(q, v, t, u, self.p), label, *self.path_bounds)
+
+    def _nodes(self) -> None:
+        """C = 0 and C_q q̇ + C_t = 0 at every mesh node; path constraints at the nodes."""
+        nq = self.nq
+        for k in range(self.M + 1):
+            x = self.X[k][0]
+            q, v = x[:nq], x[nq:]
+            t = self._t(k)
+            if self.nc:
+                c, cdot, _ = self.node(q, v, t, self.p)
+                self.b.eq(c, f"position constraints at node {k}")
+                self.b.eq(cdot, f"velocity constraints at node {k}")
+            u = self.U[min(k // self.S, self.N - 1)][0]
+            self._path_at(q, v, t, u, f"path at node {k}")
+
+    def _shooting(self) -> None:
+        ocp, b, nq, nc, N = self.ocp, self.b, self.nq, self.nc, self.N
+        acc = explicit_accelerations(self.system)
+        x = ca.SX.sym("x", 2 * nq)
+        u = ca.SX.sym("u", self.nu)
+        t = ca.SX.sym("t")
+        ode = ca.vertcat(x[nq:], acc(x[:nq], x[nq:], u, t, self.p))
+        quad = self.lagrange_fn(x[:nq], x[nq:], t, u, self.p)
+        f = ca.Function("ocp_ode", [x, u, t], [ode, quad])
+        hs = ca.SX.sym("h")
+        if ocp.integrator == "rk4":
+            m = ocp.steps
+            xk, qk = x, 0.0
+            dt = hs / m
+            for s in range(m):
+                ts = t + s * dt
+                k1, l1 = f(xk, u, ts)
+                k2, l2 = f(xk + dt / 2 * k1, u, ts + dt / 2)
+                k3, l3 = f(xk + dt / 2 * k2, u, ts + dt / 2)
+                k4, l4 = f(xk + dt * k3, u, ts + dt)
+                xk = xk + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+                qk = qk + dt / 6 * (l1 + 2 * l2 + 2 * l3 + l4)
+            step = ca.Function("ocp_step", [x, u, t, hs], [xk, qk])
+        else:
+            tau = ca.SX.sym("tau")
+            pars = ca.vertcat(u, t, hs)
+            ode_s, quad_s = f(x, u, t + tau * hs)
+            dae = {"x": x, "p": pars, "t": tau, "ode": hs * ode_s, "quad": hs * quad_s}
+            integ = ca.integrator("ocp_cvodes", "cvodes", dae, 0.0, 1.0,
+                                  {"abstol": 1e-10, "reltol": 1e-10})
+            xm, um, tm, hm = (ca.MX.sym(n, s) for n, s in
+                              (("x", 2 * nq), ("u", self.nu), ("t", 1), ("h", 1)))
+            out = integ(x0=xm, p=ca.vertcat(um, tm, hm))
+            step = ca.Function("ocp_step", [xm, um, tm, hm], [out["xf"], out["qf"]])
+        self.quad = 0.0
+        self.energy_terms = 0.0
+        for k in range(N):
+            xk, uk = self.X[k][0], self.U[k][0]
+            xend, qk = step(xk, uk, self._t(k), self.h)
+            self.quad += qk
+            gap = self.X[k + 1][0] - xend
+            if nc:
+                mu, _ = b.var(f"mu{k}", nc)
+                nu, _ = b.var(f"nu{k}", nc)
+                pq, pv = self._projection(self.X[k + 1][0][:nq], mu, nu)
+                gap = gap - ca.vertcat(pq, pv)
+            b.eq(gap, f"continuity {k}")
+            if self.energy:
+                q, v = xk[:nq], xk[nq:]
+                self._energy_at(q, v, self._t(k), uk, self.h, f"{k}")
+        self._nodes()
+
+    def _boundary(self) -> None:
+        ocp, b, nq = self.ocp, self.b, self.nq
+        x0, xn = self.X[0][0], self.X[self.M][0]
+        u0, un = self.U[0][0], self.U[self.N - 1][0]
+        t0, tn = self._t(0), self._t(self.M)
+        if ocp._initial:
+            b.eq(self.initial_fn(x0[:nq], x0[nq:], t0, u0, self.p) - self.initial_values,
+                 "initial conditions")
+        else:  # the scene's consistent initial state
+            start = self._scene_start()
+            b.lbw[self.X[0][1]][:] = start
+            b.ubw[self.X[0][1]][:] = start
+        if ocp._final:
+            b.eq(self.final_fn(xn[:nq], xn[nq:], tn, un, self.p) - self.final_values,
+                 "final conditions")
+
+    def _scene_start(self) -> np.ndarray:
+        from casmbd.analysis.kkt import consistent_state
+        from casmbd.compiled.model import NumericModel
+
+        model = NumericModel(self.system, "dynamics", mode="vm")
+        st = consistent_state(model, self.system.initial_coordinates(),
+                              self.system.initial_velocities(), self.ocp.t_start,
+                              np.zeros(self.nu))
+        return np.concatenate([st.q, st.v])
+
+    def _objective(self) -> None:
+        x_n = self.X[self.M][0]
+        obj = self.quad + self.energy_terms
+        if self.effort:
+            obj = obj + self.effort * self.h * self.S * sum(ca.sumsqr(u[0]) for u in self.U)
+        if self.time_weight:
+            obj = obj + self.time_weight * self.T
+        obj = obj + self.mayer_fn(x_n[:self.nq], x_n[self.nq:], self._t(self.M),
+                                  self.U[self.N - 1][0], self.p)
+        self.objective = obj
+
+    # ------------------------------------------------------------------ solve
+    def solve(self, guess=None, options: dict | None = None, raise_on_failure: bool = True):
+        """Solve the NLP; see :meth:`casmbd.ocp.problem.Ocp.solve`."""
+        from casmbd.ocp.guess import initial_guess
+        from casmbd.ocp.solution import OcpSolution
+
+        ocp, b = self.ocp, self.b
+        t0 = time.perf_counter()
+        w = ca.vertcat(*b.w)
+        g = ca.vertcat(*b.g) if b.g else ca.SX(0, 1)
+        opts = dict(IPOPT_DEFAULTS) if ocp.solver == "ipopt" else {}
+        if ocp.solver == "ipopt" and b.kind is ca.MX:
+            opts["ipopt.hessian_approximation"] = "limited-memory"
+        opts.update(ocp.solver_options)
+        opts.update(options or {})
+        solver = ca.nlpsol("ocp", ocp.solver, {"x": w, "f": self.objective, "g": g}, opts)
+        setup = time.perf_counter() - t0
+        w0 = initial_guess(self, guess if guess is not None else ocp._guess)
+        lbw, ubw = np.concatenate(b.lbw), np.concatenate(b.ubw)
+        w0 = np.clip(w0, lbw, ubw)
+        t1 = time.perf_counter()
+        out = solver(x0=w0, lbx=lbw, ubx=ubw, lbg=np.concatenate(b.lbg),
+                     ubg=np.concatenate(b.ubg))
+        wall = time.perf_counter() - t1
+        stats = solver.stats()
+        x = np.asarray(out["x"]).ravel()
+        gval = np.asarray(out["g"]).ravel()
+        lbg, ubg = np.concatenate(b.lbg), np.concatenate(b.ubg)
+        viol = np.maximum(np.maximum(lbg - gval, gval - ubg), 0.0)
+        info = {"success": bool(stats.get("success", False)),
+                "return_status": stats.get("return_status", stats.get("unified_return_status")),
+                "iterations": int(stats.get("iter_count", -1)),
+                "objective": float(out["f"]),
+                "constraint_violation": float(np.max(viol, initial=0.0)),
+                "solve_seconds": wall, "setup_seconds": setup + self.build_seconds,
+                "build_seconds": self.build_seconds, "nlp_setup_seconds": setup,
+                "variables": int(w.numel()), "constraints": int(g.numel()),
+                "transcription": ocp.transcription, "intervals": self.N,
+                "subintervals": self.S,
+                "degree": ocp.degree if ocp.transcription != "multiple_shooting" else None,
+                "solver": ocp.solver}
+        sol = OcpSolution.from_transcription(self, x, info, np.asarray(out["lam_g"]).ravel(),
+                                             gval)
+        if not info["success"] and raise_on_failure:
+            raise OptimizationError(self._failure_text(info, x, gval, viol), sol)
+        return sol
+
+    def _failure_text(self, info, x, gval, viol) -> str:
+        b = self.b
+        order = np.argsort(-viol)[:4]
+        worst = "; ".join(f"{b.glabels[i]} (violation {viol[i]:.3g})" for i in order
+                          if viol[i] > 1e-9)
+        lbw, ubw = np.concatenate(b.lbw), np.concatenate(b.ubw)
+        active: dict[str, int] = {}
+        for i in np.flatnonzero((np.abs(x - lbw) < 1e-7 * (1 + np.abs(lbw)))
+                                | (np.abs(x - ubw) < 1e-7 * (1 + np.abs(ubw)))):
+            label = b.wlabels[i]
+            if label.startswith("u"):
+                name = self.ocp.controls[int(label.split("[")[1][:-1])]
+                active[f"actuator '{name}'"] = active.get(f"actuator '{name}'", 0) + 1
+            elif label.startswith("T["):
+                active["final time"] = 1
+        binding = ", ".join(f"{k} at its bound in {n} of {self.N} intervals"
+                            if k != "final time" else "final time at its bound"
+                            for k, n in active.items())
+        return (f"ocp: {self.ocp.solver} returned '{info['return_status']}' after "
+                f"{info['iterations']} iterations (max constraint violation "
+                f"{info['constraint_violation']:.3g})"
+                + (f"; most violated: {worst}" if worst else "")
+                + (f"; binding bounds: {binding}" if binding else ""))
+
