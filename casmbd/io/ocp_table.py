@@ -17,13 +17,15 @@
     solver = "ipopt"
     [ocp.controls]                # actuator bounds
     tau1 = [-50.0, 50.0]
-    [ocp.initial]                 # equalities at t = 0 (default: the scene's initial state)
+    [ocp.initial]                 # equalities at t = 0; without this table the scene's
+                                  # initial state is imposed, with it (even empty) only these
     shoulder = "-pi/2"
     [ocp.final]
     shoulder = "pi/2"
-    [[ocp.path]]                  # min <= expression <= max at every node
+    [[ocp.path]]                  # min <= expression <= max (or equal = value)
     expression = "tip_y"
     max = 2.5
+    at = "all"                    # "all" | "nodes" | "control_nodes"
     [[ocp.tracking]]              # ∫ weight (expression − reference(t))² dt
     expression = "slider_x"
     reference = "0.3 + 0.05*sin(2*pi*t)"
@@ -111,7 +113,9 @@ def ocp_from_scene(mech, table: dict | None = None, source: str = "<scene>") -> 
             ocp.control_bounds(key, num(bounds[0], f"controls.{key}"),
                                num(bounds[1], f"controls.{key}"))
         for which in ("initial", "final"):
-            values = table.get(which, {})
+            if which not in table:
+                continue  # no [ocp.initial]: the scene's initial state is imposed
+            values = table[which]
             if not isinstance(values, dict):
                 raise SceneError(f"{source}: [ocp] key '{which}': expected a table of values")
             getattr(ocp, which)({k: num(v, f"{which}.{k}") for k, v in values.items()})
@@ -124,7 +128,7 @@ def ocp_from_scene(mech, table: dict | None = None, source: str = "<scene>") -> 
             else:
                 lo = num(entry.get("min", -math.inf), f"path {i + 1}.min")
                 hi = num(entry.get("max", math.inf), f"path {i + 1}.max")
-            ocp.path(entry["expression"], lo, hi)
+            ocp.path(entry["expression"], lo, hi, at=entry.get("at", "all"))
         objective = table.get("objective", "effort")
         if isinstance(objective, str):
             objective = {objective: 1.0}

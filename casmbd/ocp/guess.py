@@ -45,7 +45,7 @@ def _states(tr, kind):
     """Boundary states and the state function x(s), s ∈ [0, 1] (fraction of the horizon)."""
     system = tr.system
     scene = np.concatenate([system.initial_coordinates(), system.initial_velocities()])
-    if tr.ocp._initial:
+    if tr.ocp._initial_given:
         x_start = boundary_state(tr, "initial", scene)
     else:
         x_start = tr._scene_start()

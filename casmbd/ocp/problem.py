@@ -42,12 +42,16 @@ class FreeTime:
     upper: float = 1e3
 
 
+PATH_POINTS = ("all", "nodes", "control_nodes")
+
+
 @dataclass
 class _Constraint:
     expression: str | Callable
     lower: float
     upper: float
     where: str
+    at: str = "all"
 
 
 @dataclass
@@ -96,6 +100,7 @@ class Ocp:
     _path: list = field(default_factory=list, init=False)
     _terms: list = field(default_factory=list, init=False)
     _guess: object = field(default="linear", init=False)
+    _initial_given: bool = field(default=False, init=False)
 
     def __post_init__(self):
         self.system = (self.mechanism if isinstance(self.mechanism, System)
@@ -139,8 +144,11 @@ class Ocp:
             raise ModelError(f"ocp {where}: unknown quantity '{expr}' (known: {known}, …)")
 
     def initial(self, values: Mapping[str, float] | None = None, **kwargs: float) -> Ocp:
-        """Equalities at t_start, by quantity name (``shoulder=-pi/2, shoulder_dot=0``).  Without
-        any, the scene's assembled initial state (q, q̇) is imposed."""
+        """Equalities at t_start, by quantity name (``shoulder=-pi/2, shoulder_dot=0``).  Once
+        called (even with no names) the initial state is free apart from these equalities and
+        the constraints; if never called, the scene's assembled initial state (q, q̇) is
+        imposed."""
+        self._initial_given = True
         for key, val in {**(values or {}), **kwargs}.items():
             self._check_name(key, "initial")
             self._initial[key] = val
@@ -165,12 +173,21 @@ class Ocp:
         return self
 
     def path(self, expression: str | Callable, lower: float = -math.inf,
-             upper: float = math.inf) -> Ocp:
-        """lower ≤ expression ≤ upper at every node (an equality when lower == upper)."""
+             upper: float = math.inf, at: str = "all") -> Ocp:
+        """lower ≤ expression ≤ upper (an equality when lower == upper).
+
+        ``at``: ``"all"`` mesh nodes and collocation points (default), ``"nodes"`` the mesh
+        nodes, ``"control_nodes"`` the boundaries of the control intervals only — the choice
+        for prescribing a coordinate's path with piecewise-constant controls, which can meet
+        one condition per interval and degree of freedom.
+        """
         self._check_name(expression, "path")
         if not lower <= upper:
             raise ModelError(f"ocp path '{expression}': lower {lower} > upper {upper}")
-        self._path.append(_Constraint(expression, float(lower), float(upper), "path"))
+        if at not in PATH_POINTS:
+            raise ModelError(f"ocp path '{expression}': at must be one of "
+                             f"{', '.join(PATH_POINTS)}, got {at!r}")
+        self._path.append(_Constraint(expression, float(lower), float(upper), "path", at))
         return self
 
     def minimize(self, kind: str, weight: float = 1.0, expression=None,

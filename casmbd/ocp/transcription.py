@@ -97,10 +97,14 @@ class Transcription:
         def scalar_fn(name, exprs):
             return ca.Function(name, args, [ca.vertcat(*exprs) if exprs else ca.SX(0, 1)])
 
-        self.path_fn = scalar_fn("ocp_path", [ocp.expression(c.expression, "path")
-                                              for c in ocp._path])
-        self.path_bounds = (np.array([c.lower for c in ocp._path]),
-                            np.array([c.upper for c in ocp._path]))
+        self.path_fns = {}
+        for at in ("all", "nodes", "control_nodes"):
+            items = [c for c in ocp._path if c.at == at]
+            self.path_fns[at] = (scalar_fn(f"ocp_path_{at}",
+                                           [ocp.expression(c.expression, "path")
+                                            for c in items]),
+                                 np.array([c.lower for c in items]),
+                                 np.array([c.upper for c in items]))
         self.initial_fn = scalar_fn("ocp_initial", [ocp.expression(k, f"initial '{k}'")
                                                     for k in ocp._initial])
         self.initial_values = np.array([float(ocp.expression(v, f"initial '{k}'"))
@@ -219,9 +223,11 @@ class Transcription:
         self.b.ineq(s + power, f"energy slack - {label}", 0.0, np.inf)
         self.energy_terms += weight * ca.sum1(s)
 
-    def _path_at(self, q, v, t, u, label) -> None:
-        if self.path_fn.numel_out(0):
-            self.b.ineq(self.path_fn(q, v, t, u, self.p), label, *self.path_bounds)
+    def _path_at(self, q, v, t, u, label, kinds=("all",)) -> None:
+        for kind in kinds:
+            fn, lo, hi = self.path_fns[kind]
+            if fn.numel_out(0):
+                self.b.ineq(fn(q, v, t, u, self.p), label, lo, hi)
 
     def _nodes(self) -> None:
         """C = 0 and C_q q̇ + C_t = 0 at every mesh node; path constraints at the nodes."""
@@ -230,12 +236,15 @@ class Transcription:
             x = self.X[k][0]
             q, v = x[:nq], x[nq:]
             t = self._t(k)
+            if k == 0 and not self.ocp._initial_given:
+                continue  # the fixed consistent start satisfies them already
             if self.nc:
                 c, cdot, _ = self.node(q, v, t, self.p)
                 self.b.eq(c, f"position constraints at node {k}")
                 self.b.eq(cdot, f"velocity constraints at node {k}")
             u = self.U[min(k // self.S, self.N - 1)][0]
-            self._path_at(q, v, t, u, f"path at node {k}")
+            kinds = ("all", "nodes", "control_nodes") if k % self.S == 0 else ("all", "nodes")
+            self._path_at(q, v, t, u, f"path at node {k}", kinds)
 
     def _shooting(self) -> None:
         ocp, b, nq, nc, N = self.ocp, self.b, self.nq, self.nc, self.N
@@ -294,7 +303,7 @@ class Transcription:
         x0, xn = self.X[0][0], self.X[self.M][0]
         u0, un = self.U[0][0], self.U[self.N - 1][0]
         t0, tn = self._t(0), self._t(self.M)
-        if ocp._initial:
+        if ocp._initial_given:
             b.eq(self.initial_fn(x0[:nq], x0[nq:], t0, u0, self.p) - self.initial_values,
                  "initial conditions")
         else:  # the scene's consistent initial state
