@@ -418,3 +418,52 @@ def compile_functions(
             stacklevel=2,
         )
         return _vm_result(functions)
+
+
+def compile_nlp_solver(problem: dict, plugin: str, options: dict, name: str = "casmbd_nlp",
+                       flags: Sequence[str] | None = None
+                       ) -> tuple[casadi.Function, BuildReport]:
+    """An NLP solver whose derivative functions are compiled to C and cached on disk.
+
+    The cache key hashes the serialized problem ``{"x", "f", "g"}`` (CasADi's own exact
+    serialization of the expression graph), the plugin, the options, compiler, flags, CasADi
+    version and platform.  On a hit the solver is built directly on the cached library,
+    without differentiating or generating code again; on a miss
+    ``solver.generate_dependencies`` writes the C code of ``nlp_f``, ``nlp_g``,
+    ``nlp_grad_f``, ``nlp_jac_g`` and ``nlp_hess_l``, which is compiled atomically into the
+    cache.  Without a compiler (or with ``$CASMBD_COMPILE=0``) the solver runs in the virtual
+    machine.
+    """
+    compiler = _find_compiler()
+    flags_ = _resolve_flags(flags)
+    start = time.perf_counter()
+    if compiler is None or os.environ.get("CASMBD_COMPILE", "1") == "0":
+        solver = casadi.nlpsol(name, plugin, problem, options)
+        return solver, BuildReport(mode="vm", cache_hit=False, compiled=False,
+                                   codegen_seconds=0.0, compile_seconds=0.0, load_seconds=0.0,
+                                   library=None, key="")
+    graph = casadi.Function("nlp", [problem["x"]], [problem["f"], problem["g"]])
+    text = "\x1e".join([graph.serialize(), plugin, repr(sorted(options.items()))])
+    key = _compute_key(text, name, compiler, flags_)
+    library = cache_dir() / f"{name}_{key[:16]}.so"
+    codegen = time.perf_counter() - start
+    compiled, seconds = False, 0.0
+    if not library.exists():
+        solver = casadi.nlpsol(name, plugin, problem, options)
+        with tempfile.TemporaryDirectory() as tmp:
+            cwd = os.getcwd()
+            os.chdir(tmp)
+            try:
+                solver.generate_dependencies(f"{name}.c")
+            finally:
+                os.chdir(cwd)
+            codegen = time.perf_counter() - start
+            seconds = _run_compiler([*compiler, *flags_, *SHARED_FLAGS],
+                                    pathlib.Path(tmp) / f"{name}.c", library)
+        compiled = True
+    t_load = time.perf_counter()
+    out = casadi.nlpsol(name, plugin, str(library), options)
+    load = time.perf_counter() - t_load
+    return out, BuildReport(mode="compiled", cache_hit=not compiled, compiled=compiled,
+                            codegen_seconds=codegen, compile_seconds=seconds,
+                            load_seconds=load, library=str(library), key=key)

@@ -64,7 +64,6 @@ def initial_guess(tr, kind) -> np.ndarray:
 
     if isinstance(kind, OcpSolution):
         return _warm(tr, kind)
-    nq, N = tr.nq, tr.N
     x_start, x_end = _states(tr, kind)
     T = _horizon(tr)
     if kind == "simulation":
@@ -76,29 +75,37 @@ def initial_guess(tr, kind) -> np.ndarray:
         controls, mults = _inverse(tr, state, T)
     else:
         controls = mults = None
-    blocks = []
+    return _fill(tr, T, state, controls, mults, kind == "simulation")
+
+
+def _fill(tr, T, state, controls=None, mults=None, accelerations=False) -> np.ndarray:
+    """w0 from x(s), u(s), λ(s) of the horizon fraction s (blocks of the transcription)."""
+    nq, d, M, N = tr.nq, tr.ocp.degree, tr.M, tr.N
     taus = getattr(tr, "tau", [0.0])
-    for name, w0 in zip(tr.b.names, tr.b.w0, strict=True):
-        val = w0.copy()
+    blocks = []
+    for name, (rows, cols), w0 in zip(tr.b.names, tr.b.shapes, tr.b.w0, strict=True):
+        val = w0.reshape(cols, rows).copy()
         if name == "T":
             val[:] = T
-        elif name.startswith("xc"):
-            k, j = (int(x) for x in name[2:].split("_"))
-            val[:] = state((k + taus[j]) / tr.M)
-        elif name.startswith("x"):
-            val[:] = state(int(name[1:]) / tr.M)
-        elif name.startswith("u") and controls is not None:
-            val[:] = controls(int(name[1:]) / N + 0.5 / N)
-        elif name.startswith("lam") and mults is not None and val.size:
-            k, j = (int(x) for x in name[3:].split("_"))
-            val[:] = mults((k + taus[j]) / tr.M)
-        elif name.startswith("a") and kind == "simulation":
-            k, j = (int(x) for x in name[1:].split("_"))
-            s = (k + taus[j]) / tr.M
-            ds = 1e-4
-            val[:] = (state(min(s + ds, 1.0))[nq:] - state(max(s - ds, 0.0))[nq:]) / (
-                (min(s + ds, 1.0) - max(s - ds, 0.0)) * T)
-        blocks.append(val)
+        elif name == "X":
+            for e in range(cols):
+                val[e] = state(e / M)
+        elif name == "XC":
+            for c in range(cols):
+                val[c] = state((c // d + taus[c % d + 1]) / M)
+        elif name == "U" and controls is not None:
+            for k in range(cols):
+                val[k] = controls((k + 0.5) / N)
+        elif name == "LAM" and mults is not None and rows:
+            for c in range(cols):
+                val[c] = mults((c // d + taus[c % d + 1]) / M)
+        elif name == "A" and accelerations:
+            for c in range(cols):
+                s = (c // d + taus[c % d + 1]) / M
+                ds = 1e-4
+                lo, hi = max(s - ds, 0.0), min(s + ds, 1.0)
+                val[c] = (state(hi)[nq:] - state(lo)[nq:]) / ((hi - lo) * T)
+        blocks.append(val.ravel())
     return np.concatenate(blocks) if blocks else np.zeros(0)
 
 
@@ -147,7 +154,7 @@ def _inverse(tr, state, T):
         mat = b if not nc else np.hstack([b, -model.constraint_jacobian(q, t).toarray().T])
         sol = np.linalg.lstsq(mat, rhs, rcond=None)[0]
         us.append(sol[:tr.nu])
-        lams.append(-sol[tr.nu:] if nc else np.zeros(0))
+        lams.append(sol[tr.nu:] if nc else np.zeros(0))
     us, lams = np.array(us), np.array(lams)
 
     def interp(arr):
@@ -160,27 +167,18 @@ def _inverse(tr, state, T):
 def _warm(tr, sol) -> np.ndarray:
     """A previous solution: its variables when the structure matches, else its states and
     controls interpolated onto the new mesh."""
-    if sol.w is not None and len(sol.w) == tr.b.nw and sol.names == tr.b.names:
+    if (sol.w is not None and len(sol.w) == tr.b.nw and sol.names == tr.b.names):
         return np.array(sol.w, dtype=float)
-    grid = (sol.t - sol.t[0]) / (sol.t[-1] - sol.t[0])
+    span = sol.t[-1] - sol.t[0]
+    grid = (sol.t - sol.t[0]) / span
     xs = np.hstack([sol.q, sol.v])
-    tc = (sol.t[:-1] + sol.t[1:]) / 2.0
-    tc = (tc - sol.t[0]) / (sol.t[-1] - sol.t[0])
-    blocks = []
-    taus = getattr(tr, "tau", [0.0])
-    for name, w0 in zip(tr.b.names, tr.b.w0, strict=True):
-        val = w0.copy()
-        if name == "T":
-            val[:] = sol.t[-1] - sol.t[0]
-        elif name.startswith("xc") or (name.startswith("x") and name[1:].isdigit()):
-            if name.startswith("xc"):
-                k, j = (int(x) for x in name[2:].split("_"))
-                s = (k + taus[j]) / tr.M
-            else:
-                s = int(name[1:]) / tr.M
-            val[:] = [np.interp(s, grid, xs[:, i]) for i in range(xs.shape[1])]
-        elif name.startswith("u") and name[1:].isdigit():
-            s = (int(name[1:]) + 0.5) / tr.N
-            val[:] = [np.interp(s, tc, sol.u[:, i]) for i in range(sol.u.shape[1])]
-        blocks.append(val)
-    return np.concatenate(blocks)
+    tc = (sol.control_times[:-1] + sol.control_times[1:]) / 2.0
+    tc = (tc - sol.t[0]) / span
+
+    def state(s):
+        return np.array([np.interp(s, grid, xs[:, i]) for i in range(xs.shape[1])])
+
+    def controls(s):
+        return np.array([np.interp(s, tc, sol.u[:, i]) for i in range(sol.u.shape[1])])
+
+    return _fill(tr, span, state, controls)

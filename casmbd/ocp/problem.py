@@ -81,6 +81,10 @@ class Ocp:
         ``steps`` fixed steps per interval with exact Hessians; "cvodes": CVODES with exact
         first-order sensitivities and a limited-memory
         Hessian).
+    compile : bool
+        Generate C code for the NLP's functions (objective, constraints, their Jacobian and
+        the Lagrangian's Hessian), compile it and cache the library on disk (default): a
+        second identical problem loads it; without a C compiler the virtual machine is used.
     """
 
     mechanism: object
@@ -94,6 +98,7 @@ class Ocp:
     t_start: float = 0.0
     solver: str = "ipopt"
     solver_options: dict = field(default_factory=dict)
+    compile: bool = True
     _initial: dict = field(default_factory=dict, init=False)
     _final: dict = field(default_factory=dict, init=False)
     _control_bounds: dict = field(default_factory=dict, init=False)

@@ -47,15 +47,16 @@ class OcpSolution:
     @classmethod
     def from_transcription(cls, tr, x: np.ndarray, info: dict, lam_g, g) -> OcpSolution:
         b = tr.b
-        offsets = np.cumsum([0] + [w.numel() for w in b.w])
+        offsets = np.cumsum([0] + [r * c for r, c in b.shapes])
 
         def block(index: int) -> np.ndarray:
-            return x[offsets[index]:offsets[index + 1]]
+            rows, cols = b.shapes[index]
+            return x[offsets[index]:offsets[index + 1]].reshape(cols, rows)
 
-        T = float(block(tr.T_block)[0]) if tr.T_block is not None else float(tr.ocp.horizon)
+        T = float(block(tr.T_block)[0, 0]) if tr.T_block is not None else float(tr.ocp.horizon)
         t = tr.ocp.t_start + np.linspace(0.0, T, tr.M + 1)
-        xs = np.array([block(idx) for _, idx in tr.X])
-        us = np.array([block(idx) for _, idx in tr.U]).reshape(tr.N, tr.nu)
+        xs = block(tr.X_block)
+        us = block(tr.U_block)
         info = dict(info)
         info["final_time"] = T
         info["subintervals"] = tr.S

@@ -20,34 +20,49 @@ from casmbd.errors import AnalysisError, OptimizationError
 from casmbd.ocp.dynamics import explicit_accelerations, implicit_residual, node_constraints
 
 IPOPT_DEFAULTS = {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
-                  "ipopt.max_iter": 3000, "ipopt.tol": 1e-10}
+                  "ipopt.max_iter": 3000}
 
 
 class _Builder:
-    """Decision variables and constraints with bounds, guesses and labels."""
+    """Decision variables (matrix blocks, stacked column by column) and constraints with
+    bounds, guesses and labels."""
 
     def __init__(self, kind):
         self.kind = kind
         self.w, self.lbw, self.ubw, self.w0, self.wlabels = [], [], [], [], []
         self.names: list[str] = []
+        self.shapes: list[tuple[int, int]] = []
         self.g, self.lbg, self.ubg, self.glabels = [], [], [], []
         self.nw = 0
 
-    def var(self, name: str, n: int, lower=-np.inf, upper=np.inf, guess=0.0):
-        sym = self.kind.sym(name, n)
+    def var(self, name: str, rows: int, cols: int = 1, lower=-np.inf, upper=np.inf,
+            guess=0.0):
+        """A block of rows × cols variables; ``lower``/``upper`` broadcast over rows."""
+        sym = self.kind.sym(name, rows, cols)
+        n = rows * cols
         self.w.append(sym)
         self.names.append(name)
-        self.lbw.append(np.broadcast_to(np.asarray(lower, float), (n,)).copy())
-        self.ubw.append(np.broadcast_to(np.asarray(upper, float), (n,)).copy())
-        self.w0.append(np.broadcast_to(np.asarray(guess, float), (n,)).copy())
-        self.wlabels += [f"{name}[{i}]" for i in range(n)]
+        self.shapes.append((rows, cols))
+
+        def fill(value):
+            col = np.broadcast_to(np.asarray(value, float), (rows,))
+            return np.tile(col, cols)
+
+        self.lbw.append(fill(lower))
+        self.ubw.append(fill(upper))
+        self.w0.append(fill(guess))
+        self.wlabels += [f"{name}[{i % rows},{i // rows}]" for i in range(n)]
         self.nw += n
         return sym, len(self.w) - 1
 
-    def eq(self, expr, label: str, value=0.0):
+    def block(self, name: str) -> int:
+        return self.names.index(name)
+
+    def eq(self, expr, label, value=0.0):
         self.ineq(expr, label, value, value)
 
-    def ineq(self, expr, label: str, lower, upper):
+    def ineq(self, expr, label, lower, upper):
+        """Constraints; ``label`` is a string or a list with one label per row."""
         expr = ca.vec(expr)
         n = expr.numel()
         if n == 0:
@@ -55,7 +70,10 @@ class _Builder:
         self.g.append(expr)
         self.lbg.append(np.broadcast_to(np.asarray(lower, float), (n,)).copy())
         self.ubg.append(np.broadcast_to(np.asarray(upper, float), (n,)).copy())
-        self.glabels += [label if n == 1 else f"{label}[{i}]" for i in range(n)]
+        if isinstance(label, list):
+            self.glabels += label
+        else:
+            self.glabels += [label if n == 1 else f"{label}[{i}]" for i in range(n)]
 
 
 class Transcription:
@@ -73,7 +91,9 @@ class Transcription:
         self.S = 1 if shooting_ else ocp.subintervals
         self.M = self.N * self.S   # collocation elements (mesh intervals)
         shooting = ocp.transcription == "multiple_shooting"
-        kind = ca.MX if shooting and ocp.integrator == "cvodes" else ca.SX
+        # collocation: MX with the element equations mapped over the mesh (derivatives built
+        # once per element function, compact generated code); shooting with RK4: SX
+        kind = ca.SX if shooting and ocp.integrator == "rk4" else ca.MX
         self.b = _Builder(kind)
         self._functions()
         self._variables()
@@ -138,19 +158,18 @@ class Transcription:
         ocp, b, nq, nu, N = self.ocp, self.b, self.nq, self.nu, self.N
         if ocp.free_time:
             h = ocp.horizon
-            self.T, self.T_block = b.var("T", 1, h.lower, h.upper, h.guess)
+            self.T, self.T_block = b.var("T", 1, 1, h.lower, h.upper, h.guess)
         else:
             self.T, self.T_block = ca.DM(float(ocp.horizon)), None
         self.h = self.T / self.M   # element length
-        self.X, self.U = [], []
         lo_u = np.array([ocp._control_bounds.get(c, (-np.inf, np.inf))[0]
                          for c in ocp.controls])
         up_u = np.array([ocp._control_bounds.get(c, (-np.inf, np.inf))[1]
                          for c in ocp.controls])
-        for k in range(N):
-            self.U.append(b.var(f"u{k}", nu, lo_u, up_u))
-        for e in range(self.M + 1):
-            self.X.append(b.var(f"x{e}", 2 * nq))
+        self.Ub, self.U_block = b.var("U", nu, N, lo_u, up_u)
+        self.Xb, self.X_block = b.var("X", 2 * nq, self.M + 1)
+        self.X = [self.Xb[:, e] for e in range(self.M + 1)]
+        self.U = [self.Ub[:, k] for k in range(N)]
 
     def _t(self, k: int, tau: float = 0.0):
         return self.ocp.t_start + (k + tau) * self.h
@@ -177,74 +196,111 @@ class Transcription:
                 C[j, r] = deriv(tau[r])
             B[j] = np.polyint(coeff)(1.0)
         self.tau, self.B = tau, B
-        self.colloc = []   # per interval: [(x, a, lam)] at the collocation points
-        self.quad = 0.0
-        self.energy_terms = 0.0
-        for k in range(self.M):
-            xk, uk = self.X[k][0], self.U[k // self.S][0]
-            pts = []
-            for j in range(1, d + 1):
-                x, _ = b.var(f"xc{k}_{j}", 2 * nq)
-                a, _ = b.var(f"a{k}_{j}", nq)
-                lam, _ = b.var(f"lam{k}_{j}", nc)
-                pts.append((x, a, lam))
+        M, nu_ = self.M, self.nu
+        xcb, _ = b.var("XC", 2 * nq, d * M)
+        ab, _ = b.var("A", nq, d * M)
+        lamb, _ = b.var("LAM", nc, d * M)
+        mub, _ = b.var("MU", nc, M)
+        nub, _ = b.var("NU", nc, M)
+        slb, _ = b.var("SL", nu_ if self.energy else 0, d * M, 0.0, np.inf)
+        # one element, symbolically
+        xk, xk1 = ca.SX.sym("xk", 2 * nq), ca.SX.sym("xk1", 2 * nq)
+        xc, a_e = ca.SX.sym("xc", 2 * nq, d), ca.SX.sym("a", nq, d)
+        lam_e, mu, nu = ca.SX.sym("lam", nc, d), ca.SX.sym("mu", nc), ca.SX.sym("nu", nc)
+        sl = ca.SX.sym("sl", nu_ if self.energy else 0, d)
+        u, tk, h = ca.SX.sym("u", nu_), ca.SX.sym("tk"), ca.SX.sym("h")
+        rows, lo, hi, labels = [], [], [], []
+
+        def add(expr, label, lower=0.0, upper=0.0):
+            expr = ca.vec(expr)
+            n = expr.numel()
+            if n:
+                rows.append(expr)
+                lo.append(np.broadcast_to(np.asarray(lower, float), (n,)))
+                hi.append(np.broadcast_to(np.asarray(upper, float), (n,)))
+                labels.extend([label] * n)
+
+        xs = [xk] + [xc[:, j] for j in range(d)]
+        quad = 0.0
+        fn_all, lo_all, hi_all = self.path_fns["all"]
+        for j in range(1, d + 1):
+            x, a, lam = xc[:, j - 1], a_e[:, j - 1], lam_e[:, j - 1]
+            q, v = x[:nq], x[nq:]
+            t = tk + tau[j] * h
+            xp = sum(C[r, j] * xs[r] for r in range(d + 1))
+            qdot, vdot = v, a
             if nc:
-                mu, _ = b.var(f"mu{k}", nc)
-                nu, _ = b.var(f"nu{k}", nc)
-            xs = [xk] + [p[0] for p in pts]
-            for j in range(1, d + 1):
-                x, a, lam = pts[j - 1]
-                q, v = x[:nq], x[nq:]
-                t = self._t(k, tau[j])
-                xp = sum(C[r, j] * xs[r] for r in range(d + 1))
-                qdot, vdot = v, a
-                if nc:
-                    pq, pv = self._projection(q, mu, nu)
-                    qdot, vdot = v + pq, a + pv
-                b.eq(self.h * ca.vertcat(qdot, vdot) - xp, f"collocation {k}.{j}")
-                dyn, acc = self.res(q, v, a, lam, uk, t, self.p)
-                b.eq(dyn, f"equations of motion {k}.{j}")
-                b.eq(acc, f"acceleration constraints {k}.{j}")
-                self._path_at(q, v, t, uk, f"path at interval {k} point {j}")
-                self.quad += B[j] * self.h * self.lagrange_fn(q, v, t, uk, self.p)
-                self._energy_at(q, v, t, uk, B[j] * self.h, f"{k}.{j}")
-            xend = sum(D[r] * xs[r] for r in range(d + 1))
-            b.eq(self.X[k + 1][0] - xend, f"continuity {k}")
-            self.colloc.append(pts)
+                ct = self.node(q, ca.SX.zeros(nq), t, self.p)[2]
+                qdot, vdot = v + ca.mtimes(ct, mu), a + ca.mtimes(ct, nu)
+            add(h * ca.vertcat(qdot, vdot) - xp, f"collocation point {j}")
+            dyn, acc = self.res(q, v, a, lam, u, t, self.p)
+            add(dyn, f"equations of motion at point {j}")
+            add(acc, f"acceleration constraints at point {j}")
+            if fn_all.numel_out(0):
+                add(fn_all(q, v, t, u, self.p), f"path constraint at point {j}", lo_all, hi_all)
+            quad += B[j] * h * self.lagrange_fn(q, v, t, u, self.p)
+            if self.energy:
+                power = u * ca.mtimes(self.input_matrix(q, v, t, u, self.p).T, v)
+                add(sl[:, j - 1] - power, f"energy slack + at point {j}", 0.0, np.inf)
+                add(sl[:, j - 1] + power, f"energy slack - at point {j}", 0.0, np.inf)
+                quad += self.energy * B[j] * h * ca.sum1(sl[:, j - 1])
+        add(xk1 - sum(D[r] * xs[r] for r in range(d + 1)), "continuity")
+        elem = ca.Function("ocp_element", [xk, xk1, xc, a_e, lam_e, mu, nu, sl, u, tk, h],
+                           [ca.vertcat(*rows), quad])
+        # all elements at once
+        uel = ca.horzcat(*[self.Ub[:, e // self.S] for e in range(M)])
+        tks = ca.horzcat(*[self._t(e) for e in range(M)])
+        g_el, q_el = elem.map(M)(self.Xb[:, :-1], self.Xb[:, 1:], xcb, ab, lamb, mub, nub,
+                                 slb, uel, tks, self.h)
+        n_el = len(labels)
+        b.ineq(g_el, [f"element {e}: {lab}" for e in range(M) for lab in labels],
+               np.tile(np.concatenate(lo), M) if n_el else [],
+               np.tile(np.concatenate(hi), M) if n_el else [])
+        self.quad = ca.sum2(q_el)
+        self.energy_terms = 0.0
         self._nodes()
 
-    def _energy_at(self, q, v, t, u, weight, label) -> None:
-        """Absolute actuator power |u_i (B_iᵀ q̇)| by slacks s ≥ ±P_i (exact L1)."""
-        if not self.energy:
-            return
-        power = u * ca.mtimes(self.input_matrix(q, v, t, u, self.p).T, v)
-        s, _ = self.b.var(f"s{label}", self.nu, 0.0, np.inf)
-        self.b.ineq(s - power, f"energy slack + {label}", 0.0, np.inf)
-        self.b.ineq(s + power, f"energy slack - {label}", 0.0, np.inf)
-        self.energy_terms += weight * ca.sum1(s)
-
-    def _path_at(self, q, v, t, u, label, kinds=("all",)) -> None:
-        for kind in kinds:
-            fn, lo, hi = self.path_fns[kind]
-            if fn.numel_out(0):
-                self.b.ineq(fn(q, v, t, u, self.p), label, lo, hi)
-
     def _nodes(self) -> None:
-        """C = 0 and C_q q̇ + C_t = 0 at every mesh node; path constraints at the nodes."""
-        nq = self.nq
-        for k in range(self.M + 1):
-            x = self.X[k][0]
-            q, v = x[:nq], x[nq:]
-            t = self._t(k)
-            if k == 0 and not self.ocp._initial_given:
-                continue  # the fixed consistent start satisfies them already
-            if self.nc:
+        """C = 0 and C_q q̇ + C_t = 0 at every mesh node, path constraints at the nodes (and at
+        the control nodes), all mapped over the nodes."""
+        nq, M, S = self.nq, self.M, self.S
+        first = 0 if self.ocp._initial_given else 1  # a fixed consistent start needs none
+        x, u, t = ca.SX.sym("x", 2 * nq), ca.SX.sym("u", self.nu), ca.SX.sym("t")
+        q, v = x[:nq], x[nq:]
+        for kinds, nodes, what in ((("nodes",), range(first, M + 1), "node"),
+                                   (("control_nodes",), range(first * S, M + 1, S),
+                                    "control node")):
+            exprs, lo, hi, labels = [], [], [], []
+            if kinds == ("nodes",) and self.nc:
                 c, cdot, _ = self.node(q, v, t, self.p)
-                self.b.eq(c, f"position constraints at node {k}")
-                self.b.eq(cdot, f"velocity constraints at node {k}")
-            u = self.U[min(k // self.S, self.N - 1)][0]
-            kinds = ("all", "nodes", "control_nodes") if k % self.S == 0 else ("all", "nodes")
-            self._path_at(q, v, t, u, f"path at node {k}", kinds)
+                exprs += [c, cdot]
+                lo.append(np.zeros(2 * self.nc))
+                hi.append(np.zeros(2 * self.nc))
+                labels += ["position constraint"] * self.nc + ["velocity constraint"] * self.nc
+            for kind in kinds:
+                fn, plo, phi = self.path_fns[kind]
+                if fn.numel_out(0):
+                    exprs.append(fn(q, v, t, u, self.p))
+                    lo.append(plo)
+                    hi.append(phi)
+                    labels += ["path constraint"] * len(plo)
+            if kinds == ("nodes",) and self.path_fns["all"][0].numel_out(0):
+                fn, plo, phi = self.path_fns["all"]
+                exprs.append(fn(q, v, t, u, self.p))
+                lo.append(plo)
+                hi.append(phi)
+                labels += ["path constraint"] * len(plo)
+            nodes = list(nodes)
+            if not exprs or not nodes:
+                continue
+            fnode = ca.Function(f"ocp_{what.replace(' ', '_')}", [x, u, t], [ca.vertcat(*exprs)])
+            xs = ca.horzcat(*[self.X[k] for k in nodes])
+            us = ca.horzcat(*[self.U[min(k // S, self.N - 1)] for k in nodes])
+            ts = ca.horzcat(*[self._t(k) for k in nodes])
+            vals = fnode.map(len(nodes))(xs, us, ts)
+            self.b.ineq(vals, [f"{lab} at {what} {k}" for k in nodes for lab in labels],
+                        np.tile(np.concatenate(lo), len(nodes)),
+                        np.tile(np.concatenate(hi), len(nodes)))
 
     def _shooting(self) -> None:
         ocp, b, nq, nc, N = self.ocp, self.b, self.nq, self.nc, self.N
@@ -282,34 +338,38 @@ class Transcription:
             step = ca.Function("ocp_step", [xm, um, tm, hm], [out["xf"], out["qf"]])
         self.quad = 0.0
         self.energy_terms = 0.0
+        mub, _ = b.var("MU", nc, N)
+        nub, _ = b.var("NU", nc, N)
+        slb, _ = b.var("SL", self.nu if self.energy else 0, N, 0.0, np.inf)
         for k in range(N):
-            xk, uk = self.X[k][0], self.U[k][0]
+            xk, uk = self.X[k], self.U[k]
             xend, qk = step(xk, uk, self._t(k), self.h)
             self.quad += qk
-            gap = self.X[k + 1][0] - xend
+            gap = self.X[k + 1] - xend
             if nc:
-                mu, _ = b.var(f"mu{k}", nc)
-                nu, _ = b.var(f"nu{k}", nc)
-                pq, pv = self._projection(self.X[k + 1][0][:nq], mu, nu)
+                pq, pv = self._projection(self.X[k + 1][:nq], mub[:, k], nub[:, k])
                 gap = gap - ca.vertcat(pq, pv)
             b.eq(gap, f"continuity {k}")
             if self.energy:
                 q, v = xk[:nq], xk[nq:]
-                self._energy_at(q, v, self._t(k), uk, self.h, f"{k}")
+                power = uk * ca.mtimes(self.input_matrix(q, v, self._t(k), uk, self.p).T, v)
+                b.ineq(slb[:, k] - power, f"energy slack + {k}", 0.0, np.inf)
+                b.ineq(slb[:, k] + power, f"energy slack - {k}", 0.0, np.inf)
+                self.energy_terms += self.energy * self.h * ca.sum1(slb[:, k])
         self._nodes()
 
     def _boundary(self) -> None:
         ocp, b, nq = self.ocp, self.b, self.nq
-        x0, xn = self.X[0][0], self.X[self.M][0]
-        u0, un = self.U[0][0], self.U[self.N - 1][0]
+        x0, xn = self.X[0], self.X[self.M]
+        u0, un = self.U[0], self.U[self.N - 1]
         t0, tn = self._t(0), self._t(self.M)
         if ocp._initial_given:
             b.eq(self.initial_fn(x0[:nq], x0[nq:], t0, u0, self.p) - self.initial_values,
                  "initial conditions")
         else:  # the scene's consistent initial state
             start = self._scene_start()
-            b.lbw[self.X[0][1]][:] = start
-            b.ubw[self.X[0][1]][:] = start
+            b.lbw[self.X_block][:2 * nq] = start
+            b.ubw[self.X_block][:2 * nq] = start
         if ocp._final:
             b.eq(self.final_fn(xn[:nq], xn[nq:], tn, un, self.p) - self.final_values,
                  "final conditions")
@@ -325,14 +385,14 @@ class Transcription:
         return np.concatenate([st.q, st.v])
 
     def _objective(self) -> None:
-        x_n = self.X[self.M][0]
+        x_n = self.X[self.M]
         obj = self.quad + self.energy_terms
         if self.effort:
-            obj = obj + self.effort * self.h * self.S * sum(ca.sumsqr(u[0]) for u in self.U)
+            obj = obj + self.effort * self.h * self.S * ca.sumsqr(self.Ub)
         if self.time_weight:
             obj = obj + self.time_weight * self.T
         obj = obj + self.mayer_fn(x_n[:self.nq], x_n[self.nq:], self._t(self.M),
-                                  self.U[self.N - 1][0], self.p)
+                                  self.U[self.N - 1], self.p)
         self.objective = obj
 
     # ------------------------------------------------------------------ solve
@@ -343,14 +403,24 @@ class Transcription:
 
         ocp, b = self.ocp, self.b
         t0 = time.perf_counter()
-        w = ca.vertcat(*b.w)
-        g = ca.vertcat(*b.g) if b.g else ca.SX(0, 1)
+        w = ca.vertcat(*[ca.vec(x) for x in b.w])
+        g = ca.vertcat(*b.g) if b.g else b.kind(0, 1)
         opts = dict(IPOPT_DEFAULTS) if ocp.solver == "ipopt" else {}
-        if ocp.solver == "ipopt" and b.kind is ca.MX:
+        if (ocp.solver == "ipopt" and ocp.transcription == "multiple_shooting"
+                and ocp.integrator == "cvodes"):
+            # second-order sensitivities of CVODES are costly: quasi-Newton Hessian
             opts["ipopt.hessian_approximation"] = "limited-memory"
         opts.update(ocp.solver_options)
         opts.update(options or {})
-        solver = ca.nlpsol("ocp", ocp.solver, {"x": w, "f": self.objective, "g": g}, opts)
+        problem = {"x": w, "f": self.objective, "g": g}
+        report = None
+        if ocp.compile and not (ocp.transcription == "multiple_shooting"
+                                and ocp.integrator == "cvodes"):
+            from casmbd.compiled.codegen import compile_nlp_solver
+
+            solver, report = compile_nlp_solver(problem, ocp.solver, opts, name="casmbd_ocp")
+        else:
+            solver = ca.nlpsol("ocp", ocp.solver, problem, opts)
         setup = time.perf_counter() - t0
         w0 = initial_guess(self, guess if guess is not None else ocp._guess)
         lbw, ubw = np.concatenate(b.lbw), np.concatenate(b.ubw)
@@ -375,7 +445,10 @@ class Transcription:
                 "transcription": ocp.transcription, "intervals": self.N,
                 "subintervals": self.S,
                 "degree": ocp.degree if ocp.transcription != "multiple_shooting" else None,
-                "solver": ocp.solver}
+                "solver": ocp.solver,
+                "compiled": bool(report and report.mode == "compiled"),
+                "compile_seconds": report.compile_seconds if report else 0.0,
+                "cache_hit": bool(report and report.cache_hit)}
         sol = OcpSolution.from_transcription(self, x, info, np.asarray(out["lam_g"]).ravel(),
                                              gval)
         if not info["success"] and raise_on_failure:
@@ -392,8 +465,8 @@ class Transcription:
         for i in np.flatnonzero((np.abs(x - lbw) < 1e-7 * (1 + np.abs(lbw)))
                                 | (np.abs(x - ubw) < 1e-7 * (1 + np.abs(ubw)))):
             label = b.wlabels[i]
-            if label.startswith("u"):
-                name = self.ocp.controls[int(label.split("[")[1][:-1])]
+            if label.startswith("U["):
+                name = self.ocp.controls[int(label[2:].split(",")[0])]
                 active[f"actuator '{name}'"] = active.get(f"actuator '{name}'", 0) + 1
             elif label.startswith("T["):
                 active["final time"] = 1
