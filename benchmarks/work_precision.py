@@ -413,8 +413,12 @@ def coordinates_table(rows: list[dict], problems) -> list[str]:
 
 def markdown(rows: list[dict], problems, command: str) -> str:
     """The docs section: best times per accuracy level and the full table."""
+    load = os.getloadavg()
     lines = ["## Forward dynamics: work-precision", "",
-             f"Measured {datetime.date.today().isoformat()} on {machine()}.", "",
+             f"Measured {datetime.date.today().isoformat()} on {machine()}; load average "
+             f"when the tables were written {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} (above "
+             "about 1 the cores were shared with other work and the times are upper bounds).",
+             "",
              f"Command: `{command}`", "",
              "Solve time is the integration alone (median of the repeats, after a warm-up "
              "run); building and compiling the equations and setting up the integrator are "
