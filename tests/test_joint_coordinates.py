@@ -346,3 +346,22 @@ def test_redundant_loop_reactions_are_flagged_not_zero(coordinates):
                                steps=4)
     assert four_bar.stats["undetermined_reactions"] == {}
     assert np.all(np.isfinite(four_bar["joint_reactions"]))
+
+
+@pytest.mark.parametrize("coordinates", ["joint", "natural"])
+def test_statics_and_linearization_agree(coordinates):
+    """Static equilibrium of the hanging chain (positions 1e-9 m, reactions 1e-8 relative)
+    and the natural frequencies of the double pendulum hanging down (1e-8 relative) equal
+    the absolute-coordinate ones."""
+    ref = casmbd.static_equilibrium(casmbd.load_scene(f"{EXAMPLES}/hanging_chain.toml"))
+    out = casmbd.static_equilibrium(with_coordinates(
+        casmbd.load_scene(f"{EXAMPLES}/hanging_chain.toml"), coordinates))
+    assert np.max(np.abs(out.body_positions - ref.body_positions)) < 1e-9
+    scale = np.max(np.abs(ref.joint_reactions))
+    assert np.max(np.abs(out.joint_reactions - ref.joint_reactions)) < 1e-8 * scale
+    hanging = pendulum_chain(2)
+    lin_ref = casmbd.linearize(hanging, q=None)
+    lin = casmbd.linearize(with_coordinates(pendulum_chain(2), coordinates))
+    assert lin.n_dof == lin_ref.n_dof == 2
+    assert np.allclose(np.sort(lin.frequencies_hz), np.sort(lin_ref.frequencies_hz),
+                       rtol=1e-8, atol=0.0)
