@@ -3,11 +3,11 @@
 For pendulum chains of N rods in joint coordinates (N coordinates, no constraint equation),
 released horizontally and integrated for 2 s with CVODES-Adams, this measures for the
 ``kkt_ode`` formulation (composite-rigid-body M, dense LDLᵀ) and the ``articulated``
-formulation (O(N) articulated-body recursion): SX instructions of the dynamics Function,
-build + compile time (fresh cache), solve time (median of ``--repeat`` runs after a warm-up)
-and steps, and the difference of the two tip positions.
+formulation (O(N) articulated-body recursion): build + compile time (fresh cache), solve
+time (median of ``--repeat`` runs after a warm-up) and steps, and the difference of the two
+tip positions.
 
-Run ``python -m benchmarks.tree_dynamics --sizes 2 8 32 64 --update-docs``.
+Run ``python -m benchmarks.tree_dynamics --sizes 2 8 32 --update-docs``.
 """
 
 from __future__ import annotations
@@ -44,10 +44,9 @@ def measure(n: int, formulation: str, repeat: int, rtol: float) -> dict:
     for _ in range(repeat):
         res = sim.run(t_end=2.0, steps=20, rtol=rtol)
         times.append(res.stats["solve_seconds"])
-    return {"n": n, "formulation": formulation, "instructions": sim.dyn.n_instructions()
-            if hasattr(sim.dyn, "n_instructions") else None,
-            "build_seconds": build, "solve_seconds": statistics.median(times),
-            "steps": res.stats["steps"], "tip": res.marker("tip")["position"][-1]}
+    return {"n": n, "formulation": formulation, "build_seconds": build,
+            "solve_seconds": statistics.median(times), "steps": res.stats["steps"],
+            "tip": res.marker("tip")["position"][-1]}
 
 
 def markdown(rows: list[dict], command: str) -> str:
