@@ -6,9 +6,11 @@ The layers, each importing only the ones before it:
 * :mod:`casmbd.system` — the symbolic equations (M, Q_e, Q_v, C, C_q, C_t, γ);
 * :mod:`casmbd.compiled` — generated C code, the disk cache and the numeric model;
 * :mod:`casmbd.analysis` — kinematics, forward and inverse dynamics, statics, linearisation;
+* :mod:`casmbd.ocp` — trajectory optimisation over the same model (collocation, shooting, IPOPT);
 * :mod:`casmbd.results`, :mod:`casmbd.io`, :mod:`casmbd.cli` — results, scene files, the CLI.
 """
 
+from casmbd import ocp  # noqa: F401  (casmbd.ocp.Ocp: trajectory optimisation)
 from casmbd.analysis.assembly import accelerations, assemble, velocities
 from casmbd.analysis.inverse import inverse_dynamics
 from casmbd.analysis.kinematics import info, kinematics

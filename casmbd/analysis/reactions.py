@@ -120,7 +120,8 @@ def flag_undetermined(model, qs, vs, acc, grid, us, lam, reactions: np.ndarray,
         if not null.shape[1]:
             continue
         info["redundant_steps"] += 1
-        lam[k] = lam[k] - null @ (null.T @ lam[k])
+        if np.all(np.isfinite(lam[k])):
+            lam[k] = lam[k] - null @ (null.T @ lam[k])
         rows = np.flatnonzero(np.linalg.norm(null, axis=1) > 1e-8)
         info["undetermined_rows"] = sorted(set(info["undetermined_rows"]) | set(rows.tolist()))
 

@@ -480,7 +480,9 @@ class Simulator:
         # singular KKT matrices (redundant constraints, singular poses): minimum-norm solve
         scale = 1.0 + np.max(np.abs(np.concatenate([acc, lam], axis=1)), axis=1,
                              initial=0.0)
-        singular = np.flatnonzero(~np.isfinite(residual) | (residual > 1e-8 * scale))
+        finite = np.all(np.isfinite(acc), axis=1) & np.all(np.isfinite(lam), axis=1)
+        singular = np.flatnonzero(~np.isfinite(residual) | ~finite
+                                  | (residual > 1e-8 * np.where(finite, scale, 1.0)))
         for k in singular:
             acc[k], lam[k] = accelerations_and_multipliers(model, qs[k], vs[k], grid[k], us[k])
         outputs = model.outputs(qs, vs, acc, grid)
