@@ -91,9 +91,9 @@ class Transcription:
         self.S = 1 if shooting_ else ocp.subintervals
         self.M = self.N * self.S   # collocation elements (mesh intervals)
         shooting = ocp.transcription == "multiple_shooting"
-        # collocation: MX with the element equations mapped over the mesh (derivatives built
-        # once per element function, compact generated code); shooting with RK4: SX
-        kind = ca.SX if shooting and ocp.integrator == "rk4" else ca.MX
+        # MX with the element (interval) equations mapped over the mesh: derivatives built once
+        # per element function, compact generated code
+        kind = ca.MX
         self.b = _Builder(kind)
         self._functions()
         self._variables()
@@ -336,26 +336,40 @@ class Transcription:
                               (("x", 2 * nq), ("u", self.nu), ("t", 1), ("h", 1)))
             out = integ(x0=xm, p=ca.vertcat(um, tm, hm))
             step = ca.Function("ocp_step", [xm, um, tm, hm], [out["xf"], out["qf"]])
-        self.quad = 0.0
-        self.energy_terms = 0.0
         mub, _ = b.var("MU", nc, N)
         nub, _ = b.var("NU", nc, N)
         slb, _ = b.var("SL", self.nu if self.energy else 0, N, 0.0, np.inf)
-        for k in range(N):
-            xk, uk = self.X[k], self.U[k]
-            xend, qk = step(xk, uk, self._t(k), self.h)
-            self.quad += qk
-            gap = self.X[k + 1] - xend
-            if nc:
-                pq, pv = self._projection(self.X[k + 1][:nq], mub[:, k], nub[:, k])
-                gap = gap - ca.vertcat(pq, pv)
-            b.eq(gap, f"continuity {k}")
-            if self.energy:
-                q, v = xk[:nq], xk[nq:]
-                power = uk * ca.mtimes(self.input_matrix(q, v, self._t(k), uk, self.p).T, v)
-                b.ineq(slb[:, k] - power, f"energy slack + {k}", 0.0, np.inf)
-                b.ineq(slb[:, k] + power, f"energy slack - {k}", 0.0, np.inf)
-                self.energy_terms += self.energy * self.h * ca.sum1(slb[:, k])
+        # one interval, mapped over all of them
+        xk, xk1 = (step.mx_in(0), ca.MX.sym("xk1", 2 * nq)) if ocp.integrator == "cvodes" \
+            else (ca.SX.sym("xk", 2 * nq), ca.SX.sym("xk1", 2 * nq))
+        sym = type(xk)
+        uk, tk, hk = sym.sym("u", self.nu), sym.sym("t"), sym.sym("h")
+        mu, nu = sym.sym("mu", nc), sym.sym("nu", nc)
+        sl = sym.sym("sl", self.nu if self.energy else 0)
+        xend, qk = step(xk, uk, tk, hk)
+        gap = xk1 - xend
+        if nc:
+            ct = self.node(xk1[:nq], sym.zeros(nq), tk + hk, self.p)[2]
+            gap = gap - ca.vertcat(ca.mtimes(ct, mu), ca.mtimes(ct, nu))
+        rows, lo, hi = [gap], [np.zeros(2 * nq)], [np.zeros(2 * nq)]
+        labels = ["continuity"] * (2 * nq)
+        if self.energy:
+            q, v = xk[:nq], xk[nq:]
+            power = uk * ca.mtimes(self.input_matrix(q, v, tk, uk, self.p).T, v)
+            rows += [sl - power, sl + power]
+            lo += [np.zeros(self.nu)] * 2
+            hi += [np.full(self.nu, np.inf)] * 2
+            labels += ["energy slack +"] * self.nu + ["energy slack -"] * self.nu
+            qk = qk + self.energy * hk * ca.sum1(sl)
+        interval = ca.Function("ocp_interval", [xk, xk1, uk, tk, hk, mu, nu, sl],
+                               [ca.vertcat(*rows), qk])
+        tks = ca.horzcat(*[self._t(k) for k in range(N)])
+        g_int, q_int = interval.map(N)(self.Xb[:, :-1], self.Xb[:, 1:], self.Ub, tks, self.h,
+                                       mub, nub, slb)
+        b.ineq(g_int, [f"interval {k}: {lab}" for k in range(N) for lab in labels],
+               np.tile(np.concatenate(lo), N), np.tile(np.concatenate(hi), N))
+        self.quad = ca.sum2(q_int)
+        self.energy_terms = 0.0
         self._nodes()
 
     def _boundary(self) -> None:
