@@ -1,0 +1,125 @@
+"""casmbd.ocp core checks on the shipped problems (issue 8): published objective values, replay
+of the optimal controls, constraints at every node of a closed loop, failure reporting, the
+compiled-NLP cache and the CLI contract.  Problem-level studies are in tests/test_ocp.py."""
+
+from __future__ import annotations
+
+import json
+import math
+import pathlib
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from casmbd.compiled.model import NumericModel
+from casmbd.errors import OptimizationError
+from casmbd.io.ocp_table import load_ocp
+from casmbd.ocp import OcpSolution
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+OCP = ROOT / "ocp"
+
+
+@pytest.fixture(autouse=True)
+def _cache(tmp_path_factory, monkeypatch):
+    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "cache_ocp"))
+
+
+@pytest.fixture(scope="module")
+def swing_up():
+    ocp = load_ocp(OCP / "double_pendulum_swingup.toml")
+    ocp.compile = False
+    sol = ocp.solve()
+    sol.replay()
+    return sol
+
+
+def test_double_pendulum_objective_and_replay(swing_up):
+    """Minimum-effort swing-up: the issue's hand-written reference is 59.03 (degree-3
+    collocation, N = 50); ours 59.0262 (1e-4 relative).  The default transcription (4 Radau
+    elements per control interval) reproduces the motion on replay to < 1e-4 and the final
+    state meets the boundary conditions to 1e-6."""
+    assert swing_up.success
+    assert abs(swing_up.objective - 59.0262) < 1e-4 * 59.0262
+    assert swing_up.stats["replay_error"] < 1e-4
+    assert swing_up.stats["constraint_violation"] < 1e-8
+    final = np.concatenate([swing_up.q[-1], swing_up.v[-1]])
+    assert np.max(np.abs(final - [math.pi / 2, 0.0, 0.0, 0.0])) < 1e-6
+    assert np.max(np.abs(swing_up.u)) <= 50.0 + 1e-9
+
+
+def test_cart_pole_objective_and_replay():
+    """Cart-pole swing-up: reference 53.66; ours 53.6647 (1e-4 relative); replay < 1e-4."""
+    ocp = load_ocp(OCP / "cart_pole.toml")
+    ocp.compile = False
+    sol = ocp.solve()
+    sol.replay()
+    assert abs(sol.objective - 53.6647) < 1e-4 * 53.6647
+    assert sol.stats["replay_error"] < 1e-4
+    assert abs(sol.value("hinge")[-1] - math.pi) < 1e-6
+
+
+def test_closed_loop_constraints_hold_at_every_node():
+    """Slider-crank cycle in joint coordinates (one loop joint): C(q) at every mesh node below
+    1e-8 and the slider on its prescribed path at every control node (1e-8 m)."""
+    ocp = load_ocp(OCP / "slider_crank_cycle.toml")
+    ocp.compile = False
+    ocp.intervals, ocp.subintervals = 20, 2
+    sol = ocp.solve()
+    model = NumericModel(ocp.system, "info", mode="vm")
+    assert model.nc == 2
+    worst = max(float(np.max(np.abs(model.constraints(q, t)))) for q, t in zip(sol.q, sol.t,
+                                                                             strict=True))
+    assert worst < 1e-8
+    path = sol.value("slider_x") - (0.3 + 0.05 * np.sin(2 * np.pi * sol.t))
+    assert np.max(np.abs(path[::sol.subintervals])) < 1e-8
+
+
+def test_contradictory_bounds_name_status_and_binding_actuators():
+    """|τ| ≤ 1 N m cannot swing the double pendulum up in 2 s: IPOPT's status and the
+    binding actuator bounds are in the error, the last iterate is kept."""
+    ocp = load_ocp(OCP / "double_pendulum_swingup.toml")
+    ocp.compile = False
+    ocp.intervals, ocp.subintervals = 10, 1
+    ocp.control_bounds("tau1", -1.0, 1.0)
+    ocp.control_bounds("tau2", -1.0, 1.0)
+    with pytest.raises(OptimizationError) as info:
+        ocp.solve()
+    text = str(info.value)
+    assert "Infeasible" in text or "Restoration" in text or "Maximum" in text
+    assert "actuator 'tau1' at its bound" in text
+    assert info.value.solution is not None
+
+
+def test_compiled_nlp_is_cached_and_equal(swing_up):
+    """The compiled NLP gives the VM's optimum (1e-8 relative); a second identical problem
+    loads the library from the cache without compiling."""
+    first = load_ocp(OCP / "double_pendulum_swingup.toml")
+    first.intervals, first.subintervals = 10, 1
+    a = first.solve()
+    again = load_ocp(OCP / "double_pendulum_swingup.toml")
+    again.intervals, again.subintervals = 10, 1
+    b = again.solve()
+    vm = load_ocp(OCP / "double_pendulum_swingup.toml")
+    vm.intervals, vm.subintervals, vm.compile = 10, 1, False
+    c = vm.solve()
+    assert a.stats["compiled"] and not a.stats["cache_hit"]
+    assert b.stats["cache_hit"] and b.stats["compile_seconds"] == 0.0
+    assert abs(a.objective - c.objective) < 1e-8 * abs(c.objective)
+
+
+def test_cli_json_contract_and_saved_solution(tmp_path):
+    out = tmp_path / "sol.npz"
+    proc = subprocess.run([sys.executable, "-m", "casmbd", "ocp", str(OCP / "cart_pole.toml"),
+                           "--json", "--out", str(out), "--intervals", "20"],
+                          capture_output=True, text=True, check=False, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout)
+    for key in ("success", "objective", "iterations", "replay_error", "constraint_violation",
+                "stats"):
+        assert key in data
+    assert data["success"] is True and data["replay_error"] < 1e-3
+    sol = OcpSolution.load(out)
+    assert sol.u.shape == (20, 1) and abs(sol.stats["objective"] - data["objective"]) < 1e-12
