@@ -123,3 +123,14 @@ def test_cli_json_contract_and_saved_solution(tmp_path):
     assert data["success"] is True and data["replay_error"] < 1e-3
     sol = OcpSolution.load(out)
     assert sol.u.shape == (20, 1) and abs(sol.stats["objective"] - data["objective"]) < 1e-12
+
+
+def test_minimum_time_swing_up():
+    """Free final time, |τ| ≤ 20 N m: T* = 0.7194 s in the issue; ours 0.71936 s (1e-4 s),
+    with one Radau element per interval and with the default four."""
+    ocp = load_ocp(OCP / "double_pendulum_min_time.toml")
+    ocp.compile, ocp.subintervals = False, 1
+    sol = ocp.solve()
+    assert abs(sol.stats["final_time"] - 0.7194) < 1e-4
+    assert np.max(np.abs(sol.u)) <= 20.0 + 1e-8
+    assert abs(sol.t[-1] - sol.stats["final_time"]) < 1e-12
