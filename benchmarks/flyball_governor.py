@@ -36,6 +36,8 @@ from pathlib import Path
 import numpy as np
 from scipy.integrate import cumulative_simpson
 
+from benchmarks.docs import replace_section
+
 ROOT = Path(__file__).resolve().parent.parent
 SCENE = ROOT / "examples" / "flyball_governor.toml"
 DOC = ROOT / "docs" / "hard_cases.md"
@@ -365,17 +367,9 @@ def findings(rows: list[dict], ref: dict) -> list[str]:
 def update_docs(section: str, path: Path = DOC) -> Path:
     """Replace this section of docs/hard_cases.md (create the file if missing); other sections
     are kept as they are."""
-    text = path.read_text(encoding="utf-8") if path.exists() else (
+    return replace_section(path, HEAD, section, (
         "# Hard cases\n\nMechanisms that break simulation codes: redundant constraints, "
-        "singular configurations, stiff mechanisms, long runs (issue 7).\n")
-    if HEAD in text:
-        start = text.index(HEAD)
-        nxt = text.find("\n## ", start + len(HEAD))
-        text = text[:start] + section + (text[nxt + 1:] if nxt >= 0 else "")
-    else:
-        text = text.rstrip() + "\n\n" + section
-    path.write_text(text, encoding="utf-8")
-    return path
+        "singular configurations, stiff mechanisms, long runs (issue 7).\n"))
 
 
 def main(argv=None) -> int:

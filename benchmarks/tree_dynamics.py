@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.chains import pendulum_chain
+from benchmarks.docs import replace_section
 from benchmarks.work_precision import machine
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -72,16 +73,7 @@ def markdown(rows: list[dict], command: str) -> str:
 
 def update_docs(section: str) -> Path:
     """Replace (or append) this section of docs/performance.md."""
-    path = ROOT / "docs" / "performance.md"
-    text = path.read_text(encoding="utf-8")
-    if HEAD in text:
-        start = text.index(HEAD)
-        nxt = text.find("\n## ", start + len(HEAD))
-        text = text[:start] + section + (text[nxt + 1:] if nxt >= 0 else "")
-    else:
-        text = text.rstrip() + "\n\n" + section
-    path.write_text(text, encoding="utf-8")
-    return path
+    return replace_section(ROOT / "docs" / "performance.md", HEAD, section)
 
 
 def main(argv=None) -> int:

@@ -54,6 +54,7 @@ import numpy as np
 
 import casmbd
 from benchmarks.chains import body_name, joint_name, pendulum_chain
+from benchmarks.docs import replace_section
 from benchmarks.references import load_reference
 from casmbd.analysis.simulate import Simulator
 from casmbd.errors import CasmbdError
@@ -480,17 +481,8 @@ def markdown(rows: list[dict], problems, command: str) -> str:
 
 def update_docs(section: str) -> Path:
     """Replace (or append) the work-precision section of docs/performance.md."""
-    path = ROOT / "docs" / "performance.md"
-    text = path.read_text(encoding="utf-8") if path.exists() else "# Performance\n"
-    head = "## Forward dynamics: work-precision"
-    if head in text:
-        start = text.index(head)
-        nxt = text.find("\n## ", start + len(head))
-        text = text[:start] + section + (text[nxt + 1:] if nxt >= 0 else "")
-    else:
-        text = text.rstrip() + "\n\n" + section
-    path.write_text(text, encoding="utf-8")
-    return path
+    return replace_section(ROOT / "docs" / "performance.md",
+                           "## Forward dynamics: work-precision", section, "# Performance\n")
 
 
 def main(argv=None) -> int:

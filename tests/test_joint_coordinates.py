@@ -13,6 +13,7 @@ import casmbd
 from benchmarks.chains import pendulum_chain, spatial_chain
 from casmbd import Mechanism, System
 from casmbd.errors import ModelError
+from tests.mechanisms import triple_crank
 
 G = 9.81
 EXAMPLES = pathlib.Path(__file__).resolve().parent.parent / "examples"
@@ -304,21 +305,6 @@ def test_default_formulation_for_trees_and_energy_from_twists():
     t_twist, t_quad = (float(x) for x in f(rng.normal(size=6), rng.normal(size=6),
                                            system.parameter_values))
     assert abs(t_twist - t_quad) < 1e-12 * abs(t_quad)
-
-
-def triple_crank(coordinates: str) -> Mechanism:
-    """Three parallel unit cranks under one coupler: a parallelogram with a redundant third
-    crank (one dependent loop equation, mobility 1), a torsion spring on the first crank."""
-    m = Mechanism(f"triple_crank_{coordinates}", gravity=(0.0, -G), coordinates=coordinates)
-    for i in range(3):
-        m.add_body(f"c{i}", mass=1.0, inertia=1.0 / 12.0, position=(float(i), 0.5),
-                   angle=math.pi / 2)
-    m.add_body("coupler", mass=2.0, inertia=2.0 * 4.0 / 12.0, position=(1.0, 1.0))
-    for i in range(3):
-        m.add_revolute(f"g{i}", "ground", f"c{i}", point=(float(i), 0.0))
-        m.add_revolute(f"t{i}", f"c{i}", "coupler", point=(float(i), 1.0))
-    m.add_rotational_spring_damper("spring", "g0", stiffness=10.0, damping=0.5)
-    return m
 
 
 @pytest.mark.parametrize("coordinates", ["absolute", "joint"])
