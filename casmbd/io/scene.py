@@ -19,8 +19,9 @@ Contract (SI units, angles in radians; vectors have ``dimension`` components)::
     [[markers]]   name, body, point
     [[joints]]    name, type, body1, body2, point, ...
                   plane: revolute|prismatic|rigid|distance|fixed
-                  space: also spherical|cylindrical|universal; axis (revolute, prismatic,
-                  cylindrical), axes = [[...], [...]] or axis1, axis2 (universal)
+                  space: also spherical|cylindrical|universal|inline; axis (revolute,
+                  prismatic, cylindrical, inline), axes = [[...], [...]] or axis1, axis2
+                  (universal)
     [[drivers]]   name, joint (+ coordinate for a multi-coordinate joint) |
                   body + coordinate (x|y|angle; x|y|z in space), position (expression of t)
     [[forces]]    name, type = force|torque|spring_damper|rotational_spring_damper, ...
@@ -61,8 +62,9 @@ _JOINT_KEYS = {
     "spherical": {"point"},
     "cylindrical": {"point", "axis"},
     "universal": {"point", "axes", "axis1", "axis2"},
+    "inline": {"point", "axis"},
 }
-_SPATIAL_JOINTS = {"spherical", "cylindrical", "universal"}
+_SPATIAL_JOINTS = {"spherical", "cylindrical", "universal", "inline"}
 _DRIVER_KEYS = {"name", "joint", "body", "coordinate", "position", "description"}
 _FORCE_KEYS = {
     "force": {"body", "point", "value", "frame"},
@@ -430,6 +432,9 @@ def _add_joint(mech: Mechanism, e: _Entry, jtype: str, guarded) -> None:
         guarded(e, lambda: add(name, b1, b2, e.vector("point", dim), e.vector("axis", dim)))
     elif jtype == "spherical":
         guarded(e, lambda: mech.add_spherical(name, b1, b2, e.vector("point", 3)))
+    elif jtype == "inline":
+        guarded(e, lambda: mech.add_inline(name, b1, b2, e.vector("point", 3),
+                                           e.vector("axis", 3)))
     elif jtype == "universal":
         if e.has("axes"):
             for key in ("axis1", "axis2"):

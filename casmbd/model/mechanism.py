@@ -33,6 +33,7 @@ from casmbd.model.joints import Distance, Fixed, Joint, Prismatic, Revolute, Rig
 from casmbd.model.rotations import euler_zxz_to_quaternion, inertia_tensor
 from casmbd.model.spatial_joints import (
     Cylindrical,
+    InLine,
     SpatialFixed,
     SpatialPrismatic,
     SpatialRevolute,
@@ -261,6 +262,14 @@ class Mechanism:
         self._new_joint(name, body1, body2)
         return self._add_joint(Universal(name, body1, body2, point=point, axis1=axis1,
                                          axis2=axis2))
+
+    def add_inline(self, name: str, body1: str, body2: str, point: Sequence[float],
+                   axis: Sequence[float]) -> Joint:
+        """In-line joint: the point of body2 at the global ``point`` stays on the line of body1
+        through ``point`` along the global ``axis`` (2 equations).  Spatial only."""
+        self._spatial("in-line", name)
+        self._new_joint(name, body1, body2)
+        return self._add_joint(InLine(name, body1, body2, point=point, axis=axis))
 
     def add_rigid(self, name: str, body1: str, body2: str,
                   point: Sequence[float] | None = None) -> Joint:

@@ -19,6 +19,7 @@ revolute        spherical + dot-1 (f1, h2) + dot-1 (g1, h2)                 5   
 cylindrical     dot-1 (f1, h2), dot-1 (g1, h2), dot-2 (f1, d), dot-2 (g1, d)  4       2
 prismatic       cylindrical + dot-1 (f1, g2) (no rotation about the axis)   5       1
 universal       spherical + dot-1 (a1, a2)                                  4       2
+in-line         dot-2 (f1, d) + dot-2 (g1, d)                               2       4
 rigid / fixed   spherical + dot-1 (f1, g2), (f1, h2), (g1, h2)              6       0
 ==============  ==========================================================  ======  =========
 
@@ -212,6 +213,26 @@ class Universal(_PointJoint):
     def equations(self, ctx):
         return ca.vertcat(spherical(ctx, self.body1, self.body2, self.point),
                           dot1(ctx, self.body1, self.axis1, self.body2, self.axis2))
+
+
+@dataclass
+class InLine(_AxisJoint):
+    """In-line (point-on-line) joint: the point of body2 stays on the line of body1 through
+    ``point`` along ``axis`` (2 equations, dot-2 (f1, d) and dot-2 (g1, d) with d = r_P2 − r_P1;
+    seed 001, "Spatial joints").
+
+    Body2 keeps its three rotations and the translation along the line (4 degrees of freedom).
+    It is the non-redundant closure of a planar loop written in space: of the five equations of
+    a revolute joint closing such a loop only the two in-plane conditions are independent (seed
+    002, "Redundant constraint equations", the crankshaft), and these are the two equations of
+    an in-line joint along the revolute's axis.
+    """
+
+    labels: tuple[str, ...] = ("offset f", "offset g")
+
+    def equations(self, ctx):
+        b1, b2, p = self.body1, self.body2, self.point
+        return ca.vertcat(dot2(ctx, b1, self.f, p, b2, p), dot2(ctx, b1, self.g, p, b2, p))
 
 
 @dataclass
