@@ -158,10 +158,6 @@ def test_undetermined_reactions_joint_coordinates(redundant, inline, option):
     _check_reactions(*redundant["joint", option], inline)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "core: in absolute coordinates Simulator._post accepts the sparse-QR solution of the "
-    "singular KKT matrix (|λ| ~ 1e16, residual ~ 16, below 1e-8 of that scale), so q̈ and the "
-    "determined reactions after t = 0 are wrong (reported to the lead)"))
 @pytest.mark.parametrize("option", ["remove", "minimum_norm"])
 def test_undetermined_reactions_absolute_coordinates(redundant, inline, option):
     _check_reactions(*redundant["absolute", option], inline)
@@ -258,10 +254,6 @@ def _truncated_accelerations(model, q, v, t) -> np.ndarray:
     return np.linalg.solve(kkt, np.concatenate([force, g_r]))[:len(q)]
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "core: with a nearly dependent row (σ_min/σ_max ~ 1e-12 after integration) the sparse-QR "
-    "solve of post() and the splu/lstsq(rcond=eps) fallback of kkt._solve_saddle amplify the "
-    "row's inconsistency: reported q̈ off by 4e-6 (reported to the lead)"))
 def test_bricard_reported_accelerations(bricard_runs):
     """The reported q̈ is the unique acceleration of the independent equations (to 1e-8)."""
     sim = casmbd.Simulator(bricard("joint"), "kkt_ode", redundancy="remove")

@@ -23,12 +23,23 @@ import scipy.sparse.linalg as spla
 
 from casmbd.analysis.assembly import assemble
 
+#: relative singular-value cut of the minimum-norm KKT solve with redundant equations
+TRUNCATE_RTOL = 1e-10
 
-def _solve_saddle(top_left: sp.spmatrix, cq: sp.spmatrix, rhs: np.ndarray) -> np.ndarray:
+
+def _solve_saddle(top_left: sp.spmatrix, cq: sp.spmatrix, rhs: np.ndarray,
+                  redundant: bool = False) -> np.ndarray:
+    """Solve [A C_qᵀ; C_q 0] x = rhs: sparse LU when regular; with ``redundant`` (or when LU
+    fails) the minimum-norm least-squares solution with singular values below
+    :data:`TRUNCATE_RTOL` × the largest cut, so that a nearly dependent row does not amplify
+    its small inconsistency into the solution."""
     n, m = top_left.shape[0], cq.shape[0]
     kkt = sp.bmat([[top_left, cq.T], [cq, None]], format="csc")
     if m == 0:
         return spla.spsolve(sp.csc_matrix(top_left), rhs).reshape(-1)
+    if redundant:
+        sol, *_ = sla.lstsq(kkt.toarray(), rhs, cond=TRUNCATE_RTOL, lapack_driver="gelsd")
+        return sol
     try:
         with np.errstate(all="ignore"):
             sol = spla.splu(kkt).solve(rhs)
@@ -42,16 +53,17 @@ def _solve_saddle(top_left: sp.spmatrix, cq: sp.spmatrix, rhs: np.ndarray) -> np
     return sol
 
 
-def accelerations_and_multipliers(model, q, v, t: float, u=None) -> tuple[np.ndarray,
-                                                                           np.ndarray]:
-    """q̈ and λ of the augmented equations at (q, v, t) with actuator inputs ``u``."""
+def accelerations_and_multipliers(model, q, v, t: float, u=None, redundant: bool = False
+                                  ) -> tuple[np.ndarray, np.ndarray]:
+    """q̈ and λ of the augmented equations at (q, v, t) with actuator inputs ``u``
+    (``redundant``: truncated minimum-norm solve, see :func:`_solve_saddle`)."""
     m_mat = model.mass_matrix(q)
     force = model.applied_forces(q, v, t, u) + model.quadratic_velocity_forces(q, v)
     if model.nc == 0:
         return spla.spsolve(sp.csc_matrix(m_mat), force).reshape(-1), np.zeros(0)
     cq = model.constraint_jacobian(q, t)
     rhs = np.concatenate([force, model.acceleration_rhs(q, v, t)])
-    sol = _solve_saddle(m_mat, cq, rhs)
+    sol = _solve_saddle(m_mat, cq, rhs, redundant)
     return sol[:model.nq], sol[model.nq:]
 
 
