@@ -193,13 +193,15 @@ def near_singular_passes(model, grid: np.ndarray, qs: np.ndarray, vs: np.ndarray
         sigma = equilibrated_singular_values(model.constraint_jacobian(q, float(t)))
         return float(sigma[rank - 1] / sigma[0]) if sigma[0] > 0 else 0.0
 
-    for k in range(n):
+    evaluated = np.flatnonzero(np.isfinite(cond))  # a subsampled run: minima among these
+    for i, k in enumerate(evaluated):
         c = cond[k]
-        left = cond[k - 1] if k > 0 else np.inf
-        right = cond[k + 1] if k + 1 < n else np.inf
-        if not (np.isfinite(c) and c <= left and c < right and c < REFINE_BELOW):
+        left = cond[evaluated[i - 1]] if i > 0 else np.inf
+        right = cond[evaluated[i + 1]] if i + 1 < len(evaluated) else np.inf
+        if not (c <= left and c < right and c < REFINE_BELOW):
             continue
-        lo, hi = max(k - 1, 0), min(k + 1, n - 1)
+        lo = evaluated[i - 1] if i > 0 else k
+        hi = evaluated[i + 1] if i + 1 < len(evaluated) else k
         best_t, best_c = float(grid[k]), float(c)
         for j in range(lo, hi):
             res = minimize_scalar(lambda t, j=j: at(j, t), bounds=(grid[j], grid[j + 1]),
