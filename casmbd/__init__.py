@@ -32,7 +32,7 @@ from casmbd.errors import (
 )
 from casmbd.io.scene import load_scene, loads_scene
 from casmbd.model import Mechanism
-from casmbd.results import Result, load
+from casmbd.results import Result, load, load_result
 from casmbd.system import System
 
 __version__ = "0.1.0"
@@ -41,5 +41,6 @@ __all__ = ["AnalysisError", "AssemblyError", "CasmbdError", "CompileError", "Exp
            "IntegratorError", "Mechanism", "ModelError", "NumericModel",
            "RedundantConstraintError", "Result", "SceneError", "Simulator",
            "SingularConfigurationError", "System", "accelerations", "assemble", "info",
-           "inverse_dynamics", "kinematics", "linearize", "load", "load_scene", "loads_scene",
+           "inverse_dynamics", "kinematics", "linearize", "load", "load_result", "load_scene",
+           "loads_scene",
            "simulate", "static_equilibrium", "velocities"]

@@ -3,15 +3,21 @@
 A :class:`Result` keeps every array of an analysis (time as the first axis), the names needed to
 read them, and statistics.  ``to_json`` gives the CLI contract (``"t"``, ``"bodies"``,
 ``"joints"``, ``"constraint_violation"``, ``"stats"`` …; planar bodies report an ``"angle"``,
-spatial ones a ``"quaternion"`` [w, x, y, z]); ``save`` writes every array to an npz
-file atomically (temporary file + rename), and :func:`load` reads it back.
+spatial ones a ``"quaternion"`` [w, x, y, z]); ``save`` writes every array, the names, the
+statistics and the scene text to an npz file and ``to_csv`` one column per scalar series, both
+atomically (temporary file in the target folder + ``os.replace``, :func:`atomic_write`);
+:func:`load` (also ``Result.load`` and ``casmbd.load_result``) reads an npz file back and
+``Result.mechanism`` re-loads the embedded scene.
 """
 
 from __future__ import annotations
 
+import csv
 import json
 import os
+import re
 import tempfile
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -20,6 +26,38 @@ import numpy as np
 
 def _list(arr: np.ndarray):
     return np.asarray(arr, dtype=float).tolist()
+
+
+def atomic_write(path: str | os.PathLike, write: Callable[[str], None]) -> Path:
+    """Write a file atomically: ``write(tmp)`` fills a temporary file in the target's folder,
+    which then replaces ``path`` in one ``os.replace`` (readers see the old file or the
+    complete new one, never a partial one; the temporary file is removed on failure).
+
+    The temporary name keeps the target's suffix (``.tmp_XXXX.png``) so that writers which
+    infer the format from the name (matplotlib, Pillow) behave as for the target.  Creates
+    the parent folder when missing.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=".tmp_", suffix="".join(path.suffixes[-1:]),
+                               dir=path.parent)
+    os.close(fd)
+    try:
+        write(tmp)
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp's 0600 -> what open() would have given
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return path
+
+
+#: column labels of the components of vector-valued series, by array name prefix
+_AXES = {2: ("x", "y"), 3: ("x", "y", "z")}
+_REACTIONS = {3: ("Fx", "Fy", "M"), 6: ("Fx", "Fy", "Fz", "Mx", "My", "Mz")}
+_EQUATION = re.compile(r"^(\w+) '(.*)' equation '(.*)'$")
 
 
 @dataclass
@@ -246,28 +284,161 @@ class Result:
     # ------------------------------------------------------------------ files
     def save(self, path: str | os.PathLike) -> Path:
         """Write every array, the names, stats and scene text to an npz file atomically."""
-        path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
         payload = {"t": self.t, **{f"array/{k}": v for k, v in self.arrays.items()}}
         payload["meta"] = np.array(json.dumps({"kind": self.kind, "names": self.names,
-                                               "stats": self.stats}))
+                                               "stats": self.stats}, default=_json_default))
         payload["scene"] = np.array(self.scene)
-        fd, tmp = tempfile.mkstemp(prefix=".tmp_", suffix=".npz", dir=path.parent)
-        os.close(fd)
-        try:
+
+        def write(tmp: str) -> None:
             with open(tmp, "wb") as fh:
                 np.savez_compressed(fh, **payload)
-            os.replace(tmp, path)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
-        return path
+
+        return atomic_write(path, write)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike) -> Result:
+        """Read a result written by :meth:`save` (same as :func:`casmbd.results.load`)."""
+        return load(path)
+
+    def mechanism(self):
+        """The :class:`~casmbd.model.Mechanism` of the scene text embedded in the result.
+
+        Raises
+        ------
+        AnalysisError
+            When the result holds no scene text (built in Python from a mechanism that did not
+            come from a scene file); pass the mechanism explicitly instead.
+        """
+        from casmbd.errors import AnalysisError
+        from casmbd.io.scene import loads_scene
+
+        if not self.scene:
+            raise AnalysisError(f"this {self.kind} result holds no scene text (the mechanism "
+                                "was not loaded from a scene file); pass the mechanism")
+        return loads_scene(self.scene, source=f"<scene embedded in the {self.kind} result>")
+
+    def attach_scene(self, mechanism) -> Result:
+        """Embed the scene text of ``mechanism`` (``mechanism.scene_text``, set by
+        :func:`casmbd.load_scene`) so that :meth:`save` stores it; returns ``self``."""
+        self.scene = getattr(mechanism, "scene_text", "") or self.scene
+        return self
+
+    # ------------------------------------------------------------------ CSV
+    def _labels(self, key: str, arr: np.ndarray) -> list[str]:
+        """Column labels ``key[element.field]`` of one array (flattened row-major)."""
+        names, dim = self.names, self.dimension
+        n = int(np.prod(arr.shape[1:], dtype=int))
+
+        def per(elements, fields):
+            labels = [f"{e}.{f}" for e in elements for f in fields]
+            return labels if len(labels) == n else None
+
+        groups = {"q": names.get("coordinates"), "v": names.get("coordinates"),
+                  "a": names.get("coordinates")}
+        labels = None
+        if key in groups and groups[key] and len(groups[key]) == n:
+            labels = list(groups[key])
+        elif key.startswith("body_"):
+            labels = per(names.get("bodies", []), _AXES[dim])
+        elif key.startswith("angle_"):
+            labels = per(names.get("bodies", []), ("angle",))
+        elif key == "rotation_matrices":
+            labels = per(names.get("bodies", []), [f"A{i}{j}" for i in range(1, 4)
+                                                    for j in range(1, 4)])
+        elif key.startswith("angular_"):
+            labels = per(names.get("bodies", []), ("wx", "wy", "wz"))
+        elif key.startswith("marker_"):
+            labels = per(names.get("markers", []), _AXES[dim])
+        elif key.startswith("joint_") and key != "joint_reactions":
+            joints = names.get("joints", [])
+            labels = list(joints) if len(joints) == n else None
+        elif key == "joint_reactions" and arr.ndim == 3:
+            labels = per(names.get("all_joints", []), _REACTIONS.get(arr.shape[2], ()))
+        elif key == "driver_efforts":
+            labels = per(names.get("drivers", []), ("effort",))
+        elif key.startswith("actuator_"):
+            labels = per(names.get("actuators", []), (key.split("_", 1)[1].rstrip("s"),))
+        elif key == "lambda" and len(names.get("constraints", [])) == n:
+            labels = []
+            for text in names["constraints"]:
+                m = _EQUATION.match(text)
+                labels.append(f"{m.group(2)}.{m.group(3)}" if m else text)
+        if labels is None:
+            labels = [".".join(map(str, idx)) for idx in np.ndindex(*arr.shape[1:])]
+        return [f"{key}[{label}]" if arr.ndim > 1 else key for label in labels]
+
+    def csv_columns(self) -> list[tuple[str, np.ndarray]]:
+        """The scalar series of :meth:`to_csv`: ``("t", t)`` then, per array in storage order,
+        one ``(label, values)`` per component (row-major), labelled ``array[element.field]``
+        (``q[crank.angle]``, ``body_positions[rod.y]``, ``joint_reactions[O.Fx]``,
+        ``lambda[O.x]``; a scalar series by its name, ``total_energy``).  Arrays that are not
+        on the time grid are left out."""
+        n_t = len(self.t)
+        columns = [("t", np.asarray(self.t, float))]
+        for key, arr in self.arrays.items():
+            arr = np.asarray(arr)
+            if arr.ndim == 0 or arr.shape[0] != n_t or not np.issubdtype(arr.dtype, np.number):
+                continue
+            flat = arr.reshape(n_t, -1).astype(float)
+            labels = self._labels(key, arr) if arr.ndim > 1 else [key]
+            columns += [(label, flat[:, k]) for k, label in enumerate(labels)]
+        return columns
+
+    def to_csv(self, path: str | os.PathLike) -> Path:
+        """Write one column per scalar series (:meth:`csv_columns`) with a one-line header, values
+        with 17 significant digits (they read back exactly), atomically.
+
+        ``numpy.loadtxt(path, delimiter=",", skiprows=1)`` reads the numbers back; NaN (an
+        undetermined reaction component) is written as ``nan``.
+        """
+        columns = self.csv_columns()
+        table = np.column_stack([c for _, c in columns]) if len(self.t) else \
+            np.empty((0, len(columns)))
+
+        def write(tmp: str) -> None:
+            with open(tmp, "w", newline="", encoding="utf-8") as fh:
+                writer = csv.writer(fh)
+                writer.writerow([label for label, _ in columns])
+                for row in table:
+                    writer.writerow([repr(float(x)) for x in row])
+
+        return atomic_write(path, write)
+
+
+def _json_default(obj):
+    if isinstance(obj, np.ndarray):
+        return obj.tolist()
+    if isinstance(obj, (np.floating, np.integer, np.bool_)):
+        return obj.item()
+    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
 
 
 def load(path: str | os.PathLike) -> Result:
-    """Read a result written by :meth:`Result.save`."""
-    with np.load(path, allow_pickle=False) as data:
-        meta = json.loads(str(data["meta"]))
-        arrays = {k.split("/", 1)[1]: data[k] for k in data.files if k.startswith("array/")}
-        return Result(meta["kind"], data["t"], arrays, meta["names"], meta["stats"],
-                      str(data["scene"]))
+    """Read a result written by :meth:`Result.save`.
+
+    Raises
+    ------
+    AnalysisError
+        When the file is missing, unreadable or not a result file (naming the file).
+    """
+    from casmbd.errors import AnalysisError
+
+    try:
+        data = np.load(path, allow_pickle=False)
+        if not isinstance(data, np.lib.npyio.NpzFile):
+            raise AnalysisError(f"'{path}' is not a casmbd result file (not an npz archive)")
+        with data:
+            if "meta" not in data.files:
+                raise AnalysisError(f"'{path}' is not a casmbd result file (no 'meta' entry)")
+            meta = json.loads(str(data["meta"]))
+            arrays = {k.split("/", 1)[1]: data[k] for k in data.files
+                      if k.startswith("array/")}
+            scene = str(data["scene"]) if "scene" in data.files else ""
+            return Result(meta["kind"], data["t"], arrays, meta["names"], meta["stats"], scene)
+    except AnalysisError:
+        raise
+    except (OSError, ValueError, KeyError) as exc:
+        raise AnalysisError(f"cannot read result file '{path}': {exc}") from None
+
+
+load_result = load
