@@ -130,7 +130,44 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-replay", action="store_true",
                    help="skip the forward replay of the optimal controls")
     p.add_argument("--plot", default=None, help="save a figure of coordinates and controls")
+    _add_workbench_verbs(sub)
     return parser
+
+
+def _add_workbench_verbs(sub) -> None:
+    """The ``plot`` and ``animate`` verbs (figures and animations of results)."""
+    from casmbd.viz.plots import KINDS
+
+    p = sub.add_parser("plot", help="figures of a saved result against time")
+    p.add_argument("result", help="result file (.npz) written with --out")
+    p.add_argument("--kind", action="append", choices=tuple(KINDS), default=None,
+                   help="figure panel (repeatable; default every kind the result holds)")
+    p.add_argument("--out", required=True, help="figure file (.png, .pdf, .svg)")
+    p.add_argument("--dpi", type=_positive_float, default=100.0, help="resolution (default 100)")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+
+    p = sub.add_parser("animate", help="animation (.gif, .mp4 with ffmpeg) or still frame "
+                                       "(.png) of a scene or a saved result")
+    p.add_argument("source", help="scene file (TOML; simulated first) or result file (.npz)")
+    p.add_argument("--out", required=True,
+                   help=".gif (Pillow), .mp4 (needs ffmpeg) or .png/.pdf/.svg (a still frame "
+                        "with earlier poses faded)")
+    p.add_argument("--t-end", type=_positive_float, default=2.0,
+                   help="final time of the simulation of a scene [s] (default 2)")
+    p.add_argument("--steps", type=_positive_int, default=50,
+                   help="output intervals of the simulation of a scene (default 50)")
+    p.add_argument("--max-frames", type=_positive_int, default=None,
+                   help="show at most this many evenly spread output steps")
+    p.add_argument("--fps", type=_positive_float, default=None,
+                   help="frames per second (default real time, within 5-30)")
+    p.add_argument("--trace", action="append", default=None, metavar="MARKER",
+                   help="draw the path of this marker (repeatable; 'all' for every marker)")
+    p.add_argument("--dpi", type=_positive_float, default=80.0, help="resolution (default 80)")
+    p.add_argument("--mode", choices=("auto", "compiled", "vm"), default="auto",
+                   help="compile equations to C (default auto) or use CasADi's VM")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
 
 
 # ---------------------------------------------------------------------- verbs
@@ -423,6 +460,70 @@ def _cmd_ocp(args) -> tuple[dict, str]:
 
 
 VERBS["ocp"] = _cmd_ocp
+
+
+def _cmd_plot(args) -> tuple[dict, str]:
+    """Figure of a saved result: one panel per kind against time."""
+    from casmbd.results import load
+    from casmbd.viz.plots import available_kinds, plot_result
+
+    _check_out(args)
+    result = load(args.result)
+    kinds = args.kind or available_kinds(result)
+    plot_result(result, kinds, out=args.out, dpi=args.dpi)
+    data = {"out": args.out, "kinds": kinds, "result": args.result}
+    return data, f"saved {args.out} ({', '.join(kinds)})"
+
+
+def _cmd_animate(args) -> tuple[dict, str]:
+    """Animate a result file, or simulate a scene (default simulator) and animate it."""
+    from casmbd.viz.animation import animate, check_animation_file, draw_frame, save_animation
+
+    _check_out(args)
+    suffix = Path(args.out).suffix.lower()
+    if suffix not in (".gif", ".mp4", ".png", ".pdf", ".svg"):
+        raise AnalysisError(f"--out '{args.out}': unknown suffix '{suffix}' (use .gif, .mp4 "
+                            "with ffmpeg, or .png/.pdf/.svg for a still frame)")
+    if suffix in (".gif", ".mp4"):
+        check_animation_file(args.out)  # before a simulation: no ffmpeg, no MP4
+    lines = []
+    if Path(args.source).suffix.lower() == ".npz":
+        from casmbd.results import load
+
+        result = load(args.source)
+        mech = result.mechanism()
+        source = f"result {args.source}"
+    else:
+        from casmbd.analysis.simulate import simulate
+        from casmbd.io.scene import load_scene
+
+        mech = load_scene(args.source)
+        result = simulate(mech, t_end=args.t_end, steps=args.steps, mode=args.mode)
+        result.attach_scene(mech)
+        source = f"simulation of '{mech.name}'"
+        s = result.stats
+        lines.append(f"simulated '{mech.name}' to t = {args.t_end:g} s ({args.steps} steps, "
+                     f"{s.get('formulation')} on {s.get('integrator')}), solve "
+                     f"{s.get('solve_seconds', 0.0):.3g} s")
+    trace = args.trace
+    if trace and "all" in trace:
+        trace = True
+    if suffix in (".gif", ".mp4"):
+        anim = animate(result, mech, max_frames=args.max_frames, fps=args.fps, trace=trace)
+        save_animation(anim, args.out, dpi=args.dpi)
+        frames, fps = anim.casmbd_frames, anim.casmbd_fps
+        lines.append(f"saved {args.out}: {frames} frames at {fps:.3g} fps ({source})")
+    else:
+        draw_frame(result, mechanism=mech, ghosts=8, trace=trace, out=args.out, dpi=args.dpi)
+        frames, fps = 1, None
+        lines.append(f"saved {args.out}: still frame at t = {result.t[-1]:g} s ({source})")
+    data = {"out": args.out, "frames": frames, "fps": fps, "t_end": float(result.t[-1]),
+            "stats": dict(result.stats)}
+    return data, "\n".join(lines)
+
+
+VERBS["plot"] = _cmd_plot
+VERBS["animate"] = _cmd_animate
 
 
 def _json_default(obj):
