@@ -173,8 +173,10 @@ def test_integrator_failure_keeps_partial_results(tmp_path):
     assert "t = " in str(err)
     res = err.partial
     assert res is not None and 1 <= len(res.t) < 51
-    assert res.t[-1] <= err.time + 1e-12
-    assert err.time < res.t[-1] + 0.1 + 1e-12  # failed inside the next output interval
+    # the time is SUNDIALS' own ("At t = …, mxstep steps taken"), captured also when
+    # sys.stderr is replaced (as here, under pytest): strictly inside the next interval
+    assert res.t[-1] < err.time < res.t[-1] + 0.1
+    assert f"At t = {err.time:g}"[:12] in str(err) or "mxstep" in str(err)
     path = res.save(tmp_path / "partial.npz")
     assert np.array_equal(casmbd.load(path)["q"], res["q"])
 

@@ -124,21 +124,27 @@ class FixedStep:
 
 
 class CapturedOutput:
-    """Capture what C code (SUNDIALS) writes to file descriptor 2 inside a ``with`` block.
+    """Capture the solver's diagnostics inside a ``with`` block.
 
-    The solver's own diagnostic ("At t = … the corrector convergence failed …") becomes part
-    of the error message instead of stray lines on the terminal.
+    CasADi routes SUNDIALS' messages ("At t = … mxstep steps taken before reaching tout")
+    through Python's ``sys.stderr``; C code that bypasses it writes to file descriptor 2.
+    Both are captured, so that the message (and the failure time it names) becomes part of the
+    error instead of stray lines on the terminal — also when ``sys.stderr`` has been replaced
+    (pytest, notebooks).
     """
 
     def __init__(self):
         self.text = ""
 
     def __enter__(self):
+        import io
         import os
         import sys
         import tempfile
 
         sys.stderr.flush()
+        self._stream, self._saved_stream = io.StringIO(), sys.stderr
+        sys.stderr = self._stream
         self._file = tempfile.TemporaryFile(mode="w+b")
         self._saved = os.dup(2)
         os.dup2(self._file.fileno(), 2)
@@ -146,11 +152,13 @@ class CapturedOutput:
 
     def __exit__(self, *exc):
         import os
+        import sys
 
         os.dup2(self._saved, 2)
         os.close(self._saved)
+        sys.stderr = self._saved_stream
         self._file.seek(0)
-        self.text = self._file.read().decode("utf-8", "replace")
+        self.text = self._stream.getvalue() + self._file.read().decode("utf-8", "replace")
         self._file.close()
         return False
 
@@ -179,7 +187,7 @@ def sundials(dyn: ca.Function, plugin: str, t0: float, tout, rtol: float, atol: 
     """
     opts = {"reltol": rtol, "abstol": atol, "max_num_steps": max_steps,
             "print_stats": False, "show_eval_warnings": False,
-            "disable_internal_warnings": True}
+            "disable_internal_warnings": False}  # captured: CapturedOutput
     if plugin == "idas":
         name = "idas"
         # keep q̈ and λ out of the error test (they are determined by q and v)

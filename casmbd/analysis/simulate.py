@@ -308,14 +308,18 @@ class Simulator:
                 exc.partial.stats.update(stats)
                 raise
             failure = exc
-            with integ.CapturedOutput():
-                xs, solver_stats = self._partial(name, grid, x0, z0, rtol, atol, step,
-                                                 max_steps)
         except (RuntimeError, CasmbdError) as exc:
             failure = exc
+        if failure is not None:
+            # SUNDIALS names the failure time; on the one-call grid run it is absolute time
+            when = _AT_T.search(captured.text)
+            global_time = not projection and self.formulation.kind != "numeric"
+            t_msg = float(when.group(1)) if when and global_time else None
             with integ.CapturedOutput():
                 xs, solver_stats = self._partial(name, grid, x0, z0, rtol, atol, step,
-                                                 max_steps)
+                                                 max_steps, t_msg)
+            if t_msg is not None:
+                solver_stats["failure_time"] = t_msg
         solve_seconds = time.perf_counter() - t0 - self._setup_seconds
         stats.update(solver_stats)
         stats["solve_seconds"] = solve_seconds
@@ -326,9 +330,6 @@ class Simulator:
         result = self._post(grid[:n_ok], xs[:, :nq], xs[:, nq:], stats)
         if failure is not None:
             t_fail = float(solver_stats.get("failure_time", grid[n_ok - 1]))
-            when = _AT_T.search(captured.text)
-            if when and not projection:
-                t_fail = float(when.group(1))
             match = _FLAG.search(str(failure))
             flag = match.group(1) if match else type(failure).__name__
             msg = captured.last_line or (str(failure).strip().splitlines()[-1]
@@ -492,12 +493,31 @@ class Simulator:
         return np.vstack(xs), {"steps": n_steps, "jacobian_evaluations": 0, "step_size": h,
                                "rhs_evaluations": n_steps * (4 if name == "rk4" else 2)}
 
-    def _partial(self, name, grid, x0, z0, rtol, atol, step, max_steps):
-        """Re-integrate interval by interval to keep every output before the failure."""
+    def _partial(self, name, grid, x0, z0, rtol, atol, step, max_steps,
+                 t_fail: float | None = None):
+        """Keep every output before the failure.
+
+        With the failure time ``t_fail`` of a one-call grid run, the same integrator is run
+        again on the outputs before ``t_fail``: SUNDIALS steps past each output and
+        interpolates, so its step sequence does not depend on later outputs and the re-run
+        reproduces the failed run up to its last output before ``t_fail``.  Otherwise (or if
+        that re-run fails too) the run is repeated interval by interval.
+        """
         if self.formulation.kind == "numeric":
             from casmbd.analysis import partitioning
 
             return partitioning.partial(self, name, grid, x0, rtol, atol, max_steps)
+        if t_fail is not None and name not in ("rk4", "abm"):
+            kept = grid[grid < t_fail]
+            if len(kept) == 1:
+                return np.asarray(x0, float)[None, :], {}
+            try:
+                solver = integ.sundials(self.dyn, name, grid[0], kept[1:], rtol, atol,
+                                        max_steps)
+                res = solver(x0=x0, z0=z0, p=self.model.p)
+                return np.vstack([x0, np.asarray(res["xf"]).T]), {}
+            except RuntimeError:
+                pass
         interval = grid[1] - grid[0]
         shifted = integ.shifted(self.dyn)
         xs = [np.asarray(x0, float)]
@@ -516,14 +536,35 @@ class Simulator:
         return np.vstack(xs), stats
 
     # ------------------------------------------------------------------ post-processing
+    def _post_by_parts(self, grid, qs, vs):
+        """Energies and constraint residuals from the model's own Functions, q̈ and λ as NaN
+        (re-solved by the minimum-norm KKT solve), when the mapped ``post`` cannot be
+        evaluated (the virtual machine's QR refuses a singular KKT matrix)."""
+        model, n = self.model, len(grid)
+        acc = np.full((n, self.system.nq), np.nan)
+        lam = np.full((n, self.system.nc), np.nan)
+        kin = np.array([model.kinetic_energy(qs[k], vs[k]) for k in range(n)])
+        pot = np.array([model.potential_energy(qs[k], float(grid[k])) for k in range(n)])
+        pos, vel = np.zeros(n), np.zeros(n)
+        if self.system.nc:
+            for k in range(n):
+                t_k = float(grid[k])
+                pos[k] = np.max(np.abs(model.constraints(qs[k], t_k)))
+                vel[k] = np.max(np.abs(model.constraint_jacobian(qs[k], t_k) @ vs[k]
+                                       + model.constraint_time_derivative(qs[k], t_k)))
+        return acc, lam, np.full(n, np.nan), kin, pot, pos, vel
+
     def _post(self, grid, qs, vs, stats) -> Result:
         model, system = self.model, self.system
         n = len(grid)
         p_all = np.tile(model.p[:, None], (1, n))
-        post = model.function("post").map(n)(qs.T, vs.T, grid[None, :], p_all)
-        acc, lam = np.asarray(post[0]).T.copy(), np.asarray(post[1]).T.reshape(n, -1).copy()
-        residual = np.asarray(post[2]).ravel()
-        kin, pot, pos_viol, vel_viol = (np.asarray(x).ravel() for x in post[3:7])
+        try:
+            post = model.function("post").map(n)(qs.T, vs.T, grid[None, :], p_all)
+            acc, lam = np.asarray(post[0]).T.copy(), np.asarray(post[1]).T.reshape(n, -1).copy()
+            residual = np.asarray(post[2]).ravel()
+            kin, pot, pos_viol, vel_viol = (np.asarray(x).ravel() for x in post[3:7])
+        except RuntimeError:  # CasADi's VM QR raises on a singular KKT matrix
+            acc, lam, residual, kin, pot, pos_viol, vel_viol = self._post_by_parts(grid, qs, vs)
         us = np.asarray(self.ufun.map(n)(grid[None, :], p_all)).T.reshape(n, -1)
         # singular KKT matrices (redundant constraints, singular poses): minimum-norm solve
         scale = 1.0 + np.max(np.abs(np.concatenate([acc, lam], axis=1)), axis=1,
