@@ -26,7 +26,6 @@ benchmarks/results/andrews.json; ``--render`` rewrites the section from that fil
 
 from __future__ import annotations
 
-import argparse
 import itertools
 import json
 import os
@@ -38,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.docs import replace_section
+from benchmarks.docs import study_parser, update_hard_cases
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENE = ROOT / "examples" / "andrews.toml"
@@ -488,19 +487,12 @@ def findings(rows: list[dict], timing: dict, variants: list[dict]) -> list[str]:
 
 
 def update_docs(section: str, path: Path = DOC) -> Path:
-    """Replace this section of docs/hard_cases.md (create the file if missing); other sections
-    are kept as they are."""
-    return replace_section(path, HEAD, section, (
-        "# Hard cases\n\nMechanisms that break simulation codes: redundant constraints, "
-        "singular configurations, stiff mechanisms, long runs (issue 7).\n"))
+    """Replace this section of docs/hard_cases.md; other sections are kept as they are."""
+    return update_hard_cases(HEAD, section, path)
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repeat", type=int, default=3)
-    parser.add_argument("--update-docs", action="store_true")
-    parser.add_argument("--render", action="store_true",
-                        help=f"no runs: rewrite the section from {RESULTS.name}")
+    parser = study_parser(__doc__.splitlines()[0], RESULTS)
     parser.add_argument("--recompute-reference", action="store_true",
                         help="rerun the long-double reference (RK4 on 4000, 8000, 16000 steps, "
                              "about 2 minutes) and print it")

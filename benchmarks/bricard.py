@@ -29,7 +29,6 @@ file).
 
 from __future__ import annotations
 
-import argparse
 import importlib.util
 import json
 import os
@@ -42,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.docs import replace_section
+from benchmarks.docs import study_parser, update_hard_cases
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENE = ROOT / "examples" / "bricard.toml"
@@ -516,21 +515,12 @@ def crank_markdown(crank: dict) -> list[str]:
 
 
 def update_docs(section: str, path: Path = DOC) -> Path:
-    """Replace this section of docs/hard_cases.md (re-read right before writing); other
-    sections are kept as they are."""
-    return replace_section(path, HEAD, section, (
-        "# Hard cases\n\nMechanisms that break simulation codes: redundant constraints, "
-        "singular configurations, stiff mechanisms, long runs (issue 7).\n"))
+    """Replace this section of docs/hard_cases.md; other sections are kept as they are."""
+    return update_hard_cases(HEAD, section, path)
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repeat", type=int, default=3)
-    parser.add_argument("--slow", type=float, default=10.0,
-                        help="a run slower than this [s] is not repeated")
-    parser.add_argument("--update-docs", action="store_true")
-    parser.add_argument("--render", action="store_true",
-                        help=f"no runs: rewrite the section from {RESULTS.name}")
+    parser = study_parser(__doc__.splitlines()[0], RESULTS, slow=10.0)
     args = parser.parse_args(argv)
     if args.render:
         data = json.loads(RESULTS.read_text(encoding="utf-8"))

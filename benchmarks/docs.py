@@ -19,3 +19,33 @@ def replace_section(path: Path, head: str, section: str, preamble: str = "") -> 
         text = text.rstrip() + "\n\n" + section
     path.write_text(text, encoding="utf-8")
     return path
+
+
+#: The page of the hard-case studies (issue 7) and its opening, used when it is missing.
+HARD_CASES = Path(__file__).resolve().parent.parent / "docs" / "hard_cases.md"
+HARD_CASES_PREAMBLE = ("# Hard cases\n\nMechanisms that break simulation codes: redundant "
+                       "constraints, singular configurations, stiff mechanisms, long runs "
+                       "(issue 7).\n")
+
+
+def update_hard_cases(head: str, section: str, path: Path = HARD_CASES) -> Path:
+    """Replace the section ``head`` of docs/hard_cases.md (re-read right before writing)."""
+    return replace_section(path, head, section, HARD_CASES_PREAMBLE)
+
+
+def study_parser(description: str, results: Path, repeat: bool = True,
+                 slow: float | None = None):
+    """The command line shared by the studies: ``--repeat``, ``--slow``, ``--update-docs`` and
+    ``--render`` (rewrite the section from the stored ``results`` without running)."""
+    import argparse
+
+    parser = argparse.ArgumentParser(description=description)
+    if repeat:
+        parser.add_argument("--repeat", type=int, default=3)
+    if slow is not None:
+        parser.add_argument("--slow", type=float, default=slow,
+                            help="a run slower than this [s] is not repeated")
+    parser.add_argument("--update-docs", action="store_true")
+    parser.add_argument("--render", action="store_true",
+                        help=f"no runs: rewrite the section from {results.name}")
+    return parser

@@ -23,7 +23,6 @@ benchmarks/results/flyball_governor.json; ``--render`` rewrites the section from
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import os
@@ -36,7 +35,7 @@ from pathlib import Path
 import numpy as np
 from scipy.integrate import cumulative_simpson
 
-from benchmarks.docs import replace_section
+from benchmarks.docs import study_parser, update_hard_cases
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENE = ROOT / "examples" / "flyball_governor.toml"
@@ -365,21 +364,12 @@ def findings(rows: list[dict], ref: dict) -> list[str]:
 
 
 def update_docs(section: str, path: Path = DOC) -> Path:
-    """Replace this section of docs/hard_cases.md (create the file if missing); other sections
-    are kept as they are."""
-    return replace_section(path, HEAD, section, (
-        "# Hard cases\n\nMechanisms that break simulation codes: redundant constraints, "
-        "singular configurations, stiff mechanisms, long runs (issue 7).\n"))
+    """Replace this section of docs/hard_cases.md; other sections are kept as they are."""
+    return update_hard_cases(HEAD, section, path)
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repeat", type=int, default=3)
-    parser.add_argument("--slow", type=float, default=20.0,
-                        help="a run slower than this [s] is not repeated")
-    parser.add_argument("--update-docs", action="store_true")
-    parser.add_argument("--render", action="store_true",
-                        help=f"no runs: rewrite the section from {RESULTS.name}")
+    parser = study_parser(__doc__.splitlines()[0], RESULTS, slow=20.0)
     args = parser.parse_args(argv)
     if args.render:
         data = json.loads(RESULTS.read_text(encoding="utf-8"))

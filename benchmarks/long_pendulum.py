@@ -32,7 +32,6 @@ figure docs/figures/long_pendulum_drift.png and benchmarks/results/long_pendulum
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import os
@@ -44,6 +43,7 @@ from pathlib import Path
 import numpy as np
 from scipy.special import ellipj, ellipk
 
+from benchmarks.docs import study_parser, update_hard_cases
 from casmbd.model import Mechanism
 
 __all__ = ["exact_position", "exact_velocity", "pendulum_period", "simple_pendulum"]
@@ -374,19 +374,12 @@ def findings(rows: list[dict]) -> list[str]:
 
 
 def update_docs(section: str, path: Path = DOC) -> Path:
-    """Replace this section of docs/hard_cases.md (re-read right before writing)."""
-    from benchmarks.docs import replace_section
-
-    return replace_section(path, HEAD, section, preamble=(
-        "# Hard cases\n\nMechanisms that break simulation codes: redundant constraints, "
-        "singular configurations, stiff mechanisms, long runs (issue 7).\n"))
+    """Replace this section of docs/hard_cases.md; other sections are kept as they are."""
+    return update_hard_cases(HEAD, section, path)
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--update-docs", action="store_true")
-    parser.add_argument("--render", action="store_true",
-                        help=f"no runs: redraw the section and figure from {RESULTS.name}")
+    parser = study_parser(__doc__.splitlines()[0], RESULTS, repeat=False)
     args = parser.parse_args(argv)
     if args.render:
         data = json.loads(RESULTS.read_text(encoding="utf-8"))

@@ -46,7 +46,6 @@ file).
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 import os
@@ -60,6 +59,7 @@ import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.special import ellipj, ellipk
 
+from benchmarks.docs import study_parser, update_hard_cases
 from casmbd.model import Mechanism
 
 __all__ = ["b0_position", "bar_angles", "bar_name", "closed_form_angle", "coupler_angles",
@@ -572,7 +572,11 @@ def findings(rows: list[dict], ref: dict, survey: dict) -> list[str]:
             f"and ΔE {best['energy_drift']:.1e} J (rtol {best['rtol']:.0e}) and keeps the bars "
             f"parallel to {max(r['branch'] for r in tuned_tight):.1e} rad for rtol ≤ 1e-8, "
             f"at {tuned_tight[-1]['solve_seconds'] / tight[-1]['solve_seconds']:.1f}× the "
-            f"solve time of the default at rtol {tight[-1]['rtol']:.0e}. (A single "
+            f"solve time of the default at rtol {tight[-1]['rtol']:.0e}. No single default serves "
+            "both kinds of mechanism: a larger penalty raises the rounding-noise floor of "
+            "regular chains at tight tolerances (docs/dynamics.md, \"Choosing the "
+            "augmented-Lagrangian penalty\", `python -m benchmarks.al_penalty`), so the "
+            "default stays and the tighter setting is an option. (A single "
             "parallelogram does not show the effect: with the default formulation the "
             "N = 1 chain's crank angle is within 6.4e-8 rad of the closed form after 4 s, "
             "N = 3 and 5 are off by 1.7e-5 rad; tests/test_singular_chains.py.)")
@@ -583,14 +587,16 @@ def findings(rows: list[dict], ref: dict, survey: dict) -> list[str]:
         text = (f"* `kkt_ode` and `index1`, which solve with the full C_q (Schur complement, "
                 f"index-1 Jacobian), fail at the singular passes (between t = {min(times):.4g} "
                 f"and {max(times):.4g} s; the first pass is at {ref['pass_times'][0]:.4f} s). "
-                "CVODES' CV_TOO_MUCH_WORK message carries no time, so casmbd reports the last "
-                "output time and the conditioning there, not at the failure")
+                "casmbd then read no failure time and reported the last output time and the "
+                "conditioning there (fixed since: SUNDIALS' own \"At t = …\" is captured and "
+                "the outputs are kept from the failed run itself, cut before that time)")
         if jumped:
             r = jumped[0]
             text += (f". Worse, after {r['config']} at rtol {r['rtol']:.0e} failed, the "
                      "interval-by-interval re-run that keeps the outputs went on past the "
                      f"pose and left the branch: its bars end {r['partial']['branch']:.1f} rad "
-                     "apart")
+                     "apart (the re-run that keeps the outputs is now the failed grid run, "
+                     "which stops before the failure)")
         out.append(text + ".")
     if survey["evaluated_by_result"] < STEPS + 1:
         out.append(
@@ -604,23 +610,13 @@ def findings(rows: list[dict], ref: dict, survey: dict) -> list[str]:
 
 
 def update_docs(section: str, path: Path = DOC) -> Path:
-    """Replace this section of docs/hard_cases.md (re-read right before writing)."""
-    from benchmarks.docs import replace_section
-
-    return replace_section(path, HEAD, section, preamble=(
-        "# Hard cases\n\nMechanisms that break simulation codes: redundant constraints, "
-        "singular configurations, stiff mechanisms, long runs (issue 7).\n"))
+    """Replace this section of docs/hard_cases.md; other sections are kept as they are."""
+    return update_hard_cases(HEAD, section, path)
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = study_parser(__doc__.splitlines()[0], RESULTS, slow=10.0)
     parser.add_argument("--n", type=int, default=N_BENCH)
-    parser.add_argument("--repeat", type=int, default=3)
-    parser.add_argument("--slow", type=float, default=10.0,
-                        help="a run slower than this [s] is not repeated")
-    parser.add_argument("--update-docs", action="store_true")
-    parser.add_argument("--render", action="store_true",
-                        help=f"no runs: rewrite the section from {RESULTS.name}")
     args = parser.parse_args(argv)
     if args.render:
         data = json.loads(RESULTS.read_text(encoding="utf-8"))
