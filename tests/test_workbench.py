@@ -306,3 +306,16 @@ def test_atomic_write_leaves_no_temporary_file(tmp_path):
         atomic_write(target, failing)
     assert target.read_text() == "first"  # the old file is intact
     assert sorted(p.name for p in tmp_path.iterdir()) == ["data.txt"]
+
+
+def test_python_api_results_embed_the_scene(tmp_path):
+    """simulate / kinematics / inverse_dynamics called from Python embed the scene text of a
+    loaded scene, so a saved result re-loads its mechanism (same coordinates, same start)."""
+    mech = casmbd.load_scene(REPO_ROOT / "examples" / "slider_crank.toml")
+    for res in (casmbd.simulate(mech, 0.1, 2), casmbd.kinematics(mech, t_end=0.1, steps=2)):
+        again = casmbd.load_result(res.save(tmp_path / f"{res.kind}.npz")).mechanism()
+        assert again.name == mech.name
+        np.testing.assert_array_equal(casmbd.System(again).initial_coordinates(),
+                                      casmbd.System(mech).initial_coordinates())
+    inv = casmbd.load_scene(REPO_ROOT / "examples" / "slider_crank_inverse.toml")
+    assert casmbd.inverse_dynamics(inv, t_end=0.1, steps=2).scene == inv.scene_text

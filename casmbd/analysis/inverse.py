@@ -134,4 +134,5 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
     stats = dict(kin.stats)
     stats.update(flags)
     stats["solve_seconds"] += time.perf_counter() - t0
-    return Result("inverse_dynamics", grid, arrays, names, stats)
+    return Result("inverse_dynamics", grid, arrays, names, stats,
+                  getattr(system.mechanism, "scene_text", "") or "")

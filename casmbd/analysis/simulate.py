@@ -617,7 +617,8 @@ class Simulator:
                   "actuator_inputs": us, "kinetic_energy": kin, "potential_energy": pot,
                   "total_energy": kin + pot, "constraint_violation": pos_viol,
                   "velocity_violation": vel_viol, "constraint_conditioning": cond}
-        return Result("simulation", grid, arrays, names, stats)
+        return Result("simulation", grid, arrays, names, stats,
+                      getattr(system.mechanism, "scene_text", "") or "")
 
 
 def simulate(mechanism, t_end: float, steps: int, *, formulation: str | None = None,
