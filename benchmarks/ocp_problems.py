@@ -461,9 +461,12 @@ def comment_lines(rows: list[Row]) -> list[str]:
     if same:
         text = ", ".join(
             f"`{r.problem}` {x:.2f}× ({r.figures['iterations']} against "
-            f"{r.figures['baseline_iterations']} iterations, {r.figures['variables']} against "
+            f"{r.figures['baseline_iterations']} iterations: "
+            f"{x * r.figures['baseline_iterations'] / r.figures['iterations']:.2f}× per "
+            f"iteration; {r.figures['variables']} against "
             f"{r.figures.get('baseline_variables', '?')} variables)" for r, x in same)
         slower = [r.problem for r, x in same if x > 1.1]
+        faster = [r.problem for r, x in same if x < 0.9]
         out.append(
             f"**Same transcription.** NLP solve time ours / hand-written: {text}. Our NLP "
             "carries q̈ (and λ, μ, ν for closed loops) as variables at every collocation "
@@ -471,9 +474,13 @@ def comment_lines(rows: list[Row]) -> list[str]:
             "is larger than the hand-written one with M⁻¹ in closed form, while its "
             "derivatives are compiled C where the baseline evaluates CasADi's SX virtual "
             "machine (`expand=True`); "
-            + (f"per iteration the larger KKT system costs more and we are slower on "
-               f"{', '.join(f'`{p}`' for p in slower)}." if slower
-               else "the two effects roughly cancel."))
+            + "; ".join(part for part in (
+                f"slower on {', '.join(f'`{p}`' for p in slower)} (the larger KKT system "
+                "per iteration)" if slower else "",
+                f"faster on {', '.join(f'`{p}`' for p in faster)} (compiled derivatives, "
+                "fewer iterations where the implicit form converges sooner)" if faster
+                else "") if part)
+            + ("." if slower or faster else "the two effects roughly cancel."))
     if default:
         text = ", ".join(f"`{r.problem}` {x:.2f}×" for r, x in default)
         gains = []
@@ -495,10 +502,10 @@ def comment_lines(rows: list[Row]) -> list[str]:
         r = max(every, key=lambda r: r.figures["setup_cold_s"])
         cached = [x.figures["setup_cached_s"] for x in every
                   if isinstance(x.figures.get("setup_cached_s"), float)]
-        base = (f" where a hand-written problem is ready in "
-                f"{min(x.figures['baseline_setup_s'] for x in colds):.2f}–"
-                f"{max(x.figures['baseline_setup_s'] for x in colds):.2f} s (SX expansion, no "
-                "compilation)") if colds else ""
+        spans = sorted({f"{x.figures['baseline_setup_s']:.2f}" for x in colds})
+        base = (f" where a hand-written problem is ready in {spans[0]}"
+                + (f"–{spans[-1]}" if len(spans) > 1 else "")
+                + " s (SX expansion, no compilation)") if colds else ""
         out.append(
             f"**Set-up: slower on a first solve.** The first solve of a problem generates and "
             f"compiles the NLP's C code: up to {r.figures['setup_cold_s']:.1f} s here "
