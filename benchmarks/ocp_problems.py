@@ -461,12 +461,12 @@ def comment_lines(rows: list[Row]) -> list[str]:
     if same:
         text = ", ".join(
             f"`{r.problem}` {x:.2f}× ({r.figures['iterations']} against "
-            f"{r.figures['baseline_iterations']} iterations: "
-            f"{x * r.figures['baseline_iterations'] / r.figures['iterations']:.2f}× per "
-            f"iteration; {r.figures['variables']} against "
+            f"{r.figures['baseline_iterations']} iterations, {r.figures['variables']} against "
             f"{r.figures.get('baseline_variables', '?')} variables)" for r, x in same)
         slower = [r.problem for r, x in same if x > 1.1]
         faster = [r.problem for r, x in same if x < 0.9]
+        per_iter = [(r.problem, x * r.figures["baseline_iterations"] / r.figures["iterations"])
+                    for r, x in same]
         out.append(
             f"**Same transcription.** NLP solve time ours / hand-written: {text}. Our NLP "
             "carries q̈ (and λ, μ, ν for closed loops) as variables at every collocation "
@@ -475,12 +475,12 @@ def comment_lines(rows: list[Row]) -> list[str]:
             "derivatives are compiled C where the baseline evaluates CasADi's SX virtual "
             "machine (`expand=True`); "
             + "; ".join(part for part in (
-                f"slower on {', '.join(f'`{p}`' for p in slower)} (the larger KKT system "
-                "per iteration)" if slower else "",
-                f"faster on {', '.join(f'`{p}`' for p in faster)} (compiled derivatives, "
-                "fewer iterations where the implicit form converges sooner)" if faster
-                else "") if part)
-            + ("." if slower or faster else "the two effects roughly cancel."))
+                f"slower on {', '.join(f'`{p}`' for p in slower)}" if slower else "",
+                f"faster on {', '.join(f'`{p}`' for p in faster)}" if faster else "",
+                "per iteration " + ", ".join(f"`{p}` {q:.2f}×" for p, q in per_iter)
+                + " (above 1: our larger KKT system; below 1: compiled derivatives)")
+                if part)
+            + ".")
     if default:
         text = ", ".join(f"`{r.problem}` {x:.2f}×" for r, x in default)
         gains = []
