@@ -131,7 +131,37 @@ def build_parser() -> argparse.ArgumentParser:
                    help="skip the forward replay of the optimal controls")
     p.add_argument("--plot", default=None, help="save a figure of coordinates and controls")
     _add_workbench_verbs(sub)
+    _add_sweep_verb(sub)
     return parser
+
+
+def _add_sweep_verb(sub) -> None:
+    """The ``sweep`` verb (one analysis at many parameter values, casmbd.analysis.sweep)."""
+    p = sub.add_parser("sweep", help="parameter sweep: one analysis at many values of the "
+                                     "scene's [parameters]")
+    p.add_argument("scene", help="scene file (TOML) with a [parameters] table")
+    p.add_argument("--param", action="append", required=True, metavar="NAME=VALUES",
+                   help="NAME=A:B:N (N values from A to B inclusive), NAME=A,B,C or NAME=A; "
+                        "repeat for a grid product")
+    p.add_argument("--analysis", choices=("simulate", "kinematics", "inverse", "statics"),
+                   default="simulate", help="analysis run at every point (default simulate)")
+    p.add_argument("--t-end", type=_positive_float, default=None, help="final time [s]")
+    p.add_argument("--steps", type=_positive_int, default=None,
+                   help="number of output intervals (N + 1 output times from 0 to T)")
+    p.add_argument("--output", action="append", default=None, metavar="REDUCTION:COLUMN",
+                   help="scalar output per point, e.g. final:q[crank.angle], "
+                        "max:body.rod.angle, energy_drift (repeatable; default final q, "
+                        "largest constraint violation, energy drift)")
+    p.add_argument("--workers", type=_positive_int, default=None,
+                   help="local worker processes (default: serial in this process)")
+    p.add_argument("--scheduler", default=None, metavar="ADDR",
+                   help="Dask scheduler address (needs dask.distributed: casmbd[sweep])")
+    p.add_argument("--out", default=None, metavar="DIR",
+                   help="folder for point_XXX.npz, sweep.csv and sweep.npz")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    p.add_argument("--mode", choices=("auto", "compiled", "vm"), default="auto",
+                   help="compile equations to C (default auto) or use CasADi's VM")
 
 
 def _add_workbench_verbs(sub) -> None:
@@ -524,6 +554,52 @@ def _cmd_animate(args) -> tuple[dict, str]:
 
 VERBS["plot"] = _cmd_plot
 VERBS["animate"] = _cmd_animate
+
+
+def _cmd_sweep(args) -> tuple[dict, str]:
+    """Run the analysis at every point of the --param grid (casmbd.analysis.sweep)."""
+    from casmbd.analysis.sweep import parse_values, sweep
+
+    params: dict = {}
+    for text in args.param:
+        name, values = parse_values(text)
+        if name in params:
+            raise AnalysisError(f"--param {text!r}: parameter '{name}' given twice")
+        params[name] = values
+    if args.out and Path(args.out).exists() and not Path(args.out).is_dir():
+        raise AnalysisError(f"--out '{args.out}' is a file; give a folder")
+    if args.scheduler and args.workers:
+        raise AnalysisError("give --workers (local processes) or --scheduler (Dask), not both")
+    executor = args.scheduler or ("processes" if args.workers and args.workers > 1
+                                  else "serial")
+    res = sweep(args.scene, params, analysis=args.analysis, t_end=args.t_end,
+                steps=args.steps, outputs=args.output, executor=executor,
+                workers=args.workers, out_dir=args.out, mode=args.mode,
+                progress=None if not args.json else False)
+    data = res.to_json()
+    s = res.stats
+    shown = res.output_names[:4]
+    columns = [*res.parameter_names, *shown]
+    widths = [max(12, len(n)) for n in columns]
+    lines = [f"{res.analysis} sweep of '{args.scene}': {len(res)} points, {s['failed']} failed "
+             f"({s['executor']}, {s['wall_seconds']:.3g} s)",
+             "  " + "  ".join(f"{n:>{w}}" for n, w in zip(columns, widths)) + "  status"]
+    for i in range(len(res)):
+        vals = [res[n][i] for n in columns]
+        lines.append("  " + "  ".join(f"{v:{w}.6g}" for v, w in zip(vals, widths))
+                     + f"  {res.status[i]}")
+    for i in res.failed:
+        lines.append(f"  point {i}: {res.errors[i]}")
+    build = s["parent_build"]
+    origin = "cache hit" if build.get("cache_hit") else build.get("mode")
+    lines.append(f"  built once here ({origin}); compiler runs during the points: "
+                 f"{s['worker_compiler_runs']}")
+    if args.out:
+        lines.append(f"  saved {args.out}/point_*.npz, sweep.csv, sweep.npz")
+    return data, "\n".join(lines)
+
+
+VERBS["sweep"] = _cmd_sweep
 
 
 def _json_default(obj):
