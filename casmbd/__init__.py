@@ -15,6 +15,7 @@ from casmbd.analysis.assembly import accelerations, assemble, velocities
 from casmbd.analysis.inverse import inverse_dynamics
 from casmbd.analysis.kinematics import info, kinematics
 from casmbd.analysis.linearize import linearize
+from casmbd.analysis.sensitivity import SensitivityResult, sensitivity
 from casmbd.analysis.simulate import Simulator, simulate
 from casmbd.analysis.statics import static_equilibrium
 from casmbd.compiled.model import NumericModel
@@ -37,10 +38,35 @@ from casmbd.system import System
 
 __version__ = "0.1.0"
 
-__all__ = ["AnalysisError", "AssemblyError", "CasmbdError", "CompileError", "ExpressionError",
-           "IntegratorError", "Mechanism", "ModelError", "NumericModel",
-           "RedundantConstraintError", "Result", "SceneError", "Simulator",
-           "SingularConfigurationError", "System", "accelerations", "assemble", "info",
-           "inverse_dynamics", "kinematics", "linearize", "load", "load_result", "load_scene",
-           "loads_scene",
-           "simulate", "static_equilibrium", "velocities"]
+__all__ = [
+    "AnalysisError",
+    "AssemblyError",
+    "CasmbdError",
+    "CompileError",
+    "ExpressionError",
+    "IntegratorError",
+    "Mechanism",
+    "ModelError",
+    "NumericModel",
+    "RedundantConstraintError",
+    "Result",
+    "SceneError",
+    "SensitivityResult",
+    "Simulator",
+    "SingularConfigurationError",
+    "System",
+    "accelerations",
+    "assemble",
+    "info",
+    "inverse_dynamics",
+    "kinematics",
+    "linearize",
+    "load",
+    "load_result",
+    "load_scene",
+    "loads_scene",
+    "sensitivity",
+    "simulate",
+    "static_equilibrium",
+    "velocities",
+]
