@@ -332,12 +332,13 @@ def exudyn_generalized_alpha(problem: str, levels=None, repeat: int = 3) -> list
                 error = abs(math.pi / 2 + float(q[2]) - ref)
             drift, vdrift = _exudyn_gaps(exu, mbs, joints)
             return t2 - t1, {"error": error, "drift": drift, "velocity_drift": vdrift,
-                             "steps": int(solver.it.currentStepIndex),
+                             "steps": int(solver.it.currentStepIndex) - 1,  # the index starts at 1
                              "rhs_evaluations": int(solver.it.newtonStepsCount),
                              "setup_seconds": t1 - t0,
                              "message": f"jacobians {int(solver.it.newtonJacobiCount)}"}
 
-        rows.append(_measure(problem, key, h, run, repeat, build, "absolute",
+        rows.append(_measure(problem, key, t_end / ss.timeIntegration.numberOfSteps, run,
+                             repeat, build, "absolute",
                              3 * len(bodies), 2 * len(joints), "Exudyn", exu.__version__))
     return rows
 
@@ -377,14 +378,15 @@ def exudyn_tree(problem: str, integrator: str = "dopri5", levels=None,
                                              configuration=exu.ConfigurationType.Current))
             phi = np.cumsum(q)  # relative joint angles -> absolute rod angles
             tip = LENGTH * np.array([np.cos(phi).sum(), np.sin(phi).sum()])
-            steps = int(solver.it.currentStepIndex)
+            steps = int(solver.it.currentStepIndex) - 1  # the index starts at 1
             rejected = int(solver.it.rejectedAutomaticStepSizeSteps)
             return t2 - t1, {"error": float(np.linalg.norm(tip - ref)), "steps": steps,
                              "rhs_evaluations": (steps + rejected) * solver.GetNumberOfStages(),
                              "setup_seconds": t1 - t0,
                              "message": f"rejected {rejected}" if rejected else ""}
 
-        rows.append(_measure(problem, key, level, run, repeat, build, "joint", n, 0,
+        fixed = "" if integrator in ADAPTIVE else T_END["chain"] / ss.timeIntegration.numberOfSteps
+        rows.append(_measure(problem, key, fixed or level, run, repeat, build, "joint", n, 0,
                              "Exudyn", exu.__version__))
     return rows
 
@@ -495,7 +497,9 @@ def mujoco_run(problem: str, integrator: str = "rk4", stiff: bool = False, level
     t_end = T_END[kind]
     name = {"rk4": "RK4", "implicitfast": "implicitfast"}[integrator]
     rows = []
-    for h in levels:
+    for level in levels:
+        nstep = round(t_end / level)
+        h = t_end / nstep  # the step that lands exactly on t_end
         start = time.perf_counter()
         if kind == "chain":
             xml = mujoco_chain_xml(int(problem[5:]), name, h)
@@ -505,7 +509,6 @@ def mujoco_run(problem: str, integrator: str = "rk4", stiff: bool = False, level
         build = time.perf_counter() - start
         check_mujoco_model(model)
         data = mujoco.MjData(model)
-        nstep = round(t_end / h)
 
         def run(model=model, data=data, nstep=nstep):
             t0 = time.perf_counter()
