@@ -268,3 +268,29 @@ def test_integrator_failure_is_recorded_with_its_partial_results(cache, tmp_path
     assert partial.stats["sweep_point"] == {"k": 1e6} and "CV_TOO_MUCH_WORK" in \
         partial.stats["failure"]
     assert partial.t[-1] < 1.0
+
+
+def test_progress_bar_counts_points_when_tqdm_is_there(cache, monkeypatch):
+    """tqdm is optional: a stand-in module records the bar; without a terminal (pytest's
+    captured stderr) no bar is made unless progress=True."""
+    import types
+
+    bars = []
+
+    class FakeBar:
+        def __init__(self, total, **kwargs):
+            self.total, self.n, self.closed = total, 0, False
+            bars.append(self)
+
+        def update(self, n):
+            self.n += n
+
+        def close(self):
+            self.closed = True
+
+    monkeypatch.setitem(sys.modules, "tqdm", types.SimpleNamespace(tqdm=FakeBar))
+    pts = {"k": [100.0, 200.0, 300.0]}
+    sweep(SPRING, pts, t_end=0.1, steps=2, outputs=["final:q[block.x]"])
+    assert bars == []  # stderr is not a terminal here
+    sweep(SPRING, pts, t_end=0.1, steps=2, outputs=["final:q[block.x]"], progress=True)
+    assert [(b.total, b.n, b.closed) for b in bars] == [(3, 3, True)]
