@@ -139,15 +139,24 @@ def test_local_processes_give_the_same_numbers(serial, tmp_path):
 def test_local_dask_cluster_gives_the_same_numbers(serial):
     distributed = pytest.importorskip("distributed")
     with distributed.LocalCluster(n_workers=2, processes=True, threads_per_worker=1,
-                                  dashboard_address=None) as cluster, \
-            distributed.Client(cluster) as client:
+                                  dashboard_address=None) as cluster:
+        # by scheduler address (the sweep connects and disconnects) ...
         res = sweep(SPRING, points=POINTS, t_end=T_END, steps=STEPS, outputs=NAMED,
-                    executor=client)
+                    executor=cluster.scheduler_address)
+        # ... and through a Client the caller holds (the workers keep their engines)
+        with distributed.Client(cluster) as client:
+            again = sweep(SPRING, points=POINTS[:4], t_end=T_END, steps=STEPS, outputs=NAMED,
+                          executor=client)
     _same(serial, res)
     s = res.stats
     assert s["executor"] == "dask" and s["workers"] == 2
     assert 1 <= s["worker_builds"] <= 2 and s["worker_cache_hits"] == s["worker_builds"]
     assert s["worker_compiler_runs"] == 0
+    # each worker process builds its engine once over both sweeps
+    assert s["worker_builds"] + again.stats["worker_builds"] <= 2
+    assert again.stats["worker_compiler_runs"] == 0
+    for name in NAMED:
+        np.testing.assert_array_equal(again[name], serial[name][:4])
 
 
 def test_runtime_parameters_equal_a_scene_with_those_values(cache):

@@ -228,13 +228,17 @@ def _series(result: Result, column: str, where: str) -> np.ndarray:
         arr = np.asarray(data[fld], float)
         if arr.ndim == 1 and axis is None:
             return arr
+        axes = "wxyz" if fld == "quaternion" else "xyz"
         if arr.ndim == 2 and axis is not None:
-            idx = "xyz".index(axis) if axis in ("x", "y", "z") else \
-                ("wxyz".index(axis) if axis == "w" else int(axis) if axis.isdigit() else -1)
+            idx = int(axis) if axis.isdigit() else axes.find(axis)
             if 0 <= idx < arr.shape[1]:
                 return arr[:, idx]
-        raise AnalysisError(f"{where}: '{fld}' of {kind} '{name}' has {arr.ndim and arr.shape[1:]}"
-                            " components; name one with .x, .y, .z (or .w, .0 …)")
+        if arr.ndim == 1:
+            raise AnalysisError(f"{where}: '{fld}' of {kind} '{name}' is a scalar series; "
+                                f"drop '.{axis}'")
+        raise AnalysisError(f"{where}: '{fld}' of {kind} '{name}' has components "
+                            f"{list(axes[:arr.shape[-1]]) if arr.ndim == 2 else arr.shape[1:]};"
+                            " name one: .x, .y, .z (quaternion .w, .x, .y, .z) or .0, .1 …")
     columns = dict(result.csv_columns())
     if column in columns:
         return columns[column]
@@ -686,16 +690,22 @@ def _run_processes(spec, tasks, workers: int, bar) -> list[dict]:
     return out
 
 
-def _dask_client(executor):
-    """(client, owned) for a scheduler address or an existing ``distributed.Client``."""
-    if not isinstance(executor, str):
-        return executor, False
+def _require_dask(executor) -> None:
     try:
-        from distributed import Client
+        import distributed  # noqa: F401
     except ImportError:
         raise AnalysisError(f"executor {executor!r} is a Dask scheduler address but "
                             "dask.distributed is not installed (pip install 'casmbd[sweep]' or "
                             "pip install \"dask[distributed]\")") from None
+
+
+def _dask_client(executor):
+    """(client, owned) for a scheduler address or an existing ``distributed.Client``."""
+    if not isinstance(executor, str):
+        return executor, False
+    _require_dask(executor)
+    from distributed import Client
+
     try:
         return Client(executor, timeout="20s"), True
     except (OSError, TimeoutError) as exc:
@@ -806,6 +816,8 @@ def sweep(mechanism_or_scene_path, params: Mapping[str, Iterable[float]] | None 
             raise AnalysisError(f"sweep: t_end must be finite and > t_start, got {t_end!r}")
     _check_outputs(outputs)
     pts = _points(params, points)
+    if isinstance(executor, str) and executor not in ("serial", "processes"):
+        _require_dask(executor)
 
     # ---- the mechanism and its scene text
     from casmbd.model import Mechanism
