@@ -77,10 +77,11 @@ METHODS = [
     ("kkt_ode", "rk4"),
     ("kkt_ode", "abm"),
     ("articulated", "adams"),
+    ("articulated", "rk4"),
 ]
-TOLERANCES = [1e-4, 1e-6, 1e-8, 1e-10, 1e-12]
+TOLERANCES = [1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-12]
 #: fixed-step sizes used in place of tolerances (same count, coarse to fine)
-STEPS = {"chain": [4e-3, 1e-3, 2.5e-4, 6.25e-5],
+STEPS = {"chain": [1e-2, 5e-3, 2.5e-3, 1e-3, 2.5e-4, 6.25e-5],
          "fourbar": [1e-2, 2.5e-3, 6.25e-4, 1.5625e-4]}
 PROBLEMS = ["chain2", "chain8", "chain32", "fourbar", "chain8_3d"]
 #: coordinate choices run by default for each problem

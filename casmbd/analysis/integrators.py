@@ -83,25 +83,39 @@ def abm_step(dyn: ca.Function) -> ca.Function:
 
 
 class FixedStep:
-    """Fixed-step RK4 or ABM4 driven in compiled chunks of at most :data:`CHUNK` steps.
+    """Fixed-step RK4 or ABM4 driven in compiled chunks.
+
+    The step (RK4, or ABM4's PECE step) is written over the symbolic right-hand side and
+    folded over :data:`CHUNK`, 16, 4 and 1 steps; these folds are generated to C and compiled
+    together (cached on disk like the model's own functions), so a chunk of steps runs without
+    returning to Python or CasADi's virtual machine between steps.  ``count`` steps take at
+    most 3 calls per fold size.  With ``mode="vm"`` (or when the symbolic right-hand side is
+    not given) the folds run in CasADi's virtual machine.
 
     ABM4 starts with three RK4 steps and then carries its history across output times, so
     the run is one multistep integration, not a restart per output.
     """
 
-    def __init__(self, dyn: ca.Function, method: str):
+    FOLDS = (CHUNK, 16, 4, 1)
+
+    def __init__(self, dyn: ca.Function, method: str, mode: str = "vm",
+                 name: str = "casmbd_fixed"):
         self.method = method
         self.nx = dyn.size1_in("x")
-        self.rk = rk4_step(dyn)
-        self.step = self.rk if method == "rk4" else abm_step(dyn)
+        rk = rk4_step(dyn)
+        step = rk if method == "rk4" else abm_step(dyn)
         t, x, p = ca.MX.sym("t"), ca.MX.sym("x", self.nx), ca.MX.sym("p", dyn.size1_in("p"))
-        self.f = ca.Function("rhs", [t, x, p], [dyn(t=t, x=x, p=p)["ode"]])
-        self._folds: dict[int, ca.Function] = {}
+        rhs = ca.Function("rhs", [t, x, p], [dyn(t=t, x=x, p=p)["ode"]])
+        folds = [_renamed(step.fold(k), f"{method}_fold{k}") for k in self.FOLDS]
+        funcs = [_renamed(rk, "rk4_single"), rhs, *folds]
+        self.report = None
+        if mode != "vm":
+            from casmbd.compiled.codegen import compile_functions
 
-    def _fold(self, count: int) -> ca.Function:
-        if count not in self._folds:
-            self._folds[count] = self.step.fold(count)
-        return self._folds[count]
+            compiled, self.report = compile_functions(funcs, name=name, mode=mode)
+            funcs = [compiled[f.name()] for f in funcs]
+        self.rk, self.f = funcs[0], funcs[1]
+        self._folds = dict(zip(self.FOLDS, funcs[2:]))
 
     def start(self, x0, t0: float, p, h: float):
         """Initial chunk state; for ABM4 after three RK4 steps (returns steps used)."""
@@ -116,11 +130,17 @@ class FixedStep:
 
     def advance(self, s, p, h: float, count: int):
         """``count`` steps of size ``h`` from chunk state ``s``."""
-        while count > 0:
-            k = min(count, CHUNK)
-            s = np.asarray(self._fold(k)(s, p, h)).ravel()
-            count -= k
+        for k in self.FOLDS:
+            n, count = divmod(count, k)
+            for _ in range(n):
+                s = np.asarray(self._folds[k](s, p, h)).ravel()
         return s
+
+
+def _renamed(f: ca.Function, name: str) -> ca.Function:
+    """``f`` under another name (a wrapper calling it), for code generation."""
+    args = [ca.MX.sym(f.name_in(i), f.sparsity_in(i)) for i in range(f.n_in())]
+    return ca.Function(name, args, f.call(args))
 
 
 class CapturedOutput:

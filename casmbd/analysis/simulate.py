@@ -33,7 +33,7 @@ from casmbd.analysis.redundancy import (
     near_singular_passes,
     rank_report,
 )
-from casmbd.compiled.model import NumericModel
+from casmbd.compiled.model import NumericModel, _c_name
 from casmbd.errors import AnalysisError, CasmbdError, IntegratorError
 from casmbd.model.values import resolve
 from casmbd.results import Result
@@ -211,6 +211,7 @@ class Simulator:
                                          post_processing(system, u_expr)])
         self.system = system
         self.dyn = self.model.function(self.formulation.function.name())
+        self._mode = mode
         self._solvers: dict = {}
         self.build_seconds = time.perf_counter() - t0
 
@@ -467,7 +468,9 @@ class Simulator:
         interval = grid[1] - grid[0]
         n_sub = integ.substeps_for(interval, step)
         h = interval / n_sub
-        runner = self._solver((name, "fixed"), lambda: integ.FixedStep(self.dyn, name))
+        runner = self._solver((name, "fixed"), lambda: integ.FixedStep(
+            self.formulation.function, name, mode=self._mode,
+            name=f"{_c_name(self.system.mechanism.name)}_{name}"))
         p = self.model.p
         nq, nx = self.model.nq, len(x0)
         s, used = runner.start(x0, grid[0], p, h)
