@@ -880,8 +880,13 @@ def sweep(mechanism_or_scene_path, params: Mapping[str, Iterable[float]] | None 
             "options": dict(options), "mode": mode, "t_end": t_end, "steps": steps,
             "outputs": outputs, "out_dir": None if out_dir is None else str(out_dir),
             "digits": digits}
+    # the cache folder is part of the key: a runner built against another cache would leave
+    # the workers' cache cold
+    from casmbd.compiled.codegen import cache_dir
+
     spec["key"] = hashlib.sha256(repr((key_src, analysis, sorted(
-        (k, repr(v)) for k, v in options.items()), mode)).encode()).hexdigest()
+        (k, repr(v)) for k, v in options.items()), mode, str(cache_dir()),
+        os.environ.get("CASMBD_COMPILE", ""))).encode()).hexdigest()
 
     # ---- build once here: the disk cache is warm for the workers
     if text is None and mech_bytes is None:
