@@ -3,7 +3,8 @@
 Verbs: ``info`` (coordinates, constraints, degrees of freedom, dependent equations),
 ``kinematics`` (positions, velocities and accelerations on a time grid), ``simulate`` (forward
 dynamics), ``inverse`` (driver and actuator efforts), ``statics`` (equilibrium and its
-stability) and ``linearize`` (frequencies, damping ratios, state space).  Every verb prints a
+stability), ``linearize`` (frequencies, damping ratios, state space) and ``sweep`` (one
+analysis at many parameter values).  Every verb prints a
 readable summary, or with ``--json`` exactly one JSON object on stdout; ``--out FILE.npz`` saves
 every array.  Errors end with a non-zero exit status and one ``error: …`` line on stderr
 (a traceback only with ``--debug``).
@@ -132,7 +133,86 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", default=None, help="save a figure of coordinates and controls")
     _add_workbench_verbs(sub)
     _add_sweep_verb(sub)
+    _add_sensitivity_verb(sub)
+    _add_bench_verb(sub)
+    for p in sub.choices.values():
+        if not any("--verbose" in a.option_strings for a in p._actions):
+            p.add_argument("--verbose", action="store_true",
+                           help="print the solver statistics after the summary")
     return parser
+
+
+def _add_sensitivity_verb(sub) -> None:
+    """The ``sensitivity`` verb (casmbd.analysis.sensitivity)."""
+    p = sub.add_parser("sensitivity", help="exact derivatives of simulation outputs with "
+                                           "respect to scene parameters (IDAS)")
+    p.add_argument("scene", help="scene file (TOML) with a [parameters] table")
+    p.add_argument("--output", action="append", required=True, metavar="EXPR",
+                   help="output: an expression at t_end (e.g. tip_x) or 'integral: EXPR' "
+                        "(e.g. 'integral: O_Fy'); repeatable")
+    p.add_argument("--param", action="append", default=None, metavar="NAME",
+                   help="parameter to differentiate with respect to (default: all); repeatable")
+    p.add_argument("--t-end", type=_positive_float, required=True, help="final time [s]")
+    p.add_argument("--method", choices=("forward", "adjoint"), default="forward",
+                   help="IDAS forward sensitivities (per parameter) or adjoint (per output)")
+    p.add_argument("--rtol", type=_positive_float, default=1e-10, help="relative tolerance")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+
+
+def _cmd_sensitivity(args) -> tuple[dict, str]:
+    """Derivatives of the --output expressions with respect to the --param parameters."""
+    from casmbd.analysis.sensitivity import sensitivity
+
+    mech = _load(args)
+    res = sensitivity(mech, args.output, args.param, args.t_end, method=args.method,
+                      rtol=args.rtol)
+    data = res.to_json()
+    width = max(len(o) for o in res.outputs)
+    lines = [f"sensitivities of '{mech.name}' at t = {args.t_end:g} s ({res.method}, IDAS, "
+             f"rtol {args.rtol:g}; solve {res.stats['solve_seconds']:.3g} s)",
+             f"{'output':<{width}}  {'value':>14}  "
+             + "  ".join(f"{'d/d' + p:>14}" for p in res.parameters)]
+    for i, o in enumerate(res.outputs):
+        lines.append(f"{o:<{width}}  {res.values[i]:>14.8g}  "
+                     + "  ".join(f"{res.jacobian[i, j]:>14.8g}"
+                                 for j in range(len(res.parameters))))
+    return data, "\n".join(lines)
+
+
+def _add_bench_verb(sub) -> None:
+    """The ``bench`` verb: the benchmark suite of a source checkout (``python -m benchmarks``)."""
+    p = sub.add_parser("bench", help="run the benchmark suite of a casmbd checkout "
+                                     "(python -m benchmarks)")
+    p.add_argument("--quick", action="store_true",
+                   help="a few minutes: check the printed errors against their bounds")
+    p.add_argument("--update-docs", action="store_true",
+                   help="regenerate docs/performance.md (full suite only)")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+
+
+def _cmd_bench(args) -> tuple[dict, str]:
+    """Run ``python -m benchmarks`` in the checkout that holds this casmbd (or the current
+    directory); the suite is not installed with the package."""
+    import subprocess
+
+    here = Path(__file__).resolve().parent.parent
+    root = next((d for d in (Path.cwd(), here) if (d / "benchmarks" / "__main__.py").is_file()),
+                None)
+    if root is None:
+        raise AnalysisError("casmbd bench: no benchmarks/ folder here or next to the installed "
+                            f"package ({here}); run it from a casmbd source checkout")
+    cmd = [sys.executable, "-m", "benchmarks"] + (["--quick"] if args.quick else []) \
+        + (["--update-docs"] if args.update_docs else []) + (["--json"] if args.json else [])
+    proc = subprocess.run(cmd, cwd=root, capture_output=args.json, text=True)
+    if proc.returncode:
+        raise AnalysisError(f"casmbd bench: '{' '.join(cmd[1:])}' failed with exit status "
+                            f"{proc.returncode}" + (f": {proc.stderr.strip()[-400:]}"
+                                                    if args.json and proc.stderr else ""))
+    if args.json:
+        return json.loads(proc.stdout.strip().splitlines()[-1]), ""
+    return {}, f"benchmarks finished ({' '.join(cmd[1:])}, in {root})"
 
 
 def _add_sweep_verb(sub) -> None:
@@ -553,6 +633,8 @@ def _cmd_animate(args) -> tuple[dict, str]:
 
 
 VERBS["plot"] = _cmd_plot
+VERBS["sensitivity"] = _cmd_sensitivity
+VERBS["bench"] = _cmd_bench
 VERBS["animate"] = _cmd_animate
 
 
@@ -662,8 +744,24 @@ def main(argv: Sequence[str] | None = None) -> int:
         data = json.loads(json.dumps(data, default=_json_default))  # numpy -> builtins
         sys.stdout.write(json.dumps(_finite_json(data), allow_nan=False) + "\n")
     else:
-        print(text)
+        if text:
+            print(text)
+        if getattr(args, "verbose", False) and isinstance(data.get("stats"), dict):
+            print(_verbose_stats(data["stats"]))
     return 0
+
+
+def _verbose_stats(stats: dict) -> str:
+    """The solver statistics, one ``key: value`` per line (``--verbose``)."""
+    lines = ["statistics:"]
+    for key in sorted(stats):
+        val = stats[key]
+        if isinstance(val, float):
+            val = f"{val:.6g}"
+        elif isinstance(val, (list, tuple)) and len(val) > 8:
+            val = f"[{', '.join(map(str, val[:8]))}, … ({len(val)} items)]"
+        lines.append(f"  {key}: {val}")
+    return "\n".join(lines)
 
 
 if __name__ == "__main__":  # pragma: no cover
