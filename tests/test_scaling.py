@@ -1,0 +1,88 @@
+"""Correctness checks behind the scaling study (benchmarks/scaling.py); no timings.
+
+* The generated C source of a pendulum chain grows about linearly with the number of rods.
+* The articulated-body right-hand side (joint coordinates) and the KKT right-hand side in
+  absolute coordinates give the same tip acceleration at a random state: two independent
+  formulations, coordinate sets and kinematics.
+* A second build on the same cache loads the library without running the compiler.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from benchmarks.scaling import mechanism
+from casmbd.analysis.simulate import Simulator
+from casmbd.compiled import codegen
+
+
+@pytest.fixture
+def cache(tmp_path, monkeypatch):
+    """An empty compile cache for this test (so that the first build really compiles)."""
+    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path))
+    monkeypatch.delenv("CASMBD_CFLAGS", raising=False)
+    monkeypatch.delenv("CASMBD_COMPILE", raising=False)
+    return tmp_path
+
+
+def _source_bytes(sim: Simulator) -> int:
+    return Path(sim.model.report.library).with_suffix(".c").stat().st_size
+
+
+@pytest.mark.parametrize("config", ["abs_al", "joint_aba"])
+def test_source_grows_about_linearly(cache, config):
+    """size(8) / size(4) of the kept C source <= 2.5 (exactly linear growth gives 2; the
+    constant part of the library makes it less; a quadratic term would exceed 2.5 soon)."""
+    size = {n: _source_bytes(Simulator(mechanism(n, config), mode="compiled"))
+            for n in (4, 8)}
+    assert size[8] > size[4]  # the measured file is the model's own source
+    assert size[8] / size[4] <= 2.5, size
+
+
+def _rhs(sim: Simulator, x: np.ndarray) -> np.ndarray:
+    """ẋ = (q̇, q̈) from the compiled dynamics Function of a Simulator."""
+    out = sim.dyn(0.0, x, np.zeros(0), sim.model.p, np.zeros(0))[0]
+    return np.asarray(out, dtype=float).ravel()
+
+
+@pytest.mark.parametrize("n", [2, 4, 8])
+def test_articulated_and_absolute_tip_acceleration_agree(cache, n):
+    """Tip acceleration from the articulated recursion (joint coordinates) equals the one of
+    the KKT ODE in absolute coordinates at the same random state, to 1e-9 m/s²."""
+    rng = np.random.default_rng(n)
+    joint = Simulator(mechanism(n, "joint_aba"), mode="compiled")
+    absolute = Simulator(mechanism(n, "abs_kkt"), "kkt_ode", mode="compiled")
+    assert joint.formulation_name == "articulated"
+    theta, omega = rng.uniform(-1.0, 1.0, n), rng.uniform(-2.0, 2.0, n)
+    acc_joint = _rhs(joint, np.concatenate([theta, omega]))[n:]
+    out_j = joint.model.outputs(theta[None], omega[None], acc_joint[None], np.zeros(1))
+    tip_joint = out_j["marker_accelerations"][0]
+
+    # the same state in absolute coordinates, from the joint model's body outputs
+    pos = out_j["body_positions"][0].reshape(n, 2)
+    vel = out_j["body_velocities"][0].reshape(n, 2)
+    q = np.column_stack([pos, out_j["angle_positions"][0]]).ravel()
+    v = np.column_stack([vel, out_j["angle_velocities"][0]]).ravel()
+    model = absolute.model
+    assert np.max(np.abs(model.constraints(q, 0.0))) < 1e-12  # consistent positions
+    assert np.max(np.abs(model.constraint_jacobian(q, 0.0) @ v)) < 1e-12  # and velocities
+    acc_abs = _rhs(absolute, np.concatenate([q, v]))[3 * n:]
+    tip_abs = model.outputs(q[None], v[None], acc_abs[None], np.zeros(1))[
+        "marker_accelerations"][0]
+    assert np.max(np.abs(tip_abs)) > 1.0  # a genuine, non-trivial acceleration
+    np.testing.assert_allclose(tip_abs, tip_joint, rtol=0, atol=1e-9)
+
+
+def test_second_build_does_not_compile(cache):
+    """A second Simulator of the same chain on the same cache is a cache hit: the compiler
+    does not run (process-wide compile counter unchanged) and the report says so."""
+    first = Simulator(mechanism(4, "abs_al"), mode="compiled")
+    assert first.model.report.compiled and not first.model.report.cache_hit
+    count = codegen.COMPILE_COUNT
+    second = Simulator(mechanism(4, "abs_al"), mode="compiled")
+    assert codegen.COMPILE_COUNT == count
+    assert second.model.report.cache_hit and not second.model.report.compiled
+    assert second.model.report.library == first.model.report.library
