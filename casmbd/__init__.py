@@ -18,6 +18,7 @@ from casmbd.analysis.linearize import linearize
 from casmbd.analysis.sensitivity import SensitivityResult, sensitivity
 from casmbd.analysis.simulate import Simulator, simulate
 from casmbd.analysis.statics import static_equilibrium
+from casmbd.analysis.sweep import SweepResult, sweep
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import (
     AnalysisError,
@@ -54,6 +55,7 @@ __all__ = [
     "SensitivityResult",
     "Simulator",
     "SingularConfigurationError",
+    "SweepResult",
     "System",
     "accelerations",
     "assemble",
@@ -68,5 +70,6 @@ __all__ = [
     "sensitivity",
     "simulate",
     "static_equilibrium",
+    "sweep",
     "velocities",
 ]

@@ -7,6 +7,7 @@ finite differences of the simulation itself (``Simulator.run`` with the paramete
 
 from __future__ import annotations
 
+import json
 import math
 import pathlib
 
@@ -177,3 +178,27 @@ def test_bad_input_is_named():
         sensitivity(mech, "tip_x", ["k"], 0.0)
     with pytest.raises(AnalysisError, match="declares no parameters"):
         sensitivity(casmbd.load_scene(ROOT / "examples" / "four_bar.toml"), "t", None, 0.1)
+
+
+def test_cli_sensitivity_json_and_table(capsys):
+    """``casmbd sensitivity``: the JSON holds the value and d/dω of the slider position, equal
+    to the closed form to 1e-9; the text table names the output and the parameter."""
+    from casmbd import cli
+
+    args = ["sensitivity", str(SLIDER_CRANK), "--output", "slider_x", "--output",
+            "integral: crank_speed_effort", "--param", "omega", "--t-end", str(T_CRANK)]
+    assert cli.main([*args, "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    omega, h = 2.0 * math.pi, 1e-6
+    exact = (slider_x(omega + h, T_CRANK) - slider_x(omega - h, T_CRANK)) / (2 * h)
+    assert data["method"] == "forward" and data["parameters"] == ["omega"]
+    assert data["outputs"]["slider_x"]["derivatives"]["omega"] == pytest.approx(exact,
+                                                                                   rel=1e-7)
+    assert cli.main([*args, "--method", "adjoint", "--verbose"]) == 0
+    text = capsys.readouterr().out
+    assert "d/domega" in text and "slider_x" in text and "adjoint" in text
+    assert "statistics:" in text and "solve_seconds" in text
+    assert cli.main(["sensitivity", str(SLIDER_CRANK), "--output", "slider_x", "--param",
+                     "speed", "--t-end", "0.1"]) == cli.EXIT_ERROR
+    err = capsys.readouterr().err
+    assert "unknown parameter 'speed'" in err and "omega" in err
