@@ -43,7 +43,7 @@ def test_info_statics_linearize(capsys):
     assert statics["residual"] < 1e-10 and statics["stable"] is True
     lin = run_json(capsys, "linearize", PENDULUM)
     mass = np.asarray(lin["M"], dtype=float)
-    assert mass.shape == (len(lin["coordinates"]),) * 2
+    assert mass.shape[0] == mass.shape[1] == 2  # two degrees of freedom
     np.testing.assert_allclose(mass, mass.T, atol=1e-12)
     assert np.all(np.linalg.eigvalsh(mass) > 0)
 
