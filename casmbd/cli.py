@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 import time
 from collections.abc import Sequence
@@ -724,6 +725,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         print("error: missing verb (one of: " + ", ".join(VERBS) + "); see casmbd --help",
               file=sys.stderr)
         return EXIT_USAGE
+    if getattr(args, "json", False):
+        os.environ["CASMBD_PROGRESS"] = "0"  # one JSON object: no progress bars
     t0 = time.perf_counter()
     try:
         data, text = VERBS[args.verb](args)

@@ -18,6 +18,7 @@ from collections.abc import Mapping
 import casadi as ca
 import numpy as np
 
+from casmbd import progress
 from casmbd.analysis import integrators as integ
 from casmbd.analysis.assembly import assemble
 from casmbd.analysis.kkt import (
@@ -429,7 +430,7 @@ class Simulator:
     def _interval_by_interval(self, name, grid, x0, z0, rtol, atol, step, max_steps,
                               project: bool):
         interval = grid[1] - grid[0]
-        model, nq = self.model, self.model.nq
+        nq = self.model.nq
         shifted = self._solver("shifted", lambda: integ.shifted(self.dyn))
         if name in ("rk4", "abm"):
             return self._fixed_step(name, grid, x0, step, project=True)
@@ -443,8 +444,14 @@ class Simulator:
                     self._solver_stats(solver.stats()))
         xs = [np.asarray(x0, float)]
         x, z = xs[0], z0
-        totals: dict = {}
+        with progress.bar(len(grid) - 1, f"{name} {self.system.mechanism.name}",
+                          "output") as pbar:
+            return self._interval_loop(advance, grid, xs, x, z, project, nq, pbar)
+
+    def _interval_loop(self, advance, grid, xs, x, z, project, nq, pbar):
+        model, totals = self.model, {}
         for k in range(len(grid) - 1):
+            pbar.update()
             x, z, st = advance(x, z, grid[k])
             for key, val in st.items():
                 totals[key] = totals.get(key, 0) + val
@@ -475,6 +482,16 @@ class Simulator:
         nq, nx = self.model.nq, len(x0)
         s, used = runner.start(x0, grid[0], p, h)
         xs = [np.asarray(x0, float)]
+        with progress.bar(len(grid) - 1, f"{name} {self.system.mechanism.name}",
+                          "output") as pbar:
+            xs = self._fixed_loop(runner, grid, xs, s, used, p, h, n_sub, nq, nx, name,
+                                  project, pbar)
+        n_steps = (len(grid) - 1) * n_sub
+        return np.vstack(xs), {"steps": n_steps, "jacobian_evaluations": 0, "step_size": h,
+                               "rhs_evaluations": n_steps * (4 if name == "rk4" else 2)}
+
+    def _fixed_loop(self, runner, grid, xs, s, used, p, h, n_sub, nq, nx, name, project,
+                    pbar):
         for k in range(len(grid) - 1):
             s = runner.advance(s, p, h, n_sub - used)
             used = 0
@@ -492,9 +509,8 @@ class Simulator:
                 x = np.concatenate([q, project_velocities(self.model, q, x[nq:], t)])
                 s, used = runner.start(x, t, p, h)
             xs.append(x)
-        n_steps = (len(grid) - 1) * n_sub
-        return np.vstack(xs), {"steps": n_steps, "jacobian_evaluations": 0, "step_size": h,
-                               "rhs_evaluations": n_steps * (4 if name == "rk4" else 2)}
+            pbar.update()
+        return xs
 
     def _partial(self, name, grid, x0, z0, rtol, atol, step, max_steps,
                  t_fail: float | None = None):

@@ -1,0 +1,65 @@
+"""Progress bars (issue 10 item 3): shown only on a terminal (or when forced), quiet in JSON
+mode, and never a change to the numbers."""
+
+from __future__ import annotations
+
+import io
+import json
+import pathlib
+import time
+
+import numpy as np
+import pytest
+
+import casmbd
+from casmbd import cli, progress
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+
+
+def test_bar_draws_after_a_second_when_forced(monkeypatch):
+    pytest.importorskip("tqdm")
+    sink = io.StringIO()
+    monkeypatch.setattr(progress, "_TERMINAL", sink)
+    monkeypatch.setenv("CASMBD_PROGRESS", "1")
+    with progress.bar(3, "loop", "step") as bar:
+        for _ in range(3):
+            time.sleep(0.45)
+            bar.update()
+    assert "loop" in sink.getvalue() and "3/3" in sink.getvalue()
+
+
+def test_quiet_when_disabled_or_short(monkeypatch):
+    sink = io.StringIO()
+    monkeypatch.setattr(progress, "_TERMINAL", sink)
+    monkeypatch.setenv("CASMBD_PROGRESS", "0")
+    assert not progress.enabled()
+    with progress.bar(3, "loop") as bar:
+        bar.update(3)
+    monkeypatch.setenv("CASMBD_PROGRESS", "1")
+    with progress.bar(3, "short") as bar:  # under tqdm's one-second delay: nothing drawn
+        bar.update(3)
+    assert sink.getvalue() == ""
+
+
+def test_progress_does_not_change_results(monkeypatch):
+    """A fixed-step and a projected run with bars forced on equal the runs without, bit for
+    bit."""
+    monkeypatch.setattr(progress, "_TERMINAL", io.StringIO())
+    mech = casmbd.load_scene(ROOT / "examples" / "double_pendulum.toml")
+    runs = {}
+    for flag in ("0", "1"):
+        monkeypatch.setenv("CASMBD_PROGRESS", flag)
+        runs[flag] = (casmbd.simulate(mech, 0.5, 20, integrator="rk4", step=1e-3),
+                      casmbd.simulate(mech, 0.5, 20, projection=True))
+    for a, b in zip(runs["0"], runs["1"]):
+        np.testing.assert_array_equal(a["q"], b["q"])
+
+
+def test_json_mode_turns_bars_off(monkeypatch, capsys):
+    monkeypatch.setenv("CASMBD_PROGRESS", "1")
+    assert cli.main(["info", str(ROOT / "examples" / "slider_crank.toml"), "--json"]) == 0
+    json.loads(capsys.readouterr().out)
+    import os
+
+    assert os.environ["CASMBD_PROGRESS"] == "0"
