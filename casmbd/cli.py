@@ -743,14 +743,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_ERROR
     if isinstance(data.get("stats"), dict):
         data["stats"]["total_seconds"] = time.perf_counter() - t0
-    if args.json:
-        data = json.loads(json.dumps(data, default=_json_default))  # numpy -> builtins
-        sys.stdout.write(json.dumps(_finite_json(data), allow_nan=False) + "\n")
-    else:
-        if text:
-            print(text)
-        if getattr(args, "verbose", False) and isinstance(data.get("stats"), dict):
-            print(_verbose_stats(data["stats"]))
+    try:
+        if args.json:
+            data = json.loads(json.dumps(data, default=_json_default))  # numpy -> builtins
+            sys.stdout.write(json.dumps(_finite_json(data), allow_nan=False) + "\n")
+        else:
+            if text:
+                print(text)
+            if getattr(args, "verbose", False) and isinstance(data.get("stats"), dict):
+                print(_verbose_stats(data["stats"]))
+        sys.stdout.flush()
+    except BrokenPipeError:  # `casmbd … | head`: the reader left; not an error
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
     return 0
 
 
