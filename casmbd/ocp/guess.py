@@ -9,9 +9,13 @@ import numpy as np
 from casmbd.errors import AnalysisError
 
 
-def boundary_state(tr, which: str, start: np.ndarray) -> np.ndarray:
+def boundary_state(tr, which: str, start: np.ndarray, continuation: int = 8) -> np.ndarray:
     """A state (q, q̇) meeting C = 0, C_q q̇ + C_t = 0 and the named initial/final conditions
-    in the least-squares sense, by Gauss–Newton from ``start`` (for the guess only)."""
+    in the least-squares sense, by Gauss–Newton from ``start`` (for the guess only).
+
+    The named values are approached in ``continuation`` equal steps from their values at
+    ``start`` (a full step from far away can land a closed loop on another assembly branch or
+    wind its angles by whole turns: the four-bar's half crank turn did)."""
     nq = tr.nq
     x = ca.SX.sym("x", 2 * nq)
     t = tr.ocp.t_start + (0.0 if which == "initial" else _horizon(tr))
@@ -26,11 +30,26 @@ def boundary_state(tr, which: str, start: np.ndarray) -> np.ndarray:
         parts.append(fn(x[:nq], x[nq:], t, u, tr.p) - values)
     if not parts:
         return start
+    target = ca.SX.sym("target", values.size)
+    if values.size:
+        parts[-1] = parts[-1] + values - target
     res = ca.vertcat(*parts)
-    f = ca.Function("gn", [x], [res, ca.jacobian(res, x)])
+    f = ca.Function("gn", [x, target], [res, ca.jacobian(res, x)])
     xk = np.array(start, dtype=float)
+    if values.size:
+        here = np.asarray(fn(xk[:nq], xk[nq:], t, u, tr.p), dtype=float).ravel()
+        targets = [here + s * (values - here) for s in np.linspace(0, 1, continuation + 1)[1:]]
+    else:
+        targets = [values]
+    for goal in targets:
+        xk = _gauss_newton(f, xk, goal)
+    return xk
+
+
+def _gauss_newton(f, xk: np.ndarray, *args) -> np.ndarray:
+    """Minimum-norm Gauss–Newton steps on the residual ``f(x, *args) -> (r, ∂r/∂x)``."""
     for _ in range(50):
-        r, j = (np.asarray(v, dtype=float) for v in f(xk))
+        r, j = (np.asarray(v, dtype=float) for v in f(xk, *args))
         r = r.ravel()
         if np.max(np.abs(r), initial=0.0) < 1e-12:
             break
@@ -39,6 +58,20 @@ def boundary_state(tr, which: str, start: np.ndarray) -> np.ndarray:
         if np.max(np.abs(step)) < 1e-14:
             break
     return xk
+
+
+def _projector(tr):
+    """x ↦ the nearby state meeting C = 0 and C_q q̇ + C_t = 0 (minimum-norm Gauss–Newton from
+    x; identity without constraints): the interpolated guess of a closed loop kept on its
+    constraint manifold."""
+    if not tr.nc:
+        return lambda x, t: x
+    nq = tr.nq
+    x, t = ca.SX.sym("x", 2 * nq), ca.SX.sym("t")
+    c, cdot, _ = tr.node(x[:nq], x[nq:], t, tr.p)
+    res = ca.vertcat(c, cdot)
+    f = ca.Function("project", [x, t], [res, ca.jacobian(res, x)])
+    return lambda xs, ts: _gauss_newton(f, np.asarray(xs, dtype=float), ts)
 
 
 def _states(tr, kind):
@@ -69,8 +102,10 @@ def initial_guess(tr, kind) -> np.ndarray:
     if kind == "simulation":
         state = _simulated(tr, x_start, T)
     else:
+        project = _projector(tr)
+
         def state(s):
-            return (1.0 - s) * x_start + s * x_end
+            return project((1.0 - s) * x_start + s * x_end, tr.ocp.t_start + s * T)
     if kind == "inverse":
         controls, mults = _inverse(tr, state, T)
     else:
