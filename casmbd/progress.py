@@ -9,6 +9,7 @@ is not ``0`` (the CLI sets it in ``--json`` mode) and the loop has run for more 
 
 from __future__ import annotations
 
+import atexit
 import os
 
 #: the process's standard error as it was when casmbd was imported: solver runs capture
@@ -19,6 +20,8 @@ try:
     _TERMINAL = os.fdopen(os.dup(2), "w", buffering=1)
 except OSError:  # no file descriptor 2
     _IS_TTY, _TERMINAL = False, None
+else:
+    atexit.register(_TERMINAL.close)
 
 
 class _Silent:
