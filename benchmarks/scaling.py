@@ -61,6 +61,7 @@ ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "benchmarks" / "results"
 CSV_PATH = RESULTS / "scaling.csv"
 JSON_PATH = RESULTS / "scaling.json"
+PARTIAL_PATH = RESULTS / "scaling_partial.json"
 FIGURE = ROOT / "docs" / "figures" / "scaling.png"
 DOCS = ROOT / "docs" / "performance.md"
 HEAD = "## Scaling to a thousand bodies"
@@ -421,11 +422,11 @@ def write_csv(rows: list[dict], path: Path) -> None:
     with path.open("w", newline="", encoding="utf-8") as handle:
         writer = csv.DictWriter(handle, CSV_COLUMNS, extrasaction="ignore")
         writer.writeheader()
-        for r in rows:
+        for r in ordered(rows):
             writer.writerow({k: r.get(k, "") for k in CSV_COLUMNS})
 
 
-def plot(rows: list[dict], path: Path) -> None:
+def plot(rows: list[dict], path: Path, timeout: float = 600.0) -> None:
     """Log-log time columns against N, one panel per configuration (default flags)."""
     import matplotlib
 
@@ -436,14 +437,14 @@ def plot(rows: list[dict], path: Path) -> None:
                ("compile_s", "C compile [s]"), ("second_run_s", "second run (cache) [s]"),
                ("solve_s", "solve to 1e-6 [s]"), ("rhs_us", "RHS [µs]"),
                ("jac_fd_us", "FD Jacobian [µs]")]
-    fig, axes = plt.subplots(1, len(CONFIGS), figsize=(15, 4.6), sharey=True)
+    fig, axes = plt.subplots(1, len(CONFIGS), figsize=(15, 5.4), sharey=True)
     for ax, config in zip(axes, CONFIGS):
-        for key, label in columns:
+        for i, (key, label) in enumerate(columns):
             pts = sorted((r["n"], _num(r, key)) for r in rows
                          if r["config"] == config and r["variant"] == "O2")
             pts = [(n, v) for n, v in pts if math.isfinite(v) and v > 0]
             if pts:
-                ax.loglog(*zip(*pts), "o-", label=label)
+                ax.loglog(*zip(*pts), "o-", color=f"C{i}", label=label)
         ns = sorted({r["n"] for r in rows})
         if ns:
             ref = np.array([ns[0], ns[-1]], dtype=float)
@@ -455,14 +456,25 @@ def plot(rows: list[dict], path: Path) -> None:
                          if r["config"] == config and r["variant"] == variant)
             pts = [(n, v) for n, v in pts if math.isfinite(v) and v > 0]
             if pts:
-                ax.loglog(*zip(*pts), marker, mfc="none", ms=9,
+                ax.loglog(*zip(*pts), marker, mfc="none", ms=9, color="C2" if variant == "O0"
+                          else "C4",
                           label="compile -O0 [s]" if variant == "O0" else "solve, VM [s]")
+        out = [r["n"] for r in rows if r["config"] == config and r["variant"] == "O2"
+               and r.get("status") == "timeout"]
+        if out:
+            ax.loglog(out, [timeout] * len(out), "rx", ms=12, mew=2,
+                      label="first build timed out (at the timeout)")
         ax.set_title(CONFIG_LABEL[config], fontsize=10)
         ax.set_xlabel("N (rods)")
         ax.grid(True, which="both", alpha=0.3)
-    axes[0].set_ylabel("seconds / µs (see legend)")
-    axes[-1].legend(fontsize=7, loc="upper left")
-    fig.tight_layout()
+    axes[0].set_ylabel("seconds, or µs for RHS / Jacobian")
+    handles: dict = {}
+    for ax in axes:
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            handles.setdefault(lab, h)
+    fig.legend(list(handles.values()), list(handles), loc="lower center",
+               ncol=min(6, len(handles)), fontsize=8)
+    fig.tight_layout(rect=(0, 0.12, 1, 1))
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -482,8 +494,15 @@ def _fmt(value, digits: int = 3) -> str:
     return f"{value:.{digits}g}"
 
 
+def ordered(rows: list[dict]) -> list[dict]:
+    """Rows by configuration, flags (default first) and N."""
+    return sorted(rows, key=lambda r: (list(CONFIGS).index(r["config"]),
+                                       list(VARIANTS).index(r["variant"]), r["n"]))
+
+
 def table(rows: list[dict]) -> list[str]:
     """Markdown table of every case."""
+    rows = ordered(rows)
     head = ("| config | flags | N | nx | status | symbolic [s] | codegen [s] | compile [s] | "
             "C source [MB] | build RSS [MB] | cc RSS [MB] | 2nd run [s] | 2nd compiled | "
             "RHS [µs] | FD Jac [µs] | t_end [s] | ref | tol | error | steps | solve [s] | "
@@ -579,6 +598,27 @@ def targets(rows: list[dict]) -> list[str]:
     return out
 
 
+def variant_lines(rows: list[dict]) -> list[str]:
+    """The compile options side by side at the sizes where they were measured."""
+    cases = sorted({(r["config"], r["n"]) for r in rows if r["variant"] != "O2"},
+                   key=lambda c: (list(CONFIGS).index(c[0]), c[1]))
+    if not cases:
+        return []
+    lines = ["| config | N | flags | status | compile [s] | whole first build [s] | "
+             "2nd run [s] | RHS [µs] | solve [s] | error |",
+             "| --- | ---: | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |"]
+    for config, n in cases:
+        for variant in VARIANTS:
+            r = _get(rows, config, n, variant)
+            if r is None:
+                continue
+            lines.append(f"| {config} | {n} | {variant} | {r.get('status', '')} | "
+                         f"{_fmt(r.get('compile_s'))} | {_fmt(r.get('build_total_s'))} | "
+                         f"{_fmt(r.get('second_run_s'))} | {_fmt(r.get('rhs_us'))} | "
+                         f"{_fmt(r.get('solve_s'))} | {_fmt(r.get('error'), 2)} |")
+    return lines
+
+
 def profile_lines(prof: dict | None) -> list[str]:
     """Where the time of one mid-size solve goes."""
     if not prof:
@@ -613,6 +653,42 @@ def profile_lines(prof: dict | None) -> list[str]:
         lines.append(f"| `{r['function']}` | {r['ncalls']} | {r['tottime']:.4f} | "
                      f"{r['cumtime']:.4f} |")
     return lines
+
+
+NOTES = """\
+### Findings
+
+One-off investigations on the machine above during the study (not re-measured by the
+command):
+
+* *The symbolic build is quadratic in N, and at N = 1000 it alone exceeds the timeout.*
+  cProfile of `Simulator(chain100, mode="vm")` (5.2 s): 4.6 s are
+  `System.reactions_function` (`casmbd/system/equations.py`, line 791), which calls
+  `_constraint_wrench` (line 733) once per body, and each call rebuilds *every* constraint
+  equation of the mechanism with that body's perturbed context through `_constraints_with`
+  (line 180) and differentiates all n_c rows with respect to the body's three virtual
+  displacements: 100 bodies × 101 joints = 10 100 `Joint.equations` calls, of which only the
+  two joints at the body contribute non-zeros. Writing the wrench from the rows of the
+  joints attached to the body (the joint→rows map exists as the constraint labels) would make
+  it O(N). This is library code, reported, not changed.
+* *Compilation at -O2 grows faster than the source* (C source ∝ N, compile time ∝ N^1.3–1.6,
+  see the growth table and *Compiled equations* above for the reason: CasADi's straight-line
+  functions make gcc's alias walking and SLP vectorisation quadratic in a function's
+  length). `-O0` is the existing remedy (`CASMBD_CFLAGS=-O0`, see *Compile options*); the
+  virtual machine needs no compiler at all but evaluates several times slower.
+* *Compiler memory*: `cc RSS` is `ru_maxrss` of `RUSAGE_CHILDREN` in the build child, i.e.
+  of its largest child process; the forked child counts the ≈ 80 MB of the Python process
+  before `exec`, so values near 80 MB mean "small", not "80 MB of gcc".
+* *Pinocchio comparison*: our figure is the planar articulated recursion (3-component
+  spatial algebra, one revolute DOF per body) generated as straight-line C by CasADi, timed
+  through a buffer; Pinocchio's figures are the ones quoted in the issue (spatial 6-D
+  algebra, unknown machine and model), not measured here, so the ratio is indicative only.
+* *Machine load*: the machine was shared with other jobs during the study (load average
+  above 2 on 2 cores for most of it); compile and solve seconds are single runs and can be
+  inflated by up to ≈ 2× (the N = 32 solve took 0.02 s in a quieter development run and
+  0.05–0.12 s here).
+
+"""
 
 
 def markdown(data: dict) -> str:
@@ -659,7 +735,11 @@ def markdown(data: dict) -> str:
         *growth_lines(rows), "",
         "### Against the issue's targets", "",
         *targets(rows), "",
-        *data.get("notes", []),
+        *(["### Compile options at large N", "",
+           "What the existing options of `casmbd.compiled.codegen` give where `-O2` is slow "
+           "(`CASMBD_CFLAGS=-O0` / `-O1`, or `mode=\"vm\"`; library defaults unchanged):",
+           "", *variant_lines(rows), ""] if variant_lines(rows) else []),
+        NOTES,
         "### Where a solve spends its time", "",
         *profile_lines(data.get("profile")), "",
     ]
@@ -689,6 +769,9 @@ def parse(argv=None) -> argparse.Namespace:
                    help="no runs: CSV, figure and docs from benchmarks/results/scaling.json")
     p.add_argument("--profile", type=int, default=None, metavar="N",
                    help="only the cProfile of one solve of the default formulation")
+    p.add_argument("--resume", action="store_true",
+                   help="keep the cases of benchmarks/results/scaling_partial.json (an "
+                        "interrupted run) and measure only the others")
     p.add_argument("--child", nargs="+", help=argparse.SUPPRESS)
     p.add_argument("--out", help=argparse.SUPPRESS)
     return p.parse_args(argv)
@@ -730,7 +813,7 @@ def main(argv=None) -> int:
     if args.render:
         data = json.loads(JSON_PATH.read_text(encoding="utf-8"))
         write_csv(data["rows"], CSV_PATH)
-        plot(data["rows"], FIGURE)
+        plot(data["rows"], FIGURE, data.get("timeout", 600.0))
         if args.update_docs:
             from benchmarks.docs import replace_section
 
@@ -747,36 +830,31 @@ def main(argv=None) -> int:
     info = machine_info()
     t_start = time.perf_counter()
     rows: list[dict] = []
+    previous_wall = 0.0
+    if args.resume and PARTIAL_PATH.exists():
+        partial = json.loads(PARTIAL_PATH.read_text(encoding="utf-8"))
+        rows = [r for r in partial["rows"]
+                if not str(r.get("status", "")).startswith(("skipped", "crashed"))]
+        previous_wall = float(partial.get("wall_s", 0.0))
+        info = {**partial["info"], "resumed": info["date"] + ", load average "
+                + info["load average at start"]}
+        log(f"resuming: {len(rows)} cases kept from {PARTIAL_PATH.name}")
     for config in args.configs:
-        given_up = None
-        for n in sizes:
-            if given_up is not None:
-                rows.append({"config": config, "variant": "O2", "n": n,
-                             "status": f"skipped (N = {given_up} timed out)"})
-                continue
-            row = run_case(n, config, "O2", args.timeout, args.jac_budget, args.repeat)
-            rows.append(row)
-            if row.get("status") == "timeout":
-                given_up = n
-            _save_partial(rows, info, t_start, args.timeout)
+        _series(rows, config, "O2", sizes, args, always=(config == "abs_al"))
+        _save_partial(rows, info, t_start - previous_wall, args.timeout)
     for config in args.variant_configs:
         for variant in args.variants:
-            given_up = None
-            for n in variant_sizes:
-                if given_up is not None:
-                    rows.append({"config": config, "variant": variant, "n": n,
-                                 "status": f"skipped (N = {given_up} timed out)"})
-                    continue
-                row = run_case(n, config, variant, args.timeout, args.jac_budget, args.repeat)
-                rows.append(row)
-                if row.get("status") == "timeout":
-                    given_up = n
-                _save_partial(rows, info, t_start, args.timeout)
+            _series(rows, config, variant, variant_sizes, args, always=False)
+            _save_partial(rows, info, t_start - previous_wall, args.timeout)
     profile = None if args.quick else _profile(32, args.timeout, _profile_tol(rows))
     info["load average at end"] = " ".join(f"{x:.2f}" for x in os.getloadavg())
-    command = shlex.join(["python", "-m", "benchmarks.scaling", *raw_argv])
+    command = shlex.join(["python", "-m", "benchmarks.scaling",
+                          *(a for a in raw_argv if a != "--resume")])
+    if args.resume:
+        command += "  # interrupted once, continued with --resume (same options)"
     data = {"command": command, "info": info, "rows": rows, "profile": profile,
-            "timeout": args.timeout, "wall_s": time.perf_counter() - t_start}
+            "timeout": args.timeout,
+            "wall_s": previous_wall + time.perf_counter() - t_start}
     for line in [*table(rows), "", *growth_lines(rows), "", *targets(rows)]:
         print(line)
     if args.quick:
@@ -785,7 +863,7 @@ def main(argv=None) -> int:
     JSON_PATH.parent.mkdir(parents=True, exist_ok=True)
     JSON_PATH.write_text(json.dumps(data, indent=1, default=float), encoding="utf-8")
     write_csv(rows, CSV_PATH)
-    plot(rows, FIGURE)
+    plot(rows, FIGURE, args.timeout)
     if args.update_docs:
         from benchmarks.docs import replace_section
 
@@ -793,11 +871,46 @@ def main(argv=None) -> int:
     return 0
 
 
+def _skip_reason(rows: list[dict], config: str, variant: str, n: int, timeout: float,
+                 always: bool) -> str | None:
+    """Why the case (config, variant, n) is not run: an earlier size of the same series timed
+    out, or (unless ``always``) the first build extrapolated from the previous size as
+    N² (the measured growth of the symbolic build) exceeds the timeout."""
+    done = sorted((r for r in rows if r["config"] == config and r["variant"] == variant
+                   and r["n"] < n), key=lambda r: r["n"])
+    if any(r.get("status") == "timeout" for r in done):
+        return "skipped (a smaller N timed out)"
+    if always or not done:
+        return None
+    prev = done[-1]
+    if str(prev.get("status", "")).startswith("skipped"):
+        return f"skipped (N = {prev['n']} was skipped)"
+    total = _num(prev, "build_total_s")
+    if math.isfinite(total) and total * (n / prev["n"]) ** 2 > timeout:
+        return (f"skipped (first build extrapolated from N = {prev['n']} as N²: "
+                f"≈ {total * (n / prev['n']) ** 2:.0f} s > timeout)")
+    return None
+
+
+def _series(rows: list[dict], config: str, variant: str, sizes, args, always: bool) -> None:
+    """Run one (config, variant) over the sizes, skipping what cannot finish."""
+    for n in sizes:
+        if any(r["config"] == config and r["variant"] == variant and r["n"] == n
+               for r in rows):
+            continue  # measured by the run that --resume continues
+        reason = _skip_reason(rows, config, variant, n, args.timeout, always)
+        if reason:
+            log(f"N={n} {config} {variant}: {reason}")
+            rows.append({"config": config, "variant": variant, "n": n, "status": reason})
+            continue
+        rows.append(run_case(n, config, variant, args.timeout, args.jac_budget, args.repeat))
+
+
 def _save_partial(rows: list[dict], info: dict, t_start: float, timeout: float) -> None:
     """Keep what has been measured so far (benchmarks/results/scaling_partial.json)."""
     data = {"command": "(partial)", "info": info, "rows": rows, "profile": None,
             "timeout": timeout, "wall_s": time.perf_counter() - t_start}
-    path = RESULTS / "scaling_partial.json"
+    path = PARTIAL_PATH
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(data, indent=1, default=float), encoding="utf-8")
 
