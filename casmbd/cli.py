@@ -565,8 +565,7 @@ def _cmd_ocp(args) -> tuple[dict, str]:
     for name in sol.controls:
         u = sol.control(name)
         lines.append(f"  control {name:12s} [{u.min():+.4g}, {u.max():+.4g}]")
-    if args.out:
-        lines.append(f"  saved {args.out}")
+    lines += [f"  saved {f}" for f in (args.out, args.plot) if f]
     return data, "\n".join(lines)
 
 

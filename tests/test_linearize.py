@@ -230,3 +230,14 @@ def test_spring_pendulum_frequency_at_the_static_equilibrium():
     lin = linearize(mech, q=eq.q)
     omega2 = (k - m_ * g * length / 2 * np.sin(theta)) / (m_ * length**2 / 3)
     assert abs((2 * np.pi * lin.frequencies_hz[0]) ** 2 / omega2 - 1.0) <= 1e-9
+
+
+def test_rigid_body_pair_is_not_a_saddle():
+    """The crane's free cart gives a double zero eigenvalue that round-off splits into ±3e-9:
+    it is a rigid-body mode (ζ = 0), not a saddle (ζ = −1), and the system is stable."""
+    import pathlib
+
+    scene = pathlib.Path(__file__).resolve().parent.parent / "examples" / "crane.toml"
+    lin = casmbd.linearize(casmbd.load_scene(scene), q=[0, 0, 0, 0, -0.5, 0])
+    assert lin.damping_ratios[0] == 0.0 and lin.natural_frequencies_hz[0] < 1e-6
+    assert 0.0 < lin.damping_ratios[1] < 0.05 and lin.stable

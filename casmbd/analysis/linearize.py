@@ -189,6 +189,8 @@ def _modes(m_bar, c_bar, k_bar, a_mat) -> tuple[np.ndarray, np.ndarray, np.ndarr
     for i in range(len(real) // 2):  # nested pairing: (smallest, largest), ...
         s1, s2 = real[i], real[len(real) - 1 - i]
         prod, total = s1 * s2, s1 + s2
+        if abs(s1) <= tol and abs(s2) <= tol:
+            prod = 0.0  # a rigid-body pair whose zero eigenvalues round-off split to ±ε
         freq.append(0.0)
         mag.append(math.sqrt(abs(prod)))
         if prod > 0:  # overdamped (ζ > 1) or, with both roots positive, divergent (ζ < −1)

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from pathlib import Path
 
 import casadi as ca
 import numpy as np
 
 from casmbd.errors import AnalysisError
+from casmbd.results import atomic_write
 
 
 class OcpSolution:
@@ -179,15 +179,8 @@ class OcpSolution:
         path = Path(path)
         meta = {"stats": {k: v for k, v in self.stats.items() if _jsonable(v)},
                 "controls": self.controls, "coordinates": self.coordinate_names}
-        fd, tmp = tempfile.mkstemp(dir=path.parent or ".", suffix=".npz")
-        os.close(fd)
-        try:
-            np.savez(tmp, t=self.t, q=self.q, v=self.v, u=self.u,
-                     meta=np.array(json.dumps(meta)))
-            os.replace(tmp, path)
-        finally:
-            if os.path.exists(tmp):
-                os.remove(tmp)
+        atomic_write(path, lambda tmp: np.savez(tmp, t=self.t, q=self.q, v=self.v, u=self.u,
+                                                meta=np.array(json.dumps(meta))))
         return path
 
     @classmethod
