@@ -38,7 +38,7 @@ def _cache(tmp_path_factory, monkeypatch):
 def _worst_constraint(ocp, sol) -> float:
     """max |C(q, t)| and |C_q q̇ + C_t| over the mesh nodes, by the compiled model's own
     functions (not the NLP's)."""
-    model = NumericModel(ocp.system, "info", mode="vm")
+    model = NumericModel(ocp.system, "dynamics", mode="vm")
     worst = 0.0
     for q, v, t in zip(sol.q, sol.v, sol.t, strict=True):
         c = model.constraints(q, t)
