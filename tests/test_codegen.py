@@ -291,10 +291,18 @@ def test_compiler_failure(monkeypatch, isolated_cache):
 
 @needs_compiler
 def test_compiler_timeout_becomes_compile_error(monkeypatch):
-    def fake_run(command, **kwargs):
-        raise subprocess.TimeoutExpired(command, kwargs.get("timeout"))
+    class FakeCompiler:
+        def __init__(self, command, **kwargs):
+            self.command, self.pid, self.returncode, self.calls = command, -1, None, 0
 
-    monkeypatch.setattr(codegen.subprocess, "run", fake_run)
+        def communicate(self, timeout=None):
+            self.calls += 1
+            if self.calls == 1:
+                raise subprocess.TimeoutExpired(self.command, timeout)
+            return "", ""
+
+    monkeypatch.setattr(codegen.subprocess, "Popen", FakeCompiler)
+    monkeypatch.setattr(codegen.os, "killpg", lambda pid, sig: None)
     with pytest.raises(CompileError, match="timed out"):
         compile_functions(make_functions(), "cg_timeout", mode="compiled")
 
@@ -311,3 +319,52 @@ def test_invalid_arguments():
         compile_functions([functions[0], functions[0]], mode="vm")
     with pytest.raises(TypeError, match=r"casadi\.Function"):
         compile_functions([functions[0], "not a function"], mode="vm")
+
+
+def test_compiler_timeout_ends_the_compilers_children(tmp_path, monkeypatch):
+    """A compiler that outlives COMPILE_TIMEOUT is killed with its whole process group (gcc's
+    cc1 child would otherwise run on), and the error says it timed out."""
+    import os
+    import time
+
+    from casmbd.compiled import codegen
+    from casmbd.errors import CompileError
+
+    pidfile = tmp_path / "child.pid"
+    monkeypatch.setattr(codegen, "COMPILE_TIMEOUT", 0.5)
+    command = ["sh", "-c", f"sleep 30 & echo $! > {pidfile}; wait"]
+    with pytest.raises(CompileError, match="timed out"):
+        codegen._run_compiler(command, tmp_path / "x.c", tmp_path / "x.so")
+    child = int(pidfile.read_text())
+    for _ in range(50):  # the kill is immediate; give the kernel a moment to reap
+        try:
+            os.kill(child, 0)
+        except ProcessLookupError:
+            break
+        time.sleep(0.05)
+    else:
+        pytest.fail(f"child {child} of the timed-out compiler is still running")
+    assert not list(tmp_path.glob("*.so.tmp"))
+
+
+def test_nlp_compile_failure_falls_back_to_the_virtual_machine(tmp_path, monkeypatch):
+    """As compile_functions in "auto" mode: a failed NLP compile warns and solves in the VM
+    (min (x−1)² + (y−2)² s.t. x + y = 1 → x = 0, y = 1)."""
+    import casadi as ca
+
+    from casmbd.compiled import codegen
+    from casmbd.errors import CompileError
+
+    def broken(*args, **kwargs):
+        raise CompileError("no luck")
+
+    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path))
+    monkeypatch.setattr(codegen, "_run_compiler", broken)
+    x = ca.MX.sym("x", 2)
+    problem = {"x": x, "f": (x[0] - 1) ** 2 + (x[1] - 2) ** 2, "g": x[0] + x[1]}
+    opts = {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes"}
+    with pytest.warns(RuntimeWarning, match="virtual machine"):
+        solver, report = codegen.compile_nlp_solver(problem, "ipopt", opts, "cg_nlp_fail")
+    assert report.mode == "vm" and not report.compiled
+    sol = solver(x0=[0, 0], lbg=1, ubg=1)
+    assert np.allclose(np.asarray(sol["x"]).ravel(), [0.0, 1.0], atol=1e-8)

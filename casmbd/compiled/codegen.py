@@ -29,6 +29,7 @@ import platform
 import re
 import shlex
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -238,16 +239,28 @@ def _run_compiler(command: list[str], source: pathlib.Path, library: pathlib.Pat
         COMPILE_COUNT += 1
         start = time.perf_counter()
         try:
-            result = subprocess.run(
-                full, capture_output=True, text=True, timeout=COMPILE_TIMEOUT, check=False
-            )
+            # its own process group, so that a timeout also ends the compiler's children
+            # (gcc's cc1 would otherwise run on as an orphan)
+            proc = subprocess.Popen(full, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                    text=True, start_new_session=True)
+        except OSError as exc:
+            raise CompileError(f"cannot run the C compiler {command[0]!r}: {exc}") from exc
+        try:
+            stdout, stderr = proc.communicate(timeout=COMPILE_TIMEOUT)
         except subprocess.TimeoutExpired as exc:
+            with contextlib.suppress(OSError):
+                os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
             raise CompileError(
                 f"C compiler timed out after {COMPILE_TIMEOUT:g} s compiling {source.name}: "
                 f"{shlex.join(full)}"
             ) from exc
-        except OSError as exc:
-            raise CompileError(f"cannot run the C compiler {command[0]!r}: {exc}") from exc
+        except BaseException:
+            with contextlib.suppress(OSError):
+                os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
+            raise
+        result = subprocess.CompletedProcess(full, proc.returncode, stdout, stderr)
         elapsed = time.perf_counter() - start
         if result.returncode != 0:
             output = (result.stderr or "") + (result.stdout or "")
@@ -458,8 +471,15 @@ def compile_nlp_solver(problem: dict, plugin: str, options: dict, name: str = "c
             finally:
                 os.chdir(cwd)
             codegen = time.perf_counter() - start
-            seconds = _run_compiler([*compiler, *flags_, *SHARED_FLAGS],
-                                    pathlib.Path(tmp) / f"{name}.c", library)
+            try:
+                seconds = _run_compiler([*compiler, *flags_, *SHARED_FLAGS],
+                                        pathlib.Path(tmp) / f"{name}.c", library)
+            except CompileError as exc:  # as compile_functions in "auto" mode
+                warnings.warn(f"casmbd: compiling the NLP {name!r} failed, using the CasADi "
+                              f"virtual machine instead: {exc}", RuntimeWarning, stacklevel=2)
+                return solver, BuildReport(mode="vm", cache_hit=False, compiled=False,
+                                           codegen_seconds=codegen, compile_seconds=0.0,
+                                           load_seconds=0.0, library=None, key=key)
         compiled = True
     t_load = time.perf_counter()
     out = casadi.nlpsol(name, plugin, str(library), options)
