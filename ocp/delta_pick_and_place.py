@@ -62,7 +62,7 @@ def obstacle_expression(obstacle=OBSTACLE) -> str:
 
 
 def build(variant: str = "time", obstacle: bool = False, intervals: int = 20,
-          subintervals: int = 2, compile: bool = False, torque: float = TORQUE) -> Ocp:
+          subintervals: int = 1, compile: bool = False, torque: float = TORQUE) -> Ocp:
     """The pick-and-place :class:`~casmbd.ocp.Ocp` of one variant."""
     if variant not in VARIANTS:
         raise ValueError(f"variant must be one of {VARIANTS}, got {variant!r}")
@@ -86,7 +86,7 @@ def main(argv=None) -> int:
     parser.add_argument("--variant", choices=VARIANTS, default="time")
     parser.add_argument("--obstacle", action="store_true", help="lift the hand over a bar")
     parser.add_argument("--intervals", type=int, default=20)
-    parser.add_argument("--subintervals", type=int, default=2)
+    parser.add_argument("--subintervals", type=int, default=1)
     parser.add_argument("--compile", action="store_true",
                         help="compile the NLP to C (slow for the Delta; cached)")
     parser.add_argument("--no-replay", action="store_true")

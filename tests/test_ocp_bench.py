@@ -36,7 +36,7 @@ def test_cart_pole_baseline_matches_casmbd():
     base = solve("cart_pole")
     assert base.success
     ocp = load_ocp(OCP_DIR / "cart_pole.toml")
-    ocp.compile, ocp.subintervals = False, 1
+    ocp.compile, ocp.subintervals, ocp.degree = False, 1, 3
     ours = ocp.solve()
     assert abs(base.objective - ours.objective) < 1e-9 * ours.objective
     assert abs(base.objective - PROBLEMS["cart_pole"]) < 1e-3 * PROBLEMS["cart_pole"]

@@ -6,8 +6,8 @@
     horizon = 2.0                 # or { free = true, guess = 1.0, min = 0.1, max = 5.0 }
     intervals = 50
     transcription = "radau"       # "radau" | "legendre" | "multiple_shooting"
-    degree = 3                    # collocation degree
-    subintervals = 4              # collocation elements per control interval
+    degree = 4                    # collocation degree
+    subintervals = 1              # collocation elements per control interval
     integrator = "rk4"            # multiple shooting: "rk4" | "cvodes"
     steps = 4                     # RK4 steps per interval
     guess = "linear"              # "linear" | "simulation" | "inverse"
@@ -94,7 +94,7 @@ def ocp_from_scene(mech, table: dict | None = None, source: str = "<scene>") -> 
     else:
         horizon = num(horizon, "horizon")
     ints = {}
-    for key, default in (("intervals", 50), ("degree", 3), ("subintervals", 4), ("steps", 4)):
+    for key, default in (("intervals", 50), ("degree", 4), ("subintervals", 1), ("steps", 4)):
         val = table.get(key, default)
         if not isinstance(val, int) or isinstance(val, bool):
             raise SceneError(f"{source}: [ocp] key '{key}': expected an integer, got {val!r}")

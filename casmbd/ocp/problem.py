@@ -74,10 +74,11 @@ class Ocp:
     intervals : int
         Number of control intervals N (piecewise-constant controls).
     transcription : {"radau", "legendre", "multiple_shooting"}
-        Direct collocation on Radau IIA or Gauss–Legendre points of ``degree`` on
-        ``subintervals`` collocation elements per control interval (default 4: the swing-up's
-        replay error falls from 2e-2 with one element to 2e-5, the controls stay the same
-        N piecewise-constant values), or multiple shooting with ``integrator`` ("rk4":
+        Direct collocation on Radau IIA or Gauss–Legendre points of ``degree`` (default 4) on
+        ``subintervals`` collocation elements per control interval (default 1; measured over
+        the problems of ``ocp/``: degree 4 on one element keeps every replay error ≤ 7e-5 at
+        a third to a quarter of the cost of degree 3 on four elements, while degree 3 on one
+        element leaves the swing-up's replay 2e-2 off), or multiple shooting with ``integrator`` ("rk4":
         ``steps`` fixed steps per interval with exact Hessians; "cvodes": CVODES with exact
         first-order sensitivities and a limited-memory
         Hessian).
@@ -91,8 +92,8 @@ class Ocp:
     horizon: float | FreeTime = 1.0
     intervals: int = 50
     transcription: str = "radau"
-    degree: int = 3
-    subintervals: int = 4
+    degree: int = 4
+    subintervals: int = 1
     integrator: str = "rk4"
     steps: int = 4
     t_start: float = 0.0
