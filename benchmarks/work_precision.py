@@ -210,6 +210,7 @@ def sweep(problems, methods, repeat: int, quick: bool,
                 except CasmbdError as exc:
                     row.update({"status": "failed", "message": str(exc).splitlines()[0][:200]})
                 rows.append(row)
+                write_csv(rows, RESULTS / "work_precision.partial.csv")  # survives a kill
                 label = f"h={step:.3g}" if fixed else f"tol={tol:.0e}"
                 print(f"{tag:12s} {formulation:21s} {integrator:6s} {label:10s} "
                       + (f"{1e3 * row['solve_seconds']:9.2f} ms  error {row['error']:.2e}  "
