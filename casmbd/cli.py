@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from casmbd.errors import AnalysisError, CasmbdError
+from casmbd.results import _json_default
 
 EXIT_ERROR = 1
 EXIT_USAGE = 2
@@ -682,16 +683,6 @@ def _cmd_sweep(args) -> tuple[dict, str]:
 
 
 VERBS["sweep"] = _cmd_sweep
-
-
-def _json_default(obj):
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, (np.floating, np.integer)):
-        return obj.item()
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
 
 
 def _finite_json(obj):

@@ -409,7 +409,7 @@ def _json_default(obj):
     if isinstance(obj, np.ndarray):
         return obj.tolist()
     if isinstance(obj, (np.floating, np.integer, np.bool_)):
-        return obj.item()
+        return obj.item()  # np.bool_ -> bool
     raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
 
 

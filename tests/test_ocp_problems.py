@@ -140,10 +140,10 @@ def _delta_checks(ocp, sol):
 
 
 def test_delta_min_time():
-    """Minimum-time pick-and-place, |τ_i| ≤ 5 N m, 6 Radau intervals (one element each):
-    T = 0.192910 s (measured with degree 3 and 4 alike; grid refinement: N = 10 × 1: 0.191494 s, N = 20 × 2 in
-    docs/ocp.md — decreasing towards the continuous optimum).  Bang-bang: every motor is at a
-    bound on most intervals.  Replay (IDAS, VM) within 1e-4 (measured 8.7e-6)."""
+    """Minimum-time pick-and-place, |τ_i| ≤ 5 N m, 6 Radau intervals (one element each): T =
+    0.192910 s (measured with degree 3 and 4 alike; grid refinement: N = 10 × 1: 0.191494 s in
+    docs/ocp.md — decreasing towards the continuous optimum). Bang-bang: every motor is at a
+    bound on most intervals. Replay (IDAS, VM) within 1e-4 (measured 8.7e-6)."""
     ocp = delta.build("time", intervals=6, subintervals=1)
     sol = ocp.solve()
     _delta_checks(ocp, sol)
@@ -153,12 +153,12 @@ def test_delta_min_time():
 
 
 def test_delta_min_energy_over_obstacle():
-    """Minimum actuator energy ∫ Σ|τ_i θ̇_i| dt in T = 0.6 s with the keep-out ellipse over
-    the straight path, 6 intervals, degree-4 Radau: 0.920651 J (measured; degree 3: 0.91978 J;
-    N = 10 × 1, degree 3: 0.84416 J, decreasing with refinement: the objective's |·| makes the
-    coarse grid's value depend on the degree at the 1e-3 level).  The hand clears the obstacle at every node (the ellipse function
-    ≥ 1 − 1e-8) and rises above z = −0.72 m (the bar's top).  Replay within 1e-4 (measured
-    2.1e-5)."""
+    """Minimum actuator energy ∫ Σ|τ_i θ̇_i| dt in T = 0.6 s with the keep-out ellipse over the
+    straight path, 6 intervals, degree-4 Radau: 0.920651 J (measured; degree 3: 0.91978 J; N =
+    10 × 1, degree 3: 0.84416 J, decreasing with refinement: the objective's |·| makes the
+    coarse grid's value depend on the degree at the 1e-3 level). The hand clears the obstacle at
+    every node (the ellipse function ≥ 1 − 1e-8) and rises above z = −0.72 m (the bar's top).
+    Replay within 1e-4 (measured 2.1e-5)."""
     ocp = delta.build("energy", obstacle=True, intervals=6, subintervals=1)
     sol = ocp.solve()
     hand = _delta_checks(ocp, sol)

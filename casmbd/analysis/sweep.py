@@ -43,7 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from casmbd.errors import AnalysisError, CasmbdError, ModelError, SceneError
-from casmbd.results import Result, atomic_write
+from casmbd.results import Result, _json_default, atomic_write
 
 __all__ = ["ANALYSES", "REDUCTIONS", "SweepResult", "load_sweep", "parse_values", "sweep"]
 
@@ -630,14 +630,6 @@ def load_sweep(path: str | os.PathLike) -> SweepResult:
                                meta["point_stats"], meta["out_dir"])
     except (OSError, ValueError, KeyError) as exc:
         raise AnalysisError(f"cannot read sweep file '{path}': {exc}") from None
-
-
-def _json_default(obj):
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, (np.floating, np.integer, np.bool_)):
-        return obj.item()
-    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
 
 
 def _table(names: list[str], rows: list[dict]) -> np.ndarray:

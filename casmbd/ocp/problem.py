@@ -78,10 +78,9 @@ class Ocp:
         ``subintervals`` collocation elements per control interval (default 1; measured over
         the problems of ``ocp/``: degree 4 on one element keeps every replay error ≤ 7e-5 at
         a third to a quarter of the cost of degree 3 on four elements, while degree 3 on one
-        element leaves the swing-up's replay 2e-2 off), or multiple shooting with ``integrator`` ("rk4":
-        ``steps`` fixed steps per interval with exact Hessians; "cvodes": CVODES with exact
-        first-order sensitivities and a limited-memory
-        Hessian).
+        element leaves the swing-up's replay 2e-2 off), or multiple shooting with
+        ``integrator`` ("rk4": ``steps`` fixed steps per interval with exact Hessians;
+        "cvodes": CVODES with exact first-order sensitivities and a limited-memory Hessian).
     compile : bool
         Generate C code for the NLP's functions (objective, constraints, their Jacobian and
         the Lagrangian's Hessian), compile it and cache the library on disk (default): a
