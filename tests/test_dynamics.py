@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pathlib
+
 import numpy as np
 import pytest
 from scipy.special import ellipk
@@ -267,3 +269,27 @@ def test_fixed_step_blow_up_is_reported_with_partial_results():
     assert err.partial is not None and len(err.partial.t) >= 2
     assert err.partial.t[-1] < err.time <= 10.0
     assert np.all(np.isfinite(err.partial["q"]))
+
+
+def test_failure_at_the_start_keeps_the_initial_state():
+    """GGL on IDAS at rtol 1e-12 fails at t = 0 (IDA_CONV_FAIL, h → 1e-19) on the 2-rod chain:
+    the error names t = 0 and keeps the one initial output.  Run in a subprocess: re-running
+    the integrator on an empty output grid had crashed the interpreter (segmentation fault)."""
+    import subprocess
+    import sys
+
+    code = ("import sys; sys.path.insert(0, '.')\n"
+            "from benchmarks.work_precision import problem\n"
+            "from casmbd.analysis.simulate import Simulator\n"
+            "from casmbd.errors import IntegratorError\n"
+            "mech, t_end, _, _ = problem('chain2', 'absolute')\n"
+            "try:\n"
+            "    Simulator(mech, 'ggl').run(t_end, 1, integrator='idas', rtol=1e-12, "
+            "atol=1e-12)\n"
+            "except IntegratorError as e:\n"
+            "    print(e.flag, e.time, len(e.partial.t))\n")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=600, cwd=str(pathlib.Path(__file__).resolve().parent.parent))
+    assert proc.returncode == 0, proc.stderr[-500:]
+    flag, when, kept = proc.stdout.split()[-3:]
+    assert flag == "IDA_CONV_FAIL" and float(when) == 0.0 and kept == "1"

@@ -528,7 +528,7 @@ class Simulator:
             return partitioning.partial(self, name, grid, x0, rtol, atol, max_steps)
         if t_fail is not None and name not in ("rk4", "abm"):
             kept = grid[grid < t_fail]
-            if len(kept) == 1:
+            if len(kept) <= 1:  # failed in the first interval (or at its start)
                 return np.asarray(x0, float)[None, :], {}
             try:
                 solver = integ.sundials(self.dyn, name, grid[0], kept[1:], rtol, atol,
