@@ -624,14 +624,17 @@ def profile_lines(prof: dict | None) -> list[str]:
     if not prof:
         return ["(no profile recorded)"]
     rhs_total = prof["rhs_evaluations"] * prof["rhs_us"] * 1e-6
+    run_total = next((r["cumtime"] for r in prof["top_cumtime"]
+                      if r["function"].startswith("simulate.py") and "(run)" in r["function"]),
+                     prof["wall_s"])
     integrator_call = next((r for r in prof["top_cumtime"]
                             if "integrate" in r["function"] or "Function_call" in r["function"]
                             ), None)
     lines = [f"cProfile of one solve: N = {prof['n']}, {CONFIG_LABEL[prof['config']]}, "
              f"CVODES-Adams at rtol = atol = {prof['tolerance']:g}, t ∈ [0, "
              f"{horizon(prof['n']):g}] s, after a warm-up run (command: `python -m "
-             f"benchmarks.scaling --profile {prof['n']}`). Wall time under the profiler "
-             f"{prof['wall_s']:.3f} s, of which the integration (`solve_seconds`) "
+             f"benchmarks.scaling --profile {prof['n']}`). `Simulator.run` took "
+             f"{run_total:.3f} s under the profiler, of which the integration (`solve_seconds`) "
              f"{prof['solve_s']:.3f} s for {prof['steps']} steps and "
              f"{prof['rhs_evaluations']} right-hand-side evaluations. At "
              f"{prof['rhs_us']:.2f} µs per compiled evaluation the right-hand side accounts "
@@ -639,6 +642,13 @@ def profile_lines(prof: dict | None) -> list[str]:
              f"integration); the rest of the integration is SUNDIALS and CasADi's "
              f"integrator plumbing in C, and everything outside `solve_seconds` is the "
              f"Python set-up and post-processing.", ""]
+    lines += ["No Python runs inside the integration: CVODES calls the compiled right-hand "
+              "side from C in one `Function_call`. Python loops outside it: the stiffness "
+              "probe before the solve (`Simulator.stiffness`, casmbd/analysis/simulate.py, "
+              "2 n_x + 1 Python calls of the compiled Function for n_x ≤ 400, by finite "
+              "differences) and the post-processing (`_post`; here dominated by one dense "
+              "SVD of C_q in `casmbd/analysis/reactions.py::multiplier_null_space`, O(n_c² "
+              "n_q): 0.09 s here against 0.03 s of integration).", ""]
     if integrator_call:
         lines += [f"Largest cumulative entry: `{integrator_call['function']}` "
                   f"{integrator_call['cumtime']:.3f} s.", ""]
@@ -661,7 +671,9 @@ NOTES = """\
 One-off investigations on the machine above during the study (not re-measured by the
 command):
 
-* *The symbolic build is quadratic in N, and at N = 1000 it alone exceeds the timeout.*
+* *The symbolic build is quadratic in N* (160 s at N = 1000: `symbolic` of the -O0 and VM
+  rows; the run child then builds it a second time and solves the 1e-12 reference, which
+  together exceeded the 300 s timeout).
   cProfile of `Simulator(chain100, mode="vm")` (5.2 s): 4.6 s are
   `System.reactions_function` (`casmbd/system/equations.py`, line 791), which calls
   `_constraint_wrench` (line 733) once per body, and each call rebuilds *every* constraint
@@ -671,6 +683,15 @@ command):
   two joints at the body contribute non-zeros. Writing the wrench from the rows of the
   joints attached to the body (the joint→rows map exists as the constraint labels) would make
   it O(N). This is library code, reported, not changed.
+* *In joint coordinates the library is quadratic, the articulated right-hand side is not.*
+  The Simulator compiles the right-hand side together with the model Functions of the
+  `dynamics` analysis and the post-processing: C source per Function (one-off, CasADi code
+  generator, `Simulator(chain, mode="vm")`), N = 32 → 100: `dyn_articulated` 0.14 → 0.51 MB
+  (N^1.1), `post` (KKT solve with the dense joint-space M) 0.30 → 1.88 MB, `mass_matrix`
+  (dense, N² entries from the composite-rigid-body recursion) 0.16 → 1.47 MB, `outputs`
+  0.33 → 1.21 MB; the whole library 1.21 → 5.94 MB (N^1.4). At N = 100 the O(N) recursion
+  is 9 % of the source that -O2 spends 214 s on; the rest serves the consistent start and
+  the output-time post-processing, not the integration.
 * *Compilation at -O2 grows faster than the source* (C source ∝ N, compile time ∝ N^1.3–1.6,
   see the growth table and *Compiled equations* above for the reason: CasADi's straight-line
   functions make gcc's alias walking and SLP vectorisation quadratic in a function's
@@ -685,8 +706,10 @@ command):
   algebra, unknown machine and model), not measured here, so the ratio is indicative only.
 * *Machine load*: the machine was shared with other jobs during the study (load average
   above 2 on 2 cores for most of it); compile and solve seconds are single runs and can be
-  inflated by up to ≈ 2× (the N = 32 solve took 0.02 s in a quieter development run and
-  0.05–0.12 s here).
+  inflated by 2× or more (the N = 32 default solve took 0.022 s in a quieter development
+  run and 0.074 s here; the VM right-hand side timed faster than -O2 at N = 300, which a
+  quiet machine would not show). The study took 56 min, not the 30 min aimed at: the
+  timeouts (each 300 s per child) and the N = 300 builds dominate.
 
 """
 
