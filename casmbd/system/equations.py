@@ -734,12 +734,59 @@ class System:
         """Force and moment about G that constraint rows (with multipliers λ) exert on ``body``:
         −(∂C/∂e)ᵀ λ, the virtual-work counterpart of Q_c = −C_qᵀ λ (seed 000, eq. 6.145)."""
         ctx, e = self._perturbation(body)
-        cons, _ = self._constraints_with(ctx)
         rows = list(range(self.nc)) if rows is None else rows
-        if not rows:
+        # e moves ``body`` alone: only the equations of elements attached to it depend on e,
+        # so only those are written again (all of them per body made the build O(N²))
+        cons, index = self._constraints_touching(ctx, body)
+        wanted = set(rows)
+        keep = [k for k, r in enumerate(index) if r in wanted]
+        if not keep:
             return ca.SX.zeros(e.numel())
-        jac = ca.jacobian(cons[rows], e)
-        return ca.substitute(-ca.mtimes(jac.T, lam[rows]), e, ca.DM.zeros(e.numel()))
+        jac = ca.jacobian(cons[keep], e)
+        lam_k = ca.vertcat(*[lam[index[k]] for k in keep])
+        return ca.substitute(-ca.mtimes(jac.T, lam_k), e, ca.DM.zeros(e.numel()))
+
+    @cached_property
+    def _element_rows(self) -> dict[tuple[str, str], list[int]]:
+        """Rows of C by (kind, element) in the order of :meth:`_constraints_with`."""
+        out: dict[tuple[str, str], list[int]] = {}
+        for i, lab in enumerate(self.constraint_labels):
+            out.setdefault((lab.kind, lab.element), []).append(i)
+        return out
+
+    def _constraints_touching(self, ctx, body: str) -> tuple[ca.SX, list[int]]:
+        """The equations of C that involve ``body`` (its own description's, its joints', the
+        drivers of those joints or of the body) written with ``ctx``, and their row indices."""
+        rows, index = [], []
+        elements = self._element_rows
+        desc = self.descriptions.get(body)
+        if desc is not None and ("body", body) in elements:
+            eqs, _ = desc.constraints(ctx.coordinates(body))
+            rows.append(ca.vec(eqs))
+            index += elements[("body", body)]
+        touching = set()
+        for joint in self.mechanism.joints.values():
+            if body in (joint.body1, joint.body2):
+                touching.add(joint.name)
+                if ("joint", joint.name) in elements:
+                    rows.append(ca.vec(joint.equations(ctx)))
+                    index += elements[("joint", joint.name)]
+        for driver in self.mechanism.drivers.values():
+            if (driver.joint in touching or driver.body == body) and \
+                    ("driver", driver.name) in elements:
+                target = self._value(driver.position,
+                                     f"driver '{driver.name}' field 'position'")
+                if driver.joint is not None:
+                    residual = self.mechanism.joints[driver.joint].driver_residual(
+                        ctx, target, driver.coordinate)
+                elif driver.coordinate == "angle":
+                    residual = ctx.angle_residual(GROUND, driver.body, target)
+                else:
+                    k = ("x", "y", "z").index(driver.coordinate)
+                    residual = ctx.reference(driver.body)[k] - target
+                rows.append(ca.vec(residual))
+                index += elements[("driver", driver.name)]
+        return (ca.vertcat(*rows) if rows else ca.SX(0, 1)), index
 
     def _applied_wrench(self, body: str) -> tuple[ca.SX, list[str]]:
         """Force and moment about G of every applied force on ``body``, and the names of user
