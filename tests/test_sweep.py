@@ -139,7 +139,7 @@ def test_local_processes_give_the_same_numbers(serial, tmp_path):
 def test_local_dask_cluster_gives_the_same_numbers(serial):
     distributed = pytest.importorskip("distributed")
     with distributed.LocalCluster(n_workers=2, processes=True, threads_per_worker=1,
-                                  dashboard_address=None) as cluster:
+                                  host="127.0.0.1", dashboard_address=None) as cluster:
         # by scheduler address (the sweep connects and disconnects) ...
         res = sweep(SPRING, points=POINTS, t_end=T_END, steps=STEPS, outputs=NAMED,
                     executor=cluster.scheduler_address)
