@@ -668,35 +668,32 @@ def profile_lines(prof: dict | None) -> list[str]:
 NOTES = """\
 ### Findings
 
-One-off investigations on the machine above during the study (not re-measured by the
-command):
+Read off the tables above and from one-off investigations on the same machine (the latter not
+re-measured by the command):
 
-* *The symbolic build is quadratic in N* (160 s at N = 1000: `symbolic` of the -O0 and VM
-  rows; the run child then builds it a second time and solves the 1e-12 reference, which
-  together exceeded the 300 s timeout).
-  cProfile of `Simulator(chain100, mode="vm")` (5.2 s): 4.6 s are
-  `System.reactions_function` (`casmbd/system/equations.py`, line 791), which calls
-  `_constraint_wrench` (line 733) once per body, and each call rebuilds *every* constraint
-  equation of the mechanism with that body's perturbed context through `_constraints_with`
-  (line 180) and differentiates all n_c rows with respect to the body's three virtual
-  displacements: 100 bodies × 101 joints = 10 100 `Joint.equations` calls, of which only the
-  two joints at the body contribute non-zeros. Writing the wrench from the rows of the
-  joints attached to the body (the joint→rows map exists as the constraint labels) would make
-  it O(N). This is library code, reported, not changed.
-* *In joint coordinates the library is quadratic, the articulated right-hand side is not.*
-  The Simulator compiles the right-hand side together with the model Functions of the
-  `dynamics` analysis and the post-processing: C source per Function (one-off, CasADi code
-  generator, `Simulator(chain, mode="vm")`), N = 32 → 100: `dyn_articulated` 0.14 → 0.51 MB
-  (N^1.1), `post` (KKT solve with the dense joint-space M) 0.30 → 1.88 MB, `mass_matrix`
-  (dense, N² entries from the composite-rigid-body recursion) 0.16 → 1.47 MB, `outputs`
-  0.33 → 1.21 MB; the whole library 1.21 → 5.94 MB (N^1.4). At N = 100 the O(N) recursion
-  is 9 % of the source that -O2 spends 214 s on; the rest serves the consistent start and
-  the output-time post-processing, not the integration.
-* *Compilation at -O2 grows faster than the source* (C source ∝ N, compile time ∝ N^1.3–1.6,
-  see the growth table and *Compiled equations* above for the reason: CasADi's straight-line
-  functions make gcc's alias walking and SLP vectorisation quadratic in a function's
-  length). `-O0` is the existing remedy (`CASMBD_CFLAGS=-O0`, see *Compile options*); the
-  virtual machine needs no compiler at all but evaluates several times slower.
+* *The symbolic build is about linear in N now.* `symbolic` of abs_al: 0.71 s (N = 100),
+  1.24 s (300), 3.08 s (1000), N^0.76 from 300 to 1000. Before commit 0d4510c it was
+  quadratic (160 s at N = 1000): `System.reactions_function` rebuilt every constraint
+  equation of the mechanism for each body's virtual displacement (100 bodies × 101 joints =
+  10 100 `Joint.equations` calls at N = 100); it now rewrites only the equations of the
+  joints attached to the body (Simulator build at N = 100: 5.2 s → 0.66 s in the VM).
+* *The C compiler dominates the first build at large N.* abs_al at N = 1000: 124 s of the
+  128 s first build are `cc`, for 2.9 MB of C. Compile time grows faster than the source
+  (fitted exponents: C source N^0.64–0.80, compile N^0.88–1.02, locally up to N^1.39 from
+  N = 32 to 100; see *Compiled equations* above for the reason: CasADi's straight-line functions make gcc's alias walking and SLP vectorisation
+  superlinear in a function's length). Since commit 1bfae2c a Function whose C alone exceeds
+  1 MB goes to a second library compiled at `-O0` when no flags were chosen (the right-hand
+  sides keep `-O2`): the joint-coordinate chain at N = 100 dropped from 226 s to 28.8 s,
+  meeting the 30 s target. `CASMBD_CFLAGS=-O0` or `Simulator(..., mode="vm")` remain the
+  options when even that is too slow.
+* *What still fails.* abs_al at N = 1000 builds (128 s) but its run child — a second
+  construction from the cache (loading a 2.9 MB library) plus the rtol = 1e-12 reference
+  solve of a 6000-state system — exceeds the 400 s timeout, so no solve figure exists at
+  N = 1000. joint_aba at N = 300 exceeds 400 s in the build: the dense joint-space mass
+  matrix (N² entries by the composite-rigid-body recursion) and the post-processing KKT
+  solve with it are O(N²) code, although the articulated right-hand side itself is O(N)
+  (its C source 0.14 → 0.51 MB from N = 32 to 100, N^1.1). A post-processing path through
+  the recursion instead of the dense M is the next step for large trees.
 * *Compiler memory*: `cc RSS` is `ru_maxrss` of `RUSAGE_CHILDREN` in the build child, i.e.
   of its largest child process; the forked child counts the ≈ 80 MB of the Python process
   before `exec`, so values near 80 MB mean "small", not "80 MB of gcc".
@@ -705,11 +702,9 @@ command):
   through a buffer; Pinocchio's figures are the ones quoted in the issue (spatial 6-D
   algebra, unknown machine and model), not measured here, so the ratio is indicative only.
 * *Machine load*: the machine was shared with other jobs during the study (load average
-  above 2 on 2 cores for most of it); compile and solve seconds are single runs and can be
-  inflated by 2× or more (the N = 32 default solve took 0.022 s in a quieter development
-  run and 0.074 s here; the VM right-hand side timed faster than -O2 at N = 300, which a
-  quiet machine would not show). The study took 56 min, not the 30 min aimed at: the
-  timeouts (each 300 s per child) and the N = 300 builds dominate.
+  3.5–3.9 on 2 cores); compile and solve seconds are single runs and can be inflated by 2×
+  or more (the N = 300 right-hand side of abs_al, 648 µs, is out of line with N = 100's
+  51 µs and is such a case). The study took 23 min with a 400 s timeout per child.
 
 """
 
