@@ -680,8 +680,9 @@ re-measured by the command):
 * *The C compiler dominates the first build at large N.* abs_al at N = 1000: 124 s of the
   128 s first build are `cc`, for 2.9 MB of C. Compile time grows faster than the source
   (fitted exponents: C source N^0.64–0.80, compile N^0.88–1.02, locally up to N^1.39 from
-  N = 32 to 100; see *Compiled equations* above for the reason: CasADi's straight-line functions make gcc's alias walking and SLP vectorisation
-  superlinear in a function's length). Since commit 1bfae2c a Function whose C alone exceeds
+  N = 32 to 100; see *Compiled equations* above for the reason: CasADi's straight-line
+  functions make gcc's alias walking and SLP vectorisation superlinear in a function's
+  length). Since commit 1bfae2c a Function whose C alone exceeds
   1 MB goes to a second library compiled at `-O0` when no flags were chosen (the right-hand
   sides keep `-O2`): the joint-coordinate chain at N = 100 dropped from 226 s to 28.8 s,
   meeting the 30 s target. `CASMBD_CFLAGS=-O0` or `Simulator(..., mode="vm")` remain the
