@@ -8,6 +8,7 @@
     transcription = "radau"       # "radau" | "legendre" | "multiple_shooting"
     degree = 4                    # collocation degree
     subintervals = 1              # collocation elements per control interval
+    dynamics = "implicit"         # collocation: q̈, λ as variables, or "explicit" (trees)
     integrator = "rk4"            # multiple shooting: "rk4" | "cvodes"
     steps = 4                     # RK4 steps per interval
     guess = "linear"              # "linear" | "simulation" | "inverse"
@@ -47,7 +48,8 @@ from casmbd.errors import CasmbdError, SceneError
 from casmbd.io.scene import load_scene
 from casmbd.ocp.problem import OBJECTIVES, FreeTime, Ocp
 
-_KEYS = {"horizon", "intervals", "transcription", "degree", "subintervals", "integrator",
+_KEYS = {"horizon", "intervals", "transcription", "degree", "subintervals", "dynamics",
+         "integrator",
          "steps", "guess", "objective", "lagrange", "mayer", "solver", "controls", "initial",
          "final", "path", "tracking", "solver_options", "t_start"}
 
@@ -105,6 +107,7 @@ def ocp_from_scene(mech, table: dict | None = None, source: str = "<scene>") -> 
     try:
         ocp = Ocp(mech, horizon=horizon, transcription=table.get("transcription", "radau"),
                   integrator=table.get("integrator", "rk4"),
+                  dynamics=table.get("dynamics", "implicit"),
                   t_start=num(table.get("t_start", 0.0), "t_start"),
                   solver=table.get("solver", "ipopt"), solver_options=dict(options), **ints)
         for key, bounds in table.get("controls", {}).items():

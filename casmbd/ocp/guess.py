@@ -134,7 +134,7 @@ def _fill(tr, T, state, controls=None, mults=None, accelerations=False) -> np.nd
         elif name == "LAM" and mults is not None and rows:
             for c in range(cols):
                 val[c] = mults((c // d + taus[c % d + 1]) / M)
-        elif name == "A" and accelerations:
+        elif name == "A" and accelerations and rows:
             for c in range(cols):
                 s = (c // d + taus[c % d + 1]) / M
                 ds = 1e-4

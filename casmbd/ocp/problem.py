@@ -30,6 +30,7 @@ from casmbd.system.equations import System
 
 TRANSCRIPTIONS = ("radau", "legendre", "multiple_shooting")
 OBJECTIVES = ("effort", "time", "energy")
+DYNAMICS = ("implicit", "explicit")
 GUESSES = ("linear", "simulation", "inverse")
 
 
@@ -76,11 +77,20 @@ class Ocp:
     transcription : {"radau", "legendre", "multiple_shooting"}
         Direct collocation on Radau IIA or Gauss–Legendre points of ``degree`` (default 4) on
         ``subintervals`` collocation elements per control interval (default 1; measured over
-        the problems of ``ocp/``: degree 4 on one element keeps every replay error ≤ 7e-5 at
-        a third to a quarter of the cost of degree 3 on four elements, while degree 3 on one
-        element leaves the swing-up's replay 2e-2 off), or multiple shooting with
+        the problems of ``ocp/``: degree 4 on one element replays to ≤ 4e-6 except the
+        double-pendulum swing-up, 1.2e-4, whose unstable end pose amplifies the local error —
+        its file asks for two elements, 6.7e-5 — while degree 3 on one element leaves that
+        replay 2e-2 off), or multiple shooting with
         ``integrator`` ("rk4": ``steps`` fixed steps per interval with exact Hessians;
         "cvodes": CVODES with exact first-order sensitivities and a limited-memory Hessian).
+    dynamics : {"implicit", "explicit"}
+        How collocation states the equations of motion. ``"implicit"`` (default): q̈ and λ are
+        NLP variables at every collocation point with M q̈ + C_qᵀλ = Q, C_q q̈ = γ (nothing
+        inverted; any mechanism). ``"explicit"``: q̈ = f(q, q̇, u, t) is substituted (the
+        articulated-body recursion for a joint-coordinate tree, else M⁻¹Q), so the NLP has the
+        size of a hand-written ODE transcription; only for mechanisms without constraint
+        equations. Measured on the trees of ``ocp/`` (docs/ocp.md) it saves a quarter of the
+        variables but not solve time: per iteration a little cheaper, iteration counts ±20 %.
     compile : bool
         Generate C code for the NLP's functions (objective, constraints, their Jacobian and
         the Lagrangian's Hessian), compile it and cache the library on disk (default): a
@@ -95,6 +105,7 @@ class Ocp:
     subintervals: int = 1
     integrator: str = "rk4"
     steps: int = 4
+    dynamics: str = "implicit"
     t_start: float = 0.0
     solver: str = "ipopt"
     solver_options: dict = field(default_factory=dict)
@@ -120,6 +131,9 @@ class Ocp:
                                 f"{self.subintervals!r}")
         if not (isinstance(self.degree, int) and 1 <= self.degree <= 9):
             raise AnalysisError(f"ocp: degree must be an integer in 1..9, got {self.degree!r}")
+        if self.dynamics not in DYNAMICS:
+            raise AnalysisError(f"ocp: dynamics must be one of {', '.join(DYNAMICS)}, got "
+                                f"{self.dynamics!r}")
         if self.integrator not in ("rk4", "cvodes"):
             raise AnalysisError(f"ocp: integrator must be 'rk4' or 'cvodes', got "
                                 f"{self.integrator!r}")

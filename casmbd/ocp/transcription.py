@@ -109,6 +109,8 @@ class Transcription:
     def _functions(self) -> None:
         ocp, system = self.ocp, self.system
         self.res = implicit_residual(system)
+        self.explicit = self._explicit()
+        self.acc = explicit_accelerations(system) if self.explicit else None
         self.node = node_constraints(system)
         args = [system.q, system.v, system.t, system.u, system.p]
         self.args = args
@@ -154,6 +156,14 @@ class Transcription:
         if not ocp._terms:
             raise AnalysisError("ocp: no objective; call minimize('effort' | 'time' | …)")
 
+    def _explicit(self) -> bool:
+        """Whether collocation substitutes q̈ = f(q, q̇, u, t) (see ``Ocp.dynamics``)."""
+        mode = self.ocp.dynamics
+        if mode == "explicit" and self.nc:
+            raise AnalysisError(f"ocp: dynamics='explicit' needs a mechanism without constraint "
+                                f"equations; this one has {self.nc} (use 'implicit')")
+        return self.ocp.transcription != "multiple_shooting" and mode == "explicit"
+
     def _variables(self) -> None:
         ocp, b, nq, nu, N = self.ocp, self.b, self.nq, self.nu, self.N
         if ocp.free_time:
@@ -198,14 +208,15 @@ class Transcription:
         self.tau, self.B = tau, B
         M, nu_ = self.M, self.nu
         xcb, _ = b.var("XC", 2 * nq, d * M)
-        ab, _ = b.var("A", nq, d * M)
+        na = 0 if self.explicit else nq
+        ab, _ = b.var("A", na, d * M)
         lamb, _ = b.var("LAM", nc, d * M)
         mub, _ = b.var("MU", nc, M)
         nub, _ = b.var("NU", nc, M)
         slb, _ = b.var("SL", nu_ if self.energy else 0, d * M, 0.0, np.inf)
         # one element, symbolically
         xk, xk1 = ca.SX.sym("xk", 2 * nq), ca.SX.sym("xk1", 2 * nq)
-        xc, a_e = ca.SX.sym("xc", 2 * nq, d), ca.SX.sym("a", nq, d)
+        xc, a_e = ca.SX.sym("xc", 2 * nq, d), ca.SX.sym("a", na, d)
         lam_e, mu, nu = ca.SX.sym("lam", nc, d), ca.SX.sym("mu", nc), ca.SX.sym("nu", nc)
         sl = ca.SX.sym("sl", nu_ if self.energy else 0, d)
         u, tk, h = ca.SX.sym("u", nu_), ca.SX.sym("tk"), ca.SX.sym("h")
@@ -224,18 +235,20 @@ class Transcription:
         quad = 0.0
         fn_all, lo_all, hi_all = self.path_fns["all"]
         for j in range(1, d + 1):
-            x, a, lam = xc[:, j - 1], a_e[:, j - 1], lam_e[:, j - 1]
+            x, lam = xc[:, j - 1], lam_e[:, j - 1]
             q, v = x[:nq], x[nq:]
             t = tk + tau[j] * h
+            a = self.acc(q, v, u, t, self.p) if self.explicit else a_e[:, j - 1]
             xp = sum(C[r, j] * xs[r] for r in range(d + 1))
             qdot, vdot = v, a
             if nc:
                 ct = self.node(q, ca.SX.zeros(nq), t, self.p)[2]
                 qdot, vdot = v + ca.mtimes(ct, mu), a + ca.mtimes(ct, nu)
             add(h * ca.vertcat(qdot, vdot) - xp, f"collocation point {j}")
-            dyn, acc = self.res(q, v, a, lam, u, t, self.p)
-            add(dyn, f"equations of motion at point {j}")
-            add(acc, f"acceleration constraints at point {j}")
+            if not self.explicit:
+                dyn, acc = self.res(q, v, a, lam, u, t, self.p)
+                add(dyn, f"equations of motion at point {j}")
+                add(acc, f"acceleration constraints at point {j}")
             if fn_all.numel_out(0):
                 add(fn_all(q, v, t, u, self.p), f"path constraint at point {j}", lo_all, hi_all)
             quad += B[j] * h * self.lagrange_fn(q, v, t, u, self.p)
@@ -459,6 +472,7 @@ class Transcription:
                 "transcription": ocp.transcription, "intervals": self.N,
                 "subintervals": self.S,
                 "degree": ocp.degree if ocp.transcription != "multiple_shooting" else None,
+                "dynamics": "explicit" if self.explicit else "implicit",
                 "solver": ocp.solver,
                 "compiled": bool(report and report.mode == "compiled"),
                 "compile_seconds": report.compile_seconds if report else 0.0,
