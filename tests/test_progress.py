@@ -63,3 +63,37 @@ def test_json_mode_turns_bars_off(monkeypatch, capsys):
     import os
 
     assert os.environ["CASMBD_PROGRESS"] == "0"
+
+
+def test_ocp_solve_shows_ipopt_iterations_and_keeps_its_optimum(monkeypatch):
+    """An OCP solve longer than a second draws a bar of IPOPT iterations (through IPOPT's
+    iteration callback, forced on here) and reaches the same optimum as without it (1e-12
+    relative; the callback is not part of the compiled NLP's cache key)."""
+    pytest.importorskip("tqdm")
+    from casmbd.io.ocp_table import load_ocp
+
+    sink = io.StringIO()
+    monkeypatch.setattr(progress, "_TERMINAL", sink)
+    sols = {}
+    for flag in ("0", "1"):
+        monkeypatch.setenv("CASMBD_PROGRESS", flag)
+        ocp = load_ocp(ROOT / "ocp" / "double_pendulum_swingup.toml")
+        ocp.compile, ocp.intervals, ocp.subintervals = False, 20, 1
+        ocp.solver_options = {"ipopt.max_iter": 40}
+        if flag == "1":
+            # make every iteration slow enough for tqdm's one-second delay
+            def slow_bar(total, desc, unit="it", original=progress.bar):
+                bar = original(total, desc, unit)
+                update = bar.update
+
+                def update_slowly(n=1):
+                    time.sleep(0.1)
+                    update(n)
+                bar.update = update_slowly
+                return bar
+            monkeypatch.setattr(progress, "bar", slow_bar)
+        sols[flag] = ocp.solve()
+    text = sink.getvalue()
+    assert "IPOPT" in text and "iter" in text and "objective" in text
+    assert abs(sols["1"].objective - sols["0"].objective) < 1e-12 * sols["0"].objective
+    assert sols["1"].iterations == sols["0"].iterations

@@ -503,7 +503,9 @@ def compile_nlp_solver(problem: dict, plugin: str, options: dict, name: str = "c
                                    codegen_seconds=0.0, compile_seconds=0.0, load_seconds=0.0,
                                    library=None, key="")
     graph = casadi.Function("nlp", [problem["x"]], [problem["f"], problem["g"]])
-    text = "\x1e".join([graph.serialize(), plugin, repr(sorted(options.items()))])
+    # an iteration callback (a progress bar) changes no generated code: not part of the key
+    keyed = sorted((k, v) for k, v in options.items() if k != "iteration_callback")
+    text = "\x1e".join([graph.serialize(), plugin, repr(keyed)])
     key = _compute_key(text, name, compiler, flags_)
     library = cache_dir() / f"{name}_{key[:16]}.so"
     codegen = time.perf_counter() - start

@@ -16,11 +16,50 @@ import time
 import casadi as ca
 import numpy as np
 
+from casmbd import progress
 from casmbd.errors import AnalysisError, OptimizationError
 from casmbd.ocp.dynamics import explicit_accelerations, implicit_residual, node_constraints
 
 IPOPT_DEFAULTS = {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
                   "ipopt.max_iter": 3000}
+
+
+class _IterationBar(ca.Callback):
+    """IPOPT's iteration callback: one progress-bar step per iteration, with the objective
+    (see :mod:`casmbd.progress`; only built when bars are shown)."""
+
+    def __init__(self, nx: int, ng: int, bar):
+        ca.Callback.__init__(self)
+        self.nx, self.ng, self.bar = nx, ng, bar
+        self.construct("casmbd_ocp_progress", {})
+
+    def get_n_in(self):
+        return ca.nlpsol_n_out()
+
+    def get_n_out(self):
+        return 1
+
+    def get_name_in(self, i):
+        return ca.nlpsol_out(i)
+
+    def get_name_out(self, i):
+        return "ret"
+
+    def get_sparsity_in(self, i):
+        name = ca.nlpsol_out(i)
+        if name == "f":
+            return ca.Sparsity.scalar()
+        if name in ("x", "lam_x"):
+            return ca.Sparsity.dense(self.nx)
+        if name in ("g", "lam_g"):
+            return ca.Sparsity.dense(self.ng)
+        return ca.Sparsity(0, 0)
+
+    def eval(self, arg):
+        self.bar.update(1)
+        if hasattr(self.bar, "set_postfix_str"):
+            self.bar.set_postfix_str(f"objective {float(arg[1]):.6g}", refresh=False)
+        return [0]
 
 
 class _Builder:
@@ -440,6 +479,10 @@ class Transcription:
         opts.update(ocp.solver_options)
         opts.update(options or {})
         problem = {"x": w, "f": self.objective, "g": g}
+        bar = None
+        if ocp.solver == "ipopt" and "iteration_callback" not in opts and progress.enabled():
+            bar = progress.bar(None, f"ocp {ocp.system.mechanism.name}: IPOPT", unit="iter")
+            opts["iteration_callback"] = _IterationBar(w.numel(), g.numel(), bar)
         report = None
         if ocp.compile and not (ocp.transcription == "multiple_shooting"
                                 and ocp.integrator == "cvodes"):
@@ -453,8 +496,12 @@ class Transcription:
         lbw, ubw = np.concatenate(b.lbw), np.concatenate(b.ubw)
         w0 = np.clip(w0, lbw, ubw)
         t1 = time.perf_counter()
-        out = solver(x0=w0, lbx=lbw, ubx=ubw, lbg=np.concatenate(b.lbg),
-                     ubg=np.concatenate(b.ubg))
+        try:
+            out = solver(x0=w0, lbx=lbw, ubx=ubw, lbg=np.concatenate(b.lbg),
+                         ubg=np.concatenate(b.ubg))
+        finally:
+            if bar is not None:
+                bar.close()
         wall = time.perf_counter() - t1
         stats = solver.stats()
         x = np.asarray(out["x"]).ravel()
