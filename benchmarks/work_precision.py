@@ -432,6 +432,13 @@ def best_peer(peer_rows, pname, target) -> tuple[float, str] | None:
     return min(ok) if ok else None
 
 
+def _peer_versions(peer_rows: list[dict]) -> str:
+    """" Versions: Exudyn 1.13.6, MuJoCo 4.0.0." from the peer rows (empty without)."""
+    found = sorted({(r.get("peer", ""), r.get("peer_version", "")) for r in peer_rows
+                    if r.get("peer")})
+    return (" Versions: " + ", ".join(f"{p} {v}" for p, v in found) + ".") if found else ""
+
+
 def peers_table(rows: list[dict], problems, peer_rows: list[dict]) -> list[str]:
     """casmbd against the peers measured in the same run (ratio = casmbd / best peer; the
     issue's target is ≤ 0.5), with the issue's quoted figure beside it."""
@@ -442,7 +449,7 @@ def peers_table(rows: list[dict], problems, peer_rows: list[dict]) -> list[str]:
              "same timing rule (solve only, median of the repeats) and the same references. "
              "Best = the fastest case whose error is at most the level, for casmbd and peers "
              "alike. Ratio = casmbd / best peer (below 1: casmbd faster; the issue's target "
-             "is ≤ 0.5).", "",
+             "is ≤ 0.5)." + _peer_versions(peer_rows), "",
              "| problem | error | casmbd best | best peer (this run) | ratio | target ≤ 0.5 | "
              "issue's figure for the peer |",
              "| --- | --- | --- | --- | --- | --- | --- |"]
