@@ -15,6 +15,9 @@ The full suite (``--update-docs`` to regenerate the documents) runs, one after t
   memory, solve time);
 * ``benchmarks.ocp_problems`` — the trajectory-optimisation problems of ``ocp/`` against
   hand-written CasADi;
+* ``benchmarks.pinocchio_aba`` — the compiled articulated right-hand side against
+  Pinocchio's ABA (``pin``, in the bench extra; skipped when not installed);
+* ``benchmarks.ocp_refinement`` — grid refinement of the OCP objectives (docs/ocp.md);
 * the hard cases of docs/hard_cases.md (``andrews``, ``flyball_governor``, ``bricard``,
   ``n_four_bar``, ``long_pendulum``) and ``al_penalty`` — only with ``--hard-cases`` (about an
   hour).
@@ -36,7 +39,8 @@ from collections.abc import Callable
 import numpy as np
 
 #: (study, arguments) of the full suite
-FULL = (("work_precision", ["--peers"]), ("scaling", []), ("ocp_problems", []))
+FULL = (("work_precision", ["--peers"]), ("scaling", []), ("ocp_problems", []),
+        ("pinocchio_aba", []), ("ocp_refinement", []))
 HARD_CASES = ("andrews", "flyball_governor", "bricard", "n_four_bar", "long_pendulum",
               "al_penalty")
 

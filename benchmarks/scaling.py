@@ -701,7 +701,9 @@ re-measured by the command):
 * *Pinocchio comparison*: our figure is the planar articulated recursion (3-component
   spatial algebra, one revolute DOF per body) generated as straight-line C by CasADi, timed
   through a buffer; Pinocchio's figures are the ones quoted in the issue (spatial 6-D
-  algebra, unknown machine and model), not measured here, so the ratio is indicative only.
+  algebra, unknown machine and model), so the ratio here is indicative only. The measured
+  comparison, same machine, same chains, planar and spatial, is in *Right-hand side against
+  Pinocchio's ABA* below (`benchmarks/pinocchio_aba.py`).
 * *Machine load*: the machine was shared with other jobs during the study (load average
   3.5–3.9 on 2 cores); compile and solve seconds are single runs and can be inflated by 2×
   or more (the N = 300 right-hand side of abs_al, 648 µs, is out of line with N = 100's
