@@ -34,7 +34,7 @@ import sys
 import numpy as np
 
 from benchmarks.docs import replace_section, study_parser
-from benchmarks.scaling import time_per_call
+from benchmarks.scaling import buffered, time_per_call
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "benchmarks" / "results" / "pinocchio_aba.json"
@@ -95,12 +95,7 @@ def measure(n: int, spatial: bool) -> dict:
     args = [np.zeros(f.nnz_in(i)) for i in range(f.n_in())]
     args[1][:] = np.concatenate([q, v])
     args[3][:] = p
-    buf, trigger = f.buffer()
-    outs = [np.zeros(f.nnz_out(i)) for i in range(f.n_out())]
-    for i, a in enumerate(args):
-        buf.set_arg(i, memoryview(a))
-    for i, a in enumerate(outs):
-        buf.set_res(i, memoryview(a))
+    _buf, trigger, outs = buffered(f, args)
     trigger()
     ours = outs[0][n:2 * n].copy()
     theirs = np.asarray(pin.aba(model, data, q, v, tau)).copy()
