@@ -49,3 +49,25 @@ def study_parser(description: str, results: Path, repeat: bool = True,
     parser.add_argument("--render", action="store_true",
                         help=f"no runs: rewrite the section from {results.name}")
     return parser
+
+
+def run_study(args, results: Path, measure, markdown, doc: Path, head: str) -> int:
+    """The body of a study's ``main``: measure (``measure()`` -> JSON-able data, stored in
+    ``results``) or, with ``--render``, reload ``results``; print the section made by
+    ``markdown(data)`` and, with ``--update-docs``, write it as the section ``head`` of
+    ``doc``."""
+    import json
+    import sys
+
+    if args.render:
+        data = json.loads(Path(results).read_text())
+    else:
+        data = measure()
+        Path(results).parent.mkdir(parents=True, exist_ok=True)
+        Path(results).write_text(json.dumps(data, indent=1))
+    text = markdown(data)
+    print(text)
+    if args.update_docs:
+        replace_section(doc, head, text)
+        print(f"wrote {doc}", file=sys.stderr)
+    return 0

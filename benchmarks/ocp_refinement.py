@@ -23,14 +23,12 @@ Run ``python -m benchmarks.ocp_refinement --update-docs`` (about five minutes): 
 from __future__ import annotations
 
 import datetime
-import json
 import math
 import pathlib
 import platform
-import sys
 import time
 
-from benchmarks.docs import replace_section, study_parser
+from benchmarks.docs import run_study, study_parser
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "benchmarks" / "results" / "ocp_refinement.json"
@@ -167,19 +165,7 @@ def main(argv=None) -> int:
     parser = study_parser(__doc__.splitlines()[0], RESULTS, repeat=False)
     parser.add_argument("--sizes", nargs="+", type=int, default=list(SIZES))
     args = parser.parse_args(argv)
-    if args.render:
-        data = json.loads(RESULTS.read_text())
-    else:
-        data = run(tuple(args.sizes))
-        RESULTS.parent.mkdir(parents=True, exist_ok=True)
-        RESULTS.write_text(json.dumps(data, indent=1))
-    text = markdown(data)
-    print(text)
-    if args.update_docs:
-        replace_section(OCP_DOC, HEAD, text)
-        print(f"wrote {OCP_DOC}", file=sys.stderr)
-    return 0
-
+    return run_study(args, RESULTS, lambda: run(tuple(args.sizes)), markdown, OCP_DOC, HEAD)
 
 if __name__ == "__main__":
     raise SystemExit(main())

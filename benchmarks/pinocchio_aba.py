@@ -26,15 +26,15 @@ Run ``python -m benchmarks.pinocchio_aba --update-docs`` (``pip install .[bench]
 from __future__ import annotations
 
 import datetime
-import json
 import pathlib
 import platform
 import sys
 
 import numpy as np
 
-from benchmarks.docs import replace_section, study_parser
-from benchmarks.scaling import buffered, time_per_call
+from benchmarks.bench_equations import buffer_evaluator
+from benchmarks.docs import run_study, study_parser
+from benchmarks.scaling import time_per_call
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "benchmarks" / "results" / "pinocchio_aba.json"
@@ -95,7 +95,7 @@ def measure(n: int, spatial: bool) -> dict:
     args = [np.zeros(f.nnz_in(i)) for i in range(f.n_in())]
     args[1][:] = np.concatenate([q, v])
     args[3][:] = p
-    _buf, trigger, outs = buffered(f, args)
+    trigger, outs = buffer_evaluator(f, args)
     trigger()
     ours = outs[0][n:2 * n].copy()
     theirs = np.asarray(pin.aba(model, data, q, v, tau)).copy()
@@ -176,25 +176,14 @@ def main(argv=None) -> int:
     parser = study_parser(__doc__.splitlines()[0], RESULTS, repeat=False)
     parser.add_argument("--sizes", nargs="+", type=int, default=list(SIZES))
     args = parser.parse_args(argv)
-    if args.render:
-        data = json.loads(RESULTS.read_text())
-    else:
+    if not args.render:
         try:
             import pinocchio  # noqa: F401
         except ImportError:
             print("pinocchio is not installed (pip install .[bench]): skipped",
                   file=sys.stderr)
             return 0
-        data = run(tuple(args.sizes))
-        RESULTS.parent.mkdir(parents=True, exist_ok=True)
-        RESULTS.write_text(json.dumps(data, indent=1))
-    text = markdown(data)
-    print(text)
-    if args.update_docs:
-        replace_section(DOC, HEAD, text)
-        print(f"wrote {DOC}", file=sys.stderr)
-    return 0
-
+    return run_study(args, RESULTS, lambda: run(tuple(args.sizes)), markdown, DOC, HEAD)
 
 if __name__ == "__main__":
     raise SystemExit(main())

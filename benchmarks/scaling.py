@@ -175,19 +175,6 @@ def child_build(n: int, config: str, variant: str) -> dict:
 
 
 # ------------------------------------------------------------------------ child: run
-def buffered(f, args: list[np.ndarray]):
-    """``(buffer, trigger, outputs)``: ``f`` on the arrays ``args`` through
-    ``casadi.Function.buffer()`` (no argument conversion per call; keep ``buffer`` alive while
-    calling ``trigger``, which writes into ``outputs``)."""
-    buf, trigger = f.buffer()
-    outs = [np.zeros(f.nnz_out(i)) for i in range(f.n_out())]
-    for i, a in enumerate(args):
-        buf.set_arg(i, memoryview(a))
-    for i, a in enumerate(outs):
-        buf.set_res(i, memoryview(a))
-    return buf, trigger, outs
-
-
 def _rhs_timings(sim, jac_budget: float) -> dict:
     """µs per evaluation of the compiled right-hand side and of its FD Jacobian."""
     f = sim.dyn
@@ -198,7 +185,9 @@ def _rhs_timings(sim, jac_budget: float) -> dict:
     args = [np.zeros(f.nnz_in(i)) for i in range(f.n_in())]
     args[1][:] = x
     args[3][:] = sim.model.p
-    _buf, trigger, outs = buffered(f, args)
+    from benchmarks.bench_equations import buffer_evaluator
+
+    trigger, outs = buffer_evaluator(f, args)
     trigger()
     if not np.all(np.isfinite(outs[0])):
         raise RuntimeError("non-finite right-hand side at the timing state")

@@ -16,7 +16,8 @@ Variants
     mechanical power: braking is not recovered).
 
 On the 10-interval grid the minimum-time variant converges with degree-3 collocation
-(``--degree 3``: T* = 0.191494 s in 28 iterations); with the default degree 4 IPOPT crawls
+(``--degree 3``: T* = 0.191494 s in 18–28 iterations, depending on the guess); with the
+default degree 4 IPOPT crawls
 (T = 0.1949 s after 300 iterations and still creeping down, the dual infeasibility near
 2e-6: not converged, 450 s in the virtual machine).  The 6-interval grid of the tests converges
 with either degree.

@@ -66,12 +66,18 @@ def _projector(tr):
     constraint manifold."""
     if not tr.nc:
         return lambda x, t: x
+    f = _manifold_residual(tr)
+    return lambda xs, ts: _gauss_newton(f, np.asarray(xs, dtype=float), ts)
+
+
+def _manifold_residual(tr) -> ca.Function:
+    """``(x, t) -> (r, ∂r/∂x)`` with r = (C, C_q q̇ + C_t): the distance of a state from the
+    constraint manifold, for the projections of the guess."""
     nq = tr.nq
     x, t = ca.SX.sym("x", 2 * nq), ca.SX.sym("t")
     c, cdot, _ = tr.node(x[:nq], x[nq:], t, tr.p)
     res = ca.vertcat(c, cdot)
-    f = ca.Function("project", [x, t], [res, ca.jacobian(res, x)])
-    return lambda xs, ts: _gauss_newton(f, np.asarray(xs, dtype=float), ts)
+    return ca.Function("project", [x, t], [res, ca.jacobian(res, x)])
 
 
 def _batch_projector(tr, iterations: int = 8):
@@ -80,12 +86,8 @@ def _batch_projector(tr, iterations: int = 8):
     (one Python call instead of one per point and step: the four-bar's 201 guess states took
     0.27 s point by point).  Returns ``(xs, ts) -> (projected, converged)``; points whose
     residual is not below 1e-12 (or whose J Jᵀ is singular) are left to :func:`_projector`."""
-    nq = tr.nq
-    x, t = ca.MX.sym("x", 2 * nq), ca.MX.sym("t")
-    xs_, ts_ = ca.SX.sym("x", 2 * nq), ca.SX.sym("t")
-    c, cdot, _ = tr.node(xs_[:nq], xs_[nq:], ts_, tr.p)
-    res = ca.vertcat(c, cdot)
-    rj = ca.Function("project_rj", [xs_, ts_], [res, ca.jacobian(res, xs_)])
+    rj = _manifold_residual(tr)
+    x, t = ca.MX.sym("x", 2 * tr.nq), ca.MX.sym("t")
     xk = x
     for _ in range(iterations):
         r, j = rj(xk, t)
@@ -150,22 +152,25 @@ def initial_guess(tr, kind) -> np.ndarray:
     return _fill(tr, T, state, controls, mults, kind == "simulation")
 
 
+def _point_fraction(tr, c: int) -> float:
+    """Horizon fraction s of collocation point column ``c`` (element c // d, point c % d)."""
+    d, taus = tr.ocp.degree, getattr(tr, "tau", [0.0])
+    return (c // d + taus[c % d + 1]) / tr.M
+
+
 def _fill_fractions(tr) -> list[float]:
-    """The horizon fractions s at which :func:`_fill` evaluates the states (the same
-    expressions, so that the values are equal keys)."""
-    d, M = tr.ocp.degree, tr.M
-    taus = getattr(tr, "tau", [0.0])
-    out = [e / M for e in range(M + 1)]
+    """The horizon fractions s at which :func:`_fill` evaluates the states: the mesh nodes
+    e / M and the collocation points (:func:`_point_fraction`)."""
+    out = [e / tr.M for e in range(tr.M + 1)]
     if "XC" in tr.b.names:
         cols = tr.b.shapes[tr.b.block("XC")][1]
-        out += [(c // d + taus[c % d + 1]) / M for c in range(cols)]
+        out += [_point_fraction(tr, c) for c in range(cols)]
     return list(dict.fromkeys(out))
 
 
 def _fill(tr, T, state, controls=None, mults=None, accelerations=False) -> np.ndarray:
     """w0 from x(s), u(s), λ(s) of the horizon fraction s (blocks of the transcription)."""
-    nq, d, M, N = tr.nq, tr.ocp.degree, tr.M, tr.N
-    taus = getattr(tr, "tau", [0.0])
+    nq, M, N = tr.nq, tr.M, tr.N
     blocks = []
     for name, (rows, cols), w0 in zip(tr.b.names, tr.b.shapes, tr.b.w0, strict=True):
         val = w0.reshape(cols, rows).copy()
@@ -176,16 +181,16 @@ def _fill(tr, T, state, controls=None, mults=None, accelerations=False) -> np.nd
                 val[e] = state(e / M)
         elif name == "XC":
             for c in range(cols):
-                val[c] = state((c // d + taus[c % d + 1]) / M)
+                val[c] = state(_point_fraction(tr, c))
         elif name == "U" and controls is not None:
             for k in range(cols):
                 val[k] = controls((k + 0.5) / N)
         elif name == "LAM" and mults is not None and rows:
             for c in range(cols):
-                val[c] = mults((c // d + taus[c % d + 1]) / M)
+                val[c] = mults(_point_fraction(tr, c))
         elif name == "A" and accelerations and rows:
             for c in range(cols):
-                s = (c // d + taus[c % d + 1]) / M
+                s = _point_fraction(tr, c)
                 ds = 1e-4
                 lo, hi = max(s - ds, 0.0), min(s + ds, 1.0)
                 val[c] = (state(hi)[nq:] - state(lo)[nq:]) / ((hi - lo) * T)

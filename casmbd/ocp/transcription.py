@@ -147,8 +147,8 @@ class Transcription:
     # ------------------------------------------------------------------ pieces
     def _functions(self) -> None:
         ocp, system = self.ocp, self.system
-        self.res = implicit_residual(system)
         self.explicit = self._explicit()
+        self.res = None if self.explicit else implicit_residual(system)
         self.acc = explicit_accelerations(system) if self.explicit else None
         self.node = node_constraints(system)
         args = [system.q, system.v, system.t, system.u, system.p]
