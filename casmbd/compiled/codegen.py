@@ -5,7 +5,11 @@ one source file with :class:`casadi.CodeGenerator`, compiles it with the system 
 a shared library, and loads every function back with :func:`casadi.external`.  The library is
 cached in :func:`cache_dir` under a name derived from a hash of the generated source, the
 compiler flags, the compiler path, the CasADi version and the platform, so that a later call (in
-this or another process) with the same functions loads it without compiling again.
+this or another process) with the same functions loads it without compiling again.  A cached
+library is opened only after its SHA-256, build key and function signatures have been checked
+against the record written beside it (:mod:`casmbd.compiled.cache`); one that fails a check,
+cannot be loaded or loads functions of other signatures is rebuilt with a
+:class:`RuntimeWarning`, never used.
 
 Environment variables
 ---------------------
@@ -40,6 +44,8 @@ from dataclasses import dataclass
 
 import casadi
 
+from casmbd.compiled import cache
+from casmbd.compiled.cache import cache_dir
 from casmbd.errors import CompileError
 
 __all__ = ["COMPILE_COUNT", "BuildReport", "cache_dir", "compile_functions"]
@@ -101,26 +107,6 @@ class BuildReport:
     load_seconds: float
     library: str | None
     key: str
-
-
-def cache_dir() -> pathlib.Path:
-    """Return the directory of compiled libraries, creating it if needed.
-
-    Returns
-    -------
-    pathlib.Path
-        ``$CASMBD_CACHE_DIR`` if set, else ``$XDG_CACHE_HOME/casmbd``, else
-        ``~/.cache/casmbd``.
-    """
-    env = os.environ.get("CASMBD_CACHE_DIR")
-    if env:
-        path = pathlib.Path(env).expanduser()
-    else:
-        xdg = os.environ.get("XDG_CACHE_HOME")
-        base = pathlib.Path(xdg).expanduser() if xdg else pathlib.Path.home() / ".cache"
-        path = base / "casmbd"
-    path.mkdir(parents=True, exist_ok=True)
-    return path
 
 
 def _find_compiler() -> list[str] | None:
@@ -190,20 +176,37 @@ def _generate_template(functions: Sequence[casadi.Function]) -> str:
     return generator.dump()
 
 
+def _vm_report(codegen_seconds: float = 0.0, compile_seconds: float = 0.0, key: str = ""
+               ) -> BuildReport:
+    return BuildReport(mode="vm", cache_hit=False, compiled=False,
+                       codegen_seconds=codegen_seconds, compile_seconds=compile_seconds,
+                       load_seconds=0.0, library=None, key=key)
+
+
 def _vm_result(
     functions: Sequence[casadi.Function], codegen_seconds: float = 0.0, key: str = ""
 ) -> tuple[dict[str, casadi.Function], BuildReport]:
-    report = BuildReport(
-        mode="vm",
-        cache_hit=False,
-        compiled=False,
-        codegen_seconds=codegen_seconds,
-        compile_seconds=0.0,
-        load_seconds=0.0,
-        library=None,
-        key=key,
-    )
+    report = _vm_report(codegen_seconds, key=key)
     return {function.name(): function for function in functions}, report
+
+
+def _rebuild_warning(library: pathlib.Path, reason: str, stacklevel: int) -> None:
+    warnings.warn(f"casmbd: the cached library {library} is not used ({reason}); rebuilding "
+                  "it", RuntimeWarning, stacklevel=stacklevel + 1)
+
+
+def _load_verified(names: list[str], library: pathlib.Path, expected: dict[str, dict]
+                   ) -> tuple[dict[str, casadi.Function] | None, str | None]:
+    """Load ``library`` and compare the loaded signatures with ``expected``: (functions,
+    None), or (None, why they are not used)."""
+    try:
+        loaded = _load(names, library)
+    except (RuntimeError, OSError) as exc:
+        return None, f"it cannot be loaded: {exc}"
+    diff = cache.differences(cache.signatures(loaded.values()), expected)
+    if diff:
+        return None, f"it loads other functions: {diff}"
+    return loaded, None
 
 
 def _load(names: list[str], library: pathlib.Path) -> dict[str, casadi.Function]:
@@ -216,23 +219,22 @@ def _load(names: list[str], library: pathlib.Path) -> dict[str, casadi.Function]
     return {fname: casadi.external(fname, str(library), {"enable_fd": True}) for fname in names}
 
 
-def _write_atomic(path: pathlib.Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file and :func:`os.replace`."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as handle:
-            handle.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
+def _run_compiler(command: list[str], source: pathlib.Path, library: pathlib.Path,
+                  record: dict | None = None) -> float:
+    """Compile ``source`` into ``library`` atomically; return the seconds spent compiling.
 
-
-def _run_compiler(command: list[str], source: pathlib.Path, library: pathlib.Path) -> float:
-    """Compile ``source`` into ``library`` atomically; return the seconds spent compiling."""
+    The compiler writes a temporary file of the cache directory; with ``record`` (the build key
+    and function signatures) the hash record of that file is written first, then the file is
+    renamed to ``library`` — both under the directory's lock, so that no process ever sees a
+    half-written library or the record of another build beside it.
+    """
     global COMPILE_COUNT
-    fd, tmp = tempfile.mkstemp(dir=library.parent, prefix=f".{library.stem}.", suffix=".so.tmp")
+    try:
+        fd, tmp = tempfile.mkstemp(dir=library.parent, prefix=f".{library.stem}.",
+                                   suffix=".so.tmp")
+    except OSError as exc:
+        raise CompileError(f"cannot write in the cache directory {library.parent}: {exc}"
+                           ) from exc
     os.close(fd)
     try:
         full = [*command, str(source), "-o", tmp, *LINK_LIBS]
@@ -269,8 +271,16 @@ def _run_compiler(command: list[str], source: pathlib.Path, library: pathlib.Pat
                 f"C compiler failed with exit code {result.returncode} compiling "
                 f"{source.name}: {shlex.join(full)}\n{tail}"
             )
-        os.chmod(tmp, 0o755)
-        os.replace(tmp, library)
+        try:
+            os.chmod(tmp, 0o755)
+            if record is None:
+                os.replace(tmp, library)
+            else:
+                with cache.entry_lock(library.parent):
+                    cache.write_record(library, pathlib.Path(tmp), record)
+                    os.replace(tmp, library)
+        except OSError as exc:
+            raise CompileError(f"cannot store the compiled library {library}: {exc}") from exc
         return elapsed
     except BaseException:
         with contextlib.suppress(OSError):
@@ -308,13 +318,18 @@ def _build(
     library = directory / f"{stem}.so"
     kept_source = directory / f"{stem}.c"
 
+    expected = cache.signatures(functions)
     if library.exists():
         start = time.perf_counter()
-        try:
-            loaded = _load(names, library)
-        except (RuntimeError, OSError):
-            loaded = None  # unreadable cache entry: rebuild it below
-        if loaded is not None:
+        # hash, key and signatures are checked BEFORE dlopen: a truncated library would crash
+        # the process, another model's would give wrong numbers
+        reason = cache.check_entry(library, key, expected)
+        loaded = None
+        if reason is None:
+            loaded, reason = _load_verified(names, library, expected)
+        if reason is not None:
+            _rebuild_warning(library, reason, 4)  # the caller of compile_functions
+        else:
             report = BuildReport(
                 mode="compiled",
                 cache_hit=True,
@@ -330,15 +345,15 @@ def _build(
     with tempfile.TemporaryDirectory(prefix="casmbd_cg_") as tmpdir:
         source = pathlib.Path(tmpdir) / f"{stem}.c"
         source.write_text(source_text, encoding="utf-8")
-        compile_seconds = _run_compiler(command, source, library)
+        compile_seconds = _run_compiler(command, source, library,
+                                        {"key": key, "functions": expected})
     with contextlib.suppress(OSError):
-        _write_atomic(kept_source, source_text)
+        cache.write_atomic(kept_source, source_text)
 
     start = time.perf_counter()
-    try:
-        loaded = _load(names, library)
-    except (RuntimeError, OSError) as exc:
-        raise CompileError(f"cannot load compiled library {library}: {exc}") from exc
+    loaded, reason = _load_verified(names, library, expected)
+    if reason is not None:  # e.g. this process still holds an older copy of that path
+        raise CompileError(f"compiled library {library} is not usable: {reason}")
     report = BuildReport(
         mode="compiled",
         cache_hit=False,
@@ -480,6 +495,37 @@ def compile_functions(
         return _vm_result(functions)
 
 
+def _nlp_load(library: pathlib.Path, name: str, plugin: str, options: dict,
+              expected: dict[str, dict], sizes: list[int]
+              ) -> tuple[casadi.Function | None, str | None]:
+    """The solver built on ``library`` with its functions' signatures checked against
+    ``expected`` and its variable/constraint sizes against ``sizes``, or (None, reason)."""
+    try:
+        solver = casadi.nlpsol(name, plugin, str(library), options)
+    except RuntimeError as exc:
+        return None, f"it cannot be loaded: {exc}"
+    loaded = cache.signatures(solver.get_function(n) for n in solver.get_function())
+    diff = cache.differences(loaded, expected)
+    if diff:
+        return None, f"it loads other functions: {diff}"
+    if [solver.size1_in("x0"), solver.size1_in("lbg")] != sizes:
+        return None, (f"it solves {solver.size1_in('x0')} variables and "
+                      f"{solver.size1_in('lbg')} constraints, not {sizes[0]} and {sizes[1]}")
+    return solver, None
+
+
+def _nlp_from_cache(library, key, name, plugin, options, sizes):
+    """The cached NLP solver after the checks of :func:`cache.check_entry` (before loading)
+    and :func:`_nlp_load` (after), or (None, reason)."""
+    reason = cache.check_entry(library, key, None)
+    if reason is not None:
+        return None, reason
+    record = cache.read_record(library)
+    if record.get("nlp") != sizes:
+        return None, f"its record is for an NLP of sizes {record.get('nlp')}, not {sizes}"
+    return _nlp_load(library, name, plugin, options, record.get("functions") or {}, sizes)
+
+
 def compile_nlp_solver(problem: dict, plugin: str, options: dict, name: str = "casmbd_nlp",
                        flags: Sequence[str] | None = None
                        ) -> tuple[casadi.Function, BuildReport]:
@@ -488,51 +534,63 @@ def compile_nlp_solver(problem: dict, plugin: str, options: dict, name: str = "c
     The cache key hashes the serialized problem ``{"x", "f", "g"}`` (CasADi's own exact
     serialization of the expression graph), the plugin, the options, compiler, flags, CasADi
     version and platform.  On a hit the solver is built directly on the cached library,
-    without differentiating or generating code again; on a miss
-    ``solver.generate_dependencies`` writes the C code of ``nlp_f``, ``nlp_g``,
-    ``nlp_grad_f``, ``nlp_jac_g`` and ``nlp_hess_l``, which is compiled atomically into the
-    cache.  Without a compiler (or with ``$CASMBD_COMPILE=0``) the solver runs in the virtual
-    machine.
+    without differentiating or generating code again — after the library's SHA-256, key and
+    problem sizes have been checked against its record, and the loaded functions' signatures
+    against those recorded at build time (a failed check: a :class:`RuntimeWarning` and a
+    rebuild); on a miss ``solver.generate_dependencies`` writes the C code of ``nlp_f``,
+    ``nlp_g``, ``nlp_grad_f``, ``nlp_jac_g`` and ``nlp_hess_l``, which is compiled atomically
+    into the cache.  Without a compiler (or with ``$CASMBD_COMPILE=0``), or when compiling
+    fails (with a warning), the solver runs in the virtual machine.
     """
+    if not isinstance(name, str) or not _NAME_RE.match(name):
+        raise ValueError(f"NLP name must be a C identifier, got {name!r}")
     compiler = _find_compiler()
     flags_ = _resolve_flags(flags)
     start = time.perf_counter()
     if compiler is None or os.environ.get("CASMBD_COMPILE", "1") == "0":
-        solver = casadi.nlpsol(name, plugin, problem, options)
-        return solver, BuildReport(mode="vm", cache_hit=False, compiled=False,
-                                   codegen_seconds=0.0, compile_seconds=0.0, load_seconds=0.0,
-                                   library=None, key="")
+        return casadi.nlpsol(name, plugin, problem, options), _vm_report()
     graph = casadi.Function("nlp", [problem["x"]], [problem["f"], problem["g"]])
     # an iteration callback (a progress bar) changes no generated code: not part of the key
     keyed = sorted((k, v) for k, v in options.items() if k != "iteration_callback")
     text = "\x1e".join([graph.serialize(), plugin, repr(keyed)])
     key = _compute_key(text, name, compiler, flags_)
     library = cache_dir() / f"{name}_{key[:16]}.so"
+    sizes = [int(problem["x"].numel()), int(problem["g"].numel())]
     codegen = time.perf_counter() - start
-    compiled, seconds = False, 0.0
-    if not library.exists():
-        solver = casadi.nlpsol(name, plugin, problem, options)
-        with tempfile.TemporaryDirectory() as tmp:
-            cwd = os.getcwd()
-            os.chdir(tmp)
-            try:
-                solver.generate_dependencies(f"{name}.c")
-            finally:
-                os.chdir(cwd)
-            codegen = time.perf_counter() - start
-            try:
-                seconds = _run_compiler([*compiler, *flags_, *SHARED_FLAGS],
-                                        pathlib.Path(tmp) / f"{name}.c", library)
-            except CompileError as exc:  # as compile_functions in "auto" mode
-                warnings.warn(f"casmbd: compiling the NLP {name!r} failed, using the CasADi "
-                              f"virtual machine instead: {exc}", RuntimeWarning, stacklevel=2)
-                return solver, BuildReport(mode="vm", cache_hit=False, compiled=False,
-                                           codegen_seconds=codegen, compile_seconds=0.0,
-                                           load_seconds=0.0, library=None, key=key)
-        compiled = True
+    if library.exists():
+        t_load = time.perf_counter()
+        out, reason = _nlp_from_cache(library, key, name, plugin, options, sizes)
+        if reason is None:
+            return out, BuildReport(mode="compiled", cache_hit=True, compiled=False,
+                                    codegen_seconds=codegen, compile_seconds=0.0,
+                                    load_seconds=time.perf_counter() - t_load,
+                                    library=str(library), key=key)
+        _rebuild_warning(library, reason, 2)
+    solver = casadi.nlpsol(name, plugin, problem, options)
+    expected = cache.signatures(solver.get_function(n) for n in solver.get_function())
+    with tempfile.TemporaryDirectory() as tmp:
+        cwd = os.getcwd()
+        os.chdir(tmp)
+        try:
+            solver.generate_dependencies(f"{name}.c")
+        finally:
+            os.chdir(cwd)
+        codegen = time.perf_counter() - start
+        try:
+            seconds = _run_compiler([*compiler, *flags_, *SHARED_FLAGS],
+                                    pathlib.Path(tmp) / f"{name}.c", library,
+                                    {"key": key, "functions": expected, "nlp": sizes})
+        except CompileError as exc:  # as compile_functions in "auto" mode
+            warnings.warn(f"casmbd: compiling the NLP {name!r} failed, using the CasADi "
+                          f"virtual machine instead: {exc}", RuntimeWarning, stacklevel=2)
+            return solver, _vm_report(codegen, key=key)
     t_load = time.perf_counter()
-    out = casadi.nlpsol(name, plugin, str(library), options)
-    load = time.perf_counter() - t_load
-    return out, BuildReport(mode="compiled", cache_hit=not compiled, compiled=compiled,
+    out, reason = _nlp_load(library, name, plugin, options, expected, sizes)
+    if reason is not None:  # e.g. this process still holds an older copy of that path
+        warnings.warn(f"casmbd: the compiled NLP {library} is not usable ({reason}); using "
+                      "the CasADi virtual machine instead", RuntimeWarning, stacklevel=2)
+        return solver, _vm_report(codegen, seconds, key)
+    return out, BuildReport(mode="compiled", cache_hit=False, compiled=True,
                             codegen_seconds=codegen, compile_seconds=seconds,
-                            load_seconds=load, library=str(library), key=key)
+                            load_seconds=time.perf_counter() - t_load, library=str(library),
+                            key=key)
