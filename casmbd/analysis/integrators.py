@@ -19,6 +19,7 @@ any interval (used by projection and by the error path that keeps partial result
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
@@ -93,7 +94,9 @@ class FixedStep:
     not given) the folds run in CasADi's virtual machine.
 
     ABM4 starts with three RK4 steps and then carries its history across output times, so
-    the run is one multistep integration, not a restart per output.
+    the run is one multistep integration, not a restart per output; the start-up steps are
+    ordinary steps of the run, so they end on the output times whatever the number of steps
+    per output interval (1, 2, 3 or more): the step sequence does not depend on the outputs.
     """
 
     FOLDS = (CHUNK, 16, 4, 1)
@@ -117,24 +120,75 @@ class FixedStep:
         self.rk, self.f = funcs[0], funcs[1]
         self._folds = dict(zip(self.FOLDS, funcs[2:]))
 
-    def start(self, x0, t0: float, p, h: float):
-        """Initial chunk state; for ABM4 after three RK4 steps (returns steps used)."""
-        s = np.concatenate([np.asarray(x0, float).ravel(), [t0]])
-        if self.method == "rk4":
-            return s, 0
-        hist = [s]
-        for _ in range(3):
-            hist.append(np.asarray(self.rk(hist[-1], p, h)).ravel())
-        fs = [np.asarray(self.f(hk[self.nx], hk[:self.nx], p)).ravel() for hk in hist]
-        return np.concatenate([hist[3], fs[3], fs[2], fs[1], fs[0]]), 3
+    def start(self, x0, t0: float, p, after: FixedState | None = None) -> FixedState:
+        """The state at (``x0``, ``t0``) before any step, ABM4's history still empty.
 
-    def advance(self, s, p, h: float, count: int):
-        """``count`` steps of size ``h`` from chunk state ``s``."""
+        ``after`` (the state a restart replaces, e.g. after a projection) carries its step and
+        evaluation counts over, so the statistics stay those of the whole run.
+        """
+        s = np.concatenate([np.asarray(x0, float).ravel(), [t0]])
+        st = FixedState(s, 0, 0, 0) if after is None else FixedState(
+            s, 0, after.steps, after.rhs_evaluations)
+        if self.method == "abm":
+            f0 = np.asarray(self.f(t0, s[:self.nx], p)).ravel()
+            st.s = np.concatenate([s, f0, np.zeros(3 * self.nx)])
+            st.rhs_evaluations += 1
+        return st
+
+    def advance(self, state: FixedState, p, h: float, count: int) -> FixedState:
+        """``count`` (≥ 0) steps of size ``h`` from ``state``.
+
+        ABM4 takes its first three steps after :meth:`start` with RK4, one at a time, each
+        adding f(t, x) of the new state to the history; these start-up steps are counted in
+        ``count`` like any other, so they may spread over several calls (output intervals of
+        one or two steps) and every call ends exactly ``count`` steps further.  A negative
+        count is refused: ``divmod`` would turn it into extra steps.
+        """
+        count = int(count)
+        if count < 0:
+            raise ValueError(f"fixed-step {self.method}: negative step count {count}")
+        nx, s = self.nx, state.s
+        steps, evals = state.steps, state.rhs_evaluations
+        known = state.history
+        if self.method == "abm":
+            while known < 3 and count > 0:  # RK4 start-up, the history grows by one f
+                xt = np.asarray(self.rk(s[:nx + 1], p, h)).ravel()
+                fn = np.asarray(self.f(xt[nx], xt[:nx], p)).ravel()
+                s = np.concatenate([xt, fn, s[nx + 1: nx + 1 + 3 * nx]])
+                known, count, steps, evals = known + 1, count - 1, steps + 1, evals + 5
+        steps += count
+        evals += count * (4 if self.method == "rk4" else 2)
         for k in self.FOLDS:
             n, count = divmod(count, k)
             for _ in range(n):
                 s = np.asarray(self._folds[k](s, p, h)).ravel()
-        return s
+        return FixedState(s, known, steps, evals)
+
+
+@dataclass
+class FixedState:
+    """Where a fixed-step run stands.
+
+    Attributes
+    ----------
+    s : numpy.ndarray
+        (x, t) for RK4; (x, t, f_n, f_{n-1}, f_{n-2}, f_{n-3}) for ABM4.
+    history : int
+        ABM4: steps taken since the last start (up to 3: the RK4 start-up is complete and
+        the f slots are all filled); unused by RK4.
+    steps, rhs_evaluations : int
+        Steps taken and right-hand-side evaluations made since the first start (RK4: 4 per
+        step; ABM4: 1 per start, 5 per start-up RK4 step, 2 per PECE step).
+    """
+
+    s: np.ndarray
+    history: int
+    steps: int
+    rhs_evaluations: int
+
+    def x(self, nx: int) -> np.ndarray:
+        """A copy of the state vector x (the first ``nx`` entries)."""
+        return self.s[:nx].copy()
 
 
 def _renamed(f: ca.Function, name: str) -> ca.Function:
@@ -190,12 +244,23 @@ class CapturedOutput:
 
 
 def substeps_for(interval: float, step: float | None) -> int:
-    """Number of fixed steps per output interval for a requested step size."""
+    """Number of fixed steps per output interval for a requested step size.
+
+    A step that does not divide the output interval is shortened to the largest step that
+    does (``interval / ceil(interval / step)``; a step longer than the interval becomes the
+    interval); the step taken is reported as ``stats["step_size"]``.  A ratio within 1e-9
+    (relative) of an integer counts as that integer, so that 0.1 / 0.01 = 10.000000000000002
+    gives 10 steps and not 11.
+    """
     if step is None:
         return 10
     if not (math.isfinite(step) and step > 0):
         raise ModelError(f"fixed step must be a finite number > 0, got {step}")
-    return max(1, math.ceil(interval / step - 1e-9))
+    ratio = interval / step
+    nearest = round(ratio)
+    if nearest >= 1 and abs(ratio - nearest) <= 1e-9 * nearest:
+        return int(nearest)
+    return max(1, math.ceil(ratio))
 
 
 def sundials(dyn: ca.Function, plugin: str, t0: float, tout, rtol: float, atol: float,

@@ -470,7 +470,11 @@ class Simulator:
         """RK4 / ABM4 over the output grid in compiled chunks; optional projection.
 
         A non-finite state stops the run with an :class:`IntegratorError` that keeps the
-        outputs before it.
+        outputs before it.  The same ``n_sub`` steps of size h = interval / n_sub end on every
+        output time (a requested step that does not divide the interval is shortened, see
+        :func:`integrators.substeps_for`); ABM4's RK4 start-up counts among them, so the step
+        sequence — and without projection the result at any time — does not depend on the
+        output grid.  With projection ABM4 restarts at every output.
         """
         interval = grid[1] - grid[0]
         n_sub = integ.substeps_for(interval, step)
@@ -480,22 +484,22 @@ class Simulator:
             name=f"{_c_name(self.system.mechanism.name)}_{name}"))
         p = self.model.p
         nq, nx = self.model.nq, len(x0)
-        s, used = runner.start(x0, grid[0], p, h)
+        state = runner.start(x0, grid[0], p)
         xs = [np.asarray(x0, float)]
         with progress.bar(len(grid) - 1, f"{name} {self.system.mechanism.name}",
                           "output") as pbar:
-            xs = self._fixed_loop(runner, grid, xs, s, used, p, h, n_sub, nq, nx, name,
-                                  project, pbar)
-        n_steps = (len(grid) - 1) * n_sub
-        return np.vstack(xs), {"steps": n_steps, "jacobian_evaluations": 0, "step_size": h,
-                               "rhs_evaluations": n_steps * (4 if name == "rk4" else 2)}
+            xs, state = self._fixed_loop(runner, grid, xs, state, p, h, n_sub, nq, nx, name,
+                                         project, pbar)
+        return np.vstack(xs), {"steps": state.steps, "jacobian_evaluations": 0,
+                               "step_size": float(h), "steps_per_output": n_sub,
+                               "step_requested": step,
+                               "rhs_evaluations": state.rhs_evaluations}
 
-    def _fixed_loop(self, runner, grid, xs, s, used, p, h, n_sub, nq, nx, name, project,
+    def _fixed_loop(self, runner, grid, xs, state, p, h, n_sub, nq, nx, name, project,
                     pbar):
         for k in range(len(grid) - 1):
-            s = runner.advance(s, p, h, n_sub - used)
-            used = 0
-            x = s[:nx]
+            state = runner.advance(state, p, h, n_sub)
+            x = state.x(nx)
             if not np.all(np.isfinite(x)):
                 partial = self._post(grid[:k + 1], np.vstack(xs)[:, :nq], np.vstack(xs)[:, nq:],
                                      {"formulation": self.formulation_name, "integrator": name})
@@ -507,10 +511,10 @@ class Simulator:
                 t = grid[k + 1]
                 q = assemble(self.model, x[:nq], t).q
                 x = np.concatenate([q, project_velocities(self.model, q, x[nq:], t)])
-                s, used = runner.start(x, t, p, h)
+                state = runner.start(x, t, p, after=state)
             xs.append(x)
             pbar.update()
-        return xs
+        return xs, state
 
     def _partial(self, name, grid, x0, z0, rtol, atol, step, max_steps,
                  t_fail: float | None = None):
