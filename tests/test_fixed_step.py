@@ -188,3 +188,17 @@ def test_negative_step_count_is_refused(sim):
     start = runner.start(np.zeros(runner.nx), 0.0, sim.model.p)
     with pytest.raises(ValueError, match="negative step count -1"):
         runner.advance(start, sim.model.p, 0.1, -1)
+
+
+@pytest.mark.parametrize("steps", [0, -1, 2.5, True])
+def test_ocp_shooting_refuses_a_step_count_below_one(steps):
+    """The same pattern in the OCP's multiple shooting: ``steps`` RK4 steps per interval.
+    With 0 (or a negative count) the loop ran no step, the shooting map was the identity and
+    the dynamics were silently ignored; now refused, the key named."""
+    from casmbd.errors import AnalysisError
+    from casmbd.ocp import Ocp
+
+    with pytest.raises(AnalysisError, match=r"ocp: steps \(RK4 steps per interval\) must be "
+                                            r"an integer >= 1, got " + repr(steps)):
+        Ocp(driven_pendulum(), transcription="multiple_shooting", integrator="rk4",
+            steps=steps)

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 
 from casmbd.errors import AnalysisError, ModelError
+from casmbd.ocp.options import check_solver_options
 from casmbd.ocp.quantities import quantities
 from casmbd.system.equations import System
 
@@ -91,6 +92,13 @@ class Ocp:
         size of a hand-written ODE transcription; only for mechanisms without constraint
         equations. Measured on the trees of ``ocp/`` (docs/ocp.md) it saves a quarter of the
         variables but not solve time: per iteration a little cheaper, iteration counts ±20 %.
+    solver : {"ipopt", "sqpmethod"}
+        The NLP solver (:data:`casmbd.ocp.options.SOLVERS`).
+    solver_options : dict
+        Options of the NLP solver, checked against an allow-list with types and ranges
+        (:mod:`casmbd.ocp.options`: e.g. ``"ipopt.max_iter"``, ``"ipopt.tol"``; never code,
+        compiler or file options) when the problem is built and again when it is solved;
+        trusted code passes anything else to :meth:`solve` (``options=``), unchecked.
     compile : bool
         Generate C code for the NLP's functions (objective, constraints, their Jacobian and
         the Lagrangian's Hessian), compile it and cache the library on disk (default): a
@@ -129,11 +137,16 @@ class Ocp:
         if not (isinstance(self.subintervals, int) and self.subintervals >= 1):
             raise AnalysisError(f"ocp: subintervals must be an integer >= 1, got "
                                 f"{self.subintervals!r}")
+        if not (isinstance(self.steps, int) and not isinstance(self.steps, bool)
+                and self.steps >= 1):  # 0 steps: the shooting map is the identity (issue 18)
+            raise AnalysisError(f"ocp: steps (RK4 steps per interval) must be an integer "
+                                f">= 1, got {self.steps!r}")
         if not (isinstance(self.degree, int) and 1 <= self.degree <= 9):
             raise AnalysisError(f"ocp: degree must be an integer in 1..9, got {self.degree!r}")
         if self.dynamics not in DYNAMICS:
             raise AnalysisError(f"ocp: dynamics must be one of {', '.join(DYNAMICS)}, got "
                                 f"{self.dynamics!r}")
+        self.solver_options = check_solver_options(self.solver, self.solver_options)
         if self.integrator not in ("rk4", "cvodes"):
             raise AnalysisError(f"ocp: integrator must be 'rk4' or 'cvodes', got "
                                 f"{self.integrator!r}")
@@ -258,7 +271,11 @@ class Ocp:
 
     def solve(self, **options):
         """Transcribe, solve with the NLP solver and return an
-        :class:`~casmbd.ocp.solution.OcpSolution`."""
+        :class:`~casmbd.ocp.solution.OcpSolution`.
+
+        ``options`` (keywords of :meth:`casmbd.ocp.transcription.Transcription.solve`):
+        ``guess``, ``raise_on_failure`` and ``options`` — solver options passed to CasADi
+        unchecked, for trusted Python code only (:attr:`solver_options` is checked)."""
         from casmbd.ocp.transcription import Transcription
 
         return Transcription(self).solve(**options)
