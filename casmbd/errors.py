@@ -47,6 +47,11 @@ class AnalysisError(CasmbdError):
     """An analysis cannot run on this mechanism (e.g. kinematics of an undriven mechanism)."""
 
 
+class ResultFileError(AnalysisError):
+    """A result file (npz) is missing, truncated, corrupted or not written by casmbd; the
+    message names the file and what is wrong with it."""
+
+
 class IntegratorError(CasmbdError):
     """The time integrator failed; carries the time, the solver's flag and partial results.
 

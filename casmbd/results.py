@@ -16,7 +16,10 @@ import csv
 import json
 import os
 import re
+import struct
 import tempfile
+import zipfile
+import zlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -413,32 +416,112 @@ def _json_default(obj):
     raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
 
 
-def load(path: str | os.PathLike) -> Result:
-    """Read a result written by :meth:`Result.save`.
+#: largest total uncompressed size of a result file's arrays that :func:`read_npz` reads
+MAX_NPZ_BYTES = 4 * 2**30
+
+
+def read_npz(path: str | os.PathLike, what: str = "result") -> dict[str, np.ndarray]:
+    """Every array of an npz file, read eagerly, without pickle.
+
+    The file is checked as a zip archive first (a text file, a truncated or corrupted file
+    and a zip of something else are named as such), encrypted members and members over
+    :data:`MAX_NPZ_BYTES` in total are refused before reading, and ``np.load`` runs with
+    ``allow_pickle=False``: object arrays, which would run code on unpickling, are refused.
 
     Raises
     ------
-    AnalysisError
-        When the file is missing, unreadable or not a result file (naming the file).
+    ResultFileError
+        Naming the file and what is wrong with it.
     """
-    from casmbd.errors import AnalysisError
+    from casmbd.errors import ResultFileError
 
+    where = f"{what} file '{path}'"
     try:
-        data = np.load(path, allow_pickle=False)
-        if not isinstance(data, np.lib.npyio.NpzFile):
-            raise AnalysisError(f"'{path}' is not a casmbd result file (not an npz archive)")
-        with data:
-            if "meta" not in data.files:
-                raise AnalysisError(f"'{path}' is not a casmbd result file (no 'meta' entry)")
-            meta = json.loads(str(data["meta"]))
-            arrays = {k.split("/", 1)[1]: data[k] for k in data.files
-                      if k.startswith("array/")}
-            scene = str(data["scene"]) if "scene" in data.files else ""
-            return Result(meta["kind"], data["t"], arrays, meta["names"], meta["stats"], scene)
-    except AnalysisError:
+        with open(path, "rb") as fh:
+            head = fh.read(4)
+        if head[:2] != b"PK":
+            why = "it is empty" if not head else "it is not a zip archive"
+            raise ResultFileError(f"cannot read {where}: not an npz file ({why})")
+        with zipfile.ZipFile(path) as zf:
+            infos = zf.infolist()
+            if any(info.flag_bits & 0x1 for info in infos):
+                raise ResultFileError(f"cannot read {where}: it has encrypted members")
+            total = sum(info.file_size for info in infos)
+            if total > MAX_NPZ_BYTES:
+                raise ResultFileError(f"cannot read {where}: its arrays would take "
+                                      f"{total:.3g} bytes (limit {MAX_NPZ_BYTES:.3g})")
+            not_npy = [info.filename for info in infos if not info.filename.endswith(".npy")]
+            if not infos or not_npy:
+                raise ResultFileError(f"cannot read {where}: a zip archive but not an npz "
+                                      f"file (members {', '.join(not_npy[:3]) or 'none'})")
+            bad = zf.testzip()  # reads every member: CRC of each
+        if bad is not None:
+            raise ResultFileError(f"cannot read {where}: member '{bad}' is corrupted "
+                                  "(CRC mismatch)")
+        with np.load(path, allow_pickle=False) as data:
+            return {key: data[key] for key in data.files}
+    except ResultFileError:
         raise
-    except (OSError, ValueError, KeyError) as exc:
-        raise AnalysisError(f"cannot read result file '{path}': {exc}") from None
+    except FileNotFoundError:
+        raise ResultFileError(f"{where} not found") from None
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error,
+            NotImplementedError, struct.error) as exc:
+        why = f"{exc or type(exc).__name__} (truncated or corrupted?)"
+        if "allow_pickle" in why:
+            why = "it holds object arrays, which are refused (they could run code when read)"
+        raise ResultFileError(f"cannot read {where}: {why}") from None
+
+
+def load(path: str | os.PathLike) -> Result:
+    """Read a result written by :meth:`Result.save`.
+
+    The file is validated (see :func:`read_npz`): a JSON ``meta`` entry with the kind, names
+    and statistics, a finite 1-D time grid, and numeric arrays with one row per time.
+
+    Raises
+    ------
+    ResultFileError
+        When the file is missing, unreadable, truncated, corrupted or not a result file
+        (naming the file and what is wrong); an :class:`~casmbd.errors.AnalysisError`.
+    """
+    from casmbd.errors import ResultFileError
+
+    data = read_npz(path)
+    where = f"'{path}' is not a casmbd result file"
+    if "meta" not in data:
+        raise ResultFileError(f"{where} (no 'meta' entry)")
+    try:
+        meta = json.loads(str(data["meta"]))
+    except ValueError as exc:
+        raise ResultFileError(f"{where} (its 'meta' entry is not JSON: {exc})") from None
+    if not isinstance(meta, dict):
+        raise ResultFileError(f"{where} (its 'meta' entry is not a JSON object)")
+    for key, kind in (("kind", str), ("names", dict), ("stats", dict)):
+        if not isinstance(meta.get(key), kind):
+            raise ResultFileError(f"{where} ('meta' has no {kind.__name__} '{key}')")
+    for key, names in meta["names"].items():
+        if not (isinstance(names, list) and all(isinstance(n, str) for n in names)):
+            raise ResultFileError(f"{where} ('meta' names '{key}' is not a list of names)")
+    if "t" not in data:
+        raise ResultFileError(f"{where} (no time grid 't')")
+    t = data["t"]
+    if t.dtype.kind not in "iuf" or t.ndim != 1 or t.size == 0 or \
+            not np.all(np.isfinite(t)):
+        raise ResultFileError(f"{where} ('t' must be a non-empty 1-D array of finite numbers, "
+                              f"got shape {t.shape}, dtype {t.dtype})")
+    arrays = {}
+    for key, arr in data.items():
+        if not key.startswith("array/"):
+            continue
+        name = key.split("/", 1)[1]
+        if arr.dtype.kind not in "biuf" or arr.ndim == 0 or arr.shape[0] != t.size:
+            raise ResultFileError(f"{where} (array '{name}': expected numbers with one row per "
+                                  f"time ({t.size}), got shape {arr.shape}, dtype {arr.dtype})")
+        arrays[name] = arr
+    scene = data.get("scene", np.array(""))
+    if scene.dtype.kind != "U" or scene.ndim != 0:
+        raise ResultFileError(f"{where} (its 'scene' entry is not a text)")
+    return Result(meta["kind"], t, arrays, meta["names"], meta["stats"], str(scene))
 
 
 load_result = load

@@ -42,8 +42,14 @@ from pathlib import Path
 
 import numpy as np
 
-from casmbd.errors import AnalysisError, CasmbdError, ModelError, SceneError
-from casmbd.results import Result, _json_default, atomic_write
+from casmbd.errors import (
+    AnalysisError,
+    CasmbdError,
+    ModelError,
+    ResultFileError,
+    SceneError,
+)
+from casmbd.results import Result, _json_default, atomic_write, read_npz
 
 __all__ = ["ANALYSES", "REDUCTIONS", "SweepResult", "load_sweep", "parse_values", "sweep"]
 
@@ -622,14 +628,15 @@ class SweepResult:
 
 def load_sweep(path: str | os.PathLike) -> SweepResult:
     """Read a table written by :meth:`SweepResult.save`."""
+    data = read_npz(path, "sweep")  # ResultFileError on a bad file, naming it
     try:
-        with np.load(path, allow_pickle=False) as data:
-            meta = json.loads(str(data["meta"]))
-            return SweepResult(meta["analysis"], data["parameters"], data["outputs"],
-                               data["status"], meta["errors"], meta["files"], meta["stats"],
-                               meta["point_stats"], meta["out_dir"])
-    except (OSError, ValueError, KeyError) as exc:
-        raise AnalysisError(f"cannot read sweep file '{path}': {exc}") from None
+        meta = json.loads(str(data["meta"]))
+        return SweepResult(meta["analysis"], data["parameters"], data["outputs"],
+                           data["status"], meta["errors"], meta["files"], meta["stats"],
+                           meta["point_stats"], meta["out_dir"])
+    except (ValueError, KeyError, TypeError) as exc:
+        raise ResultFileError(f"'{path}' is not a casmbd sweep file ({type(exc).__name__}: "
+                              f"{exc})") from None
 
 
 def _table(names: list[str], rows: list[dict]) -> np.ndarray:

@@ -41,7 +41,7 @@ from casmbd.errors import CasmbdError, ExpressionError, ModelError, SceneError
 from casmbd.io.expressions import evaluate_number
 from casmbd.model import GROUND, Mechanism
 from casmbd.model.rotations import inertia_tensor
-from casmbd.model.values import Samples
+from casmbd.model.values import EXTRAPOLATIONS, Samples
 
 FORMAT = 1
 
@@ -483,19 +483,26 @@ def _add_force(mech: Mechanism, e: _Entry, ftype: str, guarded) -> None:
 
 
 def _position(e: _Entry):
-    """A driver position: a number, an expression of t, or {times = [...], values = [...]}."""
+    """A driver position: a number, an expression of t, or {times = [...], values = [...]}
+    with an optional ``extrapolate`` ("hold", "linear" or "error"; see
+    :class:`~casmbd.model.values.Samples`)."""
     raw = e.require("position")
     if isinstance(raw, dict):
-        unknown = set(raw) - {"times", "values"}
+        unknown = set(raw) - {"times", "values", "extrapolate"}
         if unknown or not {"times", "values"} <= set(raw):
-            raise e.error("position", "a sampled trajectory needs exactly the keys 'times' "
-                          f"and 'values' (got {', '.join(sorted(raw))})")
+            raise e.error("position", "a sampled trajectory needs the keys 'times' and "
+                          f"'values' and optionally 'extrapolate' (got {', '.join(sorted(raw))})")
+        extrapolate = raw.get("extrapolate", "hold")
+        if extrapolate not in EXTRAPOLATIONS:
+            raise e.error("position", f"'extrapolate' must be one of "
+                          f"{', '.join(EXTRAPOLATIONS)}, got {extrapolate!r}")
         times, values = raw["times"], raw["values"]
         for key, arr in (("times", times), ("values", values)):
             if not isinstance(arr, list) or any(_finite(x) is None for x in arr):
                 raise e.error("position", f"'{key}' must be a list of finite numbers")
         try:
-            return Samples(times, values, name=f"driver_{e.name or e.index}")
+            return Samples(times, values, name=f"driver_{e.name or e.index}",
+                           extrapolate=extrapolate)
         except CasmbdError as exc:
             raise e.error("position", str(exc)) from None
     return e.value("position")

@@ -20,16 +20,29 @@ import numpy as np
 
 from casmbd.errors import ModelError
 
+#: how a :class:`Samples` trajectory continues outside its sample times
+EXTRAPOLATIONS = ("hold", "linear", "error")
+
 
 class Samples:
     """A sampled trajectory f(t) (times, values), interpolated by a cubic B-spline (C²).
 
     The spline is CasADi's ``bspline`` interpolant, which interpolates the samples and has
     continuous first and second derivatives, as drivers need for velocities and accelerations
-    (γ contains ∂²C/∂t²).  Valid between the first and last sample time.
+    (γ contains ∂²C/∂t²).
+
+    Outside [first, last sample time] CasADi's interpolant drops to 0, so the trajectory is
+    continued explicitly, by ``extrapolate``:
+
+    * ``"hold"`` (default): the end value is kept (f(t) = f(t_last) after the last sample,
+      f(t_first) before the first); velocity and acceleration are 0 there, so the velocity
+      jumps to 0 at the last sample unless the samples end at rest;
+    * ``"linear"``: the end value and slope continue (f and ḟ continuous, f̈ = 0 outside);
+    * ``"error"``: f is NaN outside, which every analysis reports as a non-finite driver
+      position naming the driver and the time.
     """
 
-    def __init__(self, times, values, name: str = "samples"):
+    def __init__(self, times, values, name: str = "samples", extrapolate: str = "hold"):
         t = np.asarray(times, dtype=float).ravel()
         v = np.asarray(values, dtype=float).ravel()
         if t.size != v.size:
@@ -40,16 +53,35 @@ class Samples:
             raise ModelError(f"{name}: times and values must be finite")
         if np.any(np.diff(t) <= 0):
             raise ModelError(f"{name}: times must be strictly increasing")
+        if extrapolate not in EXTRAPOLATIONS:
+            raise ModelError(f"{name}: extrapolate must be one of {', '.join(EXTRAPOLATIONS)}, "
+                             f"got {extrapolate!r}")
         self.times, self.values, self.name = t, v, name
+        self.extrapolate = extrapolate
         self._function = ca.interpolant(name.replace(" ", "_").replace("'", ""), "bspline",
                                         [t], v)
+        # end values and slopes of the spline, for the linear continuation
+        tau = ca.SX.sym("tau")
+        slope = ca.Function("slope", [tau], [ca.jacobian(self._function(tau), tau)])
+        self._ends = [(float(t[k]), float(self._function(t[k])), float(slope(t[k])))
+                      for k in (0, -1)]
 
     def __call__(self, t):
-        return self._function(t)
+        # if_else, not fmin/fmax: their derivative at a tie is the mean of both sides, which
+        # would halve the velocity at the first and last sample
+        first, last = self.times[0], self.times[-1]
+        inside = self._function(t)
+        if self.extrapolate == "error":
+            return inside + ca.if_else(ca.logic_or(t < first, t > last), np.nan * t, 0.0)
+        (t0, f0, d0), (t1, f1, d1) = self._ends
+        if self.extrapolate == "hold":
+            d0 = d1 = 0.0
+        return ca.if_else(t > last, f1 + d1 * (t - t1),
+                          ca.if_else(t < first, f0 + d0 * (t - t0), inside))
 
     def __repr__(self) -> str:
         return (f"Samples({self.times.size} points on [{self.times[0]:g}, "
-                f"{self.times[-1]:g}])")
+                f"{self.times[-1]:g}], extrapolate={self.extrapolate!r})")
 
 
 Value = float | int | str | Callable | ca.SX | Samples

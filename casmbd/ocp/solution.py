@@ -9,8 +9,8 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from casmbd.errors import AnalysisError
-from casmbd.results import atomic_write
+from casmbd.errors import AnalysisError, ResultFileError
+from casmbd.results import atomic_write, read_npz
 
 
 class OcpSolution:
@@ -186,10 +186,14 @@ class OcpSolution:
     @classmethod
     def load(cls, path: str | os.PathLike) -> OcpSolution:
         """A solution saved by :meth:`save` (without the problem: no expressions, no replay)."""
-        with np.load(path) as data:
+        data = read_npz(path, "OCP solution")  # ResultFileError on a bad file, naming it
+        try:
             meta = json.loads(str(data["meta"]))
             return cls(data["t"], data["q"], data["v"], data["u"], meta["stats"],
                        meta["controls"], meta["coordinates"])
+        except (ValueError, KeyError, TypeError) as exc:
+            raise ResultFileError(f"'{path}' is not a casmbd OCP solution file "
+                                  f"({type(exc).__name__}: {exc})") from None
 
     def plot(self, path: str | os.PathLike | None = None):
         """Coordinates and controls against time (matplotlib figure; saved when ``path``)."""
