@@ -46,6 +46,7 @@ from pathlib import Path
 
 from casmbd.errors import CasmbdError, SceneError
 from casmbd.io.scene import load_scene
+from casmbd.ocp.options import check_solver, check_solver_options
 from casmbd.ocp.problem import OBJECTIVES, FreeTime, Ocp
 
 _KEYS = {"horizon", "intervals", "transcription", "degree", "subintervals", "dynamics",
@@ -101,15 +102,20 @@ def ocp_from_scene(mech, table: dict | None = None, source: str = "<scene>") -> 
         if not isinstance(val, int) or isinstance(val, bool):
             raise SceneError(f"{source}: [ocp] key '{key}': expected an integer, got {val!r}")
         ints[key] = val
+    # never code from data: only known solvers and allow-listed options (casmbd.ocp.options)
+    solver = check_solver(table.get("solver", "ipopt"), f"{source}: [ocp] key 'solver'",
+                          SceneError)
     options = table.get("solver_options", {})
     if not isinstance(options, dict):
         raise SceneError(f"{source}: [ocp] key 'solver_options': expected a table")
+    options = check_solver_options(solver, options, f"{source}: [ocp.solver_options]",
+                                   SceneError)
     try:
         ocp = Ocp(mech, horizon=horizon, transcription=table.get("transcription", "radau"),
                   integrator=table.get("integrator", "rk4"),
                   dynamics=table.get("dynamics", "implicit"),
                   t_start=num(table.get("t_start", 0.0), "t_start"),
-                  solver=table.get("solver", "ipopt"), solver_options=dict(options), **ints)
+                  solver=solver, solver_options=options, **ints)
         for key, bounds in table.get("controls", {}).items():
             if not (isinstance(bounds, list) and len(bounds) == 2):
                 raise SceneError(f"{source}: [ocp.controls] key '{key}': expected [min, max]")

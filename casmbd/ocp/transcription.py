@@ -19,6 +19,7 @@ import numpy as np
 from casmbd import progress
 from casmbd.errors import AnalysisError, OptimizationError
 from casmbd.ocp.dynamics import explicit_accelerations, implicit_residual, node_constraints
+from casmbd.ocp.options import check_solver_options
 
 IPOPT_DEFAULTS = {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
                   "ipopt.max_iter": 3000}
@@ -476,8 +477,9 @@ class Transcription:
                 and ocp.integrator == "cvodes"):
             # second-order sensitivities of CVODES are costly: quasi-Newton Hessian
             opts["ipopt.hessian_approximation"] = "limited-memory"
-        opts.update(ocp.solver_options)
-        opts.update(options or {})
+        # checked again: the attribute may have changed since the Ocp was built
+        opts.update(check_solver_options(ocp.solver, ocp.solver_options))
+        opts.update(options or {})  # trusted Python callers only (see casmbd.ocp.options)
         problem = {"x": w, "f": self.objective, "g": g}
         bar = None
         if ocp.solver == "ipopt" and "iteration_callback" not in opts and progress.enabled():

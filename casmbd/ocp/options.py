@@ -1,0 +1,215 @@
+"""The NLP solvers and solver options an optimal-control problem may name.
+
+CasADi's ``nlpsol`` takes options that compile and load code (``jit``, ``compiler``,
+``jit_options`` with a compiler command and flags), write or read any file
+(``ipopt.output_file``, ``ipopt.option_file_name``), load shared libraries (``ipopt.hsllib``,
+``ipopt.pardisolib``, any solver *plugin* name) or call back into Python (``iteration_callback``,
+``monitor``).  A scene file is data that users download and share, so nothing in it may reach
+those: :attr:`Ocp.solver_options <casmbd.ocp.problem.Ocp.solver_options>` (which a scene's
+``[ocp.solver_options]`` table fills) goes through the explicit allow-list below, with a type
+and a range for every option, and ``solver`` must be one of :data:`SOLVERS`.  Everything else is
+refused with an error naming the key and listing what is allowed.
+
+The allow-list applies to every ``Ocp`` — built from a scene or in Python — and is checked
+again when the problem is solved (the attribute may have been changed).  Trusted Python code
+that needs another option passes it to ``Ocp.solve(options={...})``, which is not checked: a
+program that calls Python can run anything anyway, and no scene, result file or command-line
+argument reaches that argument.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import casadi as ca
+
+from casmbd.errors import AnalysisError
+
+__all__ = ["LINEAR_SOLVERS", "SOLVERS", "SOLVER_OPTIONS", "check_solver", "check_solver_options"]
+
+#: NLP solvers an ``Ocp`` may use (and that this CasADi build must provide).
+SOLVERS = ("ipopt", "sqpmethod")
+
+#: Linear solvers IPOPT may be asked for; all but MUMPS are probed before use (the HSL and
+#: Pardiso ones exist only when their libraries are installed).
+LINEAR_SOLVERS = ("mumps", "spral", "ma27", "ma57", "ma77", "ma86", "ma97", "pardiso")
+
+_BIG = 1e20
+
+
+def _int(lo: int, hi: int) -> tuple:
+    return ("int", lo, hi)
+
+
+def _real(lo: float, hi: float = _BIG, open_lo: bool = True) -> tuple:
+    return ("real", lo, hi, open_lo)
+
+
+def _choice(*values: str) -> tuple:
+    return ("choice", values)
+
+
+_POS = _real(0.0)           # a finite number > 0
+_NONNEG = _real(0.0, open_lo=False)
+_YESNO = _choice("yes", "no")
+_BOOL = ("bool",)
+
+_IPOPT = {
+    "ipopt.max_iter": _int(0, 1_000_000),
+    "ipopt.acceptable_iter": _int(0, 1_000_000),
+    "ipopt.print_level": _int(0, 12),
+    "ipopt.print_frequency_iter": _int(1, 1_000_000),
+    "ipopt.limited_memory_max_history": _int(0, 1000),
+    "ipopt.max_soc": _int(0, 1000),
+    "ipopt.tol": _POS,
+    "ipopt.acceptable_tol": _POS,
+    "ipopt.constr_viol_tol": _POS,
+    "ipopt.dual_inf_tol": _POS,
+    "ipopt.compl_inf_tol": _POS,
+    "ipopt.acceptable_constr_viol_tol": _POS,
+    "ipopt.acceptable_dual_inf_tol": _POS,
+    "ipopt.acceptable_compl_inf_tol": _POS,
+    "ipopt.acceptable_obj_change_tol": _NONNEG,
+    "ipopt.mu_init": _POS,
+    "ipopt.mu_min": _POS,
+    "ipopt.mu_max": _POS,
+    "ipopt.bound_push": _POS,
+    "ipopt.bound_frac": _real(0.0, 0.5),
+    "ipopt.bound_relax_factor": _NONNEG,
+    "ipopt.warm_start_bound_push": _POS,
+    "ipopt.warm_start_bound_frac": _real(0.0, 0.5),
+    "ipopt.warm_start_mult_bound_push": _POS,
+    "ipopt.nlp_scaling_max_gradient": _POS,
+    "ipopt.obj_scaling_factor": _real(-_BIG, _BIG),
+    "ipopt.max_cpu_time": _POS,
+    "ipopt.max_wall_time": _POS,
+    "ipopt.mu_strategy": _choice("monotone", "adaptive"),
+    "ipopt.mu_oracle": _choice("probing", "loqo", "quality-function"),
+    "ipopt.hessian_approximation": _choice("exact", "limited-memory"),
+    "ipopt.limited_memory_update_type": _choice("bfgs", "sr1"),
+    "ipopt.nlp_scaling_method": _choice("none", "gradient-based"),
+    "ipopt.fixed_variable_treatment": _choice("make_parameter", "make_parameter_nodual",
+                                              "make_constraint", "relax_bounds"),
+    "ipopt.derivative_test": _choice("none", "first-order", "second-order",
+                                     "only-second-order"),
+    "ipopt.linear_solver": ("linear_solver",),
+    "ipopt.warm_start_init_point": _YESNO,
+    "ipopt.sb": _YESNO,
+    "ipopt.honor_original_bounds": _YESNO,
+    "ipopt.check_derivatives_for_naninf": _YESNO,
+    "ipopt.expect_infeasible_problem": _YESNO,
+    "ipopt.recalc_y": _YESNO,
+    "ipopt.print_timing_statistics": _YESNO,
+    "print_time": _BOOL,
+}
+
+_SQPMETHOD = {
+    "max_iter": _int(0, 1_000_000),
+    "max_iter_ls": _int(0, 1000),
+    "tol_pr": _POS,
+    "tol_du": _POS,
+    "min_step_size": _POS,
+    "hessian_approximation": _choice("exact", "limited-memory"),
+    "qpsol": _choice("qpoases", "qrqp"),
+    "print_header": _BOOL,
+    "print_iteration": _BOOL,
+    "print_status": _BOOL,
+    "print_time": _BOOL,
+}
+
+#: Allowed options of each solver: name -> (kind, limits...).
+SOLVER_OPTIONS = {"ipopt": _IPOPT, "sqpmethod": _SQPMETHOD}
+
+
+def check_solver(solver, where: str = "ocp", error: type[Exception] = AnalysisError) -> str:
+    """``solver`` if it is one of :data:`SOLVERS` provided by this CasADi build, else raise
+    ``error`` naming it (a plugin name is a shared library CasADi would load)."""
+    if not (isinstance(solver, str) and solver in SOLVERS):
+        raise error(f"{where}: unknown NLP solver {solver!r} (allowed: {', '.join(SOLVERS)})")
+    if not ca.has_nlpsol(solver):
+        raise error(f"{where}: NLP solver '{solver}' is not available in this CasADi build")
+    return solver
+
+
+@functools.cache
+def linear_solver_available(name: str) -> bool:
+    """Whether IPOPT can use the linear solver ``name`` here (MUMPS ships with CasADi; the
+    others are tried once on a one-variable problem)."""
+    if name == "mumps":
+        return True
+    x = ca.SX.sym("x")
+    try:
+        solver = ca.nlpsol("casmbd_probe", "ipopt", {"x": x, "f": (x - 1) ** 2},
+                           {"ipopt.linear_solver": name, "ipopt.print_level": 0,
+                            "ipopt.sb": "yes", "print_time": False, "error_on_fail": False})
+        solver(x0=0.0)
+    except RuntimeError:
+        return False
+    return bool(solver.stats().get("success", False))
+
+
+def _check_value(key: str, value, spec: tuple, where: str, error: type[Exception]):
+    kind = spec[0]
+    bad = f"{where}: solver option '{key}' = {value!r}:"
+    if kind == "bool":
+        if not isinstance(value, bool):
+            raise error(f"{bad} expected true or false")
+        return value
+    if kind in ("choice", "linear_solver"):
+        values = spec[1] if kind == "choice" else LINEAR_SOLVERS
+        if not (isinstance(value, str) and value in values):
+            raise error(f"{bad} expected one of {', '.join(values)}")
+        if kind == "linear_solver" and not linear_solver_available(value):
+            raise error(f"{bad} this linear solver is not available here (IPOPT refuses it; "
+                        "mumps always is)")
+        return value
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise error(f"{bad} expected {'an integer' if kind == 'int' else 'a number'}")
+    if kind == "int":
+        _, lo, hi = spec
+        if not isinstance(value, int) or not lo <= value <= hi:
+            raise error(f"{bad} expected an integer in [{lo}, {hi}]")
+        return value
+    _, lo, hi, open_lo = spec
+    ok = math.isfinite(value) and value <= hi and (value > lo if open_lo else value >= lo)
+    if not ok:
+        raise error(f"{bad} expected a finite number in {'(' if open_lo else '['}{lo:g}, "
+                    f"{hi:g}]")
+    return float(value)
+
+
+def check_solver_options(solver: str, options, where: str = "ocp",
+                         error: type[Exception] = AnalysisError) -> dict:
+    """A checked copy of ``options`` for ``solver`` (see the module docstring).
+
+    Parameters
+    ----------
+    solver : str
+        One of :data:`SOLVERS`.
+    options : mapping
+        Option name -> value, e.g. ``{"ipopt.max_iter": 500}``.
+    where : str
+        Prefix of error messages (the scene file and table, or ``"ocp"``).
+    error : exception class
+        Raised on a refused option (SceneError for scene files).
+
+    Raises
+    ------
+    error
+        Naming the key, for an option not on the allow-list (listing the allowed ones), or a
+        value of the wrong type or out of range.
+    """
+    check_solver(solver, where, error)
+    if not isinstance(options, dict):
+        raise error(f"{where}: solver options must be a table of option = value, got "
+                    f"{type(options).__name__}")
+    allowed = SOLVER_OPTIONS[solver]
+    out = {}
+    for key, value in options.items():
+        spec = allowed.get(key) if isinstance(key, str) else None
+        if spec is None:
+            raise error(f"{where}: solver option {key!r} is not allowed for {solver} "
+                        f"(allowed: {', '.join(sorted(allowed))})")
+        out[key] = _check_value(key, value, spec, where, error)
+    return out
