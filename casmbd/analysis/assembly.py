@@ -23,6 +23,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from casmbd.analysis.redundancy import DENSE_MAX_ENTRIES, rank_report
 from casmbd.errors import AssemblyError, ModelError, SingularConfigurationError
 
 
@@ -62,8 +63,6 @@ def _worst_equations(model, residual: np.ndarray, count: int = 3) -> str:
 def _locked(model, q: np.ndarray, t: float, residual: np.ndarray, free: np.ndarray) -> str:
     """A sentence for an assembly failure where C_q has full column rank at the last iterate:
     no coordinate is left free, so an over-determined set of joints locks the mechanism."""
-    from casmbd.analysis.redundancy import rank_report
-
     jac = model.constraint_jacobian(q, t)[:, free]
     rep = rank_report(jac)
     if rep.rank < len(free) or rep.n_equations <= rep.rank:
@@ -99,8 +98,38 @@ def solve_linear(matrix: sp.spmatrix, rhs: np.ndarray, what: str, t: float) -> n
         except RuntimeError:
             pass
         raise SingularConfigurationError(f"{what} is singular at t = {t:g}")
-    x, *_ = sla.lstsq(matrix.toarray(), rhs, lapack_driver="gelsd")
-    return x
+    return min_norm_solve(matrix, rhs)
+
+
+def min_norm_solve(matrix: sp.spmatrix, rhs: np.ndarray) -> np.ndarray:
+    """The minimum-norm least-squares solution of ``matrix @ x = rhs``.
+
+    Up to :data:`~casmbd.analysis.redundancy.DENSE_MAX_ENTRIES` entries by a dense SVD-based
+    solve (LAPACK ``gelsd``, any rank).  Larger matrices would make that cubic (70 s for one
+    Newton step of a driven 500-body chain), so they are solved through the sparse augmented
+    system — [[I, Jᵀ], [J, 0]] [x; y] = [0; b] when there are fewer rows than columns (x is the
+    minimum-norm solution), [[I, J], [Jᵀ, 0]] [r; x] = [b; 0] otherwise (least squares) —
+    with a sparse LU; a rank-deficient J makes that singular, and LSMR (which converges to the
+    minimum-norm least-squares solution) takes over.
+    """
+    m, n = matrix.shape
+    if m * n <= DENSE_MAX_ENTRIES:
+        x, *_ = sla.lstsq(sp.csc_matrix(matrix).toarray(), rhs, lapack_driver="gelsd")
+        return x
+    j = sp.csc_matrix(matrix)
+    if m < n:
+        kkt = sp.bmat([[sp.identity(n), j.T], [j, None]], format="csc")
+        b, part = np.concatenate([np.zeros(n), rhs]), slice(0, n)
+    else:
+        kkt = sp.bmat([[sp.identity(m), j], [j.T, None]], format="csc")
+        b, part = np.concatenate([rhs, np.zeros(n)]), slice(m, m + n)
+    try:
+        x = spla.splu(kkt).solve(b)[part]
+        if np.all(np.isfinite(x)):
+            return x
+    except RuntimeError:  # SuperLU: "Factor is exactly singular" (no CasADi call inside)
+        pass
+    return spla.lsmr(j, rhs, atol=1e-15, btol=1e-15, maxiter=20 * (m + n))[0]
 
 
 def assemble(model, q0: np.ndarray, t: float = 0.0, fixed: Sequence[str | int] | None = None,
@@ -139,8 +168,7 @@ def assemble(model, q0: np.ndarray, t: float = 0.0, fixed: Sequence[str | int] |
         try:
             step = solve_linear(jac, -c, "constraint Jacobian", t)
         except SingularConfigurationError:
-            x, *_ = sla.lstsq(jac.toarray(), -c, lapack_driver="gelsd")
-            step = x
+            step = min_norm_solve(jac, -c)
         alpha, accepted = 1.0, False
         for _ in range(12):
             trial = q.copy()

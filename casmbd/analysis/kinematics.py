@@ -53,8 +53,10 @@ def info(mechanism_or_model, mode: str = "auto") -> dict:
 
     The rank is evaluated at the assembled initial configuration (at the initial guess if it
     cannot be assembled; then ``"assembly_error"`` says why).  Never raises for redundancy.
+    ``mode="auto"`` runs C and C_q on CasADi's virtual machine: info evaluates them a handful
+    of times, and compiling them costs far more (25 s for a 500-body chain) than it saves.
     """
-    model = _model(mechanism_or_model, "info", mode)
+    model = _model(mechanism_or_model, "info", "vm" if mode == "auto" else mode)
     mech = model.system.mechanism
     q = model.system.initial_coordinates()
     out: dict = {"name": mech.name, "dimension": mech.dimension}

@@ -6,10 +6,17 @@ C_q that are linear combinations of earlier rows are redundant.  The rank comes 
 values with a tolerance relative to the Jacobian's scale; the dependent rows are found by a
 sequential Gram–Schmidt sweep in declaration order, so that the later of two duplicate joints is
 named.
+
+Large Jacobians (more than :data:`DENSE_MAX_ENTRIES` entries, e.g. a chain of a few hundred
+bodies) are analysed without forming the dense matrix: a row-merge Givens QR of C_qᵀ (Q-less,
+George and Heath) gives the same sweep in declaration order — |R_jj| is the distance of row j
+from the span of the rows before it — in time and memory linear in the number of non-zeros for
+chains and trees, where the dense SVD is cubic (18 s for 500 bodies, 643 s for 5000).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -17,6 +24,13 @@ import scipy.sparse as sp
 
 #: relative tolerance on singular values / residual norms, times the largest singular value
 RANK_RTOL = 1e-8
+#: C_q with at most this many entries (n_c · n_q) is analysed densely (SVD, Gram–Schmidt);
+#: larger ones by the sparse Givens sweep of :func:`sparse_rank_report` (about 0.1 s at this
+#: size either way; the dense cost grows with the cube of the size, the sparse one linearly)
+DENSE_MAX_ENTRIES = 250_000
+#: entries of the equilibrated factor below this are dropped in the sparse sweep (a backward
+#: error far below ``RANK_RTOL``; it keeps rounding noise from filling the rows)
+_DROP = 1e-15
 
 
 @dataclass
@@ -40,7 +54,7 @@ def _dense(matrix) -> np.ndarray:
     return matrix.toarray() if sp.issparse(matrix) else np.asarray(matrix, dtype=float)
 
 
-def rank_report(jacobian, rtol: float = RANK_RTOL) -> RankReport:
+def rank_report(jacobian, rtol: float = RANK_RTOL, method: str = "auto") -> RankReport:
     """Numerical rank of C_q and the rows that depend on earlier rows.
 
     Parameters
@@ -49,9 +63,17 @@ def rank_report(jacobian, rtol: float = RANK_RTOL) -> RankReport:
     rtol : float
         A singular value (or Gram–Schmidt residual norm) below ``rtol * σ_max`` of the row- and
         column-equilibrated matrix counts as zero.
+    method : {"auto", "dense", "sparse"}
+        ``"dense"``: SVD and Gram–Schmidt on the dense matrix; ``"sparse"``:
+        :func:`sparse_rank_report`; ``"auto"``: dense up to :data:`DENSE_MAX_ENTRIES` entries.
     """
+    m, n = jacobian.shape
+    if method not in ("auto", "dense", "sparse"):
+        raise ValueError(f"rank_report: method must be 'auto', 'dense' or 'sparse', "
+                         f"got {method!r}")
+    if method == "sparse" or (method == "auto" and m * n > DENSE_MAX_ENTRIES):
+        return sparse_rank_report(jacobian, rtol)
     a = _dense(jacobian)
-    m, n = a.shape
     if m == 0:
         return RankReport(n, 0, 0, [], 0.0, 0.0)
     # Equilibrate rows and columns (rank-preserving) so that mixed units — lengths and angles,
@@ -81,6 +103,101 @@ def rank_report(jacobian, rtol: float = RANK_RTOL) -> RankReport:
                 basis[:, k] = r / norm
                 k += 1
     return RankReport(n, m, rank, dependent, smin, smax)
+
+
+def _equilibrated_sparse(jacobian) -> sp.csr_matrix:
+    """C_q with unit-norm rows, then unit-norm columns (as :func:`rank_report` does densely)."""
+    a = sp.csr_matrix(jacobian, dtype=float)
+    for axis in (1, 0):
+        norms = np.sqrt(np.asarray(a.multiply(a).sum(axis=axis)).ravel())
+        norms[norms == 0.0] = 1.0
+        a = sp.diags(1.0 / norms) @ a if axis == 1 else a @ sp.diags(1.0 / norms)
+    return sp.csr_matrix(a)
+
+
+def _largest_singular_value(a: sp.csr_matrix, iterations: int = 50) -> float:
+    """σ_max by power iteration on A Aᵀ from a fixed pseudo-random start (a lower bound that
+    is within a few per cent after a few dozen iterations — enough for ``rtol · σ_max``)."""
+    x = np.random.default_rng(0).uniform(0.5, 1.5, a.shape[0])
+    at = sp.csr_matrix(a.T)
+    sigma = 0.0
+    for _ in range(iterations):
+        x = a @ (at @ x)
+        norm = float(np.linalg.norm(x))
+        if norm == 0.0:
+            break
+        sigma, x = math.sqrt(norm), x / norm
+    return sigma
+
+
+def _merge(factor: list, row: dict) -> None:
+    """Rotate the sparse ``row`` ({column: value}) into the upper-triangular ``factor`` (a list
+    of such rows, None where empty) by Givens rotations until it vanishes or fills a gap."""
+    while row:
+        k = min(row)
+        pivot = factor[k]
+        if pivot is None:
+            factor[k] = row
+            return
+        a, b = pivot[k], row.pop(k)
+        r = math.hypot(a, b)
+        c, s = a / r, b / r
+        pivot[k] = r
+        rest = {}
+        for j in pivot.keys() | row.keys():
+            if j == k:
+                continue
+            u, v = pivot.get(j, 0.0), row.get(j, 0.0)
+            pivot[j] = c * u + s * v
+            w = c * v - s * u
+            if abs(w) > _DROP:
+                rest[j] = w
+        row = rest
+
+
+def sparse_rank_report(jacobian, rtol: float = RANK_RTOL) -> RankReport:
+    """:func:`rank_report` in time linear in the non-zeros of C_q for chains and trees.
+
+    The rows of the equilibrated C_qᵀ (one per coordinate, sorted by their first constraint)
+    are merged by Givens rotations into the triangular factor R of C_qᵀ = QR (Q is never
+    formed, so nothing fills beyond R, which is banded for a chain).  For every QR,
+    |R_jj| <= the distance of constraint row j from the span of the rows before it, with
+    equality up to the first dependent row; a row with |R_jj| <= ``rtol · σ_max`` is therefore
+    declared dependent in declaration order, and its remaining entries are rotated back into
+    the later rows (deleting column j of C_qᵀ), which restores equality for the rows after
+    it.  ``smallest_singular_value`` is the smallest |R_jj| of the independent rows (an upper
+    bound of σ_min; 0 when rows are dependent); ``largest_singular_value`` is estimated by
+    power iteration.
+    """
+    m, n = jacobian.shape
+    if m == 0:
+        return RankReport(n, 0, 0, [], 0.0, 0.0)
+    a = _equilibrated_sparse(jacobian)
+    smax = _largest_singular_value(a)
+    tol = rtol * max(smax, 1e-300)
+    bt = sp.csr_matrix(a.T)
+    bt.eliminate_zeros()
+    rows = [dict(zip(bt.indices[bt.indptr[i]:bt.indptr[i + 1]].tolist(),
+                     bt.data[bt.indptr[i]:bt.indptr[i + 1]].tolist()))
+            for i in range(n) if bt.indptr[i + 1] > bt.indptr[i]]
+    rows.sort(key=min)
+    factor: list = [None] * m
+    for row in rows:
+        _merge(factor, row)
+    dependent: list[int] = []
+    smin = math.inf
+    for j in range(m):
+        row = factor[j]
+        diagonal = abs(row[j]) if row is not None else 0.0
+        if diagonal > tol:
+            smin = min(smin, diagonal)
+            continue
+        dependent.append(j)
+        if row is not None:
+            factor[j] = None
+            _merge(factor, {k: v for k, v in row.items() if k != j and abs(v) > _DROP})
+    smin = 0.0 if dependent or not math.isfinite(smin) else smin
+    return RankReport(n, m, m - len(dependent), dependent, smin, smax)
 
 
 def null_space_basis(jacobian, rtol: float = RANK_RTOL) -> tuple[np.ndarray, int]:
