@@ -23,6 +23,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from casmbd.analysis.checks import nonfinite_values
 from casmbd.analysis.redundancy import DENSE_MAX_ENTRIES, rank_report
 from casmbd.errors import AssemblyError, ModelError, SingularConfigurationError
 
@@ -76,13 +77,20 @@ def _locked(model, q: np.ndarray, t: float, residual: np.ndarray, free: np.ndarr
             "(remove or free one of these joints)")
 
 
+def _culprits(model, t: float) -> str:
+    """'': or the model values (driver positions and their derivatives) not finite at t."""
+    found = nonfinite_values(model.system, t, model.p)
+    return (" — " + "; ".join(found[:3])) if found else ""
+
+
 def _finite_rows(model, values: np.ndarray, what: str, t: float) -> np.ndarray:
-    """Return ``values`` or raise naming the constraint equations where they are not finite."""
+    """Return ``values`` or raise naming the constraint equations where they are not finite
+    and the model value behind them."""
     bad = np.flatnonzero(~np.isfinite(values))
     if bad.size:
         labels = model.system.constraint_labels
         names = "; ".join(f"{labels[i]} ({what} = {values[i]})" for i in bad[:3])
-        raise AssemblyError(f"non-finite {what} at t = {t:g}: {names}")
+        raise AssemblyError(f"non-finite {what} at t = {t:g}: {names}{_culprits(model, t)}")
     return values
 
 
@@ -159,9 +167,11 @@ def assemble(model, q0: np.ndarray, t: float = 0.0, fixed: Sequence[str | int] |
     it = 0
     while it < max_iter:
         if not np.all(np.isfinite(c)):
-            shown = np.where(np.isfinite(c), c, np.inf)
+            bad = np.flatnonzero(~np.isfinite(c))
+            labels = model.system.constraint_labels
+            names = "; ".join(f"{labels[i]} (C = {c[i]})" for i in bad[:3])
             raise AssemblyError(f"assembly at t = {t:g}: constraints are not finite at iteration "
-                                f"{it}: {_worst_equations(model, shown)}")
+                                f"{it}: {names}{_culprits(model, t)}")
         if norm <= tol:
             break
         jac = model.constraint_jacobian(q, t)[:, free]

@@ -18,10 +18,12 @@ import time
 import numpy as np
 import scipy.sparse.linalg as spla
 
-from casmbd.analysis.kinematics import kinematics
+from casmbd.analysis.checks import diagnose
+from casmbd.analysis.kinematics import check_result_size, kinematics
 from casmbd.analysis.reactions import flag_undetermined
 from casmbd.compiled.model import NEEDS, NumericModel
-from casmbd.errors import AnalysisError, SingularConfigurationError
+from casmbd.errors import AnalysisError, ModelError, SingularConfigurationError
+from casmbd.interrupts import reraise_interrupt
 from casmbd.results import Result
 
 
@@ -81,6 +83,8 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
     AnalysisError, RedundantConstraintError, AssemblyError, SingularConfigurationError
         As the kinematic analysis, and when C_qᵀ is singular at some time.
     """
+    if isinstance(steps, (int, np.integer)) and steps >= 1:  # kinematics checks the rest
+        check_result_size(mechanism_or_model, steps, "inverse dynamics")
     if isinstance(mechanism_or_model, NumericModel):
         model = mechanism_or_model
     else:
@@ -95,9 +99,13 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
     for k, t in enumerate(grid):
         rhs = (model.applied_forces(qs[k], vs[k], t) + model.quadratic_velocity_forces(qs[k], vs[k])
                - model.mass_matrix(qs[k]) @ acc[k])
+        if not np.all(np.isfinite(rhs)):  # name the force (element, field) and the time
+            raise ModelError(f"inverse dynamics at t = {t:g}: " + "; ".join(
+                diagnose(model, t, qs[k], vs[k]) or ["the generalized forces are not finite"]))
         try:
             lam[k] = spla.splu(model.constraint_jacobian(qs[k], t).T.tocsc()).solve(rhs)
-        except RuntimeError:
+        except RuntimeError as exc:  # SuperLU, or CasADi's Jacobian evaluation
+            reraise_interrupt(exc)
             raise SingularConfigurationError(
                 f"inverse dynamics at t = {t:g}: the constraint Jacobian is singular") from None
         kin_e[k] = model.kinetic_energy(qs[k], vs[k])

@@ -40,6 +40,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from casmbd.analysis.assembly import assemble
+from casmbd.analysis.checks import check_start
 from casmbd.analysis.kkt import accelerations_and_multipliers
 from casmbd.analysis.redundancy import RANK_RTOL, null_space_basis
 from casmbd.compiled.model import NumericModel
@@ -262,6 +263,7 @@ def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "au
             raise ModelError(f"linearize: {name} must have {size} entries, got {arr.size}")
         if not np.all(np.isfinite(arr)):
             raise ModelError(f"linearize: {name} is not finite")
+    check_start(model, q, v, t, u, what="linearization")  # names a NaN's culprit
     if model.nc:
         c = model.constraints(q, t)
         lengths = system.length_indices

@@ -20,7 +20,9 @@ import numpy as np
 
 from casmbd import progress
 from casmbd.analysis import integrators as integ
+from casmbd.interrupts import reraise_interrupt
 from casmbd.analysis.assembly import assemble
+from casmbd.analysis.checks import check_consistent_start, check_start, diagnose_failure
 from casmbd.analysis.kkt import (
     accelerations_and_multipliers,
     consistent_state,
@@ -36,6 +38,7 @@ from casmbd.analysis.redundancy import (
 )
 from casmbd.compiled.model import NumericModel, _c_name
 from casmbd.errors import AnalysisError, CasmbdError, IntegratorError
+from casmbd.limits import check_steps, output_values
 from casmbd.model.values import resolve
 from casmbd.results import Result
 from casmbd.system.equations import System
@@ -276,10 +279,15 @@ class Simulator:
             # numeric right-hand sides are ~100x dearer: fail in seconds, not minutes
             max_steps = 20_000 if self.formulation.kind == "numeric" else 500_000
         model = self.model
+        check_steps("simulation", int(steps), output_values(model.system.mechanism)
+                    + 3 * model.nq + model.nc)  # LimitError before the grid is allocated
         grid = np.linspace(t_start, t_end, int(steps) + 1)
         q0 = model.system.initial_coordinates() if q0 is None else np.asarray(q0, float)
         v0 = model.system.initial_velocities() if v0 is None else np.asarray(v0, float)
-        start = consistent_state(model, q0, v0, t_start, self.inputs_at(t_start))
+        u0 = self.inputs_at(t_start)
+        check_start(model, q0, v0, t_start, u0, what="simulation")  # names a NaN's culprit
+        start = consistent_state(model, q0, v0, t_start, u0)
+        check_consistent_start(model, start.q, start.v, start.a, t_start)
         x0 = np.concatenate([start.q, start.v])
         z0 = self._z0(start.q, start.a, start.lam)
         nq = model.nq
@@ -306,11 +314,17 @@ class Simulator:
                 xs, solver_stats = self._integrate(name, grid, x0, z0, rtol, atol, projection,
                                                    step, max_steps)
         except IntegratorError as exc:
+            reraise_interrupt(exc)
             if exc.partial is not None:  # fixed-step runs keep their own partial results
                 exc.partial.stats.update(stats)
+                culprits = diagnose_failure(model, exc.time)
+                if culprits:  # a model value that is not finite where the run stopped
+                    raise IntegratorError(f"{exc}; " + "; ".join(culprits[:3]), exc.time,
+                                          exc.flag, exc.partial) from None
                 raise
             failure = exc
         except (RuntimeError, CasmbdError) as exc:
+            reraise_interrupt(exc)  # Ctrl-C is no integrator failure: no partial re-run
             failure = exc
         if failure is not None:
             # SUNDIALS names the failure time; on the one-call grid run it is absolute time
@@ -348,6 +362,9 @@ class Simulator:
         """Rank and conditioning of C_q where a run failed: at the state extrapolated from the
         last kept output, q + h q̇ + ½ h² q̈ with h = t_fail − t_last (an estimate, accurate to
         O(h³), enough to tell a singular pose)."""
+        culprits = diagnose_failure(self.model, t_fail)
+        if culprits:  # a model value that is not finite where the run stopped
+            return "; " + "; ".join(culprits[:3])
         if self.model.nc == 0 or not len(result.t):
             return ""
         t = float(result.t[-1])
@@ -539,8 +556,8 @@ class Simulator:
                                         max_steps)
                 res = solver(x0=x0, z0=z0, p=self.model.p)
                 return np.vstack([x0, np.asarray(res["xf"]).T]), {}
-            except RuntimeError:
-                pass
+            except RuntimeError as exc:
+                reraise_interrupt(exc)
         interval = grid[1] - grid[0]
         shifted = integ.shifted(self.dyn)
         xs = [np.asarray(x0, float)]
@@ -552,7 +569,8 @@ class Simulator:
                 r = solver(x0=x, z0=z, p=self._params(grid[k]))
                 x = np.asarray(r["xf"]).reshape(-1)
                 z = np.asarray(r["zf"]).reshape(-1)
-            except RuntimeError:
+            except RuntimeError as exc:
+                reraise_interrupt(exc)
                 stats["failure_time"] = grid[k] + float(solver.stats().get("tcur", 0.0))
                 break
             xs.append(x)
@@ -586,7 +604,8 @@ class Simulator:
             acc, lam = np.asarray(post[0]).T.copy(), np.asarray(post[1]).T.reshape(n, -1).copy()
             residual = np.asarray(post[2]).ravel()
             kin, pot, pos_viol, vel_viol = (np.asarray(x).ravel() for x in post[3:7])
-        except RuntimeError:  # CasADi's VM QR raises on a singular KKT matrix
+        except RuntimeError as exc:  # CasADi's VM QR raises on a singular KKT matrix
+            reraise_interrupt(exc)
             acc, lam, residual, kin, pot, pos_viol, vel_viol = self._post_by_parts(grid, qs, vs)
         us = np.asarray(self.ufun.map(n)(grid[None, :], p_all)).T.reshape(n, -1)
         # singular KKT matrices (redundant constraints, singular poses): minimum-norm solve
@@ -680,6 +699,8 @@ def simulate(mechanism, t_end: float, steps: int, *, formulation: str | None = N
         ``kind == "simulation"`` with q, v, a, λ, joint reactions, driver efforts, energies,
         constraint violations and solver statistics.
     """
+    if isinstance(steps, (int, np.integer)) and steps >= 1:  # before anything is built
+        check_steps("simulation", int(steps), output_values(mechanism))
     sim = Simulator(mechanism, formulation, inputs=inputs, mode=mode,
                     formulation_options=formulation_options, redundancy=redundancy)
     return sim.run(t_end, steps, t_start=t_start, integrator=integrator, rtol=rtol, atol=atol,

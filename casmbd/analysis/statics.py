@@ -5,34 +5,51 @@ equations of motion reduce to
 
     Q_e(q, 0, t) − C_qᵀ λ = 0,      C(q, t) = 0                         (6.227, 6.235)
 
-(the quadratic-velocity forces vanish with v = 0, and so do damping forces).  Two methods:
+(the quadratic-velocity forces vanish with v = 0, and so do damping forces).
+
+Globalisation (both methods).  Newton alone fails on real arms: released from a pose where a
+joint's gravity moment is largest the stiffness about it vanishes, the Newton step is
+unbounded (a minimum-norm step of 1e11 rad was seen), and a line search on ‖F‖ stalls at such
+poses, which are stationary points of ‖F‖.  Every iteration therefore takes a trust-region
+step (:func:`casmbd.analysis.trust_region.trust_region_step`) in the tangent space of the
+constraints, in scaled coordinates (lengths divided by the size of the mechanism, angles, Euler
+parameters and unit vectors as they are): it minimises the quadratic model of the potential
+energy −gᵀdz + ½ dzᵀ K̄ dz within ‖dz‖ ≤ Δ, g = Nᵀ Q_e the net force and K̄ = Nᵀ K N the
+stiffness (N a basis of ker C_q).  It is Newton's step when K̄ is positive (semi)definite and
+the step fits, with a rank cut-off (:data:`~casmbd.analysis.trust_region.RANK_RTOL` = 1e-10
+relative to the largest eigenvalue) in the least-squares fallback.  A step is accepted when
+the work done by the applied forces along it, ½ (Q_e(q) + Q_e(q⁺))·(q⁺ − q) (= −ΔV to third
+order for conservative forces; defined for any forces), is at least 0.1 of the model's
+prediction, or when it is the Newton step and reduces the scaled residual; Δ starts at 0.5,
+is at most 1 (radian or mechanism size) and shrinks by 4 on a poor step.  The iteration so
+descends the potential energy and ends at a local minimum (a stable equilibrium) unless the
+start already is an equilibrium (an inverted pendulum placed upright stays there).
 
 ``"augmented"``
-    Damped Newton-Raphson on F(q, λ) = [Q_e − C_qᵀλ; C] = 0 in the n_q + n_c unknowns, with the
-    exact Jacobian from CasADi's algorithmic differentiation,
-
-        J = [[∂Q_e/∂q − ∂(C_qᵀλ)/∂q, −C_qᵀ], [C_q, 0]],
-
-    factorised by sparse LU (least squares when singular) and a backtracking line search on ‖F‖.
-    The initial λ is the least-squares solution of C_qᵀλ = Q_e at the assembled start.
+    Newton on F(q, λ) = [Q_e − C_qᵀλ; C] = 0 in the n_q + n_c unknowns with the constraints
+    kept as equations: the step solves the (trust-region shifted) KKT system by the null-space
+    method — a minimum-norm normal step C_q dn = −C, then the tangential trust-region step —
+    and λ⁺ from its first block row; no assembly.  With ν = 0 it is exactly Newton's step on F.
+    A step into violated constraints is charged Σ σ_i |C_i| (σ_i = 2 max(|λ_i|, |λ⁺_i|)) in the
+    acceptance test.  Near the solution the exact sparse KKT Jacobian polishes (sparse LU,
+    least squares with the same rank cut-off when singular).
 ``"reduced"``
-    Newton-Raphson in the independent coordinates (eqs. 6.229–6.234): with N an orthonormal
-    basis of the null space of C_q at the current q (δq = N δq_i, C_q N = 0), the reduced
-    equations are Nᵀ Q_e = 0.  The step solves (Nᵀ J_qq N) δz = −Nᵀ r with r = Q_e − C_qᵀλ,
-    λ the least-squares multipliers (so that Nᵀ J_qq N is the exact derivative of the reduced
-    equations on the constraint manifold); the dependent coordinates are then restored by
-    :func:`casmbd.analysis.assembly.assemble`.
+    Newton in the independent coordinates (eqs. 6.229–6.234): the tangential step δq = N dz,
+    the dependent coordinates restored by :func:`casmbd.analysis.assembly.assemble`, λ the
+    least-squares multipliers.
 
-Where the stiffness is singular ‖F‖ can be stationary away from any equilibrium (a pendulum
-released horizontally); there a step along the projected net force replaces the Newton step
-(:func:`_descent_step`).  Newton converges to an equilibrium near the start, not necessarily a
-stable one: check :attr:`StaticsResult.stable`.
+Natural coordinates: a trial point at which some body's [u v w] has det ≤ 0 (the mirror image
+that satisfies the same quadratic constraints) is rejected like a failed assembly and the
+trust region shrinks; the iterate stays proper.
 
-Stability: the stiffness K = −∂(Q_e − C_qᵀλ)/∂q at fixed λ (the Hessian of the Lagrangian
-V + λᵀC for conservative forces) projected onto the constraint tangent space, K̄ = Nᵀ K N.
-All eigenvalues > 0 (relative to the largest |eigenvalue|): stable (a strict minimum of the
-potential energy on the constraint manifold); any < 0: unstable; otherwise neutral (None).
-A mechanism without degrees of freedom is reported stable.
+Result: angles reduced to (−π, π] (planar body angles, revolute/cylindrical/universal joint
+angles) and Euler parameters sign-normalised (e0 ≥ 0), each only where the change leaves the
+equations unchanged (not an angle carrying a rotational spring or a driver).
+
+Stability: :func:`casmbd.analysis.stability.classify_stability` on K̄ = Nᵀ K N with N an
+orthonormal basis of ker C_q (unscaled, so the eigenvalues keep their meaning), the null
+directions of a neutral equilibrium named by the joint coordinates (or the generalized ones
+when the mechanism has none).  A mechanism without degrees of freedom is reported stable.
 """
 
 from __future__ import annotations
@@ -47,18 +64,31 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from casmbd.analysis.assembly import assemble
+from casmbd.analysis.checks import check_start
 from casmbd.analysis.reactions import flag_undetermined
 from casmbd.analysis.redundancy import null_space_basis
+from casmbd.analysis.stability import STABILITY_RTOL, Stability, classify_stability
+from casmbd.analysis.trust_region import RANK_RTOL, trust_region_step
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, AssemblyError
-from casmbd.system.descriptions import quaternions_from_matrices
+from casmbd.system.descriptions import SpatialNatural, quaternions_from_matrices
+
+__all__ = ["METHODS", "STABILITY_RTOL", "StaticsResult", "static_equilibrium",
+           "statics_functions"]
 
 METHODS = ("augmented", "reduced")
-#: relative tolerance on the projected stiffness eigenvalues (times the largest |eigenvalue|)
-STABILITY_RTOL = 1e-8
 #: functions of the system the statics analysis needs (besides its own residual and Jacobian)
 STATICS_NEEDS = ("constraints", "constraint_jacobian", "potential_energy", "outputs",
                  "joint_reactions")
+#: trust region (scaled units: radians, Euler parameters, mechanism sizes): start, largest
+INITIAL_RADIUS, MAX_RADIUS = 0.5, 1.0
+#: accepted when the work along the step is at least this fraction of the model's prediction
+ACCEPT_RATIO = 0.1
+#: eigenvalues of the reduced stiffness below NOISE_FACTOR · ‖g‖ count as zero in the step
+#: (off an equilibrium they are known only to O(‖g‖); measured up to 2.4 ‖g‖ on the arms)
+NOISE_FACTOR = 10.0
+#: coordinate names that are angles (reduced to the principal range)
+_ANGLE_NAMES = ("angle", "angle1", "angle2")
 
 
 @dataclass
@@ -80,6 +110,9 @@ class StaticsResult:
         True (stable), False (unstable) or None (neutral: a zero eigenvalue).
     eigenvalues : ndarray
         Eigenvalues of the projected stiffness K̄ = Nᵀ K N, ascending.
+    stability : Stability
+        The verdict, its eigenvalue tolerance and, when neutral, the named null directions
+        (:func:`casmbd.analysis.stability.classify_stability`).
     body_angles, body_quaternions : ndarray
         Planar angles (n_bodies,) or spatial unit quaternions (n_bodies, 4).
     joint_reactions : ndarray (n_joints, 3 or 6)
@@ -104,6 +137,7 @@ class StaticsResult:
     body_quaternions: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
     joint_coordinates: np.ndarray = field(default_factory=lambda: np.zeros(0))
     stats: dict = field(default_factory=dict)
+    stability: Stability | None = None
 
     def to_json(self) -> dict:
         """The JSON object of the ``casmbd statics`` command."""
@@ -127,21 +161,28 @@ class StaticsResult:
                 "residual": float(self.residual),
                 "residual_history": [float(x) for x in self.residual_history],
                 "eigenvalues": [float(x) for x in self.eigenvalues], "method": self.method,
-                "potential_energy": float(self.potential_energy), "stats": dict(self.stats)}
+                "potential_energy": float(self.potential_energy), "stats": dict(self.stats),
+                "stability": self.stability.to_json() if self.stability else None}
 
 
 def statics_functions(system) -> list[ca.Function]:
-    """Residual F(q, λ, t, p) = [Q_e(q, 0, t, 0) − C_qᵀλ; C] and its Jacobian ∂F/∂(q, λ)."""
+    """Residual F(q, λ, t, p) = [Q_e(q, 0, t, 0) − C_qᵀλ; C], its Jacobian ∂F/∂(q, λ), Q_e
+    alone and the Jacobian of the joint coordinates ∂θ/∂q."""
     lam = ca.SX.sym("lambda", system.nc)
     qe = ca.substitute(system.applied_forces, ca.vertcat(system.v, system.u),
                        ca.SX.zeros(system.nq + system.u.numel()))
     force = qe - ca.mtimes(system.constraint_jacobian.T, lam)
     res = ca.vertcat(force, system.constraints)
     jac = ca.jacobian(res, ca.vertcat(system.q, lam))
+    # joint coordinates (to name the null directions of a neutral equilibrium)
+    joints = ca.vertcat(*[system._joint_coordinate(k) for k in system.joint_coordinate_names]) \
+        if system.joint_coordinate_names else ca.SX(0, 1)
     args, names = [system.q, lam, system.t, system.p], ["q", "lambda", "t", "p"]
     return [ca.Function("statics_residual", args, [res], names, ["F"]),
             ca.Function("statics_jacobian", args, [jac], names, ["J"]),
-            ca.Function("statics_forces", args[:1] + args[2:], [qe], ["q", "t", "p"], ["Qe"])]
+            ca.Function("statics_forces", args[:1] + args[2:], [qe], ["q", "t", "p"], ["Qe"]),
+            ca.Function("statics_joint_jacobian", args[:1] + args[2:],
+                        [ca.jacobian(joints, system.q)], ["q", "t", "p"], ["Jj"])]
 
 
 class _Problem:
@@ -150,10 +191,28 @@ class _Problem:
     def __init__(self, model: NumericModel, t: float):
         self.model, self.t = model, t
         self.nq, self.nc = model.nq, model.nc
-        names = model.system.coordinate_names
+        system = model.system
+        names = system.coordinate_names
         self.labels = ([f"equilibrium of coordinate '{n}'" for n in names]
-                       + [str(lab) for lab in model.system.constraint_labels])
-        self.length_idx = model.system.length_indices
+                       + [str(lab) for lab in system.constraint_labels])
+        self.length_idx = system.length_indices
+        pos = np.array([np.ravel(b.position) for b in system.mechanism.bodies.values()]
+                       or [np.zeros(system.dimension)], float)
+        #: the size of the mechanism: lengths are measured in it by the trust region
+        self.size = max(float(np.max(np.ptp(pos, axis=0))), float(np.max(np.abs(pos))), 1e-3)
+        self.scale = np.ones(self.nq)
+        self.scale[self.length_idx] = self.size
+        self.angles, self.quaternions, self.frames = [], [], []
+        for body, desc in system.descriptions.items():
+            base = system.ctx.index[body]
+            natural = "Natural" in type(desc).__name__
+            for k, name in enumerate(desc.names):
+                if name in _ANGLE_NAMES and not natural:
+                    self.angles.append(base + k)
+                if name == "e0" and tuple(desc.names[k:k + 4]) == ("e0", "e1", "e2", "e3"):
+                    self.quaternions.append(base + k)
+            if isinstance(desc, SpatialNatural):
+                self.frames.append((body, base + 3))
 
     def forces(self, q) -> np.ndarray:
         return self.model._vector("statics_forces", q, self.t, self.model.p)
@@ -169,12 +228,28 @@ class _Problem:
             return np.zeros((0, self.nq))
         return self.model.constraint_jacobian(q, self.t).toarray()
 
-    def multipliers(self, q) -> np.ndarray:
-        """Least-squares λ of C_qᵀλ = Q_e."""
+    def multipliers(self, q, rhs: np.ndarray | None = None) -> np.ndarray:
+        """Least-squares λ of C_qᵀλ = Q_e (or = ``rhs``), with the rank cut-off."""
         if self.nc == 0:
             return np.zeros(0)
-        lam, *_ = sla.lstsq(self.cq(q).T, self.forces(q), lapack_driver="gelsd")
+        lam, *_ = sla.lstsq(self.cq(q).T, self.forces(q) if rhs is None else rhs,
+                            cond=RANK_RTOL, lapack_driver="gelsd")
         return lam
+
+    def improper(self, q) -> str | None:
+        """The first natural-coordinate body whose [u v w] is not a proper rotation."""
+        for body, k in self.frames:
+            if np.linalg.det(np.reshape(q[k:k + 9], (3, 3))) <= 0.0:  # rows u, v, w
+                return body
+        return None
+
+    def tangent(self, q, lam):
+        """(N, K, g, K̄) with N a basis of ker C_q orthonormal in the scaled coordinates."""
+        cq = self.cq(q)
+        ns = null_space_basis(cq * self.scale)[0] if self.nc else np.eye(self.nq)
+        n = self.scale[:, None] * ns
+        k = -self.jacobian(q, lam)[:self.nq, :self.nq].toarray()
+        return n, k, n.T @ self.forces(q), n.T @ k @ n
 
     def worst(self, f: np.ndarray, count: int = 3) -> str:
         order = [i for i in np.argsort(-np.abs(f))[:count] if f[i] != 0] or [0]
@@ -190,7 +265,7 @@ def _solve(matrix: sp.spmatrix, rhs: np.ndarray) -> np.ndarray:
             return x
     except RuntimeError:
         pass
-    x, *_ = sla.lstsq(matrix.toarray(), rhs, lapack_driver="gelsd")
+    x, *_ = sla.lstsq(matrix.toarray(), rhs, cond=RANK_RTOL, lapack_driver="gelsd")
     return x
 
 
@@ -202,7 +277,7 @@ def _null_space(cq: np.ndarray, nq: int) -> np.ndarray:
 
 
 def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol: float = 1e-10,
-                       max_iter: int = 50, mode: str = "auto") -> StaticsResult:
+                       max_iter: int = 100, mode: str = "auto") -> StaticsResult:
     """Static equilibrium configuration, multipliers, reactions and stability.
 
     Parameters
@@ -214,10 +289,11 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
     method : {"augmented", "reduced"}
         Newton on (q, λ), or on the independent coordinates (see the module docstring).
     tol : float
-        Convergence: max |Q_e − C_qᵀλ| ≤ tol · max(1, max |Q_e(q₀)|) and
-        max |C| ≤ tol · max(1, largest |x|, |y|).
+        Convergence: max |Q_e − C_qᵀλ| ≤ tol · max(1, max |Q_e(q₀)|) (the largest applied
+        generalized force at the assembled start) and max |C| ≤ tol · max(1, largest |x|,
+        |y|, |z|).
     max_iter : int
-        Most Newton iterations.
+        Most trust-region iterations (rejected trial steps count).
     mode : {"auto", "compiled", "vm"}
         How the equations are evaluated (see :class:`NumericModel`).
 
@@ -228,9 +304,9 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
     Raises
     ------
     AnalysisError
-        Unknown method, or no equilibrium found within ``max_iter`` iterations or the line
-        search stalled (e.g. a free body under gravity); the message gives the iterations, the
-        residual and the largest residual equations.
+        Unknown method, or no equilibrium found within ``max_iter`` iterations or no
+        acceptable step (e.g. a free body under gravity); the message gives the iterations,
+        the residual and the largest residual equations.
     AssemblyError
         The start configuration cannot be assembled.
     """
@@ -249,31 +325,26 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
     t0 = time.perf_counter()
     prob = _Problem(model, t)
     mech = model.system.mechanism
+    q0 = model.system.initial_coordinates()
+    check_start(model, q0, None, t, what="statics", forces=prob.forces(q0))  # names NaNs
     q = assemble(model, model.system.initial_coordinates(), t).q
     fscale = tol * max(1.0, float(np.max(np.abs(prob.forces(q)), initial=0.0)))
     lscale = tol * max(1.0, float(np.max(np.abs(q[prob.length_idx]), initial=0.0)))
-    solver = _augmented if method == "augmented" else _reduced
-    q, lam, it, history = solver(prob, q, fscale, lscale, max_iter)
+    q, lam, it, history = _iterate(prob, q, method, fscale, lscale, max_iter)
+    q = _principal_range(prob, q, lam, fscale, lscale)
     solve_seconds = time.perf_counter() - t0
 
     f = prob.residual(q, lam)
     jqq = prob.jacobian(q, lam)[:prob.nq, :prob.nq].toarray()
     n = _null_space(prob.cq(q), prob.nq)
-    kbar = n.T @ (-jqq) @ n
-    if np.allclose(kbar, kbar.T, rtol=1e-8, atol=1e-10 * max(1.0, np.max(np.abs(kbar),
-                                                                           initial=0.0))):
-        eig = np.linalg.eigvalsh(0.5 * (kbar + kbar.T))
-    else:  # non-conservative forces: judge by the real parts
-        eig = np.sort(np.linalg.eigvals(kbar).real)
-    etol = STABILITY_RTOL * max(float(np.max(np.abs(eig), initial=0.0)), 1e-300)
-    if eig.size == 0 or np.all(eig > etol):
-        stable: bool | None = True
-    elif np.any(eig < -etol):
-        stable = False
-    else:
-        stable = None
-
     system = model.system
+    if system.joint_coordinate_names:
+        directions = model._sparse("statics_joint_jacobian", q, t, model.p).toarray() @ n
+        labels = list(system.joint_coordinate_names)
+    else:
+        directions, labels = n, list(system.coordinate_names)
+    stability = classify_stability(n.T @ (-jqq) @ n, directions, labels)
+
     all_joints = list(mech.joints)
     if all_joints:
         zero = np.zeros(prob.nq)
@@ -293,17 +364,20 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
     stats = dict(model.report_dict)
     stats.update({"solve_seconds": solve_seconds, "n_coordinates": prob.nq,
                   "n_constraints": prob.nc, "degrees_of_freedom": int(n.shape[1])})
+    quats = np.zeros((0, 4))
+    if system.dimension == 3:
+        quats = quaternions_from_matrices(out["rotation_matrices"][0].reshape(nb, 9))
+        quats *= np.where(quats[:, :1] < 0.0, -1.0, 1.0)  # e0 >= 0
     return StaticsResult(
-        q=q, lagrange_multipliers=lam, iterations=it, residual=float(np.max(np.abs(f),
-                                                                            initial=0.0)),
-        residual_history=history, method=method, stable=stable, eigenvalues=eig,
+        q=q, lagrange_multipliers=lam, iterations=it,
+        residual=float(np.max(np.abs(f), initial=0.0)), residual_history=history,
+        method=method, stable=stability.stable, eigenvalues=stability.eigenvalues,
         joint_reactions=reactions, t=t, potential_energy=model.potential_energy(q, t),
         names=names, body_positions=np.reshape(out["body_positions"][0], (nb, system.dimension)),
         body_angles=np.ravel(out["angle_positions"][0]) if system.dimension == 2 else
-        np.zeros(0),
-        body_quaternions=quaternions_from_matrices(out["rotation_matrices"][0].reshape(nb, 9))
-        if system.dimension == 3 else np.zeros((0, 4)),
-        joint_coordinates=np.ravel(out["joint_positions"][0]), stats=stats)
+        np.zeros(0), body_quaternions=quats,
+        joint_coordinates=np.ravel(out["joint_positions"][0]), stats=stats,
+        stability=stability)
 
 
 def _converged(prob: _Problem, f: np.ndarray, fscale: float, lscale: float) -> bool:
@@ -318,141 +392,146 @@ def _fail(prob: _Problem, why: str, it: int, f: np.ndarray, method: str):
         f"residuals: {prob.worst(f)}")
 
 
-def _descent_step(prob: _Problem, q: np.ndarray, r: np.ndarray) -> np.ndarray | None:
-    """A step along the net force in the constraint tangent space, when Newton stalls.
-
-    ‖F‖ can have a stationary point that is not an equilibrium where the stiffness is singular
-    (a pendulum released horizontally: ∂(cos θ)/∂θ = 0), and there the Newton step is useless.
-    Moving along d = N Nᵀ r, the projected net force, lowers the potential energy (for
-    conservative forces); the step is halved until the force still points along d at the new
-    configuration (r(q + h d)·d > 0, a bracketing line search on the work), after which Newton
-    resumes.  Returns None when no such step exists.
-    """
-    n = _null_space(prob.cq(q), prob.nq)
-    d = n @ (n.T @ r)
-    dmax = float(np.max(np.abs(d), initial=0.0))
-    if n.shape[1] == 0 or dmax == 0.0 or not np.isfinite(dmax):
-        return None
-    d /= dmax
-    xy = q[prob.length_idx]
-    size = max(float(np.ptp(xy)) if xy.size else 0.0, float(np.max(np.abs(xy), initial=0.0)),
-               1e-3)
-    h = 0.2 * size
-    for _ in range(12):
-        try:
-            qt = assemble(prob.model, q + h * d, prob.t).q
-        except AssemblyError:
-            qt = None
-        if qt is not None:
-            rt = prob.residual(qt, prob.multipliers(qt))[:prob.nq]
-            if np.all(np.isfinite(rt)) and float(rt @ d) > 0.0:
-                return qt
-        h *= 0.5
-    return None
+def _wrap(angle: float) -> float:
+    """The angle in (−π, π]."""
+    return float(angle - 2.0 * np.pi * np.ceil((angle - np.pi) / (2.0 * np.pi)))
 
 
-def _augmented(prob: _Problem, q, fscale, lscale, max_iter):
-    nq = prob.nq
-    lam = prob.multipliers(q)
-    f = prob.residual(q, lam)
-    norm = float(np.linalg.norm(f))
-    history = [float(np.max(np.abs(f), initial=0.0))]
-    it, polished = 0, False
-    while True:
-        if not np.all(np.isfinite(f)):
-            _fail(prob, "non-finite residual", it, np.where(np.isfinite(f), f, np.inf),
-                  "augmented")
-        done = _converged(prob, f, fscale, lscale)
-        if done and (polished or norm == 0.0):
-            break
-        if it >= max_iter:
-            if done:
-                break
-            _fail(prob, "not converged", it, f, "augmented")
-        step = _solve(prob.jacobian(q, lam), -f)
-        alpha, accepted = 1.0, False
-        for _ in range(30):
-            qt, lt = q + alpha * step[:nq], lam + alpha * step[nq:]
-            ft = prob.residual(qt, lt)
-            nt = float(np.linalg.norm(ft))
-            if np.isfinite(nt) and (nt <= norm * (1 - 1e-4 * alpha) or (done and nt <= norm)):
-                accepted = True
-                break
-            alpha *= 0.5
-            if done:  # polishing: only a full step is worth trying
-                break
-        it += 1
-        if not accepted:
-            if done:
-                it -= 1
-                break
-            qt = _descent_step(prob, q, f[:nq])
-            if qt is None:
-                _fail(prob, "line search stalled", it, f, "augmented")
-            lt = prob.multipliers(qt)
-            ft = prob.residual(qt, lt)
-            nt = float(np.linalg.norm(ft))
-        q, lam, f, norm = qt, lt, ft, nt
-        history.append(float(np.max(np.abs(f), initial=0.0)))
-        polished = done
-    return q, lam, it, history
-
-
-def _reduced(prob: _Problem, q, fscale, lscale, max_iter):
-    nq = prob.nq
-
-    def state(qq):
-        lam = prob.multipliers(qq)
-        return lam, prob.residual(qq, lam)
-
-    lam, f = state(q)
-    norm = float(np.linalg.norm(f[:nq]))
-    history = [float(np.max(np.abs(f), initial=0.0))]
-    it, polished = 0, False
-    while True:
-        if not np.all(np.isfinite(f)):
-            _fail(prob, "non-finite residual", it, np.where(np.isfinite(f), f, np.inf),
-                  "reduced")
-        done = _converged(prob, f, fscale, lscale)
-        if done and (polished or norm == 0.0):
-            break
-        if it >= max_iter:
-            if done:
-                break
-            _fail(prob, "not converged", it, f, "reduced")
-        n = _null_space(prob.cq(q), nq)
-        jqq = prob.jacobian(q, lam)[:nq, :nq].toarray()
-        if n.shape[1] == 0:
-            dz = np.zeros(0)
+def _principal_range(prob: _Problem, q, lam, fscale: float, lscale: float) -> np.ndarray:
+    """Angles to (−π, π], Euler parameters to e0 ≥ 0 — each only if the equations do not
+    change (by more than the convergence tolerance): an angle that carries a rotational
+    spring or a driver keeps its value."""
+    f0 = prob.residual(q, lam)
+    for k in prob.angles + prob.quaternions:
+        trial = q.copy()
+        if k in prob.quaternions:
+            block = trial[k:k + 4]
+            lead = block[np.flatnonzero(np.abs(block) > 0.0)[:1]]
+            if block[0] > 0.0 or (block[0] == 0.0 and np.all(lead >= 0.0)):
+                continue
+            trial[k:k + 4] = -block
         else:
-            dz = _solve(sp.csc_matrix(n.T @ jqq @ n), -(n.T @ f[:nq]))
-        alpha, accepted = 1.0, False
-        for _ in range(30):
-            try:
-                qt = assemble(prob.model, q + alpha * (n @ dz), prob.t).q
-            except AssemblyError:
-                qt = None
-            if qt is not None:
-                lt, ft = state(qt)
-                nt = float(np.linalg.norm(ft[:nq]))
-                if np.isfinite(nt) and (nt <= norm * (1 - 1e-4 * alpha)
-                                        or (done and nt <= norm)):
-                    accepted = True
-                    break
-            alpha *= 0.5
-            if done:
-                break
+            if -np.pi < q[k] <= np.pi:
+                continue
+            trial[k] = _wrap(q[k])
+        diff = np.abs(prob.residual(trial, lam) - f0)
+        if np.max(diff[:prob.nq], initial=0.0) <= fscale and \
+                np.max(diff[prob.nq:], initial=0.0) <= lscale:
+            q = trial
+    return q
+
+
+class _State:
+    """An iterate (q, λ, F) with the scaled residual norm that the Newton test compares."""
+
+    def __init__(self, prob: _Problem, q, lam, fscale: float, lscale: float):
+        self.q, self.lam = q, lam
+        self.f = prob.residual(q, lam)
+        self.qe = prob.forces(q)
+        w = np.concatenate([np.full(prob.nq, 1.0 / fscale), np.full(prob.nc, 1.0 / lscale)])
+        self.norm = float(np.linalg.norm(self.f * w))
+
+
+def _iterate(prob: _Problem, q, method: str, fscale: float, lscale: float, max_iter: int):
+    """The trust-region iteration of both methods (module docstring)."""
+    nq = prob.nq
+    state = _State(prob, q, prob.multipliers(q), fscale, lscale)
+    history = [float(np.max(np.abs(state.f), initial=0.0))]
+    radius, it = INITIAL_RADIUS, 0
+    while True:
+        f = state.f
+        if not np.all(np.isfinite(f)):
+            _fail(prob, "non-finite residual", it, np.where(np.isfinite(f), f, np.inf), method)
+        if _converged(prob, f, fscale, lscale):
+            polished = _polish(prob, state, method, fscale, lscale)
+            if polished is not None:
+                state, it = polished, it + 1
+                history.append(float(np.max(np.abs(state.f), initial=0.0)))
+            break
+        if it >= max_iter:
+            _fail(prob, "not converged", it, f, method)
         it += 1
-        if not accepted:
-            if done:
-                it -= 1
-                break
-            qt = _descent_step(prob, q, f[:nq])
-            if qt is None:
-                _fail(prob, "line search stalled", it, f, "reduced")
-            lt, ft = state(qt)
-            nt = float(np.linalg.norm(ft[:nq]))
-        q, lam, f, norm = qt, lt, ft, nt
-        history.append(float(np.max(np.abs(f), initial=0.0)))
-        polished = done
-    return q, lam, it, history
+        n, k, g, kbar = prob.tangent(state.q, state.lam)
+        dn = np.zeros(nq)
+        if method == "augmented" and prob.nc:  # minimum-norm normal step C_q dn = −C
+            dn_s, *_ = sla.lstsq(prob.cq(state.q) * prob.scale, -f[nq:], cond=RANK_RTOL,
+                                 lapack_driver="gelsd")
+            dn = prob.scale * dn_s
+            g = g - n.T @ k @ dn
+        step = trust_region_step(g, kbar, radius, noise=NOISE_FACTOR * np.linalg.norm(g))
+        if not step.newton and np.any(dn):  # globalise from the constraint manifold
+            try:
+                q_on = assemble(prob.model, state.q, prob.t).q
+            except AssemblyError:
+                _fail(prob, "the iterate left the constraint manifold", it, f, method)
+            state = _State(prob, q_on, prob.multipliers(q_on), fscale, lscale)
+            dn = np.zeros(nq)
+            n, k, g, kbar = prob.tangent(state.q, state.lam)
+            step = trust_region_step(g, kbar, radius, noise=NOISE_FACTOR * np.linalg.norm(g))
+        kkt = method == "augmented" and step.newton
+        trial = _trial(prob, state, dn + n @ step.dz, k, kkt, fscale, lscale)
+        accepted, ratio = False, 0.0
+        if trial is not None:
+            work = 0.5 * float((state.qe + trial.qe) @ (trial.q - state.q))
+            if step.predicted > 0.0:
+                ratio = work / step.predicted
+            else:
+                ratio = 1.0 if work >= 0.0 else -1.0
+            newton_ok = step.newton and trial.norm < state.norm
+            accepted = newton_ok if kkt else (ratio >= ACCEPT_RATIO or newton_ok)
+        size = float(np.linalg.norm(step.dz))
+        if not accepted or (ratio < 0.25 and not step.newton):
+            radius = 0.25 * min(radius, max(size, 1e-16))
+        elif ratio > 0.75 and size >= 0.99 * radius:
+            radius = min(2.0 * radius, MAX_RADIUS)
+        if accepted:
+            state = trial
+        elif radius < 1e-12:
+            _fail(prob, "no acceptable step (trust region collapsed)", it, f, method)
+        history.append(float(np.max(np.abs(state.f), initial=0.0)))
+    return state.q, state.lam, it, history
+
+
+def _trial(prob: _Problem, state: _State, dq, k, kkt: bool, fscale, lscale) -> _State | None:
+    """The iterate after the step dq, or None (assembly failed, a mirror-image body).
+
+    ``kkt``: the Newton step on (q, λ) of the augmented method, λ⁺ from the first block row
+    of the KKT system (no assembly); otherwise the dependent coordinates are restored by
+    assembly and λ⁺ is the least-squares multiplier."""
+    if kkt:
+        qt = state.q + dq
+        lt = prob.multipliers(state.q, state.qe - k @ dq) if prob.nc else np.zeros(0)
+    else:
+        try:
+            qt = assemble(prob.model, state.q + dq, prob.t).q
+        except AssemblyError:
+            return None
+        lt = prob.multipliers(qt)
+    if prob.improper(qt) is not None:
+        return None
+    trial = _State(prob, qt, lt, fscale, lscale)
+    return trial if np.isfinite(trial.norm) else None
+
+
+def _polish(prob: _Problem, state: _State, method: str, fscale, lscale) -> _State | None:
+    """One pure Newton step at a converged iterate, kept if it does not raise the residual."""
+    if state.norm == 0.0:
+        return None
+    nq = prob.nq
+    if method == "augmented":
+        step = _solve(prob.jacobian(state.q, state.lam), -state.f)
+        qt, lt = state.q + step[:nq], state.lam + step[nq:]
+    else:
+        n, _, g, kbar = prob.tangent(state.q, state.lam)
+        step = trust_region_step(g, kbar, MAX_RADIUS, noise=NOISE_FACTOR * np.linalg.norm(g))
+        if not step.newton:
+            return None
+        try:
+            qt = assemble(prob.model, state.q + n @ step.dz, prob.t).q
+        except AssemblyError:
+            return None
+        lt = prob.multipliers(qt)
+    if prob.improper(qt) is not None:
+        return None
+    trial = _State(prob, qt, lt, fscale, lscale)
+    return trial if trial.norm <= state.norm else None

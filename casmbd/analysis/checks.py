@@ -1,0 +1,255 @@
+"""Finiteness and consistency checks at the start of an analysis, naming the culprit.
+
+A NaN or an infinity in a model value (a force expression such as ``log(t)`` at t = 0, a
+sampled driver queried outside its samples with ``extrapolate = "error"``) would otherwise
+surface as an anonymous failure of a linear solver ("array must not contain infs or NaNs")
+or as silent NaN results.  :func:`check_start` evaluates the equations once at the start
+state; only when something is not finite does it look for the element behind it
+(:func:`nonfinite_values`: every time-dependent value of drivers, forces and bodies,
+evaluated at that time; then each force element's generalized force; then the rows), so the
+check costs one evaluation of each equation on the good path.
+
+:func:`check_consistent_start` verifies that an assembled start satisfies the constraints at
+velocity and acceleration level too, C_q q̇ + C_t = 0 and C_q q̈ = γ: drivers that contradict
+the joints (or each other) can agree in position at the start yet not in their rates, and a
+minimum-norm solve would then hide the contradiction.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+
+import casadi as ca
+import numpy as np
+
+from casmbd.errors import AssemblyError, ModelError
+from casmbd.model.bodies import GROUND
+from casmbd.model.values import Samples, resolve
+
+#: value fields of force elements (a tuple value is checked component by component)
+FORCE_FIELDS = ("value", "stiffness", "damping", "free_length", "free_angle", "actuator")
+#: relative tolerance of the velocity- and acceleration-level consistency of a start
+CONSISTENCY_RTOL = 1e-6
+
+
+def _value_fields(mechanism) -> Iterator[tuple[str, str, object, int]]:
+    """(element, field, value, derivative order) of every scalar value of the model."""
+    for body in mechanism.bodies.values():
+        yield f"body '{body.name}'", "mass", body.mass, 0
+        inertia = body.inertia if isinstance(body.inertia, (list, tuple)) else (body.inertia,)
+        for value in inertia:
+            yield f"body '{body.name}'", "inertia", value, 0
+    for driver in mechanism.drivers.values():
+        for order in range(3):  # velocities and accelerations need f' and f''
+            yield f"driver '{driver.name}'", "position", driver.position, order
+    for force in mechanism.forces.values():
+        for key in FORCE_FIELDS:
+            value = getattr(force, key, None)
+            if value is None or (key == "value" and not hasattr(force, "value")):
+                continue
+            for component in value if isinstance(value, tuple) else (value,):
+                yield f"force '{force.name}'", key, component, 0
+
+
+def nonfinite_values(system, t: float, p) -> list[str]:
+    """Descriptions of the model values that are not finite at time ``t``.
+
+    Every driver position (and its first two time derivatives), force value and body mass
+    and inertia is evaluated at ``t`` with the parameter values ``p`` in one CasADi call.
+    """
+    mech = system.mechanism
+    labels, exprs = [], []
+    for element, key, value, order in _value_fields(mech):
+        expr = resolve(value, system.t, system.ctx.p, f"{element} field '{key}'")
+        for _ in range(order):
+            expr = ca.jacobian(expr, system.t)
+        labels.append((element, key, order, value))
+        exprs.append(ca.vec(expr)[0])
+    if not exprs:
+        return []
+    f = ca.Function("values", [system.t, system.p], [ca.vertcat(*exprs)])
+    out = np.asarray(f(t, np.asarray(p, float)), float).ravel()
+    found, seen = [], set()
+    for (element, key, order, value), val in zip(labels, out, strict=True):
+        if np.isfinite(val) or (element, key, id(value)) in seen:
+            continue  # a value already named is not named again for its derivatives
+        seen.add((element, key, id(value)))
+        what = ("", "the first time derivative of ", "the second time derivative of ")[order]
+        text = f"{what}{element} field '{key}' is {val} at t = {t:.10g}"
+        if isinstance(value, Samples):
+            text += (f" (outside its samples [{value.times[0]:g}, {value.times[-1]:g}] with "
+                     f"extrapolate = '{value.extrapolate}')")
+        elif isinstance(value, str):
+            text += f" (in '{value}')"
+        if text not in found:
+            found.append(text)
+    return found
+
+
+def _element_forces(system, q, v, t: float, u, p) -> list[str]:
+    """Force elements whose generalized force is not finite at (q, v, t) (diagnosis only)."""
+    found = []
+    for force in system.mechanism.forces.values():
+        total = ca.SX.zeros(system.nq)
+        for term in system._element_terms(force, system.ctx):
+            if term.kind == "measure":
+                total += ca.jtimes(ca.vec(term.expr), system.q, ca.vec(term.weight), True)
+            elif term.kind == "torque":
+                if term.body != GROUND:
+                    omega = system.ctx.angular_velocity(term.body)
+                    total += ca.jtimes(omega, system.v, ca.vec(term.weight), True)
+            else:
+                total += term.weight
+        f = ca.Function("element", [system.q, system.v, system.t, system.u, system.p], [total])
+        val = np.asarray(f(q, v, t, u, p), float).ravel()
+        if not np.all(np.isfinite(val)):
+            names = system.coordinate_names
+            rows = ", ".join(f"{names[i]} = {val[i]}" for i in np.flatnonzero(
+                ~np.isfinite(val))[:3])
+            found.append(f"the generalized force of force '{force.name}' is not finite at "
+                         f"t = {t:g} ({rows})")
+    return found
+
+
+def diagnose(model, t: float, q=None, v=None, u=None) -> list[str]:
+    """The culprits of a non-finite evaluation at time ``t``: model values first, then (with a
+    state) force elements."""
+    system = model.system
+    found = nonfinite_values(system, t, model.p)
+    if not found and q is not None and system.mechanism.forces:
+        v = np.zeros(model.nq) if v is None else v
+        u = np.zeros(system.u.numel()) if u is None else u
+        found = _element_forces(system, q, v, t, u, model.p)
+    return found
+
+
+def diagnose_failure(model, t: float) -> list[str]:
+    """Model values that are not finite where a time integration stopped: at ``t`` and just
+    after it (an integrator stalls before a value that turns NaN, e.g. ``sqrt(0.55 - t)``)."""
+    if not math.isfinite(t):
+        return []
+    for when in (t, t + 1e-9 * max(1.0, abs(t))):
+        found = nonfinite_values(model.system, when, model.p)
+        if found:
+            return found
+    return []
+
+
+def _evaluations(model, q, v, t: float, u) -> Iterator[tuple[str, np.ndarray, list[str]]]:
+    """(description, values, row labels) of each equation the model has, at the state."""
+    system = model.system
+    coords = system.coordinate_names
+    rows = [str(label) for label in system.constraint_labels]
+    calls = [("constraints", "the constraints C", rows, lambda: model.constraints(q, t)),
+             ("constraint_jacobian", "the constraint Jacobian C_q", rows,
+              lambda: model.constraint_jacobian(q, t).toarray()),
+             ("constraint_time_derivative", "C_t", rows,
+              lambda: model.constraint_time_derivative(q, t)),
+             ("acceleration_rhs", "the acceleration right-hand side γ", rows,
+              lambda: model.acceleration_rhs(q, v, t)),
+             ("mass_matrix", "the mass matrix M", coords,
+              lambda: model.mass_matrix(q).toarray()),
+             ("applied_forces", "the applied forces Q", coords,
+              lambda: model.applied_forces(q, v, t, u)),
+             ("quadratic_velocity_forces", "the quadratic-velocity forces", coords,
+              lambda: model.quadratic_velocity_forces(q, v))]
+    for name, text, labels, call in calls:
+        if name in model.functions and (labels is coords or model.nc):
+            yield text, np.asarray(call(), float), labels
+
+
+def check_start(model, q, v, t: float, u=None, what: str = "analysis",
+                forces: np.ndarray | None = None) -> None:
+    """Raise naming the culprit when the start state or an equation there is not finite.
+
+    Parameters
+    ----------
+    model : casmbd.compiled.model.NumericModel
+    q, v : array
+        The start state (before assembly; v may be None for position-level analyses).
+    t : float
+        The start time.
+    u : array, optional
+        Actuator inputs (default zero).
+    what : str
+        The analysis, for the message.
+    forces : array, optional
+        Generalized forces the analysis evaluated itself at (q, v, t) (statics has its own
+        function), checked with the equations.
+
+    Raises
+    ------
+    ModelError
+        Naming the element, field and time of a non-finite model value (a force, driver,
+        mass or inertia), the force element whose generalized force is not finite, or the
+        coordinates of a non-finite start state.
+    """
+    system = model.system
+    q = np.asarray(q, float)
+    v = np.zeros(model.nq) if v is None else np.asarray(v, float)
+    u = np.zeros(system.u.numel()) if u is None else np.asarray(u, float)
+    names = system.coordinate_names
+    for label, arr in (("coordinates", q), ("velocities", v)):
+        bad = np.flatnonzero(~np.isfinite(arr))
+        if bad.size:
+            raise ModelError(f"{what} at t = {t:g}: the initial {label} are not finite: "
+                             + ", ".join(f"{names[i]} = {arr[i]}" for i in bad[:4]))
+    if not np.all(np.isfinite(u)):
+        raise ModelError(f"{what} at t = {t:g}: the actuator inputs are not finite: {u}")
+    evaluations = list(_evaluations(model, q, v, t, u))
+    if forces is not None:
+        evaluations.append(("the generalized forces", np.asarray(forces, float), names))
+    for text, values, labels in evaluations:
+        if np.all(np.isfinite(values)):
+            continue
+        culprits = diagnose(model, t, q, v, u)
+        if not culprits:  # name the rows
+            flat = values.reshape(values.shape[0], -1)
+            bad = np.flatnonzero(~np.all(np.isfinite(flat), axis=1))
+            culprits = [f"{text} is not finite in the rows of "
+                        + ", ".join(labels[i] for i in bad[:4])]
+        raise ModelError(f"{what} at t = {t:g}: " + "; ".join(culprits[:4]))
+
+
+def _worst(labels, residual: np.ndarray, count: int = 3) -> str:
+    order = np.argsort(-np.abs(residual))[:count]
+    floor = 1e-6 * float(np.max(np.abs(residual), initial=0.0))
+    return "; ".join(f"{labels[i]} residual {residual[i]:.3g}" for i in order
+                     if abs(residual[i]) > floor)
+
+
+def check_consistent_start(model, q, v, a, t: float, what: str = "simulation") -> None:
+    """Raise when an assembled start violates C_q q̇ + C_t = 0 or C_q q̈ = γ.
+
+    The tolerance is :data:`CONSISTENCY_RTOL` relative to the size of the terms (‖C_q‖ ‖q̇‖
+    + ‖C_t‖ at velocity level, ‖C_q‖ ‖q̈‖ + ‖γ‖ at acceleration level), with 1 as the
+    smallest scale, so it does not depend on units.  With redundant but consistent equations
+    (a parallelogram) both residuals vanish; with drivers that contradict the joints or each
+    other in their rates they do not.
+
+    Raises
+    ------
+    AssemblyError
+        Naming the equations with the largest residuals (the contradicting driver among
+        them) and the time.
+    """
+    if model.nc == 0:
+        return
+    labels = model.system.constraint_labels
+    cq = model.constraint_jacobian(q, t)
+    norm_cq = float(abs(cq).max()) if cq.nnz else 0.0
+    ct = model.constraint_time_derivative(q, t)
+    gamma = model.acceleration_rhs(q, v, t)
+    for level, residual, scale in (
+            ("velocity", cq @ v + ct, norm_cq * np.max(np.abs(v), initial=0.0)
+             + np.max(np.abs(ct), initial=0.0)),
+            ("acceleration", cq @ a - gamma, norm_cq * np.max(np.abs(a), initial=0.0)
+             + np.max(np.abs(gamma), initial=0.0))):
+        worst = float(np.max(np.abs(residual), initial=0.0))
+        tol = CONSISTENCY_RTOL * max(1.0, float(scale))
+        if not math.isfinite(worst) or worst > tol:
+            raise AssemblyError(
+                f"{what} at t = {t:g}: the constraints contradict each other at {level} level "
+                f"(max residual {worst:.3g} > {tol:.3g}; the drivers' rates disagree with the "
+                f"joints or with each other): {_worst(labels, residual)}")
