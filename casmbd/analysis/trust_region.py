@@ -1,0 +1,103 @@
+"""The trust-region step of the statics iterations (pure linear algebra, no model).
+
+In m independent (tangent) coordinates z, scaled so that a unit of z is about a radian of
+rotation or one characteristic length of the mechanism, the net force is g = Nᵀ Q_e (= −∇V
+for conservative forces) and the stiffness H = Nᵀ K N.  The step minimises the quadratic model
+of the potential energy
+
+    m(dz) = −gᵀ dz + ½ dzᵀ H_s dz,     ‖dz‖ ≤ Δ        (H_s = ½ (H + Hᵀ))
+
+exactly (Moré & Sorensen 1983, via the eigen-decomposition of H_s — m is the number of
+degrees of freedom, small): dz = (H_s + ν I)⁻¹ g with the smallest ν ≥ max(0, −μ_min) that
+keeps ‖dz‖ ≤ Δ, plus a component along the lowest eigenvector in the "hard case".  When H_s is
+positive semidefinite and the Newton step fits in the trust region, ν = 0 and the step is
+Newton's (for a non-symmetric H the true Newton step H⁻¹ g); eigenvalues with
+|μ| ≤ :data:`RANK_RTOL` · max|μ| (or below a noise level, see :func:`trust_region_step`)
+are cut off (a least-squares, minimum-norm step) when the net force along them is negligible
+(below 1e-3 ‖g‖) — otherwise (a pendulum released horizontally, where the stiffness vanishes but
+the force does not) the boundary step moves along the force.  Never a step longer than Δ:
+the minimum-norm Newton step of 1e11 rad at a singular stiffness cannot happen.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import brentq
+
+#: relative singular-value (eigenvalue) cut-off of the least-squares fallback
+RANK_RTOL = 1e-10
+#: net force left along cut-off directions, relative to ‖g‖, still treated as a Newton step
+DROPPED_FORCE_RTOL = 1e-3
+
+
+@dataclass
+class Step:
+    """A trust-region step: ``dz``, the shift ``nu`` (0 for Newton), the predicted decrease of
+    the model ``predicted`` = gᵀdz − ½ dzᵀH_s dz and whether it is the (rank-cut) Newton step."""
+
+    dz: np.ndarray
+    nu: float
+    predicted: float
+    newton: bool
+
+
+def trust_region_step(g: np.ndarray, h: np.ndarray, radius: float, noise: float = 0.0,
+                      rtol: float = RANK_RTOL) -> Step:
+    """Minimise −gᵀdz + ½ dzᵀ H_s dz subject to ‖dz‖ ≤ ``radius`` (module docstring).
+
+    Eigenvalues with |μ| ≤ max(``rtol`` · max|μ|, ``noise``) count as zero; a zero mode along
+    which the net force is negligible (≤ :data:`DROPPED_FORCE_RTOL` ‖g‖) is left out of the
+    step.  The statics iteration passes ``noise`` = ‖g‖: off an equilibrium the reduced
+    stiffness is known only to O(‖g‖) (the curvature of the constraint manifold and of the
+    coordinates times the net force), which gives the exactly neutral directions of an arm
+    (a vertical base axis) spurious eigenvalues of either sign that would otherwise send the
+    step along them.
+    """
+    g = np.asarray(g, float)
+    m = g.size
+    if m == 0:
+        return Step(np.zeros(0), 0.0, 0.0, True)
+    hs = 0.5 * (h + h.T)
+    mu, vec = np.linalg.eigh(hs)
+    gt = vec.T @ g
+    gnorm = float(np.linalg.norm(g))
+    zero = np.abs(mu) <= max(rtol * float(np.max(np.abs(mu))), noise)
+    keep = ~(zero & (np.abs(gt) <= DROPPED_FORCE_RTOL * gnorm))
+    mu, vec, gt = np.where(zero, 0.0, mu)[keep], vec[:, keep], gt[keep]
+
+    def predicted(dz):
+        return float(g @ dz - 0.5 * dz @ hs @ dz)
+
+    if gnorm == 0.0 or mu.size == 0:
+        return Step(np.zeros(m), 0.0, 0.0, True)
+    if np.all(mu > 0.0):  # Newton's step, or its least-squares fallback if modes were cut
+        if mu.size == m and np.max(np.abs(h - hs)) > 0.0:
+            dz = np.linalg.solve(h, g)  # the true Newton step of a non-symmetric H
+        else:
+            dz = vec @ (gt / mu)
+        if np.linalg.norm(dz) <= radius:
+            return Step(dz, 0.0, predicted(dz), True)
+
+    def size(nu):
+        with np.errstate(over="ignore", divide="ignore"):
+            return float(np.linalg.norm(gt / (mu + nu)))
+
+    lo = max(0.0, -float(np.min(mu)))
+    eps = max(1e-12 * float(np.max(np.abs(mu))), 1e-300)
+    if size(lo + eps) <= radius:  # hard case: g has no component along the lowest mode
+        nu = lo
+        shifted = mu + nu
+        coef = np.where(shifted > eps, gt / np.where(shifted > eps, shifted, 1.0), 0.0)
+        dz = vec @ coef
+        tau = np.sqrt(max(radius**2 - float(dz @ dz), 0.0))
+        low = vec[:, int(np.argmin(mu))]
+        dz = dz + (tau if float(g @ low) >= 0.0 else -tau) * low
+        return Step(dz, nu, predicted(dz), False)
+    hi = lo + gnorm / radius + float(np.max(np.abs(mu))) + eps
+    while size(hi) > radius:
+        hi *= 2.0
+    nu = brentq(lambda x: size(x) - radius, lo + eps, hi, xtol=1e-14 * hi, rtol=1e-12)
+    dz = vec @ (gt / (mu + nu))
+    return Step(dz, float(nu), predicted(dz), False)
