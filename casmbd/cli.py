@@ -23,12 +23,14 @@ from pathlib import Path
 
 import numpy as np
 
-from casmbd.errors import AnalysisError, CasmbdError
+from casmbd import interrupts
+from casmbd.errors import AnalysisError, CasmbdError, SceneError
+from casmbd.limits import MAX_STEPS
 from casmbd.results import _json_default
 
 EXIT_ERROR = 1
 EXIT_USAGE = 2
-MAX_STEPS = 10_000_000
+EXIT_INTERRUPTED = 130  # 128 + SIGINT
 
 
 class _UsageError(Exception):
@@ -195,16 +197,19 @@ def _add_bench_verb(sub) -> None:
 
 
 def _cmd_bench(args) -> tuple[dict, str]:
-    """Run ``python -m benchmarks`` in the checkout that holds this casmbd (or the current
-    directory); the suite is not installed with the package."""
+    """Run ``python -m benchmarks`` in the checkout that holds this casmbd.
+
+    Only the checkout of the running package is used, never the current directory: a
+    ``benchmarks/`` folder in a downloaded directory must not become code that ``casmbd bench``
+    runs.  The suite is not installed with the package (``pip install -e .`` keeps it beside).
+    """
     import subprocess
 
-    here = Path(__file__).resolve().parent.parent
-    root = next((d for d in (Path.cwd(), here) if (d / "benchmarks" / "__main__.py").is_file()),
-                None)
-    if root is None:
-        raise AnalysisError("casmbd bench: no benchmarks/ folder here or next to the installed "
-                            f"package ({here}); run it from a casmbd source checkout")
+    root = Path(__file__).resolve().parent.parent
+    if not (root / "benchmarks" / "__main__.py").is_file():
+        raise AnalysisError("casmbd bench: no benchmarks/ folder next to the installed package "
+                            f"({root}); install casmbd from a source checkout with "
+                            "'pip install -e .' or run 'python -m benchmarks' there")
     cmd = [sys.executable, "-m", "benchmarks"] + (["--quick"] if args.quick else []) \
         + (["--update-docs"] if args.update_docs else []) + (["--json"] if args.json else [])
     proc = subprocess.run(cmd, cwd=root, capture_output=args.json, text=True)
@@ -532,6 +537,9 @@ def _cmd_ocp(args) -> tuple[dict, str]:
     from casmbd.io.ocp_table import ocp_from_scene
 
     mech = _load(args)
+    if "ocp" not in getattr(mech, "scene_data", {}):  # --intervals alone is no problem
+        raise SceneError(f"{args.scene}: no [ocp] table: the ocp verb solves the scene's "
+                         "[ocp] table (see docs/ocp.md)")
     table = dict(getattr(mech, "scene_data", {}).get("ocp") or {})
     if args.intervals is not None:
         table["intervals"] = args.intervals
@@ -659,6 +667,11 @@ def _cmd_sweep(args) -> tuple[dict, str]:
                 steps=args.steps, outputs=args.output, executor=executor,
                 workers=args.workers, out_dir=args.out, mode=args.mode,
                 progress=None if not args.json else False)
+    if len(res) and len(res.failed) == len(res):  # nothing computed: an error, not a table
+        raise AnalysisError(f"sweep of '{args.scene}': all {len(res)} points failed; point "
+                            f"{res.failed[0]}: {res.errors[res.failed[0]]}"
+                            + (f" (the failures are listed in {args.out}/sweep.csv)"
+                               if args.out else ""))
     data = res.to_json()
     s = res.stats
     shown = res.output_names[:4]
@@ -696,10 +709,29 @@ def _finite_json(obj):
     return obj
 
 
+def _interrupted(args) -> int:
+    """One line for Ctrl-C; exit status 130 (128 + SIGINT) like a shell's.
+
+    Nothing is saved: every result file is written atomically after the analysis, so an
+    interrupted verb leaves no ``--out`` file (an existing one is untouched); a sweep's
+    ``--out DIR`` keeps only the complete ``point_*.npz`` of finished points.
+    """
+    out = getattr(args, "out", None)
+    if args.verb == "sweep" and out:
+        kept = f"kept the finished points in {out}/, no sweep.csv or sweep.npz"
+    elif out:
+        kept = f"nothing saved ({out} not written)"
+    else:
+        kept = "nothing saved"
+    print(f"error: interrupted (Ctrl-C) during {args.verb}; {kept}", file=sys.stderr)
+    return EXIT_INTERRUPTED
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``casmbd`` command; returns the exit status."""
     argv = list(sys.argv[1:] if argv is None else argv)
     debug = "--debug" in argv
+    interrupts.install()  # Ctrl-C is remembered even where CasADi turns it into an error
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
@@ -720,9 +752,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     t0 = time.perf_counter()
     try:
         data, text = VERBS[args.verb](args)
+    except KeyboardInterrupt:
+        if debug:
+            raise
+        return _interrupted(args)
     except CasmbdError as exc:
         if debug:
             raise
+        if interrupts.seen():  # a failure that Ctrl-C caused is still an interrupt
+            return _interrupted(args)
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_ERROR
     except Exception as exc:  # an unexpected failure still gets one clear line

@@ -383,3 +383,27 @@ def test_no_code_from_data_in_the_sources():
     assert len(hits) == 1, hits
     assert hits[0].startswith("casmbd/analysis/sweep.py:"), hits
     assert hits[0].endswith('mech = pickle.loads(spec["mechanism"])'), hits
+
+
+def test_bench_never_runs_a_benchmarks_folder_of_the_current_directory(tmp_path, monkeypatch):
+    """``casmbd bench`` runs the suite of the checkout holding the running casmbd only: a
+    ``benchmarks/`` folder in a downloaded working directory is not imported or run."""
+    import subprocess
+
+    evil = tmp_path / "benchmarks"
+    evil.mkdir()
+    marker = tmp_path / "marker"
+    (evil / "__init__.py").write_text("")
+    (evil / "__main__.py").write_text(f"open({str(marker)!r}, 'w').close()\n")
+    seen = {}
+
+    def fake_run(cmd, cwd=None, **kwargs):
+        seen["cwd"] = pathlib.Path(cwd).resolve()
+        return subprocess.CompletedProcess(cmd, 0, '{"ok": true}\n', "")
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(subprocess, "run", fake_run)
+    assert cli.main(["bench", "--quick", "--json"]) == 0
+    assert seen["cwd"] == pathlib.Path(cli.__file__).resolve().parent.parent
+    assert seen["cwd"] != tmp_path.resolve()
+    assert not marker.exists()
