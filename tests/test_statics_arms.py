@@ -33,7 +33,7 @@ def _cache(tmp_path_factory, monkeypatch):
     monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "cache"))
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def model_of(scene: str, coordinates: str) -> NumericModel:
     mech = load_scene(SCENES[scene])
     mech.coordinates = coordinates
@@ -41,7 +41,7 @@ def model_of(scene: str, coordinates: str) -> NumericModel:
     return NumericModel(system, STATICS_NEEDS, mode="vm", extra=statics_functions(system))
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def solve(scene: str, coordinates: str, method: str):
     return static_equilibrium(model_of(scene, coordinates), method=method)
 
