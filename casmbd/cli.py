@@ -25,7 +25,7 @@ import numpy as np
 
 from casmbd import interrupts
 from casmbd.errors import AnalysisError, CasmbdError, SceneError
-from casmbd.limits import MAX_STEPS
+from casmbd.limits import MAX_FRAMES, MAX_STEPS, check_count
 from casmbd.results import _json_default
 
 EXIT_ERROR = 1
@@ -584,9 +584,10 @@ VERBS["ocp"] = _cmd_ocp
 def _cmd_plot(args) -> tuple[dict, str]:
     """Figure of a saved result: one panel per kind against time."""
     from casmbd.results import load
-    from casmbd.viz.plots import available_kinds, plot_result
+    from casmbd.viz.plots import available_kinds, check_figure_size, plot_result
 
     _check_out(args)
+    check_figure_size(dpi=args.dpi, what=f"--out '{args.out}'")  # before reading the result
     result = load(args.result)
     kinds = args.kind or available_kinds(result)
     plot_result(result, kinds, out=args.out, dpi=args.dpi)
@@ -597,6 +598,7 @@ def _cmd_plot(args) -> tuple[dict, str]:
 def _cmd_animate(args) -> tuple[dict, str]:
     """Animate a result file, or simulate a scene (default simulator) and animate it."""
     from casmbd.viz.animation import animate, check_animation_file, draw_frame, save_animation
+    from casmbd.viz.plots import check_figure_size
 
     _check_out(args)
     suffix = Path(args.out).suffix.lower()
@@ -605,6 +607,10 @@ def _cmd_animate(args) -> tuple[dict, str]:
                             "with ffmpeg, or .png/.pdf/.svg for a still frame)")
     if suffix in (".gif", ".mp4"):
         check_animation_file(args.out)  # before a simulation: no ffmpeg, no MP4
+    check_figure_size(dpi=args.dpi, what=f"--out '{args.out}'")  # before a simulation
+    if args.max_frames is None and Path(args.source).suffix.lower() != ".npz":
+        check_count("animate: frames (--steps + 1)", args.steps + 1, MAX_FRAMES,
+                    "give --max-frames or fewer --steps")
     lines = []
     if Path(args.source).suffix.lower() == ".npz":
         from casmbd.results import load

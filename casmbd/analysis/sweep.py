@@ -42,6 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
+from casmbd import interrupts
 from casmbd.errors import (
     AnalysisError,
     CasmbdError,
@@ -49,6 +50,7 @@ from casmbd.errors import (
     ResultFileError,
     SceneError,
 )
+from casmbd.limits import MAX_SWEEP_POINTS, check_count, check_steps, output_values
 from casmbd.results import Result, _json_default, atomic_write, read_npz
 
 __all__ = ["ANALYSES", "REDUCTIONS", "SweepResult", "load_sweep", "parse_values", "sweep"]
@@ -92,6 +94,8 @@ def parse_values(text: str) -> tuple[str, list[float]]:
             a, b, n = float(parts[0]), float(parts[1]), int(parts[2])
             if n < 1:
                 raise ValueError
+            check_count(f"--param {text!r}: points", n, MAX_SWEEP_POINTS,
+                        "use fewer points (before any value is generated)")
             values = np.linspace(a, b, n).tolist()
         else:
             values = [float(x) for x in rhs.split(",")]
@@ -119,8 +123,13 @@ def _points(params: Mapping[str, Iterable[float]] | None,
             if vals.size == 0:
                 raise AnalysisError(f"sweep: parameter '{name}' has no values")
             lists.append(vals.tolist())
+        sizes = " × ".join(f"{n} {len(v)}" for n, v in zip(names, lists, strict=True))
+        check_count(f"sweep: grid points ({sizes})", math.prod(len(v) for v in lists),
+                    MAX_SWEEP_POINTS, "use fewer values per parameter or a points= list")
         out = [dict(zip(names, combo, strict=True)) for combo in itertools.product(*lists)]
     else:
+        if hasattr(points, "__len__"):
+            check_count("sweep: points", len(points), MAX_SWEEP_POINTS, "split the sweep")
         out = [{str(k): float(v) for k, v in dict(p).items()} for p in points]
         if not out:
             raise AnalysisError("sweep: points is empty")
@@ -251,6 +260,23 @@ def _series(result: Result, column: str, where: str) -> np.ndarray:
     known = [c for c in columns if "[" not in c or c.startswith("q[")]
     raise AnalysisError(f"{where}: unknown column '{column}' (e.g. {', '.join(known[:12])}; "
                         "or body.NAME.FIELD[.AXIS], joint.NAME.FIELD)")
+
+
+def _check_output_names(runner, spec: dict, values: Mapping[str, float]) -> None:
+    """Evaluate the named outputs on a probe run at the first point — one output step over
+    1e-6 of the time span (statics: the point itself) — so that an unknown column, body or
+    joint is an :class:`~casmbd.errors.AnalysisError` naming the output before any point
+    runs.  A probe run that fails leaves the check to the points (their failure is
+    recorded)."""
+    t_end = spec["t_end"]
+    if spec["analysis"] != "statics":
+        t_start = runner.run_options.get("t_start", 0.0)
+        t_end = t_start + 1e-6 * (t_end - t_start)
+    try:
+        probe = runner.run(values, t_end, 1)
+    except CasmbdError:
+        return
+    _evaluate_outputs(spec["outputs"], probe, spec["analysis"])
 
 
 def _default_outputs(result: Result, analysis: str) -> list[str]:
@@ -418,6 +444,7 @@ def _evaluate(spec: dict, index: int, values: dict[str, float], scene: str | Non
         try:
             result = runner.run(values, spec["t_end"], spec["steps"])
         except CasmbdError as exc:
+            interrupts.reraise_interrupt(exc)
             partial = getattr(exc, "partial", None)
             if partial is not None and spec["out_dir"]:
                 _save_point(partial, spec, index, values, scene, failure=str(exc))
@@ -427,6 +454,7 @@ def _evaluate(spec: dict, index: int, values: dict[str, float], scene: str | Non
             rec["file"] = _save_point(result, spec, index, values, scene)
         rec["solve_seconds"] = float(result.stats.get("solve_seconds", math.nan))
     except Exception as exc:  # recorded, the other points go on
+        interrupts.reraise_interrupt(exc)
         rec["status"] = "failed"
         kind = type(exc).__name__
         rec["error"] = f"{kind}: {exc}" if isinstance(exc, CasmbdError) else \
@@ -674,19 +702,35 @@ def _run_processes(spec, tasks, workers: int, bar) -> list[dict]:
 
     out = []
     ctx = multiprocessing.get_context("spawn")  # no CasADi state forked into the workers
-    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-        futures = {pool.submit(_evaluate, spec, *task): task for task in tasks}
-        for fut in as_completed(futures):
-            try:
-                out.append(fut.result())
-            except Exception as exc:  # a worker died (e.g. killed): record, keep the others
-                index = futures[fut][0]
-                out.append({"index": index, "status": "failed", "outputs": {}, "file": None,
-                            "error": f"worker process failed ({type(exc).__name__}): {exc}",
-                            "worker": "?", "runner_built": False})
-            if bar is not None:
-                bar.update(1)
+    # Ctrl-C: the workers ignore it; the parent cancels the points and ends the workers
+    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx,
+                             initializer=interrupts.ignore_sigint) as pool:
+        try:
+            with interrupts.sigint_blocked():  # the workers start here
+                futures = {pool.submit(_evaluate, spec, *task): task for task in tasks}
+            for fut in as_completed(futures):
+                try:
+                    out.append(fut.result())
+                except Exception as exc:  # a worker died (e.g. killed): record, keep others
+                    index = futures[fut][0]
+                    out.append({"index": index, "status": "failed", "outputs": {},
+                                "file": None, "error": f"worker process failed "
+                                f"({type(exc).__name__}): {exc}", "worker": "?",
+                                "runner_built": False})
+                if bar is not None:
+                    bar.update(1)
+        except KeyboardInterrupt:
+            interrupts.stop_process_pool(pool)
+            _remove_partial_files(spec)
+            raise
     return out
+
+
+def _remove_partial_files(spec: dict) -> None:
+    """The temporary files of point results a terminated worker was writing."""
+    if spec["out_dir"]:
+        for tmp in Path(spec["out_dir"]).glob(".tmp_*.npz"):
+            tmp.unlink(missing_ok=True)
 
 
 def _require_dask(executor) -> None:
@@ -716,6 +760,7 @@ def _run_dask(spec, tasks, executor, bar) -> list[dict]:
     from distributed import as_completed
 
     client, owned = _dask_client(executor)
+    futures: dict = {}
     try:
         spec["_dask_workers"] = len(client.scheduler_info().get("workers", {}))
         spec_future = client.scatter(spec, broadcast=True)
@@ -734,6 +779,10 @@ def _run_dask(spec, tasks, executor, bar) -> list[dict]:
             if bar is not None:
                 bar.update(1)
         return out
+    except KeyboardInterrupt:  # the points not finished are cancelled on the cluster
+        if futures:
+            client.cancel(list(futures))
+        raise
     finally:
         if owned:
             client.close()
@@ -831,6 +880,8 @@ def sweep(mechanism_or_scene_path, params: Mapping[str, Iterable[float]] | None 
         source = str(mechanism_or_scene_path)
         mech = load_scene(source)
         text = mech.scene_text
+    if analysis != "statics":  # one point's result must fit (LimitError before any build)
+        check_steps(f"sweep ({analysis}) at each point", int(steps), output_values(mech))
     known = list(mech.parameters)
     for name in pts[0]:
         if name not in known:
@@ -861,8 +912,6 @@ def sweep(mechanism_or_scene_path, params: Mapping[str, Iterable[float]] | None 
         tasks.append((i, p, scene))
 
     digits = max(3, len(str(len(pts) - 1)))
-    if out_dir is not None:
-        Path(out_dir).mkdir(parents=True, exist_ok=True)
     mech_bytes = None
     key_src = text
     if text is None:
@@ -892,6 +941,10 @@ def sweep(mechanism_or_scene_path, params: Mapping[str, Iterable[float]] | None 
         _RUNNERS[spec["key"]] = _Runner(spec, mechanism=mech)
     runner, _ = _runner(spec)
     parent_build = dict(runner.report)
+    if outputs is not None and not callable(outputs):
+        _check_output_names(runner, spec, pts[0])  # before any point runs or file is written
+    if out_dir is not None:
+        Path(out_dir).mkdir(parents=True, exist_ok=True)
 
     # ---- run
     if executor == "serial":
