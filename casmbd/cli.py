@@ -608,7 +608,8 @@ def _cmd_animate(args) -> tuple[dict, str]:
     if suffix in (".gif", ".mp4"):
         check_animation_file(args.out)  # before a simulation: no ffmpeg, no MP4
     check_figure_size(dpi=args.dpi, what=f"--out '{args.out}'")  # before a simulation
-    if args.max_frames is None and Path(args.source).suffix.lower() != ".npz":
+    if (suffix in (".gif", ".mp4") and args.max_frames is None
+            and Path(args.source).suffix.lower() != ".npz"):
         check_count("animate: frames (--steps + 1)", args.steps + 1, MAX_FRAMES,
                     "give --max-frames or fewer --steps")
     lines = []

@@ -39,6 +39,12 @@ class SingularConfigurationError(CasmbdError):
     """A linear system of the analysis (Jacobian, KKT matrix) is singular at some time."""
 
 
+class LimitError(CasmbdError):
+    """An input exceeds a stated size limit of :mod:`casmbd.limits` (bodies, steps × state
+    size against the memory budget, grid points, intervals, frames, dpi, ...); the message
+    names the quantity, its value, the limit and what to do instead."""
+
+
 class CompileError(CasmbdError):
     """Generated C code could not be compiled or loaded."""
 

@@ -16,6 +16,7 @@ from casmbd.analysis.assembly import accelerations, assemble, velocities
 from casmbd.analysis.redundancy import rank_report
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, AssemblyError, CasmbdError, RedundantConstraintError
+from casmbd.limits import check_steps, output_values
 from casmbd.results import Result
 
 
@@ -23,6 +24,18 @@ def _model(mechanism_or_model, analysis: str, mode: str) -> NumericModel:
     if isinstance(mechanism_or_model, NumericModel):
         return mechanism_or_model
     return NumericModel(mechanism_or_model, analysis, mode=mode)
+
+
+def check_result_size(mechanism_or_model, steps: int, what: str) -> None:
+    """Refuse (:class:`~casmbd.errors.LimitError`) a time grid of ``steps`` intervals whose
+    result would not fit the memory budget of :mod:`casmbd.limits`, before anything is built:
+    the values per output time are a lower bound from the element counts
+    (:func:`casmbd.limits.output_values`), plus q, v, a when a model is given."""
+    if isinstance(mechanism_or_model, NumericModel):
+        mech, extra = mechanism_or_model.system.mechanism, 3 * mechanism_or_model.nq
+    else:
+        mech, extra = mechanism_or_model, 0
+    check_steps(what, int(steps), output_values(mech) + extra)
 
 
 def dependent_equations(model: NumericModel, q: np.ndarray, t: float) -> list[dict]:
@@ -101,6 +114,9 @@ def kinematics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.
 
     Raises
     ------
+    LimitError
+        When ``steps`` exceeds :data:`casmbd.limits.MAX_STEPS` or the result would not fit
+        the memory budget (checked before anything is built).
     AnalysisError
         When the drivers leave degrees of freedom free.
     RedundantConstraintError
@@ -112,6 +128,7 @@ def kinematics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.
         raise AnalysisError(f"steps must be an integer >= 1, got {steps!r}")
     if not (np.isfinite(t_end) and np.isfinite(t_start) and t_end > t_start):
         raise AnalysisError(f"t_end must be finite and > t_start = {t_start}, got {t_end!r}")
+    check_result_size(mechanism_or_model, steps, "kinematics")
     model = _model(mechanism_or_model, "kinematics", mode)
     mech = model.system.mechanism
     t0 = time.perf_counter()

@@ -20,7 +20,6 @@ import numpy as np
 
 from casmbd import progress
 from casmbd.analysis import integrators as integ
-from casmbd.interrupts import reraise_interrupt
 from casmbd.analysis.assembly import assemble
 from casmbd.analysis.checks import check_consistent_start, check_start, diagnose_failure
 from casmbd.analysis.kkt import (
@@ -38,6 +37,7 @@ from casmbd.analysis.redundancy import (
 )
 from casmbd.compiled.model import NumericModel, _c_name
 from casmbd.errors import AnalysisError, CasmbdError, IntegratorError
+from casmbd.interrupts import reraise_interrupt
 from casmbd.limits import check_steps, output_values
 from casmbd.model.values import resolve
 from casmbd.results import Result

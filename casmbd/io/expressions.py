@@ -33,6 +33,7 @@ from typing import Any
 import casadi
 
 from casmbd.errors import ExpressionError
+from casmbd.limits import MAX_EXPRESSION_DEPTH, MAX_EXPRESSION_LENGTH
 
 __all__ = [
     "ALLOWED_FUNCTIONS",
@@ -45,11 +46,12 @@ __all__ = [
     "parse_expression",
 ]
 
-#: Longest accepted expression text, in characters.
-MAX_LENGTH = 10_000
+#: Longest accepted expression text, in characters (:data:`casmbd.limits.MAX_EXPRESSION_LENGTH`).
+MAX_LENGTH = MAX_EXPRESSION_LENGTH
 
-#: Deepest accepted nesting (parentheses, calls, unary operators, right operands).
-MAX_DEPTH = 100
+#: Deepest accepted nesting (parentheses, calls, unary operators, right operands;
+#: :data:`casmbd.limits.MAX_EXPRESSION_DEPTH`).
+MAX_DEPTH = MAX_EXPRESSION_DEPTH
 
 #: Functions that may be called in an expression, by name.
 ALLOWED_FUNCTIONS: dict[str, Callable[..., Any]] = {

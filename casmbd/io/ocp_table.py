@@ -44,7 +44,7 @@ import math
 import os
 from pathlib import Path
 
-from casmbd.errors import CasmbdError, SceneError
+from casmbd.errors import CasmbdError, LimitError, SceneError
 from casmbd.io.scene import load_scene
 from casmbd.ocp.options import check_solver, check_solver_options
 from casmbd.ocp.problem import OBJECTIVES, FreeTime, Ocp
@@ -160,6 +160,8 @@ def ocp_from_scene(mech, table: dict | None = None, source: str = "<scene>") -> 
         ocp.guess(table.get("guess", "linear"))
     except SceneError:
         raise
+    except LimitError as exc:  # keeps its class: a size limit, not a malformed table
+        raise LimitError(f"{source}: [ocp]: {exc}") from None
     except CasmbdError as exc:
         raise SceneError(f"{source}: [ocp]: {exc}") from None
     return ocp

@@ -33,12 +33,21 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import tomllib
 from pathlib import Path
 from typing import Any
 
-from casmbd.errors import CasmbdError, ExpressionError, ModelError, SceneError
+from casmbd.errors import CasmbdError, ExpressionError, LimitError, ModelError, SceneError
 from casmbd.io.expressions import evaluate_number
+from casmbd.limits import (
+    MAX_BODIES,
+    MAX_ELEMENTS,
+    MAX_SCENE_BYTES,
+    MAX_TOML_DEPTH,
+    check_count,
+    format_bytes,
+)
 from casmbd.model import GROUND, Mechanism
 from casmbd.model.rotations import inertia_tensor
 from casmbd.model.values import EXTRAPOLATIONS, Samples
@@ -286,6 +295,8 @@ def _build(data: dict, source: str) -> Mechanism:
         if not isinstance(raw, list):
             raise SceneError(f"[[{table}]]: expected an array of tables ([[{table}]]), got "
                              f"{type(raw).__name__}")
+        check_count(f"{source}: [[{table}]] entries", len(raw),
+                    MAX_BODIES if table == "bodies" else MAX_ELEMENTS)
         return [_Entry(table, i, item, params) for i, item in enumerate(raw)]
 
     for e in entries("bodies"):
@@ -519,6 +530,23 @@ def _nonneg(e: _Entry, key: str):
     return val
 
 
+#: strings and comments of TOML, whose brackets do not nest (multi-line forms first)
+_TOML_SKIP = re.compile(r'"""[\s\S]*?"""|\'\'\'[\s\S]*?\'\'\'|"(?:[^"\\\n]|\\.)*"'
+                        r"|'[^'\n]*'|#[^\n]*")
+
+
+def _toml_depth(text: str) -> int:
+    """Deepest nesting of ``[``/``{`` outside strings and comments, in linear time (the TOML
+    reader itself recurses once per level and would fail with a RecursionError)."""
+    if text.count("[") + text.count("{") <= MAX_TOML_DEPTH:
+        return 0
+    depth = deepest = 0
+    for char in re.findall(r"[\[\]{}]", _TOML_SKIP.sub("", text)):
+        depth = depth + 1 if char in "[{" else max(depth - 1, 0)
+        deepest = max(deepest, depth)
+    return deepest
+
+
 def loads_scene(text: str, source: str = "<string>") -> Mechanism:
     """Build a :class:`Mechanism` from TOML text.
 
@@ -527,10 +555,18 @@ def loads_scene(text: str, source: str = "<string>") -> Mechanism:
     SceneError
         Malformed TOML or any invalid table, entry or key (named in the message).
     """
+    check_count(f"{source}: scene size in characters", len(text), MAX_SCENE_BYTES)
+    depth = _toml_depth(text)
+    if depth > MAX_TOML_DEPTH:
+        raise SceneError(f"{source}: arrays or inline tables nested {depth} levels deep; the "
+                         f"limit is {MAX_TOML_DEPTH} (casmbd.limits.MAX_TOML_DEPTH)")
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{source}: malformed TOML: {exc}") from None
+    except RecursionError:  # the reader recurses per level: a depth the scan did not see
+        raise SceneError(f"{source}: nested too deeply for the TOML reader (the limit is "
+                         f"{MAX_TOML_DEPTH} levels)") from None
     mech = _build(data, source)
     mech.scene_text = text
     mech.scene_data = data
@@ -541,6 +577,10 @@ def load_scene(path: str | os.PathLike) -> Mechanism:
     """Read a scene file and build its :class:`Mechanism` (see :func:`loads_scene`)."""
     path = Path(path)
     try:
+        size = path.stat().st_size if path.is_file() else 0
+        if size > MAX_SCENE_BYTES:
+            raise LimitError(f"scene file '{path}': {format_bytes(size)} exceeds the limit of "
+                             f"{format_bytes(MAX_SCENE_BYTES)} (casmbd.limits.MAX_SCENE_BYTES)")
         text = path.read_text(encoding="utf-8-sig")
     except FileNotFoundError:
         raise SceneError(f"scene file '{path}' not found") from None

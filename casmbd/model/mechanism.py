@@ -19,6 +19,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 
 from casmbd.errors import ModelError
+from casmbd.limits import MAX_BODIES, MAX_ELEMENTS, check_count
 from casmbd.model.bodies import GROUND, Body, Marker, SpatialBody, vector
 from casmbd.model.drivers import BODY_COORDINATES, Driver
 from casmbd.model.forces import (
@@ -92,6 +93,8 @@ class Mechanism:
             raise ModelError(f"body name '{GROUND}' is reserved for the ground")
         if name in table:
             raise ModelError(f"duplicate {kind} name '{name}'")
+        check_count(f"mechanism '{self.name}': {kind} '{name}' would be number {len(table) + 1}",
+                    len(table) + 1, MAX_BODIES if kind == "body" else MAX_ELEMENTS)
         return name
 
     def _body(self, name: str, where: str) -> str:

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 
 from casmbd.errors import AnalysisError, ModelError
+from casmbd.limits import MAX_OCP_INTERVALS, MAX_OCP_UNKNOWNS, check_count
 from casmbd.ocp.options import check_solver_options
 from casmbd.ocp.quantities import quantities
 from casmbd.system.equations import System
@@ -143,6 +144,7 @@ class Ocp:
                                 f">= 1, got {self.steps!r}")
         if not (isinstance(self.degree, int) and 1 <= self.degree <= 9):
             raise AnalysisError(f"ocp: degree must be an integer in 1..9, got {self.degree!r}")
+        self._check_size()
         if self.dynamics not in DYNAMICS:
             raise AnalysisError(f"ocp: dynamics must be one of {', '.join(DYNAMICS)}, got "
                                 f"{self.dynamics!r}")
@@ -164,6 +166,19 @@ class Ocp:
         if not self.controls:
             raise ModelError(f"ocp: mechanism '{self.system.mechanism.name}' has no actuators: "
                              "nothing to optimise (add actuators on the driven joints)")
+
+    def _check_size(self) -> None:
+        """Refuse (:class:`~casmbd.errors.LimitError`) a transcription larger than the limits of
+        :mod:`casmbd.limits` before any expression is built: the intervals, and the unknowns
+        intervals × points per interval × (states + inputs), the points being
+        subintervals × (degree + 1) for collocation and the RK4 steps for shooting."""
+        check_count("ocp: intervals", self.intervals, MAX_OCP_INTERVALS, "use fewer intervals")
+        per_interval = (self.steps if self.transcription == "multiple_shooting"
+                        else self.subintervals * (self.degree + 1))
+        width = 2 * self.system.nq + len(self.system.mechanism.actuators)
+        check_count(f"ocp: unknowns ({self.intervals:,} intervals × {per_interval} points × "
+                    f"{width} states and inputs)", self.intervals * per_interval * width,
+                    MAX_OCP_UNKNOWNS, "use fewer intervals, subintervals, degree or steps")
 
     # ------------------------------------------------------------------ vocabulary
     @property

@@ -21,9 +21,11 @@ from pathlib import Path
 
 import numpy as np
 
-from casmbd.errors import AnalysisError
+from casmbd.errors import AnalysisError, CasmbdError
+from casmbd.limits import MAX_FRAMES, check_count
 from casmbd.results import atomic_write
 from casmbd.viz.geometry import Geometry, _geometry, _place, body_poses, scene_name
+from casmbd.viz.plots import check_figure_size
 
 
 class _Drawing:
@@ -263,8 +265,10 @@ def animate(result, mechanism=None, *, max_frames: int | None = None, fps: float
     """
     from matplotlib.animation import FuncAnimation
 
-    drawing = _Drawing(result, mechanism, trace=trace, figsize=figsize, view=view)
     frames = frame_indices(len(result.t), max_frames)
+    check_count("animation: frames", len(frames), MAX_FRAMES,
+                "give max_frames (--max-frames) to show evenly spread output steps")
+    drawing = _Drawing(result, mechanism, trace=trace, figsize=figsize, view=view)
     if fps is None:
         duration = float(result.t[-1] - result.t[0]) if len(result.t) > 1 else 0.0
         fps = len(frames) / duration if duration > 0 else 10.0
@@ -318,7 +322,11 @@ def save_animation(anim, out: str | os.PathLike, fps: float | None = None,
     fps = fps or getattr(anim, "casmbd_fps", 20.0)
     try:
         check_animation_file(out)
-    except AnalysisError:
+        drawing = getattr(anim, "casmbd_drawing", None)
+        if drawing is not None:
+            check_figure_size(tuple(float(x) for x in drawing.fig.get_size_inches()), dpi,
+                              f"animation '{out}'")
+    except CasmbdError:
         anim._draw_was_started = True  # not rendered on purpose: no deletion warning
         raise
     if Path(out).suffix.lower() == ".gif":

@@ -20,7 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from casmbd.errors import AnalysisError
+from casmbd.errors import AnalysisError, LimitError
+from casmbd.limits import MAX_DPI, MAX_FIGURE_INCHES, MAX_PIXELS, check_count
 from casmbd.results import atomic_write
 from casmbd.viz.geometry import scene_name
 
@@ -28,11 +29,32 @@ from casmbd.viz.geometry import scene_name
 MAX_LEGEND = 14
 
 
+def check_figure_size(figsize=None, dpi: float | None = None, what: str = "figure") -> None:
+    """Refuse (:class:`~casmbd.errors.LimitError`) a figure size or resolution beyond the
+    limits of :mod:`casmbd.limits` before matplotlib allocates the canvas: width and height
+    in (0, MAX_FIGURE_INCHES] inches, dpi in (0, MAX_DPI], at most MAX_PIXELS pixels."""
+    if dpi is not None:
+        if not (isinstance(dpi, (int, float)) and math.isfinite(dpi) and dpi > 0):
+            raise LimitError(f"{what}: dpi must be a finite number > 0, got {dpi!r}")
+        check_count(f"{what}: dpi", dpi, MAX_DPI, "use a lower resolution")
+    if figsize is not None:
+        for label, inches in zip(("width", "height"), figsize, strict=True):
+            if not (isinstance(inches, (int, float)) and math.isfinite(inches) and inches > 0):
+                raise LimitError(f"{what}: {label} must be a finite number of inches > 0, "
+                                 f"got {inches!r}")
+            check_count(f"{what}: {label} in inches", inches, MAX_FIGURE_INCHES)
+        if dpi is not None:
+            check_count(f"{what}: pixels ({figsize[0]:g} × {figsize[1]:g} in at {dpi:g} dpi)",
+                        round(figsize[0] * figsize[1] * dpi * dpi), MAX_PIXELS,
+                        "use a lower dpi")
+
+
 def new_figure(nrows: int = 1, ncols: int = 1, figsize=(6.4, 3.2), **kw):
     """A Figure on an Agg canvas and its axes (squeezed like ``pyplot.subplots``)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
+    check_figure_size(figsize)
     fig = Figure(figsize=figsize, layout="constrained")
     FigureCanvasAgg(fig)
     axes = fig.subplots(nrows, ncols, squeeze=True, **kw)
@@ -42,6 +64,7 @@ def new_figure(nrows: int = 1, ncols: int = 1, figsize=(6.4, 3.2), **kw):
 def save_figure(fig, out: str | os.PathLike, dpi: float = 100) -> Path:
     """Save ``fig`` atomically; the format follows the suffix of ``out`` (png, pdf, svg …)."""
     fmt = Path(out).suffix.lstrip(".").lower() or "png"
+    check_figure_size(tuple(float(x) for x in fig.get_size_inches()), dpi, f"figure '{out}'")
     try:
         return atomic_write(out, lambda tmp: fig.savefig(tmp, dpi=dpi, format=fmt))
     except ValueError as exc:  # unknown format

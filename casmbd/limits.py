@@ -1,0 +1,176 @@
+"""The stated limits on the size of inputs, in one place (issue 18, item 3).
+
+Absurd sizes used to end in an internal error, or worse, in a process that fills the memory
+until the kernel kills it (``--steps 1000000`` on a 200-body scene wanted more than 24 GB).
+Every analysis and reader checks its inputs against these limits *before* it builds equations,
+compiles code or allocates results, and refuses with :class:`~casmbd.errors.LimitError`
+naming the quantity, its value, the limit and what to do instead (a TOML file nested too
+deeply is a :class:`~casmbd.errors.SceneError`).  The limits are generous: a scene of a
+thousand bodies and ten thousand output times runs; what they refuse could not have finished.
+
+The memory a result will need is estimated from the number of output times times the values
+stored per time (:func:`output_values`, a lower bound from the mechanism's element counts)
+times 8 bytes, and compared with :func:`memory_budget`: ``$CASMBD_MEMORY_BUDGET`` (bytes,
+or with a suffix ``K``, ``M``, ``G``, ``T``: ``"16G"``) or half the physical memory.
+
+This module sits below everything else (it imports only :mod:`casmbd.errors`).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+
+from casmbd.errors import LimitError
+
+__all__ = [
+    "MAX_BODIES", "MAX_DPI", "MAX_ELEMENTS", "MAX_EXPRESSION_DEPTH", "MAX_EXPRESSION_LENGTH",
+    "MAX_FIGURE_INCHES", "MAX_FRAMES", "MAX_OCP_INTERVALS", "MAX_OCP_UNKNOWNS", "MAX_PIXELS",
+    "MAX_SCENE_BYTES", "MAX_STEPS", "MAX_SWEEP_POINTS", "MAX_TOML_DEPTH", "MEMORY_ENV",
+    "check_count", "check_memory", "check_steps", "format_bytes", "memory_budget",
+    "output_values",
+]
+
+#: Largest scene file (or TOML text) read, in bytes; a 5000-body chain takes 0.6 MB.
+MAX_SCENE_BYTES = 64 * 2**20
+#: Deepest nesting of arrays and inline tables in a TOML scene (scenes need 3; Python's TOML
+#: reader recurses once per level and fails near 500).
+MAX_TOML_DEPTH = 32
+#: Most bodies of one mechanism (``info`` on 5000 bodies takes seconds).
+MAX_BODIES = 20_000
+#: Most joints, markers, drivers, forces, actuators or parameters of one mechanism, each.
+MAX_ELEMENTS = 100_000
+#: Longest expression string, in characters (:mod:`casmbd.io.expressions`).
+MAX_EXPRESSION_LENGTH = 10_000
+#: Deepest nesting of an expression (:mod:`casmbd.io.expressions`).
+MAX_EXPRESSION_DEPTH = 100
+#: Most output intervals (``steps``) of a time-domain analysis, whatever the memory (also the
+#: largest integer the command line accepts for ``--steps``, ``--max-steps``, ``--intervals``).
+MAX_STEPS = 10_000_000
+#: Most intervals of an optimal-control transcription.
+MAX_OCP_INTERVALS = 100_000
+#: Most collocation unknowns of an optimal-control problem: intervals × (degree + 1) ×
+#: (states + inputs); IPOPT's memory grows faster than this count.
+MAX_OCP_UNKNOWNS = 10_000_000
+#: Most points of a parameter sweep (the product of the values of all parameters).
+MAX_SWEEP_POINTS = 1_000_000
+#: Most frames of an animation.
+MAX_FRAMES = 100_000
+#: Highest resolution of a figure or animation, in dots per inch.
+MAX_DPI = 2_400
+#: Largest width or height of a figure, in inches.
+MAX_FIGURE_INCHES = 200.0
+#: Most pixels of one figure or animation frame (width × height × dpi²).
+MAX_PIXELS = 100_000_000
+#: Environment variable overriding :func:`memory_budget` (bytes or ``"16G"``).
+MEMORY_ENV = "CASMBD_MEMORY_BUDGET"
+#: Budget when the physical memory is unknown.
+FALLBACK_MEMORY_BUDGET = 4 * 2**30
+#: Fraction of the physical memory a result may take by default.
+MEMORY_FRACTION = 0.5
+
+_SUFFIX = {"": 1, "K": 2**10, "M": 2**20, "G": 2**30, "T": 2**40}
+
+
+def format_bytes(count: float) -> str:
+    """``count`` bytes as a short human-readable figure (``"43.2 GB"``; powers of 1024)."""
+    for unit in ("B", "KB", "MB", "GB", "TB"):
+        if abs(count) < 1024 or unit == "TB":
+            return f"{count:.0f} {unit}" if unit == "B" else f"{count:.1f} {unit}"
+        count /= 1024
+    return f"{count:.1f} PB"  # pragma: no cover  (the loop returns at TB)
+
+
+def memory_budget() -> tuple[int, str]:
+    """Bytes a result may take, and where that figure comes from.
+
+    ``$CASMBD_MEMORY_BUDGET`` (a number of bytes, optionally with a suffix K, M, G or T —
+    powers of 1024) wins; otherwise half the physical memory (``os.sysconf``), or 4 GiB when
+    the system does not tell.
+
+    Raises
+    ------
+    LimitError
+        When the environment variable is not a positive size.
+    """
+    text = os.environ.get(MEMORY_ENV, "").strip()
+    if text:
+        match = re.fullmatch(r"(\d+(?:\.\d*)?)\s*([KMGT]?)i?B?", text.upper())
+        value = float(match.group(1)) * _SUFFIX[match.group(2)] if match else 0.0
+        if not value >= 1:
+            raise LimitError(f"${MEMORY_ENV} = {text!r}: expected a positive size in bytes, "
+                             "optionally with a suffix K, M, G or T (e.g. 16G)")
+        return int(value), f"${MEMORY_ENV}"
+    try:
+        physical = os.sysconf("SC_PHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (AttributeError, OSError, ValueError):
+        physical = -1
+    if physical <= 0:
+        return FALLBACK_MEMORY_BUDGET, "the default budget (physical memory unknown)"
+    return int(MEMORY_FRACTION * physical), "half the physical memory"
+
+
+def check_count(what: str, value: int, limit: int | float, hint: str = "") -> None:
+    """Raise :class:`LimitError` when ``value`` exceeds ``limit``.
+
+    Parameters
+    ----------
+    what : str
+        The quantity and its culprit, e.g. ``"sweep grid (k × c)"``.
+    value, limit : int
+        The asked-for size and the largest one allowed.
+    hint : str
+        What to do instead (appended after a colon).
+    """
+    if value > limit:
+        raise LimitError(f"{what}: {_number(value)} exceeds the limit of {_number(limit)} "
+                         f"(casmbd.limits){': ' + hint if hint else ''}")
+
+
+def _number(value: float) -> str:
+    """``1,000,000`` for whole numbers, ``2.5e+06`` style otherwise."""
+    return f"{int(value):,}" if float(value).is_integer() else f"{value:,g}"
+
+
+def check_memory(what: str, times: int, values_per_time: int, hint: str = "") -> int:
+    """Refuse a result of ``times`` × ``values_per_time`` floats larger than the budget.
+
+    Returns the estimated number of bytes.  The message names the analysis, the number of
+    output times, the estimate, the budget and its source, the most output times that fit,
+    and ``hint``.
+    """
+    need = 8 * int(times) * max(int(values_per_time), 1)
+    budget, source = memory_budget()
+    if need > budget:
+        fit = budget // (8 * max(int(values_per_time), 1))
+        raise LimitError(
+            f"{what}: {times:,} output times × {values_per_time:,} values × 8 bytes = "
+            f"{format_bytes(need)} exceeds the memory budget of {format_bytes(budget)} "
+            f"({source}): use at most {max(fit - 1, 0):,} steps{', ' + hint if hint else ''}"
+            f", or raise ${MEMORY_ENV} (e.g. {MEMORY_ENV}=64G)")
+    return need
+
+
+def output_values(mechanism) -> int:
+    """A lower bound of the values a time-domain result stores per output time.
+
+    From the element counts only (no equations are built): centre-of-mass position, velocity
+    and acceleration and the angles (plane) or rotation matrix, angular velocity and angular
+    acceleration (space) of every body, marker positions, velocities and accelerations, the
+    reaction of every joint, one effort per driver and actuator, and the coordinates q, v, a of
+    the least generous description (joint coordinates: one per body).  Results also hold the
+    multipliers and the absolute or natural coordinates, so the true figure is larger.
+    """
+    d = int(getattr(mechanism, "dimension", 2))
+    per_body = 9 if d == 2 else 24
+    per_marker, per_joint = 3 * d, 3 if d == 2 else 6
+    count = lambda name: len(getattr(mechanism, name, ()) or ())  # noqa: E731
+    return (count("bodies") * (per_body + 3) + count("markers") * per_marker
+            + count("joints") * per_joint + count("drivers") + count("actuators") + 6)
+
+
+def check_steps(what: str, steps: int, values_per_time: int, hint: str = "") -> int:
+    """:func:`check_count` of ``steps`` against :data:`MAX_STEPS`, then :func:`check_memory`
+    of the ``steps + 1`` output times; returns the estimated bytes."""
+    check_count(f"{what}: steps", int(steps), MAX_STEPS, "use fewer steps")
+    return check_memory(what, int(steps) + 1, values_per_time, hint)
