@@ -475,6 +475,8 @@ def _cmd_statics(args) -> tuple[dict, str]:
     result = static_equilibrium(mech, method=args.method, mode=args.mode)
     data = result.to_json()
     stable = {True: "stable", False: "unstable", None: "neutral"}[result.stable]
+    if result.stability is not None and result.stability.null_directions:
+        stable += f" (null directions: {', '.join(result.stability.null_coordinates())})"
     lines = [f"static equilibrium of '{mech.name}' ({result.method} Newton, "
              f"{result.iterations} iterations, residual {result.residual:.3g}): {stable}"]
     for name, b in data["bodies"].items():

@@ -82,6 +82,7 @@ from casmbd.analysis.assembly import assemble
 from casmbd.analysis.kkt import project_velocities
 from casmbd.analysis.redundancy import RANK_RTOL, rank_report
 from casmbd.errors import AssemblyError, IntegratorError
+from casmbd.interrupts import reraise_interrupt
 
 #: absolute limit on cond(C_q,d) before the independent set is re-selected
 COND_LIMIT = 1e6
@@ -538,6 +539,7 @@ class _Run:
                 with contextlib.redirect_stderr(captured):
                     res = solver(x0=y, p=t)
             except RuntimeError as exc:
+                reraise_interrupt(exc)
                 err = self.callback.error
                 if err is None:
                     sys.stderr.write(captured.getvalue())
@@ -573,6 +575,7 @@ class _Run:
         try:
             return self._attempt(x, t, depth)
         except (RuntimeError, _RhsError) as exc:
+            reraise_interrupt(exc)
             # the step limit is the user's: not a reason to re-select
             if not self.partitioning or depth >= MAX_SPLITS or "CV_TOO_MUCH_WORK" in str(exc):
                 raise
@@ -631,6 +634,7 @@ def _run(sim, name, grid, x0, rtol, atol, max_steps, projection: bool, keep_part
             if projection:
                 x_new = _project(run.model, x_new, t_next)
         except (RuntimeError, _RhsError, AssemblyError) as exc:
+            reraise_interrupt(exc)  # Ctrl-C: no partial results kept for a re-run
             t_fail = min(max(run.callback.t_last, t_k), t_next) if run.callback else t_k
             stats = run.stats({"failure_time": t_fail})
             if keep_partial:

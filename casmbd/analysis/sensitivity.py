@@ -38,6 +38,7 @@ import numpy as np
 from casmbd.analysis.kkt import consistent_state
 from casmbd.analysis.simulate import Simulator, _input_expression
 from casmbd.errors import AnalysisError, IntegratorError
+from casmbd.interrupts import reraise_interrupt
 
 METHODS = ("forward", "adjoint")
 _AXES = ("x", "y", "z")
@@ -276,6 +277,7 @@ def sensitivity(mechanism, outputs: Sequence[str] | str, parameters: Sequence[st
     try:
         val, jac_v = fun(p_nom[idx])
     except RuntimeError as exc:
+        reraise_interrupt(exc)
         msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else "failed"
         raise IntegratorError(f"sensitivity: IDAS ({method}) failed over [{t_start:g}, "
                               f"{t_end:g}]: {msg}", float("nan"), "IDA_FAILURE") from None

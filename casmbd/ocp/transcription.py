@@ -16,7 +16,7 @@ import time
 import casadi as ca
 import numpy as np
 
-from casmbd import progress
+from casmbd import interrupts, progress
 from casmbd.errors import AnalysisError, OptimizationError
 from casmbd.ocp.dynamics import explicit_accelerations, implicit_residual, node_constraints
 from casmbd.ocp.options import check_solver_options
@@ -499,8 +499,15 @@ class Transcription:
         w0 = np.clip(w0, lbw, ubw)
         t1 = time.perf_counter()
         try:
-            out = solver(x0=w0, lbx=lbw, ubx=ubw, lbg=np.concatenate(b.lbg),
-                         ubg=np.concatenate(b.ubg))
+            # Ctrl-C inside IPOPT ends as a solver status, not an exception: raise it (no
+            # OptimizationError carrying the last iterate, nothing saved)
+            with interrupts.watching():
+                out = solver(x0=w0, lbx=lbw, ubx=ubw, lbg=np.concatenate(b.lbg),
+                             ubg=np.concatenate(b.ubg))
+                interrupts.check()
+        except RuntimeError as exc:
+            interrupts.reraise_interrupt(exc)
+            raise
         finally:
             if bar is not None:
                 bar.close()

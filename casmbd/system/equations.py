@@ -24,6 +24,7 @@ import casadi as ca
 import numpy as np
 
 from casmbd.errors import ModelError
+from casmbd.interrupts import reraise_interrupt
 from casmbd.model.bodies import GROUND
 from casmbd.model.forces import (
     PointForce,
@@ -591,6 +592,7 @@ class System:
         except ModelError:
             raise
         except Exception as exc:  # a user's callable may raise anything
+            reraise_interrupt(exc)
             raise ModelError(f"{where}: the user function raised {type(exc).__name__}: "
                              f"{exc}") from exc
         if force.body is None:
