@@ -144,7 +144,8 @@ def assemble(model, q0: np.ndarray, t: float = 0.0, fixed: Sequence[str | int] |
              tol: float = 1e-11, max_iter: int = 50) -> AssemblyReport:
     """Newton-Raphson on C(q, t) = 0 from ``q0`` keeping the ``fixed`` coordinates.
 
-    Converged when max |C| <= ``tol`` · max(1, largest |x|, |y|): relative to the mechanism's size.
+    Converged when max |C| <= ``tol`` · max(1, largest |x|, |y|(, |z|)) of the iterate: relative
+    to the mechanism's size (default 1e-11), never to the size of a wild guess.
 
     Raises
     ------
@@ -159,9 +160,16 @@ def assemble(model, q0: np.ndarray, t: float = 0.0, fixed: Sequence[str | int] |
     free = np.setdiff1d(np.arange(model.nq), idx_fixed)
     if model.nc == 0:
         return AssemblyReport(q, 0, 0.0, np.zeros_like(q))
-    # residuals are lengths (or angles): scale the tolerance with the size of the mechanism
+    # residuals are lengths (or angles): scale the tolerance with the size of the mechanism —
+    # at the current iterate, not the guess (a guess extrapolated through a singular pose can
+    # be 1e14 m away, which would accept any residual)
     lengths = model.system.length_indices
-    tol = tol * max(1.0, float(np.max(np.abs(q[lengths]), initial=0.0)))
+    rtol = tol
+
+    def tol_at(x: np.ndarray) -> float:
+        return rtol * max(1.0, float(np.max(np.abs(x[lengths]), initial=0.0)))
+
+    tol = tol_at(q)
     c = model.constraints(q, t)
     norm = float(np.max(np.abs(c)))
     it = 0
@@ -185,14 +193,15 @@ def assemble(model, q0: np.ndarray, t: float = 0.0, fixed: Sequence[str | int] |
             trial[free] += alpha * step
             c_trial = model.constraints(trial, t)
             n_trial = float(np.max(np.abs(c_trial)))
-            if (np.isfinite(n_trial) and n_trial < norm * (1 - 1e-4 * alpha)) or n_trial <= tol:
+            if (np.isfinite(n_trial) and n_trial < norm * (1 - 1e-4 * alpha)) or \
+                    n_trial <= tol_at(trial):
                 accepted = True
                 break
             alpha *= 0.5
         it += 1
         if not accepted:
             break
-        q, c, norm = trial, c_trial, n_trial
+        q, c, norm, tol = trial, c_trial, n_trial, tol_at(trial)
     if norm > tol:
         raise AssemblyError(f"cannot assemble at t = {t:g} after {it} Newton iterations "
                             f"(max |C| = {norm:.3g}); largest residuals: "
