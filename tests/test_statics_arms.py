@@ -10,6 +10,7 @@ import json
 import numpy as np
 import pytest
 
+import casmbd
 from casmbd.analysis.assembly import assemble
 from casmbd.analysis.stability import STABILITY_RTOL, classify_stability
 from casmbd.analysis.statics import STATICS_NEEDS, static_equilibrium, statics_functions
@@ -156,3 +157,29 @@ def test_cli_statics_arm(tmp_path, capsys, coordinates, method):
     assert {d["dominant"] for d in data["stability"]["null_directions"]} == \
         NULL_JOINTS["ur_like"]
     assert data["residual"] <= RTOL * 100.0
+
+
+@pytest.mark.parametrize("coordinates", ["absolute", "joint"])
+def test_principal_range_only_where_equations_do_not_change(coordinates):
+    """A rod pinned at the origin, no gravity, started at 7 rad (> π).  With a torsional
+    spring of free angle 7 rad the equilibrium angle is 7 rad and must stay so (a wound
+    spring differs from an unwound one); without the spring every angle is an equilibrium and
+    the result is reduced to 7 − 2π."""
+    def rod(spring: bool):
+        m = casmbd.Mechanism(f"wound_{spring}_{coordinates}", gravity=(0.0, 0.0),
+                             coordinates=coordinates)
+        m.add_body("rod", 1.0, 1 / 12, (0.5 * np.cos(7.0), 0.5 * np.sin(7.0)), angle=7.0)
+        m.add_revolute("pivot", "ground", "rod", (0.0, 0.0))
+        if spring:
+            m.add_rotational_spring_damper("spring", "pivot", stiffness=3.0, free_angle=7.0)
+        return m
+
+    wound = static_equilibrium(rod(True), mode="vm")
+    free = static_equilibrium(rod(False), mode="vm")
+    assert wound.joint_coordinates[0] == pytest.approx(7.0, abs=1e-12)
+    assert free.joint_coordinates[0] == pytest.approx(7.0 - 2 * np.pi, abs=1e-12)
+    assert free.body_angles[0] == pytest.approx(7.0 - 2 * np.pi, abs=1e-12)
+    if coordinates == "absolute":  # q itself: the body angle
+        assert wound.q[2] == pytest.approx(7.0, abs=1e-12)
+        assert free.q[2] == pytest.approx(7.0 - 2 * np.pi, abs=1e-12)
+    assert wound.stability.verdict == "stable" and free.stability.verdict == "neutral"

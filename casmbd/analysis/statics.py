@@ -71,6 +71,7 @@ from casmbd.analysis.stability import STABILITY_RTOL, Stability, classify_stabil
 from casmbd.analysis.trust_region import RANK_RTOL, trust_region_step
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, AssemblyError
+from casmbd.model.forces import RotationalSpringDamper
 from casmbd.system.descriptions import SpatialNatural, quaternions_from_matrices
 
 __all__ = ["METHODS", "STABILITY_RTOL", "StaticsResult", "static_equilibrium",
@@ -364,6 +365,9 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
     stats = dict(model.report_dict)
     stats.update({"solve_seconds": solve_seconds, "n_coordinates": prob.nq,
                   "n_constraints": prob.nc, "degrees_of_freedom": int(n.shape[1])})
+    joint_coordinates = np.ravel(out["joint_positions"][0]).copy()
+    for k in _periodic_joint_outputs(mech, system.joint_coordinate_names):
+        joint_coordinates[k] = _wrap(joint_coordinates[k])
     quats = np.zeros((0, 4))
     if system.dimension == 3:
         quats = quaternions_from_matrices(out["rotation_matrices"][0].reshape(nb, 9))
@@ -374,9 +378,9 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
         method=method, stable=stability.stable, eigenvalues=stability.eigenvalues,
         joint_reactions=reactions, t=t, potential_energy=model.potential_energy(q, t),
         names=names, body_positions=np.reshape(out["body_positions"][0], (nb, system.dimension)),
-        body_angles=np.ravel(out["angle_positions"][0]) if system.dimension == 2 else
-        np.zeros(0), body_quaternions=quats,
-        joint_coordinates=np.ravel(out["joint_positions"][0]), stats=stats,
+        body_angles=np.array([_wrap(a) for a in np.ravel(out["angle_positions"][0])])
+        if system.dimension == 2 else np.zeros(0), body_quaternions=quats,
+        joint_coordinates=joint_coordinates, stats=stats,
         stability=stability)
 
 
@@ -395,6 +399,21 @@ def _fail(prob: _Problem, why: str, it: int, f: np.ndarray, method: str):
 def _wrap(angle: float) -> float:
     """The angle in (−π, π]."""
     return float(angle - 2.0 * np.pi * np.ceil((angle - np.pi) / (2.0 * np.pi)))
+
+
+def _periodic_joint_outputs(mech, names: list[str]) -> list[int]:
+    """Indices of the reported joint coordinates that are free angles: revolute angles and
+    cylindrical ``.angle`` of joints without a rotational spring or a driver (whose winding
+    matters)."""
+    wound = {f.joint for f in mech.forces.values() if isinstance(f, RotationalSpringDamper)}
+    wound |= {d.joint for d in mech.drivers.values() if d.joint is not None}
+    out = []
+    for k, name in enumerate(names):
+        joint, _, coord = name.partition(".")
+        kind = type(mech.joints[joint]).__name__
+        if joint not in wound and (coord == "angle" or (not coord and "Revolute" in kind)):
+            out.append(k)
+    return out
 
 
 def _principal_range(prob: _Problem, q, lam, fscale: float, lscale: float) -> np.ndarray:
