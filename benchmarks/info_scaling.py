@@ -17,6 +17,7 @@ import os
 import subprocess
 import sys
 import tempfile
+import textwrap
 import time
 from pathlib import Path
 
@@ -82,15 +83,19 @@ def measure(sizes, mode: str = "auto") -> dict:
 
 def markdown(data: dict) -> str:
     """The docs section: a table of N, time before (issue 18) and now."""
-    out = [HEAD, "",
-           "Wall time of `casmbd info chain.toml --json` (fresh process, empty cache, default "
-           "`--mode auto`) on a planar chain of N rods pinned end to end (absolute "
-           "coordinates; 3N coordinates, 2N equations, N degrees of freedom), written by "
-           "`python -m benchmarks.info_scaling --update-docs`. *Before* are the figures of "
-           "issue 18; *now* removes the quadratic steps: name look-ups in lists during "
-           "validation, the dense SVD of C_q for the rank (now a sparse LU with threshold "
-           "pivoting, the SVD kept for small matrices), and dense least-squares Newton steps "
-           "in the assembly.", "",
+    text = ("Wall time of `casmbd info chain.toml --json` (fresh process, empty cache, default "
+            "`--mode auto`) on a planar chain of N rods pinned end to end (absolute "
+            "coordinates; 3N coordinates, 2N equations, N degrees of freedom), written by "
+            "`python -m benchmarks.info_scaling --update-docs`. *Before* are the figures of "
+            "issue 18. Three steps were super-linear: compiling C and C_q to C (25 s at "
+            "N = 500; `info` now evaluates them on the virtual machine under `auto`), the "
+            "dense SVD of C_q for the rank (cubic: 76 s at N = 2000; now a Q-less sparse "
+            "Givens QR of C_qᵀ above 2.5·10⁵ entries, `redundancy.sparse_rank_report`, 0.1 s "
+            "at N = 5000, same rank and dependent rows) and, when the start must be "
+            "assembled, dense least-squares Newton steps (70 s for a driven 500-rod chain; now "
+            "a sparse augmented system, 2.3 s). What is left grows linearly: reading the "
+            "scene, building the expressions, the CasADi Functions.")
+    out = [HEAD, "", *textwrap.wrap(text, 95), "",
            "| N | before [s] | now [s] | degrees of freedom |", "|---:|---:|---:|---:|"]
     for row in data["rows"]:
         before = BEFORE.get(row["n"])
