@@ -84,6 +84,22 @@ def test_inverse_dynamics_names_force_not_finite_later():
     assert_names(exc, "inverse dynamics at t = 0.5", "force 'push'", "-inf")
 
 
+def test_user_force_not_finite_names_the_element():
+    """A Python user force (no value field to evaluate) that is -inf at t = 0: the element is
+    named from its own generalized force."""
+    import casadi as ca
+
+    from casmbd.model import Mechanism
+
+    mech = Mechanism("user", gravity=[0.0, -9.81])
+    mech.add_body("rod", mass=1.0, inertia=0.1, position=[0.5, 0.0])
+    mech.add_revolute("pivot", "ground", "rod", [0.0, 0.0])
+    mech.add_user_force("wild", lambda ctx: ca.vertcat(ca.log(ctx.t), 0.0), body="rod")
+    with pytest.raises(ModelError) as exc:
+        simulate(mech, t_end=0.1, steps=2, mode="vm")
+    assert_names(exc, "simulation at t = 0", "force 'wild'", "not finite", "rod.x = -inf")
+
+
 @pytest.mark.parametrize("expr", ['"log(t)"', '"sqrt(-1)"'])
 def test_driver_position_not_finite_at_start(expr):
     with pytest.raises(AssemblyError) as exc:

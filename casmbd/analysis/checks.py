@@ -22,6 +22,7 @@ from collections.abc import Iterator
 
 import casadi as ca
 import numpy as np
+import scipy.sparse as sp
 
 from casmbd.errors import AssemblyError, ModelError
 from casmbd.model.bodies import GROUND
@@ -143,20 +144,28 @@ def _evaluations(model, q, v, t: float, u) -> Iterator[tuple[str, np.ndarray, li
     rows = [str(label) for label in system.constraint_labels]
     calls = [("constraints", "the constraints C", rows, lambda: model.constraints(q, t)),
              ("constraint_jacobian", "the constraint Jacobian C_q", rows,
-              lambda: model.constraint_jacobian(q, t).toarray()),
+              lambda: model.constraint_jacobian(q, t)),
              ("constraint_time_derivative", "C_t", rows,
               lambda: model.constraint_time_derivative(q, t)),
              ("acceleration_rhs", "the acceleration right-hand side γ", rows,
               lambda: model.acceleration_rhs(q, v, t)),
-             ("mass_matrix", "the mass matrix M", coords,
-              lambda: model.mass_matrix(q).toarray()),
+             ("mass_matrix", "the mass matrix M", coords, lambda: model.mass_matrix(q)),
              ("applied_forces", "the applied forces Q", coords,
               lambda: model.applied_forces(q, v, t, u)),
              ("quadratic_velocity_forces", "the quadratic-velocity forces", coords,
               lambda: model.quadratic_velocity_forces(q, v))]
     for name, text, labels, call in calls:
         if name in model.functions and (labels is coords or model.nc):
-            yield text, np.asarray(call(), float), labels
+            yield text, call(), labels
+
+
+def _bad_rows(values) -> np.ndarray:
+    """Rows with a non-finite entry of a vector or a sparse matrix (never densified: C_q of a
+    5000-body mechanism would take gigabytes)."""
+    if sp.issparse(values):
+        coo = values.tocoo()
+        return np.unique(coo.row[~np.isfinite(coo.data)])
+    return np.flatnonzero(~np.isfinite(np.asarray(values, float)))
 
 
 def check_start(model, q, v, t: float, u=None, what: str = "analysis",
@@ -201,12 +210,11 @@ def check_start(model, q, v, t: float, u=None, what: str = "analysis",
     if forces is not None:
         evaluations.append(("the generalized forces", np.asarray(forces, float), names))
     for text, values, labels in evaluations:
-        if np.all(np.isfinite(values)):
+        bad = _bad_rows(values)
+        if not bad.size:
             continue
         culprits = diagnose(model, t, q, v, u)
         if not culprits:  # name the rows
-            flat = values.reshape(values.shape[0], -1)
-            bad = np.flatnonzero(~np.all(np.isfinite(flat), axis=1))
             culprits = [f"{text} is not finite in the rows of "
                         + ", ".join(labels[i] for i in bad[:4])]
         raise ModelError(f"{what} at t = {t:g}: " + "; ".join(culprits[:4]))
