@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
+from casmbd.analysis.integrators import CapturedOutput
 from casmbd.analysis.kkt import consistent_state
 from casmbd.analysis.simulate import Simulator, _input_expression
 from casmbd.errors import AnalysisError, IntegratorError
@@ -274,13 +275,19 @@ def sensitivity(mechanism, outputs: Sequence[str] | str, parameters: Sequence[st
     fun = ca.Function("sensitivity", [psel], [out, jac])
     build = time.perf_counter() - t0
     t1 = time.perf_counter()
+    # SUNDIALS prints its diagnostics (and CasADi the failed Function's inputs) on stderr:
+    # captured, the "At t = …" line goes into the error, and an interrupt prints nothing
+    captured = CapturedOutput()
     try:
-        val, jac_v = fun(p_nom[idx])
+        with captured:
+            val, jac_v = fun(p_nom[idx])
     except RuntimeError as exc:
         reraise_interrupt(exc)
         msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else "failed"
+        when = [ln.strip() for ln in captured.text.splitlines() if ln.startswith("At t")]
         raise IntegratorError(f"sensitivity: IDAS ({method}) failed over [{t_start:g}, "
-                              f"{t_end:g}]: {msg}", float("nan"), "IDA_FAILURE") from None
+                              f"{t_end:g}]: {msg}" + (f" ({when[0]})" if when else ""),
+                              float("nan"), "IDA_FAILURE") from None
     val = np.asarray(val.full(), dtype=float).ravel()
     jac_v = np.asarray(jac_v.full(), dtype=float).reshape(len(values), len(idx))
     stats = {"rtol": rtol, "atol": atol, "t_start": float(t_start), "t_end": float(t_end),
