@@ -718,16 +718,19 @@ def _finite_json(obj):
     return obj
 
 
-def _interrupted(args) -> int:
+def _interrupted(args, started: float) -> int:
     """One line for Ctrl-C; exit status 130 (128 + SIGINT) like a shell's.
 
     Nothing is saved: every result file is written atomically after the analysis, so an
     interrupted verb leaves no ``--out`` file (an existing one is untouched); a sweep's
-    ``--out DIR`` keeps only the complete ``point_*.npz`` of finished points.
+    ``--out DIR`` keeps only the complete ``point_*.npz`` of finished points.  The one case
+    with a file: Ctrl-C after ``--out`` was written (e.g. while ``ocp`` draws ``--plot``).
     """
     out = getattr(args, "out", None)
     if args.verb == "sweep" and out:
         kept = f"kept the finished points in {out}/, no sweep.csv or sweep.npz"
+    elif out and os.path.isfile(out) and os.path.getmtime(out) >= started:
+        kept = f"{out} was complete before the interrupt, nothing else saved"
     elif out:
         kept = f"nothing saved ({out} not written)"
     else:
@@ -758,18 +761,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         return EXIT_USAGE
     if getattr(args, "json", False):
         os.environ["CASMBD_PROGRESS"] = "0"  # one JSON object: no progress bars
-    t0 = time.perf_counter()
+    t0, started = time.perf_counter(), time.time()
     try:
         data, text = VERBS[args.verb](args)
     except KeyboardInterrupt:
         if debug:
             raise
-        return _interrupted(args)
+        return _interrupted(args, started)
     except CasmbdError as exc:
         if debug:
             raise
         if interrupts.seen():  # a failure that Ctrl-C caused is still an interrupt
-            return _interrupted(args)
+            return _interrupted(args, started)
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_ERROR
     except Exception as exc:  # an unexpected failure still gets one clear line
