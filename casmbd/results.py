@@ -26,6 +26,8 @@ from pathlib import Path
 
 import numpy as np
 
+from casmbd.errors import AnalysisError, ResultFileError
+
 
 def _list(arr: np.ndarray):
     return np.asarray(arr, dtype=float).tolist()
@@ -167,7 +169,6 @@ class Result:
         """
         import warnings
 
-        from casmbd.errors import AnalysisError
         from casmbd.model import rotations
 
         if self.dimension != 3:
@@ -312,7 +313,6 @@ class Result:
             When the result holds no scene text (built in Python from a mechanism that did not
             come from a scene file); pass the mechanism explicitly instead.
         """
-        from casmbd.errors import AnalysisError
         from casmbd.io.scene import loads_scene
 
         if not self.scene:
@@ -433,8 +433,6 @@ def read_npz(path: str | os.PathLike, what: str = "result") -> dict[str, np.ndar
     ResultFileError
         Naming the file and what is wrong with it.
     """
-    from casmbd.errors import ResultFileError
-
     where = f"{what} file '{path}'"
     try:
         with open(path, "rb") as fh:
@@ -463,7 +461,7 @@ def read_npz(path: str | os.PathLike, what: str = "result") -> dict[str, np.ndar
     except ResultFileError:
         raise
     except FileNotFoundError:
-        raise ResultFileError(f"{where} not found") from None
+        raise ResultFileError(f"cannot read {where}: not found") from None
     except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error,
             NotImplementedError, struct.error) as exc:
         why = f"{exc or type(exc).__name__} (truncated or corrupted?)"
@@ -484,8 +482,6 @@ def load(path: str | os.PathLike) -> Result:
         When the file is missing, unreadable, truncated, corrupted or not a result file
         (naming the file and what is wrong); an :class:`~casmbd.errors.AnalysisError`.
     """
-    from casmbd.errors import ResultFileError
-
     data = read_npz(path)
     where = f"'{path}' is not a casmbd result file"
     if "meta" not in data:
