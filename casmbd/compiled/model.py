@@ -194,4 +194,31 @@ class NumericModel:
             raise ModelError("outputs: no time points")
         res = f.map(n)(q.T, v.T, a.T, np.reshape(t, (1, n)), np.tile(self.p[:, None], (1, n)))
         res = res if isinstance(res, (list, tuple)) else [res]
-        return {name: np.asarray(res[i]).T for i, name in enumerate(f.name_out())}
+        out = {name: np.asarray(res[i]).T for i, name in enumerate(f.name_out())}
+        self._unwrap_angles(out)
+        return out
+
+    def _unwrap_angles(self, out: dict) -> None:
+        """Make angle outputs continuous in time (``numpy.unwrap`` along the grid, in place).
+
+        A spatial joint angle is an ``atan2`` (and a planar angle in natural coordinates
+        too), which jumps by 2π where it passes ±π; the result's joint angles (revolute,
+        universal, cylindrical ``.angle``) and planar body angles (``angle_positions``) are
+        unwrapped so that plots, CSV and JSON are continuous.  They start in (−π, π] and stay
+        correct while an angle changes by less than π between outputs.  Planar absolute and
+        joint coordinates give exact continuous angles and are left alone.
+        """
+        system = self.system
+        if system.dimension == 2 and system.coordinates != "natural":
+            return  # angle coordinates and their differences: continuous already, exact
+        joints = system.mechanism.joints
+        cols = []
+        for k, key in enumerate(system.joint_coordinate_names):
+            name, _, coord = key.partition(".")
+            names = getattr(joints.get(name), "coordinate_names", ())
+            if (coord or (names[0] if names else "")).startswith("angle"):
+                cols.append(k)
+        if cols and "joint_positions" in out and out["joint_positions"].shape[0] > 1:
+            out["joint_positions"][:, cols] = np.unwrap(out["joint_positions"][:, cols], axis=0)
+        if "angle_positions" in out and out["angle_positions"].shape[0] > 1:
+            out["angle_positions"] = np.unwrap(out["angle_positions"], axis=0)
