@@ -4,10 +4,12 @@ Every function builds a :class:`matplotlib.figure.Figure` with an Agg canvas (no
 no GUI backend and no global figure list; works on machines without a display), returns it,
 and when ``out`` is given saves it atomically (temporary file + ``os.replace``).
 
-Kinds (:data:`KINDS`): ``coordinates`` (q), ``joints`` (joint coordinates), ``efforts``
-(driver efforts, actuator efforts or inputs), ``reactions`` (joint reaction forces and
-moments), ``energy`` (kinetic, potential, total and the drift of the total) and ``drift``
-(max |C| and max |C_q v + C_t| per output time, logarithmic).
+Kinds (:data:`KINDS`): ``coordinates`` (q; Euler angles of spatial bodies instead of
+quaternions), ``joints`` (joint coordinates), ``efforts`` (driver efforts, actuator efforts or
+inputs), ``reactions`` (joint reaction forces and moments), ``energy`` (kinetic, potential,
+total and the change of the total: drift or work of dampers/drivers) and ``drift`` (max |C|
+and max |C_q v + C_t| per output time, logarithmic).  Each kind is split into panels of one
+unit each, built by :mod:`casmbd.viz.plot_panels`.
 """
 
 from __future__ import annotations
@@ -23,10 +25,9 @@ import numpy as np
 from casmbd.errors import AnalysisError, LimitError
 from casmbd.limits import MAX_DPI, MAX_FIGURE_INCHES, MAX_PIXELS, check_count
 from casmbd.results import atomic_write
+from casmbd.viz import plot_panels
 from casmbd.viz.geometry import scene_name
-
-#: at most this many lines get a legend entry
-MAX_LEGEND = 14
+from casmbd.viz.quantities import scene_mechanism
 
 
 def check_figure_size(figsize=None, dpi: float | None = None, what: str = "figure") -> None:
@@ -71,100 +72,49 @@ def save_figure(fig, out: str | os.PathLike, dpi: float = 100) -> Path:
         raise AnalysisError(f"cannot write figure '{out}': {exc}") from None
 
 
+_STYLES = ("-", "--", ":", "-.")
+
+
 def _legend(ax, n_lines: int) -> None:
-    if 0 < n_lines <= MAX_LEGEND:
-        ax.legend(fontsize=7, ncols=1 + n_lines // 8, loc="best")
+    """Inside the axes for a few lines, else a compact legend outside on the right."""
+    if n_lines <= 6:
+        ax.legend(fontsize=7, loc="best")
+    else:
+        ax.legend(fontsize=6, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0,
+                  ncols=1 + (n_lines - 1) // 16, handlelength=2.5)
 
 
-def _need(result, kind: str, *keys: str) -> np.ndarray:
-    for key in keys:
-        if key in result.arrays:
-            return result.arrays[key]
-    raise AnalysisError(f"plot kind '{kind}': the {result.kind} result holds no "
-                        + " or ".join(f"'{k}'" for k in keys))
-
-
-def _draw_coordinates(result, ax) -> None:
-    q = _need(result, "coordinates", "q")
-    names = result.names.get("coordinates") or [f"q{k}" for k in range(q.shape[1])]
-    for k, name in enumerate(names):
-        ax.plot(result.t, q[:, k], label=name, lw=1)
-    ax.set_ylabel("coordinates q")
-    _legend(ax, len(names))
-
-
-def _draw_joints(result, ax) -> None:
-    c = _need(result, "joints", "joint_positions")
-    for k, name in enumerate(result.names.get("joints", [])):
-        ax.plot(result.t, c[:, k], label=name, lw=1)
-    ax.set_ylabel("joint coordinates")
-    _legend(ax, c.shape[1])
-
-
-def _draw_efforts(result, ax) -> None:
-    n = 0
-    for key, group, what in (("driver_efforts", "drivers", "effort"),
-                             ("actuator_efforts", "actuators", "effort"),
-                             ("actuator_inputs", "actuators", "input")):
-        if key == "actuator_inputs" and "actuator_efforts" in result.arrays:
-            continue
-        for k, name in enumerate(result.names.get(group, []) if key in result.arrays else []):
-            ax.plot(result.t, result.arrays[key][:, k], label=f"{name} {what}", lw=1)
-            n += 1
-    if n == 0:
-        raise AnalysisError(f"plot kind 'efforts': the {result.kind} result holds no driver or "
-                            "actuator efforts (no drivers or actuators, or a kinematic analysis)")
-    ax.set_ylabel("effort [N or N m]")
-    _legend(ax, n)
-
-
-def _draw_reactions(result, ax) -> None:
-    lam = _need(result, "reactions", "joint_reactions")
-    labels = ("Fx", "Fy", "M") if lam.shape[2] == 3 else ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
-    n = 0
-    for j, name in enumerate(result.names.get("all_joints", [])):
-        for c, label in enumerate(labels):
-            ax.plot(result.t, lam[:, j, c], label=f"{name}.{label}", lw=1,
-                    ls="-" if label.startswith("F") else "--")
-            n += 1
-    ax.set_ylabel("reactions [N, N m (dashed)]")
-    _legend(ax, n)
-
-
-def _draw_energy(result, ax) -> None:
-    total = _need(result, "energy", "total_energy")
-    for key in ("kinetic", "potential", "total"):
-        ax.plot(result.t, result.arrays[f"{key}_energy"], label=key, lw=1)
-    ax.set_ylabel("energy [J]")
-    twin = ax.twinx()
-    twin.plot(result.t, total - total[0], color="k", lw=0.8, ls=":", label="total − total(0)")
-    twin.set_ylabel("drift of the total [J]", fontsize=8)
-    lines = ax.get_lines() + twin.get_lines()
-    ax.legend(lines, [ln.get_label() for ln in lines], fontsize=7, loc="best")
-
-
-def _draw_drift(result, ax) -> None:
-    cv = _need(result, "drift", "constraint_violation")
-    series = [("position max|C|", cv)]
-    if "velocity_violation" in result.arrays:
-        series.append(("velocity max|C_q v + C_t|", result.arrays["velocity_violation"]))
-    for label, values in series:  # exact zeros (the assembled start) are left out
-        ax.semilogy(result.t, np.where(values > 0, values, np.nan), label=label, lw=1)
-    if not any(np.any(values > 0) for _, values in series):
+def _draw_panel(ax, t: np.ndarray, panel: plot_panels.Panel) -> None:
+    colours = [f"C{k}" for k in range(10)]
+    for line in panel.lines:
+        style = {"color": colours[line.element % 10],
+                 "ls": _STYLES[line.component % len(_STYLES)], "lw": 1, "label": line.label}
+        (ax.semilogy if panel.log else ax.plot)(t, line.y, **style)
+    if panel.log and panel.note:
         ax.set_ylim(1e-17, 1e-15)
-        ax.text(0.5, 0.5, "zero at every output time", transform=ax.transAxes, ha="center")
-    ax.set_ylabel("constraint violation")
-    ax.legend(fontsize=7, loc="best")
+    ax.set_ylabel(panel.ylabel, fontsize=8)
+    if panel.note:
+        ax.text(0.5, 0.04 if not panel.log else 0.5, panel.note, transform=ax.transAxes,
+                ha="center", fontsize=6, color="0.3")
+    if len(panel.lines) > 1:
+        _legend(ax, len(panel.lines))
+    elif panel.lines and panel.lines[0].label not in panel.ylabel:
+        ax.legend(fontsize=7, loc="best")  # one line whose label says more than the axis
 
 
-#: plot kinds and the functions drawing them into one Axes
-KINDS: dict[str, Callable] = {"coordinates": _draw_coordinates, "joints": _draw_joints,
-                              "efforts": _draw_efforts, "reactions": _draw_reactions,
-                              "energy": _draw_energy, "drift": _draw_drift}
+#: plot kinds and the functions making their panels (:mod:`casmbd.viz.plot_panels`)
+KINDS: dict[str, Callable] = {"coordinates": plot_panels.coordinates,
+                              "joints": plot_panels.joints, "efforts": plot_panels.efforts,
+                              "reactions": plot_panels.reactions,
+                              "energy": plot_panels.energy, "drift": plot_panels.drift}
 _NEEDS = {"coordinates": ("q",), "joints": ("joint_positions",),
           "efforts": ("driver_efforts", "actuator_efforts", "actuator_inputs"),
           "reactions": ("joint_reactions",), "energy": ("total_energy",),
           "drift": ("constraint_violation",)}
+_WHY = {"joints": "no joint coordinates (its joints are all without one: spherical, rigid, "
+                  "…, or it has no joints)",
+        "efforts": "no driver or actuator efforts (no drivers or actuators, or a kinematic "
+                   "analysis)"}
 
 
 def available_kinds(result) -> list[str]:
@@ -181,9 +131,44 @@ def available_kinds(result) -> list[str]:
     return out
 
 
+def element_names(result) -> list[str]:
+    """Names a plot can be restricted to: bodies, joints, drivers and actuators."""
+    out: list[str] = []
+    for group in ("bodies", "all_joints", "drivers", "actuators"):
+        out += [n for n in result.names.get(group, []) if n not in out]
+    return out
+
+
+def _panels(result, kind: str, elements, euler: str, mechanism) -> list:
+    """The panels of one kind, or an AnalysisError naming what the result can show."""
+    what = f"{result.kind} result" + (f" of '{scene_name(result)}'" if scene_name(result)
+                                      else "")
+    choices = ", ".join(available_kinds(result)) or "none"
+    if kind not in available_kinds(result):
+        held = any(k in result.arrays for k in _NEEDS[kind])
+        why = _WHY.get(kind, "") if held or kind in _WHY else ""
+        why = why or "no " + " or ".join(f"'{k}'" for k in _NEEDS[kind])
+        raise AnalysisError(f"plot kind '{kind}': the {what} holds {why}; kinds it can show: "
+                            f"{choices}")
+    if kind == "coordinates":
+        panels = KINDS[kind](result, elements, euler=euler, mechanism=mechanism)
+    else:
+        panels = KINDS[kind](result, elements, mechanism=mechanism)
+    if not panels:
+        raise AnalysisError(f"plot kind '{kind}': nothing of {', '.join(elements)} to show in "
+                            f"the {what} (kinds it can show: {choices})")
+    return panels
+
+
 def plot_result(result, kinds: str | Sequence[str] | None = None,
-                out: str | os.PathLike | None = None, dpi: float = 100, title: str | None = None):
-    """One panel per kind against time, stacked with a shared time axis.
+                out: str | os.PathLike | None = None, dpi: float = 100, title: str | None = None,
+                *, elements: Sequence[str] | None = None, euler: str = "xyz", mechanism=None):
+    """Panels of a result against time, stacked with a shared time axis.
+
+    Every kind is split into panels of one unit each (:mod:`casmbd.viz.plot_panels`), every
+    y axis names its unit in brackets, every panel with more than one line has a legend
+    (outside the axes beyond six lines).  Quaternions are not drawn: spatial bodies get their
+    Euler angles; angles are continuous (unwrapped).
 
     Parameters
     ----------
@@ -191,19 +176,32 @@ def plot_result(result, kinds: str | Sequence[str] | None = None,
     kinds : str or sequence of str, optional
         From :data:`KINDS`; default every kind the result holds (:func:`available_kinds`).
     out : path, optional
-        Save the figure there (atomically; format from the suffix).
+        Save the figure there (atomically; format from the suffix).  Nothing is written when
+        an error is raised.
     dpi : float
     title : str, optional
         Default: the analysis kind and the scene name when the result holds a scene.
+    elements : sequence of str, optional
+        Draw only the lines of these bodies, joints, drivers and actuators
+        (:func:`element_names`).
+    euler : {"xyz", "zxz"}
+        Euler-angle sequence of spatial bodies (default ``"xyz"``, Cardan angles: regular at
+        the identity, where most scenes start; ``"zxz"`` is singular there).
+    mechanism : Mechanism, optional
+        Gives the joint, driver and actuator units and the dissipative elements; default the
+        scene embedded in the result (without either, joint units read "m or rad").
 
     Returns
     -------
     matplotlib.figure.Figure
+        With ``fig.casmbd_notes``: remarks drawn in panels (e.g. a singular Euler sequence).
 
     Raises
     ------
     AnalysisError
-        For an unknown kind, or a kind whose arrays the result does not hold (both named).
+        For an unknown kind, a kind the result cannot show (no joint coordinates, no
+        efforts …), an unknown element or a selection leaving a kind empty — each naming the
+        choices.
     """
     if kinds is None:
         kinds = available_kinds(result)
@@ -212,20 +210,36 @@ def plot_result(result, kinds: str | Sequence[str] | None = None,
     kinds = list(kinds)
     unknown = [k for k in kinds if k not in KINDS]
     if unknown:
-        raise AnalysisError(f"unknown plot kind(s) {', '.join(map(repr, unknown))} (known: "
-                            f"{', '.join(KINDS)})")
+        raise AnalysisError(f"unknown plot kind(s) {', '.join(map(repr, unknown))} (choices: "
+                            f"{', '.join(KINDS)}; this result can show "
+                            f"{', '.join(available_kinds(result)) or 'none'})")
     if not kinds:
         raise AnalysisError(f"the {result.kind} result holds nothing to plot")
-    fig, axes = new_figure(len(kinds), 1, figsize=(6.4, 1.0 + 2.2 * len(kinds)), sharex=True)
+    if euler not in plot_panels.EULER_SEQUENCES:
+        raise AnalysisError(f"unknown Euler sequence {euler!r} (choices: "
+                            f"{', '.join(plot_panels.EULER_SEQUENCES)})")
+    if elements is not None:
+        elements = list(elements)
+        known = element_names(result)
+        bad = [e for e in elements if e not in known]
+        if bad:
+            raise AnalysisError(f"unknown element(s) {', '.join(map(repr, bad))} (choices: "
+                                f"{', '.join(known) or 'none'})")
+    mechanism = scene_mechanism(result, mechanism)
+    panels = [p for kind in kinds for p in _panels(result, kind, elements, euler, mechanism)]
+    wide = any(len(p.lines) > 6 for p in panels)
+    fig, axes = new_figure(len(panels), 1, figsize=(8.4 if wide else 6.4,
+                                                    1.0 + 1.9 * len(panels)), sharex=True)
     axes = np.atleast_1d(axes)
-    for kind, ax in zip(kinds, axes):
-        KINDS[kind](result, ax)
+    for panel, ax in zip(panels, axes):
+        _draw_panel(ax, result.t, panel)
         ax.grid(True, lw=0.3, alpha=0.5)
     axes[-1].set_xlabel("t [s]")
     if title is None:
         name = scene_name(result)
         title = f"{name}: {result.kind}" if name else result.kind
     fig.suptitle(title, fontsize=10)
+    fig.casmbd_notes = [p.note for p in panels if p.note and "singular" in p.note]
     if out is not None:
         save_figure(fig, out, dpi)
     return fig

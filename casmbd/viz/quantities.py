@@ -1,0 +1,122 @@
+"""Units and physical meaning of a result's columns, for plot labels and CLI printouts.
+
+A :class:`~casmbd.results.Result` stores names, not units; the units follow from the kind of
+each coordinate (a position in m, an angle in rad, an Euler parameter or unit-vector component
+without unit) and of each joint coordinate, driver and actuator (a translation in m and a force
+in N, or an angle in rad and a torque in N m).  Joint kinds come from the mechanism: the one
+passed in, else the scene embedded in the result (:meth:`Result.mechanism`); without either the
+unit of a joint quantity is unknown and reads ``"m or rad"`` / ``"N or N m"``.
+"""
+
+from __future__ import annotations
+
+from numbers import Real
+
+from casmbd.errors import CasmbdError
+
+#: unit of a coordinate by the suffix of its name (``body.x``, ``joint.angle`` …)
+_COORDINATE_UNITS = {"x": "m", "y": "m", "z": "m", "translation": "m", "length": "m",
+                     "angle": "rad", "angle1": "rad", "angle2": "rad"}
+#: the effort conjugate to a coordinate of this unit
+EFFORT_UNIT = {"m": "N", "rad": "N m", "m or rad": "N or N m"}
+
+
+def coordinate_unit(name: str) -> str:
+    """Unit of a generalized coordinate from its name: ``"m"``, ``"rad"`` or ``"-"`` (Euler
+    parameters ``e0``…``e3`` and natural coordinates' unit-vector components)."""
+    return _COORDINATE_UNITS.get(name.rpartition(".")[2], "-")
+
+
+def scene_mechanism(result, mechanism=None):
+    """``mechanism``, else the mechanism of the scene embedded in ``result``, else None (a
+    result built in Python from a mechanism without scene text)."""
+    if mechanism is not None or not getattr(result, "scene", ""):
+        return mechanism
+    try:
+        return result.mechanism()
+    except CasmbdError:  # an embedded scene that no longer loads: units stay unknown
+        return None
+
+
+def _joint_coordinate_unit(mech, joint: str, coordinate: str | None) -> str:
+    obj = None if mech is None else mech.joints.get(joint)
+    names = getattr(obj, "coordinate_names", ())
+    if not names:
+        return "m or rad"
+    return _COORDINATE_UNITS.get(coordinate or names[0], "m or rad")
+
+
+def joint_units(result, mechanism=None) -> list[str]:
+    """Unit of each column of ``joint_positions`` (``names["joints"]``)."""
+    mech = scene_mechanism(result, mechanism)
+    out = []
+    for column in result.names.get("joints", []):
+        joint, _, coord = column.partition(".")
+        out.append(_joint_coordinate_unit(mech, joint, coord or None))
+    return out
+
+
+def effort_units(result, group: str, mechanism=None) -> list[str]:
+    """Unit of the effort of each driver (``group="drivers"``) or actuator (``"actuators"``):
+    N along a length, N m about an angle."""
+    mech = scene_mechanism(result, mechanism)
+    out = []
+    for name in result.names.get(group, []):
+        elements = None if mech is None else getattr(mech, group, {})
+        obj = None if elements is None else elements.get(name)
+        if obj is None:
+            out.append("N or N m")
+        elif getattr(obj, "joint", None):
+            out.append(EFFORT_UNIT[_joint_coordinate_unit(mech, obj.joint, obj.coordinate)])
+        else:  # a driver of a body coordinate
+            out.append(EFFORT_UNIT[_COORDINATE_UNITS.get(obj.coordinate, "m or rad")])
+    return out
+
+
+def _nonzero(value) -> bool:
+    return not (isinstance(value, Real) and value == 0)
+
+
+def energy_exchange(result, mechanism=None) -> list[str] | None:
+    """Elements through which the mechanism's total energy T + V may change physically:
+    dampers (``damping`` ≠ 0, ``"damper 'd'"``), drivers (rheonomic constraints), actuators
+    with a non-zero input, and applied forces or torques that are not in V (point forces,
+    torques, user forces).  An empty list: the mechanism is conservative and any change of
+    T + V is numerical drift.  None: unknown (no mechanism and no embedded scene; only the
+    drivers and actuators named in the result were seen).
+    """
+    mech = scene_mechanism(result, mechanism)
+    out = [f"driver '{d}'" for d in result.names.get("drivers", [])]
+    inputs = result.arrays.get("actuator_inputs")
+    for k, name in enumerate(result.names.get("actuators", [])):
+        if inputs is None or k >= inputs.shape[1] or (inputs[:, k] != 0).any():
+            out.append(f"actuator '{name}'")
+    if mech is None:
+        return out or None
+    for name, force in mech.forces.items():
+        kind = type(force).__name__
+        if kind in ("SpringDamper", "RotationalSpringDamper"):
+            if _nonzero(getattr(force, "damping", 0.0)):
+                out.append(f"damper '{name}'")
+            elif _nonzero(getattr(force, "actuator", 0.0)):
+                out.append(f"force '{name}'")
+        else:  # point forces, torques, user forces: their work is not in V
+            out.append(f"force '{name}'")
+    return out
+
+
+def energy_change_label(result, mechanism=None) -> tuple[str, bool]:
+    """A short label of total − total(0) and whether it is numerical drift.
+
+    ``("drift of the total", True)`` for a conservative mechanism; ``("energy change (work
+    of damper 'd', driver 'm')", False)`` when something does work, so that dissipation is
+    not called a drift; ``("change of the total", False)`` when this cannot be told.
+    """
+    elements = energy_exchange(result, mechanism)
+    if elements == []:
+        return "drift of the total", True
+    if elements is None:
+        return "change of the total (drift only if nothing does work)", False
+    shown = ", ".join(elements[:3]) + (f" and {len(elements) - 3} more" if len(elements) > 3
+                                       else "")
+    return f"energy change (work of {shown}; not a drift)", False
