@@ -122,9 +122,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-steps", type=_positive_int, default=None,
                    help="most steps per output interval of the variable-step integrators "
                         "(default 500000; 20000 for partitioning/nullspace)")
-    p = sub.add_parser("linearize", help="natural frequencies and linearized equations about "
-                                         "the initial configuration")
+    p = sub.add_parser("linearize", help="natural frequencies, linearized equations and "
+                                         "stability about the initial configuration, the "
+                                         "static equilibrium or a stored state")
     common(p)
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--at-equilibrium", action="store_true",
+                       help="find the static equilibrium (as the statics verb) and linearize "
+                            "there")
+    where.add_argument("--from", dest="from_result", metavar="RESULT.npz", default=None,
+                       help="linearize about the state stored in this result (of the same "
+                            "scene) at the output time nearest --time")
+    p.add_argument("--time", type=float, default=None,
+                   help="with --from: the time of the stored state (nearest output time)")
     p = sub.add_parser("ocp", help="trajectory optimisation: the scene's [ocp] table")
     common(p)
     p.add_argument("--out", help="save the solution (t, q, v, u, statistics) to this .npz file")
@@ -506,26 +516,53 @@ VERBS["statics"] = _cmd_statics
 
 
 def _cmd_linearize(args) -> tuple[dict, str]:
-    """Linearize about the scene's assembled initial configuration with zero velocity.
+    """Linearize about the initial configuration at rest, the static equilibrium
+    (``--at-equilibrium``) or a stored state (``--from RESULT.npz --time T``).
 
-    The initial configuration should be an equilibrium: place the scene at the equilibrium or
-    use the statics verb first (about any other state the matrices are still the first-order
-    expansion, but the frequencies are not those of oscillations about a rest position).
+    The verdict is the statics verb's (one classification of the reduced stiffness); about a
+    state that is not an equilibrium there is none (the matrices are still the first-order
+    expansion there).
     """
-    from casmbd.analysis.linearize import linearize
+    from casmbd.analysis.linearize import EQUILIBRIUM_RTOL, linearize
 
+    if (args.time is None) != (args.from_result is None):
+        raise AnalysisError("linearize: --from RESULT.npz and --time T go together")
     mech = _load(args)
-    lin = linearize(mech, mode=args.mode)
+    if args.at_equilibrium:
+        lin = linearize(mech, mode=args.mode, at="equilibrium")
+        where = (f"the static equilibrium ({lin.stats['statics_iterations']} statics "
+                 f"iterations, residual {lin.stats['statics_residual']:.3g})")
+    elif args.from_result is not None:
+        from casmbd.results import load as load_result
+
+        result = load_result(args.from_result)
+        lin = linearize(mech, mode=args.mode, at=result, at_time=args.time)
+        where = (f"the state of '{args.from_result}' at t = {lin.t:.6g} (output "
+                 f"{lin.stats['state_index']}, nearest to {args.time:g})")
+    else:
+        lin = linearize(mech, mode=args.mode)
+        where = "the initial configuration (v = 0)"
     data = lin.to_json()
     s = lin.stats
-    lines = [f"linearization of '{mech.name}' about the initial configuration (v = 0): "
-             f"{lin.n_dof} degree{'' if lin.n_dof == 1 else 's'} of freedom, "
-             f"{'stable' if lin.stable else 'UNSTABLE'}"]
+    verdict = lin.verdict
+    if lin.stability is not None and lin.stability.null_directions:
+        verdict += f" (null directions: {', '.join(lin.stability.null_coordinates())})"
+    lines = [f"linearization of '{mech.name}' about {where}: "
+             f"{lin.n_dof} degree{'' if lin.n_dof == 1 else 's'} of freedom, {verdict}"]
     for k, (f, z) in enumerate(zip(lin.frequencies_hz, lin.damping_ratios)):
         lines.append(f"  mode {k + 1:<3} frequency {f:.6g} Hz  damping ratio {z:.4g}")
-    if not s["equilibrium"]:
-        lines.append("  warning: this state is not an equilibrium; place the scene at the "
-                     "equilibrium or use the statics verb first")
+    if lin.stability is not None:
+        eig = ", ".join(f"{e:.4g}" for e in lin.stability.eigenvalues)
+        lines.append(f"  stiffness eigenvalues: {eig or 'none (no degrees of freedom)'}")
+    else:
+        why = [f"max |v| = {s['velocity_norm']:.3g} is not 0"] \
+            if s["velocity_norm"] > EQUILIBRIUM_RTOL else []
+        if s["residual"] > s["residual_tolerance"]:
+            why.append(f"force residual max |Q - Cq^T lambda| = {s['residual']:.3g} > "
+                       f"{s['residual_tolerance']:.3g}")
+        lines.append(f"  not an equilibrium ({'; '.join(why)}): no stability verdict, the "
+                     "modes describe perturbations about this state only; --at-equilibrium "
+                     "linearizes at the static equilibrium")
     lines.append(_timing(s))
     return data, "\n".join(lines)
 

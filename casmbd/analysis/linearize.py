@@ -27,6 +27,43 @@ classical small-oscillation matrices.  About a state that is *not* an equilibriu
 still the first-order expansion of the projected equations about that state (with the basis N
 frozen at q); the eigenvalues then describe the local behaviour of the perturbation equations
 only, not oscillations about a rest position.
+
+Where.  ``linearize(m)`` expands about the assembled initial configuration at rest,
+``linearize(m, q=..., v=...)`` about a given state, ``linearize(m, at="equilibrium")`` about
+the static equilibrium that :func:`casmbd.analysis.statics.static_equilibrium` finds from the
+initial configuration (at time t, inputs zero), and ``linearize(m, at=result, at_time=T)``
+about the state (q, v, and the stored actuator inputs) a result holds at its output time
+*nearest* T.  Nearest, not interpolated: a stored state satisfies the constraints (to the
+integrator's accuracy), an interpolated one in general does not, and the linearization
+needs a configuration on the constraint manifold.  The stored state is then moved onto the
+constraints (q by :func:`~casmbd.analysis.assembly.assemble`, v by the mass-orthogonal
+projection), because an integrator at rtol 1e-8 leaves |C| ≈ 3e-8, above the 1e-8 that
+``q=`` accepts; ``stats["projection_dq"]``, ``["projection_dv"]`` say by how much, and
+``stats["state_time"]`` is the output time used.
+
+Equilibrium test.  The state is an equilibrium when max |v| ≤ :data:`EQUILIBRIUM_RTOL`
+(m/s or rad/s) and the force residual ‖Q − C_qᵀλ‖∞ = ‖M q̈‖∞ (Q = Q_e + Q_v, λ and q̈ from
+the KKT system) is at most :data:`EQUILIBRIUM_RTOL` · max(1, ‖Q‖∞) — the form of the
+convergence test of the statics analysis, 100 times looser than its default, so that its
+equilibria always pass.  A rheonomic driver (C_tt ≠ 0) gives q̈ ≠ 0 and hence no equilibrium.
+
+Stability verdict: ONE classification, shared with statics.  At an equilibrium
+:func:`casmbd.analysis.stability.classify_stability` judges the reduced stiffness K̄ (the
+same matrix statics judges: at v = 0, q̈ = 0 the ``M a`` and ``Q_v`` terms vanish, so K̄ is
+the Hessian of the Lagrangian on the tangent space), with its stated tolerance and the null
+directions named by the joint coordinates (else the generalized ones), exactly as statics
+does.  Why K̄ and not the eigenvalues of A: a conservative system's linearization has purely
+imaginary eigenvalues ±iω when it is stable, a neutral direction gives a double zero that
+round-off splits into ±ε (a "positive real part" of 1e-9 or a spurious "stable"), and the
+sign pattern of K̄ is what the static question asks.  With damping (C̄ from damping forces;
+at v = 0 there are no gyroscopic terms, as Q_v is quadratic in v) the K̄ verdict still
+decides: by the Kelvin–Tait–Chetaev theorem dissipation cannot stabilise a direction with
+negative stiffness, and with full dissipation a positive definite K̄ is asymptotically stable.
+Non-symmetric K̄ (non-conservative forces) is judged by the real parts of its eigenvalues
+(divergence, not flutter).  The eigenvalues of A are reported alongside; :attr:`LinearModel.
+stable` keeps the older spectral test (no eigenvalue of A with positive real part), which
+calls a neutral equilibrium stable.  Away from an equilibrium there is no verdict:
+``stability`` is None, ``verdict`` is "not an equilibrium" and ``stable`` is None.
 """
 
 from __future__ import annotations
@@ -41,8 +78,10 @@ import scipy.linalg as sla
 
 from casmbd.analysis.assembly import assemble
 from casmbd.analysis.checks import check_start
-from casmbd.analysis.kkt import accelerations_and_multipliers
+from casmbd.analysis.kkt import accelerations_and_multipliers, project_velocities
 from casmbd.analysis.redundancy import RANK_RTOL, null_space_basis
+from casmbd.analysis.stability import STABILITY_RTOL, Stability, classify_stability
+from casmbd.analysis.statics import STATICS_NEEDS, static_equilibrium, statics_functions
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, ModelError, SingularConfigurationError
 from casmbd.system.equations import System
@@ -53,6 +92,11 @@ NEEDED = ("mass_matrix", "applied_forces", "quadratic_velocity_forces", "constra
 
 #: |Im s| below this times max(1, |s|max) counts as a real eigenvalue
 IMAG_RTOL = 1e-9
+#: equilibrium test: max |v| ≤ EQUILIBRIUM_RTOL and ‖Q − C_qᵀλ‖∞ ≤ EQUILIBRIUM_RTOL ·
+#: max(1, ‖Q‖∞) (see the module docstring)
+EQUILIBRIUM_RTOL = 1e-8
+#: verdict reported instead of a stability verdict away from an equilibrium
+NOT_AN_EQUILIBRIUM = "not an equilibrium"
 
 
 def _linearization_function(system: System) -> ca.Function:
@@ -71,6 +115,16 @@ def _linearization_function(system: System) -> ca.Function:
         [ca.densify(ca.jacobian(resid, q)), ca.densify(ca.jacobian(force, v)),
          ca.densify(ca.jacobian(system.applied_forces, u))],
         ["q", "v", "t", "u", "p", "lambda", "a"], ["dRdq", "dFdv", "dQdu"])
+
+
+def _joint_jacobian_function(system: System) -> ca.Function:
+    """∂θ/∂q of the joint coordinates θ: names the null directions of a neutral equilibrium
+    (the same function as the statics analysis's ``statics_joint_jacobian``)."""
+    names = system.joint_coordinate_names
+    joints = ca.vertcat(*[system._joint_coordinate(k) for k in names]) if names \
+        else ca.SX(0, 1)
+    return ca.Function("stability_joint_jacobian", [system.q, system.t, system.p],
+                       [ca.jacobian(joints, system.q)], ["q", "t", "p"], ["Jj"])
 
 
 @dataclass
@@ -104,6 +158,13 @@ class LinearModel:
     lam : multipliers λ of the KKT system at that state.
     coordinate_names : names of the absolute coordinates (rows of N).
     stats : dict
+        Besides counts and timings: ``equilibrium`` (bool), ``residual`` (‖Q − C_qᵀλ‖∞),
+        ``residual_tolerance``, ``velocity_norm`` (max |v|), ``about`` ("initial",
+        "state", "equilibrium" or "result"), ``state_time`` (for a result), ``statics_*``
+        (for ``at="equilibrium"``).
+    stability : Stability or None
+        The verdict of :func:`casmbd.analysis.stability.classify_stability` on K̄ (the one
+        statics gives), None when the state is not an equilibrium.
     """
 
     M: np.ndarray
@@ -125,6 +186,7 @@ class LinearModel:
     coordinate_names: list[str]
     actuator_names: list[str]
     stats: dict = field(default_factory=dict)
+    stability: Stability | None = None
 
     @property
     def n_dof(self) -> int:
@@ -132,21 +194,51 @@ class LinearModel:
         return self.N.shape[1]
 
     @property
-    def stable(self) -> bool:
-        """True when no eigenvalue of A has a positive real part (beyond round-off)."""
+    def equilibrium(self) -> bool:
+        """Whether the state is an equilibrium (see the module docstring for the test)."""
+        return bool(self.stats.get("equilibrium", False))
+
+    @property
+    def verdict(self) -> str:
+        """"stable", "unstable" or "neutral" (the verdict statics gives), or "not an
+        equilibrium"."""
+        return self.stability.verdict if self.stability is not None else NOT_AN_EQUILIBRIUM
+
+    @property
+    def stable(self) -> bool | None:
+        """The spectral test: True when no eigenvalue of A has a positive real part (beyond
+        round-off), None away from an equilibrium.
+
+        A neutral equilibrium (a zero eigenvalue) passes it; :attr:`verdict` and
+        :attr:`stability` are the classification shared with statics.
+        """
+        if not self.equilibrium:
+            return None
         if self.eigenvalues.size == 0:
             return True
         scale = max(1.0, float(np.max(np.abs(self.eigenvalues))))
         return bool(np.max(self.eigenvalues.real) <= 1e-9 * scale)
 
     def to_json(self) -> dict:
-        """Plain-Python dictionary for JSON output."""
+        """Plain-Python dictionary for JSON output.
+
+        ``"stable"`` is the shared verdict in the statics analysis's form (true stable,
+        false unstable, null neutral or not an equilibrium), ``"verdict"`` its word,
+        ``"stability"`` the classification (or null), ``"spectrally_stable"`` :attr:`stable`.
+        """
         return {
+            "equilibrium": self.equilibrium,
+            "residual": float(self.stats.get("residual", float("nan"))),
+            "residual_tolerance": float(self.stats.get("residual_tolerance", float("nan"))),
+            "verdict": self.verdict,
+            "stable": self.stability.stable if self.stability is not None else None,
+            "stability": self.stability.to_json() if self.stability is not None else None,
+            "spectrally_stable": self.stable,
+            "about": self.stats.get("about"),
             "frequencies_hz": self.frequencies_hz.tolist(),
             "damping_ratios": self.damping_ratios.tolist(),
             "natural_frequencies_hz": self.natural_frequencies_hz.tolist(),
             "eigenvalues": [[float(s.real), float(s.imag)] for s in self.eigenvalues],
-            "stable": self.stable,
             "M": self.M.tolist(), "C": self.C.tolist(), "K": self.K.tolist(),
             "B": self.B.tolist(), "A": self.A.tolist(), "B_state": self.Bss.tolist(),
             "N": self.N.tolist(),
@@ -170,6 +262,9 @@ def _modes(m_bar, c_bar, k_bar, a_mat) -> tuple[np.ndarray, np.ndarray, np.ndarr
         if np.all(np.isfinite(w2)) and np.all(np.abs(w2.imag) <= IMAG_RTOL * max(
                 1.0, float(np.max(np.abs(w2))))):
             w2 = np.sort(w2.real)
+            # a neutral direction's ω² = 0 comes out as ±1e-16: a rigid-body mode (ζ = 0),
+            # with the stability classification's tolerance
+            w2[np.abs(w2) <= STABILITY_RTOL * max(float(np.max(np.abs(w2))), 1e-300)] = 0.0
             omega = np.sqrt(np.abs(w2))
             freq = np.where(w2 > 0, omega, 0.0) / (2 * np.pi)
             zeta = np.where(w2 < 0, -1.0, 0.0)
@@ -204,29 +299,124 @@ def _modes(m_bar, c_bar, k_bar, a_mat) -> tuple[np.ndarray, np.ndarray, np.ndarr
     return eig, freq[order], zeta[order], mag[order] / (2 * np.pi)
 
 
+def stored_state(times, q, v, coordinates: list[str], expected: list[str],
+                 at_time: float) -> tuple[int, float, np.ndarray, np.ndarray]:
+    """The stored state at the output time nearest ``at_time`` (see the module docstring).
+
+    Parameters
+    ----------
+    times : array (n_t,)
+        Output times of the result.
+    q, v : arrays (n_t, n_q)
+        Stored coordinates and velocities.
+    coordinates : list of str
+        The result's coordinate names.
+    expected : list of str
+        The coordinate names of the mechanism to linearize (the result must be of that scene).
+    at_time : float
+
+    Returns
+    -------
+    (index, time, q, v)
+
+    Raises
+    ------
+    AnalysisError
+        When ``at_time`` lies outside the output times (naming it and the range), or the
+        result's coordinates are not the mechanism's (naming the count or the first mismatch).
+    """
+    times = np.asarray(times, dtype=float).reshape(-1)
+    if list(coordinates) != list(expected):
+        if len(coordinates) != len(expected):
+            why = f"it has {len(coordinates)} coordinates, the scene {len(expected)}"
+        else:
+            k = next(i for i, (a, b) in enumerate(zip(coordinates, expected)) if a != b)
+            why = f"its coordinate {k} is '{coordinates[k]}', the scene's '{expected[k]}'"
+        raise AnalysisError(f"linearize: the result is not of this scene ({why})")
+    if times.size == 0:
+        raise AnalysisError("linearize: the result holds no output times")
+    at_time = float(at_time)
+    slack = 1e-9 * max(1.0, float(np.max(np.abs(times))))
+    if not (np.isfinite(at_time) and times[0] - slack <= at_time <= times[-1] + slack):
+        raise AnalysisError(f"linearize: time {at_time:g} is outside the result's output times "
+                            f"[{times[0]:g}, {times[-1]:g}] ({times.size} outputs)")
+    k = int(np.argmin(np.abs(times - at_time)))
+    q, v = np.asarray(q, dtype=float), np.asarray(v, dtype=float)
+    if q.shape != (times.size, len(expected)) or v.shape != q.shape:
+        raise AnalysisError(f"linearize: the result's q and v have shapes {q.shape}, "
+                            f"{v.shape}, not ({times.size}, {len(expected)})")
+    return k, float(times[k]), q[k].copy(), v[k].copy()
+
+
+def _from_result(result, system: System, at_time, u):
+    """(q, v, t, u, stats) of a result's stored state (duck-typed: ``.t``, ``.names``,
+    ``[key]``; the analysis layer does not import :mod:`casmbd.results`)."""
+    if at_time is None:
+        raise ModelError("linearize: at=<result> needs at_time, the output time to use")
+    names = getattr(result, "names", {}) or {}
+    try:
+        stored_q, stored_v = result["q"], result["v"]
+    except KeyError as exc:
+        raise AnalysisError(f"linearize: the result holds no '{exc.args[0]}' array") from None
+    k, t, q, v = stored_state(result.t, stored_q, stored_v, list(names.get("coordinates", [])),
+                              list(system.coordinate_names), at_time)
+    nu = len(system.mechanism.actuators)
+    if u is None and nu:
+        try:
+            inputs = np.asarray(result["actuator_inputs"], dtype=float)
+        except KeyError:
+            inputs = None
+        if inputs is not None and inputs.shape == (len(result.t), nu):
+            u = inputs[k]
+    return q, v, t, u, {"about": "result", "state_index": k, "state_time": t,
+                        "requested_time": float(at_time)}
+
+
+def _at_equilibrium(mechanism, system: System, t: float, mode: str):
+    """(q, stats) of the static equilibrium found from the initial configuration."""
+    statics = NumericModel(system, STATICS_NEEDS, mode=mode, extra=statics_functions(system))
+    if isinstance(mechanism, NumericModel):
+        statics.p[:] = mechanism.p
+    eq = static_equilibrium(statics, t=t, mode=mode)
+    return eq.q, {"about": "equilibrium", "statics_iterations": int(eq.iterations),
+                  "statics_residual": float(eq.residual),
+                  "statics_verdict": eq.stability.verdict if eq.stability else None}
+
+
 def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "auto",
-              rtol: float = RANK_RTOL) -> LinearModel:
+              rtol: float = RANK_RTOL, *, at=None, at_time: float | None = None
+              ) -> LinearModel:
     """Linearize the constrained dynamics of ``mechanism`` about the state (q, v, t, u).
 
     Parameters
     ----------
     mechanism : Mechanism, System or NumericModel
-        A NumericModel is reused only for its System (the linearization compiles its own
-        Functions, cached on disk like every model).
+        A NumericModel is reused only for its System and parameter values (the linearization
+        compiles its own Functions, cached on disk like every model).
     q : array, optional
-        Configuration; default the assembled initial configuration.  Pass an equilibrium (e.g.
-        from a statics analysis) for small oscillations: q is used as given (it is not moved
-        onto the constraints, only checked); the linearization about any other state is the
-        first-order expansion about that state (see the module docstring).
+        Configuration; default the assembled initial configuration.  It is used as given
+        (not moved onto the constraints, only checked); about a state that is not an
+        equilibrium the result is the first-order expansion there and carries no stability
+        verdict (see the module docstring).
     v : array, optional
         Velocities (default zero).
     t : float
-        Time (for time-dependent forces and rheonomic drivers).
+        Time (for time-dependent forces and rheonomic drivers); with ``at="equilibrium"``
+        the time of the statics analysis; ignored with ``at=<result>`` (the stored time).
     u : array, optional
-        Actuator inputs (default zero).
+        Actuator inputs (default zero; with ``at=<result>`` the stored inputs).
     mode : {"auto", "compiled", "vm"}
     rtol : float
         Relative rank tolerance of the constraint Jacobian.
+    at : {None, "equilibrium"} or Result, keyword-only
+        ``"equilibrium"``: about the static equilibrium
+        (:func:`casmbd.analysis.statics.static_equilibrium` from the initial configuration,
+        v = 0, u = 0; same as ``q=static_equilibrium(m, t=t).q``).  A result (of
+        :func:`casmbd.simulate` …, or :func:`casmbd.load_result`): about its stored q, v at the
+        output time nearest ``at_time`` (the result must be of the same scene).  Not
+        together with ``q`` or ``v``.
+    at_time : float, optional
+        The time wanted with ``at=<result>``.
 
     Returns
     -------
@@ -235,7 +425,12 @@ def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "au
     Raises
     ------
     AnalysisError
-        If q violates the constraints or the reduced mass matrix is singular.
+        If q violates the constraints, the static equilibrium is not found, or ``at_time``
+        is outside the result's times or the result is of another scene (named).
+    SingularConfigurationError
+        If the reduced mass matrix is singular.
+    ModelError
+        Bad sizes or non-finite q, v, u; ``at`` together with q or v; unknown ``at``.
     """
     t0 = time.perf_counter()
     if isinstance(mechanism, NumericModel):
@@ -244,14 +439,30 @@ def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "au
         system = mechanism
     else:
         system = System(mechanism)
+    t = float(t)
+    about = {"about": "initial" if q is None and v is None else "state"}
+    if at is not None:
+        if q is not None or v is not None:
+            raise ModelError("linearize: give either at=... or q/v, not both")
+        if isinstance(at, str) and at == "equilibrium":
+            if u is not None and np.any(np.asarray(u, dtype=float) != 0.0):
+                raise ModelError("linearize: at='equilibrium' is the equilibrium with zero "
+                                 "inputs; u must be zero")
+            q, about = _at_equilibrium(mechanism, system, t, mode)
+        elif isinstance(at, str) or not hasattr(at, "t"):
+            raise ModelError(f"linearize: at must be 'equilibrium' or a result, got {at!r}")
+        else:
+            q, v, t, u, about = _from_result(at, system, at_time, u)
+    elif at_time is not None:
+        raise ModelError("linearize: at_time needs at=<result>")
     lin_fun = _linearization_function(system)
-    model = NumericModel(system, NEEDED, mode=mode, extra=[lin_fun])
+    model = NumericModel(system, NEEDED, mode=mode,
+                         extra=[lin_fun, _joint_jacobian_function(system)])
     if isinstance(mechanism, NumericModel):
         model.p[:] = mechanism.p
     t_build = time.perf_counter() - t0
     t1 = time.perf_counter()
     nq = model.nq
-    t = float(t)
     if q is None:
         q = assemble(model, system.initial_coordinates(), t).q
     q = np.array(q, dtype=float).reshape(-1)
@@ -263,6 +474,12 @@ def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "au
             raise ModelError(f"linearize: {name} must have {size} entries, got {arr.size}")
         if not np.all(np.isfinite(arr)):
             raise ModelError(f"linearize: {name} is not finite")
+    if about["about"] == "result":  # onto the constraints: an integrator drifts off them
+        q0, v0 = q, v
+        q = assemble(model, q0, t).q
+        v = project_velocities(model, q, v0, t)
+        about["projection_dq"] = float(np.max(np.abs(q - q0), initial=0.0))
+        about["projection_dv"] = float(np.max(np.abs(v - v0), initial=0.0))
     check_start(model, q, v, t, u, what="linearization")  # names a NaN's culprit
     if model.nc:
         c = model.constraints(q, t)
@@ -293,14 +510,32 @@ def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "au
     a_mat = np.block([[np.zeros((nz, nz)), np.eye(nz)], [-minv_k, -minv_c]])
     b_ss = np.vstack([np.zeros((nz, nu)), minv_b])
     eig, freq, zeta, fn = _modes(m_bar, c_bar, k_bar, a_mat)
+    # equilibrium test (module docstring): v = 0 and Q − C_qᵀλ = M q̈ = 0, relative to Q
+    force = model.applied_forces(q, v, t, u) + model.quadratic_velocity_forces(q, v)
+    residual = float(np.max(np.abs(m_full @ acc), initial=0.0))
+    res_tol = EQUILIBRIUM_RTOL * max(1.0, float(np.max(np.abs(force), initial=0.0)))
+    v_norm = float(np.max(np.abs(v), initial=0.0))
+    equilibrium = bool(v_norm <= EQUILIBRIUM_RTOL and residual <= res_tol)
+    stability = _classify(model, system, q, t, basis, k_bar) if equilibrium else None
     stats = {"n_coordinates": nq, "n_constraints": model.nc, "rank": rank,
              "degrees_of_freedom": nz, "n_inputs": nu,
              "acceleration_norm": float(np.linalg.norm(acc)),
-             "velocity_norm": float(np.linalg.norm(v)),
+             "velocity_norm": v_norm, "residual": residual, "residual_tolerance": res_tol,
+             "equilibrium": equilibrium, **about,
              "build_seconds": t_build, "solve_seconds": time.perf_counter() - t1,
              **{k: val for k, val in model.report_dict.items() if k != "build_seconds"}}
-    stats["equilibrium"] = bool(stats["velocity_norm"] == 0.0 and np.linalg.norm(
-        basis.T @ (m_full @ acc)) <= 1e-9 * max(1.0, float(np.max(np.abs(m_full)))))
     return LinearModel(m_bar, c_bar, k_bar, b_bar, a_mat, b_ss, basis, eig, freq, zeta, fn,
                        q, v, t, u, lam, list(system.coordinate_names),
-                       list(system.mechanism.actuators), stats)
+                       list(system.mechanism.actuators), stats, stability)
+
+
+def _classify(model: NumericModel, system: System, q, t: float, basis: np.ndarray,
+              k_bar: np.ndarray) -> Stability:
+    """The statics analysis's classification of K̄: null directions named by the joint
+    coordinates, else by the generalized coordinates."""
+    if system.joint_coordinate_names:
+        directions = model._sparse("stability_joint_jacobian", q, t, model.p).toarray() @ basis
+        labels = list(system.joint_coordinate_names)
+    else:
+        directions, labels = basis, list(system.coordinate_names)
+    return classify_stability(k_bar, directions, labels)
