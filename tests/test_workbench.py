@@ -85,14 +85,19 @@ def test_every_plot_kind_renders_the_result_arrays(planar, kind, tmp_path):
              "drift": np.where(planar["constraint_violation"] > 0,
                                planar["constraint_violation"], np.nan)}[kind]
     np.testing.assert_array_equal(np.asarray(line.get_ydata(), float), first)
-    n_lines = {"coordinates": 9, "joints": 4, "efforts": 2, "reactions": 12, "energy": 3,
-               "drift": 2}[kind]
-    assert len(fig.axes[0].get_lines()) == n_lines
+    n_lines = {"coordinates": 9, "joints": 4, "efforts": 2, "reactions": 12, "energy": 4,
+               "drift": 2}[kind]  # over the kind's panels (one unit each); energy: + change
+    assert sum(len(ax.get_lines()) for ax in fig.axes) == n_lines
 
 
 def test_plot_result_all_kinds_and_errors(planar, spatial, tmp_path):
     fig = plots.plot_result(planar, out=tmp_path / "all.pdf")
-    assert len([ax for ax in fig.axes if ax.get_ylabel() != "drift of the total [J]"]) == 6
+    labels = [ax.get_ylabel() for ax in fig.axes]  # every kind, split by unit
+    assert labels == ["positions [m]", "angles [rad]", "joint angles [rad]",
+                      "joint translations [m]", "torques [N m]",  # driver, motor at O
+                      "reaction forces [N]", "reaction moments [N m]", "energy [J]",
+                      "total − total(0) [J]", "max |C| [m, rad or 1]",
+                      "max |C_q v + C_t| [m/s, rad/s or 1/s]"]
     assert (tmp_path / "all.pdf").read_bytes()[:4] == b"%PDF"
     with pytest.raises(AnalysisError, match=r"unknown plot kind.*'speed'"):
         plots.plot_result(planar, "speed")

@@ -141,9 +141,10 @@ def element_names(result) -> list[str]:
 
 def _panels(result, kind: str, elements, euler: str, mechanism) -> list:
     """The panels of one kind, or an AnalysisError naming what the result can show."""
-    what = f"{result.kind} result" + (f" of '{scene_name(result)}'" if scene_name(result)
-                                      else "")
+    what = f"{result.kind} result"
     choices = ", ".join(available_kinds(result)) or "none"
+    if scene_name(result):
+        choices += f" (scene '{scene_name(result)}')"
     if kind not in available_kinds(result):
         held = any(k in result.arrays for k in _NEEDS[kind])
         why = _WHY.get(kind, "") if held or kind in _WHY else ""
