@@ -19,8 +19,14 @@ with tol = ``rtol`` · max |eigenvalue| (default :data:`STABILITY_RTOL` = 1e-8, 
 roundoff of the eigenvalues, ~1e-15 relative, and far below any physical stiffness ratio of
 the scenes we know).  For non-conservative forces K̄ is not symmetric; the real parts of its
 eigenvalues are judged (divergence, not flutter).  A mechanism without degrees of freedom is
-stable.  Both :func:`casmbd.analysis.statics.static_equilibrium` and (later) linearisation use
-this function so that they never disagree.
+stable.  Both :func:`casmbd.analysis.statics.static_equilibrium` and
+:func:`casmbd.analysis.linearize.linearize` (at an equilibrium; away from one it gives no
+verdict) use this function, on the same K̄ and with the same named directions, so that they
+never disagree.  Why K̄ and not the eigenvalues of the linearized system: a stable
+conservative system has purely imaginary eigenvalues ±iω and a neutral direction a double
+zero that round-off splits into ±ε, so a spectral test cannot tell neutral from stable (or
+from unstable) robustly, while the sign pattern of K̄ is exactly the static question; see
+the module docstring of :mod:`casmbd.analysis.linearize` for damping.
 """
 
 from __future__ import annotations
