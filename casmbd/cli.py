@@ -267,8 +267,15 @@ def _add_workbench_verbs(sub) -> None:
 
     p = sub.add_parser("plot", help="figures of a saved result against time")
     p.add_argument("result", help="result file (.npz) written with --out")
-    p.add_argument("--kind", action="append", choices=tuple(KINDS), default=None,
-                   help="figure panel (repeatable; default every kind the result holds)")
+    p.add_argument("--kind", action="append", default=None, metavar="KIND",
+                   help=f"what to draw: {', '.join(KINDS)} (repeatable; default every kind "
+                        "the result holds); each kind gets one panel per unit")
+    p.add_argument("--element", action="append", default=None, metavar="NAME",
+                   help="draw only the lines of this body, joint, driver or actuator "
+                        "(repeatable)")
+    p.add_argument("--euler", choices=("xyz", "zxz"), default="xyz",
+                   help="Euler angles drawn for spatial bodies instead of quaternions "
+                        "(default xyz, regular at the identity; zxz is singular there)")
     p.add_argument("--out", required=True, help="figure file (.png, .pdf, .svg)")
     p.add_argument("--dpi", type=_positive_float, default=100.0, help="resolution (default 100)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
@@ -357,28 +364,33 @@ def _timing(stats: dict, digits: int = 3) -> str:
             f"solve {stats['solve_seconds']:.{digits}f} s")
 
 
-def _range(label: str, values: np.ndarray) -> str:
-    return f"{label} [{values.min():+.4g}, {values.max():+.4g}]"
+def _range(label: str, values: np.ndarray, unit: str = "") -> str:
+    unit = f" {unit}" if unit else ""
+    return f"{label} [{values.min():+.4g}, {values.max():+.4g}]{unit}"
 
 
-def _summary_table(result) -> list[str]:
-    """One line per body (coordinate ranges of the centre of mass, and the angle range in the
-    plane or the final quaternion in space) and per joint coordinate."""
+def _summary_table(result, mech=None) -> list[str]:
+    """One line per body (coordinate ranges of the centre of mass in m, and the angle range
+    in rad in the plane or the final quaternion in space) and per joint coordinate (m or
+    rad, from the joint's kind)."""
+    from casmbd.viz.quantities import joint_units
+
     lines = []
     spatial = result.dimension == 3
     for name in result.names["bodies"]:
         b = result.body(name)
         pos = b["position"]
-        parts = [_range(axis, pos[:, k]) for k, axis in enumerate("xyz"[:pos.shape[1]])]
+        parts = [_range(axis, pos[:, k], "m") for k, axis in enumerate("xyz"[:pos.shape[1]])]
         if spatial and "quaternion" in b and len(b["quaternion"]):
             quat = ", ".join(f"{x:+.4f}" for x in b["quaternion"][-1])
             parts.append(f"final quaternion [{quat}]")
         elif "angle" in b:
-            parts.append(_range("angle", b["angle"]))
+            parts.append(_range("angle", b["angle"], "rad"))
         lines.append(f"  body {name:<14} " + "  ".join(parts))
-    for name in result.names["joints"]:
+    units = joint_units(result, mech) if result.names["joints"] else []
+    for name, unit in zip(result.names["joints"], units):
         c = result["joint_positions"][:, result.names["joints"].index(name)]
-        lines.append(f"  joint {name:<13} {_range('coordinate', c)}")
+        lines.append(f"  joint {name:<13} {_range('coordinate', c, unit)}")
     return lines
 
 
@@ -394,7 +406,7 @@ def _cmd_kinematics(args) -> tuple[dict, str]:
     s = result.stats
     lines = [f"kinematics of '{mech.name}': {len(result.t)} times from {result.t[0]:g} to "
              f"{result.t[-1]:g} s",
-             *_summary_table(result),
+             *_summary_table(result, mech),
              f"  max constraint violation {data['constraint_violation']:.3g}",
              _timing(s)]
     if args.out:
@@ -428,9 +440,9 @@ def _cmd_simulate(args) -> tuple[dict, str]:
     energy = result["total_energy"]
     lines = [f"simulation of '{mech.name}': {len(result.t)} times from {result.t[0]:g} to "
              f"{result.t[-1]:g} s, {s['formulation']} on {s['integrator']}",
-             *_summary_table(result),
+             *_summary_table(result, mech),
              f"  energy: start {energy[0]:.6g} J, end {energy[-1]:.6g} J "
-             f"(drift {energy[-1] - energy[0]:+.3g} J)",
+             f"({_energy_change(result, mech)})",
              f"  max constraint violation: position {data['constraint_violation']:.3g}, "
              f"velocity {data['velocity_violation']:.3g}",
              f"  steps {s.get('steps', 0)}, rhs evaluations {s.get('rhs_evaluations', 0)}",
@@ -454,8 +466,24 @@ def _cmd_simulate(args) -> tuple[dict, str]:
     return data, "\n".join(lines)
 
 
+def _energy_change(result, mech) -> str:
+    """total − total(0): "drift" for a conservative mechanism, else the work of the dampers,
+    drivers, actuators and forces that change it (not a conservation error)."""
+    from casmbd.viz.quantities import energy_exchange
+
+    energy = result["total_energy"]
+    delta = f"{energy[-1] - energy[0]:+.3g} J"
+    elements = energy_exchange(result, mech)
+    if elements == []:
+        return f"drift {delta}"
+    if elements is None:
+        return f"change {delta}; numerical drift only if nothing does work"
+    return f"change {delta}: work of {', '.join(elements)}, not numerical drift"
+
+
 def _cmd_inverse(args) -> tuple[dict, str]:
     from casmbd.analysis.inverse import inverse_dynamics
+    from casmbd.viz.quantities import effort_units
 
     mech = _load(args)
     result = inverse_dynamics(mech, t_end=args.t_end, steps=args.steps, mode=args.mode)
@@ -464,13 +492,13 @@ def _cmd_inverse(args) -> tuple[dict, str]:
         _save(result, args.out)
     data = result.to_json()
     lines = [f"inverse dynamics of '{mech.name}': {len(result.t)} times from {result.t[0]:g} "
-             f"to {result.t[-1]:g} s", *_summary_table(result)]
-    for k, name in enumerate(result.names["drivers"]):
-        eff = result["driver_efforts"][:, k]
-        lines.append(f"  driver {name:<12} effort [{eff.min():+.4g}, {eff.max():+.4g}]")
-    for k, name in enumerate(result.names.get("actuators", [])):
-        eff = result["actuator_efforts"][:, k]
-        lines.append(f"  actuator {name:<10} effort [{eff.min():+.4g}, {eff.max():+.4g}]")
+             f"to {result.t[-1]:g} s", *_summary_table(result, mech)]
+    for group, key, width in (("drivers", "driver_efforts", 12),
+                              ("actuators", "actuator_efforts", 10)):
+        units = effort_units(result, group, mech)
+        for k, name in enumerate(result.names.get(group, [])):
+            eff = result[key][:, k]
+            lines.append(f"  {group[:-1]} {name:<{width}} {_range('effort', eff, units[k])}")
     s = result.stats
     lines.append(_timing(s))
     if args.out:
@@ -480,6 +508,7 @@ def _cmd_inverse(args) -> tuple[dict, str]:
 
 def _cmd_statics(args) -> tuple[dict, str]:
     from casmbd.analysis.statics import static_equilibrium
+    from casmbd.viz.quantities import joint_coordinate_unit
 
     mech = _load(args)
     result = static_equilibrium(mech, method=args.method, mode=args.mode)
@@ -490,18 +519,21 @@ def _cmd_statics(args) -> tuple[dict, str]:
     lines = [f"static equilibrium of '{mech.name}' ({result.method} Newton, "
              f"{result.iterations} iterations, residual {result.residual:.3g}): {stable}"]
     for name, b in data["bodies"].items():
-        pos = "  ".join(f"{axis} {x:+.6g}" for axis, x in zip("xyz", b["position"]))
+        pos = "  ".join(f"{axis} {x:+.6g} m" for axis, x in zip("xyz", b["position"]))
         if "quaternion" in b:
             orient = "quaternion [" + ", ".join(f"{x:+.6f}" for x in b["quaternion"]) + "]"
         else:
-            orient = f"angle {b['angle']:+.6g}"
+            orient = f"angle {b['angle']:+.6g} rad"
         lines.append(f"  body {name:<14} {pos}  {orient}")
     labels = ("Fx", "Fy", "M") if len(mech.gravity) == 2 else ("Fx", "Fy", "Fz", "Mx", "My",
                                                                "Mz")
     for name, j in data["joints"].items():
-        coords = "".join(f"{key} {j[key]:+.6g}  " for key in j if key != "reaction")
-        reaction = "  ".join(f"{label} {x + 0.0:+.6g}"  # no "-0"
-                             for label, x in zip(labels, j["reaction"]))
+        coords = "".join(
+            f"{key} {j[key]:+.6g} "
+            f"{joint_coordinate_unit(mech, name, None if key == 'coordinate' else key)}  "
+            for key in j if key != "reaction")
+        reaction = "  ".join(f"{label} {x + 0.0:+.6g} {'N' if label[0] == 'F' else 'N m'}"
+                             for label, x in zip(labels, j["reaction"]))  # no "-0"
         lines.append(f"  joint {name:<13} {coords}reaction {reaction}")
     eig = ", ".join(f"{e:.4g}" for e in result.eigenvalues) or "none (no degrees of freedom)"
     lines.append(f"  stiffness eigenvalues: {eig}")
@@ -629,9 +661,12 @@ def _cmd_plot(args) -> tuple[dict, str]:
     check_figure_size(dpi=args.dpi, what=f"--out '{args.out}'")  # before reading the result
     result = load(args.result)
     kinds = args.kind or available_kinds(result)
-    plot_result(result, kinds, out=args.out, dpi=args.dpi)
-    data = {"out": args.out, "kinds": kinds, "result": args.result}
-    return data, f"saved {args.out} ({', '.join(kinds)})"
+    fig = plot_result(result, kinds, out=args.out, dpi=args.dpi, elements=args.element,
+                      euler=args.euler)
+    notes = getattr(fig, "casmbd_notes", [])
+    data = {"out": args.out, "kinds": kinds, "result": args.result, "notes": notes}
+    return data, "\n".join([f"saved {args.out} ({', '.join(kinds)})",
+                            *(f"  note: {n}" for n in notes)])
 
 
 def _cmd_animate(args) -> tuple[dict, str]:

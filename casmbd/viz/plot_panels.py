@@ -129,7 +129,7 @@ def euler_panel(result, bodies: list[str], sequence: str) -> Panel:
     if singular:
         other = next(s for s in EULER_SEQUENCES if s != sequence)
         panel.note = (f"{sequence.upper()} singular for {', '.join(singular)} (phi, psi split "
-                      f"arbitrarily there; try euler='{other}')")
+                      f"arbitrarily there; the {other} sequence is regular there)")
     return panel
 
 

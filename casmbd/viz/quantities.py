@@ -38,7 +38,9 @@ def scene_mechanism(result, mechanism=None):
         return None
 
 
-def _joint_coordinate_unit(mech, joint: str, coordinate: str | None) -> str:
+def joint_coordinate_unit(mech, joint: str, coordinate: str | None = None) -> str:
+    """Unit of a joint's coordinate (its first when ``coordinate`` is None): "m", "rad", or
+    "m or rad" when the mechanism or the joint is unknown."""
     obj = None if mech is None else mech.joints.get(joint)
     names = getattr(obj, "coordinate_names", ())
     if not names:
@@ -52,7 +54,7 @@ def joint_units(result, mechanism=None) -> list[str]:
     out = []
     for column in result.names.get("joints", []):
         joint, _, coord = column.partition(".")
-        out.append(_joint_coordinate_unit(mech, joint, coord or None))
+        out.append(joint_coordinate_unit(mech, joint, coord or None))
     return out
 
 
@@ -67,7 +69,7 @@ def effort_units(result, group: str, mechanism=None) -> list[str]:
         if obj is None:
             out.append("N or N m")
         elif getattr(obj, "joint", None):
-            out.append(EFFORT_UNIT[_joint_coordinate_unit(mech, obj.joint, obj.coordinate)])
+            out.append(EFFORT_UNIT[joint_coordinate_unit(mech, obj.joint, obj.coordinate)])
         else:  # a driver of a body coordinate
             out.append(EFFORT_UNIT[_COORDINATE_UNITS.get(obj.coordinate, "m or rad")])
     return out
