@@ -292,9 +292,11 @@ def _add_workbench_verbs(sub) -> None:
     p.add_argument("--steps", type=_positive_int, default=50,
                    help="output intervals of the simulation of a scene (default 50)")
     p.add_argument("--max-frames", type=_positive_int, default=None,
-                   help="show at most this many evenly spread output steps")
+                   help="show at most this many evenly spread output steps (default 301)")
     p.add_argument("--fps", type=_positive_float, default=None,
-                   help="frames per second (default real time, within 5-30)")
+                   help="highest frame rate (default 30; a GIF plays at most 50)")
+    p.add_argument("--speed", type=_positive_float, default=1.0,
+                   help="playback speed factor (default 1: real time; 2: twice as fast)")
     p.add_argument("--trace", action="append", default=None, metavar="MARKER",
                    help="draw the path of this marker (repeatable; 'all' for every marker)")
     p.add_argument("--dpi", type=_positive_float, default=80.0, help="resolution (default 80)")
@@ -555,7 +557,7 @@ def _cmd_linearize(args) -> tuple[dict, str]:
     state that is not an equilibrium there is none (the matrices are still the first-order
     expansion there).
     """
-    from casmbd.analysis.linearize import EQUILIBRIUM_RTOL, linearize
+    from casmbd.analysis.linearize import linearize
 
     if (args.time is None) != (args.from_result is None):
         raise AnalysisError("linearize: --from RESULT.npz and --time T go together")
@@ -587,14 +589,9 @@ def _cmd_linearize(args) -> tuple[dict, str]:
         eig = ", ".join(f"{e:.4g}" for e in lin.stability.eigenvalues)
         lines.append(f"  stiffness eigenvalues: {eig or 'none (no degrees of freedom)'}")
     else:
-        why = [f"max |v| = {s['velocity_norm']:.3g} is not 0"] \
-            if s["velocity_norm"] > EQUILIBRIUM_RTOL else []
-        if s["residual"] > s["residual_tolerance"]:
-            why.append(f"force residual max |Q - Cq^T lambda| = {s['residual']:.3g} > "
-                       f"{s['residual_tolerance']:.3g}")
-        lines.append(f"  not an equilibrium ({'; '.join(why)}): no stability verdict, the "
-                     "modes describe perturbations about this state only; --at-equilibrium "
-                     "linearizes at the static equilibrium")
+        lines.append(f"  not an equilibrium ({lin.why_not_equilibrium()}): no stability "
+                     "verdict, the modes describe perturbations about this state only; "
+                     "--at-equilibrium linearizes at the static equilibrium")
     lines.append(_timing(s))
     return data, "\n".join(lines)
 
@@ -709,15 +706,21 @@ def _cmd_animate(args) -> tuple[dict, str]:
     if trace and "all" in trace:
         trace = True
     if suffix in (".gif", ".mp4"):
-        anim = animate(result, mech, max_frames=args.max_frames, fps=args.fps, trace=trace)
+        anim = animate(result, mech, max_frames=args.max_frames, fps=args.fps,
+                       speed=args.speed, trace=trace)
+        if not args.json:  # before the drawing: what was chosen and how to change it
+            print(anim.casmbd_choice, flush=True)
         save_animation(anim, args.out, dpi=args.dpi)
         frames, fps = anim.casmbd_frames, anim.casmbd_fps
+        playback = anim.casmbd_plan.playback
         lines.append(f"saved {args.out}: {frames} frames at {fps:.3g} fps ({source})")
     else:
         draw_frame(result, mechanism=mech, ghosts=8, trace=trace, out=args.out, dpi=args.dpi)
-        frames, fps = 1, None
+        frames, fps, playback = 1, None, None
         lines.append(f"saved {args.out}: still frame at t = {result.t[-1]:g} s ({source})")
     data = {"out": args.out, "frames": frames, "fps": fps, "t_end": float(result.t[-1]),
+            "output_times": len(result.t), "speed": args.speed,
+            "playback_seconds": playback,
             "stats": dict(result.stats)}
     return data, "\n".join(lines)
 

@@ -8,10 +8,16 @@ links thin lines.  Spatial mechanisms are drawn in a 3-D projection (matplotlib 
 with equal axis scales.  Positions come from the result (centres of mass and rotations) and the
 body-fixed points from the mechanism (:mod:`casmbd.viz.geometry`).
 
-GIF files are written by Pillow (``matplotlib.animation.PillowWriter``), MP4 only when ffmpeg is
-installed.  In a notebook, ``notebook_animation(result)`` returns the ``FuncAnimation``; show it
-with ``IPython.display.HTML(anim.to_jshtml())`` (a player with a frame slider, no extra
-package), or use :func:`time_slider` when ipywidgets is installed.
+By default an animation plays in real time at no more than :data:`FPS_CAP` frames per second
+and holds at most :data:`FRAME_BUDGET` frames (:func:`~casmbd.viz.playback.plan_frames`): a
+10 s result of 1001 output times becomes 301 frames, about 0.5 MB of GIF at the default size
+and dpi, written in a few seconds.  GIF files are written with Pillow from blitted frames
+(only the moving artists are redrawn, one colour palette for every frame), with per-frame
+delays that keep real time although a GIF stores delays in hundredths of a second; MP4 only
+when ffmpeg is installed.
+In a notebook, ``notebook_animation(result)`` returns the ``FuncAnimation``; show it with
+``IPython.display.HTML(anim.to_jshtml())`` (a player with a frame slider, no extra package),
+or use :func:`time_slider` when ipywidgets is installed.
 """
 
 from __future__ import annotations
@@ -21,10 +27,12 @@ from pathlib import Path
 
 import numpy as np
 
-from casmbd.errors import AnalysisError, CasmbdError
-from casmbd.limits import MAX_FRAMES, check_count
+from casmbd import progress
+from casmbd.errors import AnalysisError, CasmbdError, LimitError
+from casmbd.limits import MAX_FPS, MAX_FRAMES, check_count
 from casmbd.results import atomic_write
 from casmbd.viz.geometry import Geometry, _geometry, _place, body_poses, scene_name
+from casmbd.viz.playback import FPS_CAP, FRAME_BUDGET, GIF_MAX_FPS, FramePlan, plan_frames
 from casmbd.viz.plots import check_figure_size
 
 
@@ -243,8 +251,9 @@ def frame_indices(n_t: int, max_frames: int | None) -> np.ndarray:
 
 
 def animate(result, mechanism=None, *, max_frames: int | None = None, fps: float | None = None,
-            trace=None, figsize=None, view=(22.0, -60.0), title: str | None = None):
-    """A ``matplotlib.animation.FuncAnimation`` of the mechanism, one frame per output step.
+            speed: float = 1.0, trace=None, figsize=None, view=(22.0, -60.0),
+            title: str | None = None):
+    """A ``matplotlib.animation.FuncAnimation`` of the mechanism playing in real time.
 
     Parameters
     ----------
@@ -252,27 +261,32 @@ def animate(result, mechanism=None, *, max_frames: int | None = None, fps: float
     mechanism : Mechanism or Geometry, optional
         Default: the scene text embedded in the result.
     max_frames : int, optional
-        Show at most this many evenly spread output steps.
+        Show at most this many output steps (default :data:`FRAME_BUDGET`).
     fps : float, optional
-        Frames per second; default real time (frames / duration), kept within [5, 30].
+        Highest frame rate (default :data:`FPS_CAP`); fewer frames when the result has
+        fewer output times.
+    speed : float
+        Playback speed factor: 1 plays in real time, 2 twice as fast.
     trace : str, list of str, True or None
         Marker paths to draw (see :func:`draw_frame`).
 
     Returns
     -------
     matplotlib.animation.FuncAnimation
-        Its ``casmbd_fps`` attribute is the frame rate; :func:`save_animation` writes it.
+        With ``casmbd_plan`` (the :class:`FramePlan` of :func:`plan_frames`),
+        ``casmbd_fps`` (its mean frame rate) and ``casmbd_choice`` (the line saying what
+        was chosen); :func:`save_animation` writes it.
     """
     from matplotlib.animation import FuncAnimation
 
-    frames = frame_indices(len(result.t), max_frames)
+    if fps is not None:
+        check_fps(fps)
+    plan = plan_frames(result.t, max_frames, fps, speed)
+    frames = plan.indices
     check_count("animation: frames", len(frames), MAX_FRAMES,
                 "give max_frames (--max-frames) to show evenly spread output steps")
     drawing = _Drawing(result, mechanism, trace=trace, figsize=figsize, view=view)
-    if fps is None:
-        duration = float(result.t[-1] - result.t[0]) if len(result.t) > 1 else 0.0
-        fps = len(frames) / duration if duration > 0 else 10.0
-        fps = float(min(30.0, max(5.0, fps)))
+    fps = plan.fps
     if title is None:
         title = scene_name(result)
     if title:
@@ -282,11 +296,31 @@ def animate(result, mechanism=None, *, max_frames: int | None = None, fps: float
     drawing.fig.set_layout_engine("none")
     anim = FuncAnimation(drawing.fig, lambda k: drawing.update(int(k)), frames=list(frames),
                          interval=1000.0 / fps, blit=False, repeat=True)
+    anim.casmbd_plan = plan
+    anim.casmbd_choice = plan.describe()
     anim.casmbd_fps = fps
     anim.casmbd_frames = len(frames)
     anim.casmbd_frame_list = [int(k) for k in frames]
     anim.casmbd_drawing = drawing
     return anim
+
+
+def check_fps(fps: float) -> None:
+    """Refuse a frame rate that is not a finite number in (0, MAX_FPS].
+
+    A GIF stores frame durations in 10 ms units: 1e308 fps used to be written silently as
+    frames of duration 0.
+
+    Raises
+    ------
+    AnalysisError
+        For a non-finite or non-positive rate; :class:`LimitError` above ``MAX_FPS``.
+    """
+    if not (isinstance(fps, (int, float, np.number)) and np.isfinite(fps) and fps > 0):
+        raise AnalysisError(f"animation: fps (--fps) must be a finite number > 0, got {fps!r}")
+    if fps > MAX_FPS:
+        raise LimitError(f"animation: fps (--fps) {fps:g} exceeds the limit of {MAX_FPS:g} "
+                         "(casmbd.limits): a GIF cannot show frames shorter than 10 ms")
 
 
 def check_animation_file(out: str | os.PathLike) -> None:
@@ -308,40 +342,104 @@ def check_animation_file(out: str | os.PathLike) -> None:
                             "(use .gif, or .mp4 with ffmpeg)")
 
 
+def _blitted_frames(drawing: _Drawing, frames, dpi: float):
+    """RGB images of ``frames``: the static parts drawn once, then per frame only the moving
+    artists (matplotlib's blitting; about 3 ms a frame instead of 30 for a full draw)."""
+    from PIL import Image
+
+    fig, canvas = drawing.fig, drawing.fig.canvas
+    moving = sorted(drawing.update(int(frames[0])), key=lambda a: a.get_zorder())
+    old_dpi = fig.dpi
+    try:
+        for artist in moving:
+            artist.set_animated(True)  # left out of the background
+        fig.set_dpi(dpi)
+        canvas.draw()
+        background = canvas.copy_from_bbox(fig.bbox)
+        for k in frames:
+            drawing.update(int(k))
+            canvas.restore_region(background)
+            for artist in moving:
+                drawing.ax.draw_artist(artist)
+            yield Image.frombuffer("RGBA", canvas.get_width_height(), canvas.buffer_rgba(),
+                                   "raw", "RGBA", 0, 1).convert("RGB")
+    finally:
+        for artist in moving:
+            artist.set_animated(False)
+        fig.set_dpi(old_dpi)
+
+
+def _write_gif(drawing: _Drawing, frames, delays_ms, path: str, dpi: float, bar) -> None:
+    """A looping GIF of ``frames`` shown for ``delays_ms`` each, in the colours of the first
+    frame (one palette: quantising each frame on its own costs 20 ms a frame)."""
+    from PIL import Image
+
+    images, palette = [], None
+    for image in _blitted_frames(drawing, frames, dpi):
+        if palette is None:
+            palette = image.quantize(colors=256, method=Image.Quantize.MEDIANCUT)
+        images.append(image.quantize(palette=palette, dither=Image.Dither.NONE))
+        bar.update()
+    images[0].save(path, format="GIF", save_all=True, append_images=images[1:],
+                   duration=[round(d) for d in delays_ms], loop=0)
+
+
 def save_animation(anim, out: str | os.PathLike, fps: float | None = None,
                    dpi: float = 80) -> Path:
     """Write an animation atomically: ``.gif`` with Pillow, ``.mp4`` with ffmpeg.
 
+    An :func:`animate` animation is drawn once per planned frame, with a progress bar; its GIF
+    shows every frame until the next one's time (divided by the speed; the last one for the
+    mean delay), rounded to the GIF's hundredths of a second without drifting, so it plays in
+    real time.  ``fps`` given here overrides that with a constant frame rate.
+
     Raises
     ------
     AnalysisError
-        For another suffix, or ``.mp4`` when ffmpeg is not installed (use ``.gif``).
+        For another suffix, ``.mp4`` when ffmpeg is not installed (use ``.gif``), or a GIF
+        faster than :data:`GIF_MAX_FPS`.
     """
     from matplotlib import animation
 
+    plan = None if fps else getattr(anim, "casmbd_plan", None)
     fps = fps or getattr(anim, "casmbd_fps", 20.0)
+    gif = Path(out).suffix.lower() == ".gif"
     try:
+        check_fps(fps)
         check_animation_file(out)
         drawing = getattr(anim, "casmbd_drawing", None)
         if drawing is not None:
             check_figure_size(tuple(float(x) for x in drawing.fig.get_size_inches()), dpi,
                               f"animation '{out}'")
+        if gif and fps > GIF_MAX_FPS:
+            raise AnalysisError(
+                f"cannot write '{out}' at {fps:.3g} frames/s: a GIF plays at most "
+                f"{GIF_MAX_FPS:g} (its delays are whole hundredths of a second); give "
+                "--fps 50 or less, a lower --speed or fewer --max-frames")
     except CasmbdError:
         anim._draw_was_started = True  # not rendered on purpose: no deletion warning
         raise
-    if Path(out).suffix.lower() == ".gif":
-        writer = animation.PillowWriter(fps=fps)
-    else:
-        writer = animation.FFMpegWriter(fps=fps)
     drawing = getattr(anim, "casmbd_drawing", None)
     if drawing is None:  # any other FuncAnimation
+        writer = animation.PillowWriter(fps=fps) if gif else animation.FFMpegWriter(fps=fps)
         return atomic_write(out, lambda tmp: anim.save(tmp, writer=writer, dpi=dpi))
+    frames = anim.casmbd_frame_list
+    if plan is not None:
+        delays = plan.delays_ms(tick=10.0)
+    else:
+        delays = np.full(len(frames), max(10.0, round(100.0 / fps) * 10.0))
 
-    def write(tmp: str) -> None:  # one draw per frame (FuncAnimation.save draws twice)
-        with writer.saving(drawing.fig, tmp, dpi):
-            for k in anim.casmbd_frame_list:
-                drawing.update(int(k))
-                writer.grab_frame()
+    def write(tmp: str) -> None:
+        with progress.bar(len(frames), f"animate {Path(out).name}", "frame") as bar:
+            if gif:
+                _write_gif(drawing, frames, delays, tmp, dpi, bar)
+                return
+            writer = animation.FFMpegWriter(fps=fps)
+            with writer.saving(drawing.fig, tmp, dpi):  # one draw per frame
+                for k in frames:
+                    drawing.update(int(k))
+                    writer.grab_frame()
+                    bar.update()
 
     path = atomic_write(out, write)
     anim._draw_was_started = True  # rendered: no "deleted without rendering" warning
@@ -386,5 +484,6 @@ def time_slider(result, mechanism=None, **kwargs):
     return ipywidgets.VBox([slider, image])
 
 
-__all__ = ["animate", "check_animation_file", "draw_frame", "frame_indices", "notebook_animation",
-           "save_animation", "time_slider"]
+__all__ = ["FPS_CAP", "FRAME_BUDGET", "GIF_MAX_FPS", "FramePlan", "animate",
+           "check_animation_file", "draw_frame", "frame_indices", "notebook_animation",
+           "plan_frames", "save_animation", "time_slider"]
