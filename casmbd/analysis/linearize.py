@@ -204,6 +204,17 @@ class LinearModel:
         equilibrium"."""
         return self.stability.verdict if self.stability is not None else NOT_AN_EQUILIBRIUM
 
+    def why_not_equilibrium(self) -> str:
+        """Why the state is not an equilibrium (the velocity, the force residual against its
+        tolerance), or "" at an equilibrium."""
+        s = self.stats
+        why = [f"max |v| = {s['velocity_norm']:.3g} is not 0"] \
+            if s.get("velocity_norm", 0.0) > EQUILIBRIUM_RTOL else []
+        if s.get("residual", 0.0) > s.get("residual_tolerance", np.inf):
+            why.append(f"force residual max |Q - Cq^T lambda| = {s['residual']:.3g} > "
+                       f"{s['residual_tolerance']:.3g}")
+        return "; ".join(why)
+
     @property
     def stable(self) -> bool | None:
         """The spectral test: True when no eigenvalue of A has a positive real part (beyond
