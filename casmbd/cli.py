@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from casmbd import interrupts
-from casmbd.errors import AnalysisError, CasmbdError, SceneError
+from casmbd.errors import AnalysisError, AssemblyError, CasmbdError, SceneError
 from casmbd.limits import MAX_FRAMES, MAX_STEPS, check_count
 from casmbd.results import _json_default
 
@@ -349,13 +349,24 @@ def _cmd_info(args) -> tuple[dict, str]:
              f"  constraints: {data['n_constraints']} equations{body_rows}, "
              f"rank {data['rank']}",
              f"  degrees of freedom: {data['degrees_of_freedom']}"]
-    if data["redundant_equations"]:
+    if not data["assembled"]:
+        lines[-2] += " (at the initial guess: not assembled)"
+        lines.append("  redundant equations: not analysed (not assembled)")
+    elif data["redundant_equations"]:
         lines.append("  redundant equations: " + ", ".join(
             f"{d['joint']}.{d['equation']}" for d in data["redundant_equations"]))
     else:
         lines.append("  redundant equations: none")
     if not data["assembled"]:
-        lines.append(f"  warning: {data['assembly_error']}")
+        # the summary (or the one JSON object) on stdout, the culprit on stderr, exit 1
+        if args.json:
+            sys.stdout.write(json.dumps(_finite_json(json.loads(json.dumps(
+                data, default=_json_default))), allow_nan=False) + "\n")
+        else:
+            print("\n".join(lines))
+        sys.stdout.flush()
+        raise AssemblyError(f"mechanism '{data['name']}' cannot be assembled — "
+                            f"{data['assembly_error']}", data.get("assembly_culprits"))
     return data, "\n".join(lines)
 
 

@@ -24,7 +24,40 @@ class ModelError(CasmbdError):
 
 
 class AssemblyError(CasmbdError):
-    """Newton-Raphson could not satisfy the constraints C(q, t) = 0."""
+    """Newton-Raphson could not satisfy the constraints C(q, t) = 0.
+
+    ``culprits`` lists the elements most likely at fault, best first
+    (:class:`casmbd.analysis.culprits.Culprit`: kind, element, hint, ...).  The ranking
+    re-solves the assembly once per element, so it is computed on first use — ``str(exc)`` or
+    ``exc.culprits`` — by the ``explain`` callable (returning the list and the text appended to
+    the message): callers that catch the error and try another step never pay for it.
+    """
+
+    def __init__(self, message: str, culprits: list | None = None, *, explain=None):
+        super().__init__(message)
+        self._culprits = list(culprits or [])
+        self._explain = explain
+
+    def _resolve(self) -> None:
+        if self._explain is not None:
+            explain, self._explain = self._explain, None
+            culprits, text = explain()
+            self._culprits = list(culprits)
+            self.args = (f"{self.args[0]}{text}", *self.args[1:])
+
+    @property
+    def culprits(self) -> list:
+        """The elements most likely at fault, best first (empty when not ranked)."""
+        self._resolve()
+        return self._culprits
+
+    def __str__(self) -> str:
+        self._resolve()
+        return super().__str__()
+
+    def __reduce__(self):
+        self._resolve()
+        return (type(self), (str(self), self._culprits))
 
 
 class RedundantConstraintError(CasmbdError):

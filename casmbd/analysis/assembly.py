@@ -24,8 +24,9 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from casmbd.analysis.checks import nonfinite_values
+from casmbd.analysis.culprits import explain as explain_culprits
 from casmbd.analysis.redundancy import DENSE_MAX_ENTRIES, rank_report
-from casmbd.errors import AssemblyError, ModelError, SingularConfigurationError
+from casmbd.errors import AssemblyError, CasmbdError, ModelError, SingularConfigurationError
 
 
 @dataclass
@@ -75,6 +76,19 @@ def _locked(model, q: np.ndarray, t: float, residual: np.ndarray, free: np.ndarr
             f"number of free coordinates leave no motion, and the equations of "
             f"{', '.join(repr(j) for j in joints)} cannot all be satisfied together "
             "(remove or free one of these joints)")
+
+
+def _explain(model, q_start: np.ndarray, q: np.ndarray, t: float, c: np.ndarray,
+             free: np.ndarray, tol: float) -> tuple[list, str]:
+    """The culprit ranking (:mod:`casmbd.analysis.culprits`) and the rest of the message of
+    a failed assembly: most likely culprit first, then the largest residuals at the last
+    iterate and, for a locked mechanism, the joints that lock it."""
+    try:
+        ranked, text = explain_culprits(model, q_start, q, t, free, tol)
+    except (CasmbdError, np.linalg.LinAlgError, ValueError, ArithmeticError) as exc:
+        ranked, text = [], f" (no culprit ranking: {exc})"
+    return ranked, (f"{text}. Largest residuals at the last iterate: "
+                    f"{_worst_equations(model, c)}{_locked(model, q, t, c, free)}")
 
 
 def _culprits(model, t: float) -> str:
@@ -150,8 +164,10 @@ def assemble(model, q0: np.ndarray, t: float = 0.0, fixed: Sequence[str | int] |
     Raises
     ------
     AssemblyError
-        If the iteration does not converge; the message names the constraint equations with the
-        largest residuals and the time.
+        If the iteration does not converge; the message names the most likely culprit first
+        (``exc.culprits``, ranked by :func:`casmbd.analysis.culprits.rank_culprits` when the
+        message or the list is first used), with what to change, then the constraint equations
+        with the largest residuals and the time.
     """
     q = np.array(q0, dtype=float)
     if not np.all(np.isfinite(q)):
@@ -203,9 +219,13 @@ def assemble(model, q0: np.ndarray, t: float = 0.0, fixed: Sequence[str | int] |
             break
         q, c, norm, tol = trial, c_trial, n_trial, tol_at(trial)
     if norm > tol:
+        q_start = np.array(q0, dtype=float)
+
+        def explain() -> tuple[list, str]:
+            return _explain(model, q_start, q, t, c, free, tol)
+
         raise AssemblyError(f"cannot assemble at t = {t:g} after {it} Newton iterations "
-                            f"(max |C| = {norm:.3g}); largest residuals: "
-                            f"{_worst_equations(model, c)}{_locked(model, q, t, c, free)}")
+                            f"(max |C| = {norm:.3g})", explain=explain)
     return AssemblyReport(q, it, norm, q - np.asarray(q0, float))
 
 

@@ -64,8 +64,14 @@ def check_rank(model: NumericModel, q: np.ndarray, t: float):
 def info(mechanism_or_model, mode: str = "auto") -> dict:
     """Coordinates, constraints, degrees of freedom and dependent equations of a mechanism.
 
-    The rank is evaluated at the assembled initial configuration (at the initial guess if it
-    cannot be assembled; then ``"assembly_error"`` says why).  Never raises for redundancy.
+    The rank is evaluated at the assembled initial configuration.  If the mechanism cannot
+    be assembled, ``"assembled"`` is False, ``"assembly_error"`` says why (most likely culprit
+    first) and ``"assembly_culprits"`` ranks the elements (dicts of
+    :class:`~casmbd.analysis.culprits.Culprit`); the rank and degrees of freedom are then those
+    at the initial guess and ``"rank_reliable"`` is False, and the redundancy analysis is
+    skipped (``"redundant_equations"`` empty): at a pose that violates the constraints a
+    contradicting element would look "redundant".  Never raises for redundancy or assembly
+    (the CLI turns a failed assembly into a non-zero exit status).
     ``mode="auto"`` runs C and C_q on CasADi's virtual machine: info evaluates them a handful
     of times, and compiling them costs far more (25 s for a 500-body chain) than it saves.
     """
@@ -79,7 +85,10 @@ def info(mechanism_or_model, mode: str = "auto") -> dict:
     except AssemblyError as exc:
         out["assembled"] = False
         out["assembly_error"] = str(exc)
+        out["assembly_culprits"] = [c.to_dict() for c in exc.culprits]
+    out["rank_reliable"] = out["assembled"]
     rep = rank_report(model.constraint_jacobian(q, 0.0))
+    dependent = rep.dependent_rows if out["assembled"] else []
     labels = model.system.constraint_labels
     out.update({
         "bodies": list(mech.bodies), "joints": list(mech.joints), "drivers": list(mech.drivers),
@@ -91,7 +100,7 @@ def info(mechanism_or_model, mode: str = "auto") -> dict:
         "n_coordinates": model.nq, "n_constraints": model.nc, "rank": rep.rank,
         "degrees_of_freedom": rep.degrees_of_freedom,
         "redundant_equations": [{"kind": labels[i].kind, "joint": labels[i].element,
-                                 "equation": labels[i].label} for i in rep.dependent_rows],
+                                 "equation": labels[i].label} for i in dependent],
         "initial_coordinates": q.tolist(),
         "stats": model.report_dict,
     })
@@ -152,7 +161,11 @@ def kinematics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.
             try:
                 res = assemble(model, guess, t, tol=tol)
             except CasmbdError as exc:
-                raise type(exc)(f"kinematics at t = {t:g}: {exc}") from None
+                message = str(exc)  # an AssemblyError ranks its culprits here
+                wrapped = type(exc)(message if f"at t = {t:g}" in message
+                                    else f"kinematics at t = {t:g}: {message}")
+                wrapped.__dict__.update(exc.__dict__)  # culprits, dependent equations, …
+                raise wrapped from None
             q = res.q
             newton += res.iterations
         v = velocities(model, q, t)
