@@ -5,12 +5,19 @@ imported, ``$CASMBD_PROGRESS``
 is not ``0`` (the CLI sets it in ``--json`` mode) and the loop has run for more than a second
 (tqdm's ``delay``), so short runs, pipes, notebooks' captured output and JSON stay clean.
 ``$CASMBD_PROGRESS=1`` forces bars even without a terminal.
+
+A SUNDIALS run is one integrator call over the whole output grid; :func:`integrator_clock`
+gives it a bar per output interval without splitting the call (splitting would restart the
+method at every piece and change its steps).
 """
 
 from __future__ import annotations
 
 import atexit
 import os
+
+import casadi as ca
+import numpy as np
 
 #: the process's standard error as it was when casmbd was imported: solver runs capture
 #: sys.stderr and file descriptor 2 (their diagnostics become error messages), so bars drawn
@@ -62,3 +69,64 @@ def bar(total: int, desc: str, unit: str = "it"):
 
     return tqdm(total=total, desc=desc, unit=unit, file=_TERMINAL, delay=1.0,
                 leave=False, dynamic_ncols=True)
+
+
+class _OutputClock(ca.Callback):
+    """A CasADi function of time t returning 0 that advances a bar by the output times
+    ``tout`` at or before t (the integrator has passed them)."""
+
+    def __init__(self, tout):
+        ca.Callback.__init__(self)
+        self._tout = np.asarray(tout, float)
+        self.start(_Silent())
+        self.construct("progress_clock", {})
+
+    def start(self, pbar) -> None:
+        """Count from zero into ``pbar``."""
+        self.pbar, self.done = pbar, 0
+
+    def finish(self) -> None:
+        """Count the outputs not yet counted (the run ended: it reached them all)."""
+        if self.done < len(self._tout):
+            self.pbar.update(len(self._tout) - self.done)
+            self.done = len(self._tout)
+
+    def get_n_in(self) -> int:
+        return 1
+
+    def get_n_out(self) -> int:
+        return 1
+
+    def eval(self, arg):
+        reached = int(np.searchsorted(self._tout, float(arg[0]), side="right"))
+        if reached > self.done:
+            self.pbar.update(reached - self.done)
+            self.done = reached
+        return [ca.DM.zeros(1)]
+
+
+def integrator_clock(dyn: ca.Function, tout) -> tuple[ca.Function, _OutputClock] | None:
+    """The dynamics ``dyn`` of a CasADi integrator with a clock for a progress bar.
+
+    The copy computes one quadrature, identically zero, through a callback that receives the
+    time: SUNDIALS evaluates quadratures once per step, at the step's time, so the callback
+    sees the integrator pass the output times ``tout`` (call ``clock.start(bar)`` before the
+    run and ``clock.finish()`` after).  Quadratures stay out of SUNDIALS' error test
+    (CasADi's ``quad_err_con`` is false by default) and no derivative of the callback is
+    needed, so the states, the steps and the statistics are those of ``dyn`` — bit for bit
+    (tests/test_progress.py).  Keep the clock referenced while the integrator lives: CasADi
+    does not own it.
+
+    Returns
+    -------
+    (Function, clock) or None
+        None when ``dyn`` has quadratures of its own (then run without a bar).
+    """
+    if dyn.numel_out("quad") != 0:
+        return None
+    clock = _OutputClock(tout)
+    args = [ca.MX.sym(dyn.name_in(i), dyn.sparsity_in(i)) for i in range(dyn.n_in())]
+    out = dyn.call(dict(zip(dyn.name_in(), args)))
+    out["quad"] = clock(args[dyn.index_in("t")])
+    return (ca.Function(dyn.name() + "_clocked", args, [out[n] for n in dyn.name_out()],
+                        dyn.name_in(), dyn.name_out()), clock)

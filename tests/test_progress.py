@@ -7,6 +7,7 @@ import io
 import json
 import pathlib
 import time
+from typing import ClassVar
 
 import numpy as np
 import pytest
@@ -97,3 +98,76 @@ def test_ocp_solve_shows_ipopt_iterations_and_keeps_its_optimum(monkeypatch):
     assert "IPOPT" in text and "iter" in text and "objective" in text
     assert abs(sols["1"].objective - sols["0"].objective) < 1e-12 * sols["0"].objective
     assert sols["1"].iterations == sols["0"].iterations
+
+
+class _Recorder:
+    """A stand-in for progress.bar recording its total and every update."""
+
+    made: ClassVar[list] = []
+
+    def __init__(self, total, desc, unit="it"):
+        self.total, self.desc, self.unit, self.updates = total, desc, unit, []
+        _Recorder.made.append(self)
+
+    def update(self, n=1):
+        self.updates.append(n)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return False
+
+
+@pytest.mark.parametrize("scene, integrator, formulation", [
+    ("double_pendulum.toml", None, None),        # the default: CVODES Adams
+    ("double_pendulum.toml", "cvodes", None),    # CVODES BDF
+    ("slider_crank.toml", "idas", "index1"),     # IDAS on a DAE
+])
+def test_sundials_bar_counts_outputs_and_keeps_results(monkeypatch, scene, integrator,
+                                                       formulation):
+    """A SUNDIALS run with the bar forced on (one integrator call whose dynamics carry a
+    zero quadrature clocked by the step times) equals the run without it bit for bit:
+    states, step counts, right-hand-side evaluations; the bar counts the 40 output
+    intervals one by one as the integrator passes them."""
+    monkeypatch.setenv("CASMBD_COMPILE", "0")
+    monkeypatch.setattr(progress, "_TERMINAL", io.StringIO())
+    mech = casmbd.load_scene(ROOT / "examples" / scene)
+    runs = {}
+    for flag in ("0", "1"):
+        monkeypatch.setenv("CASMBD_PROGRESS", flag)
+        _Recorder.made = []
+        monkeypatch.setattr(progress, "bar", _Recorder)
+        runs[flag] = casmbd.simulate(mech, 2.0, 40, integrator=integrator,
+                                     formulation=formulation)
+        bars = list(_Recorder.made)
+        if flag == "0":
+            assert bars == []  # no bar: the plain one-call path
+    assert len(bars) == 1 and bars[0].total == 40 and bars[0].unit == "output"
+    assert sum(bars[0].updates) == 40 and len(bars[0].updates) >= 39  # one by one
+    a, b = runs["0"], runs["1"]
+    for key in ("q", "v", "a"):
+        np.testing.assert_array_equal(a[key], b[key])
+    for key in ("steps", "rhs_evaluations", "error_test_failures", "integrator"):
+        assert a.stats[key] == b.stats[key]
+
+
+def test_sundials_bar_keeps_the_failure_time(monkeypatch):
+    """A run that fails (CV_TOO_MUCH_WORK after 60 steps) fails at the same SUNDIALS time
+    and keeps the same outputs with the bar forced on (exactly)."""
+    from casmbd.errors import IntegratorError
+
+    monkeypatch.setenv("CASMBD_COMPILE", "0")
+    monkeypatch.setattr(progress, "_TERMINAL", io.StringIO())
+    mech = casmbd.load_scene(ROOT / "examples" / "double_pendulum.toml")
+    errors = {}
+    for flag in ("0", "1"):
+        monkeypatch.setenv("CASMBD_PROGRESS", flag)
+        with pytest.raises(IntegratorError) as info:
+            casmbd.simulate(mech, 5.0, 50, formulation="kkt_ode", integrator="adams",
+                            rtol=1e-10, max_steps=60)
+        errors[flag] = info.value
+    a, b = errors["0"], errors["1"]
+    assert a.flag == b.flag == "CV_TOO_MUCH_WORK"
+    assert a.time == b.time and 0.0 < a.time < 5.0
+    np.testing.assert_array_equal(a.partial["q"], b.partial["q"])

@@ -325,6 +325,8 @@ class Simulator:
             failure = exc
         except (RuntimeError, CasmbdError) as exc:
             reraise_interrupt(exc)  # Ctrl-C is no integrator failure: no partial re-run
+            if isinstance(exc, CasmbdError) and name in ("rk4", "abm"):
+                raise  # no SUNDIALS re-run: a --step limit, a --projection AssemblyError
             failure = exc
         if failure is not None:
             # SUNDIALS names the failure time; on the one-call grid run it is absolute time
@@ -428,12 +430,35 @@ class Simulator:
                                               project=True)
         if name in ("rk4", "abm"):
             return self._fixed_step(name, grid, x0, step, project=False)
+        if progress.enabled():  # a bar per output interval, the same steps and numbers
+            clocked = self._solver(
+                (name, tuple(grid), rtol, atol, max_steps, "clock"),
+                lambda: self._clocked_sundials(name, grid, rtol, atol, max_steps))
+            if clocked is not None:
+                solver, clock = clocked
+                with progress.bar(len(grid) - 1, f"{name} {self.system.mechanism.name}",
+                                  "output") as pbar:
+                    clock.start(pbar)
+                    res = solver(x0=x0, z0=z0, p=self.model.p)
+                    clock.finish()
+                xs = np.vstack([x0, np.asarray(res["xf"]).T])
+                return xs, self._solver_stats(solver.stats())
         solver = self._solver(
             (name, tuple(grid), rtol, atol, max_steps),
             lambda: integ.sundials(self.dyn, name, grid[0], grid[1:], rtol, atol, max_steps))
         res = solver(x0=x0, z0=z0, p=self.model.p)
         xs = np.vstack([x0, np.asarray(res["xf"]).T])
         return xs, self._solver_stats(solver.stats())
+
+    def _clocked_sundials(self, name, grid, rtol, atol, max_steps):
+        """The one-call SUNDIALS integrator on dynamics with a progress clock
+        (:func:`casmbd.progress.integrator_clock`: same steps, same numbers), and the clock;
+        None when the dynamics have quadratures of their own."""
+        clocked = progress.integrator_clock(self.dyn, grid[1:])
+        if clocked is None:
+            return None
+        dyn, clock = clocked
+        return integ.sundials(dyn, name, grid[0], grid[1:], rtol, atol, max_steps), clock
 
     @staticmethod
     def _solver_stats(st: dict) -> dict:
@@ -494,7 +519,7 @@ class Simulator:
         output grid.  With projection ABM4 restarts at every output.
         """
         interval = grid[1] - grid[0]
-        n_sub = integ.substeps_for(interval, step)
+        n_sub = integ.substeps_for(interval, step, len(grid) - 1)
         h = interval / n_sub
         runner = self._solver((name, "fixed"), lambda: integ.FixedStep(
             self.formulation.function, name, mode=self._mode,
