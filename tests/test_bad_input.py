@@ -282,27 +282,35 @@ UNASSEMBLABLE = (
 
 
 def test_unassemblable_scene_names_worst_equations():
+    """The unreachable tether is named first (the culprit), then the residual equations."""
     mech = loads_scene(UNASSEMBLABLE)
     with pytest.raises(AssemblyError) as exc:
         kinematics(mech, t_end=1.0, steps=2)
     message = str(exc.value)
     assert "residual" in message
-    assert "'pivot'" in message and "'tether'" in message, message
+    assert 0 <= message.index("'tether'") < message.index("'pivot'"), message
+    assert exc.value.culprits[0].element == "tether"
 
 
 def test_unassemblable_by_driver_names_driver():
-    """A driver that puts the centre of a 1 m link pinned at the origin 3 m away."""
+    """A driver that puts the centre of a 1 m link pinned at the origin 3 m away: the driver
+    first, then the joint it contradicts."""
     text = PENDULUM + entry("drivers", name='"reach"', body='"rod"', coordinate='"x"',
                             position="3.0")
     with pytest.raises(AssemblyError) as exc:
         kinematics(loads_scene(text), t_end=1.0, steps=2)
-    assert "'reach'" in str(exc.value) and "'pivot'" in str(exc.value)
+    message = str(exc.value)
+    assert 0 <= message.index("'reach'") < message.index("'pivot'"), message
+    assert [c.element for c in exc.value.culprits] == ["reach", "pivot"]
 
 
 def test_info_reports_assembly_failure_without_raising():
+    """The Python ``info`` returns the failure (the CLI exits 1 on it, see
+    tests/test_assembly_culprit.py); no redundancy is claimed at the unassembled pose."""
     data = info(loads_scene(UNASSEMBLABLE))
-    assert data["assembled"] is False
-    assert "tether" in data["assembly_error"] or "pivot" in data["assembly_error"]
+    assert data["assembled"] is False and data["rank_reliable"] is False
+    assert data["assembly_culprits"][0]["element"] == "tether"
+    assert data["redundant_equations"] == []
 
 
 FIXED_TWICE = (HEAD + body("block")
