@@ -679,7 +679,13 @@ def _cmd_plot(args) -> tuple[dict, str]:
 
 def _cmd_animate(args) -> tuple[dict, str]:
     """Animate a result file, or simulate a scene (default simulator) and animate it."""
-    from casmbd.viz.animation import animate, check_animation_file, draw_frame, save_animation
+    from casmbd.viz.animation import (
+        animate,
+        check_animation_file,
+        check_fps,
+        draw_frame,
+        save_animation,
+    )
     from casmbd.viz.plots import check_figure_size
 
     _check_out(args)
@@ -690,6 +696,8 @@ def _cmd_animate(args) -> tuple[dict, str]:
     if suffix in (".gif", ".mp4"):
         check_animation_file(args.out)  # before a simulation: no ffmpeg, no MP4
     check_figure_size(dpi=args.dpi, what=f"--out '{args.out}'")  # before a simulation
+    if args.fps is not None:
+        check_fps(args.fps)
     if (suffix in (".gif", ".mp4") and args.max_frames is None
             and Path(args.source).suffix.lower() != ".npz"):
         check_count("animate: frames (--steps + 1)", args.steps + 1, MAX_FRAMES,

@@ -25,7 +25,8 @@ from casmbd.errors import LimitError
 
 __all__ = [
     "MAX_BODIES", "MAX_DPI", "MAX_ELEMENTS", "MAX_EXPRESSION_DEPTH", "MAX_EXPRESSION_LENGTH",
-    "MAX_FIGURE_INCHES", "MAX_FRAMES", "MAX_OCP_INTERVALS", "MAX_OCP_UNKNOWNS", "MAX_PIXELS",
+    "MAX_FIGURE_INCHES", "MAX_FIXED_STEPS", "MAX_FPS", "MAX_FRAMES", "MAX_OCP_INTERVALS",
+    "MAX_OCP_UNKNOWNS", "MAX_PIXELS",
     "MAX_SCENE_BYTES", "MAX_STEPS", "MAX_SWEEP_POINTS", "MAX_TOML_DEPTH", "MEMORY_ENV",
     "check_count", "check_memory", "check_steps", "format_bytes", "memory_budget",
     "output_values",
@@ -47,6 +48,12 @@ MAX_EXPRESSION_DEPTH = 100
 #: Most output intervals (``steps``) of a time-domain analysis, whatever the memory (also the
 #: largest integer the command line accepts for ``--steps``, ``--max-steps``, ``--intervals``).
 MAX_STEPS = 10_000_000
+#: Most steps of a fixed-step simulation (``--step``), all output intervals together: a
+#: billion RK4 steps take tens of minutes even compiled (``--step 1e-300`` used to run forever).
+MAX_FIXED_STEPS = 1_000_000_000
+#: Highest frame rate of an animation (a GIF stores frame durations in 10 ms units, so
+#: anything faster is written as a duration of 0).
+MAX_FPS = 1_000.0
 #: Most intervals of an optimal-control transcription.
 MAX_OCP_INTERVALS = 100_000
 #: Most collocation unknowns of an optimal-control problem: intervals × (degree + 1) ×

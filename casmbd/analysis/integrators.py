@@ -24,7 +24,8 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
-from casmbd.errors import ModelError
+from casmbd.errors import LimitError, ModelError
+from casmbd.limits import MAX_FIXED_STEPS
 
 INTEGRATORS = ("idas", "cvodes", "adams", "rk4", "abm")
 
@@ -243,20 +244,25 @@ class CapturedOutput:
         return lines[-1] if lines else ""
 
 
-def substeps_for(interval: float, step: float | None) -> int:
+def substeps_for(interval: float, step: float | None, intervals: int = 1) -> int:
     """Number of fixed steps per output interval for a requested step size.
 
     A step that does not divide the output interval is shortened to the largest step that
     does (``interval / ceil(interval / step)``; a step longer than the interval becomes the
     interval); the step taken is reported as ``stats["step_size"]``.  A ratio within 1e-9
     (relative) of an integer counts as that integer, so that 0.1 / 0.01 = 10.000000000000002
-    gives 10 steps and not 11.
+    gives 10 steps and not 11.  More than ``MAX_FIXED_STEPS`` steps over all ``intervals``
+    output intervals is a :class:`LimitError` (``--step 1e-300`` used to run forever).
     """
     if step is None:
         return 10
     if not (math.isfinite(step) and step > 0):
         raise ModelError(f"fixed step must be a finite number > 0, got {step}")
     ratio = interval / step
+    if not ratio * intervals <= MAX_FIXED_STEPS:  # also inf: 1e-300 / 5e-324
+        raise LimitError(f"fixed step (--step) {step:g}: {ratio * intervals:.3g} steps over "
+                         f"{intervals} output intervals exceed the limit of "
+                         f"{MAX_FIXED_STEPS:,} (casmbd.limits): use a larger step")
     nearest = round(ratio)
     if nearest >= 1 and abs(ratio - nearest) <= 1e-9 * nearest:
         return int(nearest)

@@ -132,6 +132,10 @@ def ocp_from_scene(mech, table: dict | None = None, source: str = "<scene>") -> 
             where = f"[[ocp.path]] entry {i + 1}"
             if not isinstance(entry, dict) or "expression" not in entry:
                 raise SceneError(f"{source}: {where}: needs 'expression' and 'min'/'max'/'equal'")
+            _known_keys(entry, ("expression", "min", "max", "equal", "at"), f"{source}: {where}")
+            if not any(key in entry for key in ("min", "max", "equal")):
+                raise SceneError(f"{source}: {where} ({entry['expression']!r}): needs 'min', "
+                                 "'max' or 'equal' (without a bound it constrains nothing)")
             if "equal" in entry:
                 lo = hi = num(entry["equal"], f"path {i + 1}.equal")
             else:
@@ -155,6 +159,8 @@ def ocp_from_scene(mech, table: dict | None = None, source: str = "<scene>") -> 
             if not isinstance(entry, dict) or "expression" not in entry:
                 raise SceneError(f"{source}: [[ocp.tracking]] entry {i + 1}: needs "
                                  "'expression' and 'reference'")
+            _known_keys(entry, ("expression", "reference", "weight"),
+                        f"{source}: [[ocp.tracking]] entry {i + 1}")
             ocp.minimize("tracking", num(entry.get("weight", 1.0), f"tracking {i + 1}.weight"),
                          expression=entry["expression"], reference=entry.get("reference", 0.0))
         ocp.guess(table.get("guess", "linear"))
@@ -165,6 +171,14 @@ def ocp_from_scene(mech, table: dict | None = None, source: str = "<scene>") -> 
     except CasmbdError as exc:
         raise SceneError(f"{source}: [ocp]: {exc}") from None
     return ocp
+
+
+def _known_keys(entry: dict, allowed: tuple[str, ...], where: str) -> None:
+    """Refuse a key of an ``[[ocp.path]]``/``[[ocp.tracking]]`` entry that is not ``allowed``
+    (a misspelt ``maximum = 1`` used to leave the constraint without its bound, silently)."""
+    for key in entry:
+        if key not in allowed:
+            raise SceneError(f"{where}: unknown key '{key}' (known: {', '.join(allowed)})")
 
 
 def load_ocp(path: str | os.PathLike) -> Ocp:

@@ -359,7 +359,8 @@ class Mechanism:
         """Translational spring-damper-actuator between two points (tension positive)."""
         self._unique(self.forces, "force", name)
         self._pair(body1, body2, f"force '{name}'")
-        self._nonnegative(name, stiffness=stiffness, damping=damping)
+        self._nonnegative(name, stiffness=stiffness, damping=damping,
+                          **({} if free_length is None else {"free_length": free_length}))
         force = SpringDamper(name, body1, body2, point1, point2, stiffness, damping,
                              free_length, actuator)
         self._dimension_of(name, "point1", len(force.point1))

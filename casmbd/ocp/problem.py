@@ -155,8 +155,8 @@ class Ocp:
         if isinstance(self.horizon, FreeTime):
             h = self.horizon
             if not (0 < h.lower <= h.guess <= h.upper and math.isfinite(h.upper)):
-                raise AnalysisError(f"ocp: free time needs 0 < lower <= guess <= upper < inf, "
-                                    f"got {h}")
+                raise AnalysisError(f"ocp: horizon: free time needs 0 < lower <= guess <= upper "
+                                    f"< inf, got {h}")
         elif not (isinstance(self.horizon, (int, float)) and math.isfinite(self.horizon)
                   and self.horizon > 0):
             raise AnalysisError(f"ocp: horizon must be a finite time > 0 or FreeTime, got "

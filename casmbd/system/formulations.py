@@ -252,7 +252,17 @@ def _default_penalty(system: System) -> float:
                     [ca.diag(system.mass_matrix), ca.sum1(system.constraint_jacobian**2).T])
     m_diag, c_diag = (np.asarray(x).ravel() for x in f(q0, 0.0, system.parameter_values))
     c_mean = float(np.mean(c_diag[c_diag > 0])) if np.any(c_diag > 0) else 1.0
-    return 1e5 * float(np.mean(m_diag)) / c_mean
+    with np.errstate(all="ignore"):
+        penalty = 1e5 * float(np.mean(m_diag)) / c_mean
+    if not (np.isfinite(penalty) and penalty > 0):
+        # absurd masses, inertias or positions (1e308): name the coordinates that carry them
+        names = system.coordinate_names
+        i, j = int(np.argmax(np.abs(m_diag))), int(np.argmax(np.abs(c_diag)))
+        raise ModelError(f"augmented_lagrangian: no usable penalty ({penalty:g}) from the "
+                         f"initial pose: mass-matrix diagonal up to {m_diag[i]:g} (coordinate "
+                         f"'{names[i]}'), C_q^T C_q diagonal up to {c_diag[j]:g} (coordinate "
+                         f"'{names[j]}'); a mass, inertia or position is out of range")
+    return penalty
 
 
 def build(system: System, name: str, **options) -> Formulation:
