@@ -39,6 +39,28 @@ def run(*argv: str) -> dict:
     return json.loads(out.getvalue())
 
 
+def tutorial_commands() -> list[list[str]]:
+    """The ``$ casmbd …`` command lines of docs/tutorial.md (continuation lines joined)."""
+    import shlex
+
+    text = (ROOT / "docs" / "tutorial.md").read_text().replace("\\\n", " ")
+    return [shlex.split(line[2:]) for line in text.splitlines() if line.startswith("$ casmbd")]
+
+
+def test_tutorial_writes_only_into_the_ignored_out_folder():
+    """Every file the tutorial's commands (and its Python) write or read back lies under
+    ``out/``, which .gitignore ignores: nothing lands in the repository root."""
+    commands = tutorial_commands()
+    outs = [argv[argv.index("--out") + 1] for argv in commands if "--out" in argv]
+    assert len(outs) >= 4, outs  # simulate, plot, animate, sweep
+    assert all(path.startswith("out/") for path in outs), outs
+    read = [a for argv in commands for a in argv[1:] if a.endswith((".npz", ".gif", ".png"))]
+    assert all(path.startswith("out/") for path in read), read
+    text = (ROOT / "docs" / "tutorial.md").read_text()
+    assert 'load_result("out/crane.npz")' in text
+    assert "out/" in (ROOT / ".gitignore").read_text().split()
+
+
 def test_scene_info():
     """Step 1: 6 absolute coordinates, 4 joint equations of full rank, 2 degrees of freedom."""
     info = run("info", CRANE)
