@@ -194,3 +194,18 @@ def test_cli_info_json_is_one_object_with_the_ranking(tmp_path, capsys):
     for key in ("rank", "degrees_of_freedom", "redundant_equations", "assembly_error",
                 "coordinates", "constraints", "initial_coordinates"):
         assert key in data  # the keys other programs read are kept
+
+
+def test_pin_named_when_no_single_driver_is_at_fault():
+    """The 1 m rod's centre driven to x = 3 and y = 3: neither driver alone can be met
+    (|x|, |y| <= 0.5), so the pin is the one element whose removal lets the rest assemble;
+    its hint gives the least distance between the two points, |(3, 3)| − 0.5 m."""
+    text = CONTRADICTORY_DRIVER + entry("drivers", name='"lift"', body='"rod"',
+                                        coordinate='"y"', position="3.0")
+    exc = failure(text)
+    top = exc.culprits[0]
+    assert (top.kind, top.element, top.fixes) == ("joint", "pivot", True)
+    assert [c.fixes for c in exc.culprits[1:]] == [False, False]
+    match = re.search(r"would have to be ([\d.]+) apart", top.hint)
+    assert match and abs(float(match.group(1)) - (math.hypot(3, 3) - 0.5)) < 1e-3, top.hint
+    assert "point (0, 0)" in top.hint and "move the point" in top.hint

@@ -175,6 +175,39 @@ def _extrema(model, q: np.ndarray, t: float, row: int, rest: np.ndarray, free: n
     return out
 
 
+def _closest(model, q: np.ndarray, t: float, rows: np.ndarray, rest: np.ndarray,
+             free: np.ndarray, tol: float) -> float:
+    """Smallest ‖C_rows‖ over the poses that satisfy the equations ``rest`` (SLSQP from ``q``
+    and the poses of :func:`_starts`; ‖C_rows(q)‖ if every search fails)."""
+    best = float(np.linalg.norm(model.constraints(q, t)[rows]))
+
+    def at(x):
+        trial = q.copy()
+        trial[free] = x
+        return trial
+
+    def fun(x):
+        c = model.constraints(at(x), t)[rows]
+        return 0.5 * float(c @ c)
+
+    def grad(x):
+        trial = at(x)
+        c = model.constraints(trial, t)[rows]
+        return model.constraint_jacobian(trial, t)[rows][:, free].toarray().T @ c
+
+    constraints = [{"type": "eq", "fun": lambda x: model.constraints(at(x), t)[rest],
+                    "jac": lambda x: model.constraint_jacobian(at(x), t)[rest][:, free]
+                    .toarray()}] if rest.size else []
+    for start in _starts(model, q, t, rest, free, tol):
+        res = minimize(fun, start[free], jac=grad, constraints=constraints, method="SLSQP",
+                       options={"maxiter": 200, "ftol": 1e-14})
+        trial = at(res.x)
+        if rest.size and float(np.max(np.abs(model.constraints(trial, t)[rest]))) > tol:
+            continue
+        best = min(best, float(np.linalg.norm(model.constraints(trial, t)[rows])))
+    return best
+
+
 def _fmt(values) -> str:
     return ", ".join(f"{float(v):.4g}" for v in np.ravel(values))
 
@@ -240,12 +273,14 @@ def _hint(model, culprit: Culprit, q: np.ndarray, t: float, rows: np.ndarray,
                 f"({_fmt(joint.point2)}) on {_body(joint.body2)} are {reach} in the poses "
                 f"the other equations allow ({drawn:.4g} as drawn); change the distance or "
                 "move a point")
-    if joint is not None and getattr(joint, "point", None) is not None:
-        gap = float(np.linalg.norm(model.constraints(q, t)[rows]))
+    pin = np.array([r for r, lab in zip(rows, culprit.equations, strict=True)
+                    if lab in ("x", "y", "z")], dtype=int)  # the rows p1 − p2 of its point
+    if joint is not None and getattr(joint, "point", None) is not None and pin.size:
+        gap = _closest(model, q, t, pin, rest, free, tol)
         return (f"joint '{joint.name}' point ({_fmt(joint.point)}): with the other equations "
                 f"satisfied, the points of {_body(joint.body1)} and {_body(joint.body2)} "
-                f"would have to be {gap:.4g} apart; move the point or the body's initial "
-                "position")
+                f"would have to be {gap:.4g} apart at least; move the point or the body's "
+                "initial position")
     return (f"{culprit}: with the other equations satisfied its equations "
             f"({', '.join(culprit.equations)}) are off by {culprit.mismatch:.3g}; check its "
             "definition and the bodies' initial positions")
