@@ -215,6 +215,31 @@ def test_prismatic_with_zero_axis():
     raises_naming(SceneError, text, "[[joints]] entry 1", "'slide'", "'axis'", "zero")
 
 
+def test_spring_with_negative_free_length():
+    """Used to simulate silently (the spring pushed the block through its anchor)."""
+    text = PENDULUM + entry("forces", name='"coil"', type='"spring_damper"', body1='"ground"',
+                            body2='"rod"', point1="[0.0, 1.0]", point2="[1.0, 0.0]",
+                            stiffness="10.0", free_length="-0.5")
+    raises_naming(SceneError, text, "[[forces]] entry 1", "'coil'", "'free_length'", ">= 0",
+                  "-0.5")
+
+
+@pytest.mark.parametrize("fields, culprit", [
+    ({"mass": "1e308", "inertia": "1e308"}, "mass-matrix diagonal up to 1e+308 (coordinate "
+                                            "'rod.x')"),
+    ({"position": "[1e308, 0.0]"}, "C_q^T C_q diagonal up to inf (coordinate 'rod.angle')"),
+])
+def test_absurd_mass_or_position_names_the_coordinate(fields, culprit):
+    """Finite but absurd values (1e308) used to end in 'penalty must be > 0, got inf'."""
+    from casmbd.analysis.simulate import simulate
+
+    mech = loads_scene(HEAD + body("rod", **fields) + PIVOT)
+    with pytest.raises(ModelError) as exc:
+        simulate(mech, t_end=0.1, steps=2)
+    assert "augmented_lagrangian: no usable penalty" in str(exc.value), str(exc.value)
+    assert culprit in str(exc.value), str(exc.value)
+
+
 # ---------------------------------------------------------------------- drivers
 def test_driver_with_both_joint_and_body():
     text = PENDULUM + entry("drivers", name='"spin"', joint='"pivot"', body='"rod"',

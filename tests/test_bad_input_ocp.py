@@ -54,6 +54,12 @@ def test_scene_without_ocp_table_fails(extra_args, tmp_path, capsys):
     ('transcription = "foo"', ("'foo'", "radau", "legendre", "multiple_shooting")),
     ('integrator = "foo"', ("'foo'", "rk4", "cvodes")),
     ('dynamics = "foo"', ("'foo'", "implicit", "explicit")),
+    # used to be accepted silently: a path constraint without a bound, misspelt keys
+    ('path = [{ expression = "shoulder" }]', ("[[ocp.path]] entry 1", "'shoulder'", "'min'")),
+    ('path = [{ expression = "shoulder", maximum = 1.0 }]',
+     ("[[ocp.path]] entry 1", "unknown key 'maximum'", "max")),
+    ('tracking = [{ expression = "shoulder", referenc = 0.0 }]',
+     ("[[ocp.tracking]] entry 1", "unknown key 'referenc'", "reference")),
 ])
 def test_unknown_names_in_ocp_table(extra, fragments, tmp_path, capsys):
     scene = tmp_path / "bad_ocp.toml"
@@ -68,6 +74,15 @@ def test_unknown_names_in_ocp_table(extra, fragments, tmp_path, capsys):
     assert code == 1 and len(err) == 1 and err[0].startswith("error: "), err
     assert "bad_ocp.toml" in err[0] and all(f in err[0] for f in fragments), err[0]
     assert not out.exists()
+
+
+def test_free_horizon_bounds_out_of_order_name_the_horizon(tmp_path, capsys):
+    scene = tmp_path / "free.toml"
+    scene.write_text(BASE + OCP.format(extra="").replace(
+        "horizon = 1.0", "horizon = { free = true, guess = 2.0, min = 3.0, max = 1.0 }"))
+    with pytest.raises(SceneError, match=r"\[ocp\]: ocp: horizon: free time needs 0 < lower "
+                                         r"<= guess <= upper < inf, got .*lower=3\.0"):
+        ocp_from_scene(load_scene(scene), source=str(scene))
 
 
 def test_unknown_transcription_on_the_command_line(tmp_path, capsys):

@@ -27,6 +27,8 @@ from casmbd.limits import (
     MAX_BODIES,
     MAX_DPI,
     MAX_FIGURE_INCHES,
+    MAX_FIXED_STEPS,
+    MAX_FPS,
     MAX_FRAMES,
     MAX_OCP_INTERVALS,
     MAX_OCP_UNKNOWNS,
@@ -342,3 +344,44 @@ def test_large_minimum_norm_assembly_equals_the_dense_one(monkeypatch):
     np.testing.assert_allclose(sparse["initial_coordinates"], dense["initial_coordinates"],
                                rtol=0, atol=1e-12)
     assert sparse["degrees_of_freedom"] == dense["degrees_of_freedom"] == 149
+
+
+# ---------------------------------------------------------------------- fixed steps, fps
+@pytest.mark.parametrize("integrator, step, count", [("rk4", 1e-300, r"1e\+300"),
+                                                     ("abm", 5e-324, "inf")])
+def test_fixed_step_count_beyond_the_limit(integrator, step, count):
+    """``--step 1e-300`` used to run forever; 5e-324 ended in an internal OverflowError."""
+    mech = load_scene(PENDULUM)
+    with pytest.raises(LimitError, match=rf"fixed step \(--step\) {step:g}: {count} steps over "
+                                         rf"2 output intervals exceed the limit of "
+                                         rf"{limit_text(MAX_FIXED_STEPS)}"):
+        simulate(mech, t_end=1.0, steps=2, integrator=integrator, step=step)
+
+
+def test_fixed_step_error_is_not_masked_by_a_sundials_rerun():
+    """A casmbd error of a fixed-step run used to be replaced by "unknown SUNDIALS
+    integrator 'rk4'" from the partial-results re-run."""
+    from casmbd.errors import ModelError
+
+    mech = load_scene(PENDULUM)
+    with pytest.raises(ModelError, match=r"fixed step must be a finite number > 0, got 0\.0"):
+        simulate(mech, t_end=1.0, steps=2, integrator="rk4", step=0.0)
+
+
+def test_animate_fps_refused_before_simulating(tmp_path, capsys, monkeypatch):
+    """``--fps 1e308`` used to write a GIF of zero-duration frames and exit 0."""
+    from casmbd.errors import AnalysisError
+    from casmbd.viz.animation import check_fps
+
+    monkeypatch.setattr(simulate_module, "simulate", lambda *a, **k: pytest.fail("simulated"))
+    out = tmp_path / "a.gif"
+    status = cli.main(["animate", str(PENDULUM), "--out", str(out), "--fps", "1e308"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 1 and len(err) == 1, err
+    assert err[0] == (f"error: animation: fps (--fps) 1e+308 exceeds the limit of {MAX_FPS:g} "
+                      "(casmbd.limits): a GIF cannot show frames shorter than 10 ms"), err[0]
+    assert not out.exists()
+    for bad in (0.0, -1.0, math.nan, math.inf):
+        with pytest.raises(AnalysisError, match=r"fps \(--fps\) must be a finite number > 0"):
+            check_fps(bad)
+    check_fps(MAX_FPS)  # the limit itself is allowed

@@ -258,7 +258,7 @@ def substeps_for(interval: float, step: float | None, intervals: int = 1) -> int
         return 10
     if not (math.isfinite(step) and step > 0):
         raise ModelError(f"fixed step must be a finite number > 0, got {step}")
-    ratio = interval / step
+    ratio = float(interval) / step  # a Python float: inf without a numpy warning
     if not ratio * intervals <= MAX_FIXED_STEPS:  # also inf: 1e-300 / 5e-324
         raise LimitError(f"fixed step (--step) {step:g}: {ratio * intervals:.3g} steps over "
                          f"{intervals} output intervals exceed the limit of "
