@@ -44,6 +44,9 @@ MAX_ENTRIES = 40_000
 MAX_ITERATIONS = 30
 #: random starting poses (besides the re-solved one) of the search for the allowed range
 EXTRA_STARTS = 3
+#: free coordinates above which the hint gives no range (each SLSQP iteration is dense in
+#: them: 0.3 s for 30 coordinates, 100 s for 200)
+RANGE_MAX_COORDINATES = 30
 
 
 @dataclass
@@ -113,15 +116,23 @@ def _least_squares(model, q: np.ndarray, t: float, rows: np.ndarray, free: np.nd
 
 def _starts(model, q: np.ndarray, t: float, rest: np.ndarray, free: np.ndarray,
             tol: float) -> list[np.ndarray]:
-    """``q`` and :data:`EXTRA_STARTS` random poses near it brought back onto the equations
-    ``rest`` (a local search started where the equation is stationary, as at the pose the
-    re-solve ends in, would not move)."""
+    """``q`` and :data:`EXTRA_STARTS` poses reached from it by random motions the equations
+    ``rest`` allow (steps of norm 1, 2, 3 in their tangent space, brought back onto them by
+    Gauss-Newton): a local search started where the equation is stationary, as at the pose
+    the re-solve ends in, would not move."""
     rng = np.random.default_rng(0)
-    scale = 0.5 * max(1.0, float(np.max(np.abs(q[free]), initial=0.0)))
+    jac = model.constraint_jacobian(q, t)[rest][:, free].toarray() if rest.size else \
+        np.zeros((0, len(free)))
+    _, sigma, vt = np.linalg.svd(jac, full_matrices=True)
+    rank = int(np.sum(sigma > 1e-8 * max(float(sigma[0]) if sigma.size else 0.0, 1e-300)))
+    tangent = vt[rank:].T
     out = [q]
-    for _ in range(EXTRA_STARTS):
+    if not tangent.shape[1]:
+        return out
+    for k in range(EXTRA_STARTS):
+        step = tangent @ rng.normal(0.0, 1.0, tangent.shape[1])
         trial = q.copy()
-        trial[free] += rng.normal(0.0, scale, len(free))
+        trial[free] += (k + 1.0) * step / max(float(np.linalg.norm(step)), 1e-300)
         trial, c = _least_squares(model, trial, t, rest, free, tol)
         if not c.size or float(np.max(np.abs(c))) <= tol:
             out.append(trial)
@@ -169,7 +180,7 @@ def _extrema(model, q: np.ndarray, t: float, row: int, rest: np.ndarray, free: n
 
         constraints = [{"type": "eq", "fun": cons, "jac": cons_jac}] if rest.size else []
         res = minimize(fun, q[free], jac=grad, constraints=constraints, method="SLSQP",
-                       options={"maxiter": 200, "ftol": 1e-12})
+                       options={"maxiter": 100, "ftol": 1e-12})
         ok = res.success and (not rest.size or float(np.max(np.abs(cons(res.x)))) <= tol)
         out.append(sign * float(res.fun) if ok and np.isfinite(res.fun) else None)
     return out
@@ -200,12 +211,27 @@ def _closest(model, q: np.ndarray, t: float, rows: np.ndarray, rest: np.ndarray,
                     .toarray()}] if rest.size else []
     for start in _starts(model, q, t, rest, free, tol):
         res = minimize(fun, start[free], jac=grad, constraints=constraints, method="SLSQP",
-                       options={"maxiter": 200, "ftol": 1e-14})
+                       options={"maxiter": 100, "ftol": 1e-14})
         trial = at(res.x)
         if rest.size and float(np.max(np.abs(model.constraints(trial, t)[rest]))) > tol:
             continue
         best = min(best, float(np.linalg.norm(model.constraints(trial, t)[rows])))
     return best
+
+
+def _bounds(lo: float | None, hi: float | None, value: float, between: str,
+            and_: str) -> str:
+    """"between lo and hi" (or "from lo to hi"), or the one bound ``value`` lies beyond
+    ("at least lo", "at most hi") when the other was not found or equals it: a local
+    search that did not leave a stationary pose returns lo = hi."""
+    distinct = lo is not None and hi is not None and hi - lo > 1e-6 * max(1.0, abs(hi))
+    if distinct:
+        return f"{between} {lo:.6g} {and_} {hi:.6g}"
+    if lo is not None and value < lo:
+        return f"at least {lo:.6g}"
+    if hi is not None and value > hi:
+        return f"at most {hi:.6g}"
+    return ""
 
 
 def _fmt(values) -> str:
@@ -240,17 +266,15 @@ def _hint(model, culprit: Culprit, q: np.ndarray, t: float, rows: np.ndarray,
         return (f"{culprit}: without it the residual is still {culprit.remaining:.3g} "
                 "(other elements contradict each other too)")
     lo = hi = None
-    if rows.size == 1:
+    if rows.size == 1 and len(free) <= RANGE_MAX_COORDINATES:
         lo, hi = _range(model, q, t, int(rows[0]), rest, free, tol)
     if culprit.kind == "driver" and culprit.element in mech.drivers:
         driver = mech.drivers[culprit.element]
         f = _driver_value(model, driver, t)
         asked = f"{driver.target} = {f:.6g}" if f is not None else driver.target
-        allowed = ""
-        if f is not None and (lo is not None or hi is not None):
-            allowed = (f", but the joints allow only {driver.target} "
-                       + (f"from {f + lo:.6g} " if lo is not None else "")
-                       + (f"to {f + hi:.6g}" if hi is not None else "up")).rstrip()
+        allowed = "" if f is None else _bounds(None if lo is None else f + lo,
+                                               None if hi is None else f + hi, f, "from", "to")
+        allowed = f", but the joints allow only {driver.target} {allowed}" if allowed else ""
         return (f"driver '{driver.name}' asks for {asked} at t = {t:g}{allowed}, "
                 f"contradicting {_others(culprit, fixers)}; change its position "
                 "expression, the initial pose, or the joint points that set the range")
@@ -262,25 +286,30 @@ def _hint(model, culprit: Culprit, q: np.ndarray, t: float, rows: np.ndarray,
         def distance(c):
             return float(np.sqrt(max(0.0, length * length + 2.0 * length * c)))
 
-        if lo is not None and hi is not None:
-            reach = f"between {distance(lo):.4g} and {distance(hi):.4g} apart"
-        elif lo is not None:
-            reach = f"at least {distance(lo):.4g} apart"
+        reach = _bounds(None if lo is None else distance(lo),
+                        None if hi is None else distance(hi), length, "between", "and")
+        reach = f"{reach} apart" if reach else "not that far apart"
+        where = (f"its points ({_fmt(joint.point1)}) on {_body(joint.body1)} and "
+                 f"({_fmt(joint.point2)}) on {_body(joint.body2)}")
+        if len(free) > RANGE_MAX_COORDINATES:
+            where += (f" are {drawn:.4g} apart as drawn (no search for the reachable "
+                      f"distances above {RANGE_MAX_COORDINATES} coordinates)")
         else:
-            reach = f"{distance(culprit.mismatch):.4g} apart at best"
+            where += (f" are {reach} in the poses the other equations allow ({drawn:.4g} "
+                      "as drawn)")
         return (f"distance joint '{joint.name}': the length L = {length:.6g} cannot be "
-                f"reached: its points ({_fmt(joint.point1)}) on {_body(joint.body1)} and "
-                f"({_fmt(joint.point2)}) on {_body(joint.body2)} are {reach} in the poses "
-                f"the other equations allow ({drawn:.4g} as drawn); change the distance or "
-                "move a point")
+                f"reached: {where}; change the distance or move a point")
     pin = np.array([r for r, lab in zip(rows, culprit.equations, strict=True)
                     if lab in ("x", "y", "z")], dtype=int)  # the rows p1 − p2 of its point
     if joint is not None and getattr(joint, "point", None) is not None and pin.size:
-        gap = _closest(model, q, t, pin, rest, free, tol)
+        if len(free) <= RANGE_MAX_COORDINATES:
+            gap = f"{_closest(model, q, t, pin, rest, free, tol):.4g} apart at least"
+        else:
+            gap = (f"{float(np.linalg.norm(model.constraints(q, t)[pin])):.4g} apart in the "
+                   f"pose found (no search above {RANGE_MAX_COORDINATES} coordinates)")
         return (f"joint '{joint.name}' point ({_fmt(joint.point)}): with the other equations "
                 f"satisfied, the points of {_body(joint.body1)} and {_body(joint.body2)} "
-                f"would have to be {gap:.4g} apart at least; move the point or the body's "
-                "initial position")
+                f"would have to be {gap}; move the point or the body's initial position")
     return (f"{culprit}: with the other equations satisfied its equations "
             f"({', '.join(culprit.equations)}) are off by {culprit.mismatch:.3g}; check its "
             "definition and the bodies' initial positions")
