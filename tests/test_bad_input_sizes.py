@@ -20,6 +20,7 @@ from casmbd.analysis.kinematics import info, kinematics
 from casmbd.analysis.redundancy import DENSE_MAX_ENTRIES, rank_report
 from casmbd.analysis.simulate import simulate
 from casmbd.analysis.sweep import parse_values, sweep
+from casmbd.cli import workbench as cli_workbench
 from casmbd.compiled import codegen
 from casmbd.errors import LimitError, SceneError
 from casmbd.io.scene import load_scene, loads_scene
@@ -258,7 +259,7 @@ def test_figure_size_and_pixels_refused():
 
 
 def test_animate_cli_dpi_and_frames_refused_before_simulating(tmp_path, capsys, monkeypatch):
-    monkeypatch.setattr(simulate_module, "simulate", lambda *a, **k: pytest.fail("simulated"))
+    monkeypatch.setattr(cli_workbench, "simulate", lambda *a, **k: pytest.fail("simulated"))
     out = tmp_path / "a.gif"
     status = cli.main(["animate", str(PENDULUM), "--out", str(out), "--dpi", "1000000"])
     err = capsys.readouterr().err
@@ -373,7 +374,7 @@ def test_animate_fps_refused_before_simulating(tmp_path, capsys, monkeypatch):
     from casmbd.errors import AnalysisError
     from casmbd.viz.animation import check_fps
 
-    monkeypatch.setattr(simulate_module, "simulate", lambda *a, **k: pytest.fail("simulated"))
+    monkeypatch.setattr(cli_workbench, "simulate", lambda *a, **k: pytest.fail("simulated"))
     out = tmp_path / "a.gif"
     status = cli.main(["animate", str(PENDULUM), "--out", str(out), "--fps", "1e308"])
     err = capsys.readouterr().err.strip().splitlines()

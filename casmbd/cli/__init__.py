@@ -1,0 +1,245 @@
+"""Command-line interface: ``casmbd VERB SCENE [options]``.
+
+Verbs: ``info`` (coordinates, constraints, degrees of freedom, dependent equations),
+``kinematics`` (positions, velocities and accelerations on a time grid), ``simulate`` (forward
+dynamics), ``inverse`` (driver and actuator efforts), ``statics`` (equilibrium and its
+stability), ``linearize`` (frequencies, damping ratios, state space) and ``sweep`` (one
+analysis at many parameter values).  Every verb prints a
+readable summary, or with ``--json`` exactly one JSON object on stdout; ``--out FILE.npz`` saves
+every array.  Errors end with a non-zero exit status and one ``error: …`` line on stderr
+(a traceback only with ``--debug``).
+
+The package: this module holds the parser and :func:`main`; the verbs live in
+:mod:`casmbd.cli.analyses` (info … linearize), :mod:`casmbd.cli.workbench` (plot, animate,
+sweep, sensitivity) and :mod:`casmbd.cli.optimal` (ocp, bench), their shared helpers in
+:mod:`casmbd.cli.common`.  The CLI is the top layer: it loads scene files (casmbd.io) and
+hands Mechanisms to the analyses.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from collections.abc import Sequence
+
+from casmbd import __version__, interrupts
+from casmbd.analysis.integrators import INTEGRATORS
+from casmbd.cli.analyses import (
+    _cmd_info,
+    _cmd_inverse,
+    _cmd_kinematics,
+    _cmd_linearize,
+    _cmd_simulate,
+    _cmd_statics,
+)
+from casmbd.cli.common import _finite_json, _Parser, _positive_float, _positive_int, _UsageError
+from casmbd.cli.optimal import _add_bench_verb, _cmd_bench, _cmd_ocp
+from casmbd.cli.workbench import (
+    _add_sensitivity_verb,
+    _add_sweep_verb,
+    _add_workbench_verbs,
+    _cmd_animate,
+    _cmd_plot,
+    _cmd_sensitivity,
+    _cmd_sweep,
+)
+from casmbd.errors import CasmbdError
+from casmbd.results import _json_default
+from casmbd.system.formulations import FORMULATIONS
+
+EXIT_ERROR = 1
+EXIT_USAGE = 2
+EXIT_INTERRUPTED = 130  # 128 + SIGINT
+
+VERBS = {"info": _cmd_info, "kinematics": _cmd_kinematics, "simulate": _cmd_simulate,
+         "inverse": _cmd_inverse, "statics": _cmd_statics, "linearize": _cmd_linearize,
+         "ocp": _cmd_ocp, "plot": _cmd_plot, "sensitivity": _cmd_sensitivity,
+         "bench": _cmd_bench, "animate": _cmd_animate, "sweep": _cmd_sweep}
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the ``casmbd`` command."""
+    parser = _Parser(prog="casmbd", description="Dynamics of constrained mechanisms on CasADi.")
+    parser.add_argument("--version", action="store_true", help="print the version and exit")
+    sub = parser.add_subparsers(dest="verb", parser_class=_Parser)
+
+    def common(p):
+        p.add_argument("scene", help="scene file (TOML)")
+        p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+        p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+        p.add_argument("--mode", choices=("auto", "compiled", "vm"), default="auto",
+                       help="compile equations to C (default auto) or use CasADi's VM")
+
+    def grid(p):
+        p.add_argument("--t-end", type=_positive_float, required=True, help="final time [s]")
+        p.add_argument("--steps", type=_positive_int, required=True,
+                       help="number of output intervals (N + 1 output times from 0 to T)")
+        p.add_argument("--out", help="save every array to this .npz file")
+
+    p = sub.add_parser("info", help="coordinates, constraints, degrees of freedom")
+    common(p)
+    p = sub.add_parser("kinematics", help="kinematic analysis of a driven mechanism")
+    common(p)
+    grid(p)
+
+    p = sub.add_parser("inverse", help="inverse dynamics: driver efforts and reactions")
+    common(p)
+    grid(p)
+
+    p = sub.add_parser("statics", help="static equilibrium, reactions and stability")
+    common(p)
+    p.add_argument("--method", choices=("augmented", "reduced"), default="augmented",
+                   help="Newton on (q, lambda) (default) or on the independent coordinates")
+
+    p = sub.add_parser("simulate", help="forward dynamics")
+    common(p)
+    grid(p)
+    p.add_argument("--rtol", type=_positive_float, default=1e-8, help="relative tolerance")
+    p.add_argument("--atol", type=_positive_float, default=None,
+                   help="absolute tolerance (default: rtol)")
+    p.add_argument("--formulation", choices=FORMULATIONS, default=None,
+                   help="equations of motion (default augmented_lagrangian; articulated for "
+                        "constraint-free trees in joint coordinates)")
+    p.add_argument("--redundancy", choices=("auto", "remove", "minimum_norm"), default="auto",
+                   help="redundant constraint equations: remove the dependent rows or keep them "
+                        "with minimum-norm multipliers (default: by formulation)")
+    p.add_argument("--integrator", choices=INTEGRATORS, default=None,
+                   help="time integrator (default per formulation)")
+    p.add_argument("--projection", action="store_true",
+                   help="project positions and velocities onto the constraints at every output")
+    p.add_argument("--step", type=_positive_float, default=None,
+                   help="step size of the fixed-step integrators rk4/abm")
+    p.add_argument("--max-steps", type=_positive_int, default=None,
+                   help="most steps per output interval of the variable-step integrators "
+                        "(default 500000; 20000 for partitioning/nullspace)")
+    p = sub.add_parser("linearize", help="natural frequencies, linearized equations and "
+                                         "stability about the initial configuration, the "
+                                         "static equilibrium or a stored state")
+    common(p)
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--at-equilibrium", action="store_true",
+                       help="find the static equilibrium (as the statics verb) and linearize "
+                            "there")
+    where.add_argument("--from", dest="from_result", metavar="RESULT.npz", default=None,
+                       help="linearize about the state stored in this result (of the same "
+                            "scene) at the output time nearest --time")
+    p.add_argument("--time", type=float, default=None,
+                   help="with --from: the time of the stored state (nearest output time)")
+    p = sub.add_parser("ocp", help="trajectory optimisation: the scene's [ocp] table")
+    common(p)
+    p.add_argument("--out", help="save the solution (t, q, v, u, statistics) to this .npz file")
+    p.add_argument("--intervals", type=_positive_int, default=None,
+                   help="number of control intervals (overrides the table)")
+    p.add_argument("--transcription", choices=("radau", "legendre", "multiple_shooting"),
+                   default=None, help="overrides the table")
+    p.add_argument("--no-replay", action="store_true",
+                   help="skip the forward replay of the optimal controls")
+    p.add_argument("--plot", default=None, help="save a figure of coordinates and controls")
+    _add_workbench_verbs(sub)
+    _add_sweep_verb(sub)
+    _add_sensitivity_verb(sub)
+    _add_bench_verb(sub)
+    for p in sub.choices.values():
+        if not any("--verbose" in a.option_strings for a in p._actions):
+            p.add_argument("--verbose", action="store_true",
+                           help="print the solver statistics after the summary")
+    return parser
+
+
+def _interrupted(args, started: float) -> int:
+    """One line for Ctrl-C; exit status 130 (128 + SIGINT) like a shell's.
+
+    Nothing is saved: every result file is written atomically after the analysis, so an
+    interrupted verb leaves no ``--out`` file (an existing one is untouched); a sweep's
+    ``--out DIR`` keeps only the complete ``point_*.npz`` of finished points.  The one case
+    with a file: Ctrl-C after ``--out`` was written (e.g. while ``ocp`` draws ``--plot``).
+    """
+    out = getattr(args, "out", None)
+    if args.verb == "sweep" and out:
+        kept = f"kept the finished points in {out}/, no sweep.csv or sweep.npz"
+    elif out and os.path.isfile(out) and os.path.getmtime(out) >= started:
+        kept = f"{out} was complete before the interrupt, nothing else saved"
+    elif out:
+        kept = f"nothing saved ({out} not written)"
+    else:
+        kept = "nothing saved"
+    print(f"error: interrupted (Ctrl-C) during {args.verb}; {kept}", file=sys.stderr)
+    return EXIT_INTERRUPTED
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``casmbd`` command; returns the exit status."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    debug = "--debug" in argv
+    interrupts.install()  # Ctrl-C is remembered even where CasADi turns it into an error
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except _UsageError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    if args.version:
+        print(__version__)
+        return 0
+    if not args.verb:
+        print("error: missing verb (one of: " + ", ".join(VERBS) + "); see casmbd --help",
+              file=sys.stderr)
+        return EXIT_USAGE
+    if getattr(args, "json", False):
+        os.environ["CASMBD_PROGRESS"] = "0"  # one JSON object: no progress bars
+    t0, started = time.perf_counter(), time.time()
+    try:
+        data, text = VERBS[args.verb](args)
+    except KeyboardInterrupt:
+        if debug:
+            raise
+        return _interrupted(args, started)
+    except CasmbdError as exc:
+        if debug:
+            raise
+        if interrupts.seen():  # a failure that Ctrl-C caused is still an interrupt
+            return _interrupted(args, started)
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_ERROR
+    except Exception as exc:  # an unexpected failure still gets one clear line
+        if debug:
+            raise
+        print(f"error: internal error ({type(exc).__name__}): {exc}; rerun with --debug",
+              file=sys.stderr)
+        return EXIT_ERROR
+    if isinstance(data.get("stats"), dict):
+        data["stats"]["total_seconds"] = time.perf_counter() - t0
+    try:
+        if args.json:
+            data = json.loads(json.dumps(data, default=_json_default))  # numpy -> builtins
+            sys.stdout.write(json.dumps(_finite_json(data), allow_nan=False) + "\n")
+        else:
+            if text:
+                print(text)
+            if getattr(args, "verbose", False) and isinstance(data.get("stats"), dict):
+                print(_verbose_stats(data["stats"]))
+        sys.stdout.flush()
+    except BrokenPipeError:  # `casmbd … | head`: the reader left; not an error
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    return 0
+
+
+def _verbose_stats(stats: dict) -> str:
+    """The solver statistics, one ``key: value`` per line (``--verbose``)."""
+    lines = ["statistics:"]
+    for key in sorted(stats):
+        val = stats[key]
+        if isinstance(val, float):
+            val = f"{val:.6g}"
+        elif isinstance(val, (list, tuple)) and len(val) > 8:
+            val = f"[{', '.join(map(str, val[:8]))}, … ({len(val)} items)]"
+        lines.append(f"  {key}: {val}")
+    return "\n".join(lines)
+
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,232 @@
+"""The analysis verbs: ``info``, ``kinematics``, ``simulate``, ``inverse``, ``statics`` and
+``linearize`` (one scene in, a summary or one JSON object out).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+
+from casmbd.analysis.inverse import inverse_dynamics
+from casmbd.analysis.kinematics import info, kinematics
+from casmbd.analysis.linearize import linearize
+from casmbd.analysis.simulate import simulate
+from casmbd.analysis.statics import static_equilibrium
+from casmbd.cli.common import _finite_json, _load, _range, _save, _summary_table, _timing
+from casmbd.errors import AnalysisError, AssemblyError, IntegratorError
+from casmbd.results import _json_default
+from casmbd.results import load as load_result
+from casmbd.viz.quantities import effort_units, energy_exchange, joint_coordinate_unit
+
+
+def _cmd_info(args) -> tuple[dict, str]:
+    mech = _load(args)
+    data = info(mech, mode=args.mode)
+    data.setdefault("coordinate_choice", mech.coordinates)
+    kind = "planar" if data.get("dimension", 2) == 2 else "spatial"
+    n_body_rows = sum(1 for row in data["constraints"] if row["kind"] == "body")
+    body_rows = f" ({n_body_rows} of the bodies' own)" if n_body_rows else ""
+    lines = [f"mechanism '{data['name']}' ({kind}, {len(data['bodies'])} bodies, "
+             f"{data['coordinate_choice']} coordinates)",
+             f"  coordinates ({data['n_coordinates']}): {', '.join(data['coordinates'])}",
+             f"  constraints: {data['n_constraints']} equations{body_rows}, "
+             f"rank {data['rank']}",
+             f"  degrees of freedom: {data['degrees_of_freedom']}"]
+    if not data["assembled"]:
+        lines[-2] += " (at the initial guess: not assembled)"
+        lines.append("  redundant equations: not analysed (not assembled)")
+    elif data["redundant_equations"]:
+        lines.append("  redundant equations: " + ", ".join(
+            f"{d['joint']}.{d['equation']}" for d in data["redundant_equations"]))
+    else:
+        lines.append("  redundant equations: none")
+    if not data["assembled"]:
+        # the summary (or the one JSON object) on stdout, the culprit on stderr, exit 1
+        if args.json:
+            sys.stdout.write(json.dumps(_finite_json(json.loads(json.dumps(
+                data, default=_json_default))), allow_nan=False) + "\n")
+        else:
+            print("\n".join(lines))
+        sys.stdout.flush()
+        raise AssemblyError(f"mechanism '{data['name']}' cannot be assembled — "
+                            f"{data['assembly_error']}", data.get("assembly_culprits"))
+    return data, "\n".join(lines)
+
+
+def _cmd_kinematics(args) -> tuple[dict, str]:
+    mech = _load(args)
+    result = kinematics(mech, t_end=args.t_end, steps=args.steps, mode=args.mode)
+    result.scene = getattr(mech, "scene_text", "")
+    if args.out:
+        _save(result, args.out)
+    data = result.to_json()
+    s = result.stats
+    lines = [f"kinematics of '{mech.name}': {len(result.t)} times from {result.t[0]:g} to "
+             f"{result.t[-1]:g} s",
+             *_summary_table(result, mech),
+             f"  max constraint violation {data['constraint_violation']:.3g}",
+             _timing(s)]
+    if args.out:
+        lines.append(f"  saved {args.out}")
+    return data, "\n".join(lines)
+
+
+def _cmd_simulate(args) -> tuple[dict, str]:
+    mech = _load(args)
+    try:
+        result = simulate(mech, t_end=args.t_end, steps=args.steps, formulation=args.formulation,
+                          integrator=args.integrator, rtol=args.rtol, atol=args.atol,
+                          projection=args.projection, step=args.step, mode=args.mode,
+                          max_steps=args.max_steps, redundancy=args.redundancy)
+    except IntegratorError as exc:
+        if args.out and exc.partial is not None:
+            exc.partial.scene = getattr(mech, "scene_text", "")
+            exc.partial.stats["failure"] = str(exc)
+            _save(exc.partial, args.out)
+            raise IntegratorError(f"{exc} (partial results saved to {args.out})", exc.time,
+                                  exc.flag, exc.partial) from None
+        raise
+    result.scene = getattr(mech, "scene_text", "")
+    if args.out:
+        _save(result, args.out)
+    data = result.to_json()
+    s = result.stats
+    energy = result["total_energy"]
+    lines = [f"simulation of '{mech.name}': {len(result.t)} times from {result.t[0]:g} to "
+             f"{result.t[-1]:g} s, {s['formulation']} on {s['integrator']}",
+             *_summary_table(result, mech),
+             f"  energy: start {energy[0]:.6g} J, end {energy[-1]:.6g} J "
+             f"({_energy_change(result, mech)})",
+             f"  max constraint violation: position {data['constraint_violation']:.3g}, "
+             f"velocity {data['velocity_violation']:.3g}",
+             f"  steps {s.get('steps', 0)}, rhs evaluations {s.get('rhs_evaluations', 0)}",
+             _timing(s, 4)]
+    if s.get("start_position_change", 0) > 1e-12 or s.get("start_velocity_change", 0) > 1e-12:
+        lines.append(f"  consistent start changed q by {s['start_position_change']:.3g} and v by "
+                     f"{s['start_velocity_change']:.3g}")
+    if s.get("redundant_equations"):
+        lines.append(f"  redundant equations ({s['redundancy']}): "
+                     + ", ".join(s["redundant_equations"]))
+    if s.get("undetermined_reactions"):
+        lines.append("  undetermined reaction components (NaN): " + ", ".join(
+            f"{j} {c}" for j, c in s["undetermined_reactions"].items()))
+    if s.get("near_singular_times"):
+        times = s["near_singular_times"]
+        lines.append(f"  passed {len(times)} near-singular poses (conditioning < 1e-4) at t ≈ "
+                     + ", ".join(f"{t:.4g}" for t in times[:8]) + (" …" if len(times) > 8
+                                                                     else ""))
+    if args.out:
+        lines.append(f"  saved {args.out}")
+    return data, "\n".join(lines)
+
+
+def _energy_change(result, mech) -> str:
+    """total − total(0): "drift" for a conservative mechanism, else the work of the dampers,
+    drivers, actuators and forces that change it (not a conservation error)."""
+    energy = result["total_energy"]
+    delta = f"{energy[-1] - energy[0]:+.3g} J"
+    elements = energy_exchange(result, mech)
+    if elements == []:
+        return f"drift {delta}"
+    if elements is None:
+        return f"change {delta}; numerical drift only if nothing does work"
+    return f"change {delta}: work of {', '.join(elements)}, not numerical drift"
+
+
+def _cmd_inverse(args) -> tuple[dict, str]:
+    mech = _load(args)
+    result = inverse_dynamics(mech, t_end=args.t_end, steps=args.steps, mode=args.mode)
+    result.scene = getattr(mech, "scene_text", "")
+    if args.out:
+        _save(result, args.out)
+    data = result.to_json()
+    lines = [f"inverse dynamics of '{mech.name}': {len(result.t)} times from {result.t[0]:g} "
+             f"to {result.t[-1]:g} s", *_summary_table(result, mech)]
+    for group, key, width in (("drivers", "driver_efforts", 12),
+                              ("actuators", "actuator_efforts", 10)):
+        units = effort_units(result, group, mech)
+        for k, name in enumerate(result.names.get(group, [])):
+            eff = result[key][:, k]
+            lines.append(f"  {group[:-1]} {name:<{width}} {_range('effort', eff, units[k])}")
+    s = result.stats
+    lines.append(_timing(s))
+    if args.out:
+        lines.append(f"  saved {args.out}")
+    return data, "\n".join(lines)
+
+
+def _cmd_statics(args) -> tuple[dict, str]:
+    mech = _load(args)
+    result = static_equilibrium(mech, method=args.method, mode=args.mode)
+    data = result.to_json()
+    stable = {True: "stable", False: "unstable", None: "neutral"}[result.stable]
+    if result.stability is not None and result.stability.null_directions:
+        stable += f" (null directions: {', '.join(result.stability.null_coordinates())})"
+    lines = [f"static equilibrium of '{mech.name}' ({result.method} Newton, "
+             f"{result.iterations} iterations, residual {result.residual:.3g}): {stable}"]
+    for name, b in data["bodies"].items():
+        pos = "  ".join(f"{axis} {x:+.6g} m" for axis, x in zip("xyz", b["position"]))
+        if "quaternion" in b:
+            orient = "quaternion [" + ", ".join(f"{x:+.6f}" for x in b["quaternion"]) + "]"
+        else:
+            orient = f"angle {b['angle']:+.6g} rad"
+        lines.append(f"  body {name:<14} {pos}  {orient}")
+    labels = ("Fx", "Fy", "M") if len(mech.gravity) == 2 else ("Fx", "Fy", "Fz", "Mx", "My",
+                                                               "Mz")
+    for name, j in data["joints"].items():
+        coords = "".join(
+            f"{key} {j[key]:+.6g} "
+            f"{joint_coordinate_unit(mech, name, None if key == 'coordinate' else key)}  "
+            for key in j if key != "reaction")
+        reaction = "  ".join(f"{label} {x + 0.0:+.6g} {'N' if label[0] == 'F' else 'N m'}"
+                             for label, x in zip(labels, j["reaction"]))  # no "-0"
+        lines.append(f"  joint {name:<13} {coords}reaction {reaction}")
+    eig = ", ".join(f"{e:.4g}" for e in result.eigenvalues) or "none (no degrees of freedom)"
+    lines.append(f"  stiffness eigenvalues: {eig}")
+    s = result.stats
+    lines.append(_timing(s))
+    return data, "\n".join(lines)
+
+
+def _cmd_linearize(args) -> tuple[dict, str]:
+    """Linearize about the initial configuration at rest, the static equilibrium
+    (``--at-equilibrium``) or a stored state (``--from RESULT.npz --time T``).
+
+    The verdict is the statics verb's (one classification of the reduced stiffness); about a
+    state that is not an equilibrium there is none (the matrices are still the first-order
+    expansion there).
+    """
+    if (args.time is None) != (args.from_result is None):
+        raise AnalysisError("linearize: --from RESULT.npz and --time T go together")
+    mech = _load(args)
+    if args.at_equilibrium:
+        lin = linearize(mech, mode=args.mode, at="equilibrium")
+        where = (f"the static equilibrium ({lin.stats['statics_iterations']} statics "
+                 f"iterations, residual {lin.stats['statics_residual']:.3g})")
+    elif args.from_result is not None:
+        result = load_result(args.from_result)
+        lin = linearize(mech, mode=args.mode, at=result, at_time=args.time)
+        where = (f"the state of '{args.from_result}' at t = {lin.t:.6g} (output "
+                 f"{lin.stats['state_index']}, nearest to {args.time:g})")
+    else:
+        lin = linearize(mech, mode=args.mode)
+        where = "the initial configuration (v = 0)"
+    data = lin.to_json()
+    s = lin.stats
+    verdict = lin.verdict
+    if lin.stability is not None and lin.stability.null_directions:
+        verdict += f" (null directions: {', '.join(lin.stability.null_coordinates())})"
+    lines = [f"linearization of '{mech.name}' about {where}: "
+             f"{lin.n_dof} degree{'' if lin.n_dof == 1 else 's'} of freedom, {verdict}"]
+    for k, (f, z) in enumerate(zip(lin.frequencies_hz, lin.damping_ratios)):
+        lines.append(f"  mode {k + 1:<3} frequency {f:.6g} Hz  damping ratio {z:.4g}")
+    if lin.stability is not None:
+        eig = ", ".join(f"{e:.4g}" for e in lin.stability.eigenvalues)
+        lines.append(f"  stiffness eigenvalues: {eig or 'none (no degrees of freedom)'}")
+    else:
+        lines.append(f"  not an equilibrium ({lin.why_not_equilibrium()}): no stability "
+                     "verdict, the modes describe perturbations about this state only; "
+                     "--at-equilibrium linearizes at the static equilibrium")
+    lines.append(_timing(s))
+    return data, "\n".join(lines)
+

@@ -1,0 +1,119 @@
+"""Helpers shared by the verbs: argument types, ``--out`` checks, scene loading and the
+summary lines every analysis verb prints.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+import numpy as np
+
+from casmbd.errors import AnalysisError
+from casmbd.io.scene import load_scene
+from casmbd.limits import MAX_STEPS
+from casmbd.viz.quantities import joint_units
+
+
+class _UsageError(Exception):
+    pass
+
+
+class _Parser(argparse.ArgumentParser):
+    """ArgumentParser that reports one ``error: …`` line instead of usage + exit."""
+
+    def error(self, message: str):
+        raise _UsageError(message)
+
+
+def _positive_int(text: str) -> int:
+    try:
+        val = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if not 1 <= val <= MAX_STEPS:
+        raise argparse.ArgumentTypeError(f"must be between 1 and {MAX_STEPS}, got {text}")
+    return val
+
+
+def _positive_float(text: str) -> float:
+    try:
+        val = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(val) or val <= 0:
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
+    return val
+
+
+def _check_out(args) -> None:
+    """Fail before the analysis when ``--out`` cannot be written."""
+    out = getattr(args, "out", None)
+    if not out:
+        return
+    path = Path(out)
+    if path.is_dir():
+        raise AnalysisError(f"--out '{out}' is a directory; give a file name such as run.npz")
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir():
+        raise AnalysisError(f"--out '{out}': folder '{parent}' does not exist")
+
+
+def _save(result, out: str) -> None:
+    try:
+        result.save(out)
+    except OSError as exc:
+        raise AnalysisError(f"cannot write --out '{out}': {exc.strerror or exc}") from None
+
+
+def _load(args):
+    _check_out(args)
+    return load_scene(args.scene)
+
+
+def _timing(stats: dict, digits: int = 3) -> str:
+    """The build/solve line every verb prints."""
+    origin = "cache hit" if stats.get("cache_hit") else stats.get("mode", "")
+    return (f"  build {stats['build_seconds']:.3f} s ({origin}), "
+            f"solve {stats['solve_seconds']:.{digits}f} s")
+
+
+def _range(label: str, values: np.ndarray, unit: str = "") -> str:
+    unit = f" {unit}" if unit else ""
+    return f"{label} [{values.min():+.4g}, {values.max():+.4g}]{unit}"
+
+
+def _summary_table(result, mech=None) -> list[str]:
+    """One line per body (coordinate ranges of the centre of mass in m, and the angle range
+    in rad in the plane or the final quaternion in space) and per joint coordinate (m or
+    rad, from the joint's kind)."""
+    lines = []
+    spatial = result.dimension == 3
+    for name in result.names["bodies"]:
+        b = result.body(name)
+        pos = b["position"]
+        parts = [_range(axis, pos[:, k], "m") for k, axis in enumerate("xyz"[:pos.shape[1]])]
+        if spatial and "quaternion" in b and len(b["quaternion"]):
+            quat = ", ".join(f"{x:+.4f}" for x in b["quaternion"][-1])
+            parts.append(f"final quaternion [{quat}]")
+        elif "angle" in b:
+            parts.append(_range("angle", b["angle"], "rad"))
+        lines.append(f"  body {name:<14} " + "  ".join(parts))
+    units = joint_units(result, mech) if result.names["joints"] else []
+    for name, unit in zip(result.names["joints"], units):
+        c = result["joint_positions"][:, result.names["joints"].index(name)]
+        lines.append(f"  joint {name:<13} {_range('coordinate', c, unit)}")
+    return lines
+
+
+def _finite_json(obj):
+    """Replace NaN/inf (e.g. reactions that cannot be determined) by null: strict JSON."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {k: _finite_json(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_finite_json(v) for v in obj]
+    return obj
+

@@ -1,0 +1,95 @@
+"""The ``ocp`` verb (the scene's ``[ocp]`` table) and the ``bench`` verb (the benchmark suite of
+a source checkout).
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+from casmbd.cli.common import _load
+from casmbd.errors import AnalysisError, OptimizationError, SceneError
+from casmbd.io.ocp_table import ocp_from_scene
+
+
+def _cmd_ocp(args) -> tuple[dict, str]:
+    """Solve the scene's ``[ocp]`` table; replay the controls with the forward simulator."""
+    mech = _load(args)
+    if "ocp" not in getattr(mech, "scene_data", {}):  # --intervals alone is no problem
+        raise SceneError(f"{args.scene}: no [ocp] table: the ocp verb solves the scene's "
+                         "[ocp] table (see docs/ocp.md)")
+    table = dict(getattr(mech, "scene_data", {}).get("ocp") or {})
+    if args.intervals is not None:
+        table["intervals"] = args.intervals
+    if args.transcription is not None:
+        table["transcription"] = args.transcription
+    ocp = ocp_from_scene(mech, table, source=args.scene)
+    try:
+        sol = ocp.solve()
+    except OptimizationError as exc:
+        if args.out and exc.solution is not None:
+            exc.solution.save(args.out)
+        raise
+    if not args.no_replay:
+        sol.replay()
+    if args.out:
+        sol.save(args.out)
+    if args.plot:
+        sol.plot(args.plot)
+    data = sol.to_json()
+    s = sol.stats
+    replay = s.get("replay_error")
+    lines = [f"optimal control of '{mech.name}': {s['return_status']} after {s['iterations']} "
+             f"iterations, objective {sol.objective:.8g}",
+             f"  {s['transcription']}"
+             + (f" degree {s['degree']}" if s.get("degree") else "")
+             + f", {s['intervals']} intervals × {s['subintervals']} elements, final time "
+             f"{sol.t[-1] - sol.t[0]:.6g} s, {s['variables']} variables, "
+             f"{s['constraints']} constraints",
+             f"  max constraint violation {s['constraint_violation']:.3g}"
+             + (f", replay error {replay:.3g}" if replay is not None else ""),
+             f"  setup {s['setup_seconds']:.3g} s, NLP solve {s['solve_seconds']:.3g} s"]
+    for name in sol.controls:
+        u = sol.control(name)
+        lines.append(f"  control {name:12s} [{u.min():+.4g}, {u.max():+.4g}]")
+    lines += [f"  saved {f}" for f in (args.out, args.plot) if f]
+    return data, "\n".join(lines)
+
+
+def _add_bench_verb(sub) -> None:
+    """The ``bench`` verb: the benchmark suite of a source checkout (``python -m benchmarks``)."""
+    p = sub.add_parser("bench", help="run the benchmark suite of a casmbd checkout "
+                                     "(python -m benchmarks)")
+    p.add_argument("--quick", action="store_true",
+                   help="a few minutes: check the printed errors against their bounds")
+    p.add_argument("--update-docs", action="store_true",
+                   help="regenerate docs/performance.md (full suite only)")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+
+
+def _cmd_bench(args) -> tuple[dict, str]:
+    """Run ``python -m benchmarks`` in the checkout that holds this casmbd.
+
+    Only the checkout of the running package is used, never the current directory: a
+    ``benchmarks/`` folder in a downloaded directory must not become code that ``casmbd bench``
+    runs.  The suite is not installed with the package (``pip install -e .`` keeps it beside).
+    """
+    root = Path(__file__).resolve().parents[2]  # casmbd/cli/optimal.py -> checkout
+    if not (root / "benchmarks" / "__main__.py").is_file():
+        raise AnalysisError("casmbd bench: no benchmarks/ folder next to the installed package "
+                            f"({root}); install casmbd from a source checkout with "
+                            "'pip install -e .' or run 'python -m benchmarks' there")
+    cmd = [sys.executable, "-m", "benchmarks"] + (["--quick"] if args.quick else []) \
+        + (["--update-docs"] if args.update_docs else []) + (["--json"] if args.json else [])
+    proc = subprocess.run(cmd, cwd=root, capture_output=args.json, text=True)
+    if proc.returncode:
+        raise AnalysisError(f"casmbd bench: '{' '.join(cmd[1:])}' failed with exit status "
+                            f"{proc.returncode}" + (f": {proc.stderr.strip()[-400:]}"
+                                                    if args.json and proc.stderr else ""))
+    if args.json:
+        return json.loads(proc.stdout.strip().splitlines()[-1]), ""
+    return {}, f"benchmarks finished ({' '.join(cmd[1:])}, in {root})"
+
