@@ -41,9 +41,9 @@ MAX_TOML_DEPTH = 32
 MAX_BODIES = 20_000
 #: Most joints, markers, drivers, forces, actuators or parameters of one mechanism, each.
 MAX_ELEMENTS = 100_000
-#: Longest expression string, in characters (:mod:`casmbd.io.expressions`).
+#: Longest expression string, in characters (:mod:`casmbd.model.expressions`).
 MAX_EXPRESSION_LENGTH = 10_000
-#: Deepest nesting of an expression (:mod:`casmbd.io.expressions`).
+#: Deepest nesting of an expression (:mod:`casmbd.model.expressions`).
 MAX_EXPRESSION_DEPTH = 100
 #: Most output intervals (``steps``) of a time-domain analysis, whatever the memory (also the
 #: largest integer the command line accepts for ``--steps``, ``--max-steps``, ``--intervals``).

@@ -22,9 +22,9 @@ from casmbd import cli
 from casmbd.compiled import codegen
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, CasmbdError, ExpressionError, SceneError
-from casmbd.io.expressions import parse_expression
 from casmbd.io.ocp_table import load_ocp
 from casmbd.io.scene import load_scene
+from casmbd.model.expressions import parse_expression
 from casmbd.ocp import Ocp
 from casmbd.ocp.options import SOLVER_OPTIONS
 

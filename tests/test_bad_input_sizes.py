@@ -181,7 +181,7 @@ def test_sweep_grid_of_ten_million_points_refused(tmp_path, no_build):
     with pytest.raises(LimitError, match=f"sweep: grid points \\(k 10000 × c 1000\\): "
                                          f"10,000,000 exceeds the limit of "
                                          f"{limit_text(MAX_SWEEP_POINTS)}"):
-        sweep(str(SPRING), params, t_end=1.0, steps=10, out_dir=out)
+        sweep(load_scene(SPRING), params, t_end=1.0, steps=10, out_dir=out)
     assert not out.exists()
 
 
@@ -203,7 +203,7 @@ def test_sweep_cli_grid_refused_nothing_written(tmp_path, capsys):
 def test_sweep_per_point_memory(monkeypatch, no_build):
     monkeypatch.setenv("CASMBD_MEMORY_BUDGET", "1M")
     with pytest.raises(LimitError, match=r"sweep \(simulate\) at each point: 1,000,001 output"):
-        sweep(str(SPRING), {"k": [1.0, 2.0]}, t_end=1.0, steps=1_000_000)
+        sweep(load_scene(SPRING), {"k": [1.0, 2.0]}, t_end=1.0, steps=1_000_000)
 
 
 # ---------------------------------------------------------------------- optimal control

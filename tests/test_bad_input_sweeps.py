@@ -14,6 +14,7 @@ import pytest
 from casmbd.analysis.sweep import sweep
 from casmbd.cli import main
 from casmbd.errors import AnalysisError
+from casmbd.io.scene import load_scene
 
 SCENE = pathlib.Path(__file__).resolve().parent.parent / "examples" / "double_pendulum.toml"
 
@@ -58,7 +59,7 @@ def test_output_of_another_analysis_fails_up_front(tmp_path):
     """energy_drift of a statics sweep: named before the points run, no folder written."""
     out = tmp_path / "statics_out"
     with pytest.raises(AnalysisError, match="output 'energy_drift'") as exc:
-        sweep(str(SCENE), {"m": [1.0, 2.0]}, analysis="statics", outputs=["energy_drift"],
+        sweep(load_scene(SCENE), {"m": [1.0, 2.0]}, analysis="statics", outputs=["energy_drift"],
               out_dir=out, mode="vm")
     assert "no energies" in str(exc.value)
     assert not out.exists()

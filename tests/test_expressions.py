@@ -1,4 +1,4 @@
-"""Tests of casmbd.io.expressions: safe parsing of scene-file expressions into CasADi."""
+"""Tests of casmbd.model.expressions: safe parsing of scene-file expressions into CasADi."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from casmbd.errors import ExpressionError, SceneError
-from casmbd.io.expressions import (
+from casmbd.model.expressions import (
     ALLOWED_FUNCTIONS,
     CONSTANTS,
     MAX_DEPTH,

@@ -51,7 +51,8 @@ def cache(tmp_path_factory):
 @pytest.fixture(scope="module")
 def serial(cache, tmp_path_factory):
     out = tmp_path_factory.mktemp("sweep_serial")
-    return sweep(SPRING, points=POINTS, t_end=T_END, steps=STEPS, outputs=NAMED, out_dir=out)
+    mech = load_scene(SPRING)
+    return sweep(mech, points=POINTS, t_end=T_END, steps=STEPS, outputs=NAMED, out_dir=out)
 
 
 def _same(a, b):
@@ -123,7 +124,7 @@ def test_table_files_round_trip(serial, tmp_path):
 
 
 def test_local_processes_give_the_same_numbers(serial, tmp_path):
-    res = sweep(SPRING, points=POINTS, t_end=T_END, steps=STEPS, outputs=NAMED,
+    res = sweep(load_scene(SPRING), points=POINTS, t_end=T_END, steps=STEPS, outputs=NAMED,
                 executor="processes", workers=2, out_dir=tmp_path)
     _same(serial, res)
     s = res.stats
@@ -141,11 +142,12 @@ def test_local_dask_cluster_gives_the_same_numbers(serial):
     with distributed.LocalCluster(n_workers=2, processes=True, threads_per_worker=1,
                                   host="127.0.0.1", dashboard_address=None) as cluster:
         # by scheduler address (the sweep connects and disconnects) ...
-        res = sweep(SPRING, points=POINTS, t_end=T_END, steps=STEPS, outputs=NAMED,
+        res = sweep(load_scene(SPRING), points=POINTS, t_end=T_END, steps=STEPS, outputs=NAMED,
                     executor=cluster.scheduler_address)
         # ... and through a Client the caller holds (the workers keep their engines)
         with distributed.Client(cluster) as client:
-            again = sweep(SPRING, points=POINTS[:4], t_end=T_END, steps=STEPS, outputs=NAMED,
+            mech = load_scene(SPRING)
+            again = sweep(mech, points=POINTS[:4], t_end=T_END, steps=STEPS, outputs=NAMED,
                           executor=client)
     _same(serial, res)
     s = res.stats
@@ -164,9 +166,9 @@ def test_runtime_parameters_equal_a_scene_with_those_values(cache):
     cache hit, no compiler run) and the same trajectory to 1e-12 (index-1 DAE, which has no
     numbers computed from the defaults at build time)."""
     from casmbd.analysis.simulate import simulate
-    from casmbd.analysis.sweep import _scene_with
+    from casmbd.io.scene_points import scene_with as _scene_with
 
-    res = sweep(SPRING, {"k": [90.0, 250.0], "m": [2.0]}, t_end=0.5, steps=10,
+    res = sweep(load_scene(SPRING), {"k": [90.0, 250.0], "m": [2.0]}, t_end=0.5, steps=10,
                 formulation="index1", outputs=["final:q[block.x]"])
     text = pathlib.Path(SPRING).read_text()
     direct = simulate(loads_scene(_scene_with(text, {"k": 250.0, "m": 2.0}, SPRING)), 0.5, 10,
@@ -183,7 +185,7 @@ def test_statics_sweep_matches_the_hanging_spring(cache, tmp_path):
     path = tmp_path / "hanging.toml"
     path.write_text(text)
     ks = [50.0, 100.0, 400.0]
-    res = sweep(str(path), {"k": ks}, analysis="statics")
+    res = sweep(load_scene(path), {"k": ks}, analysis="statics")
     assert res.failed == []
     np.testing.assert_allclose(res["final:q[block.y]"],
                                [-(1.0 + 9.81 / k) for k in ks], rtol=0, atol=1e-10)
@@ -194,16 +196,18 @@ def test_kinematics_and_inverse_sweeps_of_the_slider_crank(cache):
     """Slider position r cos θ + sqrt(l² − r² sin² θ) (r = 0.1, l = 0.3, θ = ω t) at the end;
     the inverse sweep's motor torque equals inverse_dynamics on the scene with that ω."""
     from casmbd.analysis.inverse import inverse_dynamics
-    from casmbd.analysis.sweep import _scene_with
+    from casmbd.io.scene_points import scene_with as _scene_with
 
     omegas = [2.0, 5.0, 9.0]
-    kin = sweep(SLIDER_CRANK, {"omega": omegas}, analysis="kinematics", t_end=0.3, steps=6,
+    mech = load_scene(SLIDER_CRANK)
+    kin = sweep(mech, {"omega": omegas}, analysis="kinematics", t_end=0.3, steps=6,
                 outputs=["final:body.slider.position.x"])
     th = np.array(omegas) * 0.3
     exact = 0.1 * np.cos(th) + np.sqrt(0.09 - 0.01 * np.sin(th) ** 2)
     # measured 2e-13 m (assembly to its tolerance); bound 1e-9 m
     np.testing.assert_allclose(kin["final:body.slider.position.x"], exact, rtol=0, atol=1e-9)
-    inv = sweep(SLIDER_CRANK, {"omega": omegas[1:2]}, analysis="inverse", t_end=0.3, steps=6,
+    mech = load_scene(SLIDER_CRANK)
+    inv = sweep(mech, {"omega": omegas[1:2]}, analysis="inverse", t_end=0.3, steps=6,
                 outputs=["max_abs:actuator_efforts[motor.effort]"])
     text = pathlib.Path(SLIDER_CRANK).read_text()
     direct = inverse_dynamics(loads_scene(_scene_with(text, {"omega": 5.0}, SLIDER_CRANK)),
@@ -213,7 +217,7 @@ def test_kinematics_and_inverse_sweeps_of_the_slider_crank(cache):
 
 def test_bad_input_names_the_culprit(cache, tmp_path, monkeypatch):
     with pytest.raises(ModelError, match=r"unknown parameter 'stiffness' \(known: k, m, c\)"):
-        sweep(SPRING, {"stiffness": [1.0]}, t_end=1.0, steps=2)
+        sweep(load_scene(SPRING), {"stiffness": [1.0]}, t_end=1.0, steps=2)
     # a parameter that places a body is read when the scene is loaded: refused, by name
     text = pathlib.Path(SPRING).read_text().replace("c = 0.0", "c = 0.0\nx0 = 1.1") \
         .replace("position = [1.1, 0.0]", 'position = ["x0", 0.0]')
@@ -221,11 +225,11 @@ def test_bad_input_names_the_culprit(cache, tmp_path, monkeypatch):
     path.write_text(text)
     assert load_scene(path).bodies["block"].position[0] == 1.1
     with pytest.raises(AnalysisError, match=r"parameter\(s\) 'x0' fix load-time numbers"):
-        sweep(str(path), {"x0": [1.2], "k": [10.0]}, t_end=1.0, steps=2)
+        sweep(load_scene(path), {"x0": [1.2], "k": [10.0]}, t_end=1.0, steps=2)
     with pytest.raises(AnalysisError, match="REDUCTION:COLUMN"):
-        sweep(SPRING, {"k": [1.0]}, t_end=1.0, steps=2, outputs=["last:q[block.x]"])
+        sweep(load_scene(SPRING), {"k": [1.0]}, t_end=1.0, steps=2, outputs=["last:q[block.x]"])
     with pytest.raises(AnalysisError, match="needs t_end and steps"):
-        sweep(SPRING, {"k": [1.0]})
+        sweep(load_scene(SPRING), {"k": [1.0]})
     with pytest.raises(AnalysisError, match="A:B:N"):
         parse_values("k=1:2")
     assert parse_values("k=100:1000:10") == ("k", np.linspace(100, 1000, 10).tolist())
@@ -233,7 +237,8 @@ def test_bad_input_names_the_culprit(cache, tmp_path, monkeypatch):
     # a scheduler address without dask.distributed installed
     monkeypatch.setitem(sys.modules, "distributed", None)
     with pytest.raises(AnalysisError, match=r"dask.distributed is not installed"):
-        sweep(SPRING, {"k": [100.0]}, t_end=0.1, steps=2, executor="tcp://127.0.0.1:8786")
+        mech = load_scene(SPRING)
+        sweep(mech, {"k": [100.0]}, t_end=0.1, steps=2, executor="tcp://127.0.0.1:8786")
 
 
 def test_cli_sweep_writes_files_that_reload(cache, tmp_path, capsys):
@@ -268,7 +273,7 @@ def test_cli_sweep_writes_files_that_reload(cache, tmp_path, capsys):
 def test_integrator_failure_is_recorded_with_its_partial_results(cache, tmp_path):
     """k = 1e6 (ω = 1000 rad/s) needs far more than 60 steps per output interval: that point
     stops with CV_TOO_MUCH_WORK; k = 100 runs and is saved."""
-    res = sweep(SPRING, {"k": [100.0, 1e6]}, t_end=1.0, steps=10, max_steps=60,
+    res = sweep(load_scene(SPRING), {"k": [100.0, 1e6]}, t_end=1.0, steps=10, max_steps=60,
                 outputs=["final:q[block.x]"], out_dir=tmp_path)
     assert list(res.status) == ["ok", "failed"]
     assert "IntegratorError" in res.errors[1] and "CV_TOO_MUCH_WORK" in res.errors[1]
@@ -299,7 +304,14 @@ def test_progress_bar_counts_points_when_tqdm_is_there(cache, monkeypatch):
 
     monkeypatch.setitem(sys.modules, "tqdm", types.SimpleNamespace(tqdm=FakeBar))
     pts = {"k": [100.0, 200.0, 300.0]}
-    sweep(SPRING, pts, t_end=0.1, steps=2, outputs=["final:q[block.x]"])
+    sweep(load_scene(SPRING), pts, t_end=0.1, steps=2, outputs=["final:q[block.x]"])
     assert bars == []  # stderr is not a terminal here
-    sweep(SPRING, pts, t_end=0.1, steps=2, outputs=["final:q[block.x]"], progress=True)
+    sweep(load_scene(SPRING), pts, t_end=0.1, steps=2, outputs=["final:q[block.x]"], progress=True)
     assert [(b.total, b.n, b.closed) for b in bars] == [(3, 3, True)]
+
+
+def test_sweep_takes_a_mechanism_not_a_path():
+    """Reading files is the caller's job (the CLI reads the scene): a path is refused, naming
+    the reader to use."""
+    with pytest.raises(AnalysisError, match=r"expected a Mechanism, got str .*load_scene"):
+        sweep(SPRING, {"k": [1.0]}, t_end=1.0, steps=2)

@@ -40,6 +40,8 @@ from casmbd.analysis.kkt import consistent_state
 from casmbd.analysis.simulate import Simulator, _input_expression
 from casmbd.errors import AnalysisError, IntegratorError
 from casmbd.interrupts import reraise_interrupt
+from casmbd.model.expressions import parse_expression
+from casmbd.system.quantities import identifier, quantities
 
 METHODS = ("forward", "adjoint")
 _AXES = ("x", "y", "z")
@@ -95,15 +97,13 @@ def output_names(system, a: ca.SX, lam: ca.SX, u: ca.SX,
                  kept_rows: Sequence[int] | None = None) -> dict[str, ca.SX]:
     """Names usable in sensitivity outputs, as SX of (q, v, t, p, a, λ).
 
-    Everything of :func:`casmbd.ocp.quantities.quantities` (joint coordinates and rates,
+    Everything of :func:`casmbd.system.quantities.quantities` (joint coordinates and rates,
     marker and body positions and velocities, generalized coordinates, parameters, ``t``,
     actuator inputs), plus ``<coordinate>_ddot`` (q̈), the joint reactions
     ``<joint>_Fx``, ``_Fy`` (``_Fz``), ``_M`` in the plane or ``_Mx``, ``_My``, ``_Mz`` in
     space (action of body1 on body2 at the joint point, global components) and
     ``<driver>_effort`` (−λ of the driver's row).
     """
-    from casmbd.ocp.quantities import identifier, quantities
-
     names = quantities(system)
     if system.u.numel():
         names = {k: ca.substitute(v, system.u, u) for k, v in names.items()}
@@ -173,8 +173,6 @@ def sensitivity(mechanism, outputs: Sequence[str] | str, parameters: Sequence[st
     IntegratorError
         When IDAS fails (with its message).
     """
-    from casmbd.io.expressions import parse_expression
-
     if method not in METHODS:
         raise AnalysisError(f"sensitivity: method must be one of {', '.join(METHODS)}, "
                             f"got {method!r}")

@@ -35,7 +35,6 @@ import re
 import socket
 import sys
 import time
-import tomllib
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -43,15 +42,22 @@ from pathlib import Path
 import numpy as np
 
 from casmbd import interrupts
+from casmbd.analysis.inverse import inverse_dynamics
+from casmbd.analysis.kinematics import kinematics
+from casmbd.analysis.simulate import Simulator
+from casmbd.analysis.statics import STATICS_NEEDS, static_equilibrium, statics_functions
+from casmbd.compiled import codegen
+from casmbd.compiled.model import NEEDS, NumericModel
 from casmbd.errors import (
     AnalysisError,
     CasmbdError,
     ModelError,
     ResultFileError,
-    SceneError,
 )
 from casmbd.limits import MAX_SWEEP_POINTS, check_count, check_steps, output_values
-from casmbd.results import Result, _json_default, atomic_write, read_npz
+from casmbd.model import Mechanism
+from casmbd.results import Result, _json_default, atomic_write, load, read_npz
+from casmbd.system.equations import System
 
 __all__ = ["ANALYSES", "REDUCTIONS", "SweepResult", "load_sweep", "parse_values", "sweep"]
 
@@ -143,64 +149,6 @@ def _points(params: Mapping[str, Iterable[float]] | None,
             if not math.isfinite(v):
                 raise AnalysisError(f"sweep: point {i}: parameter '{k}' = {v!r} is not finite")
     return out
-
-
-# ====================================================================== scene handling
-_TABLE = re.compile(r"^\s*\[")
-_KEY_LINE = re.compile(r"^(\s*)([A-Za-z_][A-Za-z0-9_-]*|\"[^\"]*\")(\s*=\s*)([^#\r\n]*?)"
-                       r"(\s*(?:#[^\r\n]*)?)(\r?\n)?$")
-
-
-def _scene_with(text: str, values: Mapping[str, float], source: str) -> str:
-    """The scene text with the ``[parameters]`` entries in ``values`` replaced (comments and
-    layout kept), verified by reading it back."""
-    lines = text.splitlines(keepends=True)
-    inside = False
-    for i, line in enumerate(lines):
-        if _TABLE.match(line):
-            inside = line.split("#", 1)[0].strip() == "[parameters]"
-            continue
-        m = _KEY_LINE.match(line) if inside else None
-        if m and m.group(2).strip('"') in values:
-            lines[i] = (m.group(1) + m.group(2) + m.group(3)
-                        + repr(float(values[m.group(2).strip('"')])) + m.group(5)
-                        + (m.group(6) or ""))
-    out = "".join(lines)
-    try:
-        got = tomllib.loads(out).get("parameters", {})
-        same = all(float(got.get(k, math.nan)) == float(v) for k, v in values.items())
-    except (tomllib.TOMLDecodeError, TypeError, ValueError):
-        same = False
-    if not same:
-        raise AnalysisError(f"sweep: cannot rewrite the [parameters] table of {source} (write "
-                            "one 'name = number' line per parameter)")
-    return out
-
-
-_SKIP = {"parameters", "scene_text", "scene_data"}
-
-
-def _fingerprint(obj) -> object:
-    """Every load-time number of a mechanism (positions, points, axes, velocities …), the
-    parameter values and the scene text left out: equal fingerprints mean the parameters
-    enter only the symbolic values (runtime inputs p)."""
-    if isinstance(obj, (str, bool, int, float, type(None))):
-        return obj
-    if isinstance(obj, np.ndarray):
-        return ("array", obj.shape, tuple(np.ravel(obj).tolist()))
-    if isinstance(obj, Mapping):
-        return tuple((str(k), _fingerprint(v)) for k, v in obj.items() if k not in _SKIP)
-    if isinstance(obj, (list, tuple)):
-        return tuple(_fingerprint(v) for v in obj)
-    if hasattr(obj, "__dict__"):
-        return (type(obj).__name__, _fingerprint(vars(obj)))
-    return (type(obj).__name__, str(obj))
-
-
-def _load(text: str, source: str):
-    from casmbd.io.scene import loads_scene
-
-    return loads_scene(text, source=source)
 
 
 # ====================================================================== outputs
@@ -331,15 +279,13 @@ class _Runner:
     """One analysis of one mechanism, built once per process and run at many p."""
 
     def __init__(self, spec: dict, mechanism=None):
-        from casmbd.compiled import codegen
-
         before = codegen.COMPILE_COUNT
         t0 = time.perf_counter()
         if mechanism is not None:  # a mechanism that cannot be pickled (serial sweeps)
             mech = copy.copy(mechanism)
             mech.parameters = dict(mechanism.parameters)  # the caller's values stay
-        elif spec["scene"] is not None:
-            mech = _load(spec["scene"], spec["source"])
+        elif spec["scenes"] is not None:  # the scene's reader (casmbd.io) rebuilds it
+            mech = spec["scenes"].mechanism()
         else:
             mech = pickle.loads(spec["mechanism"])
         self.mechanism = mech
@@ -351,23 +297,13 @@ class _Runner:
         self.run_options = {k: opts[k] for k in _RUN_OPTIONS[self.analysis] if k in opts}
         mode = spec["mode"]
         if self.analysis == "simulate":
-            from casmbd.analysis.simulate import Simulator
-
             self.engine = Simulator(mech, mode=mode, **build)
             self.model = self.engine.model
         elif self.analysis == "kinematics":
-            from casmbd.compiled.model import NumericModel
-
             self.model = NumericModel(mech, "kinematics", mode=mode)
         elif self.analysis == "inverse":
-            from casmbd.compiled.model import NEEDS, NumericModel
-
             self.model = NumericModel(mech, NEEDS["dynamics"], mode=mode)
         else:
-            from casmbd.analysis.statics import STATICS_NEEDS, statics_functions
-            from casmbd.compiled.model import NumericModel
-            from casmbd.system.equations import System
-
             system = System(mech)
             self.model = NumericModel(system, STATICS_NEEDS, mode=mode,
                                       extra=statics_functions(system))
@@ -385,14 +321,9 @@ class _Runner:
         if self.analysis == "simulate":
             return self.engine.run(t_end, steps, **opts)
         if self.analysis == "kinematics":
-            from casmbd.analysis.kinematics import kinematics
-
             return kinematics(self.model, t_end=t_end, steps=steps, **opts)
         if self.analysis == "inverse":
-            from casmbd.analysis.inverse import inverse_dynamics
-
             return inverse_dynamics(self.model, t_end=t_end, steps=steps, **opts)
-        from casmbd.analysis.statics import static_equilibrium
 
         return _statics_result(static_equilibrium(self.model, **opts))
 
@@ -432,8 +363,6 @@ def _runner(spec: dict) -> tuple[_Runner, bool]:
 
 def _evaluate(spec: dict, index: int, values: dict[str, float], scene: str | None) -> dict:
     """Run one point; never raises (a failure is recorded with its message)."""
-    from casmbd.compiled import codegen
-
     t0 = time.perf_counter()
     before = codegen.COMPILE_COUNT
     rec = {"index": index, "status": "ok", "error": "", "outputs": {}, "file": None,
@@ -554,7 +483,6 @@ class SweepResult:
         if path is None:
             why = self.errors[index] or "the sweep ran without out_dir"
             raise AnalysisError(f"sweep point {index} has no result file ({why})")
-        from casmbd.results import load
 
         return load(path)
 
@@ -789,7 +717,7 @@ def _run_dask(spec, tasks, executor, bar) -> list[dict]:
 
 
 # ====================================================================== entry point
-def sweep(mechanism_or_scene_path, params: Mapping[str, Iterable[float]] | None = None, *,
+def sweep(mechanism, params: Mapping[str, Iterable[float]] | None = None, *,
           points: Sequence[Mapping[str, float]] | None = None, analysis: str = "simulate",
           t_end: float | None = None, steps: int | None = None,
           outputs: Sequence[str] | Callable[[Result], Mapping[str, float]] | None = None,
@@ -800,9 +728,10 @@ def sweep(mechanism_or_scene_path, params: Mapping[str, Iterable[float]] | None 
 
     Parameters
     ----------
-    mechanism_or_scene_path : str, PathLike or Mechanism
-        A scene file, or a mechanism (one loaded from a scene carries its text; one built in
-        Python is pickled to the worker processes).
+    mechanism : Mechanism
+        One read from a scene file (:func:`casmbd.load_scene`) carries its scene: every point's
+        scene is checked and saved with the point's values; one built in Python is pickled to
+        the worker processes.  Reading files is the caller's job (the CLI reads the scene).
     params : mapping name -> values, optional
         Grid product of the values (the first name varies slowest).
     points : sequence of mappings name -> value, optional
@@ -868,18 +797,12 @@ def sweep(mechanism_or_scene_path, params: Mapping[str, Iterable[float]] | None 
         _require_dask(executor)
 
     # ---- the mechanism and its scene text
-    from casmbd.model import Mechanism
-
-    if isinstance(mechanism_or_scene_path, Mechanism):
-        mech = mechanism_or_scene_path
-        text = getattr(mech, "scene_text", "") or None
-        source = f"<scene of mechanism '{mech.name}'>"
-    else:
-        from casmbd.io.scene import load_scene
-
-        source = str(mechanism_or_scene_path)
-        mech = load_scene(source)
-        text = mech.scene_text
+    if not isinstance(mechanism, Mechanism):
+        raise AnalysisError(f"sweep: expected a Mechanism, got {type(mechanism).__name__} "
+                            f"{mechanism!r}; read a scene file with casmbd.load_scene(path)")
+    mech = mechanism
+    scenes = getattr(mech, "scene_points", None)  # set by casmbd.io.scene for a scene's model
+    text = scenes.text if scenes is not None else None
     if analysis != "statics":  # one point's result must fit (LimitError before any build)
         check_steps(f"sweep ({analysis}) at each point", int(steps), output_values(mech))
     known = list(mech.parameters)
@@ -889,27 +812,11 @@ def sweep(mechanism_or_scene_path, params: Mapping[str, Iterable[float]] | None 
                              f"{', '.join(known) or 'none; add a [parameters] table'})")
 
     # ---- per-point scenes: validated with the point's values, checked for load-time use
-    tasks, pre_failed = [], {}
-    base = _fingerprint(_load(text, source)) if text is not None else None
-    for i, p in enumerate(pts):
-        scene = None
-        if text is not None:
-            scene = _scene_with(text, p, source)
-            try:
-                point_mech = _load(scene, f"{source} at point {i}")
-            except SceneError as exc:
-                pre_failed[i] = f"{type(exc).__name__}: {exc}"
-                continue
-            if _fingerprint(point_mech) != base:
-                culprits = [n for n in p if _fingerprint(_load(
-                    _scene_with(text, {n: p[n]}, source), source)) != base]
-                raise AnalysisError(
-                    f"sweep: parameter(s) {', '.join(repr(n) for n in culprits or p)} fix "
-                    f"load-time numbers of {source} (positions, points, axes or initial "
-                    "velocities are evaluated when the scene is read) and cannot change at run "
-                    "time; sweep only parameters used in masses, inertias, forces, springs, "
-                    "drivers, or sweep separate scene files")
-        tasks.append((i, p, scene))
+    if scenes is not None:
+        point_scenes, pre_failed = scenes.point_scenes(pts)
+    else:
+        point_scenes, pre_failed = [None] * len(pts), {}
+    tasks = [(i, p, point_scenes[i]) for i, p in enumerate(pts) if i not in pre_failed]
 
     digits = max(3, len(str(len(pts) - 1)))
     mech_bytes = None
@@ -924,16 +831,14 @@ def sweep(mechanism_or_scene_path, params: Mapping[str, Iterable[float]] | None 
                                     "scene file or use executor='serial'") from None
             mech_bytes = None
         key_src = hashlib.sha256(mech_bytes).hexdigest() if mech_bytes else f"id{id(mech)}"
-    spec = {"scene": text, "source": source, "mechanism": mech_bytes, "analysis": analysis,
+    spec = {"scenes": scenes, "mechanism": mech_bytes, "analysis": analysis,
             "options": dict(options), "mode": mode, "t_end": t_end, "steps": steps,
             "outputs": outputs, "out_dir": None if out_dir is None else str(out_dir),
             "digits": digits}
     # the cache folder is part of the key: a runner built against another cache would leave
     # the workers' cache cold
-    from casmbd.compiled.codegen import cache_dir
-
     spec["key"] = hashlib.sha256(repr((key_src, analysis, sorted(
-        (k, repr(v)) for k, v in options.items()), mode, str(cache_dir()),
+        (k, repr(v)) for k, v in options.items()), mode, str(codegen.cache_dir()),
         os.environ.get("CASMBD_COMPILE", ""))).encode()).hexdigest()
 
     # ---- build once here: the disk cache is warm for the workers

@@ -197,7 +197,7 @@ def _cmd_sweep(args) -> tuple[dict, str]:
         raise AnalysisError("give --workers (local processes) or --scheduler (Dask), not both")
     executor = args.scheduler or ("processes" if args.workers and args.workers > 1
                                   else "serial")
-    res = sweep(args.scene, params, analysis=args.analysis, t_end=args.t_end,
+    res = sweep(load_scene(args.scene), params, analysis=args.analysis, t_end=args.t_end,
                 steps=args.steps, outputs=args.output, executor=executor,
                 workers=args.workers, out_dir=args.out, mode=args.mode,
                 progress=None if not args.json else False)

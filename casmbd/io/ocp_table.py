@@ -34,7 +34,7 @@
     [ocp.solver_options]
     "ipopt.max_iter" = 500
 
-Names are those of :mod:`casmbd.ocp.quantities`; values may be expressions of the scene's
+Names are those of :mod:`casmbd.system.quantities`; values may be expressions of the scene's
 parameters.
 """
 
@@ -44,8 +44,10 @@ import math
 import os
 from pathlib import Path
 
+from casmbd.analysis.integrators import DEFAULT_SHOOTING_INTEGRATOR
 from casmbd.errors import CasmbdError, LimitError, SceneError
 from casmbd.io.scene import load_scene
+from casmbd.model.expressions import evaluate_number
 from casmbd.ocp.options import check_solver, check_solver_options
 from casmbd.ocp.problem import OBJECTIVES, FreeTime, Ocp
 
@@ -56,8 +58,6 @@ _KEYS = {"horizon", "intervals", "transcription", "degree", "subintervals", "dyn
 
 
 def _number(value, where: str, params: dict) -> float:
-    from casmbd.io.expressions import evaluate_number
-
     if isinstance(value, bool):
         raise SceneError(f"{where}: expected a number, got {value!r}")
     if isinstance(value, (int, float)):
@@ -112,7 +112,7 @@ def ocp_from_scene(mech, table: dict | None = None, source: str = "<scene>") -> 
                                    SceneError)
     try:
         ocp = Ocp(mech, horizon=horizon, transcription=table.get("transcription", "radau"),
-                  integrator=table.get("integrator", "rk4"),
+                  integrator=table.get("integrator", DEFAULT_SHOOTING_INTEGRATOR),
                   dynamics=table.get("dynamics", "implicit"),
                   t_start=num(table.get("t_start", 0.0), "t_start"),
                   solver=solver, solver_options=options, **ints)

@@ -3,7 +3,7 @@
 The loader builds exactly the object the Python API builds.  Every error is a
 :class:`~casmbd.errors.SceneError` naming the table, the entry and the key, e.g.
 ``[[bodies]] entry 2 ('crank') key 'mass': must be > 0, got -1.0``.  Expression strings are
-parsed by :mod:`casmbd.io.expressions` (never Python ``eval``).
+parsed by :mod:`casmbd.model.expressions` (never Python ``eval``).
 
 Contract (SI units, angles in radians; vectors have ``dimension`` components)::
 
@@ -18,10 +18,11 @@ Contract (SI units, angles in radians; vectors have ``dimension`` components)::
                           angular_velocity = [wx, wy, wz] (global)
     [[markers]]   name, body, point
     [[joints]]    name, type, body1, body2, point, ...
-                  plane: revolute|prismatic|rigid|distance|fixed
+                  plane: revolute|prismatic|rigid|distance|fixed|gear
                   space: also spherical|cylindrical|universal|inline; axis (revolute,
                   prismatic, cylindrical, inline), axes = [[...], [...]] or axis1, axis2
-                  (universal)
+                  (universal); gear: joint1, joint2, ratio (no bodies).  The keys of
+                  each type are declared by its kind (casmbd.model.registry.JOINT_KINDS)
     [[drivers]]   name, joint (+ coordinate for a multi-coordinate joint) |
                   body + coordinate (x|y|angle; x|y|z in space), position (expression of t)
     [[forces]]    name, type = force|torque|spring_damper|rotational_spring_damper, ...
@@ -39,7 +40,7 @@ from pathlib import Path
 from typing import Any
 
 from casmbd.errors import CasmbdError, ExpressionError, LimitError, ModelError, SceneError
-from casmbd.io.expressions import evaluate_number
+from casmbd.io.scene_points import ScenePoints
 from casmbd.limits import (
     MAX_BODIES,
     MAX_ELEMENTS,
@@ -48,7 +49,9 @@ from casmbd.limits import (
     check_count,
     format_bytes,
 )
-from casmbd.model import GROUND, Mechanism
+from casmbd.model import Mechanism
+from casmbd.model.expressions import evaluate_number, parse_expression
+from casmbd.model.registry import JOINT_KINDS
 from casmbd.model.rotations import inertia_tensor
 from casmbd.model.values import EXTRAPOLATIONS, Samples
 
@@ -62,18 +65,6 @@ _BODY_KEYS = {"name", "mass", "inertia", "position", "angle", "velocity", "angul
               "reference_point", "orientation", "euler_zxz", "description"}
 _COORDINATES = ("absolute", "natural", "joint")
 _MARKER_KEYS = {"name", "body", "point", "description"}
-_JOINT_KEYS = {
-    "revolute": {"point", "axis"},
-    "prismatic": {"point", "axis"},
-    "rigid": {"point"},
-    "fixed": {"point", "body"},
-    "distance": {"point1", "point2", "length"},
-    "spherical": {"point"},
-    "cylindrical": {"point", "axis"},
-    "universal": {"point", "axes", "axis1", "axis2"},
-    "inline": {"point", "axis"},
-}
-_SPATIAL_JOINTS = {"spherical", "cylindrical", "universal", "inline"}
 _DRIVER_KEYS = {"name", "joint", "body", "coordinate", "position", "description"}
 _FORCE_KEYS = {
     "force": {"body", "point", "value", "frame"},
@@ -183,8 +174,6 @@ class _Entry:
 
     def _check_expression(self, text: str, key: str) -> None:
         import casadi as ca
-
-        from casmbd.io.expressions import parse_expression
 
         symbols = {name: ca.SX.sym(name) for name in self.params}
         symbols["t"] = ca.SX.sym("t")
@@ -311,16 +300,18 @@ def _build(data: dict, source: str) -> Mechanism:
         guarded(e, lambda e=e: mech.add_marker(_name(e), e.string("body"),
                                                e.vector("point", dim)))
 
-    for e in entries("joints"):
+    for e in entries("joints"):  # each kind reads its own keys (casmbd.model.registry)
         jtype = e.string("type")
-        if jtype not in _JOINT_KEYS:
+        if jtype not in JOINT_KINDS:
             raise e.error("type", f"unknown joint type {jtype!r} (allowed: "
-                          f"{', '.join(_JOINT_KEYS)})")
-        if dim == 2 and jtype in _SPATIAL_JOINTS:
-            raise e.error("type", f"a {jtype} joint needs a spatial scene ([scene] "
-                          "dimension = 3)")
-        e.check_keys({"name", "type", "body1", "body2", "description"} | _JOINT_KEYS[jtype])
-        _add_joint(mech, e, jtype, guarded)
+                          f"{', '.join(JOINT_KINDS)})")
+        kind = JOINT_KINDS[jtype].get(dim)
+        if kind is None:
+            space = "spatial" if dim == 2 else "planar"
+            raise e.error("type", f"a {jtype} joint needs a {space} scene ([scene] "
+                          f"dimension = {5 - dim})")
+        e.check_keys(set(kind.scene_common | kind.scene_keys))
+        guarded(e, lambda kind=kind, e=e: kind.from_scene(mech, e))
 
     for e in entries("drivers"):
         e.check_keys(_DRIVER_KEYS)
@@ -412,59 +403,6 @@ def _add_spatial_body(mech: Mechanism, e: _Entry, guarded) -> None:
         velocity=e.vector("velocity", 3, default=zeros),
         angular_velocity=e.vector("angular_velocity", 3, default=zeros),
         reference_point=e.vector("reference_point", 3, default=zeros)))
-
-
-def _add_joint(mech: Mechanism, e: _Entry, jtype: str, guarded) -> None:
-    name, dim = _name(e), mech.dimension
-    if jtype == "fixed":
-        if e.has("body"):
-            body = e.string("body")
-            guarded(e, lambda: mech.add_fixed(name, body, point=e.vector(
-                "point", dim, default=None, required=False)))
-            return
-        if not (e.has("body1") and e.has("body2")):
-            raise e.error("body", "missing required key (or give 'body1' and 'body2')")
-        b1, b2 = e.string("body1"), e.string("body2")
-        point = e.vector("point", dim, required=False)
-        if GROUND in (b1, b2):
-            other = b2 if b1 == GROUND else b1
-            guarded(e, lambda: mech.add_fixed(name, other, point=point))
-        else:
-            guarded(e, lambda: mech.add_rigid(name, b1, b2, point=point))
-        return
-    b1, b2 = e.string("body1"), e.string("body2")
-    if jtype == "revolute":
-        if dim == 2 and e.has("axis"):
-            raise e.error("axis", "a planar revolute joint has no axis (it turns about z)")
-        axis = e.vector("axis", 3) if dim == 3 else None
-        guarded(e, lambda: mech.add_revolute(name, b1, b2, e.vector("point", dim), axis=axis))
-    elif jtype in ("prismatic", "cylindrical"):
-        add = mech.add_prismatic if jtype == "prismatic" else mech.add_cylindrical
-        guarded(e, lambda: add(name, b1, b2, e.vector("point", dim), e.vector("axis", dim)))
-    elif jtype == "spherical":
-        guarded(e, lambda: mech.add_spherical(name, b1, b2, e.vector("point", 3)))
-    elif jtype == "inline":
-        guarded(e, lambda: mech.add_inline(name, b1, b2, e.vector("point", 3),
-                                           e.vector("axis", 3)))
-    elif jtype == "universal":
-        if e.has("axes"):
-            for key in ("axis1", "axis2"):
-                if e.has(key):
-                    raise e.error(key, "give 'axes' or 'axis1' and 'axis2', not both")
-            axis1, axis2 = e.vectors("axes", 2, 3)
-        elif e.has("axis1") or e.has("axis2"):
-            axis1, axis2 = e.vector("axis1", 3), e.vector("axis2", 3)
-        else:
-            raise e.error("axes", "missing required key (axes = [[axis on body1], [axis on "
-                          "body2]], or 'axis1' and 'axis2')")
-        guarded(e, lambda: mech.add_universal(name, b1, b2, e.vector("point", 3), axis1, axis2))
-    elif jtype == "rigid":
-        guarded(e, lambda: mech.add_rigid(name, b1, b2, e.vector("point", dim,
-                                                                 required=False)))
-    else:
-        length = e.number("length", required=False)
-        guarded(e, lambda: mech.add_distance(name, b1, b2, e.vector("point1", dim),
-                                             e.vector("point2", dim), length=length))
 
 
 def _add_force(mech: Mechanism, e: _Entry, ftype: str, guarded) -> None:
@@ -570,6 +508,7 @@ def loads_scene(text: str, source: str = "<string>") -> Mechanism:
     mech = _build(data, source)
     mech.scene_text = text
     mech.scene_data = data
+    mech.scene_points = ScenePoints(text, source, loads_scene)  # sweeps re-read it per point
     return mech
 
 

@@ -3,7 +3,7 @@
 A *value* is what a user passes for a driver position, a force magnitude or a stiffness:
 
 * a number;
-* a string, parsed by :func:`casmbd.io.expressions.parse_expression` over ``t``, ``pi`` and the
+* a string, parsed by :func:`casmbd.model.expressions.parse_expression` over ``t``, ``pi`` and the
   model's parameters (no Python ``eval``);
 * a callable ``f(t)`` or ``f(t, p)`` returning a CasADi expression, ``p`` being a dict that maps
   parameter names to their symbols.
@@ -19,6 +19,7 @@ import casadi as ca
 import numpy as np
 
 from casmbd.errors import ModelError
+from casmbd.model.expressions import parse_expression
 
 #: how a :class:`Samples` trajectory continues outside its sample times
 EXTRAPOLATIONS = ("hold", "linear", "error")
@@ -108,8 +109,6 @@ def check_value(value: Value, where: str) -> Value:
 
 def resolve(value: Value, t: ca.SX, params: Mapping[str, ca.SX], where: str) -> ca.SX:
     """Turn a value into a CasADi expression of ``t`` and the parameters."""
-    from casmbd.io.expressions import parse_expression
-
     if isinstance(value, (int, float)):
         return ca.SX(float(value))
     if isinstance(value, ca.SX):

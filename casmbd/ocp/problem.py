@@ -12,7 +12,7 @@ point, a result object)::
     sol = ocp.solve()                                   # OcpSolution
 
 Every expression is a string (or a callable of the quantity dict) over the names of
-:mod:`casmbd.ocp.quantities`.  The states are the model's (q, q̇) and the controls its actuator
+:mod:`casmbd.system.quantities`.  The states are the model's (q, q̇) and the controls its actuator
 inputs u; the closed-loop constraints C(q, t) = 0 and C_q q̇ + C_t = 0 hold at every node.
 """
 
@@ -24,11 +24,14 @@ from dataclasses import dataclass, field
 
 import casadi as ca
 
+from casmbd.analysis.integrators import DEFAULT_SHOOTING_INTEGRATOR
+from casmbd.analysis.integrators import names as integrator_names
 from casmbd.errors import AnalysisError, ModelError
 from casmbd.limits import MAX_OCP_INTERVALS, MAX_OCP_UNKNOWNS, check_count
+from casmbd.model.expressions import parse_expression
 from casmbd.ocp.options import check_solver_options
-from casmbd.ocp.quantities import quantities
 from casmbd.system.equations import System
+from casmbd.system.quantities import quantities
 
 TRANSCRIPTIONS = ("radau", "legendre", "multiple_shooting")
 OBJECTIVES = ("effort", "time", "energy")
@@ -112,7 +115,7 @@ class Ocp:
     transcription: str = "radau"
     degree: int = 4
     subintervals: int = 1
-    integrator: str = "rk4"
+    integrator: str = DEFAULT_SHOOTING_INTEGRATOR
     steps: int = 4
     dynamics: str = "implicit"
     t_start: float = 0.0
@@ -149,9 +152,10 @@ class Ocp:
             raise AnalysisError(f"ocp: dynamics must be one of {', '.join(DYNAMICS)}, got "
                                 f"{self.dynamics!r}")
         self.solver_options = check_solver_options(self.solver, self.solver_options)
-        if self.integrator not in ("rk4", "cvodes"):
-            raise AnalysisError(f"ocp: integrator must be 'rk4' or 'cvodes', got "
-                                f"{self.integrator!r}")
+        shooting = integrator_names(shooting=True)
+        if self.integrator not in shooting:
+            raise AnalysisError(f"ocp: integrator must be one of {', '.join(shooting)} "
+                                f"(casmbd.analysis.integrators), got {self.integrator!r}")
         if isinstance(self.horizon, FreeTime):
             h = self.horizon
             if not (0 < h.lower <= h.guess <= h.upper and math.isfinite(h.upper)):
@@ -272,8 +276,6 @@ class Ocp:
     # ------------------------------------------------------------------ expressions
     def expression(self, expr, where: str) -> ca.SX:
         """An SX expression of (q, v, t, u, p) from a string or a callable of the names."""
-        from casmbd.io.expressions import parse_expression
-
         if callable(expr):
             out = ca.SX(expr(self.names))
         elif isinstance(expr, (int, float)):

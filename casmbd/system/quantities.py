@@ -2,7 +2,7 @@
 
 Bounds, boundary conditions, path constraints and objectives of an optimal-control problem are
 written with names that read like the mechanism, all valid identifiers of the expression parser
-(:mod:`casmbd.io.expressions`):
+(:mod:`casmbd.model.expressions`):
 
 =====================  ==========================================================
 ``<joint>``            joint coordinate (a cylindrical joint's angle: ``<joint>_angle``)
