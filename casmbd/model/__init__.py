@@ -10,8 +10,10 @@ from casmbd.model.forces import (
     Torque,
     UserForce,
 )
+from casmbd.model.gear import Gear
 from casmbd.model.joints import Distance, Fixed, Joint, Prismatic, Revolute, Rigid
 from casmbd.model.mechanism import Mechanism
+from casmbd.model.registry import JOINT_KINDS, register_joint
 from casmbd.model.spatial_joints import (
     Cylindrical,
     SpatialFixed,
@@ -22,8 +24,9 @@ from casmbd.model.spatial_joints import (
     Universal,
 )
 
-__all__ = ["GROUND", "Actuator", "Body", "Cylindrical", "Distance", "Driver", "Fixed", "Joint",
+__all__ = ["GROUND", "JOINT_KINDS", "Actuator", "Body", "Cylindrical", "Distance", "Driver",
+           "Fixed", "Gear", "Joint",
            "Marker", "Mechanism", "PointForce", "Prismatic", "Revolute", "Rigid",
            "RotationalSpringDamper", "SpatialBody", "SpatialFixed", "SpatialPrismatic",
            "SpatialRevolute", "SpatialRigid", "Spherical", "SpringDamper", "Torque", "Universal",
-           "UserForce"]
+           "UserForce", "register_joint"]

@@ -30,18 +30,9 @@ from casmbd.model.forces import (
     Torque,
     UserForce,
 )
-from casmbd.model.joints import Distance, Fixed, Joint, Prismatic, Revolute, Rigid
+from casmbd.model.joints import Joint
+from casmbd.model.registry import joint_kind
 from casmbd.model.rotations import euler_zxz_to_quaternion, inertia_tensor
-from casmbd.model.spatial_joints import (
-    Cylindrical,
-    InLine,
-    SpatialFixed,
-    SpatialPrismatic,
-    SpatialRevolute,
-    SpatialRigid,
-    Spherical,
-    Universal,
-)
 from casmbd.model.values import Value, check_value, numeric
 
 
@@ -119,11 +110,6 @@ class Mechanism:
 
     def _vec(self, value, where: str) -> np.ndarray:
         return vector(value, where, self.dimension)
-
-    def _spatial(self, kind: str, name: str) -> None:
-        if self.dimension != 3:
-            raise ModelError(f"joint '{name}': a {kind} joint needs a spatial mechanism "
-                             "(dimension = 3)")
 
     def _pair(self, body1: str, body2: str, where: str) -> None:
         self._body(body1, f"{where} field 'body1'")
@@ -218,6 +204,27 @@ class Mechanism:
         self._unique(self.joints, "joint", name)
         self._pair(body1, body2, f"joint '{name}'")
 
+    def add(self, kind: str, name: str, *args, **fields) -> Joint:
+        """Add an element of a registered kind: ``m.add("revolute", "pin", "ground", "rod",
+        point=(0, 0))``, ``m.add("gear", "g", joint1="a", joint2="b", ratio=2.0)``.
+
+        The kind (:data:`casmbd.model.registry.JOINT_KINDS`) validates its own arguments
+        (:meth:`~casmbd.model.joints.Joint.create`); user kinds registered with
+        :func:`~casmbd.model.registry.register_joint` are added the same way.  The
+        ``add_revolute``, ``add_prismatic``, … methods are thin wrappers of this one.
+
+        Raises
+        ------
+        ModelError
+            An unknown kind (listing the registered ones), a kind not available in this
+            dimension, or an invalid argument (naming the joint and the field).
+        """
+        if not isinstance(kind, str):
+            raise ModelError(f"joint '{name}': the kind must be a registered type name "
+                             f"(string), got {kind!r}")
+        cls = joint_kind(kind, self.dimension, f"joint '{name}'")
+        return self._add_joint(cls.create(self, name, *args, **fields))
+
     def add_revolute(self, name: str, body1: str, body2: str, point: Sequence[float],
                      axis: Sequence[float] | None = None) -> Joint:
         """Revolute (pin) joint at the global ``point``; in space about the global ``axis``.
@@ -225,74 +232,55 @@ class Mechanism:
         Coordinate: θ2 − θ1 in the plane; the rotation about the axis since the initial pose
         in space.
         """
-        self._new_joint(name, body1, body2)
-        if self.dimension == 2:
-            if axis is not None:
-                raise ModelError(f"joint '{name}' field 'axis': a planar revolute joint has "
-                                 "no axis")
-            return self._add_joint(Revolute(name, body1, body2, point=point))
-        if axis is None:
-            raise ModelError(f"joint '{name}' field 'axis': a spatial revolute joint needs "
-                             "its axis")
-        return self._add_joint(SpatialRevolute(name, body1, body2, point=point, axis=axis))
+        return self.add("revolute", name, body1, body2, point, axis=axis)
 
     def add_prismatic(self, name: str, body1: str, body2: str, point: Sequence[float],
                       axis: Sequence[float]) -> Joint:
         """Prismatic (translational) joint along the global ``axis`` through ``point``."""
-        self._new_joint(name, body1, body2)
-        cls = Prismatic if self.dimension == 2 else SpatialPrismatic
-        return self._add_joint(cls(name, body1, body2, point=point, axis=axis))
+        return self.add("prismatic", name, body1, body2, point, axis)
 
     def add_cylindrical(self, name: str, body1: str, body2: str, point: Sequence[float],
                         axis: Sequence[float]) -> Joint:
         """Cylindrical joint (slide along and turn about ``axis``); coordinates
         ``translation`` and ``angle``.  Spatial only."""
-        self._spatial("cylindrical", name)
-        self._new_joint(name, body1, body2)
-        return self._add_joint(Cylindrical(name, body1, body2, point=point, axis=axis))
+        return self.add("cylindrical", name, body1, body2, point, axis)
 
     def add_spherical(self, name: str, body1: str, body2: str, point: Sequence[float]) -> Joint:
         """Spherical (ball) joint at ``point``.  Spatial only."""
-        self._spatial("spherical", name)
-        self._new_joint(name, body1, body2)
-        return self._add_joint(Spherical(name, body1, body2, point=point))
+        return self.add("spherical", name, body1, body2, point)
 
     def add_universal(self, name: str, body1: str, body2: str, point: Sequence[float],
                       axis1: Sequence[float], axis2: Sequence[float]) -> Joint:
         """Universal joint at ``point``: ``axis1`` on body1 ⟂ ``axis2`` on body2.  Spatial
         only."""
-        self._spatial("universal", name)
-        self._new_joint(name, body1, body2)
-        return self._add_joint(Universal(name, body1, body2, point=point, axis1=axis1,
-                                         axis2=axis2))
+        return self.add("universal", name, body1, body2, point, axis1, axis2)
 
     def add_inline(self, name: str, body1: str, body2: str, point: Sequence[float],
                    axis: Sequence[float]) -> Joint:
         """In-line joint: the point of body2 at the global ``point`` stays on the line of body1
         through ``point`` along the global ``axis`` (2 equations).  Spatial only."""
-        self._spatial("in-line", name)
-        self._new_joint(name, body1, body2)
-        return self._add_joint(InLine(name, body1, body2, point=point, axis=axis))
+        return self.add("inline", name, body1, body2, point, axis)
 
     def add_rigid(self, name: str, body1: str, body2: str,
                   point: Sequence[float] | None = None) -> Joint:
         """Weld body2 to body1 in their initial relative pose."""
-        self._new_joint(name, body1, body2)
-        cls = Rigid if self.dimension == 2 else SpatialRigid
-        return self._add_joint(cls(name, body1, body2, point=point))
+        return self.add("rigid", name, body1, body2, point=point)
 
     def add_fixed(self, name: str, body: str, point: Sequence[float] | None = None) -> Joint:
         """Fix ``body`` to the ground in its initial pose."""
-        self._new_joint(name, GROUND, body)
-        cls = Fixed if self.dimension == 2 else SpatialFixed
-        return self._add_joint(cls(name, GROUND, body, point=point))
+        return self.add("fixed", name, body, point=point)
 
     def add_distance(self, name: str, body1: str, body2: str, point1: Sequence[float],
                      point2: Sequence[float], length: float | None = None) -> Joint:
         """Massless link between two points; ``length`` defaults to the initial distance."""
-        self._new_joint(name, body1, body2)
-        return self._add_joint(Distance(name, body1, body2, point1=point1, point2=point2,
-                                        length=length, dimension=self.dimension))
+        return self.add("distance", name, body1, body2, point1, point2, length=length)
+
+    def add_gear(self, name: str, joint1: str, joint2: str, ratio: float = 1.0,
+                 coordinate1: str | None = None, coordinate2: str | None = None) -> Joint:
+        """Gear (coupler) between two joint coordinates: c2 − c2⁰ = ratio (c1 − c1⁰)
+        (:class:`~casmbd.model.gear.Gear`)."""
+        return self.add("gear", name, joint1=joint1, joint2=joint2, ratio=ratio,
+                        coordinate1=coordinate1, coordinate2=coordinate2)
 
     # ------------------------------------------------------------------ drivers
     def add_driver(self, name: str, position: Value, joint: str | None = None,

@@ -37,7 +37,16 @@ import numpy as np
 
 from casmbd.errors import ModelError
 from casmbd.model.bodies import vector
-from casmbd.model.joints import Joint
+from casmbd.model.joints import (
+    Joint,
+    axis_from_scene,
+    create_fixed,
+    fixed_from_scene,
+    revolute_from_scene,
+    rigid_from_scene,
+)
+from casmbd.model.registry import register_joint
+from casmbd.model.rotations import E_matrix, rotation_matrix
 
 
 def _unit(value, where: str) -> np.ndarray:
@@ -90,6 +99,13 @@ def spherical(ctx, body1: str, body2: str, point) -> ca.SX:
 class _PointJoint(Joint):
     point: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
+    dimensions = (3,)
+
+    @classmethod
+    def create(cls, mech, name, body1, body2, point, **axes):
+        mech._new_joint(name, body1, body2)
+        return cls(name, body1, body2, point=point, **axes)
+
     def __post_init__(self):
         self.point = vector(self.point, f"joint '{self.name}' field 'point'", 3)
 
@@ -103,6 +119,11 @@ class _AxisJoint(_PointJoint):
         self.axis = _unit(self.axis, f"joint '{self.name}' field 'axis'")
         self.f, self.g, self.h = triad(self.axis)
 
+    @classmethod
+    def create(cls, mech, name, body1, body2, point, axis):
+        mech._new_joint(name, body1, body2)
+        return cls(name, body1, body2, point=point, axis=axis)
+
     def _parallel_axes(self, ctx) -> list[ca.SX]:
         b1, b2 = self.body1, self.body2
         return [dot1(ctx, b1, self.f, b2, self.h), dot1(ctx, b1, self.g, b2, self.h)]
@@ -115,16 +136,42 @@ class _AxisJoint(_PointJoint):
         return ctx.relative_angle(self.body1, self.body2, self.axis)
 
 
+@register_joint
 @dataclass
 class Spherical(_PointJoint):
-    """Ball joint: a common point (3 equations, 3 rotational degrees of freedom)."""
+    """Ball joint: a common point (3 equations, 3 rotational degrees of freedom).
+
+    In joint coordinates its tree coordinates are the Euler parameters of the child relative
+    to the parent (one normalization equation)."""
 
     labels: tuple[str, ...] = ("x", "y", "z")
+
+    kind = "spherical"
+    scene_keys = frozenset({"point"})
+    tree_joint = True
+    euler_parameters = True
+
+    @classmethod
+    def from_scene(cls, mech, e):
+        name = e.string("name")
+        b1, b2 = e.string("body1"), e.string("body2")
+        return mech.add("spherical", name, b1, b2, e.vector("point", 3))
+
+    def tree_layout(self):
+        return ("e0", "e1", "e2", "e3"), (False,) * 4
+
+    def tree_initial(self):
+        return np.array([1.0, 0.0, 0.0, 0.0])
+
+    def tree_motion(self, tree, q, v=None):
+        omega = 2.0 * ca.mtimes(E_matrix(q), v) if v is not None else None
+        return rotation_matrix(q), ca.SX.zeros(3), omega
 
     def equations(self, ctx):
         return spherical(ctx, self.body1, self.body2, self.point)
 
 
+@register_joint
 @dataclass
 class SpatialRevolute(_AxisJoint):
     """Revolute joint: a common point and a common axis (5 equations).
@@ -136,6 +183,27 @@ class SpatialRevolute(_AxisJoint):
 
     labels: tuple[str, ...] = ("x", "y", "z", "axis f", "axis g")
     coordinate_names: tuple[str, ...] = ("angle",)
+
+    kind = "revolute"
+    scene_keys = frozenset({"point", "axis"})
+    tree_joint = True
+    from_scene = classmethod(revolute_from_scene)
+
+    @classmethod
+    def create(cls, mech, name, body1, body2, point, axis=None):
+        mech._new_joint(name, body1, body2)
+        if axis is None:
+            raise ModelError(f"joint '{name}' field 'axis': a spatial revolute joint needs "
+                             "its axis")
+        return cls(name, body1, body2, point=point, axis=axis)
+
+    def tree_layout(self):
+        return ("angle",), (False,)
+
+    def tree_motion(self, tree, q, v=None):
+        h = np.asarray(self.axis, float)
+        omega = ca.DM(h) * v[0] if v is not None else None
+        return tree.rodrigues(h, q[0]), ca.SX.zeros(3), omega
 
     def equations(self, ctx):
         return ca.vertcat(spherical(ctx, self.body1, self.body2, self.point),
@@ -150,6 +218,7 @@ class SpatialRevolute(_AxisJoint):
         return ctx.angle_residual(self.body1, self.body2, target, self.axis)
 
 
+@register_joint
 @dataclass
 class Cylindrical(_AxisJoint):
     """Cylindrical joint: body2 slides along and turns about the axis of body1 (4 equations).
@@ -159,6 +228,20 @@ class Cylindrical(_AxisJoint):
 
     labels: tuple[str, ...] = ("axis f", "axis g", "offset f", "offset g")
     coordinate_names: tuple[str, ...] = ("translation", "angle")
+
+    kind = "cylindrical"
+    scene_keys = frozenset({"point", "axis"})
+    drawing = "slide"
+    tree_joint = True
+    from_scene = classmethod(axis_from_scene)
+
+    def tree_layout(self):
+        return ("translation", "angle"), (True, False)
+
+    def tree_motion(self, tree, q, v=None):
+        h = np.asarray(self.axis, float)
+        omega = ca.DM(h) * v[1] if v is not None else None
+        return tree.rodrigues(h, q[1]), q[0] * ca.DM(h), omega
 
     def _offsets(self, ctx) -> list[ca.SX]:
         b1, b2, p = self.body1, self.body2, self.point
@@ -177,6 +260,7 @@ class Cylindrical(_AxisJoint):
         return self._translation(ctx) - target
 
 
+@register_joint
 @dataclass
 class SpatialPrismatic(Cylindrical):
     """Prismatic joint: a cylindrical joint that cannot turn (5 equations).
@@ -187,11 +271,20 @@ class SpatialPrismatic(Cylindrical):
     labels: tuple[str, ...] = ("axis f", "axis g", "offset f", "offset g", "twist")
     coordinate_names: tuple[str, ...] = ("translation",)
 
+    kind = "prismatic"
+
+    def tree_layout(self):
+        return ("translation",), (True,)
+
+    def tree_motion(self, tree, q, v=None):
+        return ca.SX.eye(3), q[0] * ca.DM(np.asarray(self.axis, float)), ca.SX.zeros(3)
+
     def equations(self, ctx):
         twist = dot1(ctx, self.body1, self.f, self.body2, self.g)
         return ca.vertcat(*self._parallel_axes(ctx), *self._offsets(ctx), twist)
 
 
+@register_joint
 @dataclass
 class Universal(_PointJoint):
     """Universal (Hooke) joint: a common point, ``axis1`` fixed on body1 stays perpendicular
@@ -200,6 +293,45 @@ class Universal(_PointJoint):
     axis1: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
     axis2: np.ndarray = field(default_factory=lambda: np.array([0.0, 1.0, 0.0]))
     labels: tuple[str, ...] = ("x", "y", "z", "cross")
+
+    kind = "universal"
+    scene_keys = frozenset({"point", "axes", "axis1", "axis2"})
+    tree_joint = True
+
+    @classmethod
+    def from_scene(cls, mech, e):
+        name = e.string("name")
+        b1, b2 = e.string("body1"), e.string("body2")
+        if e.has("axes"):
+            for key in ("axis1", "axis2"):
+                if e.has(key):
+                    raise e.error(key, "give 'axes' or 'axis1' and 'axis2', not both")
+            axis1, axis2 = e.vectors("axes", 2, 3)
+        elif e.has("axis1") or e.has("axis2"):
+            axis1, axis2 = e.vector("axis1", 3), e.vector("axis2", 3)
+        else:
+            raise e.error("axes", "missing required key (axes = [[axis on body1], [axis on "
+                          "body2]], or 'axis1' and 'axis2')")
+        return mech.add("universal", name, b1, b2, e.vector("point", 3), axis1, axis2)
+
+    @classmethod
+    def create(cls, mech, name, body1, body2, point, axis1, axis2):
+        mech._new_joint(name, body1, body2)
+        return cls(name, body1, body2, point=point, axis1=axis1, axis2=axis2)
+
+    def tree_layout(self):
+        return ("angle1", "angle2"), (False, False)
+
+    def tree_motion(self, tree, q, v=None):
+        """Rotation about the parent's axis, then about the child's."""
+        parent_is_body1 = self.body1 == tree.parent
+        a_p, a_c = (self.axis1, self.axis2) if parent_is_body1 else (self.axis2, self.axis1)
+        first = tree.rodrigues(a_p, q[0])
+        rot = ca.mtimes(first, tree.rodrigues(a_c, q[1]))
+        omega = None
+        if v is not None:
+            omega = ca.DM(a_p) * v[0] + ca.mtimes(first, ca.DM(a_c)) * v[1]
+        return rot, ca.SX.zeros(3), omega
 
     def __post_init__(self):
         super().__post_init__()
@@ -215,6 +347,7 @@ class Universal(_PointJoint):
                           dot1(ctx, self.body1, self.axis1, self.body2, self.axis2))
 
 
+@register_joint
 @dataclass
 class InLine(_AxisJoint):
     """In-line (point-on-line) joint: the point of body2 stays on the line of body1 through
@@ -230,17 +363,34 @@ class InLine(_AxisJoint):
 
     labels: tuple[str, ...] = ("offset f", "offset g")
 
+    kind = "inline"
+    title = "in-line"
+    scene_keys = frozenset({"point", "axis"})
+    from_scene = classmethod(axis_from_scene)
+
     def equations(self, ctx):
         b1, b2, p = self.body1, self.body2, self.point
         return ca.vertcat(dot2(ctx, b1, self.f, p, b2, p), dot2(ctx, b1, self.g, p, b2, p))
 
 
+@register_joint
 @dataclass
 class SpatialRigid(Joint):
     """Weld: body2 keeps its initial pose relative to body1 (6 equations)."""
 
     point: np.ndarray | None = None
     labels: tuple[str, ...] = ("x", "y", "z", "x.y", "x.z", "y.z")
+
+    kind = "rigid"
+    dimensions = (3,)
+    scene_keys = frozenset({"point"})
+    tree_joint = True
+    from_scene = classmethod(rigid_from_scene)
+
+    @classmethod
+    def create(cls, mech, name, body1, body2, point=None):
+        mech._new_joint(name, body1, body2)
+        return cls(name, body1, body2, point=point)
 
     def __post_init__(self):
         if self.point is not None:
@@ -257,6 +407,12 @@ class SpatialRigid(Joint):
         return self.point
 
 
+@register_joint
 @dataclass
 class SpatialFixed(SpatialRigid):
     """Fix a body to the ground in its initial pose (a weld with ground as body1)."""
+
+    kind = "fixed"
+    scene_keys = frozenset({"point", "body"})
+    from_scene = classmethod(fixed_from_scene)
+    create = classmethod(create_fixed)

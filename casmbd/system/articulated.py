@@ -28,7 +28,6 @@ import casadi as ca
 
 from casmbd.errors import ModelError
 from casmbd.model.bodies import GROUND
-from casmbd.model.spatial_joints import Spherical
 
 
 def supported(system) -> str | None:
@@ -40,7 +39,7 @@ def supported(system) -> str | None:
     for name, desc in system.descriptions.items():
         if desc.joint is None:
             return f"body '{name}' floats (no tree joint)"
-        if isinstance(desc.joint, Spherical):
+        if desc.joint.euler_parameters:
             return f"ball joint '{desc.joint.name}' (Euler parameters)"
     if any(term.kind == "generalized" for term in system._force_terms(system.ctx)):
         return "a user generalized force cannot be split into body wrenches"

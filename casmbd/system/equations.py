@@ -768,7 +768,7 @@ class System:
             index += elements[("body", body)]
         touching = set()
         for joint in self.mechanism.joints.values():
-            if body in (joint.body1, joint.body2):
+            if body in joint.bodies:  # a gear involves the bodies of both its joints
                 touching.add(joint.name)
                 if ("joint", joint.name) in elements:
                     rows.append(ca.vec(joint.equations(ctx)))

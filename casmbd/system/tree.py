@@ -30,22 +30,13 @@ import numpy as np
 
 from casmbd.errors import ModelError
 from casmbd.model.bodies import GROUND
-from casmbd.model.joints import Fixed, Prismatic, Revolute, Rigid
-from casmbd.model.rotations import E_matrix, rotation_matrix
-from casmbd.model.spatial_joints import (
-    Cylindrical,
-    SpatialFixed,
-    SpatialPrismatic,
-    SpatialRevolute,
-    SpatialRigid,
-    Spherical,
-    Universal,
-)
 from casmbd.system.descriptions import Description, PlanarAbsolute, SpatialAbsolute
 
-#: joint types that can carry a body in the tree (a distance joint cannot: it leaves 5 DOF)
-TREE_TYPES = (Revolute, Prismatic, Rigid, Fixed, SpatialRevolute, SpatialPrismatic, Cylindrical,
-              Universal, Spherical, SpatialRigid, SpatialFixed)
+
+def is_tree_joint(joint) -> bool:
+    """True when the joint's kind can carry a body in the tree (``tree_joint``; a distance
+    joint cannot: it leaves 5 DOF; a gear couples coordinates and carries no body)."""
+    return bool(getattr(joint, "tree_joint", False))
 
 
 @dataclass(frozen=True)
@@ -83,7 +74,7 @@ def spanning_tree(mechanism, tree=None) -> tuple[list[TreeEdge], list[str]]:
     for name in named:
         if name not in joints:
             raise ModelError(f"tree: unknown joint '{name}' (known: {', '.join(joints)})")
-        if not isinstance(joints[name], TREE_TYPES):
+        if not is_tree_joint(joints[name]):
             raise ModelError(f"tree: joint '{name}' ({type(joints[name]).__name__}) cannot be a "
                              "tree joint")
     # union–find: the named joints first (they must not close a loop), then the others in
@@ -104,7 +95,7 @@ def spanning_tree(mechanism, tree=None) -> tuple[list[TreeEdge], list[str]]:
                              "joints; name a tree without cycles")
         root[a] = b
         chosen.append(name)
-    others = [n for n, j in joints.items() if n not in named and isinstance(j, TREE_TYPES)]
+    others = [n for n, j in joints.items() if n not in named and is_tree_joint(j)]
     frontier, seen = [GROUND], {GROUND}
     while frontier:
         node = frontier.pop(0)
@@ -158,21 +149,30 @@ def spanning_tree(mechanism, tree=None) -> tuple[list[TreeEdge], list[str]]:
     return [parent_of[b] for b in order], loops
 
 
-def _rodrigues(axis: np.ndarray, angle: ca.SX) -> ca.SX:
+def rodrigues(axis: np.ndarray, angle: ca.SX) -> ca.SX:
     """Rotation by ``angle`` about the unit ``axis``: I + sin φ h̃ + (1 − cos φ) h̃²."""
     skew = ca.DM([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
     return ca.DM.eye(3) + ca.sin(angle) * skew + (1 - ca.cos(angle)) * ca.mtimes(skew, skew)
 
 
-def _planar_rotation(angle: ca.SX) -> ca.SX:
+def planar_rotation(angle: ca.SX) -> ca.SX:
+    """Planar rotation matrix of ``angle``."""
     c, s = ca.cos(angle), ca.sin(angle)
     return ca.vertcat(ca.horzcat(c, -s), ca.horzcat(s, c))
 
 
 class TreeJointDescription(Description):
-    """The coordinates of the tree joint that carries one body (see the module docstring)."""
+    """The coordinates of the tree joint that carries one body (see the module docstring).
+
+    The joint's kind owns its layout and motion (:meth:`casmbd.model.joints.Joint.tree_layout`,
+    :meth:`~casmbd.model.joints.Joint.tree_motion`); this description hands it the symbolic
+    helpers :meth:`rodrigues` and :meth:`planar_rotation` and composes the motion with the
+    parent's pose.
+    """
 
     local = False
+    rodrigues = staticmethod(rodrigues)
+    planar_rotation = staticmethod(planar_rotation)
 
     def __init__(self, body, edge: TreeEdge, joint, mechanism):
         super().__init__(body)
@@ -200,72 +200,19 @@ class TreeJointDescription(Description):
 
     # -------------------------------------------------------------- layout
     def _layout(self) -> tuple[tuple[str, ...], tuple[bool, ...]]:
-        j = self.joint
-        if isinstance(j, (Revolute, SpatialRevolute)):
-            return ("angle",), (False,)
-        if isinstance(j, (Prismatic, SpatialPrismatic)):
-            return ("translation",), (True,)
-        if isinstance(j, Cylindrical):
-            return ("translation", "angle"), (True, False)
-        if isinstance(j, Universal):
-            return ("angle1", "angle2"), (False, False)
-        if isinstance(j, Spherical):
-            return ("e0", "e1", "e2", "e3"), (False,) * 4
-        return (), ()  # rigid, fixed
+        return self.joint.tree_layout()
 
     def initial(self) -> np.ndarray:
-        if isinstance(self.joint, Spherical):
-            return np.array([1.0, 0.0, 0.0, 0.0])
-        return np.zeros(self.size)
+        return self.joint.tree_initial()
 
     def initial_rates(self) -> np.ndarray:
         raise NotImplementedError("tree rates are found for all bodies at once")
 
     # -------------------------------------------------------------- the joint motion
-    def _axis(self, which: str = "axis") -> np.ndarray:
-        """A joint axis fixed on the parent (``axis``/``parent``) or on the child (``child``)."""
-        j = self.joint
-        if isinstance(j, Universal):
-            parent_is_body1 = j.body1 == self.parent
-            first, second = (j.axis1, j.axis2) if parent_is_body1 else (j.axis2, j.axis1)
-            return first if which in ("axis", "parent") else second
-        axis = getattr(j, "axis", None)
-        return np.array([1.0, 0.0]) if axis is None else np.asarray(axis, float)
-
     def _motion(self, q: ca.SX, v: ca.SX | None = None):
-        """(ΔR, Δd, ω_rel) in the design frame; ω_rel only when ``v`` is given."""
-        j, dim = self.joint, self.dimension
-        zero_d = ca.SX.zeros(dim)
-        omega = None
-        if dim == 2:
-            if isinstance(j, Revolute):
-                rot = _planar_rotation(q[0])
-                omega = v[0] if v is not None else None
-                return rot, zero_d, omega
-            if isinstance(j, Prismatic):
-                return ca.SX.eye(2), q[0] * ca.DM(self._axis()), ca.SX(0.0)
-            return ca.SX.eye(2), zero_d, ca.SX(0.0)
-        if isinstance(j, SpatialRevolute):
-            h = self._axis()
-            omega = ca.DM(h) * v[0] if v is not None else None
-            return _rodrigues(h, q[0]), zero_d, omega
-        if isinstance(j, SpatialPrismatic):
-            return ca.SX.eye(3), q[0] * ca.DM(self._axis()), ca.SX.zeros(3)
-        if isinstance(j, Cylindrical):
-            h = self._axis()
-            omega = ca.DM(h) * v[1] if v is not None else None
-            return _rodrigues(h, q[1]), q[0] * ca.DM(h), omega
-        if isinstance(j, Universal):
-            a_p, a_c = self._axis("parent"), self._axis("child")
-            first = _rodrigues(a_p, q[0])
-            rot = ca.mtimes(first, _rodrigues(a_c, q[1]))
-            if v is not None:
-                omega = ca.DM(a_p) * v[0] + ca.mtimes(first, ca.DM(a_c)) * v[1]
-            return rot, zero_d, omega
-        if isinstance(j, Spherical):
-            omega = 2.0 * ca.mtimes(E_matrix(q), v) if v is not None else None
-            return rotation_matrix(q), zero_d, omega
-        return ca.SX.eye(3), zero_d, ca.SX.zeros(3)
+        """(ΔR, Δd, ω_rel) in the design frame from the joint's kind; ω_rel only when ``v``
+        is given."""
+        return self.joint.tree_motion(self, q, v)
 
     def _parent_pose(self, ctx) -> tuple[ca.SX, ca.SX]:
         if self.parent == GROUND:
@@ -298,7 +245,7 @@ class TreeJointDescription(Description):
         return omega_p + ca.mtimes(ca.mtimes(rot_p, ca.DM(self.rot_p0_t)), rel)
 
     def planar_angle(self, ctx, name):
-        rel = ctx.coordinates(name)[0] if isinstance(self.joint, Revolute) else 0.0
+        rel = self.joint.tree_angle(ctx.coordinates(name))
         return ctx.angle(self.parent) + self.angle_offset + rel
 
     def energy(self, ctx, name, mass, inertia) -> ca.SX:
@@ -310,19 +257,19 @@ class TreeJointDescription(Description):
             return total + 0.5 * inertia * omega**2
         omega_b = ca.mtimes(ctx.rotation(name).T, omega)
         total += 0.5 * ca.bilin(inertia, omega_b, omega_b)
-        if isinstance(self.joint, Spherical):
+        if self.joint.euler_parameters:
             p, pdot = ctx.coordinates(name), ctx.rates(name)
             total += 0.5 * (4.0 / 3.0) * ca.trace(inertia) * ca.dot(p, pdot) ** 2
         return total
 
     def normalization_inertia(self, inertia) -> ca.SX | None:
         """c of the term ½ c (pᵀṗ)² for a ball joint's Euler parameters (else None)."""
-        if isinstance(self.joint, Spherical):
+        if self.joint.euler_parameters:
             return 4.0 / 3.0 * ca.trace(inertia)
         return None
 
     def constraints(self, q):
-        if isinstance(self.joint, Spherical):
+        if self.joint.euler_parameters:
             return 0.5 * (ca.dot(q, q) - 1.0), ("normalization",)
         return ca.SX(0, 1), ()
 

@@ -75,9 +75,12 @@ class Geometry:
             else:
                 geo.points[body].append((label, local(body, point)))
 
-        for name, joint in mechanism.joints.items():
+        for name, joint in mechanism.joints.items():  # each kind's ``drawing`` hint
             b1, b2 = joint.body1, joint.body2
-            if hasattr(joint, "point1") and hasattr(joint, "point2"):  # distance link
+            drawing = getattr(joint, "drawing", "point")
+            if drawing == "none":
+                continue
+            if drawing == "link":  # a distance link
                 geo.links.append((name, b1, local(b1, joint.point1), b2,
                                   local(b2, joint.point2), "link"))
                 attach(b1, f"joint:{name}", joint.point1)
@@ -89,7 +92,7 @@ class Geometry:
             if point is None:  # a weld without a point
                 continue
             axis = getattr(joint, "axis", None)
-            sliding = type(joint).__name__ in ("Prismatic", "Cylindrical", "SpatialPrismatic")
+            sliding = drawing == "slide"
             for body in (b1, b2):
                 if not (sliding and body == GROUND):  # a slide is drawn as its guide line
                     attach(body, f"joint:{name}", point)

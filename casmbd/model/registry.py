@@ -1,0 +1,98 @@
+"""The registry of element kinds: scene type name → the class that owns the kind.
+
+A joint kind is one class (a subclass of :class:`casmbd.model.joints.Joint`) that declares its
+scene type name (``kind``), the mechanism dimensions it serves (``dimensions``), its scene keys
+(``scene_keys``), how it is built from the Python API (:meth:`~casmbd.model.joints.Joint.create`)
+and from a scene entry (:meth:`~casmbd.model.joints.Joint.from_scene`), its constraint
+equations, its tree motion in joint coordinates and its drawing hint.  Registering it here is
+all the scene loader, :meth:`casmbd.model.Mechanism.add`, tree building and the drawing need:
+none of them names a kind.
+
+One scene name may have one class per dimension (``"revolute"`` is
+:class:`~casmbd.model.joints.Revolute` in the plane and
+:class:`~casmbd.model.spatial_joints.SpatialRevolute` in space), so the table maps a name to
+``{dimension: class}``.  The order of registration is the order in which the names are listed
+in error messages.
+
+Example
+-------
+>>> from casmbd.model.registry import JOINT_KINDS
+>>> sorted(JOINT_KINDS["revolute"])
+[2, 3]
+"""
+
+from __future__ import annotations
+
+from typing import TypeVar
+
+from casmbd.errors import ModelError
+
+#: scene type name → {dimension: joint class}
+JOINT_KINDS: dict[str, dict[int, type]] = {}
+
+_Kind = TypeVar("_Kind", bound=type)
+
+
+def register_joint(kind: _Kind, *, replace: bool = False) -> _Kind:
+    """Register a joint class under its ``kind`` name for each of its ``dimensions``.
+
+    Usable as a class decorator.  A user module registers its own kinds the same way (see
+    ``examples/custom_joint.py``).
+
+    Parameters
+    ----------
+    kind : type
+        A :class:`~casmbd.model.joints.Joint` subclass with class attributes ``kind`` (the
+        scene type name) and ``dimensions`` (a tuple of 2 and/or 3).
+    replace : bool
+        Allow replacing a class already registered for that name and dimension (otherwise
+        a second registration is a mistake and raises).
+
+    Raises
+    ------
+    ModelError
+        When the class declares no name or no valid dimension, or the name is taken.
+    """
+    name = getattr(kind, "kind", None)
+    dims = tuple(getattr(kind, "dimensions", ()))
+    if not isinstance(name, str) or not name.isidentifier():
+        raise ModelError(f"joint kind {kind.__name__}: class attribute 'kind' must be an "
+                         f"identifier (the scene type name), got {name!r}")
+    if not dims or any(d not in (2, 3) for d in dims):
+        raise ModelError(f"joint kind '{name}' ({kind.__name__}): class attribute "
+                         f"'dimensions' must list 2 and/or 3, got {dims!r}")
+    table = JOINT_KINDS.setdefault(name, {})
+    for dim in dims:
+        old = table.get(dim)
+        if old is not None and old is not kind and not replace:
+            raise ModelError(f"joint kind '{name}' in {dim} dimensions is already "
+                             f"registered ({old.__name__}); pass replace=True to override")
+        table[dim] = kind
+    return kind
+
+
+def joint_kinds(dimension: int | None = None) -> list[str]:
+    """Registered joint type names (all, or those available in ``dimension``)."""
+    return [name for name, table in JOINT_KINDS.items()
+            if dimension is None or dimension in table]
+
+
+def joint_kind(name: str, dimension: int, where: str) -> type:
+    """The class of joint kind ``name`` in ``dimension`` dimensions.
+
+    Raises
+    ------
+    ModelError
+        An unknown name (listing the registered ones) or a kind not available in this
+        dimension (naming ``where``, e.g. ``joint 'hinge'``).
+    """
+    table = JOINT_KINDS.get(name)
+    if table is None:
+        raise ModelError(f"{where}: unknown joint type {name!r} (allowed: "
+                         f"{', '.join(JOINT_KINDS)})")
+    if dimension not in table:
+        other = next(iter(table.values()))
+        space = "spatial" if dimension == 2 else "planar"
+        raise ModelError(f"{where}: a {other.title or name} joint needs a {space} mechanism "
+                         f"(dimension = {5 - dimension})")
+    return table[dimension]
