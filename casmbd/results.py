@@ -18,6 +18,7 @@ import os
 import re
 import struct
 import tempfile
+import warnings
 import zipfile
 import zlib
 from collections.abc import Callable
@@ -27,6 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from casmbd.errors import AnalysisError, ResultFileError
+from casmbd.model import rotations
+from casmbd.system.descriptions import quaternions_from_matrices
 
 
 def _list(arr: np.ndarray):
@@ -63,6 +66,20 @@ def atomic_write(path: str | os.PathLike, write: Callable[[str], None]) -> Path:
 _AXES = {2: ("x", "y"), 3: ("x", "y", "z")}
 _REACTIONS = {3: ("Fx", "Fy", "M"), 6: ("Fx", "Fy", "Fz", "Mx", "My", "Mz")}
 _EQUATION = re.compile(r"^(\w+) '(.*)' equation '(.*)'$")
+
+
+#: Reads a result's embedded scene text into a Mechanism (``reader(text, source=...)``).
+#: Scene parsing lives in :mod:`casmbd.io`, a layer above this one (the analyses below io
+#: build Results), so :mod:`casmbd.io.scene` registers its ``loads_scene`` here when it is
+#: imported (``import casmbd`` does) instead of this module importing it.
+_SCENE_READER: Callable[..., object] | None = None
+
+
+def register_scene_reader(reader: Callable[..., object]) -> None:
+    """Set the reader :meth:`Result.mechanism` parses embedded scene text with (called by
+    :mod:`casmbd.io.scene` on import)."""
+    global _SCENE_READER
+    _SCENE_READER = reader
 
 
 @dataclass
@@ -142,8 +159,6 @@ class Result:
                     out[key] = self.arrays[src][:, i]
             return out
         if "rotation_matrices" in self.arrays:
-            from casmbd.system.descriptions import quaternions_from_matrices
-
             rot = self.arrays["rotation_matrices"][:, 9 * i:9 * i + 9]
             out["rotation"] = rot.reshape(-1, 3, 3)
             out["quaternion"] = quaternions_from_matrices(rot)
@@ -167,10 +182,6 @@ class Result:
             sin θ ≈ 0; X–Y–Z: cos θ ≈ 0), where only a sum or difference of φ and ψ is
             defined; there ψ is set to 0 (see :mod:`casmbd.model.rotations`).
         """
-        import warnings
-
-        from casmbd.model import rotations
-
         if self.dimension != 3:
             raise AnalysisError(f"body '{name}': Euler angles exist for spatial bodies only; "
                               "a planar body has 'angle'")
@@ -313,12 +324,13 @@ class Result:
             When the result holds no scene text (built in Python from a mechanism that did not
             come from a scene file); pass the mechanism explicitly instead.
         """
-        from casmbd.io.scene import loads_scene
-
         if not self.scene:
             raise AnalysisError(f"this {self.kind} result holds no scene text (the mechanism "
                                 "was not loaded from a scene file); pass the mechanism")
-        return loads_scene(self.scene, source=f"<scene embedded in the {self.kind} result>")
+        if _SCENE_READER is None:  # only when casmbd.io.scene was never imported
+            raise AnalysisError("no scene reader registered: import casmbd.io.scene (import "
+                                "casmbd does) to read the scene embedded in a result")
+        return _SCENE_READER(self.scene, source=f"<scene embedded in the {self.kind} result>")
 
     def attach_scene(self, mechanism) -> Result:
         """Embed the scene text of ``mechanism`` (``mechanism.scene_text``, set by

@@ -39,6 +39,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
+from casmbd import results
 from casmbd.errors import CasmbdError, ExpressionError, LimitError, ModelError, SceneError
 from casmbd.io.scene_points import ScenePoints
 from casmbd.limits import (
@@ -526,3 +527,8 @@ def load_scene(path: str | os.PathLike) -> Mechanism:
     except (OSError, UnicodeDecodeError) as exc:
         raise SceneError(f"scene file '{path}' cannot be read: {exc}") from None
     return loads_scene(text, source=str(path))
+
+
+# Result.mechanism() parses a result's embedded scene with this module's reader (casmbd.results
+# sits below io and cannot import it)
+results.register_scene_reader(loads_scene)
