@@ -59,7 +59,7 @@ from benchmarks.references import load_reference
 from casmbd.analysis.simulate import Simulator
 from casmbd.errors import CasmbdError
 from casmbd.model import Mechanism
-from casmbd.system.formulations import NUMERIC_FORMULATIONS
+from casmbd.system.formulations import FORMULATIONS
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "benchmarks" / "results"
@@ -204,7 +204,7 @@ def sweep(problems, methods, repeat: int, quick: bool,
                        "nq": sim.system.nq, "nc": sim.system.nc}
                 try:
                     # numeric right-hand sides run in Python: one timed run is enough
-                    reps = 1 if formulation in NUMERIC_FORMULATIONS else repeat
+                    reps = 1 if FORMULATIONS[formulation].numeric else repeat
                     row.update(run_case(sim, integrator, t_end, tol, step, error, reps))
                     row["status"] = "ok"
                 except CasmbdError as exc:

@@ -86,6 +86,25 @@ class AnalysisError(CasmbdError):
     """An analysis cannot run on this mechanism (e.g. kinematics of an undriven mechanism)."""
 
 
+class UnknownMethodError(AnalysisError):
+    """A formulation or integrator name that is not registered; the message lists the
+    registered names (``choices``), so that a typo is found without reading the source.
+
+    Attributes
+    ----------
+    what : str
+        ``"formulation"`` or ``"integrator"``.
+    name : str
+        The name asked for.
+    choices : tuple of str
+        The registered names.
+    """
+
+    def __init__(self, what: str, name, choices):
+        self.what, self.name, self.choices = what, name, tuple(choices)
+        super().__init__(f"unknown {what} {name!r} (known: {', '.join(self.choices)})")
+
+
 class ResultFileError(AnalysisError):
     """A result file (npz) is missing, truncated, corrupted or not written by casmbd; the
     message names the file and what is wrong with it."""

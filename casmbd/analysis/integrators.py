@@ -14,20 +14,27 @@ The fixed-step methods run as CasADi ``fold``s of at most :data:`CHUNK` steps ov
 Every integrator is built once for a uniform output interval ``h`` on shifted time τ = t − t_k:
 the dynamics receive the interval start t_k as an extra parameter, so the same object integrates
 any interval (used by projection and by the error path that keeps partial results).
+
+Each integrator is an :class:`IntegratorKind` in the registry :data:`INTEGRATORS` (name ->
+kind, like scipy's ``solve_ivp`` ``METHODS``): what it integrates (ODE, DAE, numeric right-hand
+sides), whether its step is fixed, whether it serves the optimal-control problem's multiple
+shooting, and how it is built.  Simulation, the OCP and the CLI's ``--integrator`` choices read
+the registry; :func:`integrator_kind` raises :class:`~casmbd.errors.UnknownMethodError` for a
+name that is not in it.  Adding an integrator = one :func:`register_integrator` call here.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
 
-from casmbd.errors import LimitError, ModelError
+from casmbd.compiled.codegen import compile_functions
+from casmbd.errors import LimitError, ModelError, UnknownMethodError
 from casmbd.limits import MAX_FIXED_STEPS
-
-INTEGRATORS = ("idas", "cvodes", "adams", "rk4", "abm")
 
 
 def shifted(dyn: ca.Function) -> ca.Function:
@@ -102,20 +109,22 @@ class FixedStep:
 
     FOLDS = (CHUNK, 16, 4, 1)
 
-    def __init__(self, dyn: ca.Function, method: str, mode: str = "vm",
+    def __init__(self, dyn: ca.Function, method: str | FixedStepKind, mode: str = "vm",
                  name: str = "casmbd_fixed"):
-        self.method = method
+        self.kind = integrator_kind(method) if isinstance(method, str) else method
+        if not self.kind.fixed_step:
+            raise ModelError(f"integrator '{self.kind.name}' is not a fixed-step method (use "
+                             f"one of {', '.join(names(fixed_step=True))})")
+        self.method = self.kind.name
         self.nx = dyn.size1_in("x")
         rk = rk4_step(dyn)
-        step = rk if method == "rk4" else abm_step(dyn)
+        step = self.kind.step_builder(dyn)
         t, x, p = ca.MX.sym("t"), ca.MX.sym("x", self.nx), ca.MX.sym("p", dyn.size1_in("p"))
         rhs = ca.Function("rhs", [t, x, p], [dyn(t=t, x=x, p=p)["ode"]])
         folds = [_renamed(step.fold(k), f"{method}_fold{k}") for k in self.FOLDS]
         funcs = [_renamed(rk, "rk4_single"), rhs, *folds]
         self.report = None
         if mode != "vm":
-            from casmbd.compiled.codegen import compile_functions
-
             compiled, self.report = compile_functions(funcs, name=name, mode=mode)
             funcs = [compiled[f.name()] for f in funcs]
         self.rk, self.f = funcs[0], funcs[1]
@@ -130,9 +139,9 @@ class FixedStep:
         s = np.concatenate([np.asarray(x0, float).ravel(), [t0]])
         st = FixedState(s, 0, 0, 0) if after is None else FixedState(
             s, 0, after.steps, after.rhs_evaluations)
-        if self.method == "abm":
+        if self.kind.history:  # a multistep method: f(t0, x0) and empty history slots
             f0 = np.asarray(self.f(t0, s[:self.nx], p)).ravel()
-            st.s = np.concatenate([s, f0, np.zeros(3 * self.nx)])
+            st.s = np.concatenate([s, f0, np.zeros(self.kind.history * self.nx)])
             st.rhs_evaluations += 1
         return st
 
@@ -150,15 +159,14 @@ class FixedStep:
             raise ValueError(f"fixed-step {self.method}: negative step count {count}")
         nx, s = self.nx, state.s
         steps, evals = state.steps, state.rhs_evaluations
-        known = state.history
-        if self.method == "abm":
-            while known < 3 and count > 0:  # RK4 start-up, the history grows by one f
-                xt = np.asarray(self.rk(s[:nx + 1], p, h)).ravel()
-                fn = np.asarray(self.f(xt[nx], xt[:nx], p)).ravel()
-                s = np.concatenate([xt, fn, s[nx + 1: nx + 1 + 3 * nx]])
-                known, count, steps, evals = known + 1, count - 1, steps + 1, evals + 5
+        known, slots = state.history, self.kind.history
+        while known < slots and count > 0:  # RK4 start-up, the history grows by one f
+            xt = np.asarray(self.rk(s[:nx + 1], p, h)).ravel()
+            fn = np.asarray(self.f(xt[nx], xt[:nx], p)).ravel()
+            s = np.concatenate([xt, fn, s[nx + 1: nx + 1 + slots * nx]])
+            known, count, steps, evals = known + 1, count - 1, steps + 1, evals + 5
         steps += count
-        evals += count * (4 if self.method == "rk4" else 2)
+        evals += count * self.kind.evaluations_per_step
         for k in self.FOLDS:
             n, count = divmod(count, k)
             for _ in range(n):
@@ -271,29 +279,178 @@ def substeps_for(interval: float, step: float | None, intervals: int = 1) -> int
 
 def sundials(dyn: ca.Function, plugin: str, t0: float, tout, rtol: float, atol: float,
              max_steps: int, xdot0=None) -> ca.Function:
-    """A CasADi SUNDIALS integrator from ``t0`` with outputs at the times ``tout``.
+    """A CasADi SUNDIALS integrator of the registered kind ``plugin`` from ``t0`` with outputs
+    at the times ``tout`` (:meth:`SundialsKind.build`)."""
+    kind = integrator_kind(plugin)
+    if not isinstance(kind, SundialsKind):
+        raise ModelError(f"integrator '{plugin}' is not a SUNDIALS method (use one of "
+                         f"{', '.join(n for n, k in INTEGRATORS.items() if not k.fixed_step)})")
+    return kind.build(dyn, t0, tout, rtol, atol, max_steps, xdot0)
 
-    For IDAS, ``xdot0`` (the state derivative at a consistent start) skips IDACalcIC, which
-    cannot handle index-2 systems; without it IDACalcIC computes the consistent derivatives.
+
+# ---------------------------------------------------------------------------- registry
+@dataclass(frozen=True)
+class IntegratorKind:
+    """What an integrator integrates and how it is used (one entry of :data:`INTEGRATORS`).
+
+    Attributes
+    ----------
+    name : str
+        The name users give (``--integrator``, ``simulate(integrator=...)``, ``[ocp]``).
+    label : str
+        The method in a few words, for messages ("BDF", "RK4").
+    ode, dae, numeric : bool
+        Integrates ODE formulations; semi-explicit DAEs (index 1 or GGL index 2); numeric
+        right-hand sides (a :class:`casadi.Callback`, forward evaluations only).
+    fixed_step : bool
+        A fixed-step method run by :class:`FixedStep` (no tolerances; ``--step``).
+    shooting : bool
+        Serves the optimal-control problem's multiple shooting (:meth:`shooting_step`).
+    stiff_alternative : str or None
+        The integrator taken instead when none is named and the ODE is stiff (Adams -> BDF).
     """
-    opts = {"reltol": rtol, "abstol": atol, "max_num_steps": max_steps,
-            "print_stats": False, "show_eval_warnings": False,
-            "disable_internal_warnings": False}  # captured: CapturedOutput
-    if plugin == "idas":
-        name = "idas"
-        # keep q̈ and λ out of the error test (they are determined by q and v)
-        opts["suppress_algebraic"] = True
-        if xdot0 is None:
-            opts["calc_ic"] = True
-        else:
-            opts.update({"calc_ic": False, "init_xdot": [float(x) for x in xdot0]})
-    elif plugin == "cvodes":
-        name = "cvodes"
-        opts.update({"linear_multistep_method": "bdf"})
-    elif plugin == "adams":
-        name = "cvodes"
-        opts.update({"linear_multistep_method": "adams",
-                     "nonlinear_solver_iteration": "functional"})
-    else:  # pragma: no cover - guarded by the caller
-        raise ModelError(f"unknown SUNDIALS integrator '{plugin}'")
-    return ca.integrator("sim_" + plugin, name, dyn, float(t0), [float(t) for t in tout], opts)
+
+    name: str
+    label: str
+    ode: bool = True
+    dae: bool = False
+    numeric: bool = False
+    fixed_step: bool = False
+    shooting: bool = False
+    stiff_alternative: str | None = None
+
+    def integrates(self, kind: str) -> bool:
+        """Whether this integrator accepts a formulation of ``kind`` ("ode", "dae",
+        "numeric": :attr:`casmbd.system.formulations.FormulationKind.kind`)."""
+        return bool(getattr(self, kind, False))
+
+    def shooting_step(self, f: ca.Function, x: ca.SX, u: ca.SX, t: ca.SX,
+                      steps: int) -> ca.Function:
+        """``ocp_step(x, u, t, h) -> (x(t + h), ∫ L dt)`` of ``f(x, u, t) -> (ẋ, L)`` over one
+        shooting interval (``steps`` sub-steps for a fixed-step method); ``x``, ``u``, ``t``
+        are the SX symbols ``f`` was built from (the same graph, the same rounding)."""
+        raise UnknownMethodError("shooting integrator", self.name, names(shooting=True))
+
+
+@dataclass(frozen=True)
+class SundialsKind(IntegratorKind):
+    """A SUNDIALS method through ``casadi.integrator``: CasADi plugin and its options."""
+
+    plugin: str = "cvodes"
+    options: tuple = ()
+
+    def build(self, dyn: ca.Function, t0: float, tout, rtol: float, atol: float,
+              max_steps: int, xdot0=None) -> ca.Function:
+        """A CasADi integrator of ``dyn`` from ``t0`` with outputs at the times ``tout``.
+
+        For a DAE method (IDAS), ``xdot0`` (the state derivative at a consistent start) skips
+        IDACalcIC, which cannot handle index-2 systems; without it IDACalcIC computes the
+        consistent derivatives.
+        """
+        opts = {"reltol": rtol, "abstol": atol, "max_num_steps": max_steps,
+                "print_stats": False, "show_eval_warnings": False,
+                "disable_internal_warnings": False}  # captured: CapturedOutput
+        opts.update(dict(self.options))
+        if self.dae:
+            if xdot0 is None:
+                opts["calc_ic"] = True
+            else:
+                opts.update({"calc_ic": False, "init_xdot": [float(x) for x in xdot0]})
+        return ca.integrator("sim_" + self.name, self.plugin, dyn, float(t0),
+                             [float(t) for t in tout], opts)
+
+    def shooting_step(self, f: ca.Function, x: ca.SX, u: ca.SX, t: ca.SX,
+                      steps: int) -> ca.Function:
+        """One shooting interval on normalised time τ ∈ [0, 1] (rtol = atol = 1e-10), with
+        exact first-order sensitivities; an MX Function."""
+        if not self.shooting:
+            return super().shooting_step(f, x, u, t, steps)
+        nx, nu = x.numel(), u.numel()
+        hs = ca.SX.sym("h")
+        tau = ca.SX.sym("tau")
+        ode_s, quad_s = f(x, u, t + tau * hs)
+        dae = {"x": x, "p": ca.vertcat(u, t, hs), "t": tau, "ode": hs * ode_s,
+               "quad": hs * quad_s}
+        integ = ca.integrator("ocp_" + self.name, self.plugin, dae, 0.0, 1.0,
+                              {"abstol": 1e-10, "reltol": 1e-10, **dict(self.options)})
+        xm, um, tm, hm = (ca.MX.sym(n, s) for n, s in
+                          (("x", nx), ("u", nu), ("t", 1), ("h", 1)))
+        out = integ(x0=xm, p=ca.vertcat(um, tm, hm))
+        return ca.Function("ocp_step", [xm, um, tm, hm], [out["xf"], out["qf"]])
+
+
+@dataclass(frozen=True)
+class FixedStepKind(IntegratorKind):
+    """A fixed-step method: its step Function and bookkeeping for :class:`FixedStep`.
+
+    ``history`` is the number of past right-hand sides a multistep method keeps besides f_n
+    (filled by RK4 start-up steps); ``evaluations_per_step`` counts right-hand sides per step.
+    """
+
+    fixed_step: bool = True
+    step_builder: Callable[[ca.Function], ca.Function] = rk4_step
+    history: int = 0
+    evaluations_per_step: int = 4
+
+    def shooting_step(self, f: ca.Function, x: ca.SX, u: ca.SX, t: ca.SX,
+                      steps: int) -> ca.Function:
+        """``steps`` classical RK4 steps of (ẋ, L) (SX: exact Hessians by CasADi)."""
+        if not self.shooting:
+            return super().shooting_step(f, x, u, t, steps)
+        hs = ca.SX.sym("h")
+        xk, qk = x, 0.0
+        dt = hs / steps
+        for s in range(steps):
+            ts = t + s * dt
+            k1, l1 = f(xk, u, ts)
+            k2, l2 = f(xk + dt / 2 * k1, u, ts + dt / 2)
+            k3, l3 = f(xk + dt / 2 * k2, u, ts + dt / 2)
+            k4, l4 = f(xk + dt * k3, u, ts + dt)
+            xk = xk + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+            qk = qk + dt / 6 * (l1 + 2 * l2 + 2 * l3 + l4)
+        return ca.Function("ocp_step", [x, u, t, hs], [xk, qk])
+
+
+#: the registered integrators, name -> kind (registration order is the order of choices)
+INTEGRATORS: dict[str, IntegratorKind] = {}
+#: the optimal-control problem's default shooting integrator
+DEFAULT_SHOOTING_INTEGRATOR = "rk4"
+
+
+def register_integrator(kind: IntegratorKind) -> IntegratorKind:
+    """Add ``kind`` to :data:`INTEGRATORS` under ``kind.name`` (replacing one of that name)."""
+    if not (isinstance(kind, IntegratorKind) and isinstance(kind.name, str) and kind.name):
+        raise ModelError(f"register_integrator: an IntegratorKind with a name, got {kind!r}")
+    INTEGRATORS[kind.name] = kind
+    return kind
+
+
+def integrator_kind(name: str) -> IntegratorKind:
+    """The registered integrator ``name``; :class:`~casmbd.errors.UnknownMethodError` listing
+    the registered names otherwise."""
+    try:
+        return INTEGRATORS[name]
+    except (KeyError, TypeError):
+        raise UnknownMethodError("integrator", name, INTEGRATORS) from None
+
+
+def names(**features: bool) -> list[str]:
+    """Registered integrator names with the given features, e.g. ``names(dae=True)``."""
+    return [n for n, k in INTEGRATORS.items()
+            if all(getattr(k, key) == val for key, val in features.items())]
+
+
+register_integrator(SundialsKind(
+    "idas", "BDF", dae=True, plugin="idas",
+    # keep q̈ and λ out of the error test (they are determined by q and v)
+    options=(("suppress_algebraic", True),)))
+register_integrator(SundialsKind(
+    "cvodes", "BDF", numeric=True, shooting=True, plugin="cvodes",
+    options=(("linear_multistep_method", "bdf"),)))
+register_integrator(SundialsKind(
+    "adams", "Adams–Moulton", numeric=True, plugin="cvodes", stiff_alternative="cvodes",
+    options=(("linear_multistep_method", "adams"), ("nonlinear_solver_iteration", "functional"))))
+register_integrator(FixedStepKind("rk4", "RK4", shooting=True, step_builder=rk4_step,
+                                  evaluations_per_step=4))
+register_integrator(FixedStepKind("abm", "ABM4", step_builder=abm_step, history=3,
+                                  evaluations_per_step=2))

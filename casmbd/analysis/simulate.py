@@ -20,45 +20,37 @@ import numpy as np
 
 from casmbd import progress
 from casmbd.analysis import integrators as integ
+from casmbd.analysis import nullspace, numeric_run, partitioning
 from casmbd.analysis.assembly import assemble
 from casmbd.analysis.checks import check_consistent_start, check_start, diagnose_failure
-from casmbd.analysis.kkt import (
-    accelerations_and_multipliers,
-    consistent_state,
-    project_velocities,
-)
-from casmbd.analysis.reactions import flag_undetermined, multiplier_null_space
-from casmbd.analysis.redundancy import (
-    NEAR_SINGULAR,
-    conditioning,
-    equilibrated_singular_values,
-    near_singular_passes,
-    rank_report,
-)
-from casmbd.compiled.model import NumericModel, _c_name
-from casmbd.errors import AnalysisError, CasmbdError, IntegratorError
+from casmbd.analysis.kkt import consistent_state
+from casmbd.analysis.postprocess import PostProcessing
+from casmbd.analysis.redundancy import rank_report
+from casmbd.analysis.stepping import Stepping
+from casmbd.compiled.model import NumericModel
+from casmbd.errors import AnalysisError, CasmbdError, IntegratorError, UnknownMethodError
 from casmbd.interrupts import reraise_interrupt
 from casmbd.limits import check_steps, output_values
 from casmbd.model.values import resolve
 from casmbd.results import Result
 from casmbd.system.equations import System
 from casmbd.system.formulations import (
+    DEFAULT_FORMULATION,
     FORMULATIONS,
-    NUMERIC_FORMULATIONS,
-    build,
+    FormulationKind,
+    default_formulation,
+    formulation_kind,
     post_processing,
 )
 from casmbd.system.subset import ConstraintSubset
 
-#: default formulation and, per formulation, the default integrator (chosen by measurement:
-#: docs/performance.md)
-DEFAULT_FORMULATION = "augmented_lagrangian"
-DEFAULT_INTEGRATOR = {"index1": "idas", "ggl": "idas", "kkt_ode": "adams",
-                      "augmented_lagrangian": "adams", "partitioning": "adams",
-                      "nullspace": "adams", "articulated": "adams"}
-NUMERIC_INTEGRATORS = ("cvodes", "adams")
-ODE_INTEGRATORS = ("cvodes", "adams", "rk4", "abm", "idas")
-DAE_INTEGRATORS = ("idas",)
+# The formulations (name, state layout, default integrator, redundancy policy, initial
+# algebraic state) are objects in casmbd.system.formulations.FORMULATIONS and the integrators
+# in casmbd.analysis.integrators.INTEGRATORS: nothing here switches on their names.
+#: the analysis layer's formulations, registered on import
+NUMERIC_KINDS = (partitioning.Partitioning, nullspace.Nullspace)
+__all__ = ["DEFAULT_FORMULATION", "Simulator", "default_formulation", "plan_redundancy",
+           "simulate"]
 
 
 #: an ODE whose largest decay rate times the time span exceeds this is integrated with BDF
@@ -71,9 +63,6 @@ STIFF_RATE = 1.0e3
 #: above this many states the stiffness check is skipped
 STIFF_CHECK_MAX = 400
 
-#: formulations that run with redundant constraint equations kept (minimum-norm multipliers
-#: or a rank-revealing choice of independent coordinates)
-KEEP_REDUNDANT = ("augmented_lagrangian", "partitioning", "nullspace")
 REDUNDANCY_OPTIONS = ("auto", "remove", "minimum_norm")
 #: above this many entries of C_q the dense rank check at build time is skipped
 RANK_CHECK_MAX_ENTRIES = 2_000_000
@@ -104,8 +93,6 @@ def plan_redundancy(system: System, formulation: str, option: str = "auto") -> d
         ``redundant_equations`` (labels), ``redundancy`` (what was done), ``kept_rows`` (row
         indices for a removal, else None), and ``constraint_rank``.
     """
-    from casmbd.analysis.assembly import assemble
-
     if option not in REDUNDANCY_OPTIONS:
         raise AnalysisError(f"redundancy must be one of {', '.join(REDUNDANCY_OPTIONS)}, "
                             f"got {option!r}")
@@ -127,37 +114,23 @@ def plan_redundancy(system: System, formulation: str, option: str = "auto") -> d
         return plan
     labels = system.constraint_labels
     plan["redundant_equations"] = [str(labels[i]) for i in rep.dependent_rows]
-    keeps = formulation in KEEP_REDUNDANT
-    if option == "minimum_norm" and not keeps:
+    kind = formulation if isinstance(formulation, FormulationKind) else \
+        formulation_kind(formulation)
+    if option == "minimum_norm" and not kind.keeps_redundant:
+        keepers = [n for n, k in FORMULATIONS.items() if k.keeps_redundant]
         raise AnalysisError(
-            f"formulation '{formulation}' needs a regular KKT matrix and cannot keep the "
+            f"formulation '{kind.name}' needs a regular KKT matrix and cannot keep the "
             f"redundant equations {', '.join(plan['redundant_equations'])}; use "
-            f"redundancy='remove' or one of {', '.join(KEEP_REDUNDANT)}")
-    if option == "remove" or (option == "auto" and not keeps):
-        if formulation in NUMERIC_FORMULATIONS:
-            plan["redundancy"] = "kept: independent coordinates chosen by rank"
+            f"redundancy='remove' or one of {', '.join(keepers)}")
+    if option == "remove" or (option == "auto" and not kind.keeps_redundant):
+        if not kind.removes_redundant:
+            plan["redundancy"] = kind.kept_redundancy
             return plan
         plan["kept_rows"] = [i for i in range(system.nc) if i not in set(rep.dependent_rows)]
         plan["redundancy"] = "removed"
     else:
-        plan["redundancy"] = ("minimum-norm multipliers" if formulation == "augmented_lagrangian"
-                              else "kept: independent coordinates chosen by rank")
+        plan["redundancy"] = kind.kept_redundancy
     return plan
-
-
-def default_formulation(system: System) -> str:
-    """The formulation used when none is named.
-
-    ``articulated`` (the O(N) articulated-body recursion) for a tree in joint coordinates
-    without constraint equations — measured faster than the KKT/LDLᵀ path on the pendulum
-    chains (docs/dynamics.md, "Joint coordinates") — and :data:`DEFAULT_FORMULATION`
-    otherwise.
-    """
-    from casmbd.system.articulated import supported
-
-    if system.coordinates == "joint" and supported(system) is None:
-        return "articulated"
-    return DEFAULT_FORMULATION
 
 
 def _input_expression(system: System, inputs: Mapping | None) -> ca.SX:
@@ -177,14 +150,16 @@ _FLAG = re.compile(r'returned "([A-Z_]+)"')
 _AT_T = re.compile(r"t = ([-+0-9.eE]+)")
 
 
-class Simulator:
+class Simulator(Stepping, PostProcessing):
     """A mechanism compiled for one formulation, ready to integrate many times.
 
     Parameters
     ----------
     mechanism : Mechanism or System
     formulation : str
-        One of :data:`casmbd.system.formulations.FORMULATIONS` (default ``index1``).
+        A name registered in :data:`casmbd.system.formulations.FORMULATIONS` (default:
+        :func:`~casmbd.system.formulations.default_formulation`); another name raises
+        :class:`~casmbd.errors.UnknownMethodError` listing the registered ones.
     inputs : mapping, optional
         Actuator name -> value (number, expression string of ``t`` and parameters, callable).
     mode : str
@@ -199,17 +174,16 @@ class Simulator:
         t0 = time.perf_counter()
         system = mechanism if isinstance(mechanism, System) else System(mechanism)
         self.formulation_name = formulation or default_formulation(system)
-        if self.formulation_name not in FORMULATIONS:
-            raise AnalysisError(f"unknown formulation '{self.formulation_name}' (known: "
-                                f"{', '.join(FORMULATIONS)})")
-        self.redundancy = plan_redundancy(system, self.formulation_name, redundancy)
+        #: the registered formulation (UnknownMethodError listing the choices otherwise)
+        self.kind = formulation_kind(self.formulation_name)
+        self.redundancy = plan_redundancy(system, self.kind, redundancy)
         u_expr = _input_expression(system, inputs)
         self.ufun = ca.Function("actuator_inputs", [system.t, system.p], [u_expr],
                                 ["t", "p"], ["u"])
         keep = self.redundancy.get("kept_rows")
         self._dyn_system = ConstraintSubset(system, keep) if keep is not None else system
-        self.formulation = build(self._dyn_system, self.formulation_name, inputs=u_expr,
-                                 **dict(formulation_options or {}))
+        self.formulation = self.kind.build(self._dyn_system, inputs=u_expr,
+                                           **dict(formulation_options or {}))
         self.model = NumericModel(system, "dynamics", mode=mode,
                                   extra=[*self.formulation.functions,
                                          post_processing(system, u_expr)])
@@ -233,21 +207,20 @@ class Simulator:
         return np.asarray(self.ufun(t, self.model.p)).reshape(-1)
 
     def _z0(self, q: np.ndarray, a: np.ndarray, lam: np.ndarray) -> np.ndarray:
-        if self.formulation.kind == "ode":
+        if self.formulation.kind != "dae":
             return np.zeros(0)
         keep = self.redundancy.get("kept_rows")
         if keep is not None:  # multipliers of the kept rows carrying the same C_qᵀ λ
             cq = self.model.constraint_jacobian(q, 0.0).toarray()
             lam = np.linalg.lstsq(cq[keep].T, cq.T @ lam, rcond=None)[0]
-        z = [a, lam]
-        if self.formulation_name == "ggl":
-            z.append(np.zeros_like(lam))
-        return np.concatenate(z)
+        return self.kind.initial_algebraic(a, lam)
 
     def _integrator_name(self, integrator: str | None) -> str:
-        name = integrator or DEFAULT_INTEGRATOR[self.formulation_name]
-        allowed = {"dae": DAE_INTEGRATORS, "ode": ODE_INTEGRATORS,
-                   "numeric": NUMERIC_INTEGRATORS}[self.formulation.kind]
+        name = integrator or self.kind.default_integrator
+        if name not in integ.INTEGRATORS:
+            raise UnknownMethodError("integrator", name, integ.INTEGRATORS)
+        allowed = [n for n, k in integ.INTEGRATORS.items()
+                   if k.integrates(self.formulation.kind)]
         if name not in allowed:
             raise AnalysisError(f"integrator '{name}' cannot integrate the "
                                 f"{self.formulation.kind.upper()} formulation "
@@ -292,12 +265,13 @@ class Simulator:
         z0 = self._z0(start.q, start.a, start.lam)
         nq = model.nq
         choice = None
-        if integrator is None and name == "adams":
+        stiff = integ.INTEGRATORS[name].stiff_alternative
+        if integrator is None and stiff is not None:
             rho = self.stiffness(x0, t_start)
             if rho is not None and rho > STIFF_RATE and rho * (t_end - t_start) > STIFF_STEPS:
-                name = "cvodes"
-                choice = (f"cvodes (BDF): stiff, largest decay rate {rho:.3g} 1/s × "
-                          f"{t_end - t_start:g} s > {STIFF_STEPS:g}")
+                name = stiff
+                choice = (f"{stiff} ({integ.INTEGRATORS[stiff].label}): stiff, largest decay "
+                          f"rate {rho:.3g} 1/s × {t_end - t_start:g} s > {STIFF_STEPS:g}")
         stats: dict = {"formulation": self.formulation_name, "integrator": name,
                        "integrator_choice": choice or ("default" if integrator is None
                                                        else "given"),
@@ -325,7 +299,7 @@ class Simulator:
             failure = exc
         except (RuntimeError, CasmbdError) as exc:
             reraise_interrupt(exc)  # Ctrl-C is no integrator failure: no partial re-run
-            if isinstance(exc, CasmbdError) and name in ("rk4", "abm"):
+            if isinstance(exc, CasmbdError) and integ.INTEGRATORS[name].fixed_step:
                 raise  # no SUNDIALS re-run: a --step limit, a --projection AssemblyError
             failure = exc
         if failure is not None:
@@ -360,32 +334,6 @@ class Simulator:
                 result)
         return result
 
-    def _diagnose(self, result: Result, t_fail: float) -> str:
-        """Rank and conditioning of C_q where a run failed: at the state extrapolated from the
-        last kept output, q + h q̇ + ½ h² q̈ with h = t_fail − t_last (an estimate, accurate to
-        O(h³), enough to tell a singular pose)."""
-        culprits = diagnose_failure(self.model, t_fail)
-        if culprits:  # a model value that is not finite where the run stopped
-            return "; " + "; ".join(culprits[:3])
-        if self.model.nc == 0 or not len(result.t):
-            return ""
-        t = float(result.t[-1])
-        h = max(0.0, float(t_fail) - t) if np.isfinite(t_fail) else 0.0
-        q = result["q"][-1] + h * result["v"][-1] + 0.5 * h * h * result["a"][-1]
-        t += h
-        rep = rank_report(self.model.constraint_jacobian(q, t))
-        sigma = equilibrated_singular_values(self.model.constraint_jacobian(q, t))
-        rank0 = self.redundancy.get("constraint_rank", rep.rank)
-        ratio = sigma[rank0 - 1] / sigma[0] if rank0 >= 1 and sigma[0] > 0 else float("nan")
-        text = (f"; at t ≈ {t:.6g} C_q has rank {rep.rank} of {rep.n_equations} equations "
-                f"(regular rank {rank0}), conditioning σ_min/σ_max = {ratio:.2e}")
-        if rep.rank < rank0 or ratio < NEAR_SINGULAR:
-            labels = self.system.constraint_labels
-            dep = ", ".join(str(labels[i]) for i in rep.dependent_rows[:4])
-            text += (": a singular configuration" + (f" (dependent: {dep})" if dep else "")
-                     + "; the augmented_lagrangian formulation passes singular poses")
-        return text
-
     def stiffness(self, x0: np.ndarray, t: float) -> float | None:
         """Largest decay rate max(−Re λ) of the ODE's Jacobian at (t, x0), by one-sided
         finite differences of the compiled right-hand side (2 n_q + 1 evaluations; None for
@@ -415,20 +363,14 @@ class Simulator:
             return None
         return float(max(0.0, np.max(-np.linalg.eigvals(jac).real, initial=0.0)))
 
-    def _params(self, t_k: float | None = None) -> np.ndarray:
-        p = self.model.p
-        return p if t_k is None else np.append(p, t_k)
-
     def _integrate(self, name, grid, x0, z0, rtol, atol, projection, step, max_steps):
         if self.formulation.kind == "numeric":
-            from casmbd.analysis import partitioning
-
-            return partitioning.integrate(self, name, grid, x0, rtol, atol, max_steps,
+            return numeric_run.integrate(self, name, grid, x0, rtol, atol, max_steps,
                                           projection=projection)
         if projection:
             return self._interval_by_interval(name, grid, x0, z0, rtol, atol, step, max_steps,
                                               project=True)
-        if name in ("rk4", "abm"):
+        if integ.INTEGRATORS[name].fixed_step:
             return self._fixed_step(name, grid, x0, step, project=False)
         if progress.enabled():  # a bar per output interval, the same steps and numbers
             clocked = self._solver(
@@ -449,243 +391,6 @@ class Simulator:
         res = solver(x0=x0, z0=z0, p=self.model.p)
         xs = np.vstack([x0, np.asarray(res["xf"]).T])
         return xs, self._solver_stats(solver.stats())
-
-    def _clocked_sundials(self, name, grid, rtol, atol, max_steps):
-        """The one-call SUNDIALS integrator on dynamics with a progress clock
-        (:func:`casmbd.progress.integrator_clock`: same steps, same numbers), and the clock;
-        None when the dynamics have quadratures of their own."""
-        clocked = progress.integrator_clock(self.dyn, grid[1:])
-        if clocked is None:
-            return None
-        dyn, clock = clocked
-        return integ.sundials(dyn, name, grid[0], grid[1:], rtol, atol, max_steps), clock
-
-    @staticmethod
-    def _solver_stats(st: dict) -> dict:
-        return {"steps": int(st.get("nsteps", 0)),
-                "rhs_evaluations": int(st.get("nfevals", 0)),
-                "jacobian_evaluations": int(st.get("n_call_jacF", 0)),
-                "linear_setups": int(st.get("nlinsetups", 0)),
-                "error_test_failures": int(st.get("netfails", 0)),
-                "nonlinear_iterations": int(st.get("nniters", 0))}
-
-    def _interval_by_interval(self, name, grid, x0, z0, rtol, atol, step, max_steps,
-                              project: bool):
-        interval = grid[1] - grid[0]
-        nq = self.model.nq
-        shifted = self._solver("shifted", lambda: integ.shifted(self.dyn))
-        if name in ("rk4", "abm"):
-            return self._fixed_step(name, grid, x0, step, project=True)
-        solver = self._solver(
-            (name, "interval", interval, rtol, atol, max_steps),
-            lambda: integ.sundials(shifted, name, 0.0, [interval], rtol, atol, max_steps))
-
-        def advance(x, z, t_k):
-            r = solver(x0=x, z0=z, p=self._params(t_k))
-            return (np.asarray(r["xf"]).reshape(-1), np.asarray(r["zf"]).reshape(-1),
-                    self._solver_stats(solver.stats()))
-        xs = [np.asarray(x0, float)]
-        x, z = xs[0], z0
-        with progress.bar(len(grid) - 1, f"{name} {self.system.mechanism.name}",
-                          "output") as pbar:
-            return self._interval_loop(advance, grid, xs, x, z, project, nq, pbar)
-
-    def _interval_loop(self, advance, grid, xs, x, z, project, nq, pbar):
-        model, totals = self.model, {}
-        for k in range(len(grid) - 1):
-            pbar.update()
-            x, z, st = advance(x, z, grid[k])
-            for key, val in st.items():
-                totals[key] = totals.get(key, 0) + val
-            if project:
-                t = grid[k + 1]
-                q = assemble(model, x[:nq], t).q
-                v = project_velocities(model, q, x[nq:], t)
-                x = np.concatenate([q, v])
-                if self.formulation.kind == "dae":
-                    a, lam = accelerations_and_multipliers(model, q, v, t, self.inputs_at(t))
-                    z = self._z0(q, a, lam)
-            xs.append(x)
-        return np.vstack(xs), totals
-
-    def _fixed_step(self, name, grid, x0, step, project: bool):
-        """RK4 / ABM4 over the output grid in compiled chunks; optional projection.
-
-        A non-finite state stops the run with an :class:`IntegratorError` that keeps the
-        outputs before it.  The same ``n_sub`` steps of size h = interval / n_sub end on every
-        output time (a requested step that does not divide the interval is shortened, see
-        :func:`integrators.substeps_for`); ABM4's RK4 start-up counts among them, so the step
-        sequence — and without projection the result at any time — does not depend on the
-        output grid.  With projection ABM4 restarts at every output.
-        """
-        interval = grid[1] - grid[0]
-        n_sub = integ.substeps_for(interval, step, len(grid) - 1)
-        h = interval / n_sub
-        runner = self._solver((name, "fixed"), lambda: integ.FixedStep(
-            self.formulation.function, name, mode=self._mode,
-            name=f"{_c_name(self.system.mechanism.name)}_{name}"))
-        p = self.model.p
-        nq, nx = self.model.nq, len(x0)
-        state = runner.start(x0, grid[0], p)
-        xs = [np.asarray(x0, float)]
-        with progress.bar(len(grid) - 1, f"{name} {self.system.mechanism.name}",
-                          "output") as pbar:
-            xs, state = self._fixed_loop(runner, grid, xs, state, p, h, n_sub, nq, nx, name,
-                                         project, pbar)
-        return np.vstack(xs), {"steps": state.steps, "jacobian_evaluations": 0,
-                               "step_size": float(h), "steps_per_output": n_sub,
-                               "step_requested": step,
-                               "rhs_evaluations": state.rhs_evaluations}
-
-    def _fixed_loop(self, runner, grid, xs, state, p, h, n_sub, nq, nx, name, project,
-                    pbar):
-        for k in range(len(grid) - 1):
-            state = runner.advance(state, p, h, n_sub)
-            x = state.x(nx)
-            if not np.all(np.isfinite(x)):
-                partial = self._post(grid[:k + 1], np.vstack(xs)[:, :nq], np.vstack(xs)[:, nq:],
-                                     {"formulation": self.formulation_name, "integrator": name})
-                raise IntegratorError(
-                    f"fixed-step {name} (h = {h:.3g}) produced non-finite states between "
-                    f"t = {grid[k]:.6g} and {grid[k + 1]:.6g}; results kept up to "
-                    f"t = {grid[k]:.6g}", grid[k + 1], "NON_FINITE", partial)
-            if project:
-                t = grid[k + 1]
-                q = assemble(self.model, x[:nq], t).q
-                x = np.concatenate([q, project_velocities(self.model, q, x[nq:], t)])
-                state = runner.start(x, t, p, after=state)
-            xs.append(x)
-            pbar.update()
-        return xs, state
-
-    def _partial(self, name, grid, x0, z0, rtol, atol, step, max_steps,
-                 t_fail: float | None = None):
-        """Keep every output before the failure.
-
-        With the failure time ``t_fail`` of a one-call grid run, the same integrator is run
-        again on the outputs before ``t_fail``: SUNDIALS steps past each output and
-        interpolates, so its step sequence does not depend on later outputs and the re-run
-        reproduces the failed run up to its last output before ``t_fail``.  Otherwise (or if
-        that re-run fails too) the run is repeated interval by interval.
-        """
-        if self.formulation.kind == "numeric":
-            from casmbd.analysis import partitioning
-
-            return partitioning.partial(self, name, grid, x0, rtol, atol, max_steps)
-        if t_fail is not None and name not in ("rk4", "abm"):
-            kept = grid[grid < t_fail]
-            if len(kept) <= 1:  # failed in the first interval (or at its start)
-                return np.asarray(x0, float)[None, :], {}
-            try:
-                solver = integ.sundials(self.dyn, name, grid[0], kept[1:], rtol, atol,
-                                        max_steps)
-                res = solver(x0=x0, z0=z0, p=self.model.p)
-                return np.vstack([x0, np.asarray(res["xf"]).T]), {}
-            except RuntimeError as exc:
-                reraise_interrupt(exc)
-        interval = grid[1] - grid[0]
-        shifted = integ.shifted(self.dyn)
-        xs = [np.asarray(x0, float)]
-        x, z = xs[0], z0
-        stats: dict = {}
-        solver = integ.sundials(shifted, name, 0.0, [interval], rtol, atol, max_steps)
-        for k in range(len(grid) - 1):
-            try:
-                r = solver(x0=x, z0=z, p=self._params(grid[k]))
-                x = np.asarray(r["xf"]).reshape(-1)
-                z = np.asarray(r["zf"]).reshape(-1)
-            except RuntimeError as exc:
-                reraise_interrupt(exc)
-                stats["failure_time"] = grid[k] + float(solver.stats().get("tcur", 0.0))
-                break
-            xs.append(x)
-        return np.vstack(xs), stats
-
-    # ------------------------------------------------------------------ post-processing
-    def _post_by_parts(self, grid, qs, vs):
-        """Energies and constraint residuals from the model's own Functions, q̈ and λ as NaN
-        (re-solved by the minimum-norm KKT solve), when the mapped ``post`` cannot be
-        evaluated (the virtual machine's QR refuses a singular KKT matrix)."""
-        model, n = self.model, len(grid)
-        acc = np.full((n, self.system.nq), np.nan)
-        lam = np.full((n, self.system.nc), np.nan)
-        kin = np.array([model.kinetic_energy(qs[k], vs[k]) for k in range(n)])
-        pot = np.array([model.potential_energy(qs[k], float(grid[k])) for k in range(n)])
-        pos, vel = np.zeros(n), np.zeros(n)
-        if self.system.nc:
-            for k in range(n):
-                t_k = float(grid[k])
-                pos[k] = np.max(np.abs(model.constraints(qs[k], t_k)))
-                vel[k] = np.max(np.abs(model.constraint_jacobian(qs[k], t_k) @ vs[k]
-                                       + model.constraint_time_derivative(qs[k], t_k)))
-        return acc, lam, np.full(n, np.nan), kin, pot, pos, vel
-
-    def _post(self, grid, qs, vs, stats) -> Result:
-        model, system = self.model, self.system
-        n = len(grid)
-        p_all = np.tile(model.p[:, None], (1, n))
-        try:
-            post = model.function("post").map(n)(qs.T, vs.T, grid[None, :], p_all)
-            acc, lam = np.asarray(post[0]).T.copy(), np.asarray(post[1]).T.reshape(n, -1).copy()
-            residual = np.asarray(post[2]).ravel()
-            kin, pot, pos_viol, vel_viol = (np.asarray(x).ravel() for x in post[3:7])
-        except RuntimeError as exc:  # CasADi's VM QR raises on a singular KKT matrix
-            reraise_interrupt(exc)
-            acc, lam, residual, kin, pot, pos_viol, vel_viol = self._post_by_parts(grid, qs, vs)
-        us = np.asarray(self.ufun.map(n)(grid[None, :], p_all)).T.reshape(n, -1)
-        # singular KKT matrices (redundant constraints, singular poses): minimum-norm solve
-        scale = 1.0 + np.max(np.abs(np.concatenate([acc, lam], axis=1)), axis=1,
-                             initial=0.0)
-        finite = np.all(np.isfinite(acc), axis=1) & np.all(np.isfinite(lam), axis=1)
-        redundant = bool(self.redundancy.get("redundant_equations"))
-        if redundant:  # the compiled QR solve of a singular KKT matrix cannot be trusted
-            singular = np.arange(n)
-        else:
-            singular = np.flatnonzero(~np.isfinite(residual) | ~finite
-                                      | (residual > 1e-8 * np.where(finite, scale, 1.0)))
-        for k in singular:
-            acc[k], lam[k] = accelerations_and_multipliers(model, qs[k], vs[k], grid[k], us[k],
-                                                           redundant=redundant)
-        outputs = model.outputs(qs, vs, acc, grid)
-        reac_f = model.function("joint_reactions").map(n)
-        reac = np.asarray(reac_f(qs.T, vs.T, acc.T, grid[None, :], us.T,
-                                 np.tile(model.p[:, None], (1, n)), lam.T)) \
-            if system.mechanism.joints else np.zeros((3, 0))
-        n_j, size = len(system.mechanism.joints), system.reaction_size
-        reactions = reac.reshape(size, n, n_j).transpose(1, 2, 0) if n_j else \
-            np.zeros((n, 0, size))
-        if n_j and system.nc:
-            first = multiplier_null_space(model.constraint_jacobian(qs[0], float(grid[0])))
-            steps = range(n) if first.shape[1] else singular
-            reactions, flags = flag_undetermined(model, qs, vs, acc, grid, us, lam, reactions,
-                                                 steps)
-            stats = {**stats, **flags}
-        cond = conditioning(model, qs, grid, self.redundancy.get("constraint_rank"),
-                            extra=singular)
-        passes = near_singular_passes(model, grid, qs, vs, cond,
-                                      self.redundancy.get("constraint_rank"))
-        stats = {**stats, "min_constraint_conditioning": min(
-            [float(np.nanmin(cond))] + [c for _, c in passes]) if np.any(np.isfinite(cond))
-            else None, "near_singular_times": [t for t, _ in passes]}
-        drivers = list(system.mechanism.drivers)
-        undetermined = set(stats.get("undetermined_rows", ()))
-        efforts = np.column_stack([
-            np.full(n, np.nan) if system.driver_rows[d] in undetermined
-            else -lam[:, system.driver_rows[d]] for d in drivers]) \
-            if drivers else np.zeros((n, 0))
-        names = {"coordinates": system.coordinate_names, "bodies": system.body_names,
-                 "markers": list(system.mechanism.markers),
-                 "joints": system.joint_coordinate_names,
-                 "all_joints": list(system.mechanism.joints), "drivers": drivers,
-                 "actuators": list(system.mechanism.actuators),
-                 "constraints": [str(lab) for lab in system.constraint_labels]}
-        arrays = {"q": qs, "v": vs, "a": acc, "lambda": lam, **outputs,
-                  "joint_reactions": reactions, "driver_efforts": efforts,
-                  "actuator_inputs": us, "kinetic_energy": kin, "potential_energy": pot,
-                  "total_energy": kin + pot, "constraint_violation": pos_viol,
-                  "velocity_violation": vel_viol, "constraint_conditioning": cond}
-        return Result("simulation", grid, arrays, names, stats,
-                      getattr(system.mechanism, "scene_text", "") or "")
 
 
 def simulate(mechanism, t_end: float, steps: int, *, formulation: str | None = None,

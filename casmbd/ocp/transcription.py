@@ -17,9 +17,15 @@ import casadi as ca
 import numpy as np
 
 from casmbd import interrupts, progress
+from casmbd.analysis.integrators import integrator_kind
+from casmbd.analysis.kkt import consistent_state
+from casmbd.compiled.codegen import compile_nlp_solver
+from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, OptimizationError
 from casmbd.ocp.dynamics import explicit_accelerations, implicit_residual, node_constraints
+from casmbd.ocp.guess import initial_guess
 from casmbd.ocp.options import check_solver_options
+from casmbd.ocp.solution import OcpSolution
 
 IPOPT_DEFAULTS = {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
                   "ipopt.max_iter": 3000}
@@ -364,37 +370,14 @@ class Transcription:
         ode = ca.vertcat(x[nq:], acc(x[:nq], x[nq:], u, t, self.p))
         quad = self.lagrange_fn(x[:nq], x[nq:], t, u, self.p)
         f = ca.Function("ocp_ode", [x, u, t], [ode, quad])
-        hs = ca.SX.sym("h")
-        if ocp.integrator == "rk4":
-            m = ocp.steps
-            xk, qk = x, 0.0
-            dt = hs / m
-            for s in range(m):
-                ts = t + s * dt
-                k1, l1 = f(xk, u, ts)
-                k2, l2 = f(xk + dt / 2 * k1, u, ts + dt / 2)
-                k3, l3 = f(xk + dt / 2 * k2, u, ts + dt / 2)
-                k4, l4 = f(xk + dt * k3, u, ts + dt)
-                xk = xk + dt / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
-                qk = qk + dt / 6 * (l1 + 2 * l2 + 2 * l3 + l4)
-            step = ca.Function("ocp_step", [x, u, t, hs], [xk, qk])
-        else:
-            tau = ca.SX.sym("tau")
-            pars = ca.vertcat(u, t, hs)
-            ode_s, quad_s = f(x, u, t + tau * hs)
-            dae = {"x": x, "p": pars, "t": tau, "ode": hs * ode_s, "quad": hs * quad_s}
-            integ = ca.integrator("ocp_cvodes", "cvodes", dae, 0.0, 1.0,
-                                  {"abstol": 1e-10, "reltol": 1e-10})
-            xm, um, tm, hm = (ca.MX.sym(n, s) for n, s in
-                              (("x", 2 * nq), ("u", self.nu), ("t", 1), ("h", 1)))
-            out = integ(x0=xm, p=ca.vertcat(um, tm, hm))
-            step = ca.Function("ocp_step", [xm, um, tm, hm], [out["xf"], out["qf"]])
+        # the registered shooting integrator (casmbd.analysis.integrators.INTEGRATORS)
+        step = integrator_kind(ocp.integrator).shooting_step(f, x, u, t, ocp.steps)
         mub, _ = b.var("MU", nc, N)
         nub, _ = b.var("NU", nc, N)
         slb, _ = b.var("SL", self.nu if self.energy else 0, N, 0.0, np.inf)
         # one interval, mapped over all of them
-        xk, xk1 = (step.mx_in(0), ca.MX.sym("xk1", 2 * nq)) if ocp.integrator == "cvodes" \
-            else (ca.SX.sym("xk", 2 * nq), ca.SX.sym("xk1", 2 * nq))
+        xk, xk1 = (ca.SX.sym("xk", 2 * nq), ca.SX.sym("xk1", 2 * nq)) \
+            if step.is_a("SXFunction") else (step.mx_in(0), ca.MX.sym("xk1", 2 * nq))
         sym = type(xk)
         uk, tk, hk = sym.sym("u", self.nu), sym.sym("t"), sym.sym("h")
         mu, nu = sym.sym("mu", nc), sym.sym("nu", nc)
@@ -442,9 +425,6 @@ class Transcription:
                  "final conditions")
 
     def _scene_start(self) -> np.ndarray:
-        from casmbd.analysis.kkt import consistent_state
-        from casmbd.compiled.model import NumericModel
-
         model = NumericModel(self.system, "dynamics", mode="vm")
         st = consistent_state(model, self.system.initial_coordinates(),
                               self.system.initial_velocities(), self.ocp.t_start,
@@ -465,16 +445,14 @@ class Transcription:
     # ------------------------------------------------------------------ solve
     def solve(self, guess=None, options: dict | None = None, raise_on_failure: bool = True):
         """Solve the NLP; see :meth:`casmbd.ocp.problem.Ocp.solve`."""
-        from casmbd.ocp.guess import initial_guess
-        from casmbd.ocp.solution import OcpSolution
-
         ocp, b = self.ocp, self.b
         t0 = time.perf_counter()
         w = ca.vertcat(*[ca.vec(x) for x in b.w])
         g = ca.vertcat(*b.g) if b.g else b.kind(0, 1)
         opts = dict(IPOPT_DEFAULTS) if ocp.solver == "ipopt" else {}
-        if (ocp.solver == "ipopt" and ocp.transcription == "multiple_shooting"
-                and ocp.integrator == "cvodes"):
+        sundials = (ocp.transcription == "multiple_shooting"
+                    and not integrator_kind(ocp.integrator).fixed_step)
+        if ocp.solver == "ipopt" and sundials:
             # second-order sensitivities of CVODES are costly: quasi-Newton Hessian
             opts["ipopt.hessian_approximation"] = "limited-memory"
         # checked again: the attribute may have changed since the Ocp was built
@@ -486,10 +464,7 @@ class Transcription:
             bar = progress.bar(None, f"ocp {ocp.system.mechanism.name}: IPOPT", unit="iter")
             opts["iteration_callback"] = _IterationBar(w.numel(), g.numel(), bar)
         report = None
-        if ocp.compile and not (ocp.transcription == "multiple_shooting"
-                                and ocp.integrator == "cvodes"):
-            from casmbd.compiled.codegen import compile_nlp_solver
-
+        if ocp.compile and not sundials:
             solver, report = compile_nlp_solver(problem, ocp.solver, opts, name="casmbd_ocp")
         else:
             solver = ca.nlpsol("ocp", ocp.solver, problem, opts)

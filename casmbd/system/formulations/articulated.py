@@ -1,0 +1,39 @@
+"""``articulated``: ODE x = (q, v) of a tree in joint coordinates by the articulated-body
+recursion (:mod:`casmbd.system.articulated`), O(N) operations."""
+
+from __future__ import annotations
+
+import casadi as ca
+
+from casmbd.system.articulated import articulated_accelerations, supported
+from casmbd.system.equations import System
+from casmbd.system.formulations.base import Formulation, FormulationKind, _dyn, _sym_inputs
+
+
+def articulated(system: System, inputs: ca.SX | None = None) -> Formulation:
+    """ODE on (q, v) of a tree in joint coordinates by the articulated-body recursion, O(N)
+    operations (:mod:`casmbd.system.articulated`)."""
+    t, q, v, pu = _sym_inputs(system)
+    acc = articulated_accelerations(system)
+    if system.u.numel():
+        u_expr = ca.SX.zeros(system.u.numel()) if inputs is None else inputs
+        acc = ca.substitute(acc, system.u, u_expr)
+    f = _dyn("dyn_articulated", t, ca.vertcat(q, v), ca.SX(0, 1), pu, ca.vertcat(v, acc),
+             ca.SX(0, 1))
+    return Formulation("articulated", "ode", f, system.nq, 0)
+
+
+class Articulated(FormulationKind):
+    """Articulated-body recursion; the default for trees in joint coordinates without
+    constraint equations (measured faster than the KKT/LDLᵀ path: docs/dynamics.md)."""
+
+    name = "articulated"
+    kind = "ode"
+    default_integrator = "adams"
+
+    def equations(self, system: System, inputs: ca.SX | None = None,
+                  **options) -> Formulation:
+        return articulated(system, inputs=inputs, **options)
+
+    def preferred_for(self, system: System) -> bool:
+        return system.coordinates == "joint" and supported(system) is None

@@ -1,0 +1,45 @@
+"""Post-processing Function of a simulation: q̈, λ from the sparse KKT system and
+diagnostics at the output times (the same for every formulation)."""
+
+from __future__ import annotations
+
+import casadi as ca
+
+from casmbd.system.equations import System
+from casmbd.system.formulations.base import _forces, _sym_inputs
+
+
+def post_processing(system: System, inputs: ca.SX | None = None) -> ca.Function:
+    """q̈, λ from the sparse KKT system and diagnostics, for mapped evaluation at outputs.
+
+    ``post(q, v, t, p) -> (a, lambda, residual, T, V, C_max, Cdot_max)``: the KKT system of
+    seed 000, eq. 6.138, solved by CasADi's code-generable sparse QR; ``residual`` is the
+    max-norm of the KKT residual, so that singular points (redundant constraints, singular
+    poses) can be recomputed by a minimum-norm solve.
+    """
+    t, q, v, p = _sym_inputs(system)
+    forces = _forces(system, inputs)
+    m_mat = system.mass_matrix
+    cq = system.constraint_jacobian
+    n, m = system.nq, system.nc
+    if m:
+        kkt = ca.blockcat([[m_mat, cq.T], [cq, ca.SX(m, m)]])
+        rhs = ca.vertcat(forces, system.acceleration_rhs)
+    else:
+        kkt, rhs = m_mat, forces
+    cdot = ca.mtimes(cq, v) + system.constraint_time_derivative
+    c_max = ca.mmax(ca.fabs(system.constraints)) if m else ca.SX(0.0)
+    cdot_max = ca.mmax(ca.fabs(cdot)) if m else ca.SX(0.0)
+    parts = ca.Function("post_parts", [q, v, t, p],
+                        [kkt, rhs, system.kinetic_energy, system.potential_energy, c_max,
+                         cdot_max])
+    qm, vm, tm, pm = (ca.MX.sym(name, s.sparsity()) for name, s in
+                      (("q", q), ("v", v), ("t", t), ("p", p)))
+    k_x, r_x, kin, pot, c_x, cd_x = parts(qm, vm, tm, pm)
+    sol = ca.Linsol("post_qr", "qr", kkt.sparsity()).solve(k_x, r_x)
+    residual = ca.mmax(ca.fabs(ca.mtimes(k_x, sol) - r_x))
+    lam = sol[n:] if m else ca.MX(0, 1)
+    return ca.Function("post", [qm, vm, tm, pm],
+                       [sol[:n], lam, residual, kin, pot, c_x, cd_x],
+                       ["q", "v", "t", "p"],
+                       ["a", "lambda", "residual", "T", "V", "C_max", "Cdot_max"])
