@@ -33,11 +33,12 @@ JOINT_KINDS: dict[str, dict[int, type]] = {}
 _Kind = TypeVar("_Kind", bound=type)
 
 
-def register_joint(kind: _Kind, *, replace: bool = False) -> _Kind:
+def register_joint(kind: _Kind | None = None, *, replace: bool = False):
     """Register a joint class under its ``kind`` name for each of its ``dimensions``.
 
-    Usable as a class decorator.  A user module registers its own kinds the same way (see
-    ``examples/custom_joint.py``).
+    Usable as a class decorator, bare (``@register_joint``) or with options
+    (``@register_joint(replace=True)``: a script that may be run twice in one session).  A
+    user module registers its own kinds the same way (see ``examples/custom_joint.py``).
 
     Parameters
     ----------
@@ -53,6 +54,8 @@ def register_joint(kind: _Kind, *, replace: bool = False) -> _Kind:
     ModelError
         When the class declares no name or no valid dimension, or the name is taken.
     """
+    if kind is None:
+        return lambda cls: register_joint(cls, replace=replace)
     name = getattr(kind, "kind", None)
     dims = tuple(getattr(kind, "dimensions", ()))
     if not isinstance(name, str) or not name.isidentifier():
