@@ -73,6 +73,7 @@ from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, AssemblyError
 from casmbd.model.forces import RotationalSpringDamper
 from casmbd.system.descriptions import SpatialNatural, quaternions_from_matrices
+from casmbd.system.equations import System
 
 __all__ = ["METHODS", "STABILITY_RTOL", "StaticsResult", "static_equilibrium",
            "statics_functions"]
@@ -319,8 +320,6 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
     if isinstance(mechanism, NumericModel):
         model = mechanism
     else:
-        from casmbd.system.equations import System
-
         system = System(mechanism)
         model = NumericModel(system, STATICS_NEEDS, mode=mode, extra=statics_functions(system))
     t0 = time.perf_counter()

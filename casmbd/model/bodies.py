@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from casmbd.errors import ModelError
+from casmbd.model.rotations import rotation_matrix
 from casmbd.model.values import Value, check_value
 
 GROUND = "ground"
@@ -198,8 +199,6 @@ class SpatialBody:
     @property
     def initial_rotation(self) -> np.ndarray:
         """A(p) at the initial pose."""
-        from casmbd.model.rotations import rotation_matrix
-
         return rotation_matrix(self.orientation)
 
     def local(self, point_global) -> np.ndarray:

@@ -6,7 +6,10 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from casmbd.errors import AnalysisError
+from casmbd.analysis.simulate import simulate
+from casmbd.compiled.model import NumericModel
+from casmbd.errors import AnalysisError, CasmbdError
+from casmbd.ocp.solution import OcpSolution
 
 
 def boundary_state(tr, which: str, start: np.ndarray, continuation: int = 8) -> np.ndarray:
@@ -122,8 +125,6 @@ def _horizon(tr) -> float:
 
 def initial_guess(tr, kind) -> np.ndarray:
     """The vector w0 for ``kind`` ("linear", "simulation", "inverse" or an OcpSolution)."""
-    from casmbd.ocp.solution import OcpSolution
-
     if isinstance(kind, OcpSolution):
         return _warm(tr, kind)
     x_start, x_end = _states(tr, kind)
@@ -200,9 +201,6 @@ def _fill(tr, T, state, controls=None, mults=None, accelerations=False) -> np.nd
 
 def _simulated(tr, x_start, T):
     """x(s) of a forward simulation with zero inputs (linear interpolation between outputs)."""
-    from casmbd.analysis.simulate import simulate
-    from casmbd.errors import CasmbdError
-
     nq = tr.nq
     try:
         res = simulate(tr.system, t_end=tr.ocp.t_start + T, t_start=tr.ocp.t_start,
@@ -223,8 +221,6 @@ def _simulated(tr, x_start, T):
 def _inverse(tr, state, T):
     """u(s), λ(s) from [B  −C_qᵀ] [u; λ] = M q̈ − Q along the guessed path (least squares):
     gravity compensation for a linear path."""
-    from casmbd.compiled.model import NumericModel
-
     model = NumericModel(tr.system, "dynamics", mode="vm")
     nq, nc = tr.nq, tr.nc
     samples = np.linspace(0.0, 1.0, 2 * tr.N + 1)

@@ -30,6 +30,7 @@ from casmbd.errors import AnalysisError, ModelError
 from casmbd.limits import MAX_OCP_INTERVALS, MAX_OCP_UNKNOWNS, check_count
 from casmbd.model.expressions import parse_expression
 from casmbd.ocp.options import check_solver_options
+from casmbd.ocp.transcription import Transcription
 from casmbd.system.equations import System
 from casmbd.system.quantities import quantities
 
@@ -293,6 +294,4 @@ class Ocp:
         ``options`` (keywords of :meth:`casmbd.ocp.transcription.Transcription.solve`):
         ``guess``, ``raise_on_failure`` and ``options`` — solver options passed to CasADi
         unchecked, for trusted Python code only (:attr:`solver_options` is checked)."""
-        from casmbd.ocp.transcription import Transcription
-
         return Transcription(self).solve(**options)

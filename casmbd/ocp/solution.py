@@ -9,6 +9,7 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from casmbd.analysis.simulate import Simulator
 from casmbd.errors import AnalysisError, ResultFileError
 from casmbd.results import atomic_write, read_npz
 
@@ -146,8 +147,6 @@ class OcpSolution:
         |q − q_ocp| and |q̇ − q̇_ocp| over the mesh nodes (a measure of the transcription's
         discretisation error, amplified by the dynamics).
         """
-        from casmbd.analysis.simulate import Simulator
-
         if self.ocp is None:
             raise AnalysisError("replay needs the problem (solution loaded from a file)")
         sim = Simulator(self.ocp.system, formulation, inputs=self.inputs())

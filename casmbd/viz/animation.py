@@ -33,7 +33,7 @@ from casmbd.limits import MAX_FPS, MAX_FRAMES, check_count
 from casmbd.results import atomic_write
 from casmbd.viz.geometry import Geometry, _geometry, _place, body_poses, scene_name
 from casmbd.viz.playback import FPS_CAP, FRAME_BUDGET, GIF_MAX_FPS, FramePlan, plan_frames
-from casmbd.viz.plots import check_figure_size
+from casmbd.viz.plots import check_figure_size, new_figure, save_figure
 
 
 class _Drawing:
@@ -42,8 +42,6 @@ class _Drawing:
     def __init__(self, result, mechanism=None, ax=None, trace=None, figsize=None,
                  view=(22.0, -60.0)):
         from matplotlib import colormaps
-
-        from casmbd.viz.plots import new_figure
 
         self.result = result
         self.geo: Geometry = _geometry(result, mechanism)
@@ -234,8 +232,6 @@ def draw_frame(result, index: int | None = None, mechanism=None, *, time: float 
     if title:
         drawing.ax.set_title(title, fontsize=10)
     if out is not None:
-        from casmbd.viz.plots import save_figure
-
         save_figure(drawing.fig, out, dpi)
     return drawing.fig
 

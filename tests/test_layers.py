@@ -1,0 +1,134 @@
+"""Import rules of the package: each module belongs to one layer and imports only its own
+layer and the ones below it, at module level and inside functions alike; a casmbd import inside
+a function is allowed only where it defers a heavy optional dependency (listed below with the
+reason), never to dodge an import cycle.
+
+The layers, lowest first (a module's layer is that of the longest prefix listed in LAYERS):
+
+0. ``errors``, ``interrupts``, ``limits``, ``progress`` — helpers below everything;
+1. ``model`` — what the user builds, with the expression parser (``model.expressions``);
+2. ``system`` — the symbolic equations, with the named quantities analyses and the OCP share
+   (``system.quantities``);
+3. ``compiled`` — generated C, the cache, the numeric model;
+4. ``results`` — the output data class ``Result`` and the file container helpers
+   (``atomic_write``, ``read_npz``) that Result, SweepResult and OcpSolution write and read
+   their own ``.npz`` files with; analyses build Results, so they sit below the analyses.
+   Turning a result's embedded scene text back into a Mechanism is scene parsing: it stays in
+   ``io`` (``casmbd.io.scene`` registers its reader with ``results`` when imported);
+5. ``analysis`` — kinematics, dynamics, statics, linearisation, sweeps and sensitivities
+   (they take a Mechanism; loading files is the caller's job);
+6. ``ocp`` — trajectory optimisation;
+7. ``io`` — scene files (TOML → Mechanism), the ``[ocp]`` table, a sweep point's scene;
+8. ``viz`` — plots and animations;
+9. ``cli`` — the ``casmbd`` command; ``casmbd/__init__.py`` and ``__main__.py`` (the public
+   facade) sit on top with it.
+"""
+
+from __future__ import annotations
+
+import ast
+import pathlib
+
+import pytest
+
+PACKAGE = pathlib.Path(__file__).resolve().parent.parent / "casmbd"
+
+LAYERS = {
+    "casmbd.errors": 0, "casmbd.interrupts": 0, "casmbd.limits": 0, "casmbd.progress": 0,
+    "casmbd.model": 1,
+    "casmbd.system": 2,
+    "casmbd.compiled": 3,
+    "casmbd.results": 4,
+    "casmbd.analysis": 5,
+    "casmbd.ocp": 6,
+    "casmbd.io": 7,
+    "casmbd.viz": 8,
+    "casmbd.cli": 9, "casmbd": 9, "casmbd.__main__": 9,
+}
+
+#: (importing module, imported module) pairs allowed inside a function, with the reason
+DEFERRED = {
+}
+
+
+def _modules() -> dict[str, pathlib.Path]:
+    mods = {}
+    for path in sorted(PACKAGE.rglob("*.py")):
+        parts = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)
+        if parts[-1] == "__init__":
+            parts.pop()
+        mods[".".join(parts)] = path
+    return mods
+
+
+def layer(module: str) -> int:
+    """The layer of a casmbd module: that of the longest listed prefix."""
+    parts = module.split(".")
+    for k in range(len(parts), 0, -1):
+        name = ".".join(parts[:k])
+        if name in LAYERS:
+            return LAYERS[name]
+    raise KeyError(f"module {module} is in no layer: add it to LAYERS")
+
+
+def _imports(module: str, path: pathlib.Path):
+    """(imported casmbd module, line, inside a function?) for every import of the file."""
+    tree = ast.parse(path.read_text(), str(path))
+    package = module if path.name == "__init__.py" else module.rpartition(".")[0]
+    found = []
+
+    def visit(node, in_function: bool):
+        for child in ast.iter_child_nodes(node):
+            inner = in_function or isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef,
+                                                      ast.Lambda))
+            if isinstance(child, ast.Import):
+                found.extend((a.name, child.lineno, in_function) for a in child.names
+                             if a.name.split(".")[0] == "casmbd")
+            elif isinstance(child, ast.ImportFrom):
+                base = child.module or ""
+                if child.level:
+                    up = package.split(".")[:len(package.split(".")) - child.level + 1]
+                    base = ".".join(up + ([base] if base else []))
+                if base.split(".")[0] != "casmbd":
+                    continue
+                for a in child.names:  # `from casmbd import cli` names a module
+                    sub = f"{base}.{a.name}"
+                    found.append((sub if sub in MODULES else base, child.lineno, in_function))
+            visit(child, inner)
+
+    visit(tree, False)
+    return found
+
+
+MODULES = _modules()
+
+
+def test_every_module_has_a_layer():
+    for module in MODULES:
+        layer(module)
+
+
+@pytest.mark.parametrize("module", sorted(MODULES))
+def test_no_lower_layer_imports_a_higher_one(module):
+    own = layer(module)
+    bad = [f"line {line}: {target} (layer {layer(target)})"
+           for target, line, _ in _imports(module, MODULES[module])
+           if layer(target) > own]
+    assert not bad, f"{module} (layer {own}) imports a higher layer: {'; '.join(bad)}"
+
+
+@pytest.mark.parametrize("module", sorted(MODULES))
+def test_function_level_imports_only_defer_heavy_dependencies(module):
+    bad = [f"line {line}: {target}" for target, line, inside in _imports(module, MODULES[module])
+           if inside and (module, target) not in DEFERRED]
+    assert not bad, (f"{module} imports casmbd modules inside functions (move them to the top "
+                     f"or list them in DEFERRED with the reason): {'; '.join(bad)}")
+
+
+def test_the_checker_sees_violations(tmp_path):
+    """The walker finds a function-level upward import and a relative module import."""
+    path = tmp_path / "m.py"
+    path.write_text("from . import scene\n\ndef f():\n    from casmbd.io.scene import x\n")
+    found = _imports("casmbd.model.m", path)
+    assert ("casmbd.model", 1, False) in found and ("casmbd.io.scene", 4, True) in found
+    assert layer("casmbd.io.scene") > layer("casmbd.model.m")
