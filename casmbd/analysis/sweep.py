@@ -26,17 +26,13 @@ from __future__ import annotations
 
 import copy
 import hashlib
-import itertools
-import json
 import math
 import os
 import pickle
-import re
 import socket
 import sys
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -46,29 +42,31 @@ from casmbd.analysis.inverse import inverse_dynamics
 from casmbd.analysis.kinematics import kinematics
 from casmbd.analysis.simulate import Simulator
 from casmbd.analysis.statics import STATICS_NEEDS, static_equilibrium, statics_functions
+from casmbd.analysis.sweep_result import SweepResult, _table, load_sweep
+from casmbd.analysis.sweep_values import (
+    REDUCTIONS,
+    _check_output_names,
+    _check_outputs,
+    _evaluate_outputs,
+    _points,
+    parse_values,
+)
 from casmbd.compiled import codegen
 from casmbd.compiled.model import NEEDS, NumericModel
 from casmbd.errors import (
     AnalysisError,
     CasmbdError,
     ModelError,
-    ResultFileError,
 )
-from casmbd.limits import MAX_SWEEP_POINTS, check_count, check_steps, output_values
+from casmbd.limits import check_steps, output_values
 from casmbd.model import Mechanism
-from casmbd.results import Result, _json_default, atomic_write, load, read_npz
+from casmbd.results import Result
 from casmbd.system.equations import System
 
 __all__ = ["ANALYSES", "REDUCTIONS", "SweepResult", "load_sweep", "parse_values", "sweep"]
 
 #: analyses a sweep can run
 ANALYSES = ("simulate", "kinematics", "inverse", "statics")
-#: reductions of a named output ``"REDUCTION:COLUMN"`` over the time grid
-REDUCTIONS = {"initial": lambda x: x[0], "final": lambda x: x[-1], "min": np.min,
-              "max": np.max, "mean": np.mean, "max_abs": lambda x: np.max(np.abs(x)),
-              "range": lambda x: np.max(x) - np.min(x)}
-#: named outputs without a reduction
-SPECIAL_OUTPUTS = ("energy_drift", "max_constraint_violation")
 
 #: options of each analysis given when its engine is built (the rest go to each run)
 _BUILD_OPTIONS = {"simulate": ("formulation", "inputs", "formulation_options", "redundancy")}
@@ -76,202 +74,6 @@ _RUN_OPTIONS = {"simulate": ("integrator", "rtol", "atol", "t_start", "projectio
                              "max_steps"),
                 "kinematics": ("t_start",), "inverse": ("t_start",),
                 "statics": ("t", "method", "tol", "max_iter")}
-
-
-# ====================================================================== point values
-def parse_values(text: str) -> tuple[str, list[float]]:
-    """``name=a:b:n`` (n values from a to b inclusive, ``numpy.linspace``), ``name=a,b,c`` or
-    ``name=a`` -> ``(name, values)`` (the CLI's ``--param``).
-
-    Raises
-    ------
-    AnalysisError
-        Naming the text when it is not of one of these forms.
-    """
-    name, sep, rhs = text.partition("=")
-    name = name.strip()
-    if not sep or not name.isidentifier() or not rhs.strip():
-        raise AnalysisError(f"--param {text!r}: expected NAME=A:B:N, NAME=A,B,C or NAME=A")
-    try:
-        if ":" in rhs:
-            parts = rhs.split(":")
-            if len(parts) != 3:
-                raise ValueError
-            a, b, n = float(parts[0]), float(parts[1]), int(parts[2])
-            if n < 1:
-                raise ValueError
-            check_count(f"--param {text!r}: points", n, MAX_SWEEP_POINTS,
-                        "use fewer points (before any value is generated)")
-            values = np.linspace(a, b, n).tolist()
-        else:
-            values = [float(x) for x in rhs.split(",")]
-    except ValueError:
-        raise AnalysisError(f"--param {text!r}: expected NAME=A:B:N (N >= 1 points from A to B "
-                            "inclusive), NAME=A,B,C or NAME=A with numbers") from None
-    if not all(math.isfinite(v) for v in values):
-        raise AnalysisError(f"--param {text!r}: values must be finite numbers")
-    return name, values
-
-
-def _points(params: Mapping[str, Iterable[float]] | None,
-            points: Sequence[Mapping[str, float]] | None) -> list[dict[str, float]]:
-    """The grid product of ``params`` (first name slowest) or the given ``points``."""
-    if (params is None) == (points is None):
-        raise AnalysisError("sweep: give either params={name: values} (grid product) or "
-                            "points=[{name: value}, ...]")
-    if params is not None:
-        names = list(params)
-        if not names:
-            raise AnalysisError("sweep: params is empty")
-        lists = []
-        for name in names:
-            vals = np.atleast_1d(np.asarray(params[name], dtype=float)).ravel()
-            if vals.size == 0:
-                raise AnalysisError(f"sweep: parameter '{name}' has no values")
-            lists.append(vals.tolist())
-        sizes = " × ".join(f"{n} {len(v)}" for n, v in zip(names, lists, strict=True))
-        check_count(f"sweep: grid points ({sizes})", math.prod(len(v) for v in lists),
-                    MAX_SWEEP_POINTS, "use fewer values per parameter or a points= list")
-        out = [dict(zip(names, combo, strict=True)) for combo in itertools.product(*lists)]
-    else:
-        if hasattr(points, "__len__"):
-            check_count("sweep: points", len(points), MAX_SWEEP_POINTS, "split the sweep")
-        out = [{str(k): float(v) for k, v in dict(p).items()} for p in points]
-        if not out:
-            raise AnalysisError("sweep: points is empty")
-        names = list(out[0])
-        for i, p in enumerate(out):
-            if list(p) != names and set(p) != set(names):
-                raise AnalysisError(f"sweep: point {i} sets {sorted(p)}, point 0 sets "
-                                    f"{sorted(names)}; every point must set the same names")
-    for i, p in enumerate(out):
-        for k, v in p.items():
-            if not math.isfinite(v):
-                raise AnalysisError(f"sweep: point {i}: parameter '{k}' = {v!r} is not finite")
-    return out
-
-
-# ====================================================================== outputs
-_BODY = re.compile(r"^(body|marker|joint)\.([^.]+)\.([A-Za-z_]+)(?:\.([A-Za-z0-9_]+))?$")
-
-
-def _check_outputs(outputs) -> None:
-    if outputs is None or callable(outputs):
-        return
-    if isinstance(outputs, str) or not all(isinstance(o, str) for o in outputs):
-        raise AnalysisError("sweep: outputs must be a list of names such as "
-                            "'final:q[crank.angle]', or a callable result -> {name: number}")
-    for name in outputs:
-        if name in SPECIAL_OUTPUTS:
-            continue
-        red, sep, col = name.partition(":")
-        if not sep or red not in REDUCTIONS or not col:
-            raise AnalysisError(f"sweep: output {name!r}: expected REDUCTION:COLUMN with "
-                                f"REDUCTION one of {', '.join(REDUCTIONS)} (e.g. "
-                                f"'final:q[crank.angle]', 'max:body.crank.angle'), or one of "
-                                f"{', '.join(SPECIAL_OUTPUTS)}")
-
-
-def _series(result: Result, column: str, where: str) -> np.ndarray:
-    """A scalar series of the result: a CSV column label (``q[block.x]``, ``total_energy``) or
-    ``body.NAME.FIELD[.AXIS]``, ``marker.NAME.FIELD.AXIS``, ``joint.NAME.FIELD``."""
-    m = _BODY.match(column)
-    if m:
-        kind, name, fld, axis = m.groups()
-        try:
-            data = getattr(result, kind)(name)
-        except (KeyError, ValueError):
-            known = result.names.get({"body": "bodies", "marker": "markers",
-                                      "joint": "all_joints"}[kind], [])
-            raise AnalysisError(f"{where}: unknown {kind} '{name}' (known: "
-                                f"{', '.join(known) or 'none'})") from None
-        if fld not in data:
-            raise AnalysisError(f"{where}: {kind} '{name}' has no '{fld}' (has: "
-                                f"{', '.join(data)})")
-        arr = np.asarray(data[fld], float)
-        if arr.ndim == 1 and axis is None:
-            return arr
-        axes = "wxyz" if fld == "quaternion" else "xyz"
-        if arr.ndim == 2 and axis is not None:
-            idx = int(axis) if axis.isdigit() else axes.find(axis)
-            if 0 <= idx < arr.shape[1]:
-                return arr[:, idx]
-        if arr.ndim == 1:
-            raise AnalysisError(f"{where}: '{fld}' of {kind} '{name}' is a scalar series; "
-                                f"drop '.{axis}'")
-        raise AnalysisError(f"{where}: '{fld}' of {kind} '{name}' has components "
-                            f"{list(axes[:arr.shape[-1]]) if arr.ndim == 2 else arr.shape[1:]};"
-                            " name one: .x, .y, .z (quaternion .w, .x, .y, .z) or .0, .1 …")
-    columns = dict(result.csv_columns())
-    if column in columns:
-        return columns[column]
-    known = [c for c in columns if "[" not in c or c.startswith("q[")]
-    raise AnalysisError(f"{where}: unknown column '{column}' (e.g. {', '.join(known[:12])}; "
-                        "or body.NAME.FIELD[.AXIS], joint.NAME.FIELD)")
-
-
-def _check_output_names(runner, spec: dict, values: Mapping[str, float]) -> None:
-    """Evaluate the named outputs on a probe run at the first point — one output step over
-    1e-6 of the time span (statics: the point itself) — so that an unknown column, body or
-    joint is an :class:`~casmbd.errors.AnalysisError` naming the output before any point
-    runs.  A probe run that fails leaves the check to the points (their failure is
-    recorded)."""
-    t_end = spec["t_end"]
-    if spec["analysis"] != "statics":
-        t_start = runner.run_options.get("t_start", 0.0)
-        t_end = t_start + 1e-6 * (t_end - t_start)
-    try:
-        probe = runner.run(values, t_end, 1)
-    except CasmbdError:
-        return
-    _evaluate_outputs(spec["outputs"], probe, spec["analysis"])
-
-
-def _default_outputs(result: Result, analysis: str) -> list[str]:
-    names = [f"final:q[{c}]" for c in result.names.get("coordinates", [])]
-    if analysis == "statics":
-        return [*names, "residual", "min_stiffness_eigenvalue"]
-    names.append("max_constraint_violation")
-    if analysis == "simulate":
-        names.append("energy_drift")
-    if analysis == "inverse":
-        names += [f"max_abs:driver_efforts[{d}.effort]" for d in result.names.get("drivers", [])]
-    return names
-
-
-def _evaluate_outputs(outputs, result: Result, analysis: str) -> dict[str, float]:
-    if callable(outputs):
-        raw = outputs(result)
-        if not isinstance(raw, Mapping):
-            raise AnalysisError(f"sweep: the outputs callable returned {type(raw).__name__}, "
-                                "expected a mapping name -> number")
-        out = {}
-        for key, val in raw.items():
-            arr = np.asarray(val, dtype=float)
-            if arr.size != 1:
-                raise AnalysisError(f"sweep: output '{key}' of the callable is not a scalar "
-                                    f"(shape {arr.shape})")
-            out[str(key)] = float(arr.reshape(()))
-        return out
-    names = _default_outputs(result, analysis) if outputs is None else list(outputs)
-    out = {}
-    for name in names:
-        where = f"sweep: output {name!r}"
-        if name == "energy_drift":
-            e = result["total_energy"] if "total_energy" in result.arrays else None
-            if e is None:
-                raise AnalysisError(f"{where}: the {result.kind} result has no energies")
-            out[name] = float(e[-1] - e[0])
-        elif name == "max_constraint_violation":
-            cv = result.arrays.get("constraint_violation", np.zeros(1))
-            out[name] = float(np.max(cv)) if cv.size else 0.0
-        elif name in ("residual", "min_stiffness_eigenvalue") and analysis == "statics":
-            out[name] = float(result.stats.get(name, math.nan))
-        else:
-            red, _, col = name.partition(":")
-            series = _series(result, col, where)
-            out[name] = float(REDUCTIONS[red](series)) if len(series) else math.nan
-    return out
 
 
 # ====================================================================== the worker side
@@ -408,199 +210,6 @@ def _save_point(result: Result, spec: dict, index: int, values, scene, failure=N
     path = Path(spec["out_dir"]) / (_point_name(spec, index) + suffix)
     result.save(path)
     return str(path)
-
-
-# ====================================================================== the result
-@dataclass
-class SweepResult:
-    """Outputs of a parameter sweep, one row per point.
-
-    Attributes
-    ----------
-    analysis : str
-    parameters : numpy structured array (n_points,)
-        One float field per swept parameter.
-    outputs : numpy structured array (n_points,)
-        One float field per output (NaN where the point failed).
-    status : ndarray of str (n_points,)
-        ``"ok"`` or ``"failed"``.
-    errors : list of str
-        The failure message of each point (empty when it succeeded).
-    files : list of str or None
-        ``out_dir/point_XXX.npz`` of each successful point (None without ``out_dir``).
-    stats : dict
-        ``executor``, ``workers``, ``points``, ``failed``, ``wall_seconds``, ``parent_build``
-        (compiled / cache_hit of the build in the calling process), ``worker_builds``,
-        ``worker_compiler_runs``, ``worker_cache_hits`` (the workers' own build reports:
-        ``worker_compiler_runs == 0`` means no worker compiled), ``worker_processes``.
-    point_stats : list of dict
-        Per point: worker (host:pid), seconds, runner_built, build report, compiler_runs.
-    """
-
-    analysis: str
-    parameters: np.ndarray
-    outputs: np.ndarray
-    status: np.ndarray
-    errors: list[str]
-    files: list[str | None]
-    stats: dict = field(default_factory=dict)
-    point_stats: list[dict] = field(default_factory=list)
-    out_dir: str | None = None
-
-    def __len__(self) -> int:
-        return len(self.status)
-
-    @property
-    def parameter_names(self) -> list[str]:
-        return list(self.parameters.dtype.names or ())
-
-    @property
-    def output_names(self) -> list[str]:
-        return list(self.outputs.dtype.names or ())
-
-    @property
-    def ok(self) -> np.ndarray:
-        """Boolean mask of the successful points."""
-        return self.status == "ok"
-
-    @property
-    def failed(self) -> list[int]:
-        """Indices of the failed points."""
-        return [int(i) for i in np.flatnonzero(~self.ok)]
-
-    def __getitem__(self, name: str) -> np.ndarray:
-        """A parameter's or an output's column."""
-        if name in self.parameter_names:
-            return self.parameters[name]
-        if name in self.output_names:
-            return self.outputs[name]
-        raise KeyError(f"no column '{name}' (parameters: {', '.join(self.parameter_names)}; "
-                       f"outputs: {', '.join(self.output_names)})")
-
-    def result(self, index: int) -> Result:
-        """The saved :class:`Result` of point ``index`` (needs ``out_dir``)."""
-        path = self.files[index]
-        if path is None:
-            why = self.errors[index] or "the sweep ran without out_dir"
-            raise AnalysisError(f"sweep point {index} has no result file ({why})")
-
-        return load(path)
-
-    def to_json(self) -> dict:
-        """``analysis``, ``parameters`` and ``outputs`` (names), ``points`` (one object per
-        point: index, parameters, outputs, status, error, file), ``failed``, ``stats``."""
-        def num(x):
-            x = float(x)
-            return x if math.isfinite(x) else None
-
-        points = [{"index": i,
-                   "parameters": {n: num(self.parameters[n][i]) for n in self.parameter_names},
-                   "outputs": {n: num(self.outputs[n][i]) for n in self.output_names},
-                   "status": str(self.status[i]), "error": self.errors[i],
-                   "file": self.files[i]} for i in range(len(self))]
-        return {"kind": "sweep", "analysis": self.analysis,
-                "parameters": self.parameter_names, "outputs": self.output_names,
-                "points": points, "failed": len(self.failed), "stats": dict(self.stats)}
-
-    def to_csv(self, path: str | os.PathLike) -> Path:
-        """One row per point: ``index``, parameters, outputs (17 significant digits, ``nan``
-        where failed), ``status``, ``error``; written atomically."""
-        import csv
-
-        def write(tmp: str) -> None:
-            with open(tmp, "w", newline="", encoding="utf-8") as fh:
-                w = csv.writer(fh)
-                w.writerow(["index", *self.parameter_names, *self.output_names, "status",
-                            "error"])
-                for i in range(len(self)):
-                    w.writerow([i, *(repr(float(self.parameters[n][i]))
-                                     for n in self.parameter_names),
-                                *(repr(float(self.outputs[n][i])) for n in self.output_names),
-                                str(self.status[i]), self.errors[i]])
-
-        return atomic_write(path, write)
-
-    def save(self, path: str | os.PathLike) -> Path:
-        """The table (parameters, outputs, status, errors, files, stats) as an npz file,
-        atomically; :func:`load_sweep` reads it back."""
-        meta = {"analysis": self.analysis, "errors": self.errors, "files": self.files,
-                "stats": self.stats, "point_stats": self.point_stats, "out_dir": self.out_dir}
-        payload = {"parameters": self.parameters, "outputs": self.outputs,
-                   "status": np.asarray(self.status, dtype=str),
-                   "meta": np.array(json.dumps(meta, default=_json_default))}
-
-        def write(tmp: str) -> None:
-            with open(tmp, "wb") as fh:
-                np.savez_compressed(fh, **payload)
-
-        return atomic_write(path, write)
-
-    def plot(self, x: str | None = None, y: str | Sequence[str] | None = None,
-             out: str | os.PathLike | None = None, dpi: float = 100.0):
-        """Outputs against one parameter (matplotlib, imported here): one panel per output
-        ``y`` (default: up to four), one line per combination of the other parameters;
-        failed points are left out.  Saves to ``out`` when given; returns the figure."""
-        import matplotlib
-
-        if out is not None:
-            matplotlib.use("Agg", force=False)
-        import matplotlib.pyplot as plt
-
-        x = x or self.parameter_names[0]
-        if x not in self.parameter_names:
-            raise AnalysisError(f"plot: x must be a parameter ({', '.join(self.parameter_names)})"
-                                f", got {x!r}")
-        ys = [y] if isinstance(y, str) else list(y or self.output_names[:4])
-        for name in ys:
-            if name not in self.output_names:
-                raise AnalysisError(f"plot: unknown output {name!r} (outputs: "
-                                    f"{', '.join(self.output_names)})")
-        others = [n for n in self.parameter_names if n != x]
-        groups: dict = {}
-        for i in np.flatnonzero(self.ok):
-            key = tuple(float(self.parameters[n][i]) for n in others)
-            groups.setdefault(key, []).append(i)
-        fig, axes = plt.subplots(len(ys), 1, figsize=(6.0, 2.2 * len(ys) + 0.6), squeeze=False,
-                                 sharex=True)
-        for ax, name in zip(axes[:, 0], ys, strict=True):
-            for key, idx in groups.items():
-                idx = sorted(idx, key=lambda i: self.parameters[x][i])
-                label = ", ".join(f"{n} = {v:g}" for n, v in zip(others, key, strict=True))
-                ax.plot(self.parameters[x][idx], self.outputs[name][idx], "o-", ms=3,
-                        label=label or None)
-            ax.set_ylabel(name, fontsize=8)
-            ax.grid(True, alpha=0.3)
-            if others and len(groups) <= 8:
-                ax.legend(fontsize=7)
-        axes[-1, 0].set_xlabel(x)
-        fig.suptitle(f"{self.analysis} sweep: {int(self.ok.sum())} of {len(self)} points",
-                     fontsize=9)
-        fig.tight_layout()
-        if out is not None:
-            atomic_write(out, lambda tmp: fig.savefig(tmp, dpi=dpi))
-            plt.close(fig)
-        return fig
-
-
-def load_sweep(path: str | os.PathLike) -> SweepResult:
-    """Read a table written by :meth:`SweepResult.save`."""
-    data = read_npz(path, "sweep")  # ResultFileError on a bad file, naming it
-    try:
-        meta = json.loads(str(data["meta"]))
-        return SweepResult(meta["analysis"], data["parameters"], data["outputs"],
-                           data["status"], meta["errors"], meta["files"], meta["stats"],
-                           meta["point_stats"], meta["out_dir"])
-    except (ValueError, KeyError, TypeError) as exc:
-        raise ResultFileError(f"'{path}' is not a casmbd sweep file ({type(exc).__name__}: "
-                              f"{exc})") from None
-
-
-def _table(names: list[str], rows: list[dict]) -> np.ndarray:
-    arr = np.full(len(rows), np.nan, dtype=[(n, float) for n in names])
-    for i, row in enumerate(rows):
-        for n in names:
-            arr[n][i] = row.get(n, math.nan)
-    return arr
 
 
 # ====================================================================== executors
