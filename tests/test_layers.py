@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import ast
 import pathlib
+import subprocess
+import sys
 
 import pytest
 
@@ -46,9 +48,11 @@ LAYERS = {
     "casmbd.cli": 9, "casmbd": 9, "casmbd.__main__": 9,
 }
 
-#: (importing module, imported module) pairs allowed inside a function, with the reason
-DEFERRED = {
-}
+#: (importing module, imported casmbd module) pairs allowed inside a function, each with the
+#: reason: only to defer a heavy optional dependency (matplotlib, dask, tqdm) that the imported
+#: module pulls in at its top.  None today: casmbd.viz and casmbd.progress import matplotlib
+#: and tqdm inside the functions that draw (see test_heavy_optional_dependencies_are_deferred).
+DEFERRED: dict[tuple[str, str], str] = {}
 
 
 def _modules() -> dict[str, pathlib.Path]:
@@ -111,18 +115,31 @@ def test_every_module_has_a_layer():
 @pytest.mark.parametrize("module", sorted(MODULES))
 def test_no_lower_layer_imports_a_higher_one(module):
     own = layer(module)
-    bad = [f"line {line}: {target} (layer {layer(target)})"
-           for target, line, _ in _imports(module, MODULES[module])
-           if layer(target) > own]
+    bad = sorted({f"line {line}: {target} (layer {layer(target)})"
+                  for target, line, _ in _imports(module, MODULES[module])
+                  if layer(target) > own})
     assert not bad, f"{module} (layer {own}) imports a higher layer: {'; '.join(bad)}"
 
 
 @pytest.mark.parametrize("module", sorted(MODULES))
 def test_function_level_imports_only_defer_heavy_dependencies(module):
-    bad = [f"line {line}: {target}" for target, line, inside in _imports(module, MODULES[module])
-           if inside and (module, target) not in DEFERRED]
+    bad = sorted({f"line {line}: {target}"
+                  for target, line, inside in _imports(module, MODULES[module])
+                  if inside and (module, target) not in DEFERRED})
     assert not bad, (f"{module} imports casmbd modules inside functions (move them to the top "
                      f"or list them in DEFERRED with the reason): {'; '.join(bad)}")
+
+
+def test_heavy_optional_dependencies_are_deferred():
+    """``import casmbd`` and the CLI load no matplotlib, dask or tqdm: those are imported by the
+    function that draws, distributes or shows a bar (a fresh interpreter, so that other tests'
+    imports do not count)."""
+    code = ("import sys, casmbd, casmbd.cli, casmbd.viz; "
+            "print(sorted(m for m in ('matplotlib', 'dask', 'distributed', 'tqdm') "
+            "if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=300, check=True).stdout.strip()
+    assert out == "[]", f"imported at start-up: {out}"
 
 
 def test_the_checker_sees_violations(tmp_path):
