@@ -20,20 +20,36 @@ Pathological input cannot hang or crash the interpreter: text longer than
 the errors :func:`ast.parse` raises on absurd input (``RecursionError``, ``MemoryError``, ...)
 are turned into :class:`~casmbd.errors.ExpressionError`.  Evaluation is iterative, so long
 chains such as ``1+1+...+1`` do not exhaust the Python stack either.
+
+The whitelist and the checks of the syntax tree are in :mod:`casmbd.model.expression_rules`;
+this module parses, evaluates and re-exports the public tables.
 """
 
 from __future__ import annotations
 
 import ast
 import math
-import numbers
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from typing import Any
 
 import casadi
 
-from casmbd.errors import ExpressionError
-from casmbd.limits import MAX_EXPRESSION_DEPTH, MAX_EXPRESSION_LENGTH
+from casmbd.model.expression_rules import (
+    _BINARY_OPERATORS,
+    ALLOWED_FUNCTIONS,
+    CONSTANTS,
+    FUNCTION_ARITY,
+    MAX_DEPTH,
+    MAX_LENGTH,
+    _check_tree,
+    _fail,
+    _is_real_number,
+    _max_bracket_depth,
+    _normalize_symbols,
+    _parse,
+    _shorten,
+    _Value,
+)
 
 __all__ = [
     "ALLOWED_FUNCTIONS",
@@ -45,368 +61,6 @@ __all__ = [
     "evaluate_number",
     "parse_expression",
 ]
-
-#: Longest accepted expression text, in characters (:data:`casmbd.limits.MAX_EXPRESSION_LENGTH`).
-MAX_LENGTH = MAX_EXPRESSION_LENGTH
-
-#: Deepest accepted nesting (parentheses, calls, unary operators, right operands;
-#: :data:`casmbd.limits.MAX_EXPRESSION_DEPTH`).
-MAX_DEPTH = MAX_EXPRESSION_DEPTH
-
-#: Functions that may be called in an expression, by name.
-ALLOWED_FUNCTIONS: dict[str, Callable[..., Any]] = {
-    "sin": casadi.sin,
-    "cos": casadi.cos,
-    "tan": casadi.tan,
-    "exp": casadi.exp,
-    "log": casadi.log,
-    "sqrt": casadi.sqrt,
-    "abs": casadi.fabs,
-    "asin": casadi.asin,
-    "acos": casadi.acos,
-    "atan": casadi.atan,
-    "atan2": casadi.atan2,
-    "sinh": casadi.sinh,
-    "cosh": casadi.cosh,
-    "tanh": casadi.tanh,
-    "min": casadi.fmin,
-    "max": casadi.fmax,
-    "floor": casadi.floor,
-    "ceil": casadi.ceil,
-    "sign": casadi.sign,
-    "pow": casadi.power,
-}
-
-#: Number of positional arguments each function of :data:`ALLOWED_FUNCTIONS` takes.
-FUNCTION_ARITY: dict[str, int] = {
-    name: (2 if name in ("atan2", "min", "max", "pow") else 1) for name in ALLOWED_FUNCTIONS
-}
-
-#: Named constants available in every expression (shadowed by symbols of the same name).
-CONSTANTS: dict[str, float] = {"pi": math.pi, "e": math.e}
-
-_BINARY_OPERATORS: dict[type, Callable[[Any, Any], Any]] = {
-    ast.Add: casadi.plus,
-    ast.Sub: casadi.minus,
-    ast.Mult: casadi.times,
-    ast.Div: casadi.rdivide,
-    ast.Pow: casadi.power,
-}
-
-_OPERATOR_SYMBOLS: dict[type, str] = {
-    ast.Mod: "%",
-    ast.FloorDiv: "//",
-    ast.MatMult: "@",
-    ast.LShift: "<<",
-    ast.RShift: ">>",
-    ast.BitOr: "|",
-    ast.BitAnd: "&",
-    ast.BitXor: "^",
-    ast.Not: "not",
-    ast.Invert: "~",
-}
-
-_FORBIDDEN_NODES: dict[type, str] = {
-    ast.Attribute: "attribute access is not allowed",
-    ast.Subscript: "subscripts (indexing) are not allowed",
-    ast.Slice: "slices are not allowed",
-    ast.List: "lists are not allowed",
-    ast.Tuple: "tuples are not allowed (only one value per expression)",
-    ast.Set: "sets are not allowed",
-    ast.Dict: "dictionaries are not allowed",
-    ast.ListComp: "comprehensions are not allowed",
-    ast.SetComp: "comprehensions are not allowed",
-    ast.DictComp: "comprehensions are not allowed",
-    ast.GeneratorExp: "comprehensions (generator expressions) are not allowed",
-    ast.Lambda: "lambda functions are not allowed",
-    ast.IfExp: "conditional expressions ('a if c else b') are not allowed",
-    ast.Compare: "comparisons are not allowed",
-    ast.BoolOp: "boolean operators ('and', 'or') are not allowed",
-    ast.NamedExpr: "assignment expressions (':=') are not allowed",
-    ast.JoinedStr: "strings (f-strings) are not allowed",
-    ast.FormattedValue: "strings (f-strings) are not allowed",
-    ast.Starred: "argument unpacking ('*') is not allowed",
-    ast.Await: "'await' is not allowed",
-    ast.Yield: "'yield' is not allowed",
-    ast.YieldFrom: "'yield' is not allowed",
-}
-
-_FRAGMENT_LENGTH = 60
-
-_Value = casadi.SX | casadi.MX | float
-
-
-def _shorten(text: str, limit: int = _FRAGMENT_LENGTH) -> str:
-    """Return ``text`` cut to at most ``limit`` characters, marked with ``...`` when cut."""
-    return text if len(text) <= limit else text[: limit - 3] + "..."
-
-
-def _fail(where: str, fragment: str, why: str) -> ExpressionError:
-    """Build the error for ``fragment`` of the expression at ``where``.
-
-    Parameters
-    ----------
-    where : str
-        Human-readable location of the expression, e.g. a scene table, entry and key.
-    fragment : str
-        The offending part of the expression text.
-    why : str
-        Reason the fragment is rejected.
-
-    Returns
-    -------
-    ExpressionError
-        The error, to be raised by the caller.
-    """
-    return ExpressionError(f"{where}: {why} (in {_shorten(fragment)!r})")
-
-
-def _fragment(source: str, node: ast.AST) -> str:
-    """Return the source text of ``node`` (falling back to :func:`ast.unparse`)."""
-    segment = ast.get_source_segment(source, node)
-    if segment is None:
-        try:
-            segment = ast.unparse(node)
-        except (RecursionError, ValueError):  # pragma: no cover - parsed trees unparse
-            segment = source
-    return segment
-
-
-def _is_real_number(value: object) -> bool:
-    """Tell whether ``value`` is a real number (booleans are not numbers here)."""
-    return isinstance(value, numbers.Real) and not isinstance(value, bool)
-
-
-def _normalize_symbols(symbols: Mapping[str, Any], where: str) -> dict[str, _Value]:
-    """Check the symbol table and convert plain numbers to ``float``.
-
-    Parameters
-    ----------
-    symbols : mapping of str to casadi.SX, casadi.MX or float
-        Names usable in the expression.
-    where : str
-        Location of the expression, used in error messages.
-
-    Returns
-    -------
-    dict of str to casadi.SX, casadi.MX or float
-        The symbols, numbers converted to ``float`` and scalar ``DM`` to ``float``.
-
-    Raises
-    ------
-    ExpressionError
-        If a value is neither a CasADi SX/MX expression nor a real number.
-    """
-    table: dict[str, _Value] = {}
-    for name, value in symbols.items():
-        if isinstance(value, (casadi.SX, casadi.MX)):
-            table[name] = value
-        elif (isinstance(value, casadi.DM) and value.is_scalar()) or _is_real_number(value):
-            table[name] = float(value)
-        else:
-            raise _fail(
-                where,
-                str(name),
-                f"symbol {name!r} has a value of unsupported type {type(value).__name__}",
-            )
-    return table
-
-
-def _allowed_names(symbols: Mapping[str, Any]) -> str:
-    """List the names usable in an expression, for error messages."""
-    names = sorted(name for name in symbols if not name.startswith("_"))
-    names += sorted(name for name in CONSTANTS if name not in symbols)
-    return ", ".join(names) if names else "(none)"
-
-
-def _max_bracket_depth(text: str) -> int:
-    """Return the deepest nesting of ``()``, ``[]`` and ``{}`` in ``text``."""
-    depth = deepest = 0
-    for char in text:
-        if char in "([{":
-            depth += 1
-            deepest = max(deepest, depth)
-        elif char in ")]}":
-            depth -= 1
-    return deepest
-
-
-def _parse(text: str, where: str) -> ast.Expression:
-    """Parse ``text`` into a syntax tree, turning every parser failure into an error.
-
-    Parameters
-    ----------
-    text : str
-        Expression text (already stripped, not empty, not too long).
-    where : str
-        Location of the expression, used in error messages.
-
-    Returns
-    -------
-    ast.Expression
-        The syntax tree.
-
-    Raises
-    ------
-    ExpressionError
-        On syntax errors and on input too complex for the parser.
-    """
-    try:
-        return ast.parse(text, mode="eval")
-    except SyntaxError as error:
-        detail = error.msg or "invalid syntax"
-        if error.offset is not None:
-            detail += f" at column {error.offset}"
-        raise _fail(where, text, f"syntax error: {detail}") from None
-    except (RecursionError, MemoryError):
-        raise _fail(where, text, "expression is too deeply nested or too complex") from None
-    except ValueError as error:  # e.g. null bytes on some Python versions
-        raise _fail(where, text, f"invalid expression text: {error}") from None
-
-
-def _check_constant(node: ast.Constant, source: str, where: str) -> None:
-    """Accept only finite int/float literals."""
-    value = node.value
-    if isinstance(value, bool):
-        raise _fail(where, _fragment(source, node), "booleans are not allowed")
-    if isinstance(value, (str, bytes)):
-        raise _fail(where, _fragment(source, node), "strings are not allowed")
-    if isinstance(value, complex):
-        raise _fail(where, _fragment(source, node), "complex numbers are not allowed")
-    if not isinstance(value, (int, float)):
-        raise _fail(where, _fragment(source, node), f"{value!r} is not allowed")
-    try:
-        number = float(value)
-    except OverflowError:
-        raise _fail(where, _fragment(source, node), "number is too large") from None
-    if not math.isfinite(number):
-        raise _fail(where, _fragment(source, node), "number is not finite")
-
-
-def _check_name(node: ast.Name, source: str, symbols: Mapping[str, Any], where: str) -> None:
-    """Accept only names of symbols and constants (never names starting with ``_``)."""
-    name = node.id
-    if name.startswith("_"):
-        raise _fail(
-            where, _fragment(source, node), f"names beginning with '_' are not allowed: {name!r}"
-        )
-    if name in symbols or name in CONSTANTS:
-        return
-    if name in ALLOWED_FUNCTIONS:
-        raise _fail(
-            where,
-            _fragment(source, node),
-            f"{name!r} is a function; call it like {name}(...)",
-        )
-    raise _fail(
-        where,
-        _fragment(source, node),
-        f"unknown name {name!r}; allowed names are: {_allowed_names(symbols)}",
-    )
-
-
-def _check_call(node: ast.Call, source: str, where: str) -> None:
-    """Accept only positional calls of allowed functions with the right number of arguments."""
-    func = node.func
-    if isinstance(func, ast.Attribute):
-        raise _fail(
-            where,
-            _fragment(source, node),
-            f"attribute access is not allowed: cannot call {_fragment(source, func)!r}",
-        )
-    if not isinstance(func, ast.Name):
-        raise _fail(where, _fragment(source, node), "only allowed functions can be called, by name")
-    if node.keywords:
-        keyword = node.keywords[0]
-        shown = "**" if keyword.arg is None else f"{keyword.arg}="
-        raise _fail(
-            where,
-            _fragment(source, node),
-            f"keyword arguments are not allowed (got {shown!r}); pass arguments by position",
-        )
-    name = func.id
-    if name not in ALLOWED_FUNCTIONS:
-        raise _fail(
-            where,
-            _fragment(source, node),
-            f"unknown function {name!r}; allowed functions are: "
-            + ", ".join(sorted(ALLOWED_FUNCTIONS)),
-        )
-    for argument in node.args:
-        if isinstance(argument, ast.Starred):
-            raise _fail(where, _fragment(source, node), "argument unpacking ('*') is not allowed")
-    expected = FUNCTION_ARITY[name]
-    if len(node.args) != expected:
-        plural = "" if expected == 1 else "s"
-        raise _fail(
-            where,
-            _fragment(source, node),
-            f"function {name!r} takes {expected} argument{plural}, got {len(node.args)}",
-        )
-
-
-def _check_operator(op: ast.AST, node: ast.AST, source: str, where: str) -> None:
-    """Accept only ``+ - * / **`` (binary) and ``+ -`` (unary)."""
-    if isinstance(op, (ast.Add, ast.Sub, ast.Mult, ast.Div, ast.Pow, ast.UAdd, ast.USub)):
-        return
-    symbol = _OPERATOR_SYMBOLS.get(type(op), type(op).__name__)
-    why = f"operator {symbol!r} is not allowed"
-    if isinstance(op, ast.BitXor):
-        why += "; use '**' for powers (e.g. 2**3)"
-    else:
-        why += "; allowed operators are + - * / **"
-    raise _fail(where, _fragment(source, node), why)
-
-
-def _check_tree(tree: ast.Expression, source: str, symbols: Mapping[str, Any], where: str) -> None:
-    """Walk the tree iteratively, rejecting anything not whitelisted or nested too deeply.
-
-    The depth of a node is one more than that of its parent, except for the left operand of a
-    binary operator that is itself a binary operation: left-associative chains such as
-    ``a + b - c + d`` count as one level.
-
-    Parameters
-    ----------
-    tree : ast.Expression
-        Parsed expression.
-    source : str
-        The text that was parsed (for error fragments).
-    symbols : mapping of str to Any
-        Names usable in the expression.
-    where : str
-        Location of the expression, used in error messages.
-
-    Raises
-    ------
-    ExpressionError
-        On the first disallowed construct found (outermost first) or excessive nesting.
-    """
-    stack: list[tuple[ast.AST, int]] = [(tree.body, 1)]
-    while stack:
-        node, depth = stack.pop()
-        if depth > MAX_DEPTH:
-            raise _fail(
-                where, source, f"expression is too deeply nested (more than {MAX_DEPTH} levels)"
-            )
-        if isinstance(node, ast.Constant):
-            _check_constant(node, source, where)
-        elif isinstance(node, ast.Name):
-            _check_name(node, source, symbols, where)
-        elif isinstance(node, ast.BinOp):
-            _check_operator(node.op, node, source, where)
-            left_depth = depth if isinstance(node.left, ast.BinOp) else depth + 1
-            stack.append((node.right, depth + 1))
-            stack.append((node.left, left_depth))
-        elif isinstance(node, ast.UnaryOp):
-            _check_operator(node.op, node, source, where)
-            stack.append((node.operand, depth + 1))
-        elif isinstance(node, ast.Call):
-            _check_call(node, source, where)
-            stack.extend((argument, depth + 1) for argument in reversed(node.args))
-        else:
-            why = _FORBIDDEN_NODES.get(type(node), f"{type(node).__name__} is not allowed")
-            raise _fail(where, _fragment(source, node), why)
-
 
 def _children(node: ast.AST) -> list[ast.AST]:
     """Return the operands of a checked node, in evaluation order."""
