@@ -5,9 +5,13 @@ The layers, each importing only the ones before it:
 * :mod:`casmbd.model` — what the user builds (bodies, joints, forces, drivers);
 * :mod:`casmbd.system` — the symbolic equations (M, Q_e, Q_v, C, C_q, C_t, γ);
 * :mod:`casmbd.compiled` — generated C code, the disk cache and the numeric model;
+* :mod:`casmbd.results` — the output data class :class:`Result` and its npz/CSV files;
 * :mod:`casmbd.analysis` — kinematics, forward and inverse dynamics, statics, linearisation;
 * :mod:`casmbd.ocp` — trajectory optimisation over the same model (collocation, shooting, IPOPT);
-* :mod:`casmbd.results`, :mod:`casmbd.io`, :mod:`casmbd.cli` — results, scene files, the CLI.
+* :mod:`casmbd.io`, :mod:`casmbd.viz`, :mod:`casmbd.cli` — scene files, plots, the CLI.
+
+``errors``, ``interrupts``, ``limits`` and ``progress`` sit below all; tests/test_layers.py
+checks the rule.
 """
 
 from casmbd import ocp  # noqa: F401  (casmbd.ocp.Ocp: trajectory optimisation)
