@@ -52,7 +52,7 @@ from casmbd.limits import (
 )
 from casmbd.model import Mechanism
 from casmbd.model.expressions import evaluate_number, parse_expression
-from casmbd.model.registry import JOINT_KINDS
+from casmbd.model.registry import FORCE_KINDS, JOINT_KINDS
 from casmbd.model.rotations import inertia_tensor
 from casmbd.model.values import EXTRAPOLATIONS, Samples
 
@@ -67,13 +67,6 @@ _BODY_KEYS = {"name", "mass", "inertia", "position", "angle", "velocity", "angul
 _COORDINATES = ("absolute", "natural", "joint")
 _MARKER_KEYS = {"name", "body", "point", "description"}
 _DRIVER_KEYS = {"name", "joint", "body", "coordinate", "position", "description"}
-_FORCE_KEYS = {
-    "force": {"body", "point", "value", "frame"},
-    "torque": {"body", "value", "frame"},
-    "spring_damper": {"body1", "body2", "point1", "point2", "stiffness", "damping",
-                      "free_length", "actuator"},
-    "rotational_spring_damper": {"joint", "stiffness", "damping", "free_angle", "actuator"},
-}
 _ACTUATOR_KEYS = {"name", "joint", "coordinate", "description"}
 
 
@@ -214,6 +207,11 @@ class _Entry:
             raise self.error(key, f"must be a finite number, got {str(raw)[:40]}")
         return out
 
+    def nonnegative(self, key: str) -> Any:
+        """A value (default 0) that must be >= 0 where it is a number or an expression of the
+        parameters; one of t is checked when the equations are built."""
+        return _nonneg(self, key)
+
     def vectors(self, key: str, count: int, size: int) -> list[list[float]]:
         """A list of ``count`` vectors of ``size`` numbers (e.g. the axes of a universal joint)."""
         val = self.require(key)
@@ -321,13 +319,15 @@ def _build(data: dict, source: str) -> Mechanism:
             body=e.string("body", required=False),
             coordinate=e.string("coordinate", required=False)))
 
-    for e in entries("forces"):
+    scene_forces = {n: k for n, k in FORCE_KINDS.items() if k.scene_keys is not None}
+    for e in entries("forces"):  # each kind reads its own keys (casmbd.model.registry)
         ftype = e.string("type")
-        if ftype not in _FORCE_KEYS:
+        if ftype not in scene_forces:
             raise e.error("type", f"unknown force type {ftype!r} (allowed: "
-                          f"{', '.join(_FORCE_KEYS)})")
-        e.check_keys({"name", "type", "description"} | _FORCE_KEYS[ftype])
-        _add_force(mech, e, ftype, guarded)
+                          f"{', '.join(scene_forces)})")
+        force_kind = scene_forces[ftype]
+        e.check_keys({"name", "type", "description"} | force_kind.scene_keys)
+        guarded(e, lambda force_kind=force_kind, e=e: force_kind.from_scene(mech, e))
 
     for e in entries("actuators"):
         e.check_keys(_ACTUATOR_KEYS)
@@ -404,32 +404,6 @@ def _add_spatial_body(mech: Mechanism, e: _Entry, guarded) -> None:
         velocity=e.vector("velocity", 3, default=zeros),
         angular_velocity=e.vector("angular_velocity", 3, default=zeros),
         reference_point=e.vector("reference_point", 3, default=zeros)))
-
-
-def _add_force(mech: Mechanism, e: _Entry, ftype: str, guarded) -> None:
-    name = _name(e)
-    dim = mech.dimension
-    if ftype == "force":
-        value = e.values("value", (dim,))
-        guarded(e, lambda: mech.add_force(name, e.string("body"), value,
-                                          point=e.vector("point", dim, required=False),
-                                          frame=e.string("frame", default="global")))
-    elif ftype == "torque":
-        value = e.value("value") if dim == 2 else e.values("value", (3,))
-        guarded(e, lambda: mech.add_torque(name, e.string("body"), value,
-                                           frame=e.string("frame", default="global")))
-    elif ftype == "spring_damper":
-        guarded(e, lambda: mech.add_spring_damper(
-            name, e.string("body1"), e.string("body2"), e.vector("point1", dim),
-            e.vector("point2", dim),
-            stiffness=_nonneg(e, "stiffness"), damping=_nonneg(e, "damping"),
-            free_length=e.value("free_length", required=False),
-            actuator=e.value("actuator", 0.0)))
-    else:
-        guarded(e, lambda: mech.add_rotational_spring_damper(
-            name, e.string("joint"), stiffness=_nonneg(e, "stiffness"),
-            damping=_nonneg(e, "damping"), free_angle=e.value("free_angle", 0.0),
-            actuator=e.value("actuator", 0.0)))
 
 
 def _position(e: _Entry):

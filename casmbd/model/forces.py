@@ -5,21 +5,79 @@ generalized force is Q = (∂r_P/∂q)ᵀ F + (∂θ/∂q)ᵀ T (seed 000, "Gene
 6.40–6.48).  A force element acting along a scalar measure s(q) (the length of a spring, a joint
 coordinate) with magnitude f resisting an increase of s gives Q = −f (∂s/∂q)ᵀ.  The Jacobians
 are taken by CasADi's algorithmic differentiation, never by hand.
+
+Each force element kind is one class (a :class:`ForceElement`) registered by its scene type
+name (:data:`casmbd.model.registry.FORCE_KINDS`): it declares its scene keys, how it is built
+from the Python API (:meth:`ForceElement.create`, behind ``Mechanism.add``) and from a scene
+entry (:meth:`ForceElement.from_scene`), its virtual-work terms (:meth:`ForceElement.terms`)
+and its potential energy, and its drawing hint.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import ClassVar
 
+import casadi as ca
 import numpy as np
 
 from casmbd.errors import ModelError
-from casmbd.model.bodies import vector
+from casmbd.model.bodies import GROUND, vector
+from casmbd.model.registry import FORCE_KINDS, register_force
 from casmbd.model.values import Value, check_value
 
-FORCE_TYPES = ("force", "torque", "spring_damper", "rotational_spring_damper", "user")
 FRAMES = ("global", "body")
+
+
+def __getattr__(name: str):
+    """``FORCE_TYPES``: the registered force element names, read from the registry."""
+    if name == "FORCE_TYPES":
+        return tuple(FORCE_KINDS)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+class ForceElement:
+    """Base of the force element kinds (no fields: each kind is a dataclass).
+
+    ``kit`` in :meth:`terms` and :meth:`potential` is handed in by the system (so the model
+    layer does not import it): ``kit.ctx`` the system's context (weights are written with it),
+    ``kit.value(value, where)`` turns a number or expression into CasADi, ``kit.term(kind,
+    expr, weight, body=None, name="")`` builds a virtual-work term — ``"measure"``
+    (Q = (∂expr/∂q)ᵀ weight), ``"torque"`` (weight a torque on ``body``) or ``"generalized"``
+    — and ``kit.user_terms(force, ctx)`` gives a user force's terms.
+    """
+
+    #: scene type name (``[[forces]] type``)
+    kind: ClassVar[str] = ""
+    #: scene keys besides name, type and description; None: not available in scenes
+    scene_keys: ClassVar[frozenset[str] | None] = None
+    #: drawing hint for :mod:`casmbd.viz.geometry`: "spring" (a line from ``point1`` on
+    #: ``body1`` to ``point2`` on ``body2``) or "none"
+    drawing: ClassVar[str] = "none"
+
+    @classmethod
+    def create(cls, mech, name: str, *args, **fields) -> ForceElement:
+        """Validate the arguments of ``mech.add(kind, ...)`` and build the element (the
+        default checks a unique name and calls the class; kinds with bodies or joints check
+        them and raise :class:`~casmbd.errors.ModelError` naming the field)."""
+        mech._unique(mech.forces, "force", name)
+        return cls(name, *args, **fields)
+
+    @classmethod
+    def from_scene(cls, mech, entry) -> ForceElement:
+        """Add the element of one ``[[forces]]`` entry to ``mech`` (see
+        :meth:`casmbd.model.joints.Joint.from_scene`)."""
+        raise NotImplementedError(f"force kind '{cls.kind}' cannot be read from a scene")
+
+    def terms(self, kit, ctx) -> list:
+        """Virtual-work terms, measures written with ``ctx`` (the system's context or a
+        perturbed copy for reactions), weights with ``kit.ctx``."""
+        raise NotImplementedError
+
+    def potential(self, kit) -> ca.SX | None:
+        """Potential energy (None: the element's work is not in V)."""
+        return None
 
 
 def _point(value, where: str) -> np.ndarray:
@@ -28,8 +86,9 @@ def _point(value, where: str) -> np.ndarray:
     return vector(value, where, size)
 
 
+@register_force
 @dataclass
-class PointForce:
+class PointForce(ForceElement):
     """A force (2 or 3 values, global or body frame) applied at a body point."""
 
     name: str
@@ -37,6 +96,39 @@ class PointForce:
     value: tuple[Value, Value]
     point: np.ndarray | None = None
     frame: str = "global"
+
+    kind = "force"
+    scene_keys = frozenset({"body", "point", "value", "frame"})
+
+    @classmethod
+    def create(cls, mech, name, body, value, point=None, frame="global"):
+        mech._unique(mech.forces, "force", name)
+        mech._body(body, f"force '{name}' field 'body'")
+        force = cls(name, body, value, point=point, frame=frame)
+        mech._dimension_of(name, "value", len(force.value))
+        if force.point is not None:
+            mech._dimension_of(name, "point", len(force.point))
+        return force
+
+    @classmethod
+    def from_scene(cls, mech, e):
+        name, dim = e.string("name"), mech.dimension
+        value = e.values("value", (dim,))
+        return mech.add("force", name, e.string("body"), value,
+                        point=e.vector("point", dim, required=False),
+                        frame=e.string("frame", default="global"))
+
+    def terms(self, kit, ctx):
+        if self.body == GROUND:
+            return []
+        base = kit.ctx
+        value = ca.vertcat(*[kit.value(v, f"force '{self.name}' field 'value'")
+                             for v in self.value])
+        if self.frame == "body":
+            value = ca.mtimes(base.rotation(self.body), value)
+        local = np.zeros(base.dimension) if self.point is None else \
+            base.local(self.body, self.point)
+        return [kit.term("measure", ctx.point(self.body, local), value)]
 
     def __post_init__(self):
         where = f"force '{self.name}'"
@@ -51,8 +143,9 @@ class PointForce:
                              f"got {self.frame!r}")
 
 
+@register_force
 @dataclass
-class Torque:
+class Torque(ForceElement):
     """A torque on a body: one value in the plane (counter-clockwise positive), three in space
     (global or body frame).  Its generalized force is (∂ω/∂q̇)ᵀ T (virtual rotation)."""
 
@@ -60,6 +153,35 @@ class Torque:
     body: str
     value: Value | tuple
     frame: str = "global"
+
+    kind = "torque"
+    scene_keys = frozenset({"body", "value", "frame"})
+
+    @classmethod
+    def create(cls, mech, name, body, value, frame="global"):
+        mech._unique(mech.forces, "force", name)
+        mech._body(body, f"force '{name}' field 'body'")
+        torque = cls(name, body, value, frame=frame)
+        size = 1 if mech.dimension == 2 else 3
+        if len(torque.value) != size:
+            raise ModelError(f"force '{name}' field 'value': a torque has {size} component(s) "
+                             f"in {mech.dimension} dimensions, got {len(torque.value)}")
+        return torque
+
+    @classmethod
+    def from_scene(cls, mech, e):
+        name = e.string("name")
+        value = e.value("value") if mech.dimension == 2 else e.values("value", (3,))
+        return mech.add("torque", name, e.string("body"), value,
+                        frame=e.string("frame", default="global"))
+
+    def terms(self, kit, ctx):
+        base = kit.ctx
+        value = ca.vertcat(*[kit.value(v, f"force '{self.name}' field 'value'")
+                             for v in self.value])
+        if self.frame == "body" and self.body != GROUND:
+            value = ca.mtimes(base.rotation(self.body), value)
+        return [kit.term("torque", None, value, self.body)]
 
     def __post_init__(self):
         where = f"force '{self.name}' field"
@@ -72,8 +194,9 @@ class Torque:
             raise ModelError(f"{where} 'frame': expected 'global' or 'body', got {self.frame!r}")
 
 
+@register_force
 @dataclass
-class SpringDamper:
+class SpringDamper(ForceElement):
     """Translational spring-damper-actuator between point1 (body1) and point2 (body2).
 
     Tension f = k (l − l0) + c l̇ + a(t) pulls the points together; potential ½ k (l − l0)²
@@ -90,6 +213,55 @@ class SpringDamper:
     free_length: Value | None = None
     actuator: Value = 0.0
 
+    kind = "spring_damper"
+    scene_keys = frozenset({"body1", "body2", "point1", "point2", "stiffness", "damping",
+                            "free_length", "actuator"})
+    drawing = "spring"
+
+    @classmethod
+    def create(cls, mech, name, body1, body2, point1, point2, stiffness=0.0, damping=0.0,
+               free_length=None, actuator=0.0):
+        mech._unique(mech.forces, "force", name)
+        mech._pair(body1, body2, f"force '{name}'")
+        mech._nonnegative(name, stiffness=stiffness, damping=damping,
+                          **({} if free_length is None else {"free_length": free_length}))
+        force = cls(name, body1, body2, point1, point2, stiffness, damping, free_length,
+                    actuator)
+        mech._dimension_of(name, "point1", len(force.point1))
+        mech._dimension_of(name, "point2", len(force.point2))
+        return force
+
+    @classmethod
+    def from_scene(cls, mech, e):
+        name, dim = e.string("name"), mech.dimension
+        return mech.add("spring_damper", name, e.string("body1"), e.string("body2"),
+                        e.vector("point1", dim), e.vector("point2", dim),
+                        stiffness=e.nonnegative("stiffness"), damping=e.nonnegative("damping"),
+                        free_length=e.value("free_length", required=False),
+                        actuator=e.value("actuator", 0.0))
+
+    def length(self, ctx) -> ca.SX:
+        """Distance between the two points, written with ``ctx``."""
+        p1 = ctx.point(self.body1, ctx.local(self.body1, self.point1))
+        p2 = ctx.point(self.body2, ctx.local(self.body2, self.point2))
+        d = p2 - p1
+        return ca.sqrt(ca.dot(d, d))
+
+    def terms(self, kit, ctx):
+        base, where = kit.ctx, f"force '{self.name}' field"
+        length = self.length(base)
+        rate = ca.jtimes(length, base.q, base.v)
+        tension = (kit.value(self.stiffness, f"{where} 'stiffness'")
+                   * (length - kit.value(self.free_length, f"{where} 'free_length'"))
+                   + kit.value(self.damping, f"{where} 'damping'") * rate
+                   + kit.value(self.actuator, f"{where} 'actuator'"))
+        return [kit.term("measure", self.length(ctx), -tension)]
+
+    def potential(self, kit):
+        where = f"force '{self.name}' field"
+        stretch = self.length(kit.ctx) - kit.value(self.free_length, f"{where} 'free_length'")
+        return 0.5 * kit.value(self.stiffness, f"{where} 'stiffness'") * stretch**2
+
     def __post_init__(self):
         where = f"force '{self.name}'"
         self.point1 = _point(self.point1, f"{where} field 'point1'")
@@ -104,8 +276,9 @@ class SpringDamper:
             setattr(self, key, check_value(getattr(self, key), f"{where} field '{key}'"))
 
 
+@register_force
 @dataclass
-class RotationalSpringDamper:
+class RotationalSpringDamper(ForceElement):
     """Rotational spring-damper-actuator at a joint with an angle coordinate φ (revolute,
     cylindrical).
 
@@ -121,14 +294,53 @@ class RotationalSpringDamper:
     actuator: Value = 0.0
     coordinate: str | None = None
 
+    kind = "rotational_spring_damper"
+    scene_keys = frozenset({"joint", "stiffness", "damping", "free_angle", "actuator"})
+
+    @classmethod
+    def create(cls, mech, name, joint, stiffness=0.0, damping=0.0, free_angle=0.0,
+               actuator=0.0):
+        mech._unique(mech.forces, "force", name)
+        mech._nonnegative(name, stiffness=stiffness, damping=damping)
+        joint_obj = mech._joint(joint, f"force '{name}' field 'joint'")
+        if "angle" not in joint_obj.coordinate_names:
+            raise ModelError(f"force '{name}' field 'joint': joint '{joint}' is not revolute")
+        return cls(name, joint, stiffness, damping, free_angle, actuator, coordinate="angle")
+
+    @classmethod
+    def from_scene(cls, mech, e):
+        name = e.string("name")
+        return mech.add("rotational_spring_damper", name, e.string("joint"),
+                        stiffness=e.nonnegative("stiffness"), damping=e.nonnegative("damping"),
+                        free_angle=e.value("free_angle", 0.0), actuator=e.value("actuator", 0.0))
+
+    def terms(self, kit, ctx):
+        base, where = kit.ctx, f"force '{self.name}' field"
+        joint = base.mechanism.joints[self.joint]
+        phi = joint.coordinate(base, self.coordinate)
+        rate = ca.jtimes(phi, base.q, base.v)
+        moment = (kit.value(self.stiffness, f"{where} 'stiffness'")
+                  * (phi - kit.value(self.free_angle, f"{where} 'free_angle'"))
+                  + kit.value(self.damping, f"{where} 'damping'") * rate
+                  + kit.value(self.actuator, f"{where} 'actuator'"))
+        return [kit.term("measure", joint.coordinate(ctx, self.coordinate), -moment)]
+
+    def potential(self, kit):
+        where = f"force '{self.name}' field"
+        base = kit.ctx
+        stretch = (base.mechanism.joints[self.joint].coordinate(base, self.coordinate)
+                   - kit.value(self.free_angle, f"{where} 'free_angle'"))
+        return 0.5 * kit.value(self.stiffness, f"{where} 'stiffness'") * stretch**2
+
     def __post_init__(self):
         where = f"force '{self.name}'"
         for key in ("stiffness", "damping", "free_angle", "actuator"):
             setattr(self, key, check_value(getattr(self, key), f"{where} field '{key}'"))
 
 
+@register_force
 @dataclass
-class UserForce:
+class UserForce(ForceElement):
     """A force given as CasADi expressions of the state.
 
     ``function(ctx)`` receives the assembly context (CasADi symbols ``ctx.q``, ``ctx.v``,
@@ -142,6 +354,18 @@ class UserForce:
     function: Callable
     body: str | None = None
     point: np.ndarray | None = None
+
+    kind = "user"
+
+    @classmethod
+    def create(cls, mech, name, function, body=None, point=None):
+        mech._unique(mech.forces, "force", name)
+        if body is not None:
+            mech._body(body, f"force '{name}' field 'body'")
+        return cls(name, function, body=body, point=point)
+
+    def terms(self, kit, ctx):
+        return kit.user_terms(self, ctx)
 
     def __post_init__(self):
         if not callable(self.function):

@@ -24,6 +24,7 @@ from casmbd.model.bodies import GROUND, Body, Marker, SpatialBody, vector
 from casmbd.model.drivers import BODY_COORDINATES, Driver
 from casmbd.model.forces import (
     Actuator,
+    ForceElement,
     PointForce,
     RotationalSpringDamper,
     SpringDamper,
@@ -31,7 +32,7 @@ from casmbd.model.forces import (
     UserForce,
 )
 from casmbd.model.joints import Joint
-from casmbd.model.registry import joint_kind
+from casmbd.model.registry import FORCE_KINDS, JOINT_KINDS, joint_kind
 from casmbd.model.rotations import euler_zxz_to_quaternion, inertia_tensor
 from casmbd.model.values import Value, check_value, numeric
 
@@ -204,24 +205,32 @@ class Mechanism:
         self._unique(self.joints, "joint", name)
         self._pair(body1, body2, f"joint '{name}'")
 
-    def add(self, kind: str, name: str, *args, **fields) -> Joint:
+    def add(self, kind: str, name: str, *args, **fields) -> Joint | ForceElement:
         """Add an element of a registered kind: ``m.add("revolute", "pin", "ground", "rod",
-        point=(0, 0))``, ``m.add("gear", "g", joint1="a", joint2="b", ratio=2.0)``.
+        point=(0, 0))``, ``m.add("gear", "g", joint1="a", joint2="b", ratio=2.0)``,
+        ``m.add("spring_damper", "s", "ground", "rod", p1, p2, stiffness=100.0)``.
 
-        The kind (:data:`casmbd.model.registry.JOINT_KINDS`) validates its own arguments
-        (:meth:`~casmbd.model.joints.Joint.create`); user kinds registered with
-        :func:`~casmbd.model.registry.register_joint` are added the same way.  The
-        ``add_revolute``, ``add_prismatic``, … methods are thin wrappers of this one.
+        The kind (:data:`~casmbd.model.registry.JOINT_KINDS`,
+        :data:`~casmbd.model.registry.FORCE_KINDS`) validates its own arguments
+        (``create``); user kinds registered with
+        :func:`~casmbd.model.registry.register_joint` or
+        :func:`~casmbd.model.registry.register_force` are added the same way.  The
+        ``add_revolute``, ``add_spring_damper``, … methods are thin wrappers of this one.
 
         Raises
         ------
         ModelError
             An unknown kind (listing the registered ones), a kind not available in this
-            dimension, or an invalid argument (naming the joint and the field).
+            dimension, or an invalid argument (naming the element and the field).
         """
-        if not isinstance(kind, str):
-            raise ModelError(f"joint '{name}': the kind must be a registered type name "
-                             f"(string), got {kind!r}")
+        if not isinstance(kind, str) or (kind not in JOINT_KINDS and kind not in FORCE_KINDS):
+            raise ModelError(f"element '{name}': unknown kind {kind!r} (joints: "
+                             f"{', '.join(JOINT_KINDS)}; force elements: "
+                             f"{', '.join(FORCE_KINDS)})")
+        if kind in FORCE_KINDS:
+            force = FORCE_KINDS[kind].create(self, name, *args, **fields)
+            self.forces[force.name] = force
+            return force
         cls = joint_kind(kind, self.dimension, f"joint '{name}'")
         return self._add_joint(cls.create(self, name, *args, **fields))
 
@@ -307,33 +316,16 @@ class Mechanism:
         return driver
 
     # ------------------------------------------------------------------ forces
-    def _add_force(self, force):
-        self.forces[force.name] = force
-        return force
-
     def add_force(self, name: str, body: str, value: Sequence[Value],
                   point: Sequence[float] | None = None, frame: str = "global") -> PointForce:
         """Point force (2 or 3 components, ``frame`` 'global' or 'body') at ``point`` of
         ``body`` (default: its centre of mass)."""
-        self._unique(self.forces, "force", name)
-        self._body(body, f"force '{name}' field 'body'")
-        force = PointForce(name, body, value, point=point, frame=frame)
-        self._dimension_of(name, "value", len(force.value))
-        if force.point is not None:
-            self._dimension_of(name, "point", len(force.point))
-        return self._add_force(force)
+        return self.add("force", name, body, value, point=point, frame=frame)
 
     def add_torque(self, name: str, body: str, value, frame: str = "global") -> Torque:
         """Torque on ``body``: one value in the plane, three (global or body ``frame``) in
         space."""
-        self._unique(self.forces, "force", name)
-        self._body(body, f"force '{name}' field 'body'")
-        torque = Torque(name, body, value, frame=frame)
-        if len(torque.value) != (1 if self.dimension == 2 else 3):
-            raise ModelError(f"force '{name}' field 'value': a torque has "
-                             f"{1 if self.dimension == 2 else 3} component(s) in "
-                             f"{self.dimension} dimensions, got {len(torque.value)}")
-        return self._add_force(torque)
+        return self.add("torque", name, body, value, frame=frame)
 
     def _dimension_of(self, name: str, key: str, size: int) -> None:
         if size != self.dimension:
@@ -345,37 +337,22 @@ class Mechanism:
                           free_length: Value | None = None,
                           actuator: Value = 0.0) -> SpringDamper:
         """Translational spring-damper-actuator between two points (tension positive)."""
-        self._unique(self.forces, "force", name)
-        self._pair(body1, body2, f"force '{name}'")
-        self._nonnegative(name, stiffness=stiffness, damping=damping,
-                          **({} if free_length is None else {"free_length": free_length}))
-        force = SpringDamper(name, body1, body2, point1, point2, stiffness, damping,
-                             free_length, actuator)
-        self._dimension_of(name, "point1", len(force.point1))
-        self._dimension_of(name, "point2", len(force.point2))
-        return self._add_force(force)
+        return self.add("spring_damper", name, body1, body2, point1, point2,
+                        stiffness=stiffness, damping=damping, free_length=free_length,
+                        actuator=actuator)
 
     def add_rotational_spring_damper(self, name: str, joint: str, stiffness: Value = 0.0,
                                      damping: Value = 0.0, free_angle: Value = 0.0,
                                      actuator: Value = 0.0) -> RotationalSpringDamper:
         """Rotational spring-damper-actuator on the angle of a revolute (or cylindrical)
         joint."""
-        self._unique(self.forces, "force", name)
-        self._nonnegative(name, stiffness=stiffness, damping=damping)
-        joint_obj = self._joint(joint, f"force '{name}' field 'joint'")
-        if "angle" not in joint_obj.coordinate_names:
-            raise ModelError(f"force '{name}' field 'joint': joint '{joint}' is not revolute")
-        return self._add_force(RotationalSpringDamper(name, joint, stiffness, damping,
-                                                      free_angle, actuator,
-                                                      coordinate="angle"))
+        return self.add("rotational_spring_damper", name, joint, stiffness=stiffness,
+                        damping=damping, free_angle=free_angle, actuator=actuator)
 
     def add_user_force(self, name: str, function: Callable, body: str | None = None,
                        point: Sequence[float] | None = None) -> UserForce:
         """A force written as CasADi expressions of (q, v, t, u, p); see :class:`UserForce`."""
-        self._unique(self.forces, "force", name)
-        if body is not None:
-            self._body(body, f"force '{name}' field 'body'")
-        return self._add_force(UserForce(name, function, body=body, point=point))
+        return self.add("user", name, function, body=body, point=point)
 
     def add_actuator(self, name: str, joint: str, coordinate: str | None = None) -> Actuator:
         """A generalized-force input u along a coordinate of ``joint`` (default its first)."""

@@ -6,7 +6,8 @@ scene type name (``kind``), the mechanism dimensions it serves (``dimensions``),
 and from a scene entry (:meth:`~casmbd.model.joints.Joint.from_scene`), its constraint
 equations, its tree motion in joint coordinates and its drawing hint.  Registering it here is
 all the scene loader, :meth:`casmbd.model.Mechanism.add`, tree building and the drawing need:
-none of them names a kind.
+none of them names a kind.  A force element kind (:data:`FORCE_KINDS`, a subclass of
+:class:`casmbd.model.forces.ForceElement`) declares the same and its virtual-work terms.
 
 One scene name may have one class per dimension (``"revolute"`` is
 :class:`~casmbd.model.joints.Revolute` in the plane and
@@ -29,6 +30,8 @@ from casmbd.errors import ModelError
 
 #: scene type name → {dimension: joint class}
 JOINT_KINDS: dict[str, dict[int, type]] = {}
+#: force element type name → class (one class serves both dimensions)
+FORCE_KINDS: dict[str, type] = {}
 
 _Kind = TypeVar("_Kind", bound=type)
 
@@ -61,6 +64,9 @@ def register_joint(kind: _Kind | None = None, *, replace: bool = False):
     if not isinstance(name, str) or not name.isidentifier():
         raise ModelError(f"joint kind {kind.__name__}: class attribute 'kind' must be an "
                          f"identifier (the scene type name), got {name!r}")
+    if name in FORCE_KINDS:
+        raise ModelError(f"joint kind '{name}' ({kind.__name__}): the name is a force "
+                         "element kind")
     if not dims or any(d not in (2, 3) for d in dims):
         raise ModelError(f"joint kind '{name}' ({kind.__name__}): class attribute "
                          f"'dimensions' must list 2 and/or 3, got {dims!r}")
@@ -71,6 +77,33 @@ def register_joint(kind: _Kind | None = None, *, replace: bool = False):
             raise ModelError(f"joint kind '{name}' in {dim} dimensions is already "
                              f"registered ({old.__name__}); pass replace=True to override")
         table[dim] = kind
+    return kind
+
+
+def register_force(kind: _Kind | None = None, *, replace: bool = False):
+    """Register a force element class under its ``kind`` name (``[[forces]] type``).
+
+    Usable as a class decorator like :func:`register_joint`; the class derives from
+    :class:`casmbd.model.forces.ForceElement`.
+
+    Raises
+    ------
+    ModelError
+        When the class declares no name, or the name is taken (by a force element or a joint
+        kind: ``Mechanism.add`` looks both up by name).
+    """
+    if kind is None:
+        return lambda cls: register_force(cls, replace=replace)
+    name = getattr(kind, "kind", None)
+    if not isinstance(name, str) or not name.isidentifier():
+        raise ModelError(f"force kind {kind.__name__}: class attribute 'kind' must be an "
+                         f"identifier (the scene type name), got {name!r}")
+    old = FORCE_KINDS.get(name)
+    if name in JOINT_KINDS or (old is not None and old is not kind and not replace):
+        taken = "a joint kind" if name in JOINT_KINDS else old.__name__
+        raise ModelError(f"force kind '{name}' is already registered ({taken}); pass "
+                         "replace=True to override a force kind")
+    FORCE_KINDS[name] = kind
     return kind
 
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+from types import SimpleNamespace
 
 import casadi as ca
 import numpy as np
@@ -26,13 +27,7 @@ import numpy as np
 from casmbd.errors import ModelError
 from casmbd.interrupts import reraise_interrupt
 from casmbd.model.bodies import GROUND
-from casmbd.model.forces import (
-    PointForce,
-    RotationalSpringDamper,
-    SpringDamper,
-    Torque,
-    UserForce,
-)
+from casmbd.model.forces import ForceElement, SpringDamper, UserForce
 from casmbd.model.values import resolve
 from casmbd.system.context import Context
 from casmbd.system.descriptions import COORDINATE_CHOICES, describe
@@ -533,48 +528,22 @@ class System:
             terms.append(_Term("measure", coord, self.u[i]))
         return terms
 
+    @cached_property
+    def _force_kit(self) -> SimpleNamespace:
+        """What a force element kind needs to write its terms (see
+        :class:`casmbd.model.forces.ForceElement`), handed in so the model layer does not
+        import this one."""
+        return SimpleNamespace(ctx=self.ctx, value=self._value, term=_Term,
+                               user_terms=self._user_terms)
+
     def _element_terms(self, force, ctx) -> list[_Term]:
-        base, where = self.ctx, f"force '{force.name}' field"
-        if isinstance(force, PointForce):
-            if force.body == GROUND:
-                return []
-            value = ca.vertcat(*[self._value(v, f"{where} 'value'") for v in force.value])
-            if force.frame == "body":
-                value = ca.mtimes(base.rotation(force.body), value)
-            pos = ctx.point(force.body, self._point_local(force.body, force.point))
-            return [_Term("measure", pos, value)]
-        if isinstance(force, Torque):
-            value = ca.vertcat(*[self._value(v, f"{where} 'value'") for v in force.value])
-            if force.frame == "body" and force.body != GROUND:
-                value = ca.mtimes(base.rotation(force.body), value)
-            return [_Term("torque", None, value, force.body)]
-        if isinstance(force, SpringDamper):
-            length = self._spring_length(force, base)
-            rate = ca.jtimes(length, self.q, self.v)
-            tension = (self._value(force.stiffness, f"{where} 'stiffness'")
-                       * (length - self._value(force.free_length, f"{where} 'free_length'"))
-                       + self._value(force.damping, f"{where} 'damping'") * rate
-                       + self._value(force.actuator, f"{where} 'actuator'"))
-            return [_Term("measure", self._spring_length(force, ctx), -tension)]
-        if isinstance(force, RotationalSpringDamper):
-            joint = self.mechanism.joints[force.joint]
-            phi = joint.coordinate(base, force.coordinate)
-            rate = ca.jtimes(phi, self.q, self.v)
-            moment = (self._value(force.stiffness, f"{where} 'stiffness'")
-                      * (phi - self._value(force.free_angle, f"{where} 'free_angle'"))
-                      + self._value(force.damping, f"{where} 'damping'") * rate
-                      + self._value(force.actuator, f"{where} 'actuator'"))
-            return [_Term("measure", joint.coordinate(ctx, force.coordinate), -moment)]
-        if isinstance(force, UserForce):
-            return self._user_terms(force, ctx)
-        raise ModelError(f"force '{force.name}': unsupported type {type(force).__name__}")
+        """The virtual-work terms of one force element, from its kind."""
+        if not isinstance(force, ForceElement):
+            raise ModelError(f"force '{force.name}': unsupported type {type(force).__name__}")
+        return force.terms(self._force_kit, ctx)
 
     def _spring_length(self, force: SpringDamper, ctx=None) -> ca.SX:
-        ctx = ctx or self.ctx
-        p1 = ctx.point(force.body1, ctx.local(force.body1, force.point1))
-        p2 = ctx.point(force.body2, ctx.local(force.body2, force.point2))
-        d = p2 - p1
-        return ca.sqrt(ca.dot(d, d))
+        return force.length(ctx or self.ctx)
 
     @cached_property
     def _user_outputs(self) -> dict[str, tuple]:
@@ -639,17 +608,10 @@ class System:
         for name in self.body_names:
             m, _ = self._mass_inertia(mech.bodies[name])
             total -= m * ca.dot(ca.DM(mech.gravity), ctx.centre_of_mass(name))
-        for force in mech.forces.values():
-            where = f"force '{force.name}' field"
-            if isinstance(force, SpringDamper):
-                stretch = (self._spring_length(force)
-                           - self._value(force.free_length, f"{where} 'free_length'"))
-            elif isinstance(force, RotationalSpringDamper):
-                stretch = (mech.joints[force.joint].coordinate(ctx, force.coordinate)
-                           - self._value(force.free_angle, f"{where} 'free_angle'"))
-            else:
-                continue
-            total += 0.5 * self._value(force.stiffness, f"{where} 'stiffness'") * stretch**2
+        for force in mech.forces.values():  # each kind says whether its work is in V
+            energy = force.potential(self._force_kit)
+            if energy is not None:
+                total += energy
         return total
 
     # ------------------------------------------------------------------ outputs

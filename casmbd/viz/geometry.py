@@ -103,8 +103,8 @@ class Geometry:
                 geo.guides.append((np.asarray(point, float), axis / np.linalg.norm(axis)))
         for name, marker in mechanism.markers.items():
             attach(marker.body, f"marker:{name}", marker.point)
-        for name, force in mechanism.forces.items():
-            if hasattr(force, "point1") and hasattr(force, "point2"):
+        for name, force in mechanism.forces.items():  # each kind's ``drawing`` hint
+            if getattr(force, "drawing", "none") == "spring":
                 b1, b2 = force.body1, force.body2
                 geo.links.append((name, b1, local(b1, force.point1), b2,
                                   local(b2, force.point2), "spring"))
