@@ -4,6 +4,7 @@ from casmbd.model.bodies import GROUND, Body, Marker, SpatialBody
 from casmbd.model.drivers import Driver
 from casmbd.model.forces import (
     Actuator,
+    ForceElement,
     PointForce,
     RotationalSpringDamper,
     SpringDamper,
@@ -13,7 +14,7 @@ from casmbd.model.forces import (
 from casmbd.model.gear import Gear
 from casmbd.model.joints import Distance, Fixed, Joint, Prismatic, Revolute, Rigid
 from casmbd.model.mechanism import Mechanism
-from casmbd.model.registry import JOINT_KINDS, register_joint
+from casmbd.model.registry import FORCE_KINDS, JOINT_KINDS, register_force, register_joint
 from casmbd.model.spatial_joints import (
     Cylindrical,
     SpatialFixed,
@@ -24,9 +25,9 @@ from casmbd.model.spatial_joints import (
     Universal,
 )
 
-__all__ = ["GROUND", "JOINT_KINDS", "Actuator", "Body", "Cylindrical", "Distance", "Driver",
-           "Fixed", "Gear", "Joint",
+__all__ = ["FORCE_KINDS", "GROUND", "JOINT_KINDS", "Actuator", "Body", "Cylindrical", "Distance",
+           "Driver", "Fixed", "ForceElement", "Gear", "Joint",
            "Marker", "Mechanism", "PointForce", "Prismatic", "Revolute", "Rigid",
            "RotationalSpringDamper", "SpatialBody", "SpatialFixed", "SpatialPrismatic",
            "SpatialRevolute", "SpatialRigid", "Spherical", "SpringDamper", "Torque", "Universal",
-           "UserForce", "register_joint"]
+           "UserForce", "register_force", "register_joint"]
