@@ -19,31 +19,19 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
-from types import SimpleNamespace
 
 import casadi as ca
 import numpy as np
 
 from casmbd.errors import ModelError
-from casmbd.interrupts import reraise_interrupt
 from casmbd.model.bodies import GROUND
-from casmbd.model.forces import ForceElement, SpringDamper, UserForce
 from casmbd.model.values import resolve
 from casmbd.system.context import Context
 from casmbd.system.descriptions import COORDINATE_CHOICES, describe
+from casmbd.system.forces import AppliedForces
+from casmbd.system.outputs import Outputs
+from casmbd.system.reactions import Reactions
 from casmbd.system.tree import TreeKinematics, tree_descriptions
-
-
-@dataclass
-class _Term:
-    """One virtual-work term of an applied force: ``measure`` (Q = (∂expr/∂q)ᵀ weight),
-    ``torque`` (weight a torque on ``body``) or ``generalized`` (weight a vector of n_q)."""
-
-    kind: str
-    expr: ca.SX | None
-    weight: ca.SX
-    body: str | None = None
-    name: str = ""
 
 
 @dataclass(frozen=True)
@@ -73,8 +61,13 @@ SIGNATURES: dict[str, tuple[tuple[str, ...], str]] = {
 }
 
 
-class System:
+class System(AppliedForces, Outputs, Reactions):
     """Symbolic equations of a mechanism: planar or spatial, absolute or natural coordinates.
+
+    This class keeps the core — coordinates and symbols, constraints C, C_q, C_t, γ, and the
+    inertia terms M, Q_v, T — and takes one job from each mixin: applied forces, virtual work
+    and potential (:mod:`casmbd.system.forces`), outputs (:mod:`casmbd.system.outputs`) and
+    joint reactions from the multipliers (:mod:`casmbd.system.reactions`).
 
     Parameters
     ----------
@@ -191,19 +184,22 @@ class System:
             rows.append(eqs)
             labels += [Equation("joint", joint.name, lab) for lab in joint.labels]
         for driver in self.mechanism.drivers.values():
-            target = self._value(driver.position, f"driver '{driver.name}' field 'position'")
-            if driver.joint is not None:
-                residual = self.mechanism.joints[driver.joint].driver_residual(
-                    ctx, target, driver.coordinate)
-            elif driver.coordinate == "angle":
-                residual = ctx.angle_residual(GROUND, driver.body, target)
-            else:
-                k = ("x", "y", "z").index(driver.coordinate)
-                residual = ctx.reference(driver.body)[k] - target
-            rows.append(residual)
+            rows.append(self._driver_residual(driver, ctx))
             labels.append(Equation("driver", driver.name, driver.coordinate or "coordinate"))
         c = ca.vertcat(*rows) if rows else ca.SX(0, 1)
         return c, labels
+
+    def _driver_residual(self, driver, ctx) -> ca.SX:
+        """Row of C of one driver written with ``ctx``: its joint's coordinate, a body angle or
+        a reference-point coordinate minus the prescribed position."""
+        target = self._value(driver.position, f"driver '{driver.name}' field 'position'")
+        if driver.joint is not None:
+            return self.mechanism.joints[driver.joint].driver_residual(
+                ctx, target, driver.coordinate)
+        if driver.coordinate == "angle":
+            return ctx.angle_residual(GROUND, driver.body, target)
+        k = ("x", "y", "z").index(driver.coordinate)
+        return ctx.reference(driver.body)[k] - target
 
     @property
     def constraint_labels(self) -> list[Equation]:
@@ -468,439 +464,6 @@ class System:
                 spin = ca.bilin(inertia, body_omega, body_omega)
             total += 0.5 * (mass * ca.dot(vel, vel) + spin)
         return total
-
-    # ------------------------------------------------------------------ forces
-    def _point_local(self, body: str, point) -> np.ndarray:
-        if point is None:
-            return np.zeros(self.dimension)
-        return self.ctx.local(body, point)
-
-    def _torque(self, body: str, torque: ca.SX) -> ca.SX:
-        """Generalized force of a torque (global components): (∂ω/∂v)ᵀ T, seed 001 eq. on the
-        virtual rotation δπ (ω linear in v, so ∂ω/∂v maps δq to the virtual rotation)."""
-        if body == GROUND:
-            return ca.SX.zeros(self.nq)
-        omega = self.ctx.angular_velocity(body)
-        return ca.mtimes(ca.jacobian(omega, self.v).T, ca.vec(torque))
-
-    @cached_property
-    def applied_forces(self) -> ca.SX:
-        """Q_e(q, v, t, u, p): gravity, force elements, user forces and actuators.
-
-        Each force contributes by virtual work, Q = (∂s/∂q)ᵀ w for a term acting with weight w
-        along the measure s(q) (a point's position, a spring's length, a joint coordinate), and
-        Q = (∂ω/∂q̇)ᵀ T for a torque (seed 000, eqs. 6.40–6.48).
-        """
-        total = ca.SX.zeros(self.nq)
-        exprs, weights, omegas, torques = [], [], [], []
-        for term in self._force_terms(self.ctx):
-            if term.kind == "measure":
-                exprs.append(ca.vec(term.expr))
-                weights.append(ca.vec(term.weight))
-            elif term.kind == "torque":
-                if term.body != GROUND:
-                    omegas.append(self.ctx.angular_velocity(term.body))
-                    torques.append(ca.vec(term.weight))
-            else:
-                total += term.weight
-        # one reverse-mode sweep for all terms: Σ (∂s_k/∂q)ᵀ w_k = (∂s/∂q)ᵀ w, linear in the
-        # size of the expression graph (a Jacobian per term would cost O(N²) in a tree)
-        if exprs:
-            total += ca.jtimes(ca.vertcat(*exprs), self.q, ca.vertcat(*weights), True)
-        if omegas:
-            total += ca.jtimes(ca.vertcat(*omegas), self.v, ca.vertcat(*torques), True)
-        return total
-
-    def _force_terms(self, ctx) -> list[_Term]:
-        """The virtual-work terms of every applied force, measures written with ``ctx`` (the
-        system's context or a perturbed copy), weights with the system's context."""
-        mech = self.mechanism
-        terms: list[_Term] = []
-        g = ca.DM(mech.gravity)
-        if np.any(mech.gravity):
-            for name in self.body_names:
-                m, _ = self._mass_inertia(mech.bodies[name])
-                terms.append(_Term("measure", ctx.centre_of_mass(name), m * g))
-        for force in mech.forces.values():
-            terms += self._element_terms(force, ctx)
-        for i, act in enumerate(mech.actuators.values()):
-            coord = mech.joints[act.joint].coordinate(ctx, act.coordinate)
-            terms.append(_Term("measure", coord, self.u[i]))
-        return terms
-
-    @cached_property
-    def _force_kit(self) -> SimpleNamespace:
-        """What a force element kind needs to write its terms (see
-        :class:`casmbd.model.forces.ForceElement`), handed in so the model layer does not
-        import this one."""
-        return SimpleNamespace(ctx=self.ctx, value=self._value, term=_Term,
-                               user_terms=self._user_terms)
-
-    def _element_terms(self, force, ctx) -> list[_Term]:
-        """The virtual-work terms of one force element, from its kind."""
-        if not isinstance(force, ForceElement):
-            raise ModelError(f"force '{force.name}': unsupported type {type(force).__name__}")
-        return force.terms(self._force_kit, ctx)
-
-    def _spring_length(self, force: SpringDamper, ctx=None) -> ca.SX:
-        return force.length(ctx or self.ctx)
-
-    @cached_property
-    def _user_outputs(self) -> dict[str, tuple]:
-        """What each user force function returns, called once with the system's context."""
-        out = {}
-        for force in self.mechanism.forces.values():
-            if isinstance(force, UserForce):
-                out[force.name] = self._call_user(force)
-        return out
-
-    def _call_user(self, force: UserForce) -> tuple:
-        where = f"force '{force.name}'"
-        try:
-            out = force.function(self.ctx)
-        except ModelError:
-            raise
-        except Exception as exc:  # a user's callable may raise anything
-            reraise_interrupt(exc)
-            raise ModelError(f"{where}: the user function raised {type(exc).__name__}: "
-                             f"{exc}") from exc
-        if force.body is None:
-            vec = ca.SX(out)
-            if vec.shape != (self.nq, 1):
-                raise ModelError(f"{where}: generalized force must have shape ({self.nq}, 1), "
-                                 f"got {vec.shape}")
-            return vec, None
-        torque = None
-        if isinstance(out, tuple):
-            out, torque = out
-        vec = ca.vec(ca.SX(out))
-        if vec.numel() != self.dimension:
-            raise ModelError(f"{where}: the force must have {self.dimension} components, got "
-                             f"{vec.shape}")
-        if torque is not None:
-            torque = ca.vec(ca.SX(torque))
-            size = 1 if self.dimension == 2 else 3
-            if torque.numel() != size:
-                raise ModelError(f"{where}: the torque must have {size} component(s), got "
-                                 f"{torque.shape}")
-        return vec, torque
-
-    def _user_terms(self, force: UserForce, ctx) -> list[_Term]:
-        vec, torque = self._user_outputs[force.name]
-        if force.body is None:
-            return [_Term("generalized", None, vec, None, force.name)]
-        pos = ctx.point(force.body, self._point_local(force.body, force.point))
-        terms = [_Term("measure", pos, vec)]
-        if torque is not None:
-            terms.append(_Term("torque", None, torque, force.body))
-        return terms
-
-    @cached_property
-    def input_matrix(self) -> ca.SX:
-        """B = ∂Q_e/∂u: how the actuator inputs enter the generalized forces."""
-        return ca.jacobian(self.applied_forces, self.u)
-
-    @cached_property
-    def potential_energy(self) -> ca.SX:
-        """V(q, t, p) of gravity and springs (other forces are not conservative)."""
-        ctx, mech = self.ctx, self.mechanism
-        total = ca.SX(0.0)
-        for name in self.body_names:
-            m, _ = self._mass_inertia(mech.bodies[name])
-            total -= m * ca.dot(ca.DM(mech.gravity), ctx.centre_of_mass(name))
-        for force in mech.forces.values():  # each kind says whether its work is in V
-            energy = force.potential(self._force_kit)
-            if energy is not None:
-                total += energy
-        return total
-
-    # ------------------------------------------------------------------ outputs
-    @cached_property
-    def joint_coordinate_names(self) -> list[str]:
-        """Joint coordinates, in declaration order: the joint's name for its first coordinate,
-        ``joint.coordinate`` for further ones (the angle of a cylindrical joint)."""
-        out = []
-        for joint in self.mechanism.joints.values():
-            for k, coord in enumerate(joint.coordinate_names):
-                out.append(joint.name if k == 0 else f"{joint.name}.{coord}")
-        return out
-
-    def _joint_coordinate(self, key: str) -> ca.SX:
-        name, _, coord = key.partition(".")
-        return self.mechanism.joints[name].coordinate(self.ctx, coord or None)
-
-    def outputs_function(self) -> ca.Function:
-        """Body, marker and joint outputs of (q, v, a, t, p), every output a column.
-
-        Positions are stacked per point (x0, y0, x1, y1, …); velocities are J v and
-        accelerations J a + J̇ v of the same expressions.  Planar bodies give their angle
-        (``angle_*``); spatial bodies their rotation matrix (``rotation_matrices``, 9 per body,
-        row by row) and global angular velocity and acceleration (3 per body).
-        """
-        if "outputs" not in self._functions:
-            ctx, mech = self.ctx, self.mechanism
-            a = ca.SX.sym("a", self.nq)
-            com = ca.vertcat(*[ctx.centre_of_mass(b) for b in self.body_names])
-            mk = [ctx.position(m.body, m.point) for m in mech.markers.values()]
-            markers = ca.vertcat(*mk) if mk else ca.SX(0, 1)
-            jc = [self._joint_coordinate(j) for j in self.joint_coordinate_names]
-            joints = ca.vertcat(*jc) if jc else ca.SX(0, 1)
-            groups = [("body_", com)]
-            if self.dimension == 2:
-                groups.append(("angle_", ca.vertcat(*[ctx.angle(b) for b in self.body_names])))
-            groups += [("marker_", markers), ("joint_", joints)]
-            names, exprs = [], []
-            for label, expr in groups:
-                vel = ca.jtimes(expr, self.q, self.v)
-                acc = ca.jtimes(expr, self.q, a) + ca.jtimes(vel, self.q, self.v)
-                exprs += [expr, vel, acc]
-                names += [label + "positions", label + "velocities", label + "accelerations"]
-            if self.dimension == 3:
-                rot = ca.vertcat(*[ca.vec(ctx.rotation(b).T) for b in self.body_names])
-                omega = ca.vertcat(*[ctx.angular_velocity(b) for b in self.body_names])
-                alpha = ca.jtimes(omega, self.q, self.v) + ca.jtimes(omega, self.v, a)
-                exprs += [rot, omega, alpha]
-                names += ["rotation_matrices", "angular_velocities", "angular_accelerations"]
-            self._functions["outputs"] = ca.Function(
-                "outputs", [self.q, self.v, a, self.t, self.p], exprs,
-                ["q", "v", "a", "t", "p"], names)
-        return self._functions["outputs"]
-
-    @cached_property
-    def joint_rows(self) -> dict[str, list[int]]:
-        """Rows of C belonging to each joint."""
-        rows: dict[str, list[int]] = {name: [] for name in self.mechanism.joints}
-        for i, lab in enumerate(self.constraint_labels):
-            if lab.kind == "joint":
-                rows[lab.element].append(i)
-        return rows
-
-    @cached_property
-    def driver_rows(self) -> dict[str, int]:
-        """Row of C of each driver."""
-        return {lab.element: i for i, lab in enumerate(self.constraint_labels)
-                if lab.kind == "driver"}
-
-    # ------------------------------------------------------------------ reactions
-    def _cross(self, arm: ca.SX, force: ca.SX) -> ca.SX:
-        if self.dimension == 2:
-            return arm[0] * force[1] - arm[1] * force[0]
-        return ca.cross(arm, force)
-
-    def _perturbation(self, body: str):
-        if not hasattr(self, "_perturbed"):
-            self._perturbed: dict[str, tuple] = {}
-        if body not in self._perturbed:
-            self._perturbed[body] = self.ctx.perturbed(body)
-        return self._perturbed[body]
-
-    def _constraint_wrench(self, body: str, lam: ca.SX, rows=None) -> ca.SX:
-        """Force and moment about G that constraint rows (with multipliers λ) exert on ``body``:
-        −(∂C/∂e)ᵀ λ, the virtual-work counterpart of Q_c = −C_qᵀ λ (seed 000, eq. 6.145)."""
-        ctx, e = self._perturbation(body)
-        rows = list(range(self.nc)) if rows is None else rows
-        # e moves ``body`` alone: only the equations of elements attached to it depend on e,
-        # so only those are written again (all of them per body made the build O(N²))
-        cons, index = self._constraints_touching(ctx, body)
-        wanted = set(rows)
-        keep = [k for k, r in enumerate(index) if r in wanted]
-        if not keep:
-            return ca.SX.zeros(e.numel())
-        jac = ca.jacobian(cons[keep], e)
-        lam_k = ca.vertcat(*[lam[index[k]] for k in keep])
-        return ca.substitute(-ca.mtimes(jac.T, lam_k), e, ca.DM.zeros(e.numel()))
-
-    @cached_property
-    def _element_rows(self) -> dict[tuple[str, str], list[int]]:
-        """Rows of C by (kind, element) in the order of :meth:`_constraints_with`."""
-        out: dict[tuple[str, str], list[int]] = {}
-        for i, lab in enumerate(self.constraint_labels):
-            out.setdefault((lab.kind, lab.element), []).append(i)
-        return out
-
-    def _constraints_touching(self, ctx, body: str) -> tuple[ca.SX, list[int]]:
-        """The equations of C that involve ``body`` (its own description's, its joints', the
-        drivers of those joints or of the body) written with ``ctx``, and their row indices."""
-        rows, index = [], []
-        elements = self._element_rows
-        desc = self.descriptions.get(body)
-        if desc is not None and ("body", body) in elements:
-            eqs, _ = desc.constraints(ctx.coordinates(body))
-            rows.append(ca.vec(eqs))
-            index += elements[("body", body)]
-        touching = set()
-        for joint in self.mechanism.joints.values():
-            if body in joint.bodies:  # a gear involves the bodies of both its joints
-                touching.add(joint.name)
-                if ("joint", joint.name) in elements:
-                    rows.append(ca.vec(joint.equations(ctx)))
-                    index += elements[("joint", joint.name)]
-        for driver in self.mechanism.drivers.values():
-            if (driver.joint in touching or driver.body == body) and \
-                    ("driver", driver.name) in elements:
-                target = self._value(driver.position,
-                                     f"driver '{driver.name}' field 'position'")
-                if driver.joint is not None:
-                    residual = self.mechanism.joints[driver.joint].driver_residual(
-                        ctx, target, driver.coordinate)
-                elif driver.coordinate == "angle":
-                    residual = ctx.angle_residual(GROUND, driver.body, target)
-                else:
-                    k = ("x", "y", "z").index(driver.coordinate)
-                    residual = ctx.reference(driver.body)[k] - target
-                rows.append(ca.vec(residual))
-                index += elements[("driver", driver.name)]
-        return (ca.vertcat(*rows) if rows else ca.SX(0, 1)), index
-
-    def _applied_wrench(self, body: str) -> tuple[ca.SX, list[str]]:
-        """Force and moment about G of every applied force on ``body``, and the names of user
-        generalized forces that cannot be attributed to bodies."""
-        ctx, e = self._perturbation(body)
-        total = ca.SX.zeros(e.numel())
-        unknown = []
-        dim = self.dimension
-        for term in self._force_terms(ctx):
-            if term.kind == "measure":
-                total += ca.mtimes(ca.jacobian(term.expr, e).T, term.weight)
-            elif term.kind == "torque":
-                if term.body == body:
-                    total[dim:] += term.weight
-            else:
-                unknown.append(term.name)
-        return ca.substitute(total, e, ca.DM.zeros(e.numel())), unknown
-
-    def _inertial_wrench(self, body: str, a: ca.SX) -> ca.SX:
-        """(m a_G, Ḣ_G): Newton–Euler's rate of momentum of ``body`` (seed 001; seed 004)."""
-        ctx = self.ctx
-        mass, inertia = self._mass_inertia(self.mechanism.bodies[body])
-        if not self.local:
-            nw = 1 if self.dimension == 2 else 3
-            if getattr(self, "_tree_acc", (None,))[0] is not a:
-                self._tree_acc = (a, self.tree_kinematics.accelerations(a))
-            full = self._tree_acc[1][body]
-            omega = self.tree_kinematics.twist[body][:nw]
-            alpha, acc = full[:nw], full[nw:]
-        else:
-            r_g = ctx.centre_of_mass(body)
-            vel = ca.jtimes(r_g, self.q, self.v)
-            acc = ca.jtimes(vel, self.q, self.v) + ca.jtimes(r_g, self.q, a)
-            omega = ctx.angular_velocity(body)
-            alpha = ca.jtimes(omega, self.q, self.v) + ca.jtimes(omega, self.v, a)
-        if self.dimension == 2:
-            return ca.vertcat(mass * acc, inertia * alpha)
-        rot = ctx.rotation(body)
-        tensor = ca.mtimes([rot, inertia, rot.T])
-        h_dot = ca.mtimes(tensor, alpha) + ca.cross(omega, ca.mtimes(tensor, omega))
-        return ca.vertcat(mass * acc, h_dot)
-
-    def _reaction_point(self, joint, body: str) -> ca.SX:
-        point = joint.reaction_point()
-        if point is None:
-            point = self.ctx.initial_position(joint.body2)
-        return self.ctx.point(body, self.ctx.local(body, point))
-
-    def reactions_function(self) -> ca.Function:
-        """Joint reactions, one column per joint: the action of body1 on body2 at the joint
-        point, global components — (F_x, F_y, M) in the plane, (F, M) in space.
-
-        Joints with constraint rows (absolute and natural coordinates, loop joints of joint
-        coordinates): the force and moment about G of body2 (body1 when body2 is the ground,
-        with the sign changed) are −(∂C_k/∂e)ᵀ λ_k for a virtual rigid displacement e of that
-        body — the virtual-work form of Q_c = −C_qᵀ λ (seed 000, eq. 6.145) — and the moment
-        is carried to the joint point, M_P = M_G − (r_P − r_G) × F (eqs. 6.146–6.151).
-
-        Joints of the spanning tree (joint coordinates) have no multipliers: their reactions
-        follow from Newton–Euler body by body, from the leaves to the root (seed 002, "Joint
-        Forces Calculation"): F = m a_G − F_applied − F_constraints + Σ F_children,
-        M_G = Ḣ_G − M_applied − M_constraints + Σ (M_child + (r_child − r_G) × F_child).
-        Driver multipliers are not included: a driver's effort is reported on its own.  A user
-        generalized force that is not attached to a body makes tree reactions undeterminable
-        (NaN).
-        """
-        if "joint_reactions" not in self._functions:
-            lam = ca.SX.sym("lambda", self.nc)
-            a = ca.SX.sym("a", self.nq)
-            cols: dict[str, ca.SX] = {}
-            mech = self.mechanism
-            joint_only = [i for i, lab in enumerate(self.constraint_labels)
-                          if lab.kind == "joint"]
-            for name, rows in self.joint_rows.items():
-                if name in self.tree_joints:
-                    continue
-                joint = mech.joints[name]
-                body, sign = (joint.body2, 1.0) if joint.body2 != GROUND else \
-                    (joint.body1, -1.0)
-                wrench = sign * self._constraint_wrench(body, lam, rows)
-                cols[name] = self._at_point(joint, body, wrench)
-            if self.tree_joints:
-                cols.update(self._tree_reactions(a, lam, joint_only))
-            size = self.reaction_size
-            out = ca.horzcat(*[cols[n] for n in mech.joints]) if mech.joints else \
-                ca.SX(size, 0)
-            self._functions["joint_reactions"] = ca.Function(
-                "joint_reactions", [self.q, self.v, a, self.t, self.u, self.p, lam], [out],
-                ["q", "v", "a", "t", "u", "p", "lambda"], ["reactions"])
-        return self._functions["joint_reactions"]
-
-    def _at_point(self, joint, body: str, wrench: ca.SX) -> ca.SX:
-        """Carry a wrench (force, moment about G of ``body``) to the joint's point."""
-        dim = self.dimension
-        force, moment = wrench[:dim], wrench[dim:]
-        arm = self._reaction_point(joint, body) - self.ctx.centre_of_mass(body)
-        return ca.vertcat(force, moment - self._cross(arm, force))
-
-    def _tree_reactions(self, a: ca.SX, lam: ca.SX, rows: list[int]) -> dict[str, ca.SX]:
-        """Reactions of the tree joints by the recursion from the leaves (see
-        :meth:`reactions_function`); ``rows`` are the loop-joint rows whose multipliers act
-        on the bodies (driver rows excluded, like in absolute coordinates)."""
-        dim = self.dimension
-        order = [name for name in self.body_names]
-        children: dict[str, list[str]] = {name: [] for name in order}
-        for name in order:
-            parent = self.descriptions[name].parent
-            if parent != GROUND:
-                children[parent].append(name)
-        # bodies after their parents: reverse topological order for the recursion
-        ranked, seen = [], set()
-
-        def visit(name):
-            if name in seen:
-                return
-            parent = self.descriptions[name].parent
-            if parent != GROUND:
-                visit(parent)
-            seen.add(name)
-            ranked.append(name)
-
-        for name in order:
-            visit(name)
-        driver_rows = [i for i, lab in enumerate(self.constraint_labels) if lab.kind == "driver"]
-        joint_wrench: dict[str, ca.SX] = {}  # on the body from its parent, about the joint pt
-        out: dict[str, ca.SX] = {}
-        for name in reversed(ranked):
-            desc = self.descriptions[name]
-            applied, unknown = self._applied_wrench(name)
-            # drivers act inside their joints: like absolute coordinates, reactions exclude
-            # the driver efforts, so driver rows count with the applied loads here
-            loads = applied + self._constraint_wrench(name, lam, rows + driver_rows)
-            wrench = self._inertial_wrench(name, a) - loads
-            r_g = self.ctx.centre_of_mass(name)
-            for child in children[name]:
-                child_joint = self.mechanism.joints[self.descriptions[child].joint.name]
-                on_child = joint_wrench[child]
-                point = self._reaction_point(child_joint, child)
-                force = on_child[:dim]
-                moment = on_child[dim:] + self._cross(point - r_g, force)
-                wrench = wrench + ca.vertcat(force, moment)
-            if desc.joint is None:
-                continue
-            joint = self.mechanism.joints[desc.joint.name]
-            at_point = self._at_point(joint, name, wrench)
-            if unknown:
-                at_point = at_point * ca.nan
-            joint_wrench[name] = at_point
-            out[joint.name] = at_point if joint.body2 == name else -at_point
-        return out
 
     # ------------------------------------------------------------------ functions
     def function(self, name: str) -> ca.Function:

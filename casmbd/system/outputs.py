@@ -1,0 +1,84 @@
+"""Outputs of a :class:`~casmbd.system.equations.System`: body, marker and joint positions,
+velocities and accelerations as one CasADi Function, and the rows of C by joint and driver.
+
+:class:`Outputs` is a mixin of :class:`~casmbd.system.equations.System`: it reads the system's
+symbols (``q``, ``v``, ``t``, ``p``, ``ctx``, ``nq``, ``dimension``, ``mechanism``,
+``body_names``), its ``constraint_labels`` and its Function cache ``_functions``.
+"""
+
+from __future__ import annotations
+
+from functools import cached_property
+
+import casadi as ca
+
+
+class Outputs:
+    """Output Function and row bookkeeping of a System (a mixin, see the module docstring)."""
+
+    @cached_property
+    def joint_coordinate_names(self) -> list[str]:
+        """Joint coordinates, in declaration order: the joint's name for its first coordinate,
+        ``joint.coordinate`` for further ones (the angle of a cylindrical joint)."""
+        out = []
+        for joint in self.mechanism.joints.values():
+            for k, coord in enumerate(joint.coordinate_names):
+                out.append(joint.name if k == 0 else f"{joint.name}.{coord}")
+        return out
+
+    def _joint_coordinate(self, key: str) -> ca.SX:
+        name, _, coord = key.partition(".")
+        return self.mechanism.joints[name].coordinate(self.ctx, coord or None)
+
+    def outputs_function(self) -> ca.Function:
+        """Body, marker and joint outputs of (q, v, a, t, p), every output a column.
+
+        Positions are stacked per point (x0, y0, x1, y1, …); velocities are J v and
+        accelerations J a + J̇ v of the same expressions.  Planar bodies give their angle
+        (``angle_*``); spatial bodies their rotation matrix (``rotation_matrices``, 9 per body,
+        row by row) and global angular velocity and acceleration (3 per body).
+        """
+        if "outputs" not in self._functions:
+            ctx, mech = self.ctx, self.mechanism
+            a = ca.SX.sym("a", self.nq)
+            com = ca.vertcat(*[ctx.centre_of_mass(b) for b in self.body_names])
+            mk = [ctx.position(m.body, m.point) for m in mech.markers.values()]
+            markers = ca.vertcat(*mk) if mk else ca.SX(0, 1)
+            jc = [self._joint_coordinate(j) for j in self.joint_coordinate_names]
+            joints = ca.vertcat(*jc) if jc else ca.SX(0, 1)
+            groups = [("body_", com)]
+            if self.dimension == 2:
+                groups.append(("angle_", ca.vertcat(*[ctx.angle(b) for b in self.body_names])))
+            groups += [("marker_", markers), ("joint_", joints)]
+            names, exprs = [], []
+            for label, expr in groups:
+                vel = ca.jtimes(expr, self.q, self.v)
+                acc = ca.jtimes(expr, self.q, a) + ca.jtimes(vel, self.q, self.v)
+                exprs += [expr, vel, acc]
+                names += [label + "positions", label + "velocities", label + "accelerations"]
+            if self.dimension == 3:
+                rot = ca.vertcat(*[ca.vec(ctx.rotation(b).T) for b in self.body_names])
+                omega = ca.vertcat(*[ctx.angular_velocity(b) for b in self.body_names])
+                alpha = ca.jtimes(omega, self.q, self.v) + ca.jtimes(omega, self.v, a)
+                exprs += [rot, omega, alpha]
+                names += ["rotation_matrices", "angular_velocities", "angular_accelerations"]
+            self._functions["outputs"] = ca.Function(
+                "outputs", [self.q, self.v, a, self.t, self.p], exprs,
+                ["q", "v", "a", "t", "p"], names)
+        return self._functions["outputs"]
+
+    @cached_property
+    def joint_rows(self) -> dict[str, list[int]]:
+        """Rows of C belonging to each joint."""
+        rows: dict[str, list[int]] = {name: [] for name in self.mechanism.joints}
+        for i, lab in enumerate(self.constraint_labels):
+            if lab.kind == "joint":
+                rows[lab.element].append(i)
+        return rows
+
+    @cached_property
+    def driver_rows(self) -> dict[str, int]:
+        """Row of C of each driver."""
+        return {lab.element: i for i, lab in enumerate(self.constraint_labels)
+                if lab.kind == "driver"}
+

@@ -1,0 +1,234 @@
+"""Joint reactions of a :class:`~casmbd.system.equations.System` from the multipliers λ.
+
+Joints with constraint rows: virtual work of a rigid displacement of one body (seed 000,
+eqs. 6.145–6.151); tree joints of joint coordinates: Newton–Euler from the leaves (seed 002,
+"Joint Forces Calculation").  See :meth:`Reactions.reactions_function`.
+
+:class:`Reactions` is a mixin of :class:`~casmbd.system.equations.System`: it reads the system's
+symbols and context, its constraints (``constraint_labels``, ``joint_rows``, ``nc``,
+``_driver_residual``), its inertia (``_mass_inertia``, ``tree_kinematics``, ``local``) and the
+applied-force terms (``_force_terms`` of :mod:`casmbd.system.forces`).
+"""
+
+from __future__ import annotations
+
+from functools import cached_property
+
+import casadi as ca
+
+from casmbd.model.bodies import GROUND
+
+
+class Reactions:
+    """Joint reactions of a System (a mixin, see the module docstring)."""
+
+    def _cross(self, arm: ca.SX, force: ca.SX) -> ca.SX:
+        if self.dimension == 2:
+            return arm[0] * force[1] - arm[1] * force[0]
+        return ca.cross(arm, force)
+
+    def _perturbation(self, body: str):
+        if not hasattr(self, "_perturbed"):
+            self._perturbed: dict[str, tuple] = {}
+        if body not in self._perturbed:
+            self._perturbed[body] = self.ctx.perturbed(body)
+        return self._perturbed[body]
+
+    def _constraint_wrench(self, body: str, lam: ca.SX, rows=None) -> ca.SX:
+        """Force and moment about G that constraint rows (with multipliers λ) exert on ``body``:
+        −(∂C/∂e)ᵀ λ, the virtual-work counterpart of Q_c = −C_qᵀ λ (seed 000, eq. 6.145)."""
+        ctx, e = self._perturbation(body)
+        rows = list(range(self.nc)) if rows is None else rows
+        # e moves ``body`` alone: only the equations of elements attached to it depend on e,
+        # so only those are written again (all of them per body made the build O(N²))
+        cons, index = self._constraints_touching(ctx, body)
+        wanted = set(rows)
+        keep = [k for k, r in enumerate(index) if r in wanted]
+        if not keep:
+            return ca.SX.zeros(e.numel())
+        jac = ca.jacobian(cons[keep], e)
+        lam_k = ca.vertcat(*[lam[index[k]] for k in keep])
+        return ca.substitute(-ca.mtimes(jac.T, lam_k), e, ca.DM.zeros(e.numel()))
+
+    @cached_property
+    def _element_rows(self) -> dict[tuple[str, str], list[int]]:
+        """Rows of C by (kind, element) in the order of :meth:`_constraints_with`."""
+        out: dict[tuple[str, str], list[int]] = {}
+        for i, lab in enumerate(self.constraint_labels):
+            out.setdefault((lab.kind, lab.element), []).append(i)
+        return out
+
+    def _constraints_touching(self, ctx, body: str) -> tuple[ca.SX, list[int]]:
+        """The equations of C that involve ``body`` (its own description's, its joints', the
+        drivers of those joints or of the body) written with ``ctx``, and their row indices."""
+        rows, index = [], []
+        elements = self._element_rows
+        desc = self.descriptions.get(body)
+        if desc is not None and ("body", body) in elements:
+            eqs, _ = desc.constraints(ctx.coordinates(body))
+            rows.append(ca.vec(eqs))
+            index += elements[("body", body)]
+        touching = set()
+        for joint in self.mechanism.joints.values():
+            if body in joint.bodies:  # a gear involves the bodies of both its joints
+                touching.add(joint.name)
+                if ("joint", joint.name) in elements:
+                    rows.append(ca.vec(joint.equations(ctx)))
+                    index += elements[("joint", joint.name)]
+        for driver in self.mechanism.drivers.values():
+            if (driver.joint in touching or driver.body == body) and \
+                    ("driver", driver.name) in elements:
+                rows.append(ca.vec(self._driver_residual(driver, ctx)))
+                index += elements[("driver", driver.name)]
+        return (ca.vertcat(*rows) if rows else ca.SX(0, 1)), index
+
+    def _applied_wrench(self, body: str) -> tuple[ca.SX, list[str]]:
+        """Force and moment about G of every applied force on ``body``, and the names of user
+        generalized forces that cannot be attributed to bodies."""
+        ctx, e = self._perturbation(body)
+        total = ca.SX.zeros(e.numel())
+        unknown = []
+        dim = self.dimension
+        for term in self._force_terms(ctx):
+            if term.kind == "measure":
+                total += ca.mtimes(ca.jacobian(term.expr, e).T, term.weight)
+            elif term.kind == "torque":
+                if term.body == body:
+                    total[dim:] += term.weight
+            else:
+                unknown.append(term.name)
+        return ca.substitute(total, e, ca.DM.zeros(e.numel())), unknown
+
+    def _inertial_wrench(self, body: str, a: ca.SX) -> ca.SX:
+        """(m a_G, Ḣ_G): Newton–Euler's rate of momentum of ``body`` (seed 001; seed 004)."""
+        ctx = self.ctx
+        mass, inertia = self._mass_inertia(self.mechanism.bodies[body])
+        if not self.local:
+            nw = 1 if self.dimension == 2 else 3
+            if getattr(self, "_tree_acc", (None,))[0] is not a:
+                self._tree_acc = (a, self.tree_kinematics.accelerations(a))
+            full = self._tree_acc[1][body]
+            omega = self.tree_kinematics.twist[body][:nw]
+            alpha, acc = full[:nw], full[nw:]
+        else:
+            r_g = ctx.centre_of_mass(body)
+            vel = ca.jtimes(r_g, self.q, self.v)
+            acc = ca.jtimes(vel, self.q, self.v) + ca.jtimes(r_g, self.q, a)
+            omega = ctx.angular_velocity(body)
+            alpha = ca.jtimes(omega, self.q, self.v) + ca.jtimes(omega, self.v, a)
+        if self.dimension == 2:
+            return ca.vertcat(mass * acc, inertia * alpha)
+        rot = ctx.rotation(body)
+        tensor = ca.mtimes([rot, inertia, rot.T])
+        h_dot = ca.mtimes(tensor, alpha) + ca.cross(omega, ca.mtimes(tensor, omega))
+        return ca.vertcat(mass * acc, h_dot)
+
+    def _reaction_point(self, joint, body: str) -> ca.SX:
+        point = joint.reaction_point()
+        if point is None:
+            point = self.ctx.initial_position(joint.body2)
+        return self.ctx.point(body, self.ctx.local(body, point))
+
+    def reactions_function(self) -> ca.Function:
+        """Joint reactions, one column per joint: the action of body1 on body2 at the joint
+        point, global components — (F_x, F_y, M) in the plane, (F, M) in space.
+
+        Joints with constraint rows (absolute and natural coordinates, loop joints of joint
+        coordinates): the force and moment about G of body2 (body1 when body2 is the ground,
+        with the sign changed) are −(∂C_k/∂e)ᵀ λ_k for a virtual rigid displacement e of that
+        body — the virtual-work form of Q_c = −C_qᵀ λ (seed 000, eq. 6.145) — and the moment
+        is carried to the joint point, M_P = M_G − (r_P − r_G) × F (eqs. 6.146–6.151).
+
+        Joints of the spanning tree (joint coordinates) have no multipliers: their reactions
+        follow from Newton–Euler body by body, from the leaves to the root (seed 002, "Joint
+        Forces Calculation"): F = m a_G − F_applied − F_constraints + Σ F_children,
+        M_G = Ḣ_G − M_applied − M_constraints + Σ (M_child + (r_child − r_G) × F_child).
+        Driver multipliers are not included: a driver's effort is reported on its own.  A user
+        generalized force that is not attached to a body makes tree reactions undeterminable
+        (NaN).
+        """
+        if "joint_reactions" not in self._functions:
+            lam = ca.SX.sym("lambda", self.nc)
+            a = ca.SX.sym("a", self.nq)
+            cols: dict[str, ca.SX] = {}
+            mech = self.mechanism
+            joint_only = [i for i, lab in enumerate(self.constraint_labels)
+                          if lab.kind == "joint"]
+            for name, rows in self.joint_rows.items():
+                if name in self.tree_joints:
+                    continue
+                joint = mech.joints[name]
+                body, sign = (joint.body2, 1.0) if joint.body2 != GROUND else \
+                    (joint.body1, -1.0)
+                wrench = sign * self._constraint_wrench(body, lam, rows)
+                cols[name] = self._at_point(joint, body, wrench)
+            if self.tree_joints:
+                cols.update(self._tree_reactions(a, lam, joint_only))
+            size = self.reaction_size
+            out = ca.horzcat(*[cols[n] for n in mech.joints]) if mech.joints else \
+                ca.SX(size, 0)
+            self._functions["joint_reactions"] = ca.Function(
+                "joint_reactions", [self.q, self.v, a, self.t, self.u, self.p, lam], [out],
+                ["q", "v", "a", "t", "u", "p", "lambda"], ["reactions"])
+        return self._functions["joint_reactions"]
+
+    def _at_point(self, joint, body: str, wrench: ca.SX) -> ca.SX:
+        """Carry a wrench (force, moment about G of ``body``) to the joint's point."""
+        dim = self.dimension
+        force, moment = wrench[:dim], wrench[dim:]
+        arm = self._reaction_point(joint, body) - self.ctx.centre_of_mass(body)
+        return ca.vertcat(force, moment - self._cross(arm, force))
+
+    def _tree_reactions(self, a: ca.SX, lam: ca.SX, rows: list[int]) -> dict[str, ca.SX]:
+        """Reactions of the tree joints by the recursion from the leaves (see
+        :meth:`reactions_function`); ``rows`` are the loop-joint rows whose multipliers act
+        on the bodies (driver rows excluded, like in absolute coordinates)."""
+        dim = self.dimension
+        order = [name for name in self.body_names]
+        children: dict[str, list[str]] = {name: [] for name in order}
+        for name in order:
+            parent = self.descriptions[name].parent
+            if parent != GROUND:
+                children[parent].append(name)
+        # bodies after their parents: reverse topological order for the recursion
+        ranked, seen = [], set()
+
+        def visit(name):
+            if name in seen:
+                return
+            parent = self.descriptions[name].parent
+            if parent != GROUND:
+                visit(parent)
+            seen.add(name)
+            ranked.append(name)
+
+        for name in order:
+            visit(name)
+        driver_rows = [i for i, lab in enumerate(self.constraint_labels) if lab.kind == "driver"]
+        joint_wrench: dict[str, ca.SX] = {}  # on the body from its parent, about the joint pt
+        out: dict[str, ca.SX] = {}
+        for name in reversed(ranked):
+            desc = self.descriptions[name]
+            applied, unknown = self._applied_wrench(name)
+            # drivers act inside their joints: like absolute coordinates, reactions exclude
+            # the driver efforts, so driver rows count with the applied loads here
+            loads = applied + self._constraint_wrench(name, lam, rows + driver_rows)
+            wrench = self._inertial_wrench(name, a) - loads
+            r_g = self.ctx.centre_of_mass(name)
+            for child in children[name]:
+                child_joint = self.mechanism.joints[self.descriptions[child].joint.name]
+                on_child = joint_wrench[child]
+                point = self._reaction_point(child_joint, child)
+                force = on_child[:dim]
+                moment = on_child[dim:] + self._cross(point - r_g, force)
+                wrench = wrench + ca.vertcat(force, moment)
+            if desc.joint is None:
+                continue
+            joint = self.mechanism.joints[desc.joint.name]
+            at_point = self._at_point(joint, name, wrench)
+            if unknown:
+                at_point = at_point * ca.nan
+            joint_wrench[name] = at_point
+            out[joint.name] = at_point if joint.body2 == name else -at_point
+        return out
+
