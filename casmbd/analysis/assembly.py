@@ -41,7 +41,7 @@ class AssemblyReport:
 
 def coordinate_indices(model, fixed: Sequence[str | int] | None) -> np.ndarray:
     """Indices of the coordinates named ``body.x``/``body.y``/``body.angle`` (or given as ints)."""
-    names = model.system.coordinate_names
+    names = model.coordinate_names
     out = []
     for item in fixed or ():
         if isinstance(item, (int, np.integer)):
@@ -57,7 +57,7 @@ def coordinate_indices(model, fixed: Sequence[str | int] | None) -> np.ndarray:
 
 
 def _worst_equations(model, residual: np.ndarray, count: int = 3) -> str:
-    labels = model.system.constraint_labels
+    labels = model.constraint_labels
     order = np.argsort(-np.abs(residual))[:count]
     return "; ".join(f"{labels[i]} residual {residual[i]:.3g}" for i in order)
 
@@ -69,7 +69,7 @@ def _locked(model, q: np.ndarray, t: float, residual: np.ndarray, free: np.ndarr
     rep = rank_report(jac)
     if rep.rank < len(free) or rep.n_equations <= rep.rank:
         return ""
-    labels = model.system.constraint_labels
+    labels = model.constraint_labels
     scale = float(np.max(np.abs(residual), initial=0.0))
     joints = sorted({labels[i].element for i in np.flatnonzero(np.abs(residual) > 1e-3 * scale)})
     return (f". The mechanism is locked: {rep.n_equations} equations of rank {rep.rank} = the "
@@ -102,7 +102,7 @@ def _finite_rows(model, values: np.ndarray, what: str, t: float) -> np.ndarray:
     and the model value behind them."""
     bad = np.flatnonzero(~np.isfinite(values))
     if bad.size:
-        labels = model.system.constraint_labels
+        labels = model.constraint_labels
         names = "; ".join(f"{labels[i]} ({what} = {values[i]})" for i in bad[:3])
         raise AssemblyError(f"non-finite {what} at t = {t:g}: {names}{_culprits(model, t)}")
     return values
@@ -179,7 +179,7 @@ def assemble(model, q0: np.ndarray, t: float = 0.0, fixed: Sequence[str | int] |
     # residuals are lengths (or angles): scale the tolerance with the size of the mechanism —
     # at the current iterate, not the guess (a guess extrapolated through a singular pose can
     # be 1e14 m away, which would accept any residual)
-    lengths = model.system.length_indices
+    lengths = model.length_indices
     rtol = tol
 
     def tol_at(x: np.ndarray) -> float:
@@ -192,7 +192,7 @@ def assemble(model, q0: np.ndarray, t: float = 0.0, fixed: Sequence[str | int] |
     while it < max_iter:
         if not np.all(np.isfinite(c)):
             bad = np.flatnonzero(~np.isfinite(c))
-            labels = model.system.constraint_labels
+            labels = model.constraint_labels
             names = "; ".join(f"{labels[i]} (C = {c[i]})" for i in bad[:3])
             raise AssemblyError(f"assembly at t = {t:g}: constraints are not finite at iteration "
                                 f"{it}: {names}{_culprits(model, t)}")

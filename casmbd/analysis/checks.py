@@ -115,12 +115,13 @@ def _element_forces(system, q, v, t: float, u, p) -> list[str]:
 
 def diagnose(model, t: float, q=None, v=None, u=None) -> list[str]:
     """The culprits of a non-finite evaluation at time ``t``: model values first, then (with a
-    state) force elements."""
+    state) force elements.  Builds Functions of the symbolic ``model.system`` (a diagnostic
+    after a numeric failure, see :class:`~casmbd.compiled.model.NumericModel`)."""
     system = model.system
     found = nonfinite_values(system, t, model.p)
-    if not found and q is not None and system.mechanism.forces:
+    if not found and q is not None and model.mechanism.forces:
         v = np.zeros(model.nq) if v is None else v
-        u = np.zeros(system.u.numel()) if u is None else u
+        u = np.zeros(model.nu) if u is None else u
         found = _element_forces(system, q, v, t, u, model.p)
     return found
 
@@ -139,9 +140,8 @@ def diagnose_failure(model, t: float) -> list[str]:
 
 def _evaluations(model, q, v, t: float, u) -> Iterator[tuple[str, np.ndarray, list[str]]]:
     """(description, values, row labels) of each equation the model has, at the state."""
-    system = model.system
-    coords = system.coordinate_names
-    rows = [str(label) for label in system.constraint_labels]
+    coords = model.coordinate_names
+    rows = [str(label) for label in model.constraint_labels]
     calls = [("constraints", "the constraints C", rows, lambda: model.constraints(q, t)),
              ("constraint_jacobian", "the constraint Jacobian C_q", rows,
               lambda: model.constraint_jacobian(q, t)),
@@ -194,11 +194,10 @@ def check_start(model, q, v, t: float, u=None, what: str = "analysis",
         mass or inertia), the force element whose generalized force is not finite, or the
         coordinates of a non-finite start state.
     """
-    system = model.system
     q = np.asarray(q, float)
     v = np.zeros(model.nq) if v is None else np.asarray(v, float)
-    u = np.zeros(system.u.numel()) if u is None else np.asarray(u, float)
-    names = system.coordinate_names
+    u = np.zeros(model.nu) if u is None else np.asarray(u, float)
+    names = model.coordinate_names
     for label, arr in (("coordinates", q), ("velocities", v)):
         bad = np.flatnonzero(~np.isfinite(arr))
         if bad.size:
@@ -244,7 +243,7 @@ def check_consistent_start(model, q, v, a, t: float, what: str = "simulation") -
     """
     if model.nc == 0:
         return
-    labels = model.system.constraint_labels
+    labels = model.constraint_labels
     cq = model.constraint_jacobian(q, t)
     norm_cq = float(abs(cq).max()) if cq.nnz else 0.0
     ct = model.constraint_time_derivative(q, t)

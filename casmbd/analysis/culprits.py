@@ -243,7 +243,8 @@ def _body(name: str) -> str:
 
 
 def _driver_value(model, driver, t: float) -> float | None:
-    """f(t) of a driver (None when the model does not expose its symbols)."""
+    """f(t) of a driver (None when the model does not expose its symbols); a Function of the
+    symbolic ``model.system`` built for a failure message only."""
     system = model.system
     try:
         expr = resolve(driver.position, system.t, system.ctx.p, f"driver '{driver.name}'")
@@ -261,7 +262,7 @@ def _others(culprit: Culprit, fixers: list[Culprit]) -> str:
 def _hint(model, culprit: Culprit, q: np.ndarray, t: float, rows: np.ndarray,
           rest: np.ndarray, free: np.ndarray, tol: float, fixers: list[Culprit]) -> str:
     """What to change about ``culprit``, with the values the other equations allow."""
-    mech = model.system.mechanism
+    mech = model.mechanism
     if not culprit.fixes:
         return (f"{culprit}: without it the residual is still {culprit.remaining:.3g} "
                 "(other elements contradict each other too)")
@@ -329,7 +330,7 @@ def rank_culprits(model, q_start: np.ndarray, q_fail: np.ndarray, t: float,
         The assembly tolerance on max |C| at ``q_fail``: an element "fixes" the assembly when
         the others are then satisfied to ``100 · tol``.
     """
-    labels = model.system.constraint_labels
+    labels = model.constraint_labels
     nc = len(labels)
     if len(free) * nc > MAX_ENTRIES:
         return [], (f"no culprit ranking: {len(free)} coordinates × {nc} equations exceed "

@@ -37,12 +37,11 @@ def _actuator_efforts(model, grid, qs, vs, acc) -> np.ndarray:
     efforts u and the multipliers (driver rows zero) that give the joint reactions of the
     machine driven by its actuators.
     """
-    system = model.system
     # joints and the bodies' own equations (Euler-parameter normalisation, natural coordinates)
-    joint_rows = [i for i, lab in enumerate(system.constraint_labels) if lab.kind != "driver"]
-    n_u = len(system.mechanism.actuators)
+    joint_rows = [i for i, lab in enumerate(model.constraint_labels) if lab.kind != "driver"]
+    n_u = model.nu
     out = np.zeros((len(grid), n_u))
-    lam = np.zeros((len(grid), system.nc))
+    lam = np.zeros((len(grid), model.nc))
     for k, t in enumerate(grid):
         rhs = (model.applied_forces(qs[k], vs[k], t) + model.quadratic_velocity_forces(qs[k], vs[k])
                - model.mass_matrix(qs[k]) @ acc[k])
@@ -53,7 +52,7 @@ def _actuator_efforts(model, grid, qs, vs, acc) -> np.ndarray:
         if residual > 1e-8 * max(1.0, np.max(np.abs(rhs))):
             raise AnalysisError(
                 f"inverse dynamics at t = {t:g}: the actuators "
-                f"({', '.join(system.mechanism.actuators)}) cannot produce the prescribed "
+                f"({', '.join(model.mechanism.actuators)}) cannot produce the prescribed "
                 f"motion (residual {residual:.3g}); put them on the driven coordinates")
         out[k] = sol[len(joint_rows):]
         lam[k, joint_rows] = sol[:len(joint_rows)]
@@ -110,26 +109,25 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
                 f"inverse dynamics at t = {t:g}: the constraint Jacobian is singular") from None
         kin_e[k] = model.kinetic_energy(qs[k], vs[k])
         pot_e[k] = model.potential_energy(qs[k], t)
-    system = model.system
-    actuators = list(system.mechanism.actuators)
+    actuators = list(model.mechanism.actuators)
     lam_reac = lam
     if actuators:  # the actuators produce the motion: reactions with their efforts
         u_eff, lam_reac = _actuator_efforts(model, grid, qs, vs, acc)
     else:
         u_eff = np.zeros((n, 0))
-    n_j = len(system.mechanism.joints)
+    n_j = len(model.mechanism.joints)
     if n_j:
         reac = np.asarray(model.function("joint_reactions").map(n)(
             qs.T, vs.T, acc.T, grid[None, :], u_eff.T, np.tile(model.p[:, None], (1, n)),
             lam_reac.T))
-        reactions = reac.reshape(system.reaction_size, n, n_j).transpose(1, 2, 0)
+        reactions = reac.reshape(model.reaction_size, n, n_j).transpose(1, 2, 0)
     else:
-        reactions = np.zeros((n, 0, system.reaction_size))
+        reactions = np.zeros((n, 0, model.reaction_size))
     reactions, flags = flag_undetermined(model, qs, vs, acc, grid, u_eff, lam_reac, reactions)
-    drivers = list(system.mechanism.drivers)
+    drivers = list(model.mechanism.drivers)
     undetermined = set(flags["undetermined_rows"]) if lam_reac is lam else set()
-    efforts = (np.column_stack([np.full(n, np.nan) if system.driver_rows[d] in undetermined
-                                else -lam[:, system.driver_rows[d]] for d in drivers])
+    efforts = (np.column_stack([np.full(n, np.nan) if model.driver_rows[d] in undetermined
+                                else -lam[:, model.driver_rows[d]] for d in drivers])
                if drivers else np.zeros((n, 0)))
     arrays = dict(kin.arrays)
     arrays.update({"lambda": lam, "driver_efforts": efforts, "joint_reactions": reactions,
@@ -143,4 +141,4 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
     stats.update(flags)
     stats["solve_seconds"] += time.perf_counter() - t0
     return Result("inverse_dynamics", grid, arrays, names, stats,
-                  getattr(system.mechanism, "scene_text", "") or "")
+                  getattr(model.mechanism, "scene_text", "") or "")

@@ -32,7 +32,7 @@ def check_result_size(mechanism_or_model, steps: int, what: str) -> None:
     the values per output time are a lower bound from the element counts
     (:func:`casmbd.limits.output_values`), plus q, v, a when a model is given."""
     if isinstance(mechanism_or_model, NumericModel):
-        mech, extra = mechanism_or_model.system.mechanism, 3 * mechanism_or_model.nq
+        mech, extra = mechanism_or_model.mechanism, 3 * mechanism_or_model.nq
     else:
         mech, extra = mechanism_or_model, 0
     check_steps(what, int(steps), output_values(mech) + extra)
@@ -40,7 +40,7 @@ def check_result_size(mechanism_or_model, steps: int, what: str) -> None:
 
 def dependent_equations(model: NumericModel, q: np.ndarray, t: float) -> list[dict]:
     """Rows of C_q that depend on earlier rows, as ``{"kind", "joint", "equation"}`` dicts."""
-    labels = model.system.constraint_labels
+    labels = model.constraint_labels
     rep = rank_report(model.constraint_jacobian(q, t))
     return [{"kind": labels[i].kind, "joint": labels[i].element, "equation": labels[i].label}
             for i in rep.dependent_rows]
@@ -50,7 +50,7 @@ def check_rank(model: NumericModel, q: np.ndarray, t: float):
     """Raise :class:`RedundantConstraintError` naming the dependent equations, if any."""
     rep = rank_report(model.constraint_jacobian(q, t))
     if rep.dependent_rows:
-        labels = model.system.constraint_labels
+        labels = model.constraint_labels
         dep = [(labels[i].element, labels[i].label) for i in rep.dependent_rows]
         joints = sorted({labels[i].element for i in rep.dependent_rows})
         text = ", ".join(f"{labels[i]}" for i in rep.dependent_rows)
@@ -76,8 +76,8 @@ def info(mechanism_or_model, mode: str = "auto") -> dict:
     of times, and compiling them costs far more (25 s for a 500-body chain) than it saves.
     """
     model = _model(mechanism_or_model, "info", "vm" if mode == "auto" else mode)
-    mech = model.system.mechanism
-    q = model.system.initial_coordinates()
+    mech = model.mechanism
+    q = model.initial_coordinates()
     out: dict = {"name": mech.name, "dimension": mech.dimension}
     try:
         q = assemble(model, q, 0.0).q
@@ -89,12 +89,12 @@ def info(mechanism_or_model, mode: str = "auto") -> dict:
     out["rank_reliable"] = out["assembled"]
     rep = rank_report(model.constraint_jacobian(q, 0.0))
     dependent = rep.dependent_rows if out["assembled"] else []
-    labels = model.system.constraint_labels
+    labels = model.constraint_labels
     out.update({
         "bodies": list(mech.bodies), "joints": list(mech.joints), "drivers": list(mech.drivers),
         "forces": list(mech.forces), "actuators": list(mech.actuators),
-        "markers": list(mech.markers), "parameters": dict(mech.parameters),
-        "coordinates": model.system.coordinate_names,
+        "markers": list(mech.markers), "parameters": model.parameters,
+        "coordinates": model.coordinate_names,
         "constraints": [{"kind": lab.kind, "joint": lab.element, "equation": lab.label}
                         for lab in labels],
         "n_coordinates": model.nq, "n_constraints": model.nc, "rank": rep.rank,
@@ -139,10 +139,10 @@ def kinematics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.
         raise AnalysisError(f"t_end must be finite and > t_start = {t_start}, got {t_end!r}")
     check_result_size(mechanism_or_model, steps, "kinematics")
     model = _model(mechanism_or_model, "kinematics", mode)
-    mech = model.system.mechanism
+    mech = model.mechanism
     t0 = time.perf_counter()
     grid = np.linspace(t_start, t_end, int(steps) + 1)
-    q = assemble(model, model.system.initial_coordinates(), grid[0], tol=tol).q
+    q = assemble(model, model.initial_coordinates(), grid[0], tol=tol).q
     rep = check_rank(model, q, grid[0])
     if rep.degrees_of_freedom > 0:
         raise AnalysisError(
@@ -174,9 +174,8 @@ def kinematics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.
         violation[k] = float(np.max(np.abs(model.constraints(q, t)))) if model.nc else 0.0
     solve_seconds = time.perf_counter() - t0
     outputs = model.outputs(qs, vs, as_, grid)
-    system = model.system
-    names = {"coordinates": system.coordinate_names, "bodies": system.body_names,
-             "markers": list(mech.markers), "joints": system.joint_coordinate_names,
+    names = {"coordinates": model.coordinate_names, "bodies": model.body_names,
+             "markers": list(mech.markers), "joints": model.joint_coordinate_names,
              "all_joints": list(mech.joints)}
     stats = {"solve_seconds": solve_seconds, "newton_iterations": newton, "steps": int(steps),
              **model.report_dict}

@@ -138,7 +138,7 @@ def select_partition(model, q: np.ndarray, t: float, rank: int | None = None) ->
 
 
 def _length_indices(model) -> np.ndarray:
-    return model.system.length_indices
+    return model.length_indices
 
 
 class _Partitioned(NumericOde):

@@ -102,17 +102,16 @@ def flag_undetermined(model, qs, vs, acc, grid, us, lam, reactions: np.ndarray,
         ``"undetermined_reactions"``: {joint: [component indices]} (empty when all are
         determined) and ``"redundant_steps"``: how many steps had a rank-deficient C_q.
     """
-    system = model.system
-    joints = list(system.mechanism.joints)
+    joints = list(model.mechanism.joints)
     info: dict = {"undetermined_reactions": {}, "redundant_steps": 0, "undetermined_rows": []}
     n = len(grid)
-    if not joints or system.nc == 0 or n == 0:
+    if not joints or model.nc == 0 or n == 0:
         return reactions, info
     if steps is None:
         null0 = multiplier_null_space(model.constraint_jacobian(qs[0], float(grid[0])))
         steps = range(n) if null0.shape[1] else ()
     func = model.function("joint_reactions")
-    size = system.reaction_size
+    size = model.reaction_size
     out = reactions.copy()
     flagged: dict[str, set] = {}
     for k in steps:

@@ -252,11 +252,11 @@ class Simulator(Stepping, PostProcessing):
             # numeric right-hand sides are ~100x dearer: fail in seconds, not minutes
             max_steps = 20_000 if self.formulation.kind == "numeric" else 500_000
         model = self.model
-        check_steps("simulation", int(steps), output_values(model.system.mechanism)
+        check_steps("simulation", int(steps), output_values(model.mechanism)
                     + 3 * model.nq + model.nc)  # LimitError before the grid is allocated
         grid = np.linspace(t_start, t_end, int(steps) + 1)
-        q0 = model.system.initial_coordinates() if q0 is None else np.asarray(q0, float)
-        v0 = model.system.initial_velocities() if v0 is None else np.asarray(v0, float)
+        q0 = model.initial_coordinates() if q0 is None else np.asarray(q0, float)
+        v0 = model.initial_velocities() if v0 is None else np.asarray(v0, float)
         u0 = self.inputs_at(t_start)
         check_start(model, q0, v0, t_start, u0, what="simulation")  # names a NaN's culprit
         start = consistent_state(model, q0, v0, t_start, u0)

@@ -193,20 +193,19 @@ class _Problem:
     def __init__(self, model: NumericModel, t: float):
         self.model, self.t = model, t
         self.nq, self.nc = model.nq, model.nc
-        system = model.system
-        names = system.coordinate_names
+        names = model.coordinate_names
         self.labels = ([f"equilibrium of coordinate '{n}'" for n in names]
-                       + [str(lab) for lab in system.constraint_labels])
-        self.length_idx = system.length_indices
-        pos = np.array([np.ravel(b.position) for b in system.mechanism.bodies.values()]
-                       or [np.zeros(system.dimension)], float)
+                       + [str(lab) for lab in model.constraint_labels])
+        self.length_idx = model.length_indices
+        pos = np.array([np.ravel(b.position) for b in model.mechanism.bodies.values()]
+                       or [np.zeros(model.dimension)], float)
         #: the size of the mechanism: lengths are measured in it by the trust region
         self.size = max(float(np.max(np.ptp(pos, axis=0))), float(np.max(np.abs(pos))), 1e-3)
         self.scale = np.ones(self.nq)
         self.scale[self.length_idx] = self.size
         self.angles, self.quaternions, self.frames = [], [], []
-        for body, desc in system.descriptions.items():
-            base = system.ctx.index[body]
+        for body, desc in model.descriptions.items():
+            base = model.coordinate_index[body]
             natural = "Natural" in type(desc).__name__
             for k, name in enumerate(desc.names):
                 if name in _ANGLE_NAMES and not natural:
@@ -217,13 +216,13 @@ class _Problem:
                 self.frames.append((body, base + 3))
 
     def forces(self, q) -> np.ndarray:
-        return self.model._vector("statics_forces", q, self.t, self.model.p)
+        return self.model.vector("statics_forces", q, self.t, self.model.p)
 
     def residual(self, q, lam) -> np.ndarray:
-        return self.model._vector("statics_residual", q, lam, self.t, self.model.p)
+        return self.model.vector("statics_residual", q, lam, self.t, self.model.p)
 
     def jacobian(self, q, lam) -> sp.csc_matrix:
-        return self.model._sparse("statics_jacobian", q, lam, self.t, self.model.p)
+        return self.model.sparse("statics_jacobian", q, lam, self.t, self.model.p)
 
     def cq(self, q) -> np.ndarray:
         if self.nc == 0:
@@ -324,10 +323,10 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
         model = NumericModel(system, STATICS_NEEDS, mode=mode, extra=statics_functions(system))
     t0 = time.perf_counter()
     prob = _Problem(model, t)
-    mech = model.system.mechanism
-    q0 = model.system.initial_coordinates()
+    mech = model.mechanism
+    q0 = model.initial_coordinates()
     check_start(model, q0, None, t, what="statics", forces=prob.forces(q0))  # names NaNs
-    q = assemble(model, model.system.initial_coordinates(), t).q
+    q = assemble(model, model.initial_coordinates(), t).q
     fscale = tol * max(1.0, float(np.max(np.abs(prob.forces(q)), initial=0.0)))
     lscale = tol * max(1.0, float(np.max(np.abs(q[prob.length_idx]), initial=0.0)))
     q, lam, it, history = _iterate(prob, q, method, fscale, lscale, max_iter)
@@ -337,12 +336,11 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
     f = prob.residual(q, lam)
     jqq = prob.jacobian(q, lam)[:prob.nq, :prob.nq].toarray()
     n = _null_space(prob.cq(q), prob.nq)
-    system = model.system
-    if system.joint_coordinate_names:
-        directions = model._sparse("statics_joint_jacobian", q, t, model.p).toarray() @ n
-        labels = list(system.joint_coordinate_names)
+    if model.joint_coordinate_names:
+        directions = model.sparse("statics_joint_jacobian", q, t, model.p).toarray() @ n
+        labels = list(model.joint_coordinate_names)
     else:
-        directions, labels = n, list(system.coordinate_names)
+        directions, labels = n, list(model.coordinate_names)
     stability = classify_stability(n.T @ (-jqq) @ n, directions, labels)
 
     all_joints = list(mech.joints)
@@ -355,20 +353,20 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
                                       np.array([t]), u0[None, :], np.asarray(lam)[None, :],
                                       reactions[None], steps=[0])[0][0]
     else:
-        reactions = np.zeros((0, model.system.reaction_size))
+        reactions = np.zeros((0, model.reaction_size))
     out = model.outputs(q[None, :], np.zeros((1, prob.nq)), np.zeros((1, prob.nq)),
                         np.array([t]))
-    nb = len(system.body_names)
-    names = {"coordinates": system.coordinate_names, "bodies": list(system.body_names),
-             "joints": list(system.joint_coordinate_names), "all_joints": all_joints}
+    nb = len(model.body_names)
+    names = {"coordinates": model.coordinate_names, "bodies": list(model.body_names),
+             "joints": list(model.joint_coordinate_names), "all_joints": all_joints}
     stats = dict(model.report_dict)
     stats.update({"solve_seconds": solve_seconds, "n_coordinates": prob.nq,
                   "n_constraints": prob.nc, "degrees_of_freedom": int(n.shape[1])})
     joint_coordinates = np.ravel(out["joint_positions"][0]).copy()
-    for k in _periodic_joint_outputs(mech, system.joint_coordinate_names):
+    for k in _periodic_joint_outputs(mech, model.joint_coordinate_names):
         joint_coordinates[k] = _wrap(joint_coordinates[k])
     quats = np.zeros((0, 4))
-    if system.dimension == 3:
+    if model.dimension == 3:
         quats = quaternions_from_matrices(out["rotation_matrices"][0].reshape(nb, 9))
         quats *= np.where(quats[:, :1] < 0.0, -1.0, 1.0)  # e0 >= 0
     return StaticsResult(
@@ -376,9 +374,9 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
         residual=float(np.max(np.abs(f), initial=0.0)), residual_history=history,
         method=method, stable=stability.stable, eigenvalues=stability.eigenvalues,
         joint_reactions=reactions, t=t, potential_energy=model.potential_energy(q, t),
-        names=names, body_positions=np.reshape(out["body_positions"][0], (nb, system.dimension)),
+        names=names, body_positions=np.reshape(out["body_positions"][0], (nb, model.dimension)),
         body_angles=np.array([_wrap(a) for a in np.ravel(out["angle_positions"][0])])
-        if system.dimension == 2 else np.zeros(0), body_quaternions=quats,
+        if model.dimension == 2 else np.zeros(0), body_quaternions=quats,
         joint_coordinates=joint_coordinates, stats=stats,
         stability=stability)
 

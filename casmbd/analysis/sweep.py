@@ -116,9 +116,9 @@ class _Runner:
 
     def run(self, values: Mapping[str, float], t_end, steps) -> Result:
         p = {**self.defaults, **values}
-        # runtime inputs of every Function, and System.parameter_values (initial velocities)
+        # the runtime inputs of every Function: NumericModel.p is the one source of truth
+        # (initial velocities in joint coordinates are evaluated at it too)
         self.model.p[:] = [p[n] for n in self.names]
-        self.mechanism.parameters.update(p)
         opts = self.run_options
         if self.analysis == "simulate":
             return self.engine.run(t_end, steps, **opts)

@@ -1,9 +1,11 @@
 """The compiled numeric model: the runnable counterpart of a symbolic :class:`System`.
 
-Like Pinocchio's ``Model``/``Data`` split, :class:`NumericModel` holds only what runs: the
-compiled (or virtual-machine) CasADi Functions an analysis asked for, their sparsity patterns,
-and the parameter values.  Matrices come back as ``scipy.sparse`` CSC matrices built from the
-fixed sparsity pattern of the generated code.
+Like Pinocchio's ``Model``/``Data`` and MuJoCo's ``mjModel``/``mjData``, :class:`NumericModel`
+holds what is fixed — the compiled (or virtual-machine) CasADi Functions an analysis asked
+for, the sizes, the names of coordinates, equations and elements, and the parameter values
+(in one place, :attr:`NumericModel.p`) — and a :class:`~casmbd.compiled.workspace.Workspace`
+holds the evaluation buffers.  Matrices come back as ``scipy.sparse`` CSC matrices built from
+the fixed sparsity pattern of the generated code.
 """
 
 from __future__ import annotations
@@ -17,8 +19,9 @@ import numpy as np
 import scipy.sparse as sp
 
 from casmbd.compiled.codegen import BuildReport, compile_functions
+from casmbd.compiled.workspace import Workspace
 from casmbd.errors import ModelError
-from casmbd.system.equations import System
+from casmbd.system.equations import Equation, System
 
 #: Functions each analysis needs; nothing else is generated or compiled for it.
 NEEDS: dict[str, tuple[str, ...]] = {
@@ -51,25 +54,74 @@ class NumericModel:
         Compile to C (with on-disk cache), or use CasADi's virtual machine.
     extra : iterable of casadi.Function
         Further Functions compiled into the same library (e.g. a dynamics formulation).
+
+    Notes
+    -----
+    What an analysis reads from here, and what it may not:
+
+    * sizes (:attr:`nq`, :attr:`nc`, :attr:`nu`), names (:attr:`coordinate_names`,
+      :attr:`constraint_labels`, :attr:`joint_coordinate_names`, :attr:`body_names`,
+      :attr:`parameter_names`), :attr:`length_indices`, :attr:`reaction_size`, the initial
+      state (:meth:`initial_coordinates`, :meth:`initial_velocities`), the parameter values
+      :attr:`p` (the one source of truth: :meth:`set_parameters` or ``model.p[:] = …``; the
+      mechanism's ``parameters`` are the defaults the model was built with) and the
+      evaluation methods;
+    * the :attr:`mechanism` for its description (element names, markers, drivers,
+      actuators, initial body poses) — never for parameter values;
+    * :attr:`system`, the symbolic equations, only to build *new* CasADi Functions from
+      symbolic expressions after a numeric failure (the diagnostics of
+      :mod:`casmbd.analysis.checks` and :mod:`casmbd.analysis.culprits`).  Code that builds
+      Functions as its main job (formulations, statics and linearisation Functions, the OCP
+      transcription) takes the :class:`System` explicitly and hands them in as ``extra``.
+
+    Evaluations go through :attr:`data`, a :class:`~casmbd.compiled.workspace.Workspace`
+    made with the model; a caller that must not share buffers with others takes its own from
+    :meth:`workspace`.
     """
 
     def __init__(self, system, functions: Iterable[str] | str = "kinematics",
                  mode: str = "auto", extra: Iterable[ca.Function] = ()):
         t0 = time.perf_counter()
-        self.system = system if isinstance(system, System) else System(system)
+        system = system if isinstance(system, System) else System(system)
+        #: the symbolic equations; only for diagnostics that build new Functions (see Notes)
+        self.system = system
         names = NEEDS.get(functions, (functions,)) if isinstance(functions, str) else functions
         names = list(dict.fromkeys(names))
-        symbolic = [self.system.function(n) for n in names] + list(extra)
+        symbolic = [system.function(n) for n in names] + list(extra)
         t1 = time.perf_counter()
         self.functions, self.report = compile_functions(
-            symbolic, name=_c_name(self.system.mechanism.name), mode=mode)
+            symbolic, name=_c_name(system.mechanism.name), mode=mode)
         t2 = time.perf_counter()
         self.symbolic_seconds = t1 - t0
         self.build_seconds = t2 - t0
-        self.p = self.system.parameter_values.copy()
-        self.nq, self.nc = self.system.nq, self.system.nc
-        self._patterns = {n: f.sparsity_out(0) for n, f in self.functions.items()}
-        self._buffers: dict = {}
+        #: the description the model was built from (names, markers, drivers, actuators)
+        self.mechanism = system.mechanism
+        self.name: str = system.mechanism.name
+        self.dimension: int = system.dimension
+        #: coordinate choice: "absolute", "natural" or "joint"
+        self.coordinates: str = system.coordinates
+        self.nq, self.nc = system.nq, system.nc
+        self.nu: int = len(system.mechanism.actuators)
+        self.parameter_names: list[str] = list(system.mechanism.parameters)
+        #: parameter values, the runtime input p of every Function (the one source of truth)
+        self.p = system.parameter_values.copy()
+        self.coordinate_names: list[str] = list(system.coordinate_names)
+        self.constraint_labels: list[Equation] = list(system.constraint_labels)
+        self.joint_coordinate_names: list[str] = list(system.joint_coordinate_names)
+        self.body_names: list[str] = list(system.body_names)
+        #: layout of q: each body's coordinate description and the index of its first entry
+        self.descriptions: dict = dict(system.descriptions)
+        self.coordinate_index: dict[str, int] = dict(system.ctx.index)
+        self.length_indices: np.ndarray = system.length_indices
+        self.reaction_size: int = system.reaction_size
+        #: rows of C of each joint and of each driver
+        self.joint_rows: dict[str, list[int]] = {k: list(v) for k, v in
+                                                 system.joint_rows.items()}
+        self.driver_rows: dict[str, int] = dict(system.driver_rows)
+        self._q0 = system.initial_coordinates()
+        self._v0 = system.initial_velocities() if system.local else None
+        #: evaluation buffers of the model's own methods (see :meth:`workspace`)
+        self.data = Workspace(self)
 
     # ------------------------------------------------------------------ bookkeeping
     @property
@@ -89,56 +141,45 @@ class NumericModel:
             raise ModelError(f"function '{name}' was not built for this analysis (built: "
                              f"{', '.join(self.functions)})") from None
 
+    def workspace(self) -> Workspace:
+        """A new :class:`~casmbd.compiled.workspace.Workspace` (buffers) for this model."""
+        return Workspace(self)
+
+    @property
+    def parameters(self) -> dict[str, float]:
+        """Current parameter values by name (from :attr:`p`)."""
+        return {name: float(self.p[k]) for k, name in enumerate(self.parameter_names)}
+
     def set_parameters(self, **values: float) -> None:
         """Change parameter values by name."""
-        names = list(self.system.mechanism.parameters)
+        names = self.parameter_names
         for key, val in values.items():
             if key not in names:
                 raise ModelError(f"unknown parameter '{key}' (known: {', '.join(names)})")
             self.p[names.index(key)] = float(val)
 
-    def _eval(self, name: str, *args) -> np.ndarray:
-        """Non-zeros of output 0 of ``name``, evaluated through a preallocated buffer.
+    def initial_coordinates(self) -> np.ndarray:
+        """Stacked q from the bodies' initial poses (approximate, before assembly)."""
+        return self._q0.copy()
 
-        ``Function.buffer()`` binds numpy arrays to the inputs and outputs, which avoids the
-        conversion of every argument to a CasADi matrix (50–150 µs a call from Python
-        against 0.1–3 µs for the compiled code itself; docs/performance.md).
-        """
-        entry = self._buffers.get(name)
-        if entry is None:
-            f = self.function(name)
-            buf, trigger = f.buffer()
-            ins = [np.zeros(f.nnz_in(i)) for i in range(f.n_in())]
-            outs = [np.zeros(f.nnz_out(i)) for i in range(f.n_out())]
-            for i, arr in enumerate(ins):
-                buf.set_arg(i, memoryview(arr))
-            for i, arr in enumerate(outs):
-                buf.set_res(i, memoryview(arr))
-            sparsity = f.sparsity_out(0)
-            pattern = (np.asarray(sparsity.row(), dtype=np.int32),
-                       np.asarray(sparsity.colind(), dtype=np.int32), sparsity.shape,
-                       sparsity.is_dense())
-            entry = (buf, trigger, ins, outs, pattern)
-            self._buffers[name] = entry
-        buf, trigger, ins, outs, _ = entry
-        for arr, val in zip(ins, args):
-            arr[:] = np.ravel(val) if np.ndim(val) else val
-        trigger()
-        return outs[0].copy()
+    def initial_velocities(self) -> np.ndarray:
+        """Stacked q̇ from the bodies' initial velocities, at the current parameter values
+        (joint coordinates map body velocities through J(q₀, p); see
+        :meth:`System.initial_velocities <casmbd.system.equations.System.initial_velocities>`)."""
+        if self._v0 is not None:
+            return self._v0.copy()
+        return self.system.initial_velocities(self.p)
 
-    def _vector(self, name: str, *args) -> np.ndarray:
-        nz = self._eval(name, *args)
-        rows, _, shape, dense = self._buffers[name][4]
-        if dense:
-            return nz
-        out = np.zeros(shape[0] * shape[1])
-        out[rows] = nz
-        return out
+    def vector(self, name: str, *args) -> np.ndarray:
+        """Output 0 of Function ``name`` (built with this model) as a dense flat array."""
+        return self.data.vector(name, *args)
 
-    def _sparse(self, name: str, *args) -> sp.csc_matrix:
-        nz = self._eval(name, *args)
-        rows, colind, shape, _ = self._buffers[name][4]
-        return sp.csc_matrix((nz, rows, colind), shape=shape)
+    def sparse(self, name: str, *args) -> sp.csc_matrix:
+        """Output 0 of Function ``name`` (built with this model) as a sparse matrix."""
+        return self.data.sparse(name, *args)
+
+    _vector = vector  # the names analyses used before the workspace split
+    _sparse = sparse
 
     # ------------------------------------------------------------------ equations
     def constraints(self, q, t: float) -> np.ndarray:
@@ -163,12 +204,12 @@ class NumericModel:
 
     def applied_forces(self, q, v, t: float, u=None) -> np.ndarray:
         """Q_e(q, v, t, u)."""
-        u = np.zeros(len(self.system.mechanism.actuators)) if u is None else u
+        u = np.zeros(self.nu) if u is None else u
         return self._vector("applied_forces", q, v, t, u, self.p)
 
     def input_matrix(self, q, v, t: float, u=None) -> sp.csc_matrix:
         """B = ∂Q_e/∂u (n_q × n_u)."""
-        u = np.zeros(len(self.system.mechanism.actuators)) if u is None else u
+        u = np.zeros(self.nu) if u is None else u
         return self._sparse("input_matrix", q, v, t, u, self.p)
 
     def kinetic_energy(self, q, v) -> float:
@@ -208,12 +249,11 @@ class NumericModel:
         correct while an angle changes by less than π between outputs.  Planar absolute and
         joint coordinates give exact continuous angles and are left alone.
         """
-        system = self.system
-        if system.dimension == 2 and system.coordinates != "natural":
+        if self.dimension == 2 and self.coordinates != "natural":
             return  # angle coordinates and their differences: continuous already, exact
-        joints = system.mechanism.joints
+        joints = self.mechanism.joints
         cols = []
-        for k, key in enumerate(system.joint_coordinate_names):
+        for k, key in enumerate(self.joint_coordinate_names):
             name, _, coord = key.partition(".")
             names = getattr(joints.get(name), "coordinate_names", ())
             if (coord or (names[0] if names else "")).startswith("angle"):

@@ -127,12 +127,13 @@ class System(AppliedForces, Outputs, Reactions):
         """Stacked q from the bodies' initial poses (approximate, before assembly)."""
         return np.concatenate([d.initial() for d in self.descriptions.values()])
 
-    def initial_velocities(self) -> np.ndarray:
+    def initial_velocities(self, p: np.ndarray | None = None) -> np.ndarray:
         """Stacked q̇ from the bodies' initial velocities and angular velocities.
 
-        In joint coordinates the body velocities are J(q₀) q̇ (centre-of-mass velocities and
+        In joint coordinates the body velocities are J(q₀, p) q̇ (centre-of-mass velocities and
         angular velocities of every body); q̇ is the least-squares solution, exact when the
-        given velocities are compatible with the tree joints.
+        given velocities are compatible with the tree joints.  ``p``: parameter values
+        (default: the mechanism's, :attr:`parameter_values`).
         """
         if self.local:
             return np.concatenate([d.initial_rates() for d in self.descriptions.values()])
@@ -144,7 +145,8 @@ class System(AppliedForces, Outputs, Reactions):
             given += [np.ravel(body.velocity), np.ravel(body.angular_velocity)]
         jac = ca.Function("twists", [self.q, self.p],
                           [ca.jacobian(ca.vertcat(*twists), self.v)])
-        matrix = np.asarray(jac(self.initial_coordinates(), self.parameter_values))
+        p = self.parameter_values if p is None else np.asarray(p, dtype=float)
+        matrix = np.asarray(jac(self.initial_coordinates(), p))
         rates, *_ = np.linalg.lstsq(matrix, np.concatenate(given), rcond=None)
         return rates
 
