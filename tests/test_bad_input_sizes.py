@@ -306,7 +306,7 @@ def test_sparse_and_dense_rank_agree_on_a_redundant_mechanism(coordinates):
 
     model = NumericModel(triple_crank(coordinates, name=f"tc_sizes_{coordinates}"), "info",
                          mode="vm")
-    q = assemble(model, model.system.initial_coordinates(), 0.0).q
+    q = assemble(model, model.initial_coordinates(), 0.0).q
     bumped = q + 1e-3 * np.random.default_rng(0).standard_normal(q.size)
     for point, dependent in ((q, 1), (bumped, 0)):
         jac = model.constraint_jacobian(point, 0.0)

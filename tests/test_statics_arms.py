@@ -58,9 +58,9 @@ def test_equilibrium_residual_and_verdict(scene, coordinates, method):
     about which gravity does no work."""
     model = model_of(scene, coordinates)
     r = solve(scene, coordinates, method)
-    q0 = assemble(model, model.system.initial_coordinates(), 0.0).q
-    qe0 = model._vector("statics_forces", q0, 0.0, model.p)
-    f = model._vector("statics_residual", r.q, r.lagrange_multipliers, 0.0, model.p)
+    q0 = assemble(model, model.initial_coordinates(), 0.0).q
+    qe0 = model.vector("statics_forces", q0, 0.0, model.p)
+    f = model.vector("statics_residual", r.q, r.lagrange_multipliers, 0.0, model.p)
     nq = model.nq
     assert np.max(np.abs(f[:nq])) <= RTOL * max(1.0, np.max(np.abs(qe0)))
     assert np.max(np.abs(f[nq:]), initial=0.0) <= RTOL * 1.0  # arm size < 1.1 m
@@ -73,8 +73,8 @@ def test_equilibrium_residual_and_verdict(scene, coordinates, method):
     assert np.all((r.joint_coordinates > -np.pi) & (r.joint_coordinates <= np.pi))
     assert np.all(r.body_quaternions[:, 0] >= 0.0)
     if coordinates == "natural":
-        for body in model.system.body_names:
-            k = model.system.ctx.index[body] + 3
+        for body in model.body_names:
+            k = model.coordinate_index[body] + 3
             assert np.linalg.det(r.q[k:k + 9].reshape(3, 3)) == pytest.approx(1.0, abs=1e-9)
     # the arm hangs: every centre of mass below the shoulder
     assert np.all(r.body_positions[1:, 2] < r.body_positions[0, 2] + 0.1)
