@@ -52,8 +52,8 @@ from casmbd.limits import (
 )
 from casmbd.model import Mechanism
 from casmbd.model.expressions import evaluate_number, parse_expression
+from casmbd.model.inertia import inertia_tensor
 from casmbd.model.registry import FORCE_KINDS, JOINT_KINDS
-from casmbd.model.rotations import inertia_tensor
 from casmbd.model.values import EXTRAPOLATIONS, Samples
 
 FORMAT = 1

@@ -31,9 +31,10 @@ from casmbd.model.forces import (
     Torque,
     UserForce,
 )
+from casmbd.model.inertia import inertia_tensor
 from casmbd.model.joints import Joint
 from casmbd.model.registry import FORCE_KINDS, JOINT_KINDS, joint_kind
-from casmbd.model.rotations import euler_zxz_to_quaternion, inertia_tensor
+from casmbd.model.rotations import euler_zxz_to_quaternion
 from casmbd.model.values import Value, check_value, numeric
 
 
