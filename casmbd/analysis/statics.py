@@ -71,7 +71,6 @@ from casmbd.analysis.stability import STABILITY_RTOL, Stability, classify_stabil
 from casmbd.analysis.trust_region import RANK_RTOL, trust_region_step
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, AssemblyError
-from casmbd.model.forces import RotationalSpringDamper
 from casmbd.system.descriptions import SpatialNatural, quaternions_from_matrices
 from casmbd.system.equations import System
 
@@ -402,13 +401,13 @@ def _periodic_joint_outputs(mech, names: list[str]) -> list[int]:
     """Indices of the reported joint coordinates that are free angles: revolute angles and
     cylindrical ``.angle`` of joints without a rotational spring or a driver (whose winding
     matters)."""
-    wound = {f.joint for f in mech.forces.values() if isinstance(f, RotationalSpringDamper)}
+    wound = {f.wound_joint() for f in mech.forces.values()} - {None}
     wound |= {d.joint for d in mech.drivers.values() if d.joint is not None}
     out = []
     for k, name in enumerate(names):
         joint, _, coord = name.partition(".")
-        kind = type(mech.joints[joint]).__name__
-        if joint not in wound and (coord == "angle" or (not coord and "Revolute" in kind)):
+        declared = mech.joints[joint].coordinate_names
+        if joint not in wound and (coord or (declared[0] if declared else "")) == "angle":
             out.append(k)
     return out
 

@@ -79,6 +79,30 @@ class ForceElement:
         """Potential energy (None: the element's work is not in V)."""
         return None
 
+    def energy_exchange(self) -> str | None:
+        """How the element changes the total energy T + V: ``None`` when all its work is in
+        V (a spring), ``"damper"`` when it dissipates, ``"force"`` when it does work that V
+        does not hold (the default: point forces, torques, user forces)."""
+        return "force"
+
+    def wound_joint(self) -> str | None:
+        """The joint whose coordinate the element winds (a rotational spring's φ − φ0 counts
+        whole turns, so statics must not reduce that angle to its principal range)."""
+        return None
+
+
+def _nonzero(value: Value) -> bool:
+    """Whether a value may differ from zero (an expression or a parameter may)."""
+    return not (isinstance(value, (int, float)) and not isinstance(value, bool) and value == 0)
+
+
+def _spring_exchange(force) -> str | None:
+    """:meth:`ForceElement.energy_exchange` of a spring-damper-actuator: its spring is in V,
+    its damper dissipates, its actuator does work."""
+    if _nonzero(force.damping):
+        return "damper"
+    return "force" if _nonzero(force.actuator) else None
+
 
 def _point(value, where: str) -> np.ndarray:
     """A point of 2 (plane) or 3 (space) numbers; the mechanism checks which."""
@@ -275,6 +299,9 @@ class SpringDamper(ForceElement):
         for key in ("stiffness", "damping", "free_length", "actuator"):
             setattr(self, key, check_value(getattr(self, key), f"{where} field '{key}'"))
 
+    def energy_exchange(self) -> str | None:
+        return _spring_exchange(self)
+
 
 @register_force
 @dataclass
@@ -336,6 +363,12 @@ class RotationalSpringDamper(ForceElement):
         where = f"force '{self.name}'"
         for key in ("stiffness", "damping", "free_angle", "actuator"):
             setattr(self, key, check_value(getattr(self, key), f"{where} field '{key}'"))
+
+    def energy_exchange(self) -> str | None:
+        return _spring_exchange(self)
+
+    def wound_joint(self) -> str | None:
+        return self.joint
 
 
 @register_force

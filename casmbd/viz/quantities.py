@@ -10,8 +10,6 @@ unit of a joint quantity is unknown and reads ``"m or rad"`` / ``"N or N m"``.
 
 from __future__ import annotations
 
-from numbers import Real
-
 from casmbd.errors import CasmbdError
 
 #: unit of a coordinate by the suffix of its name (``body.x``, ``joint.angle`` …)
@@ -75,10 +73,6 @@ def effort_units(result, group: str, mechanism=None) -> list[str]:
     return out
 
 
-def _nonzero(value) -> bool:
-    return not (isinstance(value, Real) and value == 0)
-
-
 def energy_exchange(result, mechanism=None) -> list[str] | None:
     """Elements through which the mechanism's total energy T + V may change physically:
     dampers (``damping`` ≠ 0, ``"damper 'd'"``), drivers (rheonomic constraints), actuators
@@ -96,14 +90,9 @@ def energy_exchange(result, mechanism=None) -> list[str] | None:
     if mech is None:
         return out or None
     for name, force in mech.forces.items():
-        kind = type(force).__name__
-        if kind in ("SpringDamper", "RotationalSpringDamper"):
-            if _nonzero(getattr(force, "damping", 0.0)):
-                out.append(f"damper '{name}'")
-            elif _nonzero(getattr(force, "actuator", 0.0)):
-                out.append(f"force '{name}'")
-        else:  # point forces, torques, user forces: their work is not in V
-            out.append(f"force '{name}'")
+        exchange = force.energy_exchange()  # each force kind says how it does work
+        if exchange is not None:
+            out.append(f"{exchange} '{name}'")
     return out
 
 
