@@ -24,6 +24,7 @@ from casmbd.analysis.simulate import Simulator, simulate
 from casmbd.analysis.statics import static_equilibrium
 from casmbd.analysis.sweep import SweepResult, sweep
 from casmbd.compiled.model import NumericModel
+from casmbd.compiled.robot import CompiledModel, compile
 from casmbd.errors import (
     AnalysisError,
     AssemblyError,
@@ -48,6 +49,7 @@ __all__ = [
     "AssemblyError",
     "CasmbdError",
     "CompileError",
+    "CompiledModel",
     "ExpressionError",
     "IntegratorError",
     "Mechanism",
@@ -63,6 +65,7 @@ __all__ = [
     "System",
     "accelerations",
     "assemble",
+    "compile",
     "info",
     "inverse_dynamics",
     "kinematics",

@@ -18,7 +18,26 @@ import scipy.sparse as sp
 if TYPE_CHECKING:  # annotations only: the model module imports this one
     from casmbd.compiled.model import NumericModel
 
-__all__ = ["Workspace"]
+__all__ = ["Workspace", "buffered"]
+
+
+def buffered(f, inputs: list[np.ndarray]) -> tuple:
+    """Zero-copy evaluation of CasADi Function ``f`` through ``Function.buffer()``.
+
+    ``inputs`` are float64 arrays of ``f.nnz_in(i)`` entries, bound (not copied) to the
+    inputs; returns ``(trigger, outputs)``: calling ``trigger()`` runs ``f`` on the current
+    contents of ``inputs`` and writes the non-zeros of each output into ``outputs`` (arrays
+    allocated here).  The arrays are reused by every call; the buffer object is kept alive by
+    the trigger.
+    """
+    buf, trigger = f.buffer()
+    outputs = [np.zeros(f.nnz_out(i)) for i in range(f.n_out())]
+    for i, arr in enumerate(inputs):
+        buf.set_arg(i, memoryview(arr))
+    for i, arr in enumerate(outputs):
+        buf.set_res(i, memoryview(arr))
+    trigger.buffer_owner = buf  # keep the buffer alive as long as the trigger
+    return trigger, outputs
 
 
 class Workspace:
@@ -45,13 +64,9 @@ class Workspace:
         entry = self._entries.get(name)
         if entry is None:
             f = self.model.function(name)
-            buf, trigger = f.buffer()
             ins = [np.zeros(f.nnz_in(i)) for i in range(f.n_in())]
-            outs = [np.zeros(f.nnz_out(i)) for i in range(f.n_out())]
-            for i, arr in enumerate(ins):
-                buf.set_arg(i, memoryview(arr))
-            for i, arr in enumerate(outs):
-                buf.set_res(i, memoryview(arr))
+            trigger, outs = buffered(f, ins)
+            buf = trigger.buffer_owner
             sparsity = f.sparsity_out(0)
             pattern = (np.asarray(sparsity.row(), dtype=np.int32),
                        np.asarray(sparsity.colind(), dtype=np.int32), sparsity.shape,

@@ -1,0 +1,277 @@
+"""A per-call numeric API of a compiled mechanism: :func:`compile` and :class:`CompiledModel`.
+
+Like Pinocchio's ``aba``/``rnea``/``crba`` on a ``Model`` and its ``Data``, a
+:class:`CompiledModel` evaluates the dynamics of one mechanism at one state per call, numpy in
+and numpy out, with no CasADi conversion on the way: every method owns a compiled CasADi
+Function whose inputs and outputs are bound once, through ``Function.buffer()``, to numpy
+arrays allocated when the model is built (:func:`~casmbd.compiled.workspace.buffered`).  A call
+copies its arguments into those arrays, runs the compiled C code and returns a *copy* of the
+result, so a caller cannot alias the buffers; a model serves one caller at a time (take one
+per thread).
+
+Conventions (n_q coordinates, joint coordinates by default):
+
+* equations of motion ``M(q) q̈ + b(q, v) = τ`` with τ the generalized forces on the
+  coordinates (joint torques and forces in joint coordinates).  casmbd writes Lagrange's
+  equations as ``M q̈ = Q_e + Q_v`` (:attr:`System.quadratic_velocity_forces
+  <casmbd.system.equations.System.quadratic_velocity_forces>`), so the bias is
+  ``b = −Q_v − Q_e`` with Q_e the mechanism's own applied forces (gravity, springs, dampers)
+  at t = 0 and actuator inputs u = 0 — Pinocchio's ``nle`` (Coriolis, centrifugal and gravity
+  terms);
+* ``forward_dynamics`` of a tree (no constraint equations) solves ``M q̈ = τ − b`` by a dense
+  LDLᵀ factorisation written into the generated code (no pivoting: M is symmetric positive
+  definite); with constraint equations (closed chains, Euler parameters) it solves the KKT
+  system ``[M C_qᵀ; C_q 0] [q̈; λ] = [τ − b; γ]`` in numpy from the compiled pieces;
+* ``inverse_dynamics`` returns ``τ = M a + b``; for a mechanism with constraint equations τ is
+  not unique (loop multipliers) and it raises :class:`~casmbd.errors.ModelError`;
+* a *frame* is a body (origin at its centre of mass, axes the body axes) or a marker (its
+  point, the axes of its body).  ``jacobian(q, frame)`` is the ``(3 + 3) × n_q`` (spatial)
+  or ``(2 + 1) × n_q`` (planar) matrix J with
+  ``(ṙ, ω) = J v``: rows the linear velocity of the frame's point then the angular velocity,
+  global components — Pinocchio's ``LOCAL_WORLD_ALIGNED`` convention (not ``WORLD``, whose
+  linear part is the velocity of the body point at the world origin).
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from casmbd.compiled.model import NumericModel
+from casmbd.compiled.workspace import buffered
+from casmbd.errors import ModelError
+from casmbd.system.equations import System
+
+__all__ = ["BATCH_CHUNK", "CompiledModel", "compile"]
+
+#: samples per call of the compiled batch Functions (``Function.map`` over a fixed number of
+#: columns, compiled once with the model); a batch of N samples makes ⌈N / BATCH_CHUNK⌉ calls,
+#: the last one padded with zeros
+BATCH_CHUNK = 64
+
+
+def ldl_solve(m: ca.SX, rhs: ca.SX) -> ca.SX:
+    """x with ``m x = rhs`` by a dense LDLᵀ factorisation without pivoting, as expressions.
+
+    ``m`` must be symmetric positive definite (a mass matrix).  ``L`` unit lower triangular,
+    ``D`` diagonal: ``d_j = m_jj − Σ_k L_jk² d_k``, ``L_ij = (m_ij − Σ_k L_ik L_jk d_k) / d_j``
+    (Golub & Van Loan, Matrix Computations, alg. 4.1.2), then forward, diagonal and back
+    substitution; n³/6 multiplications, structural zeros of ``m`` kept out.
+    """
+    n = m.size1()
+    low = [[None] * n for _ in range(n)]
+    d = [None] * n
+    for j in range(n):
+        ld = [low[j][k] * d[k] for k in range(j)]
+        d[j] = m[j, j] - sum((ld[k] * low[j][k] for k in range(j)), ca.SX(0))
+        for i in range(j + 1, n):
+            s = m[i, j] - sum((low[i][k] * ld[k] for k in range(j)), ca.SX(0))
+            low[i][j] = s / d[j]
+    y = [None] * n
+    for i in range(n):
+        y[i] = rhs[i] - sum((low[i][k] * y[k] for k in range(i)), ca.SX(0))
+    x = [None] * n
+    for i in reversed(range(n)):
+        x[i] = y[i] / d[i] - sum((low[k][i] * x[k] for k in range(i + 1, n)), ca.SX(0))
+    return ca.vertcat(*x) if n else ca.SX(0, 1)
+
+
+class _Call:
+    """One compiled Function bound to numpy buffers: fill ``ins``, call, read ``outs``."""
+
+    __slots__ = ("ins", "outs", "shapes", "trigger")
+
+    def __init__(self, f: ca.Function, p: np.ndarray):
+        args = [np.zeros(f.nnz_in(i)) for i in range(f.n_in())]
+        args[-1] = p  # the model's parameter vector itself: set_parameters applies at once
+        self.trigger, self.outs = buffered(f, args)
+        self.ins = args
+        self.shapes = [f.size_out(i) for i in range(f.n_out())]
+
+
+class CompiledModel:
+    """Compiled dynamics and kinematics of a mechanism, one state per call (module docstring).
+
+    Parameters
+    ----------
+    mechanism : Mechanism or System
+        The description (or its symbolic equations, used as they are).
+    coordinates : {"joint", "absolute", "natural"} or None
+        Generalized coordinates (default ``"joint"``; None: the mechanism's own choice).
+    mode : {"auto", "compiled", "vm"}
+        As :class:`~casmbd.compiled.model.NumericModel`: C code compiled and cached, or
+        CasADi's virtual machine.
+
+    Attributes
+    ----------
+    numeric : NumericModel
+        The compiled library (sizes, names, parameter values :attr:`p`).
+    frame_names : list of str
+        Bodies then markers: the rows of :meth:`forward_kinematics` and the frames of
+        :meth:`jacobian`.
+    """
+
+    def __init__(self, mechanism, coordinates: str | None = "joint", mode: str = "auto"):
+        system = (mechanism if isinstance(mechanism, System)
+                  else System(mechanism, coordinates=coordinates))
+        self.dimension = dim = system.dimension
+        self.nq, self.nc = system.nq, system.nc
+        q, v, p, nq = system.q, system.v, system.p, system.nq
+        tau = ca.SX.sym("tau", nq)
+        a = ca.SX.sym("a", nq)
+        zero_tu = [system.t, system.u]
+        zeros = [ca.SX(0.0), ca.SX.zeros(system.u.numel())]
+
+        def at_rest(expr):  # t = 0, actuator inputs u = 0
+            return ca.substitute([expr], zero_tu, zeros)[0]
+
+        mass = ca.densify(system.mass_matrix)
+        bias = at_rest(-system.quadratic_velocity_forces - system.applied_forces)
+        fns = [ca.Function("robot_mass_matrix", [q, p], [mass], ["q", "p"], ["M"]),
+               ca.Function("robot_bias", [q, v, p], [bias], ["q", "v", "p"], ["b"])]
+        if self.nc == 0:
+            qdd = ldl_solve(mass, tau - bias)
+            fd = ca.Function("robot_fd", [q, v, tau, p], [qdd], ["q", "v", "tau", "p"], ["a"])
+            ind = ca.Function("robot_id", [q, v, a, p], [ca.mtimes(mass, a) + bias],
+                              ["q", "v", "a", "p"], ["tau"])
+            fns += [fd, ind, fd.map("robot_fd_batch", "serial", BATCH_CHUNK, [3], []),
+                    ind.map("robot_id_batch", "serial", BATCH_CHUNK, [3], [])]
+        else:
+            cq = ca.densify(at_rest(system.constraint_jacobian))
+            gamma = at_rest(system.acceleration_rhs)
+            fns.append(ca.Function("robot_kkt", [q, v, tau, p], [mass, tau - bias, cq, gamma],
+                                   ["q", "v", "tau", "p"], ["M", "r", "Cq", "gamma"]))
+        ctx, mech = system.ctx, system.mechanism
+        frames = [(b, None) for b in system.body_names]
+        frames += [(mk.body, mk.point) for mk in mech.markers.values()]
+        self.frame_names: list[str] = list(system.body_names) + list(mech.markers)
+        pos = [ctx.position(body, point) for body, point in frames]
+        rot = [ca.vec(ctx.rotation(body).T) for body, _ in frames]  # row by row
+        fns.append(ca.Function("robot_fk", [q, p], [ca.vertcat(*pos), ca.vertcat(*rot)],
+                               ["q", "p"], ["positions", "rotations"]))
+        for k, ((body, _), r) in enumerate(zip(frames, pos)):
+            lin = ca.jacobian(r, q)
+            ang = ca.jacobian(ctx.angular_velocity(body), v)
+            fns.append(ca.Function(f"robot_jacobian_{k}", [q, p],
+                                   [ca.densify(ca.vertcat(lin, ang))], ["q", "p"], ["J"]))
+        #: the compiled library: sizes, names, parameter values ``numeric.p``
+        self.numeric = NumericModel(system, (), mode=mode, extra=fns)
+        self.coordinate_names: list[str] = self.numeric.coordinate_names
+        self.p = self.numeric.p
+        self._calls = {f.name(): _Call(self.numeric.function(f.name()), self.p) for f in fns}
+        self._frame_index = {name: k for k, name in enumerate(self.frame_names)}
+        self._nw = 1 if dim == 2 else 3
+
+    # ------------------------------------------------------------------ helpers
+    def _eval(self, name: str, *args) -> list[np.ndarray]:
+        call = self._calls[name]
+        try:
+            for buf, val in zip(call.ins, args):
+                if len(val) != len(buf):
+                    raise ValueError
+                buf[:] = val
+        except (ValueError, TypeError):
+            raise ModelError(f"{name.removeprefix('robot_')}: arguments must be vectors of "
+                             f"length n_q = {self.nq}, got shapes "
+                             f"{[np.shape(x) for x in args]}") from None
+        call.trigger()
+        return call.outs
+
+    def _tree_only(self, what: str) -> None:
+        if self.nc:
+            raise ModelError(f"{what}: the mechanism has {self.nc} constraint equations (closed "
+                             "chains or Euler parameters); τ = M a + b holds only for trees "
+                             "in joint coordinates")
+
+    # ------------------------------------------------------------------ one state
+    def mass_matrix(self, q) -> np.ndarray:
+        """M(q), dense n_q × n_q (Pinocchio's ``crba``, both triangles filled)."""
+        return self._eval("robot_mass_matrix", q)[0].reshape(self.nq, self.nq).copy()
+
+    def bias_forces(self, q, v) -> np.ndarray:
+        """b(q, v) = −Q_v − Q_e at t = 0, u = 0, so that M q̈ + b = τ (Pinocchio's ``nle``)."""
+        return self._eval("robot_bias", q, v)[0].copy()
+
+    def forward_dynamics(self, q, v, tau) -> np.ndarray:
+        """q̈ from M q̈ + b = τ (and C_q q̈ = γ with constraint equations; module docstring)."""
+        if self.nc == 0:
+            return self._eval("robot_fd", q, v, tau)[0].copy()
+        m, r, cq, gamma = self._eval("robot_kkt", q, v, tau)
+        nq, nc = self.nq, self.nc
+        kkt = np.zeros((nq + nc, nq + nc))
+        kkt[:nq, :nq] = m.reshape(nq, nq)
+        jac = cq.reshape(nc, nq, order="F")
+        kkt[nq:, :nq] = jac
+        kkt[:nq, nq:] = jac.T
+        return np.linalg.solve(kkt, np.concatenate([r, gamma]))[:nq]
+
+    def inverse_dynamics(self, q, v, a) -> np.ndarray:
+        """τ = M(q) a + b(q, v) of a tree (Pinocchio's ``rnea``)."""
+        self._tree_only("inverse_dynamics")
+        return self._eval("robot_id", q, v, a)[0].copy()
+
+    def forward_kinematics(self, q) -> tuple[np.ndarray, np.ndarray]:
+        """Positions (n_frames × dim) and rotation matrices (n_frames × dim × dim, body to
+        global) of every frame of :attr:`frame_names`: bodies at their centres of mass,
+        then markers."""
+        pos, rot = self._eval("robot_fk", q)
+        d = self.dimension
+        return pos.reshape(-1, d).copy(), rot.reshape(-1, d, d).copy()
+
+    def jacobian(self, q, frame: str) -> np.ndarray:
+        """J(q) of a body or marker with (ṙ, ω) = J v, rows linear then angular, global
+        components (Pinocchio's ``LOCAL_WORLD_ALIGNED``; module docstring)."""
+        k = self._frame_index.get(frame)
+        if k is None:
+            raise ModelError(f"jacobian: unknown frame '{frame}' (bodies and markers: "
+                             f"{', '.join(self.frame_names)})")
+        out = self._eval(f"robot_jacobian_{k}", q)[0]
+        return out.reshape(self.nq, self.dimension + self._nw).T.copy()
+
+    # ------------------------------------------------------------------ many states
+    def _batch(self, name: str, arrays) -> np.ndarray:
+        mats = [np.asarray(x, dtype=float) for x in arrays]
+        n = mats[0].shape[0] if mats[0].ndim == 2 else -1
+        if any(x.shape != (n, self.nq) for x in mats):
+            raise ModelError(f"{name.removeprefix('robot_')}: arguments must be arrays of "
+                             f"shape (N, n_q = {self.nq}), got {[x.shape for x in mats]}")
+        call, c = self._calls[name], BATCH_CHUNK
+        views = [buf.reshape(c, self.nq) for buf in call.ins[:-1]]  # column-major nq × c
+        res = call.outs[0].reshape(c, self.nq)
+        out = np.empty((n, self.nq))
+        for start in range(0, n, c):
+            m = min(c, n - start)
+            for view, x in zip(views, mats):
+                view[:m] = x[start:start + m]
+                if m < c:
+                    view[m:] = 0.0
+            call.trigger()
+            out[start:start + m] = res[:m]
+        return out
+
+    def forward_dynamics_batch(self, Q, V, TAU) -> np.ndarray:
+        """:meth:`forward_dynamics` at N states, arrays of shape (N, n_q) in and out.
+
+        Trees: compiled ``Function.map`` over :data:`BATCH_CHUNK` columns (no Python loop per
+        sample); with constraint equations, a loop of single calls.
+        """
+        if self.nc:
+            return np.array([self.forward_dynamics(*s) for s in zip(Q, V, TAU)]).reshape(
+                -1, self.nq)
+        return self._batch("robot_fd_batch", (Q, V, TAU))
+
+    def inverse_dynamics_batch(self, Q, V, A) -> np.ndarray:
+        """:meth:`inverse_dynamics` at N states, arrays of shape (N, n_q) in and out."""
+        self._tree_only("inverse_dynamics_batch")
+        return self._batch("robot_id_batch", (Q, V, A))
+
+
+def compile(mechanism, coordinates: str | None = "joint",
+            mode: str = "auto") -> CompiledModel:
+    """Compiled robot model of ``mechanism`` for per-call numeric evaluation.
+
+    ``model = casmbd.compile(mechanism)``; then ``model.forward_dynamics(q, v, tau)``,
+    ``inverse_dynamics``, ``mass_matrix``, ``bias_forces``, ``forward_kinematics``,
+    ``jacobian`` and the ``*_batch`` versions (see :class:`CompiledModel`).
+    """
+    return CompiledModel(mechanism, coordinates=coordinates, mode=mode)
