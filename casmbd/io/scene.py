@@ -11,7 +11,9 @@ Contract (SI units, angles in radians; vectors have ``dimension`` components)::
                   coordinates = "absolute"|"natural"|"joint",
                   tree = ["joint", ...] (joints that must be tree joints, coordinates = "joint")
     [parameters]  k = 100.0 ...
-    [[bodies]]    name, mass, inertia, position, velocity, reference_point,
+    [[bodies]]    name, type = "rigid" (default; the keys of each type are declared by its
+                  kind, casmbd.model.registry.BODY_KINDS), mass, inertia, position, velocity,
+                  reference_point,
                   plane:  angle, angular_velocity (numbers)
                   space:  inertia = [Ixx, Iyy, Izz(, Ixy, Ixz, Iyz)] (centre of mass, body axes),
                           orientation = [w, x, y, z] | euler_zxz = [phi, theta, psi],
@@ -32,6 +34,7 @@ Contract (SI units, angles in radians; vectors have ``dimension`` components)::
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import re
@@ -40,8 +43,9 @@ from pathlib import Path
 from typing import Any
 
 from casmbd import results
-from casmbd.errors import CasmbdError, ExpressionError, LimitError, ModelError, SceneError
+from casmbd.errors import CasmbdError, ExpressionError, LimitError, SceneError
 from casmbd.io.scene_points import ScenePoints
+from casmbd.io.urdf import urdf_scene
 from casmbd.limits import (
     MAX_BODIES,
     MAX_ELEMENTS,
@@ -52,8 +56,7 @@ from casmbd.limits import (
 )
 from casmbd.model import Mechanism
 from casmbd.model.expressions import evaluate_number, parse_expression
-from casmbd.model.inertia import inertia_tensor
-from casmbd.model.registry import FORCE_KINDS, JOINT_KINDS
+from casmbd.model.registry import BODY_KINDS, FORCE_KINDS, JOINT_KINDS
 from casmbd.model.values import EXTRAPOLATIONS, Samples
 
 FORMAT = 1
@@ -61,9 +64,7 @@ FORMAT = 1
 _TABLES = {"scene", "parameters", "bodies", "markers", "joints", "drivers", "forces",
            "actuators", "ocp", "simulation", "meta"}
 _SCENE_KEYS = {"name", "dimension", "gravity", "format", "description", "coordinates",
-               "tree"}
-_BODY_KEYS = {"name", "mass", "inertia", "position", "angle", "velocity", "angular_velocity",
-              "reference_point", "orientation", "euler_zxz", "description"}
+               "tree", "urdf", "initial", "locked", "damping"}
 _COORDINATES = ("absolute", "natural", "joint")
 _MARKER_KEYS = {"name", "body", "point", "description"}
 _DRIVER_KEYS = {"name", "joint", "body", "coordinate", "position", "description"}
@@ -207,6 +208,14 @@ class _Entry:
             raise self.error(key, f"must be a finite number, got {str(raw)[:40]}")
         return out
 
+    def evaluate(self, val: Any, key: str) -> float:
+        """The number of a raw value of ``key`` (an expression of the parameters evaluated now)."""
+        return self._number(val, key)
+
+    def positive(self, key: str, val: Any) -> None:
+        """Reject a mass or moment of inertia <= 0 given as ``val`` under ``key``."""
+        _positive(self, key, val)
+
     def nonnegative(self, key: str) -> Any:
         """A value (default 0) that must be >= 0 where it is a number or an expression of the
         parameters; one of t is checked when the equations are built."""
@@ -263,8 +272,14 @@ def _build(data: dict, source: str) -> Mechanism:
         raise scene.error("gravity", f"expected a list of {dim} numbers with 'dimension' = "
                           f"{dim}, got {gravity!r} (planar scenes: dimension = 2, spatial "
                           "scenes: dimension = 3)")
-    mech = Mechanism(name, gravity=scene.vector("gravity", dim, default=[0.0] * dim),
-                     dimension=dim, coordinates=coords)
+    if "urdf" in scene.data:  # the robot's bodies and joints from a URDF file (io/urdf.py)
+        mech = urdf_scene(scene.data, source, name, coords, scene.vector("gravity", 3, default=[
+            0.0, 0.0, -9.81]) if dim == 3 else None)
+    else:
+        if any(key in scene.data for key in ("initial", "locked", "damping")):
+            raise scene.error("initial", "'initial', 'locked' and 'damping' need 'urdf'")
+        mech = Mechanism(name, gravity=scene.vector("gravity", dim, default=[0.0] * dim),
+                         dimension=dim, coordinates=coords)
 
     def guarded(entry: _Entry, action):
         try:
@@ -287,12 +302,18 @@ def _build(data: dict, source: str) -> Mechanism:
                     MAX_BODIES if table == "bodies" else MAX_ELEMENTS)
         return [_Entry(table, i, item, params) for i, item in enumerate(raw)]
 
-    for e in entries("bodies"):
-        e.check_keys(_BODY_KEYS)
-        if dim == 2:
-            _add_planar_body(mech, e, guarded)
-        else:
-            _add_spatial_body(mech, e, guarded)
+    for e in entries("bodies"):  # each kind reads its own keys (casmbd.model.registry)
+        btype = e.string("type", default="rigid")
+        if btype not in BODY_KINDS:
+            raise e.error("type", f"unknown body type {btype!r} (allowed: "
+                          f"{', '.join(BODY_KINDS)})")
+        body_kind = BODY_KINDS[btype].get(dim)
+        if body_kind is None:
+            space = "spatial" if dim == 2 else "planar"
+            raise e.error("type", f"a {btype} body needs a {space} scene ([scene] "
+                          f"dimension = {5 - dim})")
+        e.check_keys(set(body_kind.scene_keys))
+        guarded(e, lambda body_kind=body_kind, e=e: body_kind.from_scene(mech, e))
 
     for e in entries("markers"):
         e.check_keys(_MARKER_KEYS)
@@ -358,52 +379,6 @@ def _positive(e: _Entry, key: str, val: float | str) -> None:
     if num <= 0.0:
         raise e.error(key, f"must be > 0, got {num:g}" + (f" ({val!r})"
                                                          if isinstance(val, str) else ""))
-
-
-def _add_planar_body(mech: Mechanism, e: _Entry, guarded) -> None:
-    for key in ("orientation", "euler_zxz"):
-        if e.has(key):
-            raise e.error(key, "planar bodies take 'angle' (spatial scenes: dimension = 3)")
-    for key in ("mass", "inertia"):
-        _positive(e, key, e.value(key))
-    guarded(e, lambda: mech.add_body(
-        _name(e), mass=e.value("mass"), inertia=e.value("inertia"),
-        position=e.vector("position"), angle=e.number("angle", 0.0),
-        velocity=e.vector("velocity", default=[0.0, 0.0]),
-        angular_velocity=e.number("angular_velocity", 0.0),
-        reference_point=e.vector("reference_point", default=[0.0, 0.0])))
-
-
-def _add_spatial_body(mech: Mechanism, e: _Entry, guarded) -> None:
-    """A spatial body: inertia [Ixx, Iyy, Izz(, Ixy, Ixz, Iyz)] about the centre of mass in
-    body axes, orientation as a unit quaternion [w, x, y, z] or Z-X-Z Euler angles."""
-    if e.has("angle"):
-        raise e.error("angle", "spatial bodies take 'orientation' (unit quaternion [w, x, y, "
-                      "z]) or 'euler_zxz' ([phi, theta, psi])")
-    if e.has("orientation") and e.has("euler_zxz"):
-        raise e.error("orientation", "give 'orientation' or 'euler_zxz', not both")
-    mass = e.value("mass")
-    _positive(e, "mass", mass)
-    inertia = e.values("inertia", (3, 6), what="moments (and products) of inertia")
-    for val in inertia[:3]:
-        _positive(e, "inertia", val)
-    try:
-        inertia_tensor([e._number(v, "inertia") for v in inertia])
-    except ModelError as exc:
-        raise e.error("inertia", str(exc)) from None
-    orientation = e.vector("orientation", 4, required=False)
-    if orientation is not None:
-        norm = math.sqrt(sum(x * x for x in orientation))
-        if abs(norm - 1.0) > 1e-3:
-            raise e.error("orientation", f"expected a unit quaternion [w, x, y, z], got norm "
-                          f"{norm:.6g}")
-    zeros = [0.0, 0.0, 0.0]
-    guarded(e, lambda: mech.add_body(
-        _name(e), mass=mass, inertia=inertia, position=e.vector("position", 3),
-        orientation=orientation, euler_zxz=e.vector("euler_zxz", 3, required=False),
-        velocity=e.vector("velocity", 3, default=zeros),
-        angular_velocity=e.vector("angular_velocity", 3, default=zeros),
-        reference_point=e.vector("reference_point", 3, default=zeros)))
 
 
 def _position(e: _Entry):
@@ -488,8 +463,15 @@ def loads_scene(text: str, source: str = "<string>") -> Mechanism:
 
 
 def load_scene(path: str | os.PathLike) -> Mechanism:
-    """Read a scene file and build its :class:`Mechanism` (see :func:`loads_scene`)."""
+    """Read a scene file and build its :class:`Mechanism` (see :func:`loads_scene`).
+
+    A ``.urdf`` file is read as the scene ``[scene] urdf = "<file>"`` with joint coordinates
+    (:mod:`casmbd.io.urdf`), so results keep a scene text that reloads it."""
     path = Path(path)
+    if path.suffix.lower() == ".urdf":
+        text = (f"[scene]\nname = {json.dumps(path.stem)}\ndimension = 3\n"
+                f"coordinates = \"joint\"\nurdf = {json.dumps(str(path.resolve()))}\n")
+        return loads_scene(text, source=str(path))
     try:
         size = path.stat().st_size if path.is_file() else 0
         if size > MAX_SCENE_BYTES:

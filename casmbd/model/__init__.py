@@ -14,7 +14,14 @@ from casmbd.model.forces import (
 from casmbd.model.gear import Gear
 from casmbd.model.joints import Distance, Fixed, Joint, Prismatic, Revolute, Rigid
 from casmbd.model.mechanism import Mechanism
-from casmbd.model.registry import FORCE_KINDS, JOINT_KINDS, register_force, register_joint
+from casmbd.model.registry import (
+    BODY_KINDS,
+    FORCE_KINDS,
+    JOINT_KINDS,
+    register_body,
+    register_force,
+    register_joint,
+)
 from casmbd.model.spatial_joints import (
     Cylindrical,
     SpatialFixed,
@@ -25,9 +32,10 @@ from casmbd.model.spatial_joints import (
     Universal,
 )
 
-__all__ = ["FORCE_KINDS", "GROUND", "JOINT_KINDS", "Actuator", "Body", "Cylindrical", "Distance",
-           "Driver", "Fixed", "ForceElement", "Gear", "Joint",
+__all__ = ["BODY_KINDS", "FORCE_KINDS", "GROUND", "JOINT_KINDS", "Actuator", "Body",
+           "Cylindrical", "Distance", "Driver", "Fixed", "ForceElement", "Gear", "Joint",
            "Marker", "Mechanism", "PointForce", "Prismatic", "Revolute", "Rigid",
            "RotationalSpringDamper", "SpatialBody", "SpatialFixed", "SpatialPrismatic",
            "SpatialRevolute", "SpatialRigid", "Spherical", "SpringDamper", "Torque", "Universal",
-           "UserForce", "register_force", "register_joint"]
+           "UserForce",
+           "register_body", "register_force", "register_joint"]

@@ -6,17 +6,27 @@ eq. 6.16: r = R + A(θ) u).  By default R is the centre of mass (centroidal fram
 mass matrix); with ``reference_point = s`` (body-frame offset of R from the centre of mass) the
 centre of mass is at R − A(θ) s and the mass matrix couples translation and rotation (eqs.
 6.22–6.23), with a non-zero quadratic-velocity vector (eqs. 6.34–6.37).
+
+Each body class is a *body kind* registered in :data:`casmbd.model.registry.BODY_KINDS` (both
+rigid bodies under the scene type ``"rigid"``): it declares its scene keys, how it is built from
+the Python API (:meth:`Body.create`) and from a ``[[bodies]]`` entry (:meth:`Body.from_scene`),
+its drawing hint and, per coordinate choice, the key of the description that turns its pose into
+generalized coordinates (:data:`casmbd.system.descriptions.DESCRIPTIONS`).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import numpy as np
 
 from casmbd.errors import ModelError
-from casmbd.model.rotations import rotation_matrix
+from casmbd.model.inertia import inertia_tensor
+from casmbd.model.registry import register_body
+from casmbd.model.rotations import euler_zxz_to_quaternion, rotation_matrix
 from casmbd.model.values import Value, check_value
 
 GROUND = "ground"
@@ -59,6 +69,23 @@ def scalar(value, where: str) -> float:
     return out
 
 
+#: the keys of a rigid ``[[bodies]]`` entry (planar and spatial share them: a key of the other
+#: dimension is refused by name, e.g. "planar bodies take 'angle'")
+RIGID_SCENE_KEYS = frozenset({"name", "type", "mass", "inertia", "position", "angle",
+                              "velocity", "angular_velocity", "reference_point", "orientation",
+                              "euler_zxz", "description"})
+
+
+def check_positive(body) -> None:
+    """Reject a numeric mass <= 0 (and, in the plane, a moment of inertia <= 0; spatial
+    moments are checked by :func:`casmbd.model.inertia.inertia_tensor`)."""
+    values = [body.mass] + (list(body.inertia) if body.dimension == 3 else [body.inertia])
+    for key, value in zip(["mass"] + ["inertia"] * (len(values) - 1), values, strict=True):
+        if isinstance(value, float) and value <= 0.0 and (key == "mass" or body.dimension == 2):
+            raise ModelError(f"body '{body.name}' field '{key}': must be > 0, got {value}")
+
+
+@register_body
 @dataclass
 class Body:
     """A planar rigid body.
@@ -101,6 +128,60 @@ class Body:
         self.reference_point = vector2(self.reference_point, f"{where} field 'reference_point'")
 
     dimension = 2
+    #: scene type name (``[[bodies]] type``) and the mechanism dimensions the class serves
+    kind: ClassVar[str] = "rigid"
+    dimensions: ClassVar[tuple[int, ...]] = (2,)
+    #: the keys of its ``[[bodies]]`` entries
+    scene_keys: ClassVar[frozenset[str]] = RIGID_SCENE_KEYS
+    #: drawing hint for :mod:`casmbd.viz.geometry`: "polyline" (a line through the body's
+    #: attachment points, its centre of mass alone when it has none)
+    drawing: ClassVar[str] = "polyline"
+    #: coordinate choice → key of its description in :data:`casmbd.system.descriptions.
+    #: DESCRIPTIONS` ("joint": the body as a floating root; a tree joint describes the others)
+    descriptions: ClassVar[dict[str, str]] = {"absolute": "planar_absolute",
+                                              "natural": "planar_natural",
+                                              "joint": "planar_floating"}
+
+    @classmethod
+    def create(cls, mech, name: str, mass: Value, inertia, position: Sequence[float],
+               angle: float = 0.0, velocity: Sequence[float] | None = None,
+               angular_velocity=None, reference_point: Sequence[float] | None = None,
+               orientation: Sequence[float] | None = None,
+               euler_zxz: Sequence[float] | None = None) -> Body:
+        """Validate the arguments of ``mech.add_body`` (``mech.add("body:rigid", ...)``) and
+        build the body; the mechanism stores it."""
+        mech._unique(mech.bodies, "body", name)
+        for key, value in (("orientation", orientation), ("euler_zxz", euler_zxz)):
+            if value is not None:
+                raise ModelError(f"body '{name}' field '{key}': planar bodies have an "
+                                 "'angle'")
+        zeros = (0.0, 0.0)
+        body = cls(name, mass, inertia, position, angle,
+                   zeros if velocity is None else velocity,
+                   0.0 if angular_velocity is None else angular_velocity,
+                   zeros if reference_point is None else reference_point)
+        check_positive(body)
+        return body
+
+    @classmethod
+    def from_scene(cls, mech, e) -> Body:
+        """Add the body of one ``[[bodies]]`` entry to ``mech`` and return it.
+
+        ``e`` is the scene loader's reader of the entry (``string``, ``value``, ``vector``,
+        ``number``, ``has``, ``error``, ``positive``); the parsing stays in
+        :mod:`casmbd.io.scene`, which keys build which arguments lives here.
+        """
+        for key in ("orientation", "euler_zxz"):
+            if e.has(key):
+                raise e.error(key, "planar bodies take 'angle' (spatial scenes: dimension = 3)")
+        for key in ("mass", "inertia"):
+            e.positive(key, e.value(key))
+        return mech.add(
+            f"body:{cls.kind}", e.string("name"), mass=e.value("mass"),
+            inertia=e.value("inertia"), position=e.vector("position"),
+            angle=e.number("angle", 0.0), velocity=e.vector("velocity", default=[0.0, 0.0]),
+            angular_velocity=e.number("angular_velocity", 0.0),
+            reference_point=e.vector("reference_point", default=[0.0, 0.0]))
 
     @property
     def is_centroidal(self) -> bool:
@@ -130,6 +211,7 @@ class Marker:
         self.point = vector(self.point, f"marker '{self.name}' field 'point'", self.dimension)
 
 
+@register_body
 @dataclass
 class SpatialBody:
     """A spatial rigid body.
@@ -170,6 +252,74 @@ class SpatialBody:
     reference_point: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     dimension = 3
+    kind: ClassVar[str] = "rigid"
+    dimensions: ClassVar[tuple[int, ...]] = (3,)
+    scene_keys: ClassVar[frozenset[str]] = RIGID_SCENE_KEYS
+    drawing: ClassVar[str] = "polyline"
+    descriptions: ClassVar[dict[str, str]] = {"absolute": "spatial_absolute",
+                                              "natural": "spatial_natural",
+                                              "joint": "spatial_floating"}
+
+    @classmethod
+    def create(cls, mech, name: str, mass: Value, inertia, position: Sequence[float],
+               angle: float = 0.0, velocity: Sequence[float] | None = None,
+               angular_velocity=None, reference_point: Sequence[float] | None = None,
+               orientation: Sequence[float] | None = None,
+               euler_zxz: Sequence[float] | None = None) -> SpatialBody:
+        """Validate the arguments of ``mech.add_body`` in space and build the body: the
+        orientation is a unit quaternion ``orientation`` or Z-X-Z Euler angles ``euler_zxz``."""
+        mech._unique(mech.bodies, "body", name)
+        if angle:
+            raise ModelError(f"body '{name}' field 'angle': spatial bodies take "
+                             "'orientation' (quaternion) or 'euler_zxz'")
+        if orientation is not None and euler_zxz is not None:
+            raise ModelError(f"body '{name}': give 'orientation' or 'euler_zxz', not both")
+        if euler_zxz is not None:
+            angles = vector(euler_zxz, f"body '{name}' field 'euler_zxz'", 3)
+            orientation = euler_zxz_to_quaternion(*angles)
+        zeros = (0.0, 0.0, 0.0)
+        body = cls(name, mass, inertia, position,
+                   (1.0, 0.0, 0.0, 0.0) if orientation is None else orientation,
+                   zeros if velocity is None else velocity,
+                   zeros if angular_velocity is None else angular_velocity,
+                   zeros if reference_point is None else reference_point)
+        check_positive(body)
+        return body
+
+    @classmethod
+    def from_scene(cls, mech, e) -> SpatialBody:
+        """Add the body of one ``[[bodies]]`` entry of a spatial scene: inertia [Ixx, Iyy,
+        Izz(, Ixy, Ixz, Iyz)] about the centre of mass in body axes, orientation a unit
+        quaternion [w, x, y, z] or Z-X-Z Euler angles (see :meth:`Body.from_scene`)."""
+        if e.has("angle"):
+            raise e.error("angle", "spatial bodies take 'orientation' (unit quaternion [w, x, "
+                          "y, z]) or 'euler_zxz' ([phi, theta, psi])")
+        if e.has("orientation") and e.has("euler_zxz"):
+            raise e.error("orientation", "give 'orientation' or 'euler_zxz', not both")
+        mass = e.value("mass")
+        e.positive("mass", mass)
+        inertia = e.values("inertia", (3, 6), what="moments (and products) of inertia")
+        for val in inertia[:3]:
+            e.positive("inertia", val)
+        try:
+            inertia_tensor([e.evaluate(v, "inertia") for v in inertia])
+        except ModelError as exc:
+            raise e.error("inertia", str(exc)) from None
+        orientation = e.vector("orientation", 4, required=False)
+        if orientation is not None:
+            norm = math.sqrt(sum(x * x for x in orientation))
+            if abs(norm - 1.0) > 1e-3:
+                raise e.error("orientation", f"expected a unit quaternion [w, x, y, z], got "
+                              f"norm {norm:.6g}")
+        zeros = [0.0, 0.0, 0.0]
+        name = e.string("name")
+        return mech.add(
+            f"body:{cls.kind}", name, mass=mass, inertia=inertia,
+            position=e.vector("position", 3), orientation=orientation,
+            euler_zxz=e.vector("euler_zxz", 3, required=False),
+            velocity=e.vector("velocity", 3, default=zeros),
+            angular_velocity=e.vector("angular_velocity", 3, default=zeros),
+            reference_point=e.vector("reference_point", 3, default=zeros))
 
     def __post_init__(self):
         where = f"body '{self.name}' field"

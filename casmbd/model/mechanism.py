@@ -33,8 +33,7 @@ from casmbd.model.forces import (
 )
 from casmbd.model.inertia import inertia_tensor
 from casmbd.model.joints import Joint
-from casmbd.model.registry import FORCE_KINDS, JOINT_KINDS, joint_kind
-from casmbd.model.rotations import euler_zxz_to_quaternion
+from casmbd.model.registry import BODY_KINDS, FORCE_KINDS, JOINT_KINDS, body_kind, joint_kind
 from casmbd.model.values import Value, check_value, numeric
 
 
@@ -147,7 +146,8 @@ class Mechanism:
                  angular_velocity=None, reference_point: Sequence[float] | None = None,
                  orientation: Sequence[float] | None = None,
                  euler_zxz: Sequence[float] | None = None) -> Body | SpatialBody:
-        """Add a rigid body with its centre of mass at ``position``.
+        """Add a rigid body with its centre of mass at ``position`` (the body kind ``"rigid"``:
+        ``add("body:rigid", ...)``).
 
         In the plane: ``inertia`` is the moment of inertia about the centre of mass, ``angle``
         the orientation (:class:`~casmbd.model.bodies.Body`).  In space: ``inertia`` is
@@ -156,38 +156,10 @@ class Mechanism:
         ``euler_zxz`` [φ, θ, ψ] (rad), velocities in global components
         (:class:`~casmbd.model.bodies.SpatialBody`).
         """
-        self._unique(self.bodies, "body", name)
-        dim = self.dimension
-        zeros = (0.0,) * dim
-        velocity = zeros if velocity is None else velocity
-        reference_point = zeros if reference_point is None else reference_point
-        if dim == 2:
-            for key, value in (("orientation", orientation), ("euler_zxz", euler_zxz)):
-                if value is not None:
-                    raise ModelError(f"body '{name}' field '{key}': planar bodies have an "
-                                     "'angle'")
-            body = Body(name, mass, inertia, position, angle,
-                        velocity, 0.0 if angular_velocity is None else angular_velocity,
-                        reference_point)
-        else:
-            if angle:
-                raise ModelError(f"body '{name}' field 'angle': spatial bodies take "
-                                 "'orientation' (quaternion) or 'euler_zxz'")
-            if orientation is not None and euler_zxz is not None:
-                raise ModelError(f"body '{name}': give 'orientation' or 'euler_zxz', not both")
-            if euler_zxz is not None:
-                angles = vector(euler_zxz, f"body '{name}' field 'euler_zxz'", 3)
-                orientation = euler_zxz_to_quaternion(*angles)
-            body = SpatialBody(name, mass, inertia, position,
-                               (1.0, 0.0, 0.0, 0.0) if orientation is None else orientation,
-                               velocity, zeros if angular_velocity is None else angular_velocity,
-                               reference_point)
-        values = [body.mass] + (list(body.inertia) if dim == 3 else [body.inertia])
-        for key, value in zip(["mass"] + ["inertia"] * (len(values) - 1), values, strict=True):
-            if isinstance(value, float) and value <= 0.0 and (key == "mass" or dim == 2):
-                raise ModelError(f"body '{name}' field '{key}': must be > 0, got {value}")
-        self.bodies[name] = body
-        return body
+        return self.add("body:rigid", name, mass, inertia, position, angle=angle,
+                        velocity=velocity, angular_velocity=angular_velocity,
+                        reference_point=reference_point, orientation=orientation,
+                        euler_zxz=euler_zxz)
 
     def add_marker(self, name: str, body: str, point: Sequence[float]) -> Marker:
         """Add a named point on ``body`` at the global location ``point`` (initial pose)."""
@@ -206,7 +178,7 @@ class Mechanism:
         self._unique(self.joints, "joint", name)
         self._pair(body1, body2, f"joint '{name}'")
 
-    def add(self, kind: str, name: str, *args, **fields) -> Joint | ForceElement:
+    def add(self, kind: str, name: str, *args, **fields) -> Joint | ForceElement | object:
         """Add an element of a registered kind: ``m.add("revolute", "pin", "ground", "rod",
         point=(0, 0))``, ``m.add("gear", "g", joint1="a", joint2="b", ratio=2.0)``,
         ``m.add("spring_damper", "s", "ground", "rod", p1, p2, stiffness=100.0)``.
@@ -217,6 +189,11 @@ class Mechanism:
         :func:`~casmbd.model.registry.register_joint` or
         :func:`~casmbd.model.registry.register_force` are added the same way.  The
         ``add_revolute``, ``add_spring_damper``, … methods are thin wrappers of this one.
+        Body kinds (:data:`~casmbd.model.registry.BODY_KINDS`,
+        :func:`~casmbd.model.registry.register_body`) are added as ``"body:<type>"``
+        (``m.add("body:rigid", "rod", mass=1.0, inertia=0.1, position=(0.5, 0))``, what
+        :meth:`add_body` does), or by their bare type name when no joint or force element kind
+        has it (``"rigid"`` is also a joint kind).
 
         Raises
         ------
@@ -224,10 +201,17 @@ class Mechanism:
             An unknown kind (listing the registered ones), a kind not available in this
             dimension, or an invalid argument (naming the element and the field).
         """
+        if isinstance(kind, str) and (kind.startswith("body:") or (
+                kind in BODY_KINDS and kind not in JOINT_KINDS and kind not in FORCE_KINDS)):
+            cls = body_kind(kind.removeprefix("body:"), self.dimension, f"body '{name}'")
+            body = cls.create(self, name, *args, **fields)
+            self.bodies[body.name] = body
+            return body
         if not isinstance(kind, str) or (kind not in JOINT_KINDS and kind not in FORCE_KINDS):
             raise ModelError(f"element '{name}': unknown kind {kind!r} (joints: "
                              f"{', '.join(JOINT_KINDS)}; force elements: "
-                             f"{', '.join(FORCE_KINDS)})")
+                             f"{', '.join(FORCE_KINDS)}; bodies: "
+                             f"{', '.join('body:' + k for k in BODY_KINDS)})")
         if kind in FORCE_KINDS:
             force = FORCE_KINDS[kind].create(self, name, *args, **fields)
             self.forces[force.name] = force

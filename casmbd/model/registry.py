@@ -7,7 +7,11 @@ and from a scene entry (:meth:`~casmbd.model.joints.Joint.from_scene`), its cons
 equations, its tree motion in joint coordinates and its drawing hint.  Registering it here is
 all the scene loader, :meth:`casmbd.model.Mechanism.add`, tree building and the drawing need:
 none of them names a kind.  A force element kind (:data:`FORCE_KINDS`, a subclass of
-:class:`casmbd.model.forces.ForceElement`) declares the same and its virtual-work terms.
+:class:`casmbd.model.forces.ForceElement`) declares the same and its virtual-work terms.  A
+body kind (:data:`BODY_KINDS`, e.g. :class:`~casmbd.model.bodies.Body`) declares its scene type
+name (``[[bodies]] type``, default ``"rigid"``), its scene keys, ``create``/``from_scene``, its
+drawing hint and, per coordinate choice, the key of the *description* the system layer uses
+(:data:`casmbd.system.descriptions.DESCRIPTIONS`; the model layer never imports the system).
 
 One scene name may have one class per dimension (``"revolute"`` is
 :class:`~casmbd.model.joints.Revolute` in the plane and
@@ -32,6 +36,8 @@ from casmbd.errors import ModelError
 JOINT_KINDS: dict[str, dict[int, type]] = {}
 #: force element type name → class (one class serves both dimensions)
 FORCE_KINDS: dict[str, type] = {}
+#: body type name (``[[bodies]] type``) → {dimension: body class}
+BODY_KINDS: dict[str, dict[int, type]] = {}
 
 _Kind = TypeVar("_Kind", bound=type)
 
@@ -130,5 +136,74 @@ def joint_kind(name: str, dimension: int, where: str) -> type:
         other = next(iter(table.values()))
         space = "spatial" if dimension == 2 else "planar"
         raise ModelError(f"{where}: a {other.title or name} joint needs a {space} mechanism "
+                         f"(dimension = {5 - dimension})")
+    return table[dimension]
+
+
+def register_body(kind: _Kind | None = None, *, replace: bool = False):
+    """Register a body class under its ``kind`` name for each of its ``dimensions``.
+
+    Usable as a class decorator like :func:`register_joint`.  The class declares ``kind`` (the
+    ``[[bodies]] type`` name), ``dimensions``, ``scene_keys``, ``create``/``from_scene``,
+    ``drawing`` and ``descriptions`` (coordinate choice → description key of
+    :data:`casmbd.system.descriptions.DESCRIPTIONS`; ``"joint"``: the body as a floating root).
+    Body names live in their own table: ``"rigid"`` is a body and a joint kind
+    (``Mechanism.add`` takes ``"body:rigid"`` for the body).
+
+    Raises
+    ------
+    ModelError
+        When the class declares no name, no valid dimension, no description per coordinate
+        choice, or the name is taken in one of its dimensions.
+    """
+    if kind is None:
+        return lambda cls: register_body(cls, replace=replace)
+    name = getattr(kind, "kind", None)
+    dims = tuple(getattr(kind, "dimensions", ()))
+    if not isinstance(name, str) or not name.isidentifier():
+        raise ModelError(f"body kind {kind.__name__}: class attribute 'kind' must be an "
+                         f"identifier (the scene type name), got {name!r}")
+    if not dims or any(d not in (2, 3) for d in dims):
+        raise ModelError(f"body kind '{name}' ({kind.__name__}): class attribute "
+                         f"'dimensions' must list 2 and/or 3, got {dims!r}")
+    descriptions = getattr(kind, "descriptions", None)
+    missing = [c for c in ("absolute", "natural", "joint")
+               if not isinstance(descriptions, dict) or not isinstance(descriptions.get(c), str)]
+    if missing:
+        raise ModelError(f"body kind '{name}' ({kind.__name__}): class attribute "
+                         "'descriptions' must name a description key for each coordinate "
+                         f"choice (missing: {', '.join(missing)})")
+    table = BODY_KINDS.setdefault(name, {})
+    for dim in dims:
+        old = table.get(dim)
+        if old is not None and old is not kind and not replace:
+            raise ModelError(f"body kind '{name}' in {dim} dimensions is already "
+                             f"registered ({old.__name__}); pass replace=True to override")
+        table[dim] = kind
+    return kind
+
+
+def body_kinds(dimension: int | None = None) -> list[str]:
+    """Registered body type names (all, or those available in ``dimension``)."""
+    return [name for name, table in BODY_KINDS.items()
+            if dimension is None or dimension in table]
+
+
+def body_kind(name: str, dimension: int, where: str) -> type:
+    """The class of body kind ``name`` in ``dimension`` dimensions.
+
+    Raises
+    ------
+    ModelError
+        An unknown name (listing the registered ones) or a kind not available in this
+        dimension (naming ``where``, e.g. ``body 'crank'``).
+    """
+    table = BODY_KINDS.get(name)
+    if table is None:
+        raise ModelError(f"{where}: unknown body type {name!r} (allowed: "
+                         f"{', '.join(BODY_KINDS)})")
+    if dimension not in table:
+        space = "spatial" if dimension == 2 else "planar"
+        raise ModelError(f"{where}: a {name} body needs a {space} mechanism "
                          f"(dimension = {5 - dimension})")
     return table[dimension]

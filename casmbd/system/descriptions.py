@@ -363,16 +363,67 @@ class SpatialNatural(Description):
         return ca.vertcat(self._reference_rate(rot, vel_g, omega), *axes)
 
 
-DESCRIPTIONS = {(2, "absolute"): PlanarAbsolute, (2, "natural"): PlanarNatural,
-                (3, "absolute"): SpatialAbsolute, (3, "natural"): SpatialNatural}
+#: description key → class; a body kind names its description per coordinate choice
+#: (``Body.descriptions``, :data:`casmbd.model.registry.BODY_KINDS`) and :func:`describe` finds
+#: the class here (the floating roots of joint coordinates are registered by
+#: :mod:`casmbd.system.tree`)
+DESCRIPTIONS: dict[str, type] = {}
+
+
+def register_description(key: str, cls: type | None = None, *, replace: bool = False):
+    """Register the description class ``cls`` under ``key`` (usable as
+    ``@register_description("planar_absolute")``).
+
+    Raises
+    ------
+    ModelError
+        When ``key`` is not an identifier, ``cls`` is not a :class:`Description`, or the key is
+        taken by another class (pass ``replace=True`` to override).
+    """
+    if cls is None:
+        return lambda c: register_description(key, c, replace=replace)
+    if not isinstance(key, str) or not key.isidentifier():
+        raise ModelError(f"description {getattr(cls, '__name__', cls)!r}: the key must be an "
+                         f"identifier, got {key!r}")
+    if not (isinstance(cls, type) and issubclass(cls, Description)):
+        raise ModelError(f"description '{key}': expected a Description subclass, got {cls!r}")
+    old = DESCRIPTIONS.get(key)
+    if old is not None and old is not cls and not replace:
+        raise ModelError(f"description '{key}' is already registered ({old.__name__}); pass "
+                         "replace=True to override")
+    DESCRIPTIONS[key] = cls
+    return cls
+
+
+for _key, _cls in (("planar_absolute", PlanarAbsolute), ("planar_natural", PlanarNatural),
+                   ("spatial_absolute", SpatialAbsolute), ("spatial_natural", SpatialNatural)):
+    register_description(_key, _cls)
 
 
 def describe(body, coordinates: str) -> Description:
-    """The description of ``body`` for the coordinate choice ``coordinates``."""
-    key = (body.dimension, coordinates)
-    if key not in DESCRIPTIONS:
+    """The description of ``body`` for the coordinate choice ``coordinates``: the class its
+    kind names (``type(body).descriptions[coordinates]``) in :data:`DESCRIPTIONS`.
+
+    In joint coordinates this is the body as a floating root (a body hanging from a tree joint
+    is described by :class:`casmbd.system.tree.TreeJointDescription`).
+
+    Raises
+    ------
+    ModelError
+        An unknown coordinate choice, a body kind naming no description for it, or a
+        description key nobody registered (naming the body and the key).
+    """
+    if coordinates not in COORDINATE_CHOICES:
         raise ModelError(f"body '{body.name}': unknown coordinate choice {coordinates!r} "
                          f"(known: {', '.join(COORDINATE_CHOICES)})")
+    key = getattr(body, "descriptions", {}).get(coordinates)
+    kind = getattr(body, "kind", type(body).__name__)
+    if key is None:
+        raise ModelError(f"body '{body.name}' ({kind}): its kind names no description in "
+                         f"{coordinates} coordinates")
+    if key not in DESCRIPTIONS:
+        raise ModelError(f"body '{body.name}' ({kind}): unknown description {key!r} in "
+                         f"{coordinates} coordinates (registered: {', '.join(DESCRIPTIONS)})")
     return DESCRIPTIONS[key](body)
 
 

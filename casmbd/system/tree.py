@@ -30,7 +30,13 @@ import numpy as np
 
 from casmbd.errors import ModelError
 from casmbd.model.bodies import GROUND
-from casmbd.system.descriptions import Description, PlanarAbsolute, SpatialAbsolute
+from casmbd.system.descriptions import (
+    Description,
+    PlanarAbsolute,
+    SpatialAbsolute,
+    describe,
+    register_description,
+)
 
 
 def is_tree_joint(joint) -> bool:
@@ -289,10 +295,12 @@ class FloatingRoot:
         return self.kinetic_energy(ctx.coordinates(name), ctx.rates(name), mass, inertia)
 
 
+@register_description("planar_floating")
 class PlanarFloating(FloatingRoot, PlanarAbsolute):
     """A planar body without a tree joint: (x, y, θ) of its centre of mass."""
 
 
+@register_description("spatial_floating")
 class SpatialFloating(FloatingRoot, SpatialAbsolute):
     """A spatial body without a tree joint: position and Euler parameters."""
 
@@ -305,9 +313,8 @@ def tree_descriptions(mechanism, tree=None) -> tuple[dict[str, Description], lis
     out: dict[str, Description] = {}
     for name in [e.child for e in edges]:  # parents first: poses are built recursively
         body, edge = mechanism.bodies[name], by_child[name]
-        if edge.joint is None:
-            cls = PlanarFloating if body.dimension == 2 else SpatialFloating
-            desc = cls(body)
+        if edge.joint is None:  # a floating root: the description its kind names
+            desc = describe(body, "joint")
             desc.offset = np.zeros(body.dimension)
             desc.prefix = name
             out[name] = desc
