@@ -38,6 +38,7 @@ from casmbd.errors import (
     SingularConfigurationError,
 )
 from casmbd.io.scene import load_scene, loads_scene
+from casmbd.io.urdf import load_urdf, loads_urdf
 from casmbd.model import Mechanism
 from casmbd.results import Result, load, load_result
 from casmbd.system import System
@@ -73,7 +74,9 @@ __all__ = [
     "load",
     "load_result",
     "load_scene",
+    "load_urdf",
     "loads_scene",
+    "loads_urdf",
     "sensitivity",
     "simulate",
     "static_equilibrium",

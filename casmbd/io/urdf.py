@@ -1,0 +1,300 @@
+"""Robots from URDF files: :func:`load_urdf` builds a spatial :class:`~casmbd.model.Mechanism`.
+
+Body and joint names are the URDF's.  The mechanism is built at the URDF's zero configuration
+(every joint position 0), so every joint coordinate is zero there (casmbd measures a joint's
+coordinate from the design pose).  Links joined by ``fixed`` joints (and joints named in
+``locked``, fixed at the given value) are merged into one body (:func:`~casmbd.io.urdf_tree.merge`);
+each merged link stays as a *marker* at its frame origin, named like the link.  The root link
+is welded to the ground (its mass does not count, its frame is the global frame); a ``floating``
+joint leaves its child free.  The body frame of a merged body is the frame of its first link
+with the origin moved to the centre of mass (casmbd's bodies are centroidal), so the body's
+orientation at the design pose is that link's orientation and its inertia tensor, about the
+centre of mass in those axes, is Rᵀ I Rᵀ with I the global tensor of the merge.
+
+Mimic joints become gear couplings θ_follower = multiplier θ_leader
+(:mod:`casmbd.model.gear`, c₂ − c₂⁰ = r (c₁ − c₁⁰)); the gear has no offset and at the URDF
+zero configuration both coordinates are zero, so a non-zero ``offset`` would contradict the
+design pose: refused with a named error.
+
+Limits (``lower``, ``upper``, ``effort``, ``velocity``) and ``<dynamics damping friction>``
+are kept on the joint objects as the dicts ``urdf_limits`` and ``urdf_dynamics``; with
+``damping=True`` a revolute joint's damping becomes a rotational spring-damper of zero
+stiffness named ``<joint>_damping``.  Friction is kept but not applied (issue 24).
+``<visual>`` and ``<collision>`` elements are ignored with one warning.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import warnings
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from casmbd.errors import CasmbdError, LimitError, SceneError
+from casmbd.io.urdf_tree import MOVING, Robot, merge, parse_urdf
+from casmbd.limits import MAX_SCENE_BYTES, format_bytes
+from casmbd.model import Mechanism
+from casmbd.model.bodies import GROUND
+from casmbd.model.rotations import quaternion_from_matrix
+
+#: default gravity of a robot (URDF has none): −9.81 m/s² along global −z
+GRAVITY = (0.0, 0.0, -9.81)
+
+
+def _state(value, joint: str, what: str) -> tuple[float, float]:
+    """(position, velocity) from a number or a pair."""
+    try:
+        if isinstance(value, Sequence) and not isinstance(value, str):
+            if len(value) != 2:
+                raise ValueError
+            pos, vel = float(value[0]), float(value[1])
+        else:
+            pos, vel = float(value), 0.0
+    except (TypeError, ValueError):
+        raise SceneError(f"{what} joint '{joint}': expected a number or [position, velocity], "
+                         f"got {value!r}") from None
+    if not (np.isfinite(pos) and np.isfinite(vel)):
+        raise SceneError(f"{what} joint '{joint}': must be finite, got {value!r}")
+    return pos, vel
+
+
+def _check_names(robot: Robot, table: Mapping, what: str) -> None:
+    for name in table:
+        joint = robot.joints.get(name)
+        if joint is None:
+            raise SceneError(f"{what}: unknown joint '{name}' (joints: "
+                             f"{', '.join(robot.joints) or 'none'})")
+        if joint.type not in MOVING:
+            raise SceneError(f"{what} joint '{name}': a {joint.type} joint has no single "
+                             "position")
+
+
+def _groups(robot: Robot, locked: Mapping) -> dict[str, str]:
+    """Link → body name (the link heading its rigid group; GROUND for the root's group)."""
+    group = {robot.root: GROUND}
+    for joint in robot.order():
+        if joint.type == "planar":
+            raise SceneError(f"joint '{joint.name}' attribute 'type': 'planar' joints are not "
+                             "supported yet")
+        rigid = joint.type == "fixed" or joint.name in locked
+        group[joint.child] = group[joint.parent] if rigid else joint.child
+    return group
+
+
+def _twists(robot: Robot, values: dict, rates: dict, frames: dict) -> dict:
+    """Global angular velocity ω and frame-origin velocity of every link at (q, q̇)."""
+    out = {robot.root: (np.zeros(3), np.zeros(3))}
+    for joint in robot.order():
+        omega_p, vel_p = out[joint.parent]
+        rot_c, pos_c = frames[joint.child]
+        pos_p = frames[joint.parent][1]
+        rate = rates.get(joint.name, 0.0)
+        omega, vel = omega_p.copy(), vel_p + np.cross(omega_p, pos_c - pos_p)
+        axis = rot_c @ joint.axis
+        if joint.type in ("revolute", "continuous"):
+            omega = omega + axis * rate
+        elif joint.type == "prismatic":
+            vel = vel + axis * rate
+        out[joint.child] = (omega, vel)
+    return out
+
+
+def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | None = None,
+                    initial: Mapping | None = None, damping: bool = False,
+                    gravity: Sequence[float] = GRAVITY, name: str | None = None) -> Mechanism:
+    """The :class:`Mechanism` of a parsed URDF (see :func:`load_urdf`)."""
+    locked = dict(locked or {})
+    initial = dict(initial or {})
+    _check_names(robot, locked, "locked")
+    _check_names(robot, initial, "initial")
+    locked = {k: _state(v, k, "locked")[0] for k, v in locked.items()}
+    start = {k: _state(v, k, "initial") for k, v in initial.items()}
+    for key in set(start) & set(locked):
+        raise SceneError(f"initial joint '{key}': the joint is also locked")
+    if any(p != 0.0 for p, _ in start.values()) and coordinates != "joint":
+        raise SceneError("initial: joint positions other than 0 need coordinates = 'joint' "
+                         "(the other coordinates measure the design pose, the URDF zero)")
+    mimic_of = {j.name: j.mimic for j in robot.joints.values() if j.mimic is not None}
+    for follower, (leader, ratio, offset) in mimic_of.items():
+        if offset != 0.0:
+            raise SceneError(f"joint '{follower}' <mimic> attribute 'offset': a non-zero offset "
+                             "is not supported (the gear coupling is zero at the URDF zero)")
+        if robot.joints[leader].type not in MOVING or robot.joints[follower].type not in MOVING:
+            raise SceneError(f"joint '{follower}' <mimic>: both joints must be revolute, "
+                             "continuous or prismatic")
+        if follower in start or follower in locked:
+            raise SceneError(f"joint '{follower}': a mimic joint follows '{leader}'; give "
+                             "'initial' or 'locked' for the leader")
+        if leader in locked:
+            locked[follower] = ratio * locked[leader]
+        elif leader in start:
+            start[follower] = (ratio * start[leader][0], ratio * start[leader][1])
+    group = _groups(robot, locked)
+    design = robot.frames(locked)  # the design pose: URDF zero, locked joints at their value
+    mech = Mechanism(name or robot.name, gravity=gravity, dimension=3, coordinates=coordinates)
+    values = {**locked, **{k: p for k, (p, _) in start.items()}}
+    at_start = robot.frames(values)
+    twists = _twists(robot, values, {k: v for k, (_, v) in start.items()}, at_start)
+
+    parts: dict[str, list] = {}
+    for lname, link in robot.links.items():
+        rot, pos = design[lname]
+        parts.setdefault(group[lname], []).append(
+            (link.mass, pos + rot @ link.com, rot @ link.inertia @ rot.T))
+
+    def guarded(where: str, action):
+        try:
+            return action()
+        except SceneError:
+            raise
+        except CasmbdError as exc:
+            raise SceneError(f"{where}: {exc}") from None
+
+    for body in dict.fromkeys(g for g in group.values() if g != GROUND):
+        mass, com, tensor = merge(parts[body])
+        if mass <= 0.0:
+            raise SceneError(f"link '{body}': a moving link without mass (issue 21 item 3, "
+                             "mass checks for massless frame links, is pending)")
+        rot = design[body][0]
+        local = rot.T @ tensor @ rot
+        omega, vel0 = twists[body]
+        com_start = at_start[body][0] @ (rot.T @ (com - design[body][1])) + at_start[body][1]
+        vel = vel0 + np.cross(omega, com_start - at_start[body][1])
+        guarded(f"link '{body}'", lambda body=body, mass=mass, com=com, local=local, rot=rot,
+                vel=vel, omega=omega: mech.add_body(
+                    body, mass, [local[0, 0], local[1, 1], local[2, 2], local[0, 1],
+                                 local[0, 2], local[1, 2]], com,
+                    orientation=quaternion_from_matrix(rot), velocity=vel,
+                    angular_velocity=omega))
+    for lname in robot.links:
+        if group[lname] != lname:
+            guarded(f"link '{lname}'", lambda lname=lname: mech.add_marker(
+                lname, group[lname], design[lname][1]))
+
+    for joint in robot.order():
+        if joint.type == "fixed" or joint.name in locked or joint.type == "floating":
+            continue
+        rot, pos = design[joint.child]
+        body1, body2 = group[joint.parent], group[joint.child]
+        axis = rot @ joint.axis
+        kind = "prismatic" if joint.type == "prismatic" else "revolute"
+        made = guarded(f"joint '{joint.name}'", lambda joint=joint, body1=body1, body2=body2,
+                       pos=pos, axis=axis, kind=kind: mech.add(
+                           kind, joint.name, body1, body2, pos, axis=axis))
+        made.urdf_type = joint.type
+        made.urdf_limits = dict(joint.limits)
+        made.urdf_dynamics = dict(joint.dynamics)
+        if joint.name in start and start[joint.name][0] != 0.0:
+            made.tree_initial = functools.partial(np.array, [start[joint.name][0]], float)
+    for follower, (leader, ratio, _) in mimic_of.items():
+        if follower in locked:
+            continue
+        guarded(f"joint '{follower}' <mimic>", lambda f=follower, lead=leader, r=ratio:
+                mech.add_gear(f"{f}_mimic", lead, f, ratio=r))
+    if damping:
+        _add_damping(robot, mech, locked)
+    if robot.ignored:
+        warnings.warn(f"URDF '{robot.name}': {robot.ignored} <visual>/<collision> elements "
+                      "ignored (meshes are not used)", stacklevel=3)
+    return mech
+
+
+def _add_damping(robot: Robot, mech: Mechanism, locked: Mapping) -> None:
+    """Viscous joint damping τ = −d θ̇ as rotational spring-dampers of zero stiffness."""
+    skipped = []
+    for joint in robot.order():
+        d = joint.dynamics.get("damping", 0.0)
+        if d <= 0.0 or joint.name in locked or joint.type not in MOVING:
+            continue
+        if joint.type == "prismatic":
+            skipped.append(joint.name)
+            continue
+        mech.add_rotational_spring_damper(f"{joint.name}_damping", joint.name, damping=d)
+    if skipped:
+        warnings.warn(f"URDF damping of prismatic joints not applied: {', '.join(skipped)}",
+                      stacklevel=3)
+
+
+def loads_urdf(text: str, source: str = "<string>", **options) -> Mechanism:
+    """:func:`load_urdf` from URDF text."""
+    from_count = len(text.encode("utf-8", "replace"))
+    if from_count > MAX_SCENE_BYTES:
+        raise LimitError(f"URDF '{source}': {format_bytes(from_count)} exceeds the limit of "
+                         f"{format_bytes(MAX_SCENE_BYTES)} (casmbd.limits.MAX_SCENE_BYTES)")
+    return build_mechanism(parse_urdf(text, source), **options)
+
+
+def load_urdf(path: str | os.PathLike, coordinates: str = "joint",
+              locked: Mapping[str, float] | None = None,
+              initial: Mapping[str, float | Sequence[float]] | None = None,
+              damping: bool = False, gravity: Sequence[float] = GRAVITY,
+              name: str | None = None) -> Mechanism:
+    """Build a spatial :class:`Mechanism` from a URDF file.
+
+    Parameters
+    ----------
+    path : path-like
+        The ``.urdf`` file (XML; DOCTYPE/ENTITY declarations are refused).
+    coordinates : {"joint", "absolute", "natural"}
+        The mechanism's default coordinates.
+    locked : dict, optional
+        Joint name → position: the joint is welded at that value (merged like a fixed joint).
+    initial : dict, optional
+        Joint name → position or (position, velocity): the initial state.  Positions other
+        than 0 need joint coordinates; the coordinates stay zero at the URDF zero.
+    damping : bool
+        Apply ``<dynamics damping>`` of revolute joints as viscous joint torques.
+    gravity : 3 floats
+        Default (0, 0, −9.81).
+    name : str, optional
+        Mechanism name, default the robot's.
+
+    Raises
+    ------
+    SceneError
+        Unreadable or malformed files, unknown or malformed content (naming link/joint and
+        attribute), unsupported features (planar joints, mimic offsets, moving massless links).
+    """
+    path = Path(path)
+    try:
+        size = path.stat().st_size if path.is_file() else 0
+        if size > MAX_SCENE_BYTES:
+            raise LimitError(f"URDF file '{path}': {format_bytes(size)} exceeds the limit of "
+                             f"{format_bytes(MAX_SCENE_BYTES)} (casmbd.limits.MAX_SCENE_BYTES)")
+        text = path.read_text(encoding="utf-8-sig")
+    except FileNotFoundError:
+        raise SceneError(f"URDF file '{path}' not found") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SceneError(f"URDF file '{path}' cannot be read: {exc}") from None
+    return loads_urdf(text, str(path), coordinates=coordinates, locked=locked,
+                      initial=initial, damping=damping, gravity=gravity, name=name)
+
+
+def urdf_scene(data: dict, source: str, name: str, coordinates: str, gravity) -> Mechanism:
+    """The mechanism of a scene's ``[scene] urdf = "path"`` (relative to the scene file) with
+    optional ``[scene.initial]``, ``[scene.locked]`` (joint name = value) and ``damping``."""
+    if gravity is None:
+        raise SceneError("[scene] key 'dimension': a scene with 'urdf' is spatial "
+                         "(dimension = 3)")
+    rel = data["urdf"]
+    if not isinstance(rel, str) or not rel:
+        raise SceneError(f"[scene] key 'urdf': expected a file path, got {rel!r}")
+    base = Path(source).parent if source and not source.startswith("<") else Path(".")
+    tables = {}
+    for key in ("initial", "locked"):
+        table = data.get(key, {})
+        if not isinstance(table, dict):
+            raise SceneError(f"[scene.{key}]: expected a table of joint name = value")
+        tables[key] = table
+    damping = data.get("damping", False)
+    if not isinstance(damping, bool):
+        raise SceneError(f"[scene] key 'damping': expected true or false, got {damping!r}")
+    try:
+        return load_urdf(base / rel, coordinates=coordinates, locked=tables["locked"],
+                         initial=tables["initial"], damping=damping, gravity=gravity,
+                         name=name)
+    except SceneError as exc:
+        raise SceneError(f"[scene] key 'urdf' ('{rel}'): {exc}") from None

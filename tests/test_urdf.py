@@ -1,0 +1,337 @@
+"""URDF import (casmbd.load_urdf, [scene] urdf, .urdf on the CLI) against an independent
+recursive Newton–Euler written here (global-frame recursion over the URDF tree, fixed joints
+as joints that do not move, no merging): inverse-dynamics torques τ = M q̈ − Q_e − Q_v at random
+(q, q̇, q̈) to 1e-10 relative, link frames to 1e-12 m; the fixed-joint merge against a hand
+computation; named errors for malformed files."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import subprocess
+import sys
+import warnings
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import casmbd
+from casmbd import SceneError, load_urdf, loads_urdf
+
+SCENES = Path(__file__).parent / "scenes"
+UR5 = SCENES / "ur5_arm.urdf"
+ARM7 = SCENES / "arm7_gripper.urdf"
+G = np.array([0.0, 0.0, -9.81])
+
+
+# ---------------------------------------------------------------- the independent reference
+def _vec(text, default):
+    return np.array([float(x) for x in text.split()]) if text else np.array(default, float)
+
+
+def _rpy(r, p, y):
+    rx = np.array([[1, 0, 0], [0, math.cos(r), -math.sin(r)], [0, math.sin(r), math.cos(r)]])
+    ry = np.array([[math.cos(p), 0, math.sin(p)], [0, 1, 0], [-math.sin(p), 0, math.cos(p)]])
+    rz = np.array([[math.cos(y), -math.sin(y), 0], [math.sin(y), math.cos(y), 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+def _rot(axis, angle):
+    kx = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    return np.eye(3) + math.sin(angle) * kx + (1 - math.cos(angle)) * kx @ kx
+
+
+def read(path):
+    """Links {name: (m, com, I in link axes)} and joints in file order (a minimal reader)."""
+    root = ET.parse(path).getroot()
+    links = {}
+    for el in root.findall("link"):
+        ine = el.find("inertial")
+        if ine is None:
+            links[el.get("name")] = (0.0, np.zeros(3), np.zeros((3, 3)))
+            continue
+        org = ine.find("origin")
+        rot = _rpy(*_vec(org.get("rpy") if org is not None else None, [0, 0, 0]))
+        com = _vec(org.get("xyz") if org is not None else None, [0, 0, 0])
+        i = {k: float(ine.find("inertia").get(k)) for k in
+             ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")}
+        t = np.array([[i["ixx"], i["ixy"], i["ixz"]], [i["ixy"], i["iyy"], i["iyz"]],
+                      [i["ixz"], i["iyz"], i["izz"]]])
+        links[el.get("name")] = (float(ine.find("mass").get("value")), com, rot @ t @ rot.T)
+    joints = []
+    for el in root.findall("joint"):
+        org = el.find("origin")
+        ax = el.find("axis")
+        joints.append(dict(name=el.get("name"), type=el.get("type"),
+                           parent=el.find("parent").get("link"),
+                           child=el.find("child").get("link"),
+                           rot=_rpy(*_vec(org.get("rpy"), [0, 0, 0])),
+                           xyz=_vec(org.get("xyz"), [0, 0, 0]),
+                           axis=_vec(ax.get("xyz") if ax is not None else None, [1, 0, 0])))
+    return links, joints
+
+
+def rnea(path, q, v, a):
+    """τ of every moving joint (dict) and the link frames {link: (R, p)}."""
+    links, joints = read(path)
+    children = {j["child"] for j in joints}
+    root = next(n for n in links if n not in children)
+    st = {root: (np.eye(3), np.zeros(3), np.zeros(3), np.zeros(3), -G)}  # R p ω ω̇ a
+    order = []
+    pending = list(joints)
+    while pending:
+        for j in list(pending):
+            if j["parent"] in st:
+                pending.remove(j)
+                order.append(j)
+                rp, pp, wp, dwp, ap = st[j["parent"]]
+                qi, vi, ai = (q.get(j["name"], 0.0), v.get(j["name"], 0.0),
+                              a.get(j["name"], 0.0))
+                moving = j["type"] in ("revolute", "continuous", "prismatic")
+                rot0 = rp @ j["rot"]
+                h = rot0 @ j["axis"]
+                if j["type"] == "prismatic":
+                    rot, pos = rot0, pp + rp @ j["xyz"] + h * qi
+                else:
+                    rot = rot0 @ (_rot(j["axis"], qi) if moving else np.eye(3))
+                    pos = pp + rp @ j["xyz"]
+                r = pos - pp
+                acc = ap + np.cross(dwp, r) + np.cross(wp, np.cross(wp, r))
+                w, dw = wp.copy(), dwp.copy()
+                if j["type"] == "prismatic":
+                    acc = acc + 2 * np.cross(wp, h * vi) + h * ai
+                elif moving:
+                    w = wp + h * vi
+                    dw = dwp + h * ai + np.cross(wp, h * vi)
+                st[j["child"]] = (rot, pos, w, dw, acc)
+    force = {}
+    for name, (m, com, inertia) in links.items():
+        rot, pos, w, dw, acc = st[name]
+        d = rot @ com
+        ac = acc + np.cross(dw, d) + np.cross(w, np.cross(w, d))
+        ig = rot @ inertia @ rot.T
+        f = m * ac
+        force[name] = [f, ig @ dw + np.cross(w, ig @ w) + np.cross(d, f)]  # N about origin
+    tau = {}
+    for j in reversed(order):
+        fc, nc = force[j["child"]]
+        pc, pp = st[j["child"]][1], st[j["parent"]][1]
+        h = st[j["parent"]][0] @ j["rot"] @ j["axis"]
+        if j["type"] in ("revolute", "continuous"):
+            tau[j["name"]] = h @ nc
+        elif j["type"] == "prismatic":
+            tau[j["name"]] = h @ fc
+        force[j["parent"]][0] = force[j["parent"]][0] + fc
+        force[j["parent"]][1] = force[j["parent"]][1] + nc + np.cross(pc - pp, fc)
+    return tau, {n: (s[0], s[1]) for n, s in st.items()}
+
+
+def load(path, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return load_urdf(path, **kw)
+
+
+def _joint_names(model):
+    return [n.split(".")[0] for n in model.coordinate_names]
+
+
+# ---------------------------------------------------------------- dynamics and kinematics
+@pytest.mark.parametrize("path", [UR5, ARM7])
+def test_inverse_dynamics_and_frames_match_newton_euler(path):
+    mech = load(path)
+    model = casmbd.NumericModel(mech, functions=["mass_matrix", "applied_forces",
+                                                 "quadratic_velocity_forces", "outputs"])
+    names = _joint_names(model)
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        q, v, a = (rng.uniform(-1.5, 1.5, len(names)) for _ in range(3))
+        if path == ARM7:
+            q[names.index("panda_finger_joint1")] = 0.02
+        tau = model.mass_matrix(q) @ a - model.applied_forces(q, v, 0.0) \
+            - model.quadratic_velocity_forces(q, v)
+        ref, frames = rnea(path, dict(zip(names, q)), dict(zip(names, v)),
+                           dict(zip(names, a)))
+        expect = np.array([ref[n] for n in names])
+        assert np.max(np.abs(tau - expect)) <= 1e-10 * np.max(np.abs(expect))
+        out = model.outputs(q[None], v[None], a[None], np.zeros(1))
+        for k, body in enumerate(model.body_names):
+            rot = out["rotation_matrices"][0, 9 * k:9 * k + 9].reshape(3, 3)
+            rot_ref, pos_ref = frames[body]
+            b = mech.bodies[body]
+            origin = out["body_positions"][0, 3 * k:3 * k + 3] \
+                + rot @ b.local(_design_origin(path, body))
+            assert np.max(np.abs(rot - rot_ref)) < 1e-12
+            assert np.max(np.abs(origin - pos_ref)) < 1e-12
+        for k, marker in enumerate(mech.markers):
+            pos = out["marker_positions"][0, 3 * k:3 * k + 3]
+            assert np.max(np.abs(pos - frames[marker][1])) < 1e-12
+
+
+def _design_origin(path, link):
+    return rnea(path, {}, {}, {})[1][link][1]
+
+
+def test_absolute_coordinates_energy_and_constraints_match():
+    """Absolute coordinates: C(q) = 0 at the reference pose, T and V equal the reference's."""
+    mech = load(UR5, coordinates="absolute")
+    model = casmbd.NumericModel(mech, functions=["constraints", "kinetic_energy",
+                                                 "potential_energy"])
+    links, _ = read(UR5)
+    rng = np.random.default_rng(5)
+    qj, vj = rng.uniform(-1, 1, 6), rng.uniform(-1, 1, 6)
+    names = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint",
+             "wrist_2_joint", "wrist_3_joint"]
+    _, frames = rnea(UR5, dict(zip(names, qj)), {}, {})
+    eps = 1e-6
+    _, frames_p = rnea(UR5, dict(zip(names, qj + eps * vj)), {}, {})
+    _, frames_m = rnea(UR5, dict(zip(names, qj - eps * vj)), {}, {})
+    q = np.zeros(model.nq)
+    v = np.zeros(model.nq)
+    kinetic = potential = 0.0
+    for name in model.body_names:
+        i = model.coordinate_index[name]
+        m, com, inertia = links[name]
+        (rot, pos), (rp, pp), (rm, pm) = frames[name], frames_p[name], frames_m[name]
+        body = mech.bodies[name]
+        rot0 = body.initial_rotation
+        design = rnea(UR5, {}, {}, {})[1][name]
+        arm = rot0.T @ (design[1] - body.position)  # link origin in body axes
+        rb = rot @ design[0].T @ rot0  # body rotation
+        q[i:i + 3] = pos - rb @ arm
+        quat = casmbd.model.rotations.quaternion_from_matrix(rb)
+        rbp, rbm = rp @ design[0].T @ rot0, rm @ design[0].T @ rot0
+        qp = casmbd.model.rotations.quaternion_from_matrix(rbp)
+        qm = casmbd.model.rotations.quaternion_from_matrix(rbm)
+        q[i + 3:i + 7] = quat
+        v[i:i + 3] = ((pp - rbp @ arm) - (pm - rbm @ arm)) / (2 * eps)
+        v[i + 3:i + 7] = (qp - qm) / (2 * eps)
+        c = pos + rot @ com
+        cdot = ((pp + rp @ com) - (pm + rm @ com)) / (2 * eps)
+        wskew = (rp - rm) / (2 * eps) @ rot.T
+        w = np.array([wskew[2, 1], wskew[0, 2], wskew[1, 0]])
+        ig = rot @ inertia @ rot.T
+        kinetic += 0.5 * m * cdot @ cdot + 0.5 * w @ ig @ w
+        potential -= m * G @ c
+    assert np.max(np.abs(model.constraints(q, 0.0))) < 1e-12
+    assert abs(model.kinetic_energy(q, v) - kinetic) < 1e-7 * kinetic  # central differences
+    assert abs(model.potential_energy(q, 0.0) - potential) < 1e-12 * abs(potential) + 1e-12
+
+
+# ---------------------------------------------------------------- merge, mimic, options
+def test_fixed_joint_merge_by_hand():
+    """panda_link7 + flange (panda_link8) + hand: mass, centre of mass, inertia (global)."""
+    mech = load(ARM7)
+    links, _ = read(ARM7)
+    _, frames = rnea(ARM7, {}, {}, {})
+    parts = []
+    for name in ("panda_link7", "panda_link8", "panda_hand", "panda_hand_tcp"):
+        m, com, inertia = links[name]
+        rot, pos = frames[name]
+        parts.append((m, pos + rot @ com, rot @ inertia @ rot.T))
+    mass = sum(p[0] for p in parts)
+    com = sum(p[0] * p[1] for p in parts) / mass
+    tensor = sum(p[2] + p[0] * ((p[1] - com) @ (p[1] - com) * np.eye(3)
+                                - np.outer(p[1] - com, p[1] - com)) for p in parts)
+    body = mech.bodies["panda_link7"]
+    assert abs(body.mass - mass) < 1e-12 and abs(mass - (0.735 + 0.1 + 0.73)) < 1e-12
+    assert np.max(np.abs(body.position - com)) < 1e-12
+    rot = body.initial_rotation
+    assert np.max(np.abs(rot - frames["panda_link7"][0])) < 1e-12
+    got = rot @ casmbd.model.inertia.inertia_tensor(body.inertia) @ rot.T
+    assert np.max(np.abs(got - tensor)) < 1e-12
+    assert mech.markers["panda_hand_tcp"].body == "panda_link7"
+
+
+def test_mimic_gear_limits_damping_locked_initial():
+    mech = load(ARM7, damping=True, locked={"panda_joint7": 0.3},
+                initial={"panda_joint2": (0.4, 0.5), "panda_finger_joint1": 0.01})
+    gear = mech.joints["panda_finger_joint2_mimic"]
+    assert (gear.joint1, gear.joint2, gear.ratio) == ("panda_finger_joint1",
+                                                      "panda_finger_joint2", 1.0)
+    assert mech.joints["panda_joint4"].urdf_limits == {"lower": -3.0718, "upper": -0.0698,
+                                                      "effort": 87.0, "velocity": 2.175}
+    assert mech.forces["panda_joint1_damping"].damping == 0.2
+    assert "panda_joint7" not in mech.joints and "panda_link7" not in mech.bodies
+    assert mech.markers["panda_link7"].body == "panda_link6"
+    model = casmbd.NumericModel(mech, functions=["constraints", "outputs"])
+    q0, v0 = model.initial_coordinates(), model.initial_velocities()
+    names = _joint_names(model)
+    assert q0[names.index("panda_joint2")] == 0.4
+    assert q0[names.index("panda_finger_joint2")] == 0.01  # follows its leader
+    assert abs(v0[names.index("panda_joint2")] - 0.5) < 1e-12
+    assert np.max(np.abs(np.delete(v0, names.index("panda_joint2")))) < 1e-12
+    assert np.max(np.abs(model.constraints(q0, 0.0))) < 1e-14
+    ur = load(UR5)
+    assert ur.joints["shoulder_pan_joint"].urdf_dynamics == {"damping": 0.5, "friction": 0.1}
+    assert not ur.forces  # damping off by default
+
+
+def test_visual_elements_give_one_notice():
+    with pytest.warns(UserWarning, match="3 <visual>/<collision> elements ignored") as rec:
+        load_urdf(UR5)
+    assert len(rec) == 1
+
+
+# ---------------------------------------------------------------- errors
+_TWO = ('<robot name="r"><link name="a"/><link name="b"><inertial><mass value="1"/>'
+        '<inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>{}'
+        '</robot>')
+_J = ('<joint name="j" type="{t}"><parent link="{p}"/><child link="{c}"/>'
+      '<origin xyz="{xyz}"/><axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" '
+      'velocity="1"/></joint>')
+
+
+@pytest.mark.parametrize("text, match", [
+    (_TWO.format(_J.format(t="revolute", p="a", c="b", xyz="0 0 x")),
+     "joint 'j' <origin> attribute 'xyz': expected 3 numbers"),
+    (_TWO.format(_J.format(t="revolute", p="a", c="b", xyz="0 0")),
+     "joint 'j' <origin> attribute 'xyz': expected 3 finite numbers"),
+    (_TWO.format(_J.format(t="hinge", p="a", c="b", xyz="0 0 0")),
+     "joint 'j' attribute 'type': unknown joint type 'hinge'"),
+    (_TWO.format(_J.format(t="revolute", p="a", c="z", xyz="0 0 0")),
+     "joint 'j' <child> attribute 'link': unknown link 'z'"),
+    (_TWO.format(""), "several root links"),
+    (_TWO.format(_J.format(t="revolute", p="a", c="b", xyz="0 0 0")
+                 + _J.format(t="revolute", p="b", c="a", xyz="0 0 0").replace('"j"', '"k"')),
+     "cycle"),
+    (_TWO.format(_J.format(t="revolute", p="a", c="b", xyz="0 0 0")).replace(
+        '<mass value="1"/>', "<mass/>"), "link 'b' <mass>: missing attribute 'value'"),
+    ('<?xml version="1.0"?><!DOCTYPE r [<!ENTITY x "y">]><robot name="r"/>', "DOCTYPE"),
+    ("<robot><link name='a'>", "malformed XML"),
+    (_TWO.format(_J.format(t="planar", p="a", c="b", xyz="0 0 0")), "'planar'.*not supported"),
+    (_TWO.format(_J.format(t="revolute", p="a", c="b", xyz="0 0 0")).replace(
+        '<mass value="1"/>', '<mass value="0"/>'), "link 'b'.*item 3"),
+])
+def test_malformed_files_give_named_errors(text, match):
+    with pytest.raises(SceneError, match=match):
+        loads_urdf(text, "t.urdf")
+
+
+# ---------------------------------------------------------------- scene files and CLI
+def test_cli_info_on_a_bare_urdf():
+    out = subprocess.run([sys.executable, "-W", "ignore", "-m", "casmbd", "info", str(UR5),
+                          "--json"], capture_output=True, text=True, timeout=600,
+                         env={**os.environ, "CASMBD_COMPILE": "0"})
+    assert out.returncode == 0, out.stderr
+    info = json.loads(out.stdout)
+    assert info["degrees_of_freedom"] == 6
+
+
+def test_scene_with_urdf_and_driver(tmp_path):
+    rel = Path("../" * len(tmp_path.parts)).joinpath(*UR5.resolve().parts[1:])
+    scene = tmp_path / "arm.toml"
+    scene.write_text(f'[scene]\nurdf = "{rel.as_posix()}"\ndimension = 3\n'
+                     'coordinates = "joint"\n[scene.initial]\nelbow_joint = 0.5\n'
+                     '[[drivers]]\nname = "d"\njoint = "shoulder_pan_joint"\n'
+                     'position = "0.3*t"\n')
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        mech = casmbd.load_scene(scene)
+    assert mech.name == "arm" and len(mech.bodies) == 6 and "d" in mech.drivers
+    assert mech.joints["elbow_joint"].tree_initial()[0] == 0.5
+    with pytest.raises(SceneError, match=r"key 'urdf'.*not found"):
+        casmbd.loads_scene('[scene]\nurdf = "nope.urdf"\ndimension = 3\n', str(scene))
