@@ -77,16 +77,18 @@ def ldl_solve(m: ca.SX, rhs: ca.SX) -> ca.SX:
 
 
 class _Call:
-    """One compiled Function bound to numpy buffers: fill ``ins``, call, read ``outs``."""
+    """One compiled Function bound to numpy buffers: fill ``a0, a1, a2``, ``trigger()``, read
+    ``outs`` (``view``: output 0 in the shape the method returns)."""
 
-    __slots__ = ("ins", "outs", "shapes", "trigger")
+    __slots__ = ("a0", "a1", "a2", "ins", "outs", "trigger", "view")
 
-    def __init__(self, f: ca.Function, p: np.ndarray):
+    def __init__(self, f: ca.Function, p: np.ndarray, shape=None):
         args = [np.zeros(f.nnz_in(i)) for i in range(f.n_in())]
         args[-1] = p  # the model's parameter vector itself: set_parameters applies at once
         self.trigger, self.outs = buffered(f, args)
         self.ins = args
-        self.shapes = [f.size_out(i) for i in range(f.n_out())]
+        self.a0, self.a1, self.a2 = (args[:-1] + [None, None, None])[:3]
+        self.view = self.outs[0] if shape is None else shape(self.outs[0])
 
 
 class CompiledModel:
@@ -158,24 +160,40 @@ class CompiledModel:
         self.numeric = NumericModel(system, (), mode=mode, extra=fns)
         self.coordinate_names: list[str] = self.numeric.coordinate_names
         self.p = self.numeric.p
-        self._calls = {f.name(): _Call(self.numeric.function(f.name()), self.p) for f in fns}
+        nw, d = (1 if dim == 2 else 3), dim
+        shapes = {"robot_mass_matrix": lambda x: x.reshape(nq, nq),  # symmetric: order moot
+                  "robot_fk": lambda x: x.reshape(-1, d)}
+        shapes.update({f"robot_jacobian_{k}": lambda x: x.reshape(nq, d + nw).T
+                       for k in range(len(frames))})  # column-major (d + nw) × nq
+        self._calls = {f.name(): _Call(self.numeric.function(f.name()), self.p,
+                                       shapes.get(f.name())) for f in fns}
         self._frame_index = {name: k for k, name in enumerate(self.frame_names)}
-        self._nw = 1 if dim == 2 else 3
+        self._m, self._b = self._calls["robot_mass_matrix"], self._calls["robot_bias"]
+        self._fk = self._calls["robot_fk"]
+        self._jac = [self._calls[f"robot_jacobian_{k}"] for k in range(len(frames))]
+        self._fd = self._calls.get("robot_fd", self._calls.get("robot_kkt"))
+        self._id = self._calls.get("robot_id")
 
     # ------------------------------------------------------------------ helpers
-    def _eval(self, name: str, *args) -> list[np.ndarray]:
-        call = self._calls[name]
+    def _shape_error(self, what: str, *args) -> ModelError:
+        return ModelError(f"{what}: arguments must be vectors of length n_q = {self.nq}, got "
+                          f"shapes {[np.shape(x) for x in args]}")
+
+    def _load(self, c: _Call, what: str, q, v=None, w=None) -> None:
+        """Copy the arguments into the bound buffers (checked lengths), then evaluate."""
+        n = self.nq
         try:
-            for buf, val in zip(call.ins, args):
-                if len(val) != len(buf):
-                    raise ValueError
-                buf[:] = val
+            if len(q) != n or (v is not None and len(v) != n) or (
+                    w is not None and len(w) != n):
+                raise ValueError
+            c.a0[...] = q
+            if v is not None:
+                c.a1[...] = v
+                if w is not None:
+                    c.a2[...] = w
         except (ValueError, TypeError):
-            raise ModelError(f"{name.removeprefix('robot_')}: arguments must be vectors of "
-                             f"length n_q = {self.nq}, got shapes "
-                             f"{[np.shape(x) for x in args]}") from None
-        call.trigger()
-        return call.outs
+            raise self._shape_error(what, *(x for x in (q, v, w) if x is not None)) from None
+        c.trigger()
 
     def _tree_only(self, what: str) -> None:
         if self.nc:
@@ -186,17 +204,23 @@ class CompiledModel:
     # ------------------------------------------------------------------ one state
     def mass_matrix(self, q) -> np.ndarray:
         """M(q), dense n_q × n_q (Pinocchio's ``crba``, both triangles filled)."""
-        return self._eval("robot_mass_matrix", q)[0].reshape(self.nq, self.nq).copy()
+        c = self._m
+        self._load(c, "mass_matrix", q)
+        return c.view.copy()
 
     def bias_forces(self, q, v) -> np.ndarray:
         """b(q, v) = −Q_v − Q_e at t = 0, u = 0, so that M q̈ + b = τ (Pinocchio's ``nle``)."""
-        return self._eval("robot_bias", q, v)[0].copy()
+        c = self._b
+        self._load(c, "bias_forces", q, v)
+        return c.view.copy()
 
     def forward_dynamics(self, q, v, tau) -> np.ndarray:
         """q̈ from M q̈ + b = τ (and C_q q̈ = γ with constraint equations; module docstring)."""
-        if self.nc == 0:
-            return self._eval("robot_fd", q, v, tau)[0].copy()
-        m, r, cq, gamma = self._eval("robot_kkt", q, v, tau)
+        c = self._fd
+        self._load(c, "forward_dynamics", q, v, tau)
+        if not self.nc:
+            return c.view.copy()
+        m, r, cq, gamma = c.outs
         nq, nc = self.nq, self.nc
         kkt = np.zeros((nq + nc, nq + nc))
         kkt[:nq, :nq] = m.reshape(nq, nq)
@@ -207,16 +231,20 @@ class CompiledModel:
 
     def inverse_dynamics(self, q, v, a) -> np.ndarray:
         """τ = M(q) a + b(q, v) of a tree (Pinocchio's ``rnea``)."""
-        self._tree_only("inverse_dynamics")
-        return self._eval("robot_id", q, v, a)[0].copy()
+        c = self._id
+        if c is None:
+            self._tree_only("inverse_dynamics")
+        self._load(c, "inverse_dynamics", q, v, a)
+        return c.view.copy()
 
     def forward_kinematics(self, q) -> tuple[np.ndarray, np.ndarray]:
         """Positions (n_frames × dim) and rotation matrices (n_frames × dim × dim, body to
         global) of every frame of :attr:`frame_names`: bodies at their centres of mass,
         then markers."""
-        pos, rot = self._eval("robot_fk", q)
+        c = self._fk
+        self._load(c, "forward_kinematics", q)
         d = self.dimension
-        return pos.reshape(-1, d).copy(), rot.reshape(-1, d, d).copy()
+        return c.view.copy(), c.outs[1].copy().reshape(-1, d, d)
 
     def jacobian(self, q, frame: str) -> np.ndarray:
         """J(q) of a body or marker with (ṙ, ω) = J v, rows linear then angular, global
@@ -225,8 +253,9 @@ class CompiledModel:
         if k is None:
             raise ModelError(f"jacobian: unknown frame '{frame}' (bodies and markers: "
                              f"{', '.join(self.frame_names)})")
-        out = self._eval(f"robot_jacobian_{k}", q)[0]
-        return out.reshape(self.nq, self.dimension + self._nw).T.copy()
+        c = self._jac[k]
+        self._load(c, "jacobian", q)
+        return c.view.copy()
 
     # ------------------------------------------------------------------ many states
     def _batch(self, name: str, arrays) -> np.ndarray:
