@@ -335,3 +335,21 @@ def test_scene_with_urdf_and_driver(tmp_path):
     assert mech.joints["elbow_joint"].tree_initial()[0] == 0.5
     with pytest.raises(SceneError, match=r"key 'urdf'.*not found"):
         casmbd.loads_scene('[scene]\nurdf = "nope.urdf"\ndimension = 3\n', str(scene))
+
+
+def test_floating_joint_leaves_the_child_free():
+    text = ('<robot name="f"><link name="world"/><joint name="free" type="floating">'
+            '<parent link="world"/><child link="b"/><origin xyz="0 0 1" rpy="0.3 0 0"/></joint>'
+            '<link name="b"><inertial><mass value="2"/><origin xyz="0.1 0 0"/>'
+            '<inertia ixx="1" ixy="0" ixz="0" iyy="2" iyz="0" izz="3"/></inertial></link>'
+            '</robot>')
+    for coordinates in ("joint", "absolute"):
+        mech = loads_urdf(text, coordinates=coordinates)
+        assert not mech.joints and list(mech.bodies) == ["b"]
+        body = mech.bodies["b"]
+        assert np.max(np.abs(body.position - [0.1, 0.0, 1.0])) < 1e-15
+        assert np.max(np.abs(body.initial_rotation - _rpy(0.3, 0, 0))) < 1e-15
+        model = casmbd.NumericModel(mech, functions=["mass_matrix"], mode="vm")
+        assert model.nq == 7
+        mass = model.mass_matrix(model.initial_coordinates()).toarray()
+        assert np.max(np.abs(mass[:3, :3] - 2.0 * np.eye(3))) < 1e-14

@@ -198,7 +198,7 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
         _add_damping(robot, mech, locked)
     if robot.ignored:
         warnings.warn(f"URDF '{robot.name}': {robot.ignored} <visual>/<collision> elements "
-                      "ignored (meshes are not used)", stacklevel=3)
+                      "ignored (meshes are not used)", stacklevel=4)
     return mech
 
 
@@ -215,7 +215,7 @@ def _add_damping(robot: Robot, mech: Mechanism, locked: Mapping) -> None:
         mech.add_rotational_spring_damper(f"{joint.name}_damping", joint.name, damping=d)
     if skipped:
         warnings.warn(f"URDF damping of prismatic joints not applied: {', '.join(skipped)}",
-                      stacklevel=3)
+                      stacklevel=4)
 
 
 def loads_urdf(text: str, source: str = "<string>", **options) -> Mechanism:
