@@ -87,7 +87,7 @@ class _Call:
         args[-1] = p  # the model's parameter vector itself: set_parameters applies at once
         self.trigger, self.outs = buffered(f, args)
         self.ins = args
-        self.a0, self.a1, self.a2 = (args[:-1] + [None, None, None])[:3]
+        self.a0, self.a1, self.a2 = [*args[:-1], None, None, None][:3]
         self.view = self.outs[0] if shape is None else shape(self.outs[0])
 
 
