@@ -321,6 +321,34 @@ def test_cli_info_on_a_bare_urdf():
     assert info["degrees_of_freedom"] == 6
 
 
+def test_scene_with_urdf_drivers_and_damping_inverse_dynamics(tmp_path):
+    """Every joint driven, q_i = a_i + b_i sin(2t): the driver efforts equal the Newton–Euler
+    torques plus the viscous damping d θ̇ of shoulder_pan (``damping = true``)."""
+    (tmp_path / "robot").mkdir()
+    (tmp_path / "robot" / "ur5.urdf").write_text(UR5.read_text())
+    names = ["shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint", "wrist_1_joint",
+             "wrist_2_joint", "wrist_3_joint"]
+    amp, mid = np.linspace(0.3, 0.8, 6), np.linspace(-0.5, 0.6, 6)
+    drivers = "".join(f'[[drivers]]\nname = "d{i}"\njoint = "{n}"\n'
+                      f'position = "{float(mid[i])!r} + {float(amp[i])!r}*sin(2*t)"\n'
+                      for i, n in enumerate(names))
+    scene = tmp_path / "arm.toml"
+    scene.write_text('[scene]\nurdf = "robot/ur5.urdf"\ndimension = 3\ndamping = true\n'
+                     'coordinates = "joint"\n' + drivers)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        mech = casmbd.load_scene(scene)
+    result = casmbd.inverse_dynamics(mech, 1.0, 4, mode="vm")
+    for k, t in enumerate(result["t"]):
+        q = mid + amp * np.sin(2 * t)
+        v, a = 2 * amp * np.cos(2 * t), -4 * amp * np.sin(2 * t)
+        ref, _ = rnea(UR5, dict(zip(names, q)), dict(zip(names, v)), dict(zip(names, a)))
+        expect = np.array([ref[n] for n in names])
+        expect[0] += 0.5 * v[0]
+        got = result["driver_efforts"][k]
+        assert np.max(np.abs(got - expect)) <= 1e-9 * np.max(np.abs(expect))
+
+
 def test_scene_with_urdf_and_driver(tmp_path):
     rel = Path("../" * len(tmp_path.parts)).joinpath(*UR5.resolve().parts[1:])
     scene = tmp_path / "arm.toml"
