@@ -321,7 +321,8 @@ def test_cli_info_on_a_bare_urdf():
     assert info["degrees_of_freedom"] == 6
 
 
-def test_scene_with_urdf_drivers_and_damping_inverse_dynamics(tmp_path):
+@pytest.mark.parametrize("coordinates", ["joint", "absolute"])
+def test_scene_with_urdf_drivers_and_damping_inverse_dynamics(tmp_path, coordinates):
     """Every joint driven, q_i = a_i + b_i sin(2t): the driver efforts equal the Newton–Euler
     torques plus the viscous damping d θ̇ of shoulder_pan (``damping = true``)."""
     (tmp_path / "robot").mkdir()
@@ -334,7 +335,7 @@ def test_scene_with_urdf_drivers_and_damping_inverse_dynamics(tmp_path):
                       for i, n in enumerate(names))
     scene = tmp_path / "arm.toml"
     scene.write_text('[scene]\nurdf = "robot/ur5.urdf"\ndimension = 3\ndamping = true\n'
-                     'coordinates = "joint"\n' + drivers)
+                     f'coordinates = "{coordinates}"\n' + drivers)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         mech = casmbd.load_scene(scene)
@@ -381,3 +382,50 @@ def test_floating_joint_leaves_the_child_free():
         assert model.nq == 7
         mass = model.mass_matrix(model.initial_coordinates()).toarray()
         assert np.max(np.abs(mass[:3, :3] - 2.0 * np.eye(3))) < 1e-14
+
+
+def _rpy_of(rot):
+    """(roll, pitch, yaw) of R = Rz(y) Ry(p) Rx(r) (at pitch ±π/2: yaw 0)."""
+    pitch = -math.asin(min(1.0, max(-1.0, rot[2, 0])))
+    if abs(rot[2, 0]) > 1.0 - 1e-12:
+        return math.atan2(-rot[1, 2], rot[1, 1]), pitch, 0.0
+    return math.atan2(rot[2, 1], rot[2, 2]), pitch, math.atan2(rot[1, 0], rot[0, 0])
+
+
+def test_ur5_urdf_equals_the_dh_scene_ur_like(tmp_path):
+    """tests/scenes/ur_like.toml (UR5 from its DH parameters, at its zero pose) and the UR5 URDF
+    kinematics with ur_like's masses, centres of mass and inertias written as URDF inertials:
+    the URDF's zero pose is the DH one turned by π about z (base_link vs. DH base frame), joint
+    axes and angles agree, so M(q) and Q(q, q̇) agree at every state (1e-10 relative)."""
+    dh = casmbd.load_scene(SCENES / "ur_like.toml")
+    dh.coordinates = "joint"
+    turn = np.diag([-1.0, -1.0, 1.0])
+    text = UR5.read_text().replace("1.570796325", repr(math.pi / 2))  # UR's file: π/2 − 2e-9
+    (tmp_path / "ur5.urdf").write_text(text)
+    _, frames = rnea(tmp_path / "ur5.urdf", {}, {}, {})
+    for body, link in zip(dh.bodies.values(), ["shoulder_link", "upper_arm_link",
+                                                "forearm_link", "wrist_1_link",
+                                                "wrist_2_link", "wrist_3_link"], strict=True):
+        rot_l, pos_l = frames[link]
+        xyz = rot_l.T @ (turn @ body.position - pos_l)
+        rpy = _rpy_of(rot_l.T @ turn @ body.initial_rotation)
+        ixx, iyy, izz = (repr(float(x)) for x in body.inertia[:3])
+        xyz, rpy = (" ".join(repr(float(x)) for x in vec) for vec in (xyz, rpy))
+        block = (f'<inertial><mass value="{float(body.mass)!r}"/><origin xyz="{xyz}" '
+                 f'rpy="{rpy}"/><inertia ixx="{ixx}" ixy="0" ixz="0" iyy="{iyy}" iyz="0" '
+                 f'izz="{izz}"/></inertial>')
+        start = text.index(f'<link name="{link}">')
+        i, j = text.index("<inertial>", start), text.index("</inertial>", start)
+        text = text[:i] + block + text[j + len("</inertial>"):]
+    (tmp_path / "ur5.urdf").write_text(text)
+    arm = load(tmp_path / "ur5.urdf")
+    needs = ["mass_matrix", "applied_forces", "quadratic_velocity_forces"]
+    models = [casmbd.NumericModel(m, functions=needs, mode="vm") for m in (dh, arm)]
+    rng = np.random.default_rng(11)
+    for _ in range(5):
+        q, v = rng.uniform(-2, 2, 6), rng.uniform(-2, 2, 6)
+        mass = [m.mass_matrix(q).toarray() for m in models]
+        force = [m.applied_forces(q, v, 0.0) + m.quadratic_velocity_forces(q, v)
+                 for m in models]
+        assert np.max(np.abs(mass[0] - mass[1])) <= 1e-10 * np.max(np.abs(mass[0]))
+        assert np.max(np.abs(force[0] - force[1])) <= 1e-10 * np.max(np.abs(force[0]))
