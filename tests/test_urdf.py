@@ -353,7 +353,7 @@ def test_scene_with_urdf_drivers_and_damping_inverse_dynamics(tmp_path, coordina
 def test_scene_with_urdf_and_driver(tmp_path):
     rel = Path("../" * len(tmp_path.parts)).joinpath(*UR5.resolve().parts[1:])
     scene = tmp_path / "arm.toml"
-    scene.write_text(f'[scene]\nurdf = "{rel.as_posix()}"\ndimension = 3\n'
+    scene.write_text(f'[scene]\nurdf = "{rel.as_posix()}"\n'  # dimension 3 by default
                      'coordinates = "joint"\n[scene.initial]\nelbow_joint = 0.5\n'
                      '[[drivers]]\nname = "d"\njoint = "shoulder_pan_joint"\n'
                      'position = "0.3*t"\n')
@@ -362,6 +362,10 @@ def test_scene_with_urdf_and_driver(tmp_path):
         mech = casmbd.load_scene(scene)
     assert mech.name == "arm" and len(mech.bodies) == 6 and "d" in mech.drivers
     assert mech.joints["elbow_joint"].tree_initial()[0] == 0.5
+    with pytest.raises(SceneError, match=r"'urdf' is spatial \(dimension = 3\)"):
+        casmbd.loads_scene('[scene]\nurdf = "x.urdf"\ndimension = 2\n', str(scene))
+    with pytest.raises(SceneError, match="'initial', 'locked' and 'damping' need 'urdf'"):
+        casmbd.loads_scene('[scene]\ndimension = 3\n[scene.initial]\nj = 1.0\n', str(scene))
     with pytest.raises(SceneError, match=r"key 'urdf'.*not found"):
         casmbd.loads_scene('[scene]\nurdf = "nope.urdf"\ndimension = 3\n', str(scene))
 

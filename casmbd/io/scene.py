@@ -258,7 +258,7 @@ def _build(data: dict, source: str) -> Mechanism:
     fmt = scene.data.get("format", FORMAT)
     if isinstance(fmt, bool) or fmt != FORMAT:
         raise scene.error("format", f"unsupported format {fmt!r} (this casmbd reads {FORMAT})")
-    dim = scene.data.get("dimension", 2)
+    dim = scene.data.get("dimension", 3 if "urdf" in scene.data else 2)
     if isinstance(dim, bool) or dim not in (2, 3):
         raise scene.error("dimension", f"unsupported dimension {dim!r} (2: planar, 3: spatial)")
     dim = int(dim)
