@@ -140,9 +140,10 @@ def _joint_names(model):
 
 
 # ---------------------------------------------------------------- dynamics and kinematics
-@pytest.mark.parametrize("path", [UR5, ARM7])
-def test_inverse_dynamics_and_frames_match_newton_euler(path):
-    mech = load(path)
+@pytest.mark.parametrize("path, locked", [(UR5, {}), (ARM7, {}),
+                                          (ARM7, {"panda_joint7": 0.3, "panda_joint2": -0.4})])
+def test_inverse_dynamics_and_frames_match_newton_euler(path, locked):
+    mech = load(path, locked=locked)
     model = casmbd.NumericModel(mech, functions=["mass_matrix", "applied_forces",
                                                  "quadratic_velocity_forces", "outputs"])
     names = _joint_names(model)
@@ -153,7 +154,7 @@ def test_inverse_dynamics_and_frames_match_newton_euler(path):
             q[names.index("panda_finger_joint1")] = 0.02
         tau = model.mass_matrix(q) @ a - model.applied_forces(q, v, 0.0) \
             - model.quadratic_velocity_forces(q, v)
-        ref, frames = rnea(path, dict(zip(names, q)), dict(zip(names, v)),
+        ref, frames = rnea(path, {**locked, **dict(zip(names, q))}, dict(zip(names, v)),
                            dict(zip(names, a)))
         expect = np.array([ref[n] for n in names])
         assert np.max(np.abs(tau - expect)) <= 1e-10 * np.max(np.abs(expect))
@@ -163,16 +164,17 @@ def test_inverse_dynamics_and_frames_match_newton_euler(path):
             rot_ref, pos_ref = frames[body]
             b = mech.bodies[body]
             origin = out["body_positions"][0, 3 * k:3 * k + 3] \
-                + rot @ b.local(_design_origin(path, body))
+                + rot @ b.local(_design_origin(path, body, locked))
             assert np.max(np.abs(rot - rot_ref)) < 1e-12
             assert np.max(np.abs(origin - pos_ref)) < 1e-12
+        assert len(mech.markers) == len(read(path)[0]) - len(mech.bodies)
         for k, marker in enumerate(mech.markers):
             pos = out["marker_positions"][0, 3 * k:3 * k + 3]
             assert np.max(np.abs(pos - frames[marker][1])) < 1e-12
 
 
-def _design_origin(path, link):
-    return rnea(path, {}, {}, {})[1][link][1]
+def _design_origin(path, link, locked):
+    return rnea(path, locked, {}, {})[1][link][1]
 
 
 def test_absolute_coordinates_energy_and_constraints_match():
