@@ -41,6 +41,7 @@ def _mechanism(name: str):
     mech.coordinates = "joint"
     if name == "ur_like":
         mech.add_marker("tool", "wrist_3", [-0.81725, -0.25, 0.02])
+        mech.add_marker("base", "ground", [0.1, 0.2, 0.0])  # constant pose: structural zeros
     return mech
 
 

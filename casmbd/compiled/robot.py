@@ -22,8 +22,10 @@ Conventions (n_q coordinates, joint coordinates by default):
   LDLᵀ factorisation written into the generated code (no pivoting: M is symmetric positive
   definite); with constraint equations (closed chains, Euler parameters) it solves the KKT
   system ``[M C_qᵀ; C_q 0] [q̈; λ] = [τ − b; γ]`` in numpy from the compiled pieces;
-* ``inverse_dynamics`` returns ``τ = M a + b``; for a mechanism with constraint equations τ is
-  not unique (loop multipliers) and it raises :class:`~casmbd.errors.ModelError`;
+* ``inverse_dynamics`` returns ``τ = M a + b``, for a tree in joint coordinates by the
+  recursive Newton–Euler algorithm (:func:`newton_euler`, also used for b), else from M; for a
+  mechanism with constraint equations τ is not unique (loop multipliers) and it raises
+  :class:`~casmbd.errors.ModelError`;
 * a *frame* is a body (origin at its centre of mass, axes the body axes) or a marker (its
   point, the axes of its body).  ``jacobian(q, frame)`` is the ``(3 + 3) × n_q`` (spatial)
   or ``(2 + 1) × n_q`` (planar) matrix J with
@@ -40,6 +42,8 @@ import numpy as np
 from casmbd.compiled.model import NumericModel
 from casmbd.compiled.workspace import buffered
 from casmbd.errors import ModelError
+from casmbd.model.bodies import GROUND
+from casmbd.system.articulated import _transport, supported
 from casmbd.system.equations import System
 
 __all__ = ["BATCH_CHUNK", "CompiledModel", "compile"]
@@ -74,6 +78,55 @@ def ldl_solve(m: ca.SX, rhs: ca.SX) -> ca.SX:
     for i in reversed(range(n)):
         x[i] = y[i] / d[i] - sum((low[k][i] * x[k] for k in range(i + 1, n)), ca.SX(0))
     return ca.vertcat(*x) if n else ca.SX(0, 1)
+
+
+def newton_euler(system: System, a: ca.SX) -> ca.SX:
+    """Σ_i J_iᵀ (I_i A_i + (ω_i × I_i ω_i, 0)) of a tree in joint coordinates, recursively.
+
+    The recursive Newton–Euler algorithm (Featherstone, Rigid Body Dynamics Algorithms, §5.3)
+    in the articulated recursion's conventions (:mod:`casmbd.system.articulated`: twists
+    (ω, ṙ_G) at the centres of mass, global components): outward A_i = X_i A_P + S_i a_i
+    + c_i with c_i = J̇_i q̇ − X_i J̇_P q̇, body wrench F_i = (I_G α + ω × I_G ω, m a_G);
+    inward F_P += X_iᵀ F_i and τ_i = S_iᵀ F_i.  This is M a − Q_v; the caller subtracts the
+    applied forces Q_e.  O(N) operations against the O(N²) of M a.
+    """
+    ctx, dim, desc, tk = system.ctx, system.dimension, system.descriptions, system.tree_kinematics
+    nw = 1 if dim == 2 else 3
+    order: list[str] = []
+
+    def visit(name: str) -> None:
+        if name not in order:
+            if desc[name].parent != GROUND:
+                visit(desc[name].parent)
+            order.append(name)
+
+    for name in system.body_names:
+        visit(name)
+    acc, force, xform = {}, {}, {}
+    for name in order:
+        parent = desc[name].parent
+        step = tk.bias[name] + ca.mtimes(tk.motion[name], a[system.body_slice(name)])
+        if parent == GROUND:
+            acc[name] = step
+        else:
+            xform[name] = _transport(ctx.centre_of_mass(name) - ctx.centre_of_mass(parent), dim)
+            acc[name] = step + ca.mtimes(xform[name], acc[parent] - tk.bias[parent])
+        mass, tensor = system._mass_inertia(system.mechanism.bodies[name])
+        if dim == 2:
+            moment = tensor * acc[name][0]
+        else:
+            rot, omega = ctx.rotation(name), tk.twist[name][:3]
+            tensor = ca.mtimes([rot, tensor, rot.T])
+            moment = ca.mtimes(tensor, acc[name][:3]) + ca.cross(omega,
+                                                                 ca.mtimes(tensor, omega))
+        force[name] = ca.vertcat(moment, mass * acc[name][nw:])
+    tau = {}
+    for name in reversed(order):
+        tau[name] = ca.mtimes(tk.motion[name].T, force[name])
+        if desc[name].parent != GROUND:
+            parent = desc[name].parent
+            force[parent] = force[parent] + ca.mtimes(xform[name].T, force[name])
+    return ca.vertcat(*[tau[name] for name in system.body_names])
 
 
 class _Call:
@@ -128,20 +181,30 @@ class CompiledModel:
             return ca.substitute([expr], zero_tu, zeros)[0]
 
         mass = ca.densify(system.mass_matrix)
-        bias = at_rest(-system.quadratic_velocity_forces - system.applied_forces)
+        applied = at_rest(system.applied_forces)
+        recursive = supported(system) is None  # a tree in joint coordinates: Newton–Euler
+        if recursive:
+            inverse = newton_euler(system, a) - applied
+            bias = ca.densify(ca.substitute(inverse, a, ca.SX.zeros(nq)))
+        else:
+            bias = ca.densify(-at_rest(system.quadratic_velocity_forces) - applied)
+            inverse = ca.mtimes(mass, a) + bias
+        # every output dense: the bound arrays hold every entry (a ground marker's rotation
+        # or a joint free of gravity would otherwise leave structural zeros out)
         fns = [ca.Function("robot_mass_matrix", [q, p], [mass], ["q", "p"], ["M"]),
                ca.Function("robot_bias", [q, v, p], [bias], ["q", "v", "p"], ["b"])]
         if self.nc == 0:
-            qdd = ldl_solve(mass, tau - bias)
+            qdd = ca.densify(ldl_solve(mass, tau - bias))
             fd = ca.Function("robot_fd", [q, v, tau, p], [qdd], ["q", "v", "tau", "p"], ["a"])
-            ind = ca.Function("robot_id", [q, v, a, p], [ca.mtimes(mass, a) + bias],
+            ind = ca.Function("robot_id", [q, v, a, p], [ca.densify(inverse)],
                               ["q", "v", "a", "p"], ["tau"])
             fns += [fd, ind, fd.map("robot_fd_batch", "serial", BATCH_CHUNK, [3], []),
                     ind.map("robot_id_batch", "serial", BATCH_CHUNK, [3], [])]
         else:
             cq = ca.densify(at_rest(system.constraint_jacobian))
-            gamma = at_rest(system.acceleration_rhs)
-            fns.append(ca.Function("robot_kkt", [q, v, tau, p], [mass, tau - bias, cq, gamma],
+            gamma = ca.densify(at_rest(system.acceleration_rhs))
+            fns.append(ca.Function("robot_kkt", [q, v, tau, p],
+                                   [mass, ca.densify(tau - bias), cq, gamma],
                                    ["q", "v", "tau", "p"], ["M", "r", "Cq", "gamma"]))
         ctx, mech = system.ctx, system.mechanism
         frames = [(b, None) for b in system.body_names]
@@ -149,7 +212,8 @@ class CompiledModel:
         self.frame_names: list[str] = list(system.body_names) + list(mech.markers)
         pos = [ctx.position(body, point) for body, point in frames]
         rot = [ca.vec(ctx.rotation(body).T) for body, _ in frames]  # row by row
-        fns.append(ca.Function("robot_fk", [q, p], [ca.vertcat(*pos), ca.vertcat(*rot)],
+        fns.append(ca.Function("robot_fk", [q, p],
+                               [ca.densify(ca.vertcat(*pos)), ca.densify(ca.vertcat(*rot))],
                                ["q", "p"], ["positions", "rotations"]))
         for k, ((body, _), r) in enumerate(zip(frames, pos)):
             lin = ca.jacobian(r, q)
