@@ -9,7 +9,8 @@ and the planar double pendulum (examples/double_pendulum.toml), in joint coordin
   a quadratic form (1e-12 relative);
 * b(q, 0) against ∂V/∂q and b(q, v) − b(q, 0) against Lagrange's Ṁ v − ∂T/∂q, both by central
   differences (1e-6 relative);
-* inverse dynamics: τ = M a + b against forward dynamics (round trip, 1e-12);
+* inverse dynamics: τ = M a + b against forward dynamics (round trip, 1e-12) and against the
+  driver efforts of ``casmbd.inverse_dynamics`` with every joint driven (1e-12);
 * forward kinematics against the ``outputs`` Function of the analyses, the Jacobian against
   central differences of forward kinematics (1e-7);
 * batch == a loop of single calls (1e-14), over more samples than one chunk;
@@ -116,6 +117,20 @@ def test_inverse_dynamics_round_trip(case):
         a = model.forward_dynamics(q, v, tau)
         assert _rel(model.inverse_dynamics(q, v, a), tau) < 1e-12
         assert _rel(model.mass_matrix(q) @ a + model.bias_forces(q, v), tau) < 1e-12
+
+
+def test_inverse_dynamics_matches_driven_analysis():
+    """``casmbd.inverse_dynamics`` with a driver on every joint: its driver efforts are the
+    joint torques τ along the prescribed motion (Lagrange multipliers of C_q, KKT route)."""
+    arm = casmbd.compile(_mechanism("ur_like"))
+    driven = casmbd.load_scene(SCENES["ur_like"])
+    driven.coordinates = "joint"
+    for k, joint in enumerate(driven.joints):
+        driven.add_driver(f"d_{joint}", joint=joint, position=f"{0.2 * (k + 1)}*sin({k + 1}*t)")
+    res = casmbd.inverse_dynamics(driven, t_end=1.0, steps=10)
+    efforts = res["driver_efforts"]
+    assert _rel(arm.inverse_dynamics_batch(res["q"], res["v"], res["a"]), efforts) < 1e-12
+    assert _rel(arm.forward_dynamics_batch(res["q"], res["v"], efforts), res["a"]) < 1e-12
 
 
 def test_forward_kinematics_against_outputs(case):
