@@ -47,6 +47,7 @@ import numpy as np
 from benchmarks.chains import pendulum_chain
 from casmbd.compiled import codegen
 from casmbd.compiled.codegen import compile_functions
+from casmbd.compiled.workspace import buffered
 from casmbd.system import System
 
 REPO_ROOT = pathlib.Path(__file__).resolve().parent.parent
@@ -171,23 +172,8 @@ def time_per_call(fn: Callable[[], object], repeat: int, min_seconds: float = 0.
     return 1e6 * statistics.median(runs) / number
 
 
-def buffer_evaluator(
-    function: casadi.Function, inputs: Sequence[np.ndarray]
-) -> tuple[Callable[[], None], list[np.ndarray]]:
-    """Zero-copy evaluation of ``function`` on ``inputs`` with ``casadi.Function.buffer()``.
-
-    Returns the evaluation callable and the output arrays it writes into (the non-zeros of
-    each output).  ``inputs`` must stay alive while the callable is used.
-    """
-    buffer, evaluate = function.buffer()
-    outputs = [np.zeros(function.nnz_out(i)) for i in range(function.n_out())]
-    for i, array in enumerate(inputs):
-        buffer.set_arg(i, memoryview(array))
-    for i, array in enumerate(outputs):
-        buffer.set_res(i, memoryview(array))
-    # keep the buffer object alive as long as the callable
-    evaluate.buffer_owner = buffer  # type: ignore[attr-defined]
-    return evaluate, outputs
+#: zero-copy evaluation through ``Function.buffer()``: the library's own helper
+buffer_evaluator = buffered
 
 
 def nonzeros(result) -> list[np.ndarray]:
