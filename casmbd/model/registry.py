@@ -128,16 +128,7 @@ def joint_kind(name: str, dimension: int, where: str) -> type:
         An unknown name (listing the registered ones) or a kind not available in this
         dimension (naming ``where``, e.g. ``joint 'hinge'``).
     """
-    table = JOINT_KINDS.get(name)
-    if table is None:
-        raise ModelError(f"{where}: unknown joint type {name!r} (allowed: "
-                         f"{', '.join(JOINT_KINDS)})")
-    if dimension not in table:
-        other = next(iter(table.values()))
-        space = "spatial" if dimension == 2 else "planar"
-        raise ModelError(f"{where}: a {other.title or name} joint needs a {space} mechanism "
-                         f"(dimension = {5 - dimension})")
-    return table[dimension]
+    return _kind_in(JOINT_KINDS, "joint", name, dimension, where)
 
 
 def register_body(kind: _Kind | None = None, *, replace: bool = False):
@@ -198,12 +189,20 @@ def body_kind(name: str, dimension: int, where: str) -> type:
         An unknown name (listing the registered ones) or a kind not available in this
         dimension (naming ``where``, e.g. ``body 'crank'``).
     """
-    table = BODY_KINDS.get(name)
+    return _kind_in(BODY_KINDS, "body", name, dimension, where)
+
+
+def _kind_in(registry: dict, noun: str, name: str, dimension: int, where: str) -> type:
+    """The class registered as ``name`` for ``dimension`` in a per-dimension registry, or a
+    ModelError naming ``where`` (unknown name: the registered ones; wrong dimension: which
+    mechanism the kind needs)."""
+    table = registry.get(name)
     if table is None:
-        raise ModelError(f"{where}: unknown body type {name!r} (allowed: "
-                         f"{', '.join(BODY_KINDS)})")
+        raise ModelError(f"{where}: unknown {noun} type {name!r} (allowed: "
+                         f"{', '.join(registry)})")
     if dimension not in table:
+        title = getattr(next(iter(table.values())), "title", None) or name
         space = "spatial" if dimension == 2 else "planar"
-        raise ModelError(f"{where}: a {name} body needs a {space} mechanism "
+        raise ModelError(f"{where}: a {title} {noun} needs a {space} mechanism "
                          f"(dimension = {5 - dimension})")
     return table[dimension]
