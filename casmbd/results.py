@@ -208,12 +208,23 @@ class Result:
         return out
 
     def marker(self, name: str) -> dict[str, np.ndarray]:
-        """Position, velocity and acceleration (n_t, dim) of a marker."""
+        """Position, velocity and acceleration (n_t, dim) of a marker and, when computed, its
+        frame: in space ``rotation`` (n_t, 3, 3), body components to global, and
+        ``quaternion`` (n_t, 4) [w, x, y, z], sign-continuous in time; in the plane ``angle``
+        (n_t,).  The frame is the body's unless the marker was given an orientation
+        (:class:`casmbd.model.bodies.Marker`)."""
         i, dim = self.names["markers"].index(name), self.dimension
-        return {key: self.arrays[f"marker_{src}"][:, dim * i:dim * i + dim]
-                for key, src in (("position", "positions"), ("velocity", "velocities"),
-                                 ("acceleration", "accelerations"))
-                if f"marker_{src}" in self.arrays}
+        out = {key: self.arrays[f"marker_{src}"][:, dim * i:dim * i + dim]
+               for key, src in (("position", "positions"), ("velocity", "velocities"),
+                                ("acceleration", "accelerations"))
+               if f"marker_{src}" in self.arrays}
+        if "marker_rotations" in self.arrays:
+            rot = self.arrays["marker_rotations"][:, 9 * i:9 * i + 9]
+            out["rotation"] = rot.reshape(-1, 3, 3)
+            out["quaternion"] = quaternions_from_matrices(rot)
+        if "marker_angles" in self.arrays:
+            out["angle"] = self.arrays["marker_angles"][:, i]
+        return out
 
     def joint(self, name: str) -> dict[str, np.ndarray]:
         """Coordinate, its rate and acceleration (n_t,) of a joint with a coordinate.
@@ -274,6 +285,11 @@ class Result:
                 joints[name]["reaction"] = _list(self.arrays["joint_reactions"][:, k, :])
         markers = {name: {"position": _list(self.marker(name)["position"])}
                    for name in self.names["markers"]}
+        for name in markers:  # their frames, when computed
+            frame = self.marker(name)
+            for key in ("quaternion", "angle"):
+                if key in frame:
+                    markers[name][key] = _list(frame[key])
         cv = self.arrays.get("constraint_violation", np.zeros(len(self.t)))
         out = {"kind": self.kind, "t": _list(self.t), "bodies": bodies, "joints": joints,
                "markers": markers,
@@ -362,6 +378,11 @@ class Result:
                                                     for j in range(1, 4)])
         elif key.startswith("angular_"):
             labels = per(names.get("bodies", []), ("wx", "wy", "wz"))
+        elif key == "marker_rotations":
+            labels = per(names.get("markers", []), [f"A{i}{j}" for i in range(1, 4)
+                                                     for j in range(1, 4)])
+        elif key == "marker_angles":
+            labels = per(names.get("markers", []), ("angle",))
         elif key.startswith("marker_"):
             labels = per(names.get("markers", []), _AXES[dim])
         elif key.startswith("joint_") and key != "joint_reactions":

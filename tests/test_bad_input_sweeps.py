@@ -66,14 +66,14 @@ def test_output_of_another_analysis_fails_up_front(tmp_path):
 
 
 def test_every_point_failing_is_an_error(tmp_path, capsys):
-    """m = -1 and 0: both points fail their scene check (mass must be > 0); the sweep used to
+    """m = -1 and -2: both points fail their scene check (mass must be >= 0); the sweep used to
     print its table and exit 0."""
     out = tmp_path / "sweep_out"
     argv = sweep_args(out)
-    argv[argv.index("m=1,2")] = "m=-1,0"
+    argv[argv.index("m=1,2")] = "m=-1,-2"
     code, err = run(argv, capsys)
     assert code == 1 and len(err) == 1 and err[0].startswith("error: "), err
-    assert "all 2 points failed" in err[0] and "'mass'" in err[0] and "must be > 0" in err[0]
+    assert "all 2 points failed" in err[0] and "'mass'" in err[0] and "must be >= 0" in err[0]
     # the record of the failures is kept (and said so), no point result is
     assert sorted(p.name for p in out.iterdir()) == ["sweep.csv", "sweep.npz"]
     assert "sweep.csv" in err[0]

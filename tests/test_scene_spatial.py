@@ -557,7 +557,7 @@ ERRORS = {
     "inertia-4": (_replace("[0.1, 0.1, 0.01]", "[0.1, 0.1, 0.01, 0.0]"),
                   ["[[bodies]] entry 1 ('rod')", "'inertia'", "3 or 6"]),
     "inertia-negative": (_replace("[0.1, 0.1, 0.01]", "[0.1, -0.1, 0.01]"),
-                         ["('rod')", "'inertia'", "> 0"]),
+                         ["('rod')", "'inertia'", ">= 0"]),
     "inertia-not-definite": (_replace("[0.1, 0.1, 0.01]", "[0.1, 0.1, 0.01, 0.5, 0, 0]"),
                              ["('rod')", "'inertia'"]),
     "orientation-3": (_replace("position = [0.0, 0.0, -0.5]",

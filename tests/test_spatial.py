@@ -722,8 +722,8 @@ def test_bad_spatial_builder_input(case):
 BAD_SYSTEMS = {
     "triangle inequality": ([1.0, 1.0, 3.0], r"body 'b' field 'inertia'.*triangle"),
     "not positive definite (products)": ([1.0, 1.0, 1.0, 2.0, 0.0, 0.0],
-                                         r"body 'b' field 'inertia'.*positive definite"),
-    "negative moment": ([-0.1, 0.2, 0.2], r"body 'b' field 'inertia'.*positive definite"),
+                                         r"body 'b' field 'inertia'.*positive semi-definite"),
+    "negative moment": ([-0.1, 0.2, 0.2], r"body 'b' field 'inertia'.*positive semi-definite"),
 }
 
 

@@ -260,3 +260,68 @@ def check_consistent_start(model, q, v, a, t: float, what: str = "simulation") -
                 f"{what} at t = {t:g}: the constraints contradict each other at {level} level "
                 f"(max residual {worst:.3g} > {tol:.3g}; the drivers' rates disagree with the "
                 f"joints or with each other): {_worst(labels, residual)}")
+
+
+#: the mass matrix on the tangent space counts as singular when its smallest eigenvalue is
+#: at most this fraction of its largest
+MASS_RTOL = 1e-12
+#: above this many coordinates the dense check of :func:`check_mass_matrix` is skipped
+MASS_CHECK_MAX = 3000
+
+
+def check_mass_matrix(model, q, t: float, what: str = "simulation") -> None:
+    """Raise naming the bodies without mass where M is singular on the constraint manifold.
+
+    Forward dynamics needs the KKT matrix [[M, C_qᵀ], [C_q, 0]] non-singular, i.e. (with C_q
+    of full row rank, or after its dependent rows are dropped) M positive definite on the null
+    space of C_q: with N an orthonormal basis of that null space (from the SVD of C_q), the
+    smallest eigenvalue of Nᵀ M N must exceed :data:`MASS_RTOL` times its largest.  Bodies of
+    zero mass or inertia are accepted by the model; this check, once at the assembled start,
+    is where they matter.  The eigenvectors x = N y of the (near-)zero eigenvalues are motions
+    without kinetic energy; the bodies whose coordinates carry ≥ 10 % of the largest share of
+    their |x|² are named.
+
+    Raises
+    ------
+    ModelError
+        Naming those bodies with their mass and inertia.
+    """
+    if model.nq == 0 or model.nq > MASS_CHECK_MAX:
+        return
+    m = model.mass_matrix(q)
+    m = np.asarray(m.todense() if sp.issparse(m) else m, float)
+    m = 0.5 * (m + m.T)
+    basis = np.eye(model.nq)
+    if model.nc:
+        cq = model.constraint_jacobian(q, t)
+        cq = np.asarray(cq.todense() if sp.issparse(cq) else cq, float)
+        _, s, vt = np.linalg.svd(cq)
+        tol = max(cq.shape) * np.finfo(float).eps * (s[0] if s.size else 0.0)
+        basis = vt[int(np.sum(s > tol)):].T
+    if basis.shape[1] == 0:
+        return
+    eig, vec = np.linalg.eigh(basis.T @ m @ basis)
+    tol = MASS_RTOL * max(float(np.max(np.abs(eig))), np.finfo(float).tiny)
+    if eig[0] > tol:
+        return
+    x = basis @ vec[:, eig <= tol]  # every motion without kinetic energy
+    shares, start = {}, 0
+    for body, desc in model.descriptions.items():
+        shares[body] = float(np.sum(x[start:start + desc.size] ** 2))
+        start += desc.size
+    top = max(shares.values())
+    named = [b for b, w in sorted(shares.items(), key=lambda kv: -kv[1]) if w >= 0.1 * top]
+    bodies = model.mechanism.bodies
+
+    def about(name: str) -> str:
+        body = bodies.get(name)
+        if body is None:
+            return f"'{name}'"
+        return f"'{name}' (mass {body.mass}, inertia {body.inertia})"
+
+    raise ModelError(
+        f"{what} at t = {t:g}: the mass matrix is singular on the constraint manifold "
+        f"(smallest eigenvalue {eig[0]:.3g} of {float(eig[-1]):.3g}): a motion of "
+        + ", ".join(f"body {about(b)}" for b in named[:4])
+        + " has no inertia; give the body mass and inertia, or attach it to bodies that have "
+        "some (a massless body must be carried by its joints to bodies with mass)")

@@ -22,7 +22,12 @@ from casmbd import progress
 from casmbd.analysis import integrators as integ
 from casmbd.analysis import nullspace, numeric_run, partitioning
 from casmbd.analysis.assembly import assemble
-from casmbd.analysis.checks import check_consistent_start, check_start, diagnose_failure
+from casmbd.analysis.checks import (
+    check_consistent_start,
+    check_mass_matrix,
+    check_start,
+    diagnose_failure,
+)
 from casmbd.analysis.kkt import consistent_state
 from casmbd.analysis.postprocess import PostProcessing
 from casmbd.analysis.redundancy import rank_report
@@ -259,6 +264,8 @@ class Simulator(Stepping, PostProcessing):
         v0 = model.initial_velocities() if v0 is None else np.asarray(v0, float)
         u0 = self.inputs_at(t_start)
         check_start(model, q0, v0, t_start, u0, what="simulation")  # names a NaN's culprit
+        # names the bodies without mass where M is singular (at the assembled start)
+        check_mass_matrix(model, assemble(model, q0, t_start).q, t_start)
         start = consistent_state(model, q0, v0, t_start, u0)
         check_consistent_start(model, start.q, start.v, start.a, t_start)
         x0 = np.concatenate([start.q, start.v])

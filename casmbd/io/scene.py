@@ -18,7 +18,7 @@ Contract (SI units, angles in radians; vectors have ``dimension`` components)::
                   space:  inertia = [Ixx, Iyy, Izz(, Ixy, Ixz, Iyz)] (centre of mass, body axes),
                           orientation = [w, x, y, z] | euler_zxz = [phi, theta, psi],
                           angular_velocity = [wx, wy, wz] (global)
-    [[markers]]   name, body, point
+    [[markers]]   name, body, point (, orientation | euler_zxz in space, angle in the plane)
     [[joints]]    name, type, body1, body2, point, ...
                   plane: revolute|prismatic|rigid|distance|fixed|gear
                   space: also spherical|cylindrical|universal|inline; axis (revolute,
@@ -66,7 +66,7 @@ _TABLES = {"scene", "parameters", "bodies", "markers", "joints", "drivers", "for
 _SCENE_KEYS = {"name", "dimension", "gravity", "format", "description", "coordinates",
                "tree", "urdf", "initial", "locked", "damping"}
 _COORDINATES = ("absolute", "natural", "joint")
-_MARKER_KEYS = {"name", "body", "point", "description"}
+_MARKER_KEYS = {"name", "body", "point", "description", "orientation", "euler_zxz", "angle"}
 _DRIVER_KEYS = {"name", "joint", "body", "coordinate", "position", "description"}
 _ACTUATOR_KEYS = {"name", "joint", "coordinate", "description"}
 
@@ -317,8 +317,11 @@ def _build(data: dict, source: str) -> Mechanism:
 
     for e in entries("markers"):
         e.check_keys(_MARKER_KEYS)
-        guarded(e, lambda e=e: mech.add_marker(_name(e), e.string("body"),
-                                               e.vector("point", dim)))
+        guarded(e, lambda e=e: mech.add_marker(
+            _name(e), e.string("body"), e.vector("point", dim),
+            orientation=e.vector("orientation", 4, required=False),
+            euler_zxz=e.vector("euler_zxz", 3, required=False),
+            angle=e.number("angle", None) if e.has("angle") else None))
 
     for e in entries("joints"):  # each kind reads its own keys (casmbd.model.registry)
         jtype = e.string("type")

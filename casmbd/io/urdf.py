@@ -4,7 +4,8 @@ Body and joint names are the URDF's.  The mechanism is built at the URDF's zero 
 (every joint position 0), so every joint coordinate is zero there (casmbd measures a joint's
 coordinate from the design pose).  Links joined by ``fixed`` joints (and joints named in
 ``locked``, fixed at the given value) are merged into one body (:func:`~casmbd.io.urdf_tree.merge`);
-each merged link stays as a *marker* at its frame origin, named like the link.  The root link
+each merged link stays as a *marker* at its frame origin with the link frame's orientation,
+named like the link.  The root link
 is welded to the ground (its mass does not count, its frame is the global frame); a ``floating``
 joint leaves its child free.  The body frame of a merged body is the frame of its first link
 with the origin moved to the centre of mass (casmbd's bodies are centroidal), so the body's
@@ -155,9 +156,8 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
 
     for body in dict.fromkeys(g for g in group.values() if g != GROUND):
         mass, com, tensor = merge(parts[body])
-        if mass <= 0.0:
-            raise SceneError(f"link '{body}': a moving link without mass (issue 21 item 3, "
-                             "mass checks for massless frame links, is pending)")
+        if mass <= 0.0:  # a massless link: its frame origin (forward dynamics checks M)
+            com, tensor = design[body][1], sum(part[2] for part in parts[body])
         rot = design[body][0]
         local = rot.T @ tensor @ rot
         omega, vel0 = twists[body]
@@ -172,7 +172,8 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
     for lname in robot.links:
         if group[lname] != lname:
             guarded(f"link '{lname}'", lambda lname=lname: mech.add_marker(
-                lname, group[lname], design[lname][1]))
+                lname, group[lname], design[lname][1],
+                orientation=quaternion_from_matrix(design[lname][0])))
 
     for joint in robot.order():
         if joint.type == "fixed" or joint.name in locked or joint.type == "floating":
@@ -256,7 +257,7 @@ def load_urdf(path: str | os.PathLike, coordinates: str = "joint",
     ------
     SceneError
         Unreadable or malformed files, unknown or malformed content (naming link/joint and
-        attribute), unsupported features (planar joints, mimic offsets, moving massless links).
+        attribute), unsupported features (planar joints, mimic offsets).
     """
     path = Path(path)
     try:

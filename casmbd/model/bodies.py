@@ -77,12 +77,51 @@ RIGID_SCENE_KEYS = frozenset({"name", "type", "mass", "inertia", "position", "an
 
 
 def check_positive(body) -> None:
-    """Reject a numeric mass <= 0 (and, in the plane, a moment of inertia <= 0; spatial
-    moments are checked by :func:`casmbd.model.inertia.inertia_tensor`)."""
+    """Reject a numeric mass < 0 (and, in the plane, a moment of inertia < 0; spatial
+    moments are checked by :func:`check_inertia`).  Zero mass and inertia are accepted here:
+    whether the mass matrix of the chosen coordinates is positive definite is checked at the
+    start of forward dynamics (:func:`casmbd.analysis.checks.check_mass_matrix`)."""
     values = [body.mass] + (list(body.inertia) if body.dimension == 3 else [body.inertia])
     for key, value in zip(["mass"] + ["inertia"] * (len(values) - 1), values, strict=True):
-        if isinstance(value, float) and value <= 0.0 and (key == "mass" or body.dimension == 2):
-            raise ModelError(f"body '{body.name}' field '{key}': must be > 0, got {value}")
+        if isinstance(value, float) and value < 0.0 and (key == "mass" or body.dimension == 2):
+            raise ModelError(f"body '{body.name}' field '{key}': must be >= 0, got {value}")
+
+
+def check_inertia(values: Sequence[float]) -> np.ndarray:
+    """The inertia tensor of ``values`` ([Ixx, Iyy, Izz(, Ixy, Ixz, Iyz)]), positive
+    semi-definite.
+
+    A positive definite tensor must satisfy the triangle inequalities (seed 001, eq. 105;
+    :func:`casmbd.model.inertia.inertia_tensor`).  A singular positive semi-definite tensor is
+    accepted as it is: the zero tensor of a point mass or frame link, or ``[0, I, I]`` of a
+    thin rod along x.  Negative principal moments (below -1e-12 of their sum) are refused.
+
+    Raises
+    ------
+    ModelError
+        A value is not finite or the tensor has a negative principal moment.
+    """
+    v = np.asarray(values, dtype=float).reshape(-1)
+    if v.size in (3, 6) and np.all(np.isfinite(v)):
+        off = v[3:] if v.size == 6 else np.zeros(3)
+        J = np.array([[v[0], off[0], off[1]], [off[0], v[1], off[2]], [off[1], off[2], v[2]]])
+        eig = np.linalg.eigvalsh(J)
+        scale = float(np.sum(np.abs(eig)))
+        if eig[0] < -1e-12 * scale:
+            raise ModelError(f"inertia tensor is not positive semi-definite: smallest "
+                             f"principal moment {eig[0]:.6g} (principal moments "
+                             f"{eig.tolist()}, values {v.tolist()})")
+        if eig[0] <= 1e-12 * scale:  # singular PSD (zero, thin rod): no triangle inequality
+            return J
+    return inertia_tensor(v)
+
+
+def _nonnegative(e, key: str, val) -> None:
+    """Reject a scene value of ``key`` < 0 (an expression evaluated with the parameters)."""
+    num = e.evaluate(val, key)
+    if num < 0.0:
+        raise e.error(key, f"must be >= 0, got {num:g}" + (f" ({val!r})"
+                                                          if isinstance(val, str) else ""))
 
 
 @register_body
@@ -95,9 +134,9 @@ class Body:
     name : str
         Unique name.
     mass : Value
-        Mass m > 0 (number, or expression of parameters).
+        Mass m >= 0 (number, or expression of parameters).
     inertia : Value
-        Moment of inertia about the centre of mass, > 0.
+        Moment of inertia about the centre of mass, >= 0.
     position : array_like
         Global position of the centre of mass (initial guess for assembly).
     angle : float
@@ -175,7 +214,7 @@ class Body:
             if e.has(key):
                 raise e.error(key, "planar bodies take 'angle' (spatial scenes: dimension = 3)")
         for key in ("mass", "inertia"):
-            e.positive(key, e.value(key))
+            _nonnegative(e, key, e.value(key))
         return mech.add(
             f"body:{cls.kind}", e.string("name"), mass=e.value("mass"),
             inertia=e.value("inertia"), position=e.vector("position"),
@@ -200,15 +239,47 @@ class Body:
 
 @dataclass
 class Marker:
-    """A named point fixed on a body, given by its global location at the initial pose."""
+    """A named point fixed on a body, given by its global location at the initial pose, with
+    an optional frame: ``orientation`` is its global orientation at the design pose (a unit
+    quaternion [w, x, y, z] in space, an angle in the plane); None means the body's own.
+
+    The marker's rotation is A_marker(q) = A_body(q) Aᵦᵀ A_m (space; Aᵦ, A_m the body's and the
+    marker's rotations at the design pose), θ_marker = θ_body + θ_m − θᵦ in the plane.
+    """
 
     name: str
     body: str
     point: np.ndarray
     dimension: int = 2
+    orientation: np.ndarray | float | None = None
 
     def __post_init__(self):
+        where = f"marker '{self.name}' field 'orientation'"
         self.point = vector(self.point, f"marker '{self.name}' field 'point'", self.dimension)
+        if self.orientation is None:
+            return
+        if self.dimension == 2:
+            self.orientation = scalar(self.orientation, where)
+            return
+        quat = vector(self.orientation, where, 4)
+        norm = float(np.linalg.norm(quat))
+        if abs(norm - 1.0) > 1e-3:
+            raise ModelError(f"{where}: a unit quaternion [w, x, y, z] is expected, got norm "
+                             f"{norm:.6g}")
+        self.orientation = quat / norm
+
+    def offset(self, body) -> np.ndarray | float:
+        """The marker's fixed rotation relative to ``body`` (its Body, None for the ground):
+        Aᵦᵀ A_m (3x3) in space, θ_m − θᵦ in the plane; identity / 0 without an orientation."""
+        if self.dimension == 2:
+            if self.orientation is None:
+                return 0.0
+            return float(self.orientation) - float(getattr(body, "angle", 0.0))
+        if self.orientation is None:
+            return np.eye(3)
+        own = rotation_matrix(self.orientation)
+        base = getattr(body, "initial_rotation", None)
+        return own if base is None else np.asarray(base, float).T @ own
 
 
 @register_body
@@ -297,12 +368,12 @@ class SpatialBody:
         if e.has("orientation") and e.has("euler_zxz"):
             raise e.error("orientation", "give 'orientation' or 'euler_zxz', not both")
         mass = e.value("mass")
-        e.positive("mass", mass)
+        _nonnegative(e, "mass", mass)
         inertia = e.values("inertia", (3, 6), what="moments (and products) of inertia")
         for val in inertia[:3]:
-            e.positive("inertia", val)
+            _nonnegative(e, "inertia", val)
         try:
-            inertia_tensor([e.evaluate(v, "inertia") for v in inertia])
+            check_inertia([e.evaluate(v, "inertia") for v in inertia])
         except ModelError as exc:
             raise e.error("inertia", str(exc)) from None
         orientation = e.vector("orientation", 4, required=False)

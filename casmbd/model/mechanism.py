@@ -20,7 +20,7 @@ import numpy as np
 
 from casmbd.errors import ModelError
 from casmbd.limits import MAX_BODIES, MAX_ELEMENTS, check_count
-from casmbd.model.bodies import GROUND, Body, Marker, SpatialBody, vector
+from casmbd.model.bodies import GROUND, Body, Marker, SpatialBody, check_inertia, vector
 from casmbd.model.drivers import BODY_COORDINATES, Driver
 from casmbd.model.forces import (
     Actuator,
@@ -31,9 +31,9 @@ from casmbd.model.forces import (
     Torque,
     UserForce,
 )
-from casmbd.model.inertia import inertia_tensor
 from casmbd.model.joints import Joint
 from casmbd.model.registry import BODY_KINDS, FORCE_KINDS, JOINT_KINDS, body_kind, joint_kind
+from casmbd.model.rotations import euler_zxz_to_quaternion
 from casmbd.model.values import Value, check_value, numeric
 
 
@@ -161,11 +161,29 @@ class Mechanism:
                         reference_point=reference_point, orientation=orientation,
                         euler_zxz=euler_zxz)
 
-    def add_marker(self, name: str, body: str, point: Sequence[float]) -> Marker:
-        """Add a named point on ``body`` at the global location ``point`` (initial pose)."""
+    def add_marker(self, name: str, body: str, point: Sequence[float],
+                   orientation: Sequence[float] | None = None,
+                   euler_zxz: Sequence[float] | None = None,
+                   angle: float | None = None) -> Marker:
+        """Add a named point on ``body`` at the global location ``point`` (initial pose), with
+        an optional frame: its global orientation at the design pose as a unit quaternion
+        ``orientation`` or Z-X-Z Euler angles ``euler_zxz`` (space), or ``angle`` (plane);
+        default the body's orientation (see :class:`~casmbd.model.bodies.Marker`)."""
         self._unique(self.markers, "marker", name)
         self._body(body, f"marker '{name}' field 'body'")
-        marker = Marker(name, body, point, self.dimension)
+        given = [k for k, v in (("orientation", orientation), ("euler_zxz", euler_zxz),
+                                ("angle", angle)) if v is not None]
+        if len(given) > 1:
+            raise ModelError(f"marker '{name}': give one of {given}, not several")
+        if given and (given[0] == "angle") != (self.dimension == 2):
+            raise ModelError(f"marker '{name}' field '{given[0]}': "
+                             + ("planar markers take 'angle'" if self.dimension == 2 else
+                                "spatial markers take 'orientation' or 'euler_zxz'"))
+        if euler_zxz is not None:
+            orientation = euler_zxz_to_quaternion(
+                *vector(euler_zxz, f"marker '{name}' field 'euler_zxz'", 3))
+        marker = Marker(name, body, point, self.dimension,
+                        angle if self.dimension == 2 else orientation)
         self.markers[name] = marker
         return marker
 
@@ -359,17 +377,17 @@ class Mechanism:
         for body in self.bodies.values():
             where = f"body '{body.name}' field"
             mass = numeric(body.mass, self.parameters, f"{where} 'mass'")
-            if mass <= 0.0:
-                raise ModelError(f"{where} 'mass': must be > 0, got {mass}")
+            if mass < 0.0:
+                raise ModelError(f"{where} 'mass': must be >= 0, got {mass}")
             if body.dimension == 2:
                 inertia = numeric(body.inertia, self.parameters, f"{where} 'inertia'")
-                if inertia <= 0.0:
-                    raise ModelError(f"{where} 'inertia': must be > 0, got {inertia}")
+                if inertia < 0.0:
+                    raise ModelError(f"{where} 'inertia': must be >= 0, got {inertia}")
             else:
                 values = [numeric(v, self.parameters, f"{where} 'inertia'")
                           for v in body.inertia]
                 try:
-                    inertia_tensor(values)
+                    check_inertia(values)
                 except ModelError as exc:
                     raise ModelError(f"{where} 'inertia': {exc}") from None
         for force in self.forces.values():

@@ -36,7 +36,9 @@ class Outputs:
         Positions are stacked per point (x0, y0, x1, y1, …); velocities are J v and
         accelerations J a + J̇ v of the same expressions.  Planar bodies give their angle
         (``angle_*``); spatial bodies their rotation matrix (``rotation_matrices``, 9 per body,
-        row by row) and global angular velocity and acceleration (3 per body).
+        row by row) and global angular velocity and acceleration (3 per body).  With markers,
+        their frames: ``marker_rotations`` (9 per marker, row by row) in space, ``marker_angles``
+        in the plane.
         """
         if "outputs" not in self._functions:
             ctx, mech = self.ctx, self.mechanism
@@ -62,10 +64,26 @@ class Outputs:
                 alpha = ca.jtimes(omega, self.q, self.v) + ca.jtimes(omega, self.v, a)
                 exprs += [rot, omega, alpha]
                 names += ["rotation_matrices", "angular_velocities", "angular_accelerations"]
+            if mech.markers:  # their frames: A_body (Aᵦᵀ A_m), θ_body + θ_m − θᵦ
+                exprs.append(self._marker_rotations())
+                names.append("marker_rotations" if self.dimension == 3 else "marker_angles")
             self._functions["outputs"] = ca.Function(
                 "outputs", [self.q, self.v, a, self.t, self.p], exprs,
                 ["q", "v", "a", "t", "p"], names)
         return self._functions["outputs"]
+
+    def _marker_rotations(self) -> ca.SX:
+        """Marker frames stacked: 9 entries (A row by row) per marker in space, the angle in
+        the plane (:meth:`casmbd.model.bodies.Marker.offset` is the fixed part)."""
+        ctx, mech = self.ctx, self.mechanism
+        out = []
+        for m in mech.markers.values():
+            offset = m.offset(mech.bodies.get(m.body))
+            if self.dimension == 2:
+                out.append(ctx.angle(m.body) + offset)
+            else:
+                out.append(ca.vec(ca.mtimes(ctx.rotation(m.body), ca.DM(offset)).T))
+        return ca.vertcat(*out)
 
     @cached_property
     def joint_rows(self) -> dict[str, list[int]]:
