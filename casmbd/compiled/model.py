@@ -245,7 +245,8 @@ class NumericModel:
         A spatial joint angle is an ``atan2`` (and a planar angle in natural coordinates
         too), which jumps by 2π where it passes ±π; the result's joint angles (revolute,
         universal, cylindrical ``.angle``) and planar body angles (``angle_positions``) are
-        unwrapped so that plots, CSV and JSON are continuous.  They start in (−π, π] and stay
+        unwrapped, and planar marker angles (``marker_angles``) too, so that plots, CSV and JSON
+        are continuous.  They start in (−π, π] and stay
         correct while an angle changes by less than π between outputs.  Planar absolute and
         joint coordinates give exact continuous angles and are left alone.
         """
@@ -260,5 +261,6 @@ class NumericModel:
                 cols.append(k)
         if cols and "joint_positions" in out and out["joint_positions"].shape[0] > 1:
             out["joint_positions"][:, cols] = np.unwrap(out["joint_positions"][:, cols], axis=0)
-        if "angle_positions" in out and out["angle_positions"].shape[0] > 1:
-            out["angle_positions"] = np.unwrap(out["angle_positions"], axis=0)
+        for key in ("angle_positions", "marker_angles"):  # planar body and marker angles
+            if key in out and out[key].shape[0] > 1:
+                out[key] = np.unwrap(out[key], axis=0)
