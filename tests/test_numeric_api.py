@@ -43,6 +43,9 @@ def _mechanism(name: str):
     if name == "ur_like":
         mech.add_marker("tool", "wrist_3", [-0.81725, -0.25, 0.02])
         mech.add_marker("base", "ground", [0.1, 0.2, 0.0])  # constant pose: structural zeros
+        mech.add_marker("flange", "wrist_3", [-0.81725, -0.19, 0.0], euler_zxz=(0.3, 1.1, -0.4))
+    else:
+        mech.add_marker("turned", "rod2", [1.0, 0.0], angle=0.7)  # a frame turned against its body
     return mech
 
 
@@ -148,9 +151,14 @@ def test_forward_kinematics_against_outputs(case):
         assert _rel(rot[k] @ rot[k].T, np.eye(d)) < 1e-13
     if d == 3:
         assert _rel(rot[:nb].ravel(), np.asarray(res["rotation_matrices"]).ravel()) < 1e-14
+        # marker frames: the body's axes times the marker's own orientation offset
+        assert _rel(rot[nb:].ravel(), np.asarray(res["marker_rotations"]).ravel()) < 1e-14
     else:
         angles = np.asarray(res["angle_positions"]).ravel()
         assert _rel(rot[:nb, 1, 0], np.sin(angles)) < 1e-14
+        marker = np.asarray(res["marker_angles"]).ravel()
+        assert _rel(rot[nb:, 1, 0], np.sin(marker)) < 1e-14
+        assert _rel(rot[nb:, 0, 0], np.cos(marker)) < 1e-14
 
 
 def test_jacobian_against_finite_differences(case):

@@ -27,8 +27,9 @@ Conventions (n_q coordinates, joint coordinates by default):
   mechanism with constraint equations τ is not unique (loop multipliers) and it raises
   :class:`~casmbd.errors.ModelError`;
 * a *frame* is a body (origin at its centre of mass, axes the body axes) or a marker (its
-  point, the axes of its body).  ``jacobian(q, frame)`` is the ``(3 + 3) × n_q`` (spatial)
-  or ``(2 + 1) × n_q`` (planar) matrix J with
+  point, its own axes: the body's times the marker's fixed orientation offset).
+  ``jacobian(q, frame)`` is the ``(3 + 3) × n_q`` (spatial) or ``(2 + 1) × n_q`` (planar)
+  matrix J with
   ``(ṙ, ω) = J v``: rows the linear velocity of the frame's point then the angular velocity,
   global components — Pinocchio's ``LOCAL_WORLD_ALIGNED`` convention (not ``WORLD``, whose
   linear part is the velocity of the body point at the world origin).
@@ -129,6 +130,15 @@ def newton_euler(system: System, a: ca.SX) -> ca.SX:
     return ca.vertcat(*[tau[name] for name in system.body_names])
 
 
+
+def _offset_matrix(offset, dim: int) -> np.ndarray:
+    """A marker's fixed rotation relative to its body (:meth:`Marker.offset`: a 3×3 matrix in
+    space, an angle in the plane) as a ``dim × dim`` matrix."""
+    if dim == 3:
+        return np.asarray(offset, dtype=float)
+    c, s = np.cos(float(offset)), np.sin(float(offset))
+    return np.array([[c, -s], [s, c]])
+
 class _Call:
     """One compiled Function bound to numpy buffers: fill ``a0, a1, a2``, ``trigger()``, read
     ``outs`` (``view``: output 0 in the shape the method returns)."""
@@ -211,7 +221,12 @@ class CompiledModel:
         frames += [(mk.body, mk.point) for mk in mech.markers.values()]
         self.frame_names: list[str] = list(system.body_names) + list(mech.markers)
         pos = [ctx.position(body, point) for body, point in frames]
-        rot = [ca.vec(ctx.rotation(body).T) for body, _ in frames]  # row by row
+        # a frame's axes: the body's, times a marker's fixed offset (Marker.offset)
+        axes = [np.eye(dim)] * len(system.body_names) + [
+            _offset_matrix(mk.offset(mech.bodies.get(mk.body)), dim)
+            for mk in mech.markers.values()]
+        rot = [ca.vec(ca.mtimes(ctx.rotation(body), ca.DM(off)).T)  # row by row
+               for (body, _), off in zip(frames, axes)]
         fns.append(ca.Function("robot_fk", [q, p],
                                [ca.densify(ca.vertcat(*pos)), ca.densify(ca.vertcat(*rot))],
                                ["q", "p"], ["positions", "rotations"]))
