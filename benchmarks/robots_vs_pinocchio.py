@@ -14,13 +14,18 @@ a uniform in [-2, 2]) the four quantities are compared with Pinocchio's:
 * inverse dynamics against ``pin.rnea``, max |Δτ| / max |τ| ≤ 1e-10;
 * forward dynamics against ``pin.aba`` (τ as input), max |Δq̈| / max |q̈| ≤ 1e-9.
 
+Then the same robot in absolute coordinates (``check_absolute``: the state mapped from the
+joint coordinates; frames, Tᵀ M_a T against ``crba``, body accelerations of the KKT forward
+dynamics against Pinocchio's after ``aba``; ``--joint-only`` skips it).
+
 Joints are matched by name (casmbd's coordinate ``joint.angle`` ↔ Pinocchio's
 ``model.names``); a continuous joint is (cos θ, sin θ) in Pinocchio's q (nq = 2, nv = 1).
 Each robot runs in its own process with a time limit (``--timeout``), so a robot casmbd
 cannot build in time is recorded as such rather than stopping the sweep.  ``--quick`` checks
-two arms (UR5, Panda).
+two arms (UR5, Panda).  ``<mimic>`` pairs are locked at 0 in both models
+(``pinocchio.buildReducedModel``; casmbd's ``locked`` on the leaders).
 
-Run: ``python -m benchmarks.robots_vs_pinocchio [--quick] [--update-docs]``.
+Run: ``python -m benchmarks.robots_vs_pinocchio [--quick] [--joint-only] [--update-docs]``.
 """
 
 from __future__ import annotations
@@ -39,6 +44,9 @@ DOC = Path(__file__).resolve().parent.parent / "docs" / "robots.md"
 HEAD = "## Checked against Pinocchio on example-robot-data"
 #: Tolerances of issue 21 item 5: frames [m] and rotations, then relative M, τ, q̈.
 TOLERANCES = {"fk": 1e-12, "rot": 1e-12, "crba": 1e-12, "rnea": 1e-10, "aba": 1e-9}
+#: In absolute coordinates: frames, rotations, C(q_a) of the mapped state, Tᵀ M_a T, body
+#: accelerations (relative).
+ABSOLUTE_TOLERANCES = {"fk": 1e-12, "rot": 1e-12, "C": 1e-12, "crba": 1e-12, "aba": 1e-9}
 QUICK = ("ur_description/urdf/ur5_robot.urdf", "panda_description/urdf/panda.urdf")
 
 
@@ -102,7 +110,8 @@ def _rel(x, y) -> float:
     return float(np.max(np.abs(x - y)) / max(np.max(np.abs(y)), 1e-300))
 
 
-def check_robot(path: str | Path, states: int = 3, seed: int = 0, mode: str = "vm") -> dict:
+def check_robot(path: str | Path, states: int = 3, seed: int = 0, mode: str = "vm",
+                absolute: bool = False) -> dict:
     """Load ``path`` with Pinocchio and casmbd (joint coordinates) and compare at ``states``
     random states; returns the record (errors, pass/fail or the named error)."""
     import warnings
@@ -148,26 +157,12 @@ def check_robot(path: str | Path, states: int = 3, seed: int = 0, mode: str = "v
     scale = np.where(prismatic[np.argsort(perm)], 0.2, 2.0)
     data = pm.createData()
     rng = np.random.default_rng(seed)
-    n_body = len(ours.numeric.body_names)
-    frames = {f.name: k for k, f in enumerate(pm.frames) if f.type == pin.FrameType.BODY}
-    shared = [(i, name) for i, name in enumerate(ours.frame_names) if name in frames]
     worst = dict.fromkeys(TOLERANCES, 0.0)
     for _ in range(states):
         q = rng.uniform(-1.0, 1.0, ours.nq) * scale
         v, a = rng.uniform(-2.0, 2.0, ours.nq), rng.uniform(-2.0, 2.0, ours.nq)
         qp, vp, ap = to_pin(q), v[perm], a[perm]
-        pin.forwardKinematics(pm, data, qp)
-        pin.updateFramePlacements(pm, data)
-        pos, rot = ours.forward_kinematics(q)
-        for i, name in shared:
-            frame = pm.frames[frames[name]]
-            placement = data.oMf[frames[name]]
-            point = (data.oMi[frame.parentJoint].act(pm.inertias[frame.parentJoint].lever)
-                     if i < n_body else placement.translation)
-            worst["fk"] = max(worst["fk"], float(np.max(np.abs(pos[i] - point))))
-            axes = (placement.rotation if i < n_body  # a marker has its body's axes
-                    else data.oMi[frame.parentJoint].rotation)
-            worst["rot"] = max(worst["rot"], float(np.max(np.abs(rot[i] - axes))))
+        _frame_errors(worst, ours, ours.forward_kinematics(q), pm, data, qp)
         m_pin = pin.crba(pm, data, qp)
         m_pin = np.triu(m_pin) + np.triu(m_pin, 1).T
         tau = pin.rnea(pm, data, qp, vp, ap)
@@ -177,28 +172,139 @@ def check_robot(path: str | Path, states: int = 3, seed: int = 0, mode: str = "v
         tau_ours[perm] = tau
         worst["aba"] = max(worst["aba"], _rel(ours.forward_dynamics(q, v, tau_ours)[perm],
                                               pin.aba(pm, data, qp, vp, tau)))
-    rec.update(compared=True, frames=len(shared), states=states, errors=worst,
+    rec.update(compared=True, frames=worst.pop("frames"), states=states, errors=worst,
                passed=all(worst[k] <= tol for k, tol in TOLERANCES.items()))
+    if absolute:
+        print(json.dumps(rec), flush=True)  # the joint-coordinate record, should time run out
+        rec["absolute"] = check_absolute(path, leaders, ours, pm, to_pin, perm, scale,
+                                         states, seed, mode)
     return rec
 
 
-def _in_process(path: Path, timeout: float, mode: str) -> dict:
+def _frame_errors(worst: dict, ours, fk, pm, data, qp) -> None:
+    """Largest position and rotation errors of the frames ``ours`` shares with Pinocchio's
+    link frames, into ``worst["fk"]``, ``worst["rot"]`` (and their count ``worst["frames"]``)."""
+    import pinocchio as pin
+
+    pin.forwardKinematics(pm, data, qp)
+    pin.updateFramePlacements(pm, data)
+    pos, rot = fk
+    n_body = len(ours.numeric.body_names)
+    frames = {f.name: k for k, f in enumerate(pm.frames) if f.type == pin.FrameType.BODY}
+    shared = [(i, name) for i, name in enumerate(ours.frame_names) if name in frames]
+    for i, name in shared:
+        frame = pm.frames[frames[name]]
+        placement = data.oMf[frames[name]]
+        point = (data.oMi[frame.parentJoint].act(pm.inertias[frame.parentJoint].lever)
+                 if i < n_body else placement.translation)
+        worst["fk"] = max(worst["fk"], float(np.max(np.abs(pos[i] - point))))
+        worst["rot"] = max(worst["rot"], float(np.max(np.abs(rot[i] - placement.rotation))))
+    worst["frames"] = len(shared)
+
+
+def check_absolute(path, leaders, joint, pm, to_pin, perm, scale, states: int, seed: int,
+                   mode: str) -> dict:
+    """The same robot in absolute coordinates (centre of mass and Euler parameters per body).
+
+    The state is mapped from joint coordinates: q_a from the joint model's body frames
+    (checked: C(q_a) = 0), T = ∂q_a/∂q from [J_a; C_q] T = [J; 0] (J, J_a the stacked body
+    Jacobians (ṙ, ω) of both models), v_a = T v.  Compared: every frame as above, Tᵀ M_a T
+    against ``crba`` and the body accelerations J_a q̈_a (r̈ of the centre of mass, ω̇; the
+    Euler-parameter term E(ė) ė is 0) from the KKT forward dynamics with the generalized force
+    Q_a, the least-norm solution of Tᵀ Q_a = τ, against Pinocchio's after ``aba``."""
+    import warnings
+
+    import pinocchio as pin
+
+    import casmbd
+    from casmbd.compiled.model import NumericModel
+    from casmbd.system import System
+
+    t0 = time.perf_counter()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            mech = casmbd.load_urdf(path, coordinates="absolute",
+                                    locked=dict.fromkeys(leaders, 0.0))
+            system = System(mech, coordinates="absolute")
+            ours = casmbd.compile(system, mode=mode)
+            cons = NumericModel(system, ("constraints", "constraint_jacobian"), mode=mode)
+    except Exception as exc:
+        return {"error": f"{type(exc).__name__}: {exc}".splitlines()[0][:300]}
+    out: dict = {"build_s": round(time.perf_counter() - t0, 3), "nq": int(ours.nq),
+                 "nc": int(ours.nc)}
+    bodies = list(ours.numeric.body_names)
+    if bodies != list(joint.numeric.body_names):
+        return {**out, "error": "the bodies differ from the joint-coordinate model's"}
+    rows = [joint.frame_names.index(b) for b in bodies]
+    data = pm.createData()
+    rng = np.random.default_rng(seed + 1)
+    worst = dict.fromkeys(ABSOLUTE_TOLERANCES, 0.0)
+    for _ in range(states):
+        q = rng.uniform(-1.0, 1.0, joint.nq) * scale
+        v, tau = rng.uniform(-2.0, 2.0, joint.nq), rng.uniform(-2.0, 2.0, joint.nq)
+        pos, rot = joint.forward_kinematics(q)
+        qa = np.concatenate([np.r_[pos[k], _euler_parameters(rot[k])] for k in rows])
+        worst["C"] = max(worst["C"], float(np.max(np.abs(cons.constraints(qa, 0.0)))))
+        jac = np.vstack([joint.jacobian(q, b) for b in bodies])
+        jac_a = np.vstack([ours.jacobian(qa, b) for b in bodies])
+        cq = cons.constraint_jacobian(qa, 0.0).toarray()
+        t = np.linalg.lstsq(np.vstack([jac_a, cq]),
+                            np.vstack([jac, np.zeros((cq.shape[0], joint.nq))]), rcond=None)[0]
+        qp, vp = to_pin(q), v[perm]
+        _frame_errors(worst, ours, ours.forward_kinematics(qa), pm, data, qp)
+        m_pin = pin.crba(pm, data, qp)
+        m_pin = np.triu(m_pin) + np.triu(m_pin, 1).T
+        m_a = (t.T @ ours.mass_matrix(qa) @ t)[np.ix_(perm, perm)]
+        worst["crba"] = max(worst["crba"], _rel(m_a, m_pin))
+        qdd_a = ours.forward_dynamics(qa, t @ v, np.linalg.lstsq(t.T, tau, rcond=None)[0])
+        pin.forwardKinematics(pm, data, qp, vp, pin.aba(pm, data, qp, vp, tau[perm]))
+        ref = []
+        for b in bodies:
+            j = pm.frames[pm.getFrameId(b, pin.FrameType.BODY)].parentJoint
+            c, acc, w = pm.inertias[j].lever, data.a[j], data.v[j].angular
+            lin = acc.linear + np.cross(acc.angular, c) + np.cross(w, data.v[j].linear
+                                                                   + np.cross(w, c))
+            ref.append(np.r_[data.oMi[j].rotation @ lin, data.oMi[j].rotation @ acc.angular])
+        worst["aba"] = max(worst["aba"], _rel(jac_a @ qdd_a, np.concatenate(ref)))
+    out.update(frames=worst.pop("frames"), errors=worst,
+               passed=all(worst[k] <= tol for k, tol in ABSOLUTE_TOLERANCES.items()))
+    return out
+
+
+def _euler_parameters(rot: np.ndarray) -> np.ndarray:
+    """(e0, e1, e2, e3), scalar first, of the rotation matrix ``rot``."""
+    import pinocchio as pin
+
+    quat = pin.Quaternion(np.asarray(rot))
+    return np.array([quat.w, quat.x, quat.y, quat.z])
+
+
+def _in_process(path: Path, timeout: float, mode: str, absolute: bool) -> dict:
+    """:func:`check_robot` in a subprocess; after ``timeout`` s the last record it printed
+    (the joint-coordinate one) with the absolute-coordinate part marked as timed out."""
     cmd = [sys.executable, "-m", "benchmarks.robots_vs_pinocchio", "--one", str(path),
-           "--mode", mode]
+           "--mode", mode] + (["--absolute"] if absolute else [])
     root = Path(__file__).resolve().parent.parent
+    late = f"not done within the time limit of {timeout:g} s"
     try:
         out = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=root)
-    except subprocess.TimeoutExpired:
-        return {"robot": str(path), "pinocchio": True, "casmbd": False,
-                "error": f"not built within the time limit of {timeout:g} s"}
-    lines = [ln for ln in out.stdout.splitlines() if ln.startswith("{")]
-    if out.returncode or not lines:
-        tail = (out.stderr.strip().splitlines() or ["no output"])[-1]
-        return {"robot": str(path), "error": f"process failed: {tail[:300]}"}
-    return json.loads(lines[-1])
+        stdout, stderr, code = out.stdout, out.stderr, out.returncode
+    except subprocess.TimeoutExpired as exc:
+        stdout = exc.stdout.decode() if isinstance(exc.stdout, bytes) else exc.stdout or ""
+        stderr, code = late, None
+    lines = [ln for ln in stdout.splitlines() if ln.startswith("{")]
+    if not lines:
+        tail = (stderr.strip().splitlines() or ["no output"])[-1]
+        return {"robot": str(path), "error": f"process failed: {tail[:300]}" if code else late}
+    rec = json.loads(lines[-1])
+    if absolute and rec.get("compared") and "absolute" not in rec:
+        rec["absolute"] = {"error": late if code is None else stderr.strip()[-300:]}
+    return rec
 
 
-def measure(quick: bool = False, timeout: float = 120.0, mode: str = "vm") -> dict:
+def measure(quick: bool = False, timeout: float = 120.0, mode: str = "vm",
+            absolute: bool = True) -> dict:
     """Run every robot (or the :data:`QUICK` two) in its own process; the records, with
     paths relative to the package's ``robots`` folder."""
     import pinocchio as pin
@@ -210,13 +316,13 @@ def measure(quick: bool = False, timeout: float = 120.0, mode: str = "vm") -> di
     records = []
     for path in paths:
         t0 = time.perf_counter()
-        rec = _in_process(path, timeout, mode)
+        rec = _in_process(path, timeout, mode, absolute)
         rec["robot"] = str(path.relative_to(root))
         rec["wall_s"] = round(time.perf_counter() - t0, 2)
         print(json.dumps(rec), file=sys.stderr)
         records.append(rec)
     return {"pinocchio_version": pin.__version__, "mode": mode, "tolerances": TOLERANCES,
-            "robots": records}
+            "absolute_tolerances": ABSOLUTE_TOLERANCES, "robots": records}
 
 
 def markdown(data: dict) -> str:
@@ -233,9 +339,8 @@ def markdown(data: dict) -> str:
              "joint as (cos, sin) in Pinocchio's q; `<mimic>` pairs locked at 0 in both, "
              "`pinocchio.buildReducedModel`) and compared at 3 random states: every link frame "
              "(position in m — a body at its centre of mass against `oMi · lever`, a marker at "
-             "the link origin `oMf`; rotation max |ΔR| — a body's axes against the link's, a "
-             "marker's, which are its body's axes in `forward_kinematics`, against the moving "
-             "link's), M against `crba`, τ against "
+             "the link origin `oMf`; rotation max |ΔR| against the link frame's `oMf`, for "
+             "bodies and markers alike), M against `crba`, τ against "
              "`rnea`, q̈ against `aba` (relative to the largest entry). Tolerances "
              "1e-12 m, 1e-12, 1e-12, 1e-10, 1e-9. "
              f"**{len(passed)} of {len(compared)} compared robots pass**; "
@@ -248,6 +353,31 @@ def markdown(data: dict) -> str:
         lines.append(f"| {r['robot']} | {r['nv']} | {r['frames']} | {e['fk']:.1e} | "
                      f"{e['rot']:.1e} | {e['crba']:.1e} | {e['rnea']:.1e} | {e['aba']:.1e} | "
                      f"{'yes' if r['passed'] else '**no**'} |")
+    with_abs = [r for r in compared if "absolute" in r]
+    if with_abs:
+        ok = [r for r in with_abs if r["absolute"].get("passed")]
+        lines += ["", "**Absolute coordinates** (`coordinates=\"absolute\"`: centre of mass and "
+                  "Euler parameters per body, the joints as constraint equations). The state is "
+                  "mapped from the joint coordinates: q_a from the body frames (C(q_a) in the "
+                  "table), T = ∂q_a/∂q from [J_a; C_q] T = [J; 0] with the stacked body "
+                  "Jacobians (ṙ, ω), v_a = T v; compared: every frame, Tᵀ M_a T against `crba`, "
+                  "and the body accelerations (r̈ of the centre of mass, ω̇) of the KKT forward "
+                  "dynamics under Q_a (least-norm solution of Tᵀ Q_a = τ) against Pinocchio's "
+                  "after `aba` (relative; tolerance 1e-9, the others 1e-12). Inverse dynamics "
+                  "has no unique answer with constraint equations (casmbd raises ModelError). "
+                  f"**{len(ok)} of {len(with_abs)} pass.**", "",
+                  "| URDF | n_q | n_c | build [s] | C(q_a) | FK [m] | R | TᵀMT | body acc. | "
+                  "pass |", "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |"]
+        for r in with_abs:
+            a = r["absolute"]
+            if "errors" not in a:
+                err = re.sub(r"/\S*/robots/", "", a.get("error", "")).replace("|", "/")
+                lines.append(f"| {r['robot']} | | | | {err[:200]} | | | | | **no** |")
+                continue
+            e = a["errors"]
+            lines.append(f"| {r['robot']} | {a['nq']} | {a['nc']} | {a['build_s']:.2f} | "
+                         f"{e['C']:.1e} | {e['fk']:.1e} | {e['rot']:.1e} | {e['crba']:.1e} | "
+                         f"{e['aba']:.1e} | {'yes' if a['passed'] else '**no**'} |")
     rest = [r for r in recs if not r.get("compared")]
     if rest:
         lines += ["", "Not compared:", "",
@@ -258,8 +388,7 @@ def markdown(data: dict) -> str:
             reason = re.sub(r"/\S*/robots/", "", r.get("error", "")).replace("|", "/")
             reason = reason.split(" (principal moments")[0]
             lines.append(f"| {r['robot']} | {who} | {reason} |")
-    lines += ["", "Not yet: the same comparison in absolute coordinates (the state and the "
-              "accelerations mapped through the joint-coordinate kinematics).", ""]
+    lines.append("")
     return "\n".join(lines)
 
 
@@ -271,12 +400,16 @@ def main(argv=None) -> int:
     parser.add_argument("--timeout", type=float, default=120.0,
                         help="seconds per robot (load, build, compare)")
     parser.add_argument("--mode", default="vm", help="casmbd.compile mode (vm, auto)")
+    parser.add_argument("--joint-only", action="store_true",
+                        help="no absolute-coordinate comparison")
+    parser.add_argument("--absolute", action="store_true", help=argparse_suppress())
     parser.add_argument("--one", help=argparse_suppress())
     args = parser.parse_args(argv)
     if args.one:
-        print(json.dumps(check_robot(args.one, mode=args.mode)))
+        print(json.dumps(check_robot(args.one, mode=args.mode, absolute=args.absolute)))
         return 0
-    return run_study(args, RESULTS, lambda: measure(args.quick, args.timeout, args.mode),
+    return run_study(args, RESULTS, lambda: measure(args.quick, args.timeout, args.mode,
+                                                      not args.joint_only),
                      markdown, DOC, HEAD)
 
 

@@ -4,8 +4,9 @@ The quick run of ``benchmarks/robots_vs_pinocchio.py``: the UR5 and the Franka P
 mimic finger pair locked at 0 in both), read by :func:`casmbd.load_urdf` in joint coordinates
 and by ``pinocchio.buildModelFromUrdf``; at random states every link frame (1e-12 m, rotation
 1e-12), M against ``crba`` (1e-12 relative), τ against ``rnea`` (1e-10) and q̈ against ``aba``
-(1e-9).  Skipped without Pinocchio or without the ``example-robot-data`` files (the ``[bench]``
-extra).
+(1e-9); the same in absolute coordinates (the state mapped from joint coordinates: C(q_a),
+frames, Tᵀ M_a T and the body accelerations, see ``check_absolute``).  Skipped without
+Pinocchio or without the ``example-robot-data`` files (the ``[bench]`` extra).
 """
 
 from __future__ import annotations
@@ -14,7 +15,13 @@ import pytest
 
 pytest.importorskip("pinocchio")
 
-from benchmarks.robots_vs_pinocchio import QUICK, TOLERANCES, check_robot, robots_dir
+from benchmarks.robots_vs_pinocchio import (
+    ABSOLUTE_TOLERANCES,
+    QUICK,
+    TOLERANCES,
+    check_robot,
+    robots_dir,
+)
 
 ROOT = robots_dir()
 pytestmark = pytest.mark.skipif(ROOT is None, reason="example-robot-data is not installed")
@@ -22,13 +29,18 @@ pytestmark = pytest.mark.skipif(ROOT is None, reason="example-robot-data is not 
 
 @pytest.mark.parametrize("robot", QUICK)
 def test_arm_agrees_with_pinocchio(robot):
-    rec = check_robot(ROOT / robot, states=3, seed=1)
+    rec = check_robot(ROOT / robot, states=3, seed=1, absolute=True)
     assert rec.get("casmbd"), rec.get("error")
     assert rec["compared"], rec.get("error")
     assert rec["frames"] >= rec["nv"] + 1  # every moving link and the root were compared
     for key, tol in TOLERANCES.items():
         assert rec["errors"][key] <= tol, (key, rec["errors"])
     assert rec["passed"]
+    absolute = rec["absolute"]
+    assert "errors" in absolute, absolute.get("error")
+    assert absolute["nc"] > 0 and absolute["frames"] == rec["frames"]
+    for key, tol in ABSOLUTE_TOLERANCES.items():
+        assert absolute["errors"][key] <= tol, (key, absolute["errors"])
 
 
 def test_a_wrong_model_is_detected():
