@@ -336,6 +336,29 @@ def test_massless_link_on_a_moving_joint_loads_and_simulates():
         casmbd.simulate(bare, t_end=0.05, steps=1)
 
 
+def test_rounding_in_published_inertias_and_mimic_of_fixed_joints():
+    """Two features of published files that Pinocchio accepts (example-robot-data): a
+    near-zero inertia with a principal moment of -5.4e-20 kg m² (iCub's r_hip_2) loads as the
+    zero tensor it is meant to be, while -1e-6 kg m² is still refused naming the link; a
+    <mimic> whose joints are fixed (Talos' gripper in its reduced files) is ignored with one
+    warning, the rest of the robot loads."""
+    tiny = _TWO.format(_J.format(t="revolute", p="a", c="b", xyz="0 0 0")).replace(
+        'ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"',
+        'ixx="1e-20" ixy="1e-19" ixz="0" iyy="1e-20" iyz="0" izz="1e-20"')
+    assert np.linalg.eigvalsh([[1e-20, 1e-19, 0], [1e-19, 1e-20, 0], [0, 0, 1e-20]])[0] < 0
+    loads_urdf(tiny, "t.urdf").validate()  # the check every analysis runs first
+    bad = tiny.replace('ixy="1e-19"', 'ixy="1e-6"')
+    with pytest.raises(casmbd.errors.ModelError,
+                       match=r"body 'b' field 'inertia'.*not positive semi-definite"):
+        loads_urdf(bad, "t.urdf").validate()
+    fixed = (_TWO.format(_J.format(t="revolute", p="a", c="b", xyz="0 0 0")
+                         + '<link name="c"/><joint name="f" type="fixed"><parent link="b"/>'
+                         '<child link="c"/><mimic joint="j" multiplier="1"/></joint>'))
+    with pytest.warns(RuntimeWarning, match="<mimic> of a fixed joint ignored for f"):
+        mech = loads_urdf(fixed, "t.urdf")
+    assert list(mech.joints) == ["j"]
+
+
 # ---------------------------------------------------------------- scene files and CLI
 def test_cli_info_on_a_bare_urdf():
     out = subprocess.run([sys.executable, "-W", "ignore", "-m", "casmbd", "info", str(UR5),

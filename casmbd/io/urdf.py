@@ -119,6 +119,12 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
         raise SceneError("initial: joint positions other than 0 need coordinates = 'joint' "
                          "(the other coordinates measure the design pose, the URDF zero)")
     mimic_of = {j.name: j.mimic for j in robot.joints.values() if j.mimic is not None}
+    moot = sorted(f for f, (lead, _, _) in mimic_of.items() if lead in robot.joints
+                  and (robot.joints[f].type == "fixed" or robot.joints[lead].type == "fixed"))
+    if moot:  # as Pinocchio: a coupling of a fixed joint has nothing to couple
+        warnings.warn(f"URDF '{robot.name}': <mimic> of a fixed joint ignored for "
+                      f"{', '.join(moot)}", RuntimeWarning, stacklevel=3)
+        mimic_of = {f: m for f, m in mimic_of.items() if f not in moot}
     for follower, (leader, ratio, offset) in mimic_of.items():
         if offset != 0.0:
             raise SceneError(f"joint '{follower}' <mimic> attribute 'offset': a non-zero offset "

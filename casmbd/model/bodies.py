@@ -87,6 +87,11 @@ def check_positive(body) -> None:
             raise ModelError(f"body '{body.name}' field '{key}': must be >= 0, got {value}")
 
 
+#: principal moments above -INERTIA_ROUNDING kg m² count as zero (rounding in published robot
+#: files, e.g. -5.4e-20 in iCub's URDF), whatever the tensor's size
+INERTIA_ROUNDING = 1e-15
+
+
 def check_inertia(values: Sequence[float]) -> np.ndarray:
     """The inertia tensor of ``values`` ([Ixx, Iyy, Izz(, Ixy, Ixz, Iyz)]), positive
     semi-definite.
@@ -94,7 +99,8 @@ def check_inertia(values: Sequence[float]) -> np.ndarray:
     A positive definite tensor must satisfy the triangle inequalities (seed 001, eq. 105;
     :func:`casmbd.model.inertia.inertia_tensor`).  A singular positive semi-definite tensor is
     accepted as it is: the zero tensor of a point mass or frame link, or ``[0, I, I]`` of a
-    thin rod along x.  Negative principal moments (below -1e-12 of their sum) are refused.
+    thin rod along x.  Negative principal moments (below -1e-12 of their sum, and below
+    -:data:`INERTIA_ROUNDING`) are refused.
 
     Raises
     ------
@@ -106,12 +112,13 @@ def check_inertia(values: Sequence[float]) -> np.ndarray:
         off = v[3:] if v.size == 6 else np.zeros(3)
         J = np.array([[v[0], off[0], off[1]], [off[0], v[1], off[2]], [off[1], off[2], v[2]]])
         eig = np.linalg.eigvalsh(J)
-        scale = float(np.sum(np.abs(eig)))
-        if eig[0] < -1e-12 * scale:
+        # rounding in published files: iCub's r_hip_2 has a principal moment of -5.4e-20 kg m²
+        tol = max(1e-12 * float(np.sum(np.abs(eig))), INERTIA_ROUNDING)
+        if eig[0] < -tol:
             raise ModelError(f"inertia tensor is not positive semi-definite: smallest "
                              f"principal moment {eig[0]:.6g} (principal moments "
                              f"{eig.tolist()}, values {v.tolist()})")
-        if eig[0] <= 1e-12 * scale:  # singular PSD (zero, thin rod): no triangle inequality
+        if eig[0] <= tol:  # singular PSD (zero, thin rod): no triangle inequality
             return J
     return inertia_tensor(v)
 
