@@ -63,3 +63,34 @@ def test_feedforward_derivatives_against_ik_differences():
     # the move starts and ends at rest
     assert np.max(np.abs(out["v"][[0, -1]])) <= 1e-12
     assert np.max(np.abs(out["a"][[0, -1]])) <= 1e-9
+
+
+def test_ur5_min_time_ocp(monkeypatch):
+    """ocp/ur5_min_time.toml: solved, a limit active, the controls replayed by simulation.
+
+    Minimum time with bounded torques is bang-bang where no velocity limit holds: some control
+    sits at its effort bound, and some joint rate at its velocity limit; the replay by forward
+    simulation (IDAS, rtol 1e-10) of the piecewise-constant torques stays within 1e-4.
+    """
+    monkeypatch.setenv("CASMBD_COMPILE", "0")  # the virtual machine: no C compile in a test
+    from casmbd.io.ocp_table import load_ocp
+
+    root = pathlib.Path(__file__).resolve().parents[1]
+    sol = load_ocp(root / "ocp" / "ur5_min_time.toml").solve()
+    assert sol.success
+    effort = {"tau_pan": 150.0, "tau_lift": 150.0, "tau_elbow": 150.0,
+              "tau_w1": 28.0, "tau_w2": 28.0, "tau_w3": 28.0}
+    margins = {name: effort[name] - np.max(np.abs(sol.control(name))) for name in effort}
+    assert min(margins.values()) <= 1e-6, margins                 # a torque at its bound
+    assert all(m >= -1e-6 for m in margins.values()), margins     # and the bounds hold
+    rates = {"shoulder_pan_joint_dot": 3.15, "shoulder_lift_joint_dot": 3.15,
+             "elbow_joint_dot": 3.15, "wrist_1_joint_dot": 3.2, "wrist_2_joint_dot": 3.2,
+             "wrist_3_joint_dot": 3.2}
+    vmargin = {name: lim - np.max(np.abs(sol.value(name))) for name, lim in rates.items()}
+    assert all(m >= -1e-6 for m in vmargin.values()), vmargin
+    assert min(vmargin.values()) <= 1e-6, vmargin                 # a rate at its limit
+    # the end points and the final time lie inside their ranges, at rest
+    assert 0.1 < sol.t[-1] - sol.t[0] < 5.0
+    np.testing.assert_allclose(sol.v[[0, -1]], 0.0, atol=1e-8)
+    sol.replay()
+    assert sol.stats["replay_error"] <= 1e-4
