@@ -362,3 +362,18 @@ def test_inverse_json_driver_effort(capsys):
     assert effort[0] > 0
     assert abs(effort[0] - effort[-1]) < 1e-9  # periodic motion over one turn
     assert len(data["joints"]["O"]["reaction"]) == 5
+
+
+def test_warnings_print_as_one_line_and_debug_keeps_the_source(tmp_path):
+    """A warning on the command line is one ``warning: …`` line (here the URDF's ignored
+    meshes); ``--debug`` keeps Python's form with the file and category."""
+    urdf = pathlib.Path(__file__).resolve().parent.parent / "examples" / "ur5_arm.urdf"
+    env = {**os.environ, "CASMBD_COMPILE": "0", "CASMBD_CACHE_DIR": str(tmp_path)}
+    runs = [subprocess.run([sys.executable, "-m", "casmbd", "info", str(urdf), *extra],
+                           capture_output=True, text=True, env=env, timeout=120)
+            for extra in ([], ["--debug"])]
+    plain, debug = (r.stderr.strip().splitlines() for r in runs)
+    assert runs[0].returncode == 0 and runs[1].returncode == 0
+    assert plain == ["warning: URDF 'ur5_arm': 3 <visual>/<collision> elements ignored "
+                     "(meshes are not used)"]
+    assert any("UserWarning" in line for line in debug)

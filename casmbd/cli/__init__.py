@@ -23,6 +23,7 @@ import json
 import os
 import sys
 import time
+import warnings
 from collections.abc import Sequence
 
 from casmbd import __version__, interrupts
@@ -170,9 +171,29 @@ def _interrupted(args, started: float) -> int:
     return EXIT_INTERRUPTED
 
 
+def _one_line_warning(message, category, filename, lineno, line=None) -> str:
+    """A warning on the command line: ``warning: …`` (the source line only with ``--debug``)."""
+    return f"warning: {message}\n"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``casmbd`` command; returns the exit status."""
+    """Entry point of the ``casmbd`` command; returns the exit status.
+
+    Warnings print as one ``warning: …`` line each (Python's form, with the file and source
+    line, with ``--debug``).
+    """
     argv = list(sys.argv[1:] if argv is None else argv)
+    saved = warnings.formatwarning
+    if "--debug" not in argv:
+        warnings.formatwarning = _one_line_warning
+    try:
+        return _run(argv)
+    finally:
+        warnings.formatwarning = saved
+
+
+def _run(argv: list[str]) -> int:
+    """:func:`main` after the warning format is set."""
     debug = "--debug" in argv
     interrupts.install()  # Ctrl-C is remembered even where CasADi turns it into an error
     parser = build_parser()
