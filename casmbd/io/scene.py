@@ -64,7 +64,7 @@ FORMAT = 1
 _TABLES = {"scene", "parameters", "bodies", "markers", "joints", "drivers", "forces",
            "actuators", "ocp", "simulation", "meta"}
 _SCENE_KEYS = {"name", "dimension", "gravity", "format", "description", "coordinates",
-               "tree", "urdf", "initial", "locked", "damping"}
+               "tree", "urdf", "initial", "locked", "damping", "friction"}
 _COORDINATES = ("absolute", "natural", "joint")
 _MARKER_KEYS = {"name", "body", "point", "description", "orientation", "euler_zxz", "angle"}
 _DRIVER_KEYS = {"name", "joint", "body", "coordinate", "position", "description"}
@@ -276,8 +276,9 @@ def _build(data: dict, source: str) -> Mechanism:
         mech = urdf_scene(scene.data, source, name, coords, scene.vector("gravity", 3, default=[
             0.0, 0.0, -9.81]) if dim == 3 else None)
     else:
-        if any(key in scene.data for key in ("initial", "locked", "damping")):
-            raise scene.error("initial", "'initial', 'locked' and 'damping' need 'urdf'")
+        if any(key in scene.data for key in ("initial", "locked", "damping", "friction")):
+            raise scene.error("initial", "'initial', 'locked' and 'damping' need 'urdf' (so "
+                              "does 'friction')")
         mech = Mechanism(name, gravity=scene.vector("gravity", dim, default=[0.0] * dim),
                          dimension=dim, coordinates=coords)
 

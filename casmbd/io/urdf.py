@@ -19,8 +19,10 @@ design pose: refused with a named error.
 
 Limits (``lower``, ``upper``, ``effort``, ``velocity``) and ``<dynamics damping friction>``
 are kept on the joint objects as the dicts ``urdf_limits`` and ``urdf_dynamics``; with
-``damping=True`` a revolute joint's damping becomes a rotational spring-damper of zero
-stiffness named ``<joint>_damping``.  Friction is kept but not applied (issue 24).
+``damping=True`` and/or ``friction=True`` a revolute, continuous or prismatic joint with a
+nonzero value gets a ``joint_friction`` element (:mod:`casmbd.model.joint_friction`,
+Q_j = −c q̇_j − F_c tanh(q̇_j / v_s), v_s = 1e-3) named ``<joint>_damping`` (or
+``<joint>_friction`` when only ``friction`` is on); each switch applies only its own term.
 ``<visual>`` and ``<collision>`` elements are ignored with one warning.
 """
 
@@ -105,7 +107,8 @@ def _twists(robot: Robot, values: dict, rates: dict, frames: dict) -> dict:
 
 def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | None = None,
                     initial: Mapping | None = None, damping: bool = False,
-                    gravity: Sequence[float] = GRAVITY, name: str | None = None) -> Mechanism:
+                    gravity: Sequence[float] = GRAVITY, name: str | None = None,
+                    friction: bool = False) -> Mechanism:
     """The :class:`Mechanism` of a parsed URDF (see :func:`load_urdf`)."""
     locked = dict(locked or {})
     initial = dict(initial or {})
@@ -201,28 +204,26 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
             continue
         guarded(f"joint '{follower}' <mimic>", lambda f=follower, lead=leader, r=ratio:
                 mech.add_gear(f"{f}_mimic", lead, f, ratio=r))
-    if damping:
-        _add_damping(robot, mech, locked)
+    if damping or friction:
+        _add_damping(robot, mech, locked, damping, friction)
     if robot.ignored:
         warnings.warn(f"URDF '{robot.name}': {robot.ignored} <visual>/<collision> elements "
                       "ignored (meshes are not used)", stacklevel=4)
     return mech
 
 
-def _add_damping(robot: Robot, mech: Mechanism, locked: Mapping) -> None:
-    """Viscous joint damping τ = −d θ̇ as rotational spring-dampers of zero stiffness."""
-    skipped = []
+def _add_damping(robot: Robot, mech: Mechanism, locked: Mapping, damping: bool,
+                 friction: bool) -> None:
+    """Viscous damping −d q̇ and smooth Coulomb friction −F_c tanh(q̇ / v_s) of the
+    ``<dynamics>`` of each moving joint as ``joint_friction`` elements."""
     for joint in robot.order():
-        d = joint.dynamics.get("damping", 0.0)
-        if d <= 0.0 or joint.name in locked or joint.type not in MOVING:
+        d = joint.dynamics.get("damping", 0.0) if damping else 0.0
+        f = joint.dynamics.get("friction", 0.0) if friction else 0.0
+        if (d <= 0.0 and f <= 0.0) or joint.name in locked or joint.type not in MOVING:
             continue
-        if joint.type == "prismatic":
-            skipped.append(joint.name)
-            continue
-        mech.add_rotational_spring_damper(f"{joint.name}_damping", joint.name, damping=d)
-    if skipped:
-        warnings.warn(f"URDF damping of prismatic joints not applied: {', '.join(skipped)}",
-                      stacklevel=4)
+        suffix = "damping" if damping else "friction"
+        mech.add("joint_friction", f"{joint.name}_{suffix}", joint.name, damping=d,
+                 friction=f)
 
 
 def loads_urdf(text: str, source: str = "<string>", **options) -> Mechanism:
@@ -238,7 +239,7 @@ def load_urdf(path: str | os.PathLike, coordinates: str = "joint",
               locked: Mapping[str, float] | None = None,
               initial: Mapping[str, float | Sequence[float]] | None = None,
               damping: bool = False, gravity: Sequence[float] = GRAVITY,
-              name: str | None = None) -> Mechanism:
+              name: str | None = None, friction: bool = False) -> Mechanism:
     """Build a spatial :class:`Mechanism` from a URDF file.
 
     Parameters
@@ -253,11 +254,15 @@ def load_urdf(path: str | os.PathLike, coordinates: str = "joint",
         Joint name → position or (position, velocity): the initial state.  Positions other
         than 0 need joint coordinates; the coordinates stay zero at the URDF zero.
     damping : bool
-        Apply ``<dynamics damping>`` of revolute joints as viscous joint torques.
+        Apply ``<dynamics damping>`` of revolute, continuous and prismatic joints as viscous
+        joint forces −d q̇ (a ``joint_friction`` element per joint).
     gravity : 3 floats
         Default (0, 0, −9.81).
     name : str, optional
         Mechanism name, default the robot's.
+    friction : bool
+        Apply ``<dynamics friction>`` as smooth Coulomb joint forces −F_c tanh(q̇ / v_s),
+        v_s = 1e-3 rad/s or m/s (:mod:`casmbd.model.joint_friction`).
 
     Raises
     ------
@@ -277,12 +282,14 @@ def load_urdf(path: str | os.PathLike, coordinates: str = "joint",
     except (OSError, UnicodeDecodeError) as exc:
         raise SceneError(f"URDF file '{path}' cannot be read: {exc}") from None
     return loads_urdf(text, str(path), coordinates=coordinates, locked=locked,
-                      initial=initial, damping=damping, gravity=gravity, name=name)
+                      initial=initial, damping=damping, gravity=gravity, name=name,
+                      friction=friction)
 
 
 def urdf_scene(data: dict, source: str, name: str, coordinates: str, gravity) -> Mechanism:
     """The mechanism of a scene's ``[scene] urdf = "path"`` (relative to the scene file) with
-    optional ``[scene.initial]``, ``[scene.locked]`` (joint name = value) and ``damping``."""
+    optional ``[scene.initial]``, ``[scene.locked]`` (joint name = value), ``damping`` and
+    ``friction``."""
     if gravity is None:
         raise SceneError("[scene] key 'dimension': a scene with 'urdf' is spatial "
                          "(dimension = 3)")
@@ -296,12 +303,15 @@ def urdf_scene(data: dict, source: str, name: str, coordinates: str, gravity) ->
         if not isinstance(table, dict):
             raise SceneError(f"[scene.{key}]: expected a table of joint name = value")
         tables[key] = table
-    damping = data.get("damping", False)
-    if not isinstance(damping, bool):
-        raise SceneError(f"[scene] key 'damping': expected true or false, got {damping!r}")
+    switches = {}
+    for key in ("damping", "friction"):
+        switches[key] = data.get(key, False)
+        if not isinstance(switches[key], bool):
+            raise SceneError(f"[scene] key '{key}': expected true or false, got "
+                             f"{switches[key]!r}")
     try:
         return load_urdf(base / rel, coordinates=coordinates, locked=tables["locked"],
-                         initial=tables["initial"], damping=damping, gravity=gravity,
-                         name=name)
+                         initial=tables["initial"], damping=switches["damping"],
+                         gravity=gravity, name=name, friction=switches["friction"])
     except SceneError as exc:
         raise SceneError(f"[scene] key 'urdf' ('{rel}'): {exc}") from None
