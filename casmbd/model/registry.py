@@ -65,22 +65,34 @@ def register_joint(kind: _Kind | None = None, *, replace: bool = False):
     """
     if kind is None:
         return lambda cls: register_joint(cls, replace=replace)
-    name = getattr(kind, "kind", None)
-    dims = tuple(getattr(kind, "dimensions", ()))
-    if not isinstance(name, str) or not name.isidentifier():
-        raise ModelError(f"joint kind {kind.__name__}: class attribute 'kind' must be an "
-                         f"identifier (the scene type name), got {name!r}")
+    name, dims = _declared(kind, "joint")
     if name in FORCE_KINDS:
         raise ModelError(f"joint kind '{name}' ({kind.__name__}): the name is a force "
                          "element kind")
+    return _register_per_dimension(JOINT_KINDS, "joint", kind, name, dims, replace)
+
+
+def _declared(kind: type, noun: str) -> tuple[str, tuple[int, ...]]:
+    """The ``kind`` name and ``dimensions`` a joint or body class declares, checked."""
+    name = getattr(kind, "kind", None)
+    dims = tuple(getattr(kind, "dimensions", ()))
+    if not isinstance(name, str) or not name.isidentifier():
+        raise ModelError(f"{noun} kind {kind.__name__}: class attribute 'kind' must be an "
+                         f"identifier (the scene type name), got {name!r}")
     if not dims or any(d not in (2, 3) for d in dims):
-        raise ModelError(f"joint kind '{name}' ({kind.__name__}): class attribute "
+        raise ModelError(f"{noun} kind '{name}' ({kind.__name__}): class attribute "
                          f"'dimensions' must list 2 and/or 3, got {dims!r}")
-    table = JOINT_KINDS.setdefault(name, {})
+    return name, dims
+
+
+def _register_per_dimension(registry: dict, noun: str, kind: _Kind, name: str,
+                            dims: tuple[int, ...], replace: bool) -> _Kind:
+    """Enter ``kind`` under ``name`` for each of ``dims`` (a taken slot needs ``replace``)."""
+    table = registry.setdefault(name, {})
     for dim in dims:
         old = table.get(dim)
         if old is not None and old is not kind and not replace:
-            raise ModelError(f"joint kind '{name}' in {dim} dimensions is already "
+            raise ModelError(f"{noun} kind '{name}' in {dim} dimensions is already "
                              f"registered ({old.__name__}); pass replace=True to override")
         table[dim] = kind
     return kind
@@ -149,14 +161,7 @@ def register_body(kind: _Kind | None = None, *, replace: bool = False):
     """
     if kind is None:
         return lambda cls: register_body(cls, replace=replace)
-    name = getattr(kind, "kind", None)
-    dims = tuple(getattr(kind, "dimensions", ()))
-    if not isinstance(name, str) or not name.isidentifier():
-        raise ModelError(f"body kind {kind.__name__}: class attribute 'kind' must be an "
-                         f"identifier (the scene type name), got {name!r}")
-    if not dims or any(d not in (2, 3) for d in dims):
-        raise ModelError(f"body kind '{name}' ({kind.__name__}): class attribute "
-                         f"'dimensions' must list 2 and/or 3, got {dims!r}")
+    name, dims = _declared(kind, "body")
     descriptions = getattr(kind, "descriptions", None)
     missing = [c for c in ("absolute", "natural", "joint")
                if not isinstance(descriptions, dict) or not isinstance(descriptions.get(c), str)]
@@ -164,14 +169,7 @@ def register_body(kind: _Kind | None = None, *, replace: bool = False):
         raise ModelError(f"body kind '{name}' ({kind.__name__}): class attribute "
                          "'descriptions' must name a description key for each coordinate "
                          f"choice (missing: {', '.join(missing)})")
-    table = BODY_KINDS.setdefault(name, {})
-    for dim in dims:
-        old = table.get(dim)
-        if old is not None and old is not kind and not replace:
-            raise ModelError(f"body kind '{name}' in {dim} dimensions is already "
-                             f"registered ({old.__name__}); pass replace=True to override")
-        table[dim] = kind
-    return kind
+    return _register_per_dimension(BODY_KINDS, "body", kind, name, dims, replace)
 
 
 def body_kinds(dimension: int | None = None) -> list[str]:
