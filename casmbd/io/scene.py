@@ -43,7 +43,8 @@ from pathlib import Path
 from typing import Any
 
 from casmbd import results
-from casmbd.errors import CasmbdError, ExpressionError, LimitError, SceneError
+from casmbd.errors import CasmbdError, ExpressionError, SceneError
+from casmbd.io.files import read_text
 from casmbd.io.scene_points import ScenePoints
 from casmbd.io.urdf import urdf_scene
 from casmbd.limits import (
@@ -52,7 +53,6 @@ from casmbd.limits import (
     MAX_SCENE_BYTES,
     MAX_TOML_DEPTH,
     check_count,
-    format_bytes,
 )
 from casmbd.model import Mechanism
 from casmbd.model.expressions import evaluate_number, parse_expression
@@ -476,16 +476,7 @@ def load_scene(path: str | os.PathLike) -> Mechanism:
         text = (f"[scene]\nname = {json.dumps(path.stem)}\ndimension = 3\n"
                 f"coordinates = \"joint\"\nurdf = {json.dumps(str(path.resolve()))}\n")
         return loads_scene(text, source=str(path))
-    try:
-        size = path.stat().st_size if path.is_file() else 0
-        if size > MAX_SCENE_BYTES:
-            raise LimitError(f"scene file '{path}': {format_bytes(size)} exceeds the limit of "
-                             f"{format_bytes(MAX_SCENE_BYTES)} (casmbd.limits.MAX_SCENE_BYTES)")
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise SceneError(f"scene file '{path}' not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise SceneError(f"scene file '{path}' cannot be read: {exc}") from None
+    text = read_text(path, "scene")
     return loads_scene(text, source=str(path))
 
 

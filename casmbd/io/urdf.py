@@ -37,6 +37,7 @@ from pathlib import Path
 import numpy as np
 
 from casmbd.errors import CasmbdError, LimitError, SceneError
+from casmbd.io.files import read_text
 from casmbd.io.urdf_tree import MOVING, Robot, merge, parse_urdf
 from casmbd.limits import MAX_SCENE_BYTES, format_bytes
 from casmbd.model import Mechanism
@@ -271,16 +272,7 @@ def load_urdf(path: str | os.PathLike, coordinates: str = "joint",
         attribute), unsupported features (planar joints, mimic offsets).
     """
     path = Path(path)
-    try:
-        size = path.stat().st_size if path.is_file() else 0
-        if size > MAX_SCENE_BYTES:
-            raise LimitError(f"URDF file '{path}': {format_bytes(size)} exceeds the limit of "
-                             f"{format_bytes(MAX_SCENE_BYTES)} (casmbd.limits.MAX_SCENE_BYTES)")
-        text = path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise SceneError(f"URDF file '{path}' not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise SceneError(f"URDF file '{path}' cannot be read: {exc}") from None
+    text = read_text(path, "URDF")
     return loads_urdf(text, str(path), coordinates=coordinates, locked=locked,
                       initial=initial, damping=damping, gravity=gravity, name=name,
                       friction=friction)
