@@ -364,7 +364,8 @@ def markdown(data: dict) -> str:
                   "and the body accelerations (r̈ of the centre of mass, ω̇) of the KKT forward "
                   "dynamics under Q_a (least-norm solution of Tᵀ Q_a = τ) against Pinocchio's "
                   "after `aba` (relative; tolerance 1e-9, the others 1e-12). Inverse dynamics "
-                  "has no unique answer with constraint equations (casmbd raises ModelError). "
+                  "in absolute coordinates gives efforts on the body coordinates (least-norm, "
+                  "or on chosen `actuated` coordinates), not joint torques: not compared here. "
                   f"**{len(ok)} of {len(with_abs)} pass.**", "",
                   "| URDF | n_q | n_c | build [s] | C(q_a) | FK [m] | R | TᵀMT | body acc. | "
                   "pass |", "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |"]

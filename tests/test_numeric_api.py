@@ -15,7 +15,9 @@ and the planar double pendulum (examples/double_pendulum.toml), in joint coordin
   central differences of forward kinematics (1e-7);
 * batch == a loop of single calls (1e-14), over more samples than one chunk;
 * a closed chain (four-bar): forward dynamics by the KKT system satisfies C_q q̈ = γ and
-  M q̈ + b − τ ∈ range(C_qᵀ); inverse dynamics raises a ModelError.
+  M q̈ + b − τ ∈ range(C_qᵀ); inverse dynamics with the crank actuated gives the torque and the
+  loop multipliers (round trip 1e-10, against ``casmbd.inverse_dynamics`` with a crank driver
+  1e-9), with every coordinate actuated the least-norm effort (C_q τ = 0).
 """
 
 from __future__ import annotations
@@ -235,5 +237,65 @@ def test_closed_chain_kkt():
     resid = model.mass_matrix(q) @ a + model.bias_forces(q, v) - tau
     lam = np.linalg.lstsq(cq.T, resid, rcond=None)[0]
     assert _rel(cq.T @ lam, resid) < 1e-10
-    with pytest.raises(ModelError, match="constraint equations"):
-        model.inverse_dynamics(q, v, a)
+
+
+def _four_bar_free():
+    """The four-bar of examples/four_bar.toml without its crank driver (one degree of
+    freedom, two loop-closure equations of joint C in joint coordinates)."""
+    mech = casmbd.load_scene(ROOT / "examples" / "four_bar.toml")
+    mech.drivers.clear()
+    mech.coordinates = "joint"
+    return mech
+
+
+def _four_bar_state(model, seed=3):
+    numeric = casmbd.NumericModel(System(_four_bar_free(), coordinates="joint"), "dynamics",
+                                  mode="vm")
+    q = casmbd.assemble(numeric, numeric.initial_coordinates(), 0.0).q
+    rng = np.random.default_rng(seed)
+    v = casmbd.velocities(numeric, q, 0.0, v_guess=rng.uniform(-2.0, 2.0, model.nq))
+    return numeric, q, v
+
+
+def test_closed_chain_inverse_dynamics_with_an_actuated_crank():
+    """``[S −C_qᵀ] [τ_a; λ] = M a + b`` with the crank actuated: the round trip through the
+    KKT forward dynamics returns the applied torque (1e-10) and the multipliers balance the
+    equations of motion; against ``casmbd.inverse_dynamics`` with a driver on the crank (seed
+    000's route: driver multipliers of the kinematically driven machine), 1e-9."""
+    model = casmbd.compile(_four_bar_free(), actuated=["A.angle"])
+    assert (model.nq, model.nc) == (3, 2)
+    numeric, q, v = _four_bar_state(model)
+    tau_in = np.array([0.7, 0.0, 0.0])
+    a = model.forward_dynamics(q, v, tau_in)
+    tau, lam = model.inverse_dynamics(q, v, a, return_multipliers=True)
+    assert _rel(tau, tau_in) < 1e-10
+    cq = numeric.constraint_jacobian(q, 0.0).toarray()
+    lhs = model.mass_matrix(q) @ a + model.bias_forces(q, v) + cq.T @ lam
+    assert _rel(lhs, tau) < 1e-10 and lam.shape == (2,)
+    driven = _four_bar_free()
+    driven.add_driver("crank", joint="A", position="0.4 + 3 * t + 2 * t**2")
+    res = casmbd.inverse_dynamics(driven, t_end=0.5, steps=5)
+    ours = model.inverse_dynamics_batch(res["q"], res["v"], res["a"])
+    assert np.allclose(ours[:, 1:], 0.0, atol=0.0)
+    assert _rel(ours[:, 0], res["driver_efforts"][:, 0]) < 1e-9
+
+
+def test_closed_chain_least_norm_efforts_and_named_errors():
+    """Every coordinate actuated (the default): τ is the least-norm effort, orthogonal to the
+    constraint forces (C_q τ = 0) and it reproduces a through forward dynamics; inconsistent
+    accelerations and an actuation that cannot move the loop raise ModelErrors that name the
+    equation or the coordinates."""
+    model = casmbd.compile(_four_bar_free())
+    numeric, q, v = _four_bar_state(model, seed=5)
+    a = model.forward_dynamics(q, v, np.array([0.3, -0.2, 0.5]))
+    tau = model.inverse_dynamics(q, v, a)
+    cq = numeric.constraint_jacobian(q, 0.0).toarray()
+    assert np.max(np.abs(cq @ tau)) < 1e-10 * max(1.0, np.max(np.abs(tau)))
+    assert _rel(model.forward_dynamics(q, v, tau), a) < 1e-10
+    with pytest.raises(ModelError, match="joint 'C' equation"):
+        model.inverse_dynamics(q, v, a + np.array([1.0, 0.0, 0.0]))
+    over = casmbd.compile(_four_bar_free(), actuated=["A.angle", "B.angle", "D.angle"][:2])
+    with pytest.raises(ModelError, match="not unique"):
+        over.inverse_dynamics(q, v, a)
+    with pytest.raises(ModelError, match=r"actuated coordinate 'E\.angle' unknown"):
+        casmbd.compile(_four_bar_free(), actuated=["E.angle"], mode="vm")

@@ -23,9 +23,16 @@ Conventions (n_q coordinates, joint coordinates by default):
   definite); with constraint equations (closed chains, Euler parameters) it solves the KKT
   system ``[M C_qᵀ; C_q 0] [q̈; λ] = [τ − b; γ]`` in numpy from the compiled pieces;
 * ``inverse_dynamics`` returns ``τ = M a + b``, for a tree in joint coordinates by the
-  recursive Newton–Euler algorithm (:func:`newton_euler`, also used for b), else from M; for a
-  mechanism with constraint equations τ is not unique (loop multipliers) and it raises
-  :class:`~casmbd.errors.ModelError`;
+  recursive Newton–Euler algorithm (:func:`newton_euler`, also used for b), else from M.  With
+  constraint equations (closed loops, gears, Euler parameters) the equations of motion are
+  ``M a + b + C_qᵀ λ = τ`` (Shabana's sign: the constraint forces are −C_qᵀ λ) and the efforts
+  act only on the *actuated* coordinates, τ = S τ_a (S the columns of the identity for
+  :attr:`CompiledModel.actuated`): the loop-closure multipliers λ and τ_a solve the linear system
+  ``[S  −C_qᵀ] [τ_a; λ] = M a + b`` — square and regular when the actuated coordinates are a set
+  of independent coordinates (as many as degrees of freedom, C_q restricted to the others
+  regular), as the driver efforts of seed 000's inverse dynamics.  Without a choice every
+  coordinate is actuated (a redundantly actuated machine) and τ is the least-norm effort, the
+  projection of M a + b on the null space of C_q, λ = −(C_q C_qᵀ)⁻¹ C_q (M a + b);
 * a *frame* is a body (origin at its centre of mass, axes the body axes) or a marker (its
   point, its own axes: the body's times the marker's fixed orientation offset).
   ``jacobian(q, frame)`` is the ``(3 + 3) × n_q`` (spatial) or ``(2 + 1) × n_q`` (planar)
@@ -36,6 +43,8 @@ Conventions (n_q coordinates, joint coordinates by default):
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import casadi as ca
 import numpy as np
@@ -166,6 +175,9 @@ class CompiledModel:
     mode : {"auto", "compiled", "vm"}
         As :class:`~casmbd.compiled.model.NumericModel`: C code compiled and cached, or
         CasADi's virtual machine.
+    actuated : sequence of str, optional
+        Coordinates (names of :attr:`coordinate_names`) that carry the efforts of
+        :meth:`inverse_dynamics` when the mechanism has constraint equations; default all.
 
     Attributes
     ----------
@@ -176,7 +188,8 @@ class CompiledModel:
         :meth:`jacobian`.
     """
 
-    def __init__(self, mechanism, coordinates: str | None = "joint", mode: str = "auto"):
+    def __init__(self, mechanism, coordinates: str | None = "joint", mode: str = "auto",
+                 actuated: Sequence[str] | None = None):
         system = (mechanism if isinstance(mechanism, System)
                   else System(mechanism, coordinates=coordinates))
         self.dimension = dim = system.dimension
@@ -216,6 +229,9 @@ class CompiledModel:
             fns.append(ca.Function("robot_kkt", [q, v, tau, p],
                                    [mass, ca.densify(tau - bias), cq, gamma],
                                    ["q", "v", "tau", "p"], ["M", "r", "Cq", "gamma"]))
+            fns.append(ca.Function("robot_id_terms", [q, v, a, p],
+                                   [ca.densify(inverse), cq, gamma],
+                                   ["q", "v", "a", "p"], ["f", "Cq", "gamma"]))
         ctx, mech = system.ctx, system.mechanism
         frames = [(b, None) for b in system.body_names]
         frames += [(mk.body, mk.point) for mk in mech.markers.values()]
@@ -251,7 +267,12 @@ class CompiledModel:
         self._fk = self._calls["robot_fk"]
         self._jac = [self._calls[f"robot_jacobian_{k}"] for k in range(len(frames))]
         self._fd = self._calls.get("robot_fd", self._calls.get("robot_kkt"))
-        self._id = self._calls.get("robot_id")
+        self._id = self._calls.get("robot_id", self._calls.get("robot_id_terms"))
+        self.constraint_labels: list[str] = [str(lab) for lab in
+                                             self.numeric.constraint_labels]
+        self.actuated: list[str] = self._actuated(actuated)
+        self._selection = np.array([self.coordinate_names.index(c) for c in self.actuated],
+                                   dtype=int)
 
     # ------------------------------------------------------------------ helpers
     def _shape_error(self, what: str, *args) -> ModelError:
@@ -274,11 +295,19 @@ class CompiledModel:
             raise self._shape_error(what, *(x for x in (q, v, w) if x is not None)) from None
         c.trigger()
 
-    def _tree_only(self, what: str) -> None:
-        if self.nc:
-            raise ModelError(f"{what}: the mechanism has {self.nc} constraint equations (closed "
-                             "chains or Euler parameters); τ = M a + b holds only for trees "
-                             "in joint coordinates")
+    def _actuated(self, names) -> list[str]:
+        if names is None:
+            return list(self.coordinate_names)
+        if isinstance(names, str):
+            names = [names]
+        names = list(names)
+        for name in names:
+            if name not in self.coordinate_names:
+                raise ModelError(f"compile: actuated coordinate '{name}' unknown (coordinates: "
+                                 f"{', '.join(self.coordinate_names)})")
+        if len(set(names)) != len(names):
+            raise ModelError(f"compile: actuated coordinates repeated: {names}")
+        return names
 
     # ------------------------------------------------------------------ one state
     def mass_matrix(self, q) -> np.ndarray:
@@ -308,13 +337,84 @@ class CompiledModel:
         kkt[:nq, nq:] = jac.T
         return np.linalg.solve(kkt, np.concatenate([r, gamma]))[:nq]
 
-    def inverse_dynamics(self, q, v, a) -> np.ndarray:
-        """τ = M(q) a + b(q, v) of a tree (Pinocchio's ``rnea``)."""
+    def inverse_dynamics(self, q, v, a, return_multipliers: bool = False, tol: float = 1e-8):
+        """τ = M(q) a + b(q, v) of a tree (Pinocchio's ``rnea``); with constraint equations,
+        the efforts on the actuated coordinates and the multipliers of
+        ``M a + b + C_qᵀ λ = S τ_a`` (module docstring).
+
+        Parameters
+        ----------
+        q, v, a : array_like, shape (n_q,)
+            Coordinates, velocities and accelerations; with constraint equations the
+            accelerations must satisfy ``C_q a = γ`` (relative residual ≤ ``tol``).
+        return_multipliers : bool
+            Also return λ (shape (n_c,), the order of :attr:`constraint_labels`; empty for a
+            tree).
+        tol : float
+            Relative tolerance of the consistency checks (acceleration constraint and, with a
+            choice of :attr:`actuated`, the residual of the effort equations).
+
+        Returns
+        -------
+        tau : ndarray, shape (n_q,)
+            Generalized efforts, zero on the coordinates that are not actuated.
+        lam : ndarray, shape (n_c,)
+            Only with ``return_multipliers``.
+
+        Raises
+        ------
+        ModelError
+            Inconsistent accelerations (naming the worst constraint equation), or actuated
+            coordinates that cannot produce the motion.
+        """
         c = self._id
-        if c is None:
-            self._tree_only("inverse_dynamics")
         self._load(c, "inverse_dynamics", q, v, a)
-        return c.view.copy()
+        if not self.nc and len(self.actuated) == self.nq:
+            tau = c.view.copy()
+            return (tau, np.zeros(0)) if return_multipliers else tau
+        return self._constrained_efforts(c, np.asarray(a, float), return_multipliers, tol)
+
+    def _constrained_efforts(self, c, a, return_multipliers: bool, tol: float):
+        """[S  −C_qᵀ] [τ_a; λ] = f with f = M a + b (module docstring)."""
+        nq, nc = self.nq, self.nc
+        f = c.outs[0].copy()
+        if nc:
+            jac = c.outs[1].reshape(nc, nq, order="F").copy()
+            gamma = c.outs[2]
+            resid = jac @ a - gamma
+            scale = max(1.0, float(np.max(np.abs(gamma))),
+                        float(np.max(np.abs(jac)) * np.max(np.abs(a))))
+            worst = int(np.argmax(np.abs(resid)))
+            if abs(resid[worst]) > tol * scale:
+                raise ModelError(
+                    f"inverse_dynamics: the accelerations violate the acceleration constraint "
+                    f"C_q a = γ of {self.constraint_labels[worst]} by {resid[worst]:.3g} "
+                    f"(relative tolerance {tol:g}); give a consistent a")
+        else:
+            jac = np.zeros((0, nq))
+        sel = self._selection
+        if len(sel) == nq:  # every coordinate: the least-norm effort, f projected on null(C_q)
+            lam = -np.linalg.lstsq(jac @ jac.T, jac @ f, rcond=None)[0] if nc else jac[:, 0]
+            tau = f + jac.T @ lam
+        else:
+            mat = np.hstack([np.eye(nq)[:, sel], -jac.T])
+            sol, _, rank, _ = np.linalg.lstsq(mat, f, rcond=None)
+            miss = float(np.max(np.abs(mat @ sol - f), initial=0.0))
+            if miss > tol * max(1.0, float(np.max(np.abs(f)))):
+                raise ModelError(
+                    f"inverse_dynamics: the actuated coordinates ({', '.join(self.actuated)}) "
+                    f"cannot produce these accelerations (residual {miss:.3g}): actuate a set "
+                    f"of independent coordinates ({nq - nc} degrees of freedom, if C_q has "
+                    "full rank)")
+            if rank < mat.shape[1]:
+                raise ModelError(
+                    f"inverse_dynamics: the efforts on ({', '.join(self.actuated)}) and the "
+                    f"multipliers are not unique (rank {rank} of {mat.shape[1]} unknowns): "
+                    "actuate fewer coordinates or every one (least-norm efforts)")
+            tau = np.zeros(nq)
+            tau[sel] = sol[:len(sel)]
+            lam = sol[len(sel):]
+        return (tau, lam) if return_multipliers else tau
 
     def forward_kinematics(self, q) -> tuple[np.ndarray, np.ndarray]:
         """Positions (n_frames × dim) and rotation matrices (n_frames × dim × dim, body to
@@ -369,17 +469,23 @@ class CompiledModel:
         return self._batch("robot_fd_batch", (Q, V, TAU))
 
     def inverse_dynamics_batch(self, Q, V, A) -> np.ndarray:
-        """:meth:`inverse_dynamics` at N states, arrays of shape (N, n_q) in and out."""
-        self._tree_only("inverse_dynamics_batch")
+        """:meth:`inverse_dynamics` at N states, arrays of shape (N, n_q) in and out.
+
+        Trees with every coordinate actuated: compiled ``Function.map``; otherwise a loop of
+        single calls.
+        """
+        if self.nc or len(self.actuated) != self.nq:
+            return np.array([self.inverse_dynamics(*s) for s in zip(Q, V, A)]).reshape(
+                -1, self.nq)
         return self._batch("robot_id_batch", (Q, V, A))
 
 
-def compile(mechanism, coordinates: str | None = "joint",
-            mode: str = "auto") -> CompiledModel:
+def compile(mechanism, coordinates: str | None = "joint", mode: str = "auto",
+            actuated: Sequence[str] | None = None) -> CompiledModel:
     """Compiled robot model of ``mechanism`` for per-call numeric evaluation.
 
     ``model = casmbd.compile(mechanism)``; then ``model.forward_dynamics(q, v, tau)``,
     ``inverse_dynamics``, ``mass_matrix``, ``bias_forces``, ``forward_kinematics``,
     ``jacobian`` and the ``*_batch`` versions (see :class:`CompiledModel`).
     """
-    return CompiledModel(mechanism, coordinates=coordinates, mode=mode)
+    return CompiledModel(mechanism, coordinates=coordinates, mode=mode, actuated=actuated)
