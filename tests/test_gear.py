@@ -235,3 +235,59 @@ def test_gear_errors_name_the_field():
         casmbd.loads_scene(_scene().replace('ratio = "r"', 'ratio = "r"\nbody1 = "rod1"'))
     with pytest.raises(SceneError, match=r"\('gear'\) key 'joint2': missing required key"):
         casmbd.loads_scene(_scene().replace('joint2 = "pin2"\n', ""))
+
+
+OFFSET = 0.3
+
+
+def offset_pair(coordinates: str, dim: int, **kw) -> Mechanism:
+    """The pair of :func:`gear_pair` with the gear c₂ − c₂⁰ = r (c₁ − c₁⁰) + δ, δ = 0.3 rad."""
+    m = gear_pair(coordinates, dim, **kw)
+    del m.joints["gear"]
+    m.add_gear("gear", "pin1", "pin2", ratio=RATIO, offset=OFFSET)
+    return m
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("coordinates", COORDINATES)
+def test_gear_offset_holds_along_a_simulation(dim, coordinates):
+    """Offset δ = 0.3 rad: the design pose (both hanging, c⁰ = 0) violates the gear by δ, the
+    start is assembled; along 2 s the coupled coordinate is c₂ = r c₁ + δ to 1e-9 rad
+    (measured ≤ 2e-11) while pendulum 1 swings (> 0.4 rad), energy constant to 1e-8 J."""
+    res = casmbd.simulate(offset_pair(coordinates, dim, rate=2.0), t_end=2.0, steps=200,
+                          rtol=1e-11)
+    c = res["joint_positions"]  # c⁰ = 0: both rods are built hanging
+    assert np.max(np.abs(c[:, 1] - RATIO * c[:, 0] - OFFSET)) < 1e-9
+    assert np.max(np.abs(c[:, 0])) > 0.4
+    assert abs(c[0, 1] - RATIO * c[0, 0]) > 0.29  # the offset is really there
+    assert np.ptp(res["total_energy"]) < 1e-8
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("coordinates", COORDINATES)
+def test_gear_offset_static_equilibrium(dim, coordinates):
+    """A torque T₁ = m₁ g l₁ sin φ + r m₂ g l₂ sin(rφ + δ) holds pendulum 1 at φ = 0.2 rad,
+    pendulum 2 at rφ + δ = −0.1 rad: both angles and the gear's moment m₂ g l₂ sin(rφ + δ)
+    on rod 2 to 1e-9."""
+    phi = 0.2
+    l1, l2 = L1 / 2, L2 / 2
+    phi2 = RATIO * phi + OFFSET
+    torque = M1 * G * l1 * math.sin(phi) + RATIO * M2 * G * l2 * math.sin(phi2)
+    mech = offset_pair(coordinates, dim, torque=torque)
+    res = casmbd.static_equilibrium(mech)
+    assert res.stable is True
+    pos = res.body_positions.reshape(2, -1)
+    assert np.max(np.abs(pos[0, :2] - l1 * np.array([math.sin(phi), -math.cos(phi)]))) < 1e-9
+    assert np.max(np.abs(pos[1, :2] - (np.array([PIVOT2, 0.0]) + l2 * np.array(
+        [math.sin(phi2), -math.cos(phi2)])))) < 1e-9
+    gear = res.joint_reactions[list(mech.joints).index("gear")]
+    assert abs(gear[-1] - M2 * G * l2 * math.sin(phi2)) < 1e-9
+
+
+def test_scene_gear_offset():
+    """Scene key ``offset`` (an expression) reaches the gear; a non-number is named."""
+    mech = casmbd.loads_scene(_scene().replace('ratio = "r"', 'ratio = "r"\noffset = "r/4"'))
+    assert mech.joints["gear"].offset == -0.5
+    assert casmbd.loads_scene(_scene()).joints["gear"].offset == 0.0
+    with pytest.raises(SceneError, match=r"key 'offset'"):
+        casmbd.loads_scene(_scene().replace('ratio = "r"', 'ratio = "r"\noffset = [1, 2]'))

@@ -481,3 +481,73 @@ def test_ur5_urdf_equals_the_dh_scene_ur_like(tmp_path):
                  for m in models]
         assert np.max(np.abs(mass[0] - mass[1])) <= 1e-10 * np.max(np.abs(mass[0]))
         assert np.max(np.abs(force[0] - force[1])) <= 1e-10 * np.max(np.abs(force[0]))
+
+
+# ---------------------------------------------------------------- mimic offsets
+_LINK = ('<link name="{n}"><inertial><origin xyz="{c}"/><mass value="{m}"/><inertia '
+         'ixx="0.02" ixy="0.001" ixz="0" iyy="0.03" iyz="0.002" izz="0.025"/></inertial>'
+         '</link>')
+_MIMIC = ('<robot name="mim"><link name="base"/>'
+          + _LINK.format(n="l1", c="0.2 0 0.05", m=1.5) + _LINK.format(n="l2", c="0.15 0.02 0",
+                                                                        m=1.0)
+          + _LINK.format(n="l3", c="0 0.1 0", m=0.7)
+          + '<joint name="j1" type="continuous"><parent link="base"/><child link="l1"/>'
+          '<origin xyz="0 0 0.1"/><axis xyz="0 1 0"/></joint>'
+          '<joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/>'
+          '<origin xyz="0.4 0 0" rpy="0.2 0 0"/><axis xyz="0 1 0"/>'
+          '<limit lower="-3" upper="3" effort="1" velocity="1"/>'
+          '<mimic joint="j1" multiplier="{r}" offset="{d}"/></joint>'
+          '<joint name="j3" type="continuous"><parent link="l2"/><child link="l3"/>'
+          '<origin xyz="0.3 0 0"/><axis xyz="1 0 0"/></joint></robot>')
+MIMIC_R, MIMIC_D = -0.5, 0.3
+
+
+def test_mimic_offset_inverse_dynamics_match_newton_euler(tmp_path):
+    """θ_j2 = −0.5 θ_j1 + 0.3 (URDF <mimic offset>): the follower starts at r θ_j1,0 + δ with
+    rate r θ̇_j1,0 (C = 0 at the start, 1e-14); j1 and j3 driven, q_i = a_i + b_i sin(2t):
+    the driver efforts equal the Newton–Euler torques with the follower's angle applied,
+    τ_j1 + r τ_j2 and τ_j3 (1e-9 relative)."""
+    path = tmp_path / "mimic.urdf"
+    path.write_text(_MIMIC.format(r=MIMIC_R, d=MIMIC_D))
+    mech = load(path, initial={"j1": (0.4, 0.7)})
+    gear = mech.joints["j2_mimic"]
+    assert (gear.ratio, gear.offset) == (MIMIC_R, MIMIC_D)
+    model = casmbd.NumericModel(mech, functions=["constraints"])
+    q0, v0 = model.initial_coordinates(), model.initial_velocities()
+    names = _joint_names(model)
+    assert q0[names.index("j2")] == MIMIC_R * 0.4 + MIMIC_D
+    assert abs(v0[names.index("j2")] - MIMIC_R * 0.7) < 1e-14
+    assert np.max(np.abs(model.constraints(q0, 0.0))) < 1e-14
+    mech.add_driver("d1", "0.4 + 0.6*sin(2*t)", joint="j1")
+    mech.add_driver("d3", "-0.2 + 0.5*sin(2*t)", joint="j3")
+    result = casmbd.inverse_dynamics(mech, 1.0, 4, mode="vm")
+    for k, t in enumerate(result["t"]):
+        q1, q3 = 0.4 + 0.6 * math.sin(2 * t), -0.2 + 0.5 * math.sin(2 * t)
+        v1, v3 = 1.2 * math.cos(2 * t), math.cos(2 * t)
+        a1, a3 = -2.4 * math.sin(2 * t), -2.0 * math.sin(2 * t)
+        ref, _ = rnea(path, {"j1": q1, "j2": MIMIC_R * q1 + MIMIC_D, "j3": q3},
+                      {"j1": v1, "j2": MIMIC_R * v1, "j3": v3},
+                      {"j1": a1, "j2": MIMIC_R * a1, "j3": a3})
+        expect = np.array([ref["j1"] + MIMIC_R * ref["j2"], ref["j3"]])
+        got = result["driver_efforts"][k]
+        assert np.max(np.abs(got - expect)) <= 1e-9 * np.max(np.abs(expect))
+        assert abs(got[0] - (ref["j1"] - MIMIC_R * ref["j3"])) > 1e-3  # τ_j2 ≠ 0 matters
+
+
+def test_mimic_offset_locked_leader_and_absolute_coordinates(tmp_path):
+    """A locked leader locks its follower at r v + δ (any coordinates; the frames equal the
+    Newton–Euler frames at θ_j2 = r v + δ to 1e-12 m); with absolute coordinates a free
+    leader's offset is refused naming the joint (the start would violate the coupling)."""
+    path = tmp_path / "mimic.urdf"
+    path.write_text(_MIMIC.format(r=MIMIC_R, d=MIMIC_D))
+    for coordinates in ("joint", "absolute"):
+        mech = load(path, locked={"j1": 0.5}, coordinates=coordinates)
+        assert list(mech.joints) == ["j3"]
+        _, frames = rnea(path, {"j1": 0.5, "j2": MIMIC_R * 0.5 + MIMIC_D}, {}, {})
+        assert np.max(np.abs(mech.markers["l2"].point - frames["l2"][1])) < 1e-12
+        assert np.max(np.abs(mech.joints["j3"].point - frames["l3"][1])) < 1e-12
+    with pytest.raises(SceneError, match=r"joint 'j2' <mimic> attribute 'offset'.*"
+                                         r"coordinates = 'joint'"):
+        load(path, coordinates="absolute")
+    path.write_text(_MIMIC.format(r=MIMIC_R, d=0.0))
+    assert load(path, coordinates="absolute").joints["j2_mimic"].offset == 0.0

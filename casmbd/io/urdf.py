@@ -12,10 +12,14 @@ with the origin moved to the centre of mass (casmbd's bodies are centroidal), so
 orientation at the design pose is that link's orientation and its inertia tensor, about the
 centre of mass in those axes, is Rᵀ I Rᵀ with I the global tensor of the merge.
 
-Mimic joints become gear couplings θ_follower = multiplier θ_leader
-(:mod:`casmbd.model.gear`, c₂ − c₂⁰ = r (c₁ − c₁⁰)); the gear has no offset and at the URDF
-zero configuration both coordinates are zero, so a non-zero ``offset`` would contradict the
-design pose: refused with a named error.
+Mimic joints become gear couplings θ_follower = multiplier θ_leader + offset
+(:mod:`casmbd.model.gear`, c₂ − c₂⁰ = r (c₁ − c₁⁰) + δ) written relative to the URDF zero
+(c⁰ = 0 for both joints: the design pose stays the URDF zero).  In joint coordinates the
+follower starts at r θ_leader,0 + δ (its tree coordinate's initial value, rate r θ̇_leader,0),
+so the coupling holds at the initial state.  Absolute and natural coordinates start at the
+design pose, where θ_follower = 0 ≠ δ: a non-zero offset there is refused with a named error
+(assembling would move the leader away from its URDF zero as well).  A locked leader at value
+v locks its follower at r v + δ (any coordinates).
 
 Limits (``lower``, ``upper``, ``effort``, ``velocity``) and ``<dynamics damping friction>``
 are kept on the joint objects as the dicts ``urdf_limits`` and ``urdf_dynamics``; with
@@ -130,9 +134,11 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
                       f"{', '.join(moot)}", RuntimeWarning, stacklevel=3)
         mimic_of = {f: m for f, m in mimic_of.items() if f not in moot}
     for follower, (leader, ratio, offset) in mimic_of.items():
-        if offset != 0.0:
+        if offset != 0.0 and coordinates != "joint" and leader not in locked:
             raise SceneError(f"joint '{follower}' <mimic> attribute 'offset': a non-zero offset "
-                             "is not supported (the gear coupling is zero at the URDF zero)")
+                             f"needs coordinates = 'joint' ({coordinates} coordinates start at "
+                             "the URDF zero, where the follower's position 0 differs from "
+                             "multiplier * leader + offset)")
         if robot.joints[leader].type not in MOVING or robot.joints[follower].type not in MOVING:
             raise SceneError(f"joint '{follower}' <mimic>: both joints must be revolute, "
                              "continuous or prismatic")
@@ -140,9 +146,10 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
             raise SceneError(f"joint '{follower}': a mimic joint follows '{leader}'; give "
                              "'initial' or 'locked' for the leader")
         if leader in locked:
-            locked[follower] = ratio * locked[leader]
-        elif leader in start:
-            start[follower] = (ratio * start[leader][0], ratio * start[leader][1])
+            locked[follower] = ratio * locked[leader] + offset
+        elif leader in start or offset != 0.0:
+            pos, vel = start.get(leader, (0.0, 0.0))
+            start[follower] = (ratio * pos + offset, ratio * vel)
     group = _groups(robot, locked)
     design = robot.frames(locked)  # the design pose: URDF zero, locked joints at their value
     mech = Mechanism(name or robot.name, gravity=gravity, dimension=3, coordinates=coordinates)
@@ -200,11 +207,11 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
         made.urdf_dynamics = dict(joint.dynamics)
         if joint.name in start and start[joint.name][0] != 0.0:
             made.tree_initial = functools.partial(np.array, [start[joint.name][0]], float)
-    for follower, (leader, ratio, _) in mimic_of.items():
+    for follower, (leader, ratio, offset) in mimic_of.items():
         if follower in locked:
             continue
-        guarded(f"joint '{follower}' <mimic>", lambda f=follower, lead=leader, r=ratio:
-                mech.add_gear(f"{f}_mimic", lead, f, ratio=r))
+        guarded(f"joint '{follower}' <mimic>", lambda f=follower, lead=leader, r=ratio,
+                d=offset: mech.add_gear(f"{f}_mimic", lead, f, ratio=r, offset=d))
     if damping or friction:
         _add_damping(robot, mech, locked, damping, friction)
     if robot.ignored:
@@ -269,7 +276,8 @@ def load_urdf(path: str | os.PathLike, coordinates: str = "joint",
     ------
     SceneError
         Unreadable or malformed files, unknown or malformed content (naming link/joint and
-        attribute), unsupported features (planar joints, mimic offsets).
+        attribute), unsupported features (planar joints; a mimic offset with absolute or
+        natural coordinates).
     """
     path = Path(path)
     text = read_text(path, "URDF")

@@ -288,11 +288,12 @@ class Mechanism:
         return self.add("distance", name, body1, body2, point1, point2, length=length)
 
     def add_gear(self, name: str, joint1: str, joint2: str, ratio: float = 1.0,
-                 coordinate1: str | None = None, coordinate2: str | None = None) -> Joint:
-        """Gear (coupler) between two joint coordinates: c2 − c2⁰ = ratio (c1 − c1⁰)
+                 coordinate1: str | None = None, coordinate2: str | None = None,
+                 offset: float = 0.0) -> Joint:
+        """Gear (coupler) between two joint coordinates: c2 − c2⁰ = ratio (c1 − c1⁰) + offset
         (:class:`~casmbd.model.gear.Gear`)."""
         return self.add("gear", name, joint1=joint1, joint2=joint2, ratio=ratio,
-                        coordinate1=coordinate1, coordinate2=coordinate2)
+                        coordinate1=coordinate1, coordinate2=coordinate2, offset=offset)
 
     # ------------------------------------------------------------------ drivers
     def add_driver(self, name: str, position: Value, joint: str | None = None,
