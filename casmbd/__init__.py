@@ -14,17 +14,8 @@ The layers, each importing only the ones before it:
 checks the rule.
 """
 
-from casmbd import ocp  # noqa: F401  (casmbd.ocp.Ocp: trajectory optimisation)
-from casmbd.analysis.assembly import accelerations, assemble, velocities
-from casmbd.analysis.inverse import inverse_dynamics
-from casmbd.analysis.kinematics import info, kinematics
-from casmbd.analysis.linearize import linearize
-from casmbd.analysis.sensitivity import SensitivityResult, sensitivity
-from casmbd.analysis.simulate import Simulator, simulate
-from casmbd.analysis.statics import static_equilibrium
-from casmbd.analysis.sweep import SweepResult, sweep
-from casmbd.compiled.model import NumericModel
-from casmbd.compiled.robot import CompiledModel, compile
+import importlib
+
 from casmbd.errors import (
     AnalysisError,
     AssemblyError,
@@ -37,11 +28,55 @@ from casmbd.errors import (
     SceneError,
     SingularConfigurationError,
 )
-from casmbd.io.scene import load_scene, loads_scene
-from casmbd.io.urdf import load_urdf, loads_urdf
-from casmbd.model import Mechanism
-from casmbd.results import Result, load, load_result
-from casmbd.system import System
+
+#: public name -> the module that defines it, imported when the name is first used (PEP 562):
+#: ``import casmbd`` loads only the error classes, so a script or ``casmbd --version`` starts
+#: without CasADi's compiled layer, scipy, the analyses or the OCP; ``casmbd.simulate`` and
+#: ``from casmbd import simulate`` import :mod:`casmbd.analysis.simulate` on first use
+_LAZY = {
+    "accelerations": "casmbd.analysis.assembly", "assemble": "casmbd.analysis.assembly",
+    "velocities": "casmbd.analysis.assembly",
+    "inverse_dynamics": "casmbd.analysis.inverse",
+    "info": "casmbd.analysis.kinematics", "kinematics": "casmbd.analysis.kinematics",
+    "linearize": "casmbd.analysis.linearize",
+    "SensitivityResult": "casmbd.analysis.sensitivity",
+    "sensitivity": "casmbd.analysis.sensitivity",
+    "Simulator": "casmbd.analysis.simulate", "simulate": "casmbd.analysis.simulate",
+    "static_equilibrium": "casmbd.analysis.statics",
+    "SweepResult": "casmbd.analysis.sweep", "sweep": "casmbd.analysis.sweep",
+    "NumericModel": "casmbd.compiled.model",
+    "CompiledModel": "casmbd.compiled.robot", "compile": "casmbd.compiled.robot",
+    "load_scene": "casmbd.io.scene", "loads_scene": "casmbd.io.scene",
+    "load_urdf": "casmbd.io.urdf", "loads_urdf": "casmbd.io.urdf",
+    "Mechanism": "casmbd.model",
+    "Result": "casmbd.results", "load": "casmbd.results", "load_result": "casmbd.results",
+    "System": "casmbd.system",
+}
+#: subpackages reached as attributes (``casmbd.ocp.Ocp`` after a bare ``import casmbd``)
+_SUBMODULES = ("analysis", "cli", "compiled", "io", "model", "ocp", "results", "system", "viz")
+
+
+def __getattr__(name: str):
+    """Import the module of a public name on first use (PEP 562) and keep the value.
+
+    The scene reader that :meth:`Result.mechanism` uses is registered by
+    :mod:`casmbd.io.scene` when it is imported, so it is imported with every public name.
+    """
+    if name in _LAZY:
+        importlib.import_module("casmbd.io.scene")
+        value = getattr(importlib.import_module(_LAZY[name]), name)
+    elif name in _SUBMODULES:
+        importlib.import_module("casmbd.io.scene")
+        value = importlib.import_module(f"casmbd.{name}")
+    else:
+        raise AttributeError(f"module 'casmbd' has no attribute {name!r}")
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY) | set(_SUBMODULES))
+
 
 __version__ = "0.1.0"
 

@@ -30,11 +30,19 @@ from dataclasses import asdict, dataclass, field
 import casadi as ca
 import numpy as np
 import scipy.linalg as sla
-from scipy.optimize import minimize
 
 from casmbd.errors import CasmbdError
 from casmbd.model.bodies import GROUND
 from casmbd.model.values import resolve
+
+
+def _minimize():
+    """``scipy.optimize.minimize``, imported when a failed assembly is first diagnosed:
+    scipy.optimize costs about 0.2 s at start-up, and most runs never need it."""
+    from scipy.optimize import minimize
+
+    return minimize
+
 
 #: elements re-solved without their equations (the ones with the largest residuals)
 MAX_CANDIDATES = 10
@@ -179,7 +187,7 @@ def _extrema(model, q: np.ndarray, t: float, row: int, rest: np.ndarray, free: n
             return model.constraint_jacobian(trial, t)[rest][:, free].toarray()
 
         constraints = [{"type": "eq", "fun": cons, "jac": cons_jac}] if rest.size else []
-        res = minimize(fun, q[free], jac=grad, constraints=constraints, method="SLSQP",
+        res = _minimize()(fun, q[free], jac=grad, constraints=constraints, method="SLSQP",
                        options={"maxiter": 100, "ftol": 1e-12})
         ok = res.success and (not rest.size or float(np.max(np.abs(cons(res.x)))) <= tol)
         out.append(sign * float(res.fun) if ok and np.isfinite(res.fun) else None)
@@ -210,7 +218,7 @@ def _closest(model, q: np.ndarray, t: float, rows: np.ndarray, rest: np.ndarray,
                     "jac": lambda x: model.constraint_jacobian(at(x), t)[rest][:, free]
                     .toarray()}] if rest.size else []
     for start in _starts(model, q, t, rest, free, tol):
-        res = minimize(fun, start[free], jac=grad, constraints=constraints, method="SLSQP",
+        res = _minimize()(fun, start[free], jac=grad, constraints=constraints, method="SLSQP",
                        options={"maxiter": 100, "ftol": 1e-14})
         trial = at(res.x)
         if rest.size and float(np.max(np.abs(model.constraints(trial, t)[rest]))) > tol:

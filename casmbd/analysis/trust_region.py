@@ -24,7 +24,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import brentq
 
 #: relative singular-value (eigenvalue) cut-off of the least-squares fallback
 RANK_RTOL = 1e-10
@@ -98,6 +97,8 @@ def trust_region_step(g: np.ndarray, h: np.ndarray, radius: float, noise: float 
     hi = lo + gnorm / radius + float(np.max(np.abs(mu))) + eps
     while size(hi) > radius:
         hi *= 2.0
+    from scipy.optimize import brentq  # deferred: scipy.optimize costs ~0.2 s at start-up
+
     nu = brentq(lambda x: size(x) - radius, lo + eps, hi, xtol=1e-14 * hi, rtol=1e-12)
     dz = vec @ (gt / (mu + nu))
     return Step(dz, float(nu), predicted(dz), False)

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from casmbd.errors import AnalysisError, CasmbdError
+from casmbd.io import scene as _scene  # noqa: F401  (registers the reader of Result.mechanism)
 from casmbd.model.bodies import GROUND
 
 

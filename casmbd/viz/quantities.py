@@ -11,6 +11,7 @@ unit of a joint quantity is unknown and reads ``"m or rad"`` / ``"N or N m"``.
 from __future__ import annotations
 
 from casmbd.errors import CasmbdError
+from casmbd.io import scene as _scene  # noqa: F401  (registers the reader of Result.mechanism)
 
 #: unit of a coordinate by the suffix of its name (``body.x``, ``joint.angle`` …)
 _COORDINATE_UNITS = {"x": "m", "y": "m", "z": "m", "translation": "m", "length": "m",

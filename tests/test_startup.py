@@ -1,0 +1,86 @@
+"""Light start: ``import casmbd`` loads the error classes only; the public names load their
+modules on first use (PEP 562 ``__getattr__`` in ``casmbd/__init__.py``).
+
+Each check runs in a fresh interpreter, so that modules other tests imported do not count; the
+checks compare module names, never timings (docs/performance.md, *Start-up*, has the times).
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import casmbd
+from casmbd.results import Result
+
+#: modules that ``import casmbd`` must not load (the OCP, plotting, distribution, SLSQP)
+HEAVY = ("casmbd.ocp", "casmbd.analysis", "casmbd.compiled", "matplotlib", "dask",
+         "distributed", "tqdm", "scipy.optimize", "scipy.sparse")
+
+
+def _fresh(code: str) -> str:
+    """stdout of ``code`` run by a new interpreter."""
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=300, check=True).stdout.strip()
+
+
+def _loaded(statement: str, names) -> list[str]:
+    code = (f"import sys\n{statement}\n"
+            f"print(__import__('json').dumps(sorted(m for m in {tuple(names)!r} "
+            f"if m in sys.modules)))")
+    return json.loads(_fresh(code))
+
+
+def test_import_casmbd_loads_no_heavy_module():
+    assert _loaded("import casmbd", HEAVY) == []
+
+
+def test_import_casmbd_loads_only_the_error_classes():
+    """The casmbd modules after ``import casmbd``: the package and casmbd.errors (2)."""
+    out = json.loads(_fresh("import sys, json, casmbd; print(json.dumps(sorted("
+                            "m for m in sys.modules if m.startswith('casmbd'))))"))
+    assert out == ["casmbd", "casmbd.errors"]
+
+
+def test_the_cli_loads_no_optimizer_or_plotting():
+    """The command line (``casmbd info`` …) loads no scipy.optimize, matplotlib or dask: those
+    are imported by the functions that use them (a failed assembly's diagnosis, a plot)."""
+    assert _loaded("import casmbd.cli", ("scipy.optimize", "matplotlib", "dask")) == []
+
+
+def test_every_public_name_resolves_to_its_module_object():
+    """``casmbd.X`` and ``from casmbd import X`` give the object of the defining module, for
+    every name of ``__all__``; it is then cached in the package namespace."""
+    for name in casmbd.__all__:
+        value = getattr(casmbd, name)
+        module = sys.modules[casmbd._LAZY[name]] if name in casmbd._LAZY else casmbd.errors
+        assert value is getattr(module, name), name
+        assert casmbd.__dict__[name] is value, name
+    assert set(casmbd.__all__) <= set(dir(casmbd))
+    from casmbd import Mechanism, simulate  # noqa: F401
+
+    assert simulate is sys.modules["casmbd.analysis.simulate"].simulate
+    assert casmbd.ocp.Ocp is sys.modules["casmbd.ocp.problem"].Ocp
+
+
+def test_unknown_attribute_is_an_attribute_error():
+    with pytest.raises(AttributeError, match="no_such_name"):
+        casmbd.no_such_name  # noqa: B018
+    assert not hasattr(casmbd, "__wrapped__")
+
+
+def test_a_saved_result_reads_its_scene_after_a_bare_import(tmp_path):
+    """``Result.mechanism()`` needs the scene reader that :mod:`casmbd.io.scene` registers:
+    ``casmbd.load`` brings it along in a fresh interpreter (nothing else imported)."""
+    scene = ('[scene]\nname = "one_body"\n\n[[bodies]]\nname = "b"\nmass = 2.5\n'
+             'inertia = 0.1\nposition = [0.0, 0.0]\n')
+    path = tmp_path / "r.npz"
+    Result(kind="simulation", t=np.array([0.0, 1.0]), arrays={}, names={},
+           scene=scene).save(path)
+    code = (f"import casmbd\nmech = casmbd.load({str(path)!r}).mechanism()\n"
+            f"print(mech.name, mech.bodies['b'].mass)")
+    assert _fresh(code) == "one_body 2.5"
