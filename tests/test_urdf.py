@@ -74,9 +74,14 @@ def read(path):
     return links, joints
 
 
-def rnea(path, q, v, a):
-    """τ of every moving joint (dict) and the link frames {link: (R, p)}."""
+def rnea(path, q, v, a, planes=None):
+    """τ of every moving joint (dict) and the link frames {link: (R, p)}.
+
+    A planar joint's q, v, a and τ are 3-vectors (x, y, θ): the child frame is the parent's,
+    then the joint origin, then the translation x e₁ + y e₂ in the plane, then the rotation θ
+    about the axis; ``planes`` gives its in-plane directions (e₁, e₂) in the joint frame."""
     links, joints = read(path)
+    planes = planes or {}
     children = {j["child"] for j in joints}
     root = next(n for n in links if n not in children)
     st = {root: (np.eye(3), np.zeros(3), np.zeros(3), np.zeros(3), -G)}  # R p ω ω̇ a
@@ -88,12 +93,19 @@ def rnea(path, q, v, a):
                 pending.remove(j)
                 order.append(j)
                 rp, pp, wp, dwp, ap = st[j["parent"]]
-                qi, vi, ai = (q.get(j["name"], 0.0), v.get(j["name"], 0.0),
-                              a.get(j["name"], 0.0))
-                moving = j["type"] in ("revolute", "continuous", "prismatic")
+                zero = np.zeros(3) if j["type"] == "planar" else 0.0
+                qi, vi, ai = (q.get(j["name"], zero), v.get(j["name"], zero),
+                              a.get(j["name"], zero))
+                moving = j["type"] in ("revolute", "continuous", "prismatic", "planar")
                 rot0 = rp @ j["rot"]
                 h = rot0 @ j["axis"]
-                if j["type"] == "prismatic":
+                if j["type"] == "planar":  # (x, y, θ): in-plane slide u, then the turn
+                    e12 = rot0 @ np.column_stack(planes.get(j["name"], np.eye(3)[:2]))
+                    (x, y, qi), (vx, vy, vi), (ax, ay, ai) = qi, vi, ai
+                    slide, slide_v, slide_a = e12 @ [x, y], e12 @ [vx, vy], e12 @ [ax, ay]
+                    rot = rot0 @ _rot(j["axis"], qi)
+                    pos = pp + rp @ j["xyz"] + slide
+                elif j["type"] == "prismatic":
                     rot, pos = rot0, pp + rp @ j["xyz"] + h * qi
                 else:
                     rot = rot0 @ (_rot(j["axis"], qi) if moving else np.eye(3))
@@ -103,7 +115,9 @@ def rnea(path, q, v, a):
                 w, dw = wp.copy(), dwp.copy()
                 if j["type"] == "prismatic":
                     acc = acc + 2 * np.cross(wp, h * vi) + h * ai
-                elif moving:
+                if j["type"] == "planar":
+                    acc = acc + 2 * np.cross(wp, slide_v) + slide_a
+                if moving and j["type"] != "prismatic":
                     w = wp + h * vi
                     dw = dwp + h * ai + np.cross(wp, h * vi)
                 st[j["child"]] = (rot, pos, w, dw, acc)
@@ -120,7 +134,11 @@ def rnea(path, q, v, a):
         fc, nc = force[j["child"]]
         pc, pp = st[j["child"]][1], st[j["parent"]][1]
         h = st[j["parent"]][0] @ j["rot"] @ j["axis"]
-        if j["type"] in ("revolute", "continuous"):
+        if j["type"] == "planar":
+            e12 = st[j["parent"]][0] @ j["rot"] @ np.column_stack(
+                planes.get(j["name"], np.eye(3)[:2]))
+            tau[j["name"]] = np.array([e12[:, 0] @ fc, e12[:, 1] @ fc, h @ nc])
+        elif j["type"] in ("revolute", "continuous"):
             tau[j["name"]] = h @ nc
         elif j["type"] == "prismatic":
             tau[j["name"]] = h @ fc
@@ -304,7 +322,8 @@ _J = ('<joint name="j" type="{t}"><parent link="{p}"/><child link="{c}"/>'
         '<mass value="1"/>', "<mass/>"), "link 'b' <mass>: missing attribute 'value'"),
     ('<?xml version="1.0"?><!DOCTYPE r [<!ENTITY x "y">]><robot name="r"/>', "DOCTYPE"),
     ("<robot><link name='a'>", "malformed XML"),
-    (_TWO.format(_J.format(t="planar", p="a", c="b", xyz="0 0 0")), "'planar'.*not supported"),
+    (_TWO.format(_J.format(t="planar", p="a", c="b", xyz="0 0 0")).replace(
+        'axis xyz="0 0 1"', 'axis xyz="0 0 0"'), r"joint 'j' <axis> attribute 'xyz': zero axis"),
 ])
 def test_malformed_files_give_named_errors(text, match):
     with pytest.raises(SceneError, match=match):
@@ -551,3 +570,78 @@ def test_mimic_offset_locked_leader_and_absolute_coordinates(tmp_path):
         load(path, coordinates="absolute")
     path.write_text(_MIMIC.format(r=MIMIC_R, d=0.0))
     assert load(path, coordinates="absolute").joints["j2_mimic"].offset == 0.0
+
+
+# ---------------------------------------------------------------- planar joints
+_INERTIAL = ('<inertial><origin xyz="{c}" rpy="{r}"/><mass value="{m}"/><inertia ixx="{i[0]}" '
+             'ixy="{i[3]}" ixz="{i[4]}" iyy="{i[1]}" iyz="{i[5]}" izz="{i[2]}"/></inertial>')
+_PLANAR = ('<robot name="pl"><link name="base"/>'
+           '<link name="l1">' + _INERTIAL.format(c="0.1 0 0.05", r="0 0 0", m=1.5,
+                                                 i=(0.02, 0.03, 0.025, 0.001, 0, 0.002))
+           + '</link><link name="l2">' + _INERTIAL.format(
+               c="0.05 0.1 0", r="0.1 0.2 0.3", m=1.0, i=(0.03, 0.02, 0.04, 0.002, 0.001, 0))
+           + '</link><link name="l3">' + _INERTIAL.format(
+               c="0 0.1 0.02", r="0 0 0", m=0.7, i=(0.01, 0.012, 0.008, 0, 0, 0))
+           + '</link><joint name="j1" type="continuous"><parent link="base"/>'
+           '<child link="l1"/><origin xyz="0 0 0.1"/><axis xyz="0 0 1"/></joint>'
+           '<joint name="p" type="planar"><parent link="l1"/><child link="l2"/>'
+           '<origin xyz="0.3 0 0.2" rpy="0.3 -0.2 0.5"/><axis xyz="0 0.6 0.8"/></joint>'
+           '<joint name="j3" type="continuous"><parent link="l2"/><child link="l3"/>'
+           '<origin xyz="0.2 0.1 0"/><axis xyz="1 0 0"/></joint></robot>')
+_PLANAR_NAMES = ["j1", "p", "p.y", "p.angle", "j3"]
+
+
+def _planar_reference(path, mech, q, v, a):
+    """Newton–Euler τ in the order (j1, p.x, p.y, p.angle, j3) and the frames; the planar
+    joint's in-plane directions are the joint's f, g (global at the URDF zero) in its frame."""
+    joint = mech.joints["p"]
+    rot = rnea(path, {}, {}, {})[1]["l2"][0]
+    planes = {"p": (rot.T @ joint.f, rot.T @ joint.g)}
+
+    def split(x):
+        return {"j1": x[0], "p": np.asarray(x[1:4]), "j3": x[4]}
+
+    tau, frames = rnea(path, split(q), split(v), split(a), planes)
+    return np.array([tau["j1"], *tau["p"], tau["j3"]]), frames
+
+
+@pytest.mark.parametrize("coordinates", ["joint", "absolute"])
+def test_planar_joint_inverse_dynamics_match_newton_euler(tmp_path, coordinates):
+    """A planar joint (axis (0, 0.6, 0.8) in a turned joint frame) between two revolute
+    joints: the link frames at a random state equal the Newton–Euler frames (1e-12 m), and with
+    every coordinate driven, q_i = a_i + b_i sin(2t), the driver efforts equal the Newton–Euler
+    generalized forces (e₁·f, e₂·f, h·n for the planar joint; 1e-9 relative)."""
+    path = tmp_path / "planar.urdf"
+    path.write_text(_PLANAR)
+    mech = load(path, coordinates=coordinates)
+    joint = mech.joints["p"]
+    assert type(joint).kind == "planar" and joint.coordinate_names == ("x", "y", "angle")
+    _, zero = rnea(path, {}, {}, {})
+    assert np.max(np.abs(joint.axis - zero["l1"][0] @ _rpy(0.3, -0.2, 0.5) @ [0, 0.6, 0.8])) \
+        < 1e-15
+    if coordinates == "joint":
+        model = casmbd.NumericModel(mech, functions=["outputs"])
+        q = np.array([0.4, 0.1, -0.2, 0.7, -0.5])
+        out = model.outputs(q[None], q[None], q[None], np.zeros(1))
+        _, frames = _planar_reference(path, mech, q, q, q)
+        for k, body in enumerate(model.body_names):
+            got = out["rotation_matrices"][0, 9 * k:9 * k + 9].reshape(3, 3)
+            assert np.max(np.abs(got - frames[body][0])) < 1e-12
+        k = model.body_names.index("l2")
+        com = frames["l2"][1] + frames["l2"][0] @ np.array([0.05, 0.1, 0.0])
+        assert np.max(np.abs(out["body_positions"][0, 3 * k:3 * k + 3] - com)) < 1e-12
+    amp, mid = np.linspace(0.2, 0.6, 5), np.linspace(-0.4, 0.5, 5)
+    for i, (name, coord) in enumerate([("j1", None), ("p", "x"), ("p", "y"), ("p", "angle"),
+                                       ("j3", None)]):
+        mech.add_driver(f"d{i}", f"{float(mid[i])!r} + {float(amp[i])!r}*sin(2*t)",
+                        joint=name, coordinate=coord)
+    result = casmbd.inverse_dynamics(mech, 1.0, 4, mode="vm")
+    assert result.names["joints"][:4] == _PLANAR_NAMES[:4]
+    for k, t in enumerate(result["t"]):
+        q, v, a = (mid + amp * np.sin(2 * t), 2 * amp * np.cos(2 * t),
+                   -4 * amp * np.sin(2 * t))
+        expect, _ = _planar_reference(path, mech, q, v, a)
+        got = result["driver_efforts"][k]
+        assert np.max(np.abs(got - expect)) <= 1e-9 * np.max(np.abs(expect))
+    with pytest.raises(SceneError, match=r"initial joint 'p': a planar joint has no single"):
+        load(path, initial={"p": 0.1})

@@ -7,7 +7,12 @@ coordinate from the design pose).  Links joined by ``fixed`` joints (and joints 
 each merged link stays as a *marker* at its frame origin with the link frame's orientation,
 named like the link.  The root link
 is welded to the ground (its mass does not count, its frame is the global frame); a ``floating``
-joint leaves its child free.  The body frame of a merged body is the frame of its first link
+joint leaves its child free; a ``planar`` joint (motion in the plane normal to ``<axis>``)
+becomes the planar joint kind (:mod:`casmbd.model.planar_joint`) at the child frame's origin:
+coordinates ``x``, ``y`` along the in-plane directions f, g that kind derives from the axis
+(:func:`casmbd.model.spatial_joints.triad` of the global axis at the URDF zero) and ``angle``
+about the axis, all zero at the URDF zero (``initial`` and ``locked`` take single-coordinate
+joints only).  The body frame of a merged body is the frame of its first link
 with the origin moved to the centre of mass (casmbd's bodies are centroidal), so the body's
 orientation at the design pose is that link's orientation and its inertia tensor, about the
 centre of mass in those axes, is Rᵀ I Rᵀ with I the global tensor of the merge.
@@ -84,9 +89,6 @@ def _groups(robot: Robot, locked: Mapping) -> dict[str, str]:
     """Link → body name (the link heading its rigid group; GROUND for the root's group)."""
     group = {robot.root: GROUND}
     for joint in robot.order():
-        if joint.type == "planar":
-            raise SceneError(f"joint '{joint.name}' attribute 'type': 'planar' joints are not "
-                             "supported yet")
         rigid = joint.type == "fixed" or joint.name in locked
         group[joint.child] = group[joint.parent] if rigid else joint.child
     return group
@@ -198,7 +200,7 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
         rot, pos = design[joint.child]
         body1, body2 = group[joint.parent], group[joint.child]
         axis = rot @ joint.axis
-        kind = "prismatic" if joint.type == "prismatic" else "revolute"
+        kind = joint.type if joint.type in ("prismatic", "planar") else "revolute"
         made = guarded(f"joint '{joint.name}'", lambda joint=joint, body1=body1, body2=body2,
                        pos=pos, axis=axis, kind=kind: mech.add(
                            kind, joint.name, body1, body2, pos, axis=axis))
@@ -276,8 +278,8 @@ def load_urdf(path: str | os.PathLike, coordinates: str = "joint",
     ------
     SceneError
         Unreadable or malformed files, unknown or malformed content (naming link/joint and
-        attribute), unsupported features (planar joints; a mimic offset with absolute or
-        natural coordinates).
+        attribute), unsupported features (a mimic offset with absolute or natural
+        coordinates; ``initial``/``locked`` values of planar or floating joints).
     """
     path = Path(path)
     text = read_text(path, "URDF")

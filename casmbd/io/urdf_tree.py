@@ -199,7 +199,7 @@ def _joint(elem, index: int, links: dict) -> UrdfJoint:
     rot, pos = _origin(elem, where)
     axis = _numbers(elem.find("axis"), "xyz", 3, f"{where} <axis>", [1.0, 0.0, 0.0])
     norm = float(np.linalg.norm(axis))
-    if kind in MOVING and norm < 1e-12:
+    if kind in (*MOVING, "planar") and norm < 1e-12:
         raise SceneError(f"{where} <axis> attribute 'xyz': zero axis")
     axis = axis / norm if norm > 0 else axis
     limits, dynamics, mimic = {}, {}, None

@@ -15,6 +15,7 @@ from casmbd.model.gear import Gear
 from casmbd.model.joint_friction import JointFriction
 from casmbd.model.joints import Distance, Fixed, Joint, Prismatic, Revolute, Rigid
 from casmbd.model.mechanism import Mechanism
+from casmbd.model.planar_joint import Planar
 from casmbd.model.registry import (
     BODY_KINDS,
     FORCE_KINDS,
@@ -35,7 +36,8 @@ from casmbd.model.spatial_joints import (
 
 __all__ = ["BODY_KINDS", "FORCE_KINDS", "GROUND", "JOINT_KINDS", "Actuator", "Body",
            "Cylindrical", "Distance", "Driver", "Fixed", "ForceElement", "Gear", "Joint",
-           "JointFriction", "Marker", "Mechanism", "PointForce", "Prismatic", "Revolute", "Rigid",
+           "JointFriction", "Marker", "Mechanism", "Planar", "PointForce", "Prismatic", "Revolute",
+           "Rigid",
            "RotationalSpringDamper", "SpatialBody", "SpatialFixed", "SpatialPrismatic",
            "SpatialRevolute", "SpatialRigid", "Spherical", "SpringDamper", "Torque", "Universal",
            "UserForce",
