@@ -85,9 +85,12 @@ LEVELS = {
     ("exudyn_rigidbody2d", "generalized_alpha"): {
         "chain": [1e-2, 3e-3, 1e-3, 3e-4, 1e-4],
         "fourbar": [1e-2, 3e-3, 1e-3, 3e-4, 1e-4]},
-    ("exudyn_kinematictree", "rk44"): {"chain": [1e-2, 5e-3, 2.5e-3, 1.25e-3, 6.25e-4]},
-    ("exudyn_kinematictree", "dopri5"): {"chain": [1e-4, 1e-6, 1e-8, 1e-10, 1e-12]},
-    ("mujoco", "rk4"): {"chain": [1e-2, 5e-3, 2.5e-3, 1.25e-3, 6.25e-4],
+    # the fixed-step RK4 sweeps reach past 1e-9 on chain8 (h = 6.25e-4 stopped at 1.3e-9)
+    ("exudyn_kinematictree", "rk44"): {"chain": [1e-2, 5e-3, 2.5e-3, 1.25e-3, 6.25e-4,
+                                                 3.125e-4, 1.5625e-4]},
+    ("exudyn_kinematictree", "dopri5"): {"chain": [1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10,
+                                                   1e-11, 1e-12]},
+    ("mujoco", "rk4"): {"chain": [1e-2, 5e-3, 2.5e-3, 1.25e-3, 6.25e-4, 3.125e-4, 1.5625e-4],
                         "fourbar": [1e-3, 1e-4]},
     ("mujoco", "implicitfast"): {"chain": [1e-3, 1e-4, 1e-5], "fourbar": [1e-3, 1e-4]},
     ("mujoco_stiff", "rk4"): {"fourbar": [1e-3, 3e-4, 1e-4, 3e-5]},
@@ -265,7 +268,10 @@ def _exudyn_settings(exu, t_end: float, level: float, adaptive: bool, explicit: 
     ss.solution.sensors.active = False
     if adaptive:
         ti.automaticStepSize = True
-        ti.numberOfSteps = 100  # initial step guess t_end/100; the controller takes over
+        # Exudyn's adaptive controller uses (t_end − t_start) / numberOfSteps as its *maximum*
+        # step: 100 capped DOPRI5 on chain2 at 101–109 steps whatever the tolerance.  One
+        # step leaves the controller free (h_max = t_end; the first step is its own estimate).
+        ti.numberOfSteps = 1
         ti.absoluteTolerance = level
         ti.relativeTolerance = level
     else:
@@ -643,25 +649,16 @@ def _fineness(row) -> float:
 def best_peer_time(rows, problem: str, error_level: float) -> tuple[float, str] | None:
     """Fastest peer time [s] reaching ``error_level`` on ``problem``, and its method.
 
-    On each method's work-precision curve (points coarse to fine) the first crossing of the
-    level is found: between the last point above it and the first point at or below it the
-    time is interpolated linearly in (log error, log time); when the coarsest point is already
-    below the level its time is taken (no extrapolation).  ``None``: no method reaches it.
+    The same rule as casmbd's tables (:func:`benchmarks.work_precision.best_time`): the
+    smallest measured solve time among the runs whose error is at most the level — no
+    interpolation between sweep points, for casmbd and peers alike.  ``None``: no run
+    reaches it.
     """
     best = None
     for name, points in _curves(rows, problem).items():
-        found = None
-        for k, (err, sec) in enumerate(points):
-            if err <= error_level:
-                if k == 0:
-                    found = sec
-                else:
-                    e0, s0 = points[k - 1]
-                    w = (math.log(error_level) - math.log(e0)) / (math.log(err) - math.log(e0))
-                    found = math.exp(math.log(s0) + w * (math.log(sec) - math.log(s0)))
-                break
-        if found is not None and (best is None or found < best[0]):
-            best = (found, name)
+        for err, sec in points:
+            if err <= error_level and (best is None or sec < best[0]):
+                best = (sec, name)
     return best
 
 
@@ -679,7 +676,7 @@ def table(rows, problems) -> str:
         lines.append(f"{r['problem']:8s} {label(r):42s} {_level_text(r):11s} "
                      f"{1e3 * r['solve_seconds']:10.2f} {r['error']:9.2e} {drift} {dmax} "
                      f"{r['steps']:7d}")
-    lines += ["", "Fastest peer reaching the error level (log-log interpolation):"]
+    lines += ["", "Fastest peer run reaching the error level (no interpolation):"]
     for problem in problems:
         for level in (1e-6, 1e-9):
             best = best_peer_time(rows, problem, level)
