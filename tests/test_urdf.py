@@ -645,3 +645,53 @@ def test_planar_joint_inverse_dynamics_match_newton_euler(tmp_path, coordinates)
         assert np.max(np.abs(got - expect)) <= 1e-9 * np.max(np.abs(expect))
     with pytest.raises(SceneError, match=r"initial joint 'p': a planar joint has no single"):
         load(path, initial={"p": 0.1})
+
+
+def test_planar_joint_against_pinocchio(tmp_path):
+    """The planar chain with axis 0 0 1 against Pinocchio's ``JointModelPlanar`` (whose URDF
+    parser ignores ``<axis>``: always the joint frame's xy plane) when ``pinocchio`` is
+    importable.  Pinocchio's planar velocity is (v_x, v_y) in the turned child frame and ω, so
+    v_p = T q̇ with T = diag(1, R(θ)ᵀ B⁻¹, 1, 1), B the map of Pinocchio's in-plane axes onto
+    casmbd's (f, g): link frames (1e-12), M = Tᵀ M_p T against ``crba`` (1e-12 relative), and
+    q̈ from casmbd's forward dynamics under τ = Tᵀ τ_p against ``aba``, a_p = T q̈ + Ṫ q̇
+    (1e-9 relative)."""
+    pin = pytest.importorskip("pinocchio")
+    path = tmp_path / "planar_z.urdf"
+    path.write_text(_PLANAR.replace('axis xyz="0 0.6 0.8"', 'axis xyz="0 0 1"'))
+    pm = pin.buildModelFromUrdf(str(path))
+    data = pm.createData()
+    mech = load(path)
+    ours = casmbd.compile(mech, mode="vm")
+    joint = mech.joints["p"]
+    frame = rnea(path, {}, {}, {})[1]["l2"][0]  # the joint frame at the URDF zero
+    b = np.array([[joint.f @ frame[:, 0], joint.f @ frame[:, 1]],
+                  [joint.g @ frame[:, 0], joint.g @ frame[:, 1]]])
+    rng = np.random.default_rng(7)
+    for _ in range(3):
+        q, v = rng.uniform(-1.5, 1.5, 5), rng.uniform(-2, 2, 5)
+        c, s = math.cos(q[3]), math.sin(q[3])
+        rot_t = np.array([[c, s], [-s, c]])
+        t = np.eye(5)
+        t[1:3, 1:3] = rot_t @ np.linalg.inv(b)
+        t_dot = np.zeros((5, 5))
+        t_dot[1:3, 1:3] = v[3] * np.array([[-s, c], [-c, -s]]) @ np.linalg.inv(b)
+        qp = np.r_[math.cos(q[0]), math.sin(q[0]), np.linalg.solve(b, q[1:3]), c, s,
+                   math.cos(q[4]), math.sin(q[4])]
+        vp = t @ v
+        pin.forwardKinematics(pm, data, qp)
+        pin.updateFramePlacements(pm, data)
+        pos, rot = ours.forward_kinematics(q)
+        for link in ("l1", "l2", "l3"):
+            k, fid = ours.frame_names.index(link), pm.getFrameId(link)
+            parent = pm.frames[fid].parentJoint
+            assert np.max(np.abs(rot[k] - data.oMf[fid].rotation)) < 1e-12
+            com = data.oMi[parent].act(pm.inertias[parent].lever)
+            assert np.max(np.abs(pos[k] - com)) < 1e-12
+        m_pin = pin.crba(pm, data, qp)
+        m_pin = np.triu(m_pin) + np.triu(m_pin, 1).T
+        mass = ours.mass_matrix(q)
+        assert np.max(np.abs(mass - t.T @ m_pin @ t)) < 1e-12 * np.max(np.abs(mass))
+        tau_p = rng.uniform(-2, 2, 5)
+        acc_p = pin.aba(pm, data, qp, vp, tau_p)
+        acc = t @ ours.forward_dynamics(q, v, t.T @ tau_p) + t_dot @ v
+        assert np.max(np.abs(acc - acc_p)) < 1e-9 * np.max(np.abs(acc_p))
