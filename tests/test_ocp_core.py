@@ -95,18 +95,19 @@ def test_contradictory_bounds_name_status_and_binding_actuators():
 
 
 def test_compiled_nlp_is_cached_and_equal(swing_up):
-    """The compiled NLP gives the VM's optimum (1e-8 relative); a second identical problem
-    loads the library from the cache without compiling."""
+    """The whole NLP compiled (``compile="nlp"``) gives the VM's optimum (1e-8 relative); a
+    second identical problem loads the library from the cache without compiling."""
     first = load_ocp(OCP / "double_pendulum_swingup.toml")
-    first.intervals, first.subintervals = 10, 1
+    first.intervals, first.subintervals, first.compile = 10, 1, "nlp"
     a = first.solve()
     again = load_ocp(OCP / "double_pendulum_swingup.toml")
-    again.intervals, again.subintervals = 10, 1
+    again.intervals, again.subintervals, again.compile = 10, 1, "nlp"
     b = again.solve()
     vm = load_ocp(OCP / "double_pendulum_swingup.toml")
     vm.intervals, vm.subintervals, vm.compile = 10, 1, False
     c = vm.solve()
     assert a.stats["compiled"] and not a.stats["cache_hit"]
+    assert a.stats["derivatives"] == "compiled NLP"
     assert b.stats["cache_hit"] and b.stats["compile_seconds"] == 0.0
     assert abs(a.objective - c.objective) < 1e-8 * abs(c.objective)
 

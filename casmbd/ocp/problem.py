@@ -104,10 +104,19 @@ class Ocp:
         (:mod:`casmbd.ocp.options`: e.g. ``"ipopt.max_iter"``, ``"ipopt.tol"``; never code,
         compiler or file options) when the problem is built and again when it is solved;
         trusted code passes anything else to :meth:`solve` (``options=``), unchecked.
-    compile : bool
-        Generate C code for the NLP's functions (objective, constraints, their Jacobian and
-        the Lagrangian's Hessian), compile it and cache the library on disk (default): a
-        second identical problem loads it; without a C compiler the virtual machine is used.
+    compile : {"auto", False, True, "elements", "nlp", "vm"}
+        How the NLP's derivatives are built (:data:`casmbd.ocp.structured.MODES`; measured
+        in docs/ocp.md). ``"auto"`` (default) and False: each mapped element function (one
+        collocation element or shooting interval, one mesh node) is differentiated once in
+        SX and the NLP's gradient, Jacobian and Lagrangian Hessian are assembled from those
+        with constant sparse matrices, evaluated in CasADi's virtual machine — set-up in
+        tenths of a second, nothing compiled. True or ``"elements"``: the same with the
+        per-element derivative functions compiled to C and cached (small translation units;
+        a faster solve where the element is large, e.g. a 6-joint arm). ``"nlp"``: the whole
+        NLP's derivative functions generated from the MX graph, compiled and cached (minutes
+        of C compilation on larger problems). ``"vm"``: CasADi's own derivatives of the MX
+        graph in the virtual machine. Without a C compiler the compiled modes use the
+        virtual machine.
     """
 
     mechanism: object
@@ -122,7 +131,7 @@ class Ocp:
     t_start: float = 0.0
     solver: str = "ipopt"
     solver_options: dict = field(default_factory=dict)
-    compile: bool = True
+    compile: bool | str = "auto"
     _initial: dict = field(default_factory=dict, init=False)
     _final: dict = field(default_factory=dict, init=False)
     _control_bounds: dict = field(default_factory=dict, init=False)

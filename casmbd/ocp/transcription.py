@@ -19,13 +19,13 @@ import numpy as np
 from casmbd import interrupts, progress
 from casmbd.analysis.integrators import integrator_kind
 from casmbd.analysis.kkt import consistent_state
-from casmbd.compiled.codegen import compile_nlp_solver
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, OptimizationError
 from casmbd.ocp.dynamics import explicit_accelerations, implicit_residual, node_constraints
 from casmbd.ocp.guess import initial_guess
 from casmbd.ocp.options import check_solver_options
 from casmbd.ocp.solution import OcpSolution
+from casmbd.ocp.structured import MappedCall, check_mode, nlp_solver
 
 IPOPT_DEFAULTS = {"ipopt.print_level": 0, "print_time": False, "ipopt.sb": "yes",
                   "ipopt.max_iter": 3000}
@@ -112,7 +112,7 @@ class _Builder:
         expr = ca.vec(expr)
         n = expr.numel()
         if n == 0:
-            return
+            return None
         self.g.append(expr)
         self.lbg.append(np.broadcast_to(np.asarray(lower, float), (n,)).copy())
         self.ubg.append(np.broadcast_to(np.asarray(upper, float), (n,)).copy())
@@ -120,6 +120,7 @@ class _Builder:
             self.glabels += label
         else:
             self.glabels += [label if n == 1 else f"{label}[{i}]" for i in range(n)]
+        return len(self.g) - 1
 
 
 class Transcription:
@@ -141,6 +142,8 @@ class Transcription:
         # per element function, compact generated code
         kind = ca.MX
         self.b = _Builder(kind)
+        self.calls: list[MappedCall] = []   # mapped functions, for structured derivatives
+        self.structured = True
         self._functions()
         self._variables()
         if shooting:
@@ -309,12 +312,14 @@ class Transcription:
         # all elements at once
         uel = ca.horzcat(*[self.Ub[:, e // self.S] for e in range(M)])
         tks = ca.horzcat(*[self._t(e) for e in range(M)])
-        g_el, q_el = elem.map(M)(self.Xb[:, :-1], self.Xb[:, 1:], xcb, ab, lamb, mub, nub,
-                                 slb, uel, tks, self.h)
+        el_args = [self.Xb[:, :-1], self.Xb[:, 1:], xcb, ab, lamb, mub, nub, slb, uel, tks,
+                   self.h]
+        g_el, q_el = elem.map(M)(*el_args)
         n_el = len(labels)
-        b.ineq(g_el, [f"element {e}: {lab}" for e in range(M) for lab in labels],
-               np.tile(np.concatenate(lo), M) if n_el else [],
-               np.tile(np.concatenate(hi), M) if n_el else [])
+        block = b.ineq(g_el, [f"element {e}: {lab}" for e in range(M) for lab in labels],
+                       np.tile(np.concatenate(lo), M) if n_el else [],
+                       np.tile(np.concatenate(hi), M) if n_el else [])
+        self.calls.append(MappedCall(elem, M, el_args, block, True))
         self.quad = ca.sum2(q_el)
         self.energy_terms = 0.0
         self._nodes()
@@ -357,9 +362,10 @@ class Transcription:
             us = ca.horzcat(*[self.U[min(k // S, self.N - 1)] for k in nodes])
             ts = ca.horzcat(*[self._t(k) for k in nodes])
             vals = fnode.map(len(nodes))(xs, us, ts)
-            self.b.ineq(vals, [f"{lab} at {what} {k}" for k in nodes for lab in labels],
-                        np.tile(np.concatenate(lo), len(nodes)),
-                        np.tile(np.concatenate(hi), len(nodes)))
+            block = self.b.ineq(vals, [f"{lab} at {what} {k}" for k in nodes for lab in labels],
+                                np.tile(np.concatenate(lo), len(nodes)),
+                                np.tile(np.concatenate(hi), len(nodes)))
+            self.calls.append(MappedCall(fnode, len(nodes), [xs, us, ts], block, False))
 
     def _shooting(self) -> None:
         ocp, b, nq, nc, N = self.ocp, self.b, self.nq, self.nc, self.N
@@ -400,10 +406,14 @@ class Transcription:
         interval = ca.Function("ocp_interval", [xk, xk1, uk, tk, hk, mu, nu, sl],
                                [ca.vertcat(*rows), qk])
         tks = ca.horzcat(*[self._t(k) for k in range(N)])
-        g_int, q_int = interval.map(N)(self.Xb[:, :-1], self.Xb[:, 1:], self.Ub, tks, self.h,
-                                       mub, nub, slb)
-        b.ineq(g_int, [f"interval {k}: {lab}" for k in range(N) for lab in labels],
-               np.tile(np.concatenate(lo), N), np.tile(np.concatenate(hi), N))
+        int_args = [self.Xb[:, :-1], self.Xb[:, 1:], self.Ub, tks, self.h, mub, nub, slb]
+        g_int, q_int = interval.map(N)(*int_args)
+        block = b.ineq(g_int, [f"interval {k}: {lab}" for k in range(N) for lab in labels],
+                       np.tile(np.concatenate(lo), N), np.tile(np.concatenate(hi), N))
+        if interval.is_a("SXFunction"):
+            self.calls.append(MappedCall(interval, N, int_args, block, True))
+        else:  # an MX integrator (CVODES): no per-interval SX derivatives
+            self.structured = False
         self.quad = ca.sum2(q_int)
         self.energy_terms = 0.0
         self._nodes()
@@ -433,14 +443,15 @@ class Transcription:
 
     def _objective(self) -> None:
         x_n = self.X[self.M]
-        obj = self.quad + self.energy_terms
+        obj = self.energy_terms
         if self.effort:
             obj = obj + self.effort * self.h * self.S * ca.sumsqr(self.Ub)
         if self.time_weight:
             obj = obj + self.time_weight * self.T
         obj = obj + self.mayer_fn(x_n[:self.nq], x_n[self.nq:], self._t(self.M),
                                   self.U[self.N - 1], self.p)
-        self.objective = obj
+        self.objective_rest = obj   # all but the mapped quadratures
+        self.objective = self.quad + obj
 
     # ------------------------------------------------------------------ solve
     def solve(self, guess=None, options: dict | None = None, raise_on_failure: bool = True):
@@ -448,7 +459,6 @@ class Transcription:
         ocp, b = self.ocp, self.b
         t0 = time.perf_counter()
         w = ca.vertcat(*[ca.vec(x) for x in b.w])
-        g = ca.vertcat(*b.g) if b.g else b.kind(0, 1)
         opts = dict(IPOPT_DEFAULTS) if ocp.solver == "ipopt" else {}
         sundials = (ocp.transcription == "multiple_shooting"
                     and not integrator_kind(ocp.integrator).fixed_step)
@@ -458,16 +468,22 @@ class Transcription:
         # checked again: the attribute may have changed since the Ocp was built
         opts.update(check_solver_options(ocp.solver, ocp.solver_options))
         opts.update(options or {})  # trusted Python callers only (see casmbd.ocp.options)
-        problem = {"x": w, "f": self.objective, "g": g}
         bar = None
         if ocp.solver == "ipopt" and "iteration_callback" not in opts and progress.enabled():
             bar = progress.bar(None, f"ocp {ocp.system.mechanism.name}: IPOPT", unit="iter")
-            opts["iteration_callback"] = _IterationBar(w.numel(), g.numel(), bar)
-        report = None
-        if ocp.compile and not sundials:
-            solver, report = compile_nlp_solver(problem, ocp.solver, opts, name="casmbd_ocp")
+            opts["iteration_callback"] = _IterationBar(w.numel(), len(b.glabels), bar)
+        if sundials:  # an MX integrator: CasADi's derivatives in the virtual machine
+            mode = "vm"
         else:
-            solver = ca.nlpsol("ocp", ocp.solver, problem, opts)
+            mode = check_mode(ocp.compile)
+        try:
+            solver, report, used = nlp_solver("casmbd_ocp", ocp.solver, w, self.objective,
+                                              self.objective_rest, b.g, self.calls, opts,
+                                              mode, self.structured)
+        except ValueError:  # arguments not affine in the variables: no per-element structure
+            solver, report, used = nlp_solver("casmbd_ocp", ocp.solver, w, self.objective,
+                                              self.objective_rest, b.g, self.calls, opts,
+                                              "vm")
         setup = time.perf_counter() - t0
         w0 = initial_guess(self, guess if guess is not None else ocp._guess)
         lbw, ubw = np.concatenate(b.lbw), np.concatenate(b.ubw)
@@ -499,12 +515,12 @@ class Transcription:
                 "constraint_violation": float(np.max(viol, initial=0.0)),
                 "solve_seconds": wall, "setup_seconds": setup + self.build_seconds,
                 "build_seconds": self.build_seconds, "nlp_setup_seconds": setup,
-                "variables": int(w.numel()), "constraints": int(g.numel()),
+                "variables": int(w.numel()), "constraints": len(b.glabels),
                 "transcription": ocp.transcription, "intervals": self.N,
                 "subintervals": self.S,
                 "degree": ocp.degree if ocp.transcription != "multiple_shooting" else None,
                 "dynamics": "explicit" if self.explicit else "implicit",
-                "solver": ocp.solver,
+                "solver": ocp.solver, "derivatives": used,
                 "compiled": bool(report and report.mode == "compiled"),
                 "compile_seconds": report.compile_seconds if report else 0.0,
                 "cache_hit": bool(report and report.cache_hit)}
