@@ -25,6 +25,18 @@ cannot build in time is recorded as such rather than stopping the sweep.  ``--qu
 two arms (UR5, Panda).  ``<mimic>`` pairs are locked at 0 in both models
 (``pinocchio.buildReducedModel``; casmbd's ``locked`` on the leaders).
 
+Robots with ``<mimic>`` pairs are then also compared *coupled* (``check_coupled``): Pinocchio's
+``buildModelFromUrdf(path, mimic=True)`` (``JointModelMimic``, θ_f = multiplier θ_l + offset,
+no coordinate of its own) against casmbd's gear couplings in joint coordinates (every follower
+keeps its tree coordinate, one gear equation each).  With G the map from the independent
+coordinates to casmbd's (q = G q_i + o, from the URDF's multipliers and offsets): the frames,
+Gᵀ M G against ``crba``, Gᵀ τ with τ casmbd's least-norm ``inverse_dynamics`` at
+(G q_i + o, G v_i, G a_i) (it checks C_q a = γ) against ``rnea``, and the independent part of
+casmbd's constrained ``forward_dynamics`` (KKT with the gear equations; τ on the independent
+coordinates, 0 on the followers) against M⁻¹ (τ − b) from Pinocchio's ``crba`` and
+``nonLinearEffects`` — Pinocchio 4.1's ``aba`` refuses mimic joints ("This algorithm does not
+support Joint Mimic type in the model").
+
 Run: ``python -m benchmarks.robots_vs_pinocchio [--quick] [--joint-only] [--update-docs]``.
 """
 
@@ -174,11 +186,109 @@ def check_robot(path: str | Path, states: int = 3, seed: int = 0, mode: str = "v
                                               pin.aba(pm, data, qp, vp, tau)))
     rec.update(compared=True, frames=worst.pop("frames"), states=states, errors=worst,
                passed=all(worst[k] <= tol for k, tol in TOLERANCES.items()))
+    if mimic:
+        rec["coupled"] = check_coupled(path, states, seed, mode)
     if absolute:
         print(json.dumps(rec), flush=True)  # the joint-coordinate record, should time run out
         rec["absolute"] = check_absolute(path, leaders, ours, pm, to_pin, perm, scale,
                                          states, seed, mode)
     return rec
+
+
+def _mimic_table(path) -> dict[str, tuple[str, float, float]]:
+    """Follower → (leader, multiplier, offset) of the URDF's ``<mimic>`` elements."""
+    import xml.etree.ElementTree as ET
+
+    out = {}
+    for joint in ET.parse(str(path)).getroot().iter("joint"):
+        mimic = joint.find("mimic")
+        if mimic is not None:
+            out[joint.get("name")] = (mimic.get("joint"),
+                                      float(mimic.get("multiplier", "1")),
+                                      float(mimic.get("offset", "0")))
+    return out
+
+
+def check_coupled(path, states: int, seed: int, mode: str) -> dict:
+    """The robot with its ``<mimic>`` pairs coupled (module docstring): errors of the frames,
+    M, τ and q̈ in the independent coordinates against Pinocchio's mimic model."""
+    import warnings
+
+    import pinocchio as pin
+
+    import casmbd
+
+    try:
+        pm = pin.buildModelFromUrdf(str(path), mimic=True)
+    except Exception as exc:
+        return {"error": f"Pinocchio (mimic=True): {exc}".splitlines()[0][:200]}
+    pin_mimic = {pm.names[j] for j in range(1, pm.njoints)
+                 if "Mimic" in pm.joints[j].shortname()}
+    if not pin_mimic:
+        return {"error": "no coupling left in Pinocchio's model (its mimic joints are fixed)"}
+    t0 = time.perf_counter()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            ours = casmbd.compile(casmbd.load_urdf(path), mode=mode)
+    except Exception as exc:
+        return {"error": f"{type(exc).__name__}: {exc}".splitlines()[0][:300]}
+    out: dict = {"build_s": round(time.perf_counter() - t0, 3), "nq": int(ours.nq),
+                 "nc": int(ours.nc), "coupled": sorted(pin_mimic)}
+    table = {f: m for f, m in _mimic_table(path).items() if f in pin_mimic}
+    names = [n.rpartition(".")[0] or n for n in ours.coordinate_names]
+    index = {n: k for k, n in enumerate(names)}
+    free = [k for k, n in enumerate(names) if n not in table]
+    if ours.nc != len(table) or set(table) - set(index):
+        return {**out, "error": f"{ours.nc} constraint equations for {len(table)} couplings"}
+    g, o = np.zeros((ours.nq, len(free))), np.zeros(ours.nq)
+    g[free, range(len(free))] = 1.0
+
+    def resolve(name):  # row of G and offset of a joint (a follower of a follower too)
+        if name not in table:
+            return g[index[name]], o[index[name]]
+        leader, ratio, offset = table[name]
+        row, off = resolve(leader)
+        return ratio * row, ratio * off + offset
+    for name in table:
+        g[index[name]], o[index[name]] = resolve(name)
+    joints = sorted((pm.joints[j].idx_q, j) for j in range(1, pm.njoints)
+                    if pm.joints[j].nq > 0)
+    if len(joints) != len(free) or any(pm.names[j] not in index for _, j in joints):
+        return {**out, "error": "the independent joints differ from Pinocchio's"}
+    order = [(free.index(index[pm.names[j]]), pm.joints[j].nq) for _, j in joints]
+    perm = np.array([k for k, _ in order])
+
+    def to_pin(qi):
+        return np.concatenate([[np.cos(qi[k]), np.sin(qi[k])] if nq == 2 else [qi[k]]
+                               for k, nq in order])
+    prismatic = np.array(["Prismatic" in pm.joints[j].shortname()
+                          or "JointModelP" in pm.joints[j].shortname() for _, j in joints])
+    scale = np.where(prismatic[np.argsort(perm)], 0.2, 2.0)
+    data = pm.createData()
+    rng = np.random.default_rng(seed + 2)
+    worst = dict.fromkeys(TOLERANCES, 0.0)
+    for _ in range(states):
+        qi = rng.uniform(-1.0, 1.0, len(free)) * scale
+        vi, ai = rng.uniform(-2.0, 2.0, len(free)), rng.uniform(-2.0, 2.0, len(free))
+        q, v, a = g @ qi + o, g @ vi, g @ ai
+        qp, vp, ap = to_pin(qi), vi[perm], ai[perm]
+        _frame_errors(worst, ours, ours.forward_kinematics(q), pm, data, qp)
+        m_pin = pin.crba(pm, data, qp)
+        m_pin = np.triu(m_pin) + np.triu(m_pin, 1).T
+        m_red = (g.T @ ours.mass_matrix(q) @ g)[np.ix_(perm, perm)]
+        worst["crba"] = max(worst["crba"], _rel(m_red, m_pin))
+        tau = pin.rnea(pm, data, qp, vp, ap)
+        worst["rnea"] = max(worst["rnea"], _rel((g.T @ ours.inverse_dynamics(q, v, a))[perm],
+                                                tau))
+        ref = np.linalg.solve(m_pin, tau - pin.nonLinearEffects(pm, data, qp, vp))
+        tau_full = np.zeros(ours.nq)
+        tau_full[np.array(free)[perm]] = tau
+        qdd = ours.forward_dynamics(q, v, tau_full)
+        worst["aba"] = max(worst["aba"], _rel(qdd[free][perm], ref))
+    out.update(frames=worst.pop("frames"), errors=worst,
+               passed=all(worst[k] <= tol for k, tol in TOLERANCES.items()))
+    return out
 
 
 def _frame_errors(worst: dict, ours, fk, pm, data, qp) -> None:
@@ -379,6 +489,39 @@ def markdown(data: dict) -> str:
             lines.append(f"| {r['robot']} | {a['nq']} | {a['nc']} | {a['build_s']:.2f} | "
                          f"{e['C']:.1e} | {e['fk']:.1e} | {e['rot']:.1e} | {e['crba']:.1e} | "
                          f"{e['aba']:.1e} | {'yes' if a['passed'] else '**no**'} |")
+    coupled = [r for r in compared if "coupled" in r]
+    if coupled:
+        done = [r for r in coupled if "errors" in r["coupled"]]
+        good = [r for r in done if r["coupled"].get("passed")]
+        lines += ["", "**Mimic couplings, coupled** (not locked): Pinocchio's "
+                  "`buildModelFromUrdf(path, mimic=True)` (`JointModelMimic`: the follower has no "
+                  "coordinate, θ_f = multiplier θ_l + offset) against casmbd's gear couplings "
+                  "(`<follower>_mimic`, one equation each; every follower keeps its tree "
+                  "coordinate). With G the map of the independent coordinates to casmbd's "
+                  "(q = G q_i + o): frames; Gᵀ M G against `crba`; Gᵀ τ, τ casmbd's "
+                  "`inverse_dynamics` at (G q_i + o, G v_i, G a_i), against `rnea`; the "
+                  "independent accelerations of casmbd's constrained `forward_dynamics` (KKT "
+                  "with the gear equations) against M⁻¹ (τ − b) from Pinocchio's `crba` and "
+                  "`nonLinearEffects`, because Pinocchio's `aba` refuses mimic joints (\"This "
+                  "algorithm does not support Joint Mimic type in the model\"). Same tolerances "
+                  f"as above. **{len(good)} of {len(done)} compared robots pass**; "
+                  f"{len(coupled) - len(done)} of the {len(coupled)} robots with `<mimic>` "
+                  "pairs have no coupled Pinocchio model (reasons in the table).", "",
+                  "| URDF | couplings | n_q | n_c | frames | FK [m] | R | GᵀMG | Gᵀτ | q̈_i | "
+                  "pass |", "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | "
+                  "---: | --- |"]
+        for r in coupled:
+            c = r["coupled"]
+            if "errors" not in c:
+                err = re.sub(r"/\S*/robots/", "", c.get("error", "")).replace("|", "/")
+                err = err.replace("<", "&lt;")
+                lines.append(f"| {r['robot']} | | | | | {err[:200]} | | | | | not compared |")
+                continue
+            e = c["errors"]
+            lines.append(f"| {r['robot']} | {len(c['coupled'])} | {c['nq']} | {c['nc']} | "
+                         f"{c['frames']} | {e['fk']:.1e} | {e['rot']:.1e} | {e['crba']:.1e} | "
+                         f"{e['rnea']:.1e} | {e['aba']:.1e} | "
+                         f"{'yes' if c['passed'] else '**no**'} |")
     rest = [r for r in recs if not r.get("compared")]
     if rest:
         lines += ["", "Not compared:", "",
@@ -387,9 +530,9 @@ def markdown(data: dict) -> str:
             who = ("neither" if not r.get("pinocchio") else
                    "Pinocchio" if not r.get("casmbd") else "both")
             reason = re.sub(r"/\S*/robots/", "", r.get("error", "")).replace("|", "/")
-            reason = reason.split(" (principal moments")[0]
+            reason = reason.split(" (principal moments")[0].replace("<", "&lt;")
             lines.append(f"| {r['robot']} | {who} | {reason} |")
-    lines.append("")
+    lines += ["", ""]  # a blank line before the next section
     return "\n".join(lines)
 
 
