@@ -48,7 +48,7 @@ class PostProcessing:
         text = (f"; at t ≈ {t:.6g} C_q has rank {rep.rank} of {rep.n_equations} equations "
                 f"(regular rank {rank0}), conditioning σ_min/σ_max = {ratio:.2e}")
         if rep.rank < rank0 or ratio < NEAR_SINGULAR:
-            labels = self.system.constraint_labels
+            labels = self.model.constraint_labels
             dep = ", ".join(str(labels[i]) for i in rep.dependent_rows[:4])
             text += (": a singular configuration" + (f" (dependent: {dep})" if dep else "")
                      + "; the augmented_lagrangian formulation passes singular poses")
@@ -59,12 +59,12 @@ class PostProcessing:
         (re-solved by the minimum-norm KKT solve), when the mapped ``post`` cannot be
         evaluated (the virtual machine's QR refuses a singular KKT matrix)."""
         model, n = self.model, len(grid)
-        acc = np.full((n, self.system.nq), np.nan)
-        lam = np.full((n, self.system.nc), np.nan)
+        acc = np.full((n, model.nq), np.nan)
+        lam = np.full((n, model.nc), np.nan)
         kin = np.array([model.kinetic_energy(qs[k], vs[k]) for k in range(n)])
         pot = np.array([model.potential_energy(qs[k], float(grid[k])) for k in range(n)])
         pos, vel = np.zeros(n), np.zeros(n)
-        if self.system.nc:
+        if model.nc:
             for k in range(n):
                 t_k = float(grid[k])
                 pos[k] = np.max(np.abs(model.constraints(qs[k], t_k)))
@@ -73,7 +73,8 @@ class PostProcessing:
         return acc, lam, np.full(n, np.nan), kin, pot, pos, vel
 
     def _post(self, grid, qs, vs, stats) -> Result:
-        model, system = self.model, self.system
+        # names and sizes from the model: a simulator from the cache has no System built
+        model = system = self.model
         n = len(grid)
         p_all = np.tile(model.p[:, None], (1, n))
         try:

@@ -22,6 +22,7 @@ from casmbd import progress
 from casmbd.analysis import integrators as integ
 from casmbd.analysis import nullspace, numeric_run, partitioning
 from casmbd.analysis.assembly import assemble
+from casmbd.analysis.build_cache import INPUTS_FUNCTION, CachedBuild, input_expression
 from casmbd.analysis.checks import (
     check_consistent_start,
     check_mass_matrix,
@@ -36,7 +37,6 @@ from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, CasmbdError, IntegratorError, UnknownMethodError
 from casmbd.interrupts import reraise_interrupt
 from casmbd.limits import check_steps, output_values
-from casmbd.model.values import resolve
 from casmbd.results import Result
 from casmbd.system.equations import System
 from casmbd.system.formulations import (
@@ -138,24 +138,14 @@ def plan_redundancy(system: System, formulation: str, option: str = "auto") -> d
     return plan
 
 
-def _input_expression(system: System, inputs: Mapping | None) -> ca.SX:
-    """u(t, p) of the actuators: given values/expressions, zero for the others."""
-    inputs = dict(inputs or {})
-    names = list(system.mechanism.actuators)
-    for key in inputs:
-        if key not in names:
-            raise AnalysisError(f"inputs: unknown actuator '{key}' (known: "
-                                f"{', '.join(names) or 'none'})")
-    exprs = [resolve(inputs[n], system.t, system.ctx.p, f"input of actuator '{n}'")
-             if n in inputs else ca.SX(0.0) for n in names]
-    return ca.vertcat(*exprs) if exprs else ca.SX(0, 1)
+_input_expression = input_expression  # u(t, p) of the actuators (analysis.build_cache)
 
 
 _FLAG = re.compile(r'returned "([A-Z_]+)"')
 _AT_T = re.compile(r"t = ([-+0-9.eE]+)")
 
 
-class Simulator(Stepping, PostProcessing):
+class Simulator(Stepping, PostProcessing, CachedBuild):
     """A mechanism compiled for one formulation, ready to integrate many times.
 
     Parameters
@@ -177,13 +167,19 @@ class Simulator(Stepping, PostProcessing):
                  mode: str = "auto", formulation_options: Mapping | None = None,
                  redundancy: str = "auto"):
         t0 = time.perf_counter()
+        self._mode, self._solvers = mode, {}
+        # a model record of the same description: no System, no code (analysis.build_cache)
+        if self._from_cache(mechanism, formulation, inputs, mode, formulation_options,
+                            redundancy):
+            self.build_seconds = time.perf_counter() - t0
+            return
         system = mechanism if isinstance(mechanism, System) else System(mechanism)
         self.formulation_name = formulation or default_formulation(system)
         #: the registered formulation (UnknownMethodError listing the choices otherwise)
         self.kind = formulation_kind(self.formulation_name)
         self.redundancy = plan_redundancy(system, self.kind, redundancy)
         u_expr = _input_expression(system, inputs)
-        self.ufun = ca.Function("actuator_inputs", [system.t, system.p], [u_expr],
+        self.ufun = ca.Function(INPUTS_FUNCTION, [system.t, system.p], [u_expr],
                                 ["t", "p"], ["u"])
         keep = self.redundancy.get("kept_rows")
         self._dyn_system = ConstraintSubset(system, keep) if keep is not None else system
@@ -191,11 +187,11 @@ class Simulator(Stepping, PostProcessing):
                                            **dict(formulation_options or {}))
         self.model = NumericModel(system, "dynamics", mode=mode,
                                   extra=[*self.formulation.functions,
-                                         post_processing(system, u_expr)])
+                                         post_processing(system, u_expr), self.ufun])
         self.system = system
         self.dyn = self.model.function(self.formulation.function.name())
-        self._mode = mode
-        self._solvers: dict = {}
+        self.ufun = self.model.function(INPUTS_FUNCTION)
+        self._remember()  # the model record for the next run (analysis.build_cache)
         self.build_seconds = time.perf_counter() - t0
 
     def _solver(self, key, factory):
@@ -385,7 +381,7 @@ class Simulator(Stepping, PostProcessing):
                 lambda: self._clocked_sundials(name, grid, rtol, atol, max_steps))
             if clocked is not None:
                 solver, clock = clocked
-                with progress.bar(len(grid) - 1, f"{name} {self.system.mechanism.name}",
+                with progress.bar(len(grid) - 1, f"{name} {self.model.name}",
                                   "output") as pbar:
                     clock.start(pbar)
                     res = solver(x0=x0, z0=z0, p=self.model.p)

@@ -64,7 +64,7 @@ class Stepping:
                     self._solver_stats(solver.stats()))
         xs = [np.asarray(x0, float)]
         x, z = xs[0], z0
-        with progress.bar(len(grid) - 1, f"{name} {self.system.mechanism.name}",
+        with progress.bar(len(grid) - 1, f"{name} {self.model.name}",
                           "output") as pbar:
             return self._interval_loop(advance, grid, xs, x, z, project, nq, pbar)
 
@@ -101,12 +101,12 @@ class Stepping:
         h = interval / n_sub
         runner = self._solver((name, "fixed"), lambda: integ.FixedStep(
             self.formulation.function, name, mode=self._mode,
-            name=f"{_c_name(self.system.mechanism.name)}_{name}"))
+            name=f"{_c_name(self.model.name)}_{name}"))
         p = self.model.p
         nq, nx = self.model.nq, len(x0)
         state = runner.start(x0, grid[0], p)
         xs = [np.asarray(x0, float)]
-        with progress.bar(len(grid) - 1, f"{name} {self.system.mechanism.name}",
+        with progress.bar(len(grid) - 1, f"{name} {self.model.name}",
                           "output") as pbar:
             xs, state = self._fixed_loop(runner, grid, xs, state, p, h, n_sub, nq, nx, name,
                                          project, pbar)

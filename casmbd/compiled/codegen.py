@@ -97,6 +97,9 @@ class BuildReport:
         Path of the shared library, None in ``"vm"`` mode.
     key : str
         Hex SHA-256 key of the build (empty when no code was generated).
+    libraries : tuple of str
+        Paths of every shared library the functions were loaded from (two when the large
+        functions went to a library of their own).
     """
 
     mode: str
@@ -107,6 +110,7 @@ class BuildReport:
     load_seconds: float
     library: str | None
     key: str
+    libraries: tuple[str, ...] = ()
 
 
 def _find_compiler() -> list[str] | None:
@@ -339,6 +343,7 @@ def _build(
                 load_seconds=time.perf_counter() - start,
                 library=str(library),
                 key=key,
+                libraries=(str(library),),
             )
             return loaded, report
 
@@ -363,6 +368,7 @@ def _build(
         load_seconds=time.perf_counter() - start,
         library=str(library),
         key=key,
+        libraries=(str(library),),
     )
     return loaded, report
 
@@ -410,6 +416,7 @@ def _build_split(functions, names, name, flags):
         load_seconds=rep_a.load_seconds + rep_b.load_seconds,
         library=rep_a.library,
         key=rep_a.key + rep_b.key,
+        libraries=rep_a.libraries + rep_b.libraries,
     )
     return {**out_a, **out_b}, report
 

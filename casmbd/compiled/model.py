@@ -100,6 +100,8 @@ class NumericModel:
         self.dimension: int = system.dimension
         #: coordinate choice: "absolute", "natural" or "joint"
         self.coordinates: str = system.coordinates
+        #: why these coordinates ("given" or the automatic choice's reason)
+        self.coordinate_reason: str = getattr(system, "coordinate_reason", "given")
         self.nq, self.nc = system.nq, system.nc
         self.nu: int = len(system.mechanism.actuators)
         self.parameter_names: list[str] = list(system.mechanism.parameters)
@@ -120,8 +122,76 @@ class NumericModel:
         self.driver_rows: dict[str, int] = dict(system.driver_rows)
         self._q0 = system.initial_coordinates()
         self._v0 = system.initial_velocities() if system.local else None
+        self._v0_at: tuple[list[float], np.ndarray] | None = None
         #: evaluation buffers of the model's own methods (see :meth:`workspace`)
         self.data = Workspace(self)
+
+    # ------------------------------------------------------------------ cached builds
+    #: attributes that a model loaded by :meth:`from_record` takes from its System, built on
+    #: first use (only diagnostics and statics read them)
+    _LAZY = ("system", "descriptions", "coordinate_index")
+
+    def record(self) -> dict:
+        """What :meth:`from_record` needs to stand in for this model without a System
+        (JSON-ready; see :mod:`casmbd.compiled.modelkey`)."""
+        v0 = self._v0 if self._v0 is not None else self.initial_velocities()
+        return {"name": self.name, "dimension": self.dimension, "coordinates": self.coordinates,
+                "nq": self.nq, "nc": self.nc, "nu": self.nu,
+                "parameter_names": self.parameter_names, "p": self.p.tolist(),
+                "coordinate_names": self.coordinate_names,
+                "constraint_labels": [[e.kind, e.element, e.label]
+                                      for e in self.constraint_labels],
+                "joint_coordinate_names": self.joint_coordinate_names,
+                "body_names": self.body_names, "length_indices": self.length_indices.tolist(),
+                "reaction_size": self.reaction_size, "joint_rows": self.joint_rows,
+                "driver_rows": self.driver_rows, "q0": self._q0.tolist(),
+                "v0": v0.tolist(), "v0_local": self._v0 is not None,
+                "coordinate_reason": self.coordinate_reason}
+
+    @classmethod
+    def from_record(cls, mechanism, functions: dict[str, ca.Function], report: BuildReport,
+                    record: dict, seconds: float = 0.0) -> NumericModel:
+        """A model of ``mechanism`` from loaded ``functions`` and the :meth:`record` of the
+        build that made them, without building a System (built on first use of
+        :attr:`system`, :attr:`descriptions` or :attr:`coordinate_index`)."""
+        self = cls.__new__(cls)
+        self.functions, self.report = functions, report
+        self.symbolic_seconds, self.build_seconds = 0.0, seconds
+        self.mechanism = mechanism
+        self.name, self.dimension = record["name"], int(record["dimension"])
+        self.coordinates = record["coordinates"]
+        self.coordinate_reason = record["coordinate_reason"]
+        self.nq, self.nc, self.nu = int(record["nq"]), int(record["nc"]), int(record["nu"])
+        self.parameter_names = list(record["parameter_names"])
+        self.p = np.array(record["p"], dtype=float).reshape(-1)
+        self.coordinate_names = list(record["coordinate_names"])
+        self.constraint_labels = [Equation(*lab) for lab in record["constraint_labels"]]
+        self.joint_coordinate_names = list(record["joint_coordinate_names"])
+        self.body_names = list(record["body_names"])
+        self.length_indices = np.array(record["length_indices"], dtype=int)
+        self.reaction_size = int(record["reaction_size"])
+        self.joint_rows = {k: list(v) for k, v in record["joint_rows"].items()}
+        self.driver_rows = dict(record["driver_rows"])
+        self._q0 = np.array(record["q0"], dtype=float).reshape(-1)
+        v0 = np.array(record["v0"], dtype=float).reshape(-1)
+        self._v0 = v0 if record["v0_local"] else None
+        self._v0_at = None if record["v0_local"] else (list(record["p"]), v0)
+        self.data = Workspace(self)
+        return self
+
+    def __getattr__(self, name: str):
+        # only reached when the attribute is missing: a model from a record builds its System
+        if name in NumericModel._LAZY and "mechanism" in self.__dict__:
+            system = self.__dict__.get("system")
+            if system is None:  # the mechanism's own choice, then checked
+                system = System(self.mechanism)
+                if system.coordinates != self.coordinates:
+                    system = System(self.mechanism, self.coordinates)
+                self.__dict__["system"] = system
+            self.descriptions = dict(system.descriptions)
+            self.coordinate_index = dict(system.ctx.index)
+            return self.__dict__[name]
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     # ------------------------------------------------------------------ bookkeeping
     @property
@@ -168,6 +238,8 @@ class NumericModel:
         :meth:`System.initial_velocities <casmbd.system.equations.System.initial_velocities>`)."""
         if self._v0 is not None:
             return self._v0.copy()
+        if self._v0_at is not None and self._v0_at[0] == self.p.tolist():
+            return self._v0_at[1].copy()
         return self.system.initial_velocities(self.p)
 
     def vector(self, name: str, *args) -> np.ndarray:
