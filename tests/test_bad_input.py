@@ -232,14 +232,20 @@ def test_spring_with_negative_free_length():
     ({"position": "[1e308, 0.0]"}, "C_q^T C_q diagonal up to inf (coordinate 'rod.angle')"),
 ])
 def test_absurd_mass_or_position_names_the_coordinate(fields, culprit):
-    """Finite but absurd values (1e308) used to end in 'penalty must be > 0, got inf'."""
+    """Finite but absurd values (1e308) used to end in 'penalty must be > 0, got inf'; in
+    absolute coordinates the penalty names the coordinate, in the automatic choice (joint
+    coordinates, articulated recursion) the start check names the non-finite rows."""
     from casmbd.analysis.simulate import simulate
 
     mech = loads_scene(HEAD + body("rod", **fields) + PIVOT)
+    mech.coordinates = "absolute"
     with pytest.raises(ModelError) as exc:
         simulate(mech, t_end=0.1, steps=2)
     assert "augmented_lagrangian: no usable penalty" in str(exc.value), str(exc.value)
     assert culprit in str(exc.value), str(exc.value)
+    with pytest.raises(ModelError, match=r"at t = 0: the (mass matrix M|applied forces Q) is "
+                                         r"not finite in the rows of pivot\.angle"):
+        simulate(loads_scene(HEAD + body("rod", **fields) + PIVOT), t_end=0.1, steps=2)
 
 
 # ---------------------------------------------------------------------- drivers
@@ -308,27 +314,42 @@ UNASSEMBLABLE = (
 )
 
 
-def test_unassemblable_scene_names_worst_equations():
-    """The unreachable tether is named first (the culprit), then the residual equations."""
+@pytest.mark.parametrize("coordinates", ["absolute", "auto"])
+def test_unassemblable_scene_names_worst_equations(coordinates):
+    """The unreachable tether is named first (the culprit), then the residual equations; in
+    absolute coordinates the pivot's equations follow, in the automatic choice (joint
+    coordinates) the pivot is a tree joint without equations and the tether closes the loop."""
     mech = loads_scene(UNASSEMBLABLE)
+    mech.coordinates = coordinates
     with pytest.raises(AssemblyError) as exc:
         kinematics(mech, t_end=1.0, steps=2)
     message = str(exc.value)
     assert "residual" in message
-    assert 0 <= message.index("'tether'") < message.index("'pivot'"), message
     assert exc.value.culprits[0].element == "tether"
+    assert "its points (3, 0) on the ground and (1, 0) on body 'rod' are between 2 and 4 " \
+           "apart" in message, message
+    if coordinates == "absolute":
+        assert 0 <= message.index("'tether'") < message.index("'pivot'"), message
 
 
-def test_unassemblable_by_driver_names_driver():
+@pytest.mark.parametrize("coordinates", ["absolute", "auto"])
+def test_unassemblable_by_driver_names_driver(coordinates):
     """A driver that puts the centre of a 1 m link pinned at the origin 3 m away: the driver
-    first, then the joint it contradicts."""
+    first, then (absolute coordinates) the joint it contradicts; in joint coordinates the
+    joint is the tree and the message gives the range it allows."""
     text = PENDULUM + entry("drivers", name='"reach"', body='"rod"', coordinate='"x"',
                             position="3.0")
+    mech = loads_scene(text)
+    mech.coordinates = coordinates
     with pytest.raises(AssemblyError) as exc:
-        kinematics(loads_scene(text), t_end=1.0, steps=2)
+        kinematics(mech, t_end=1.0, steps=2)
     message = str(exc.value)
-    assert 0 <= message.index("'reach'") < message.index("'pivot'"), message
-    assert [c.element for c in exc.value.culprits] == ["reach", "pivot"]
+    assert "the joints allow only body 'rod' x from -0.5 to 0.5" in message, message
+    if coordinates == "absolute":
+        assert 0 <= message.index("'reach'") < message.index("'pivot'"), message
+        assert [c.element for c in exc.value.culprits] == ["reach", "pivot"]
+    else:
+        assert [c.element for c in exc.value.culprits] == ["reach"]
 
 
 def test_info_reports_assembly_failure_without_raising():

@@ -290,7 +290,9 @@ def test_default_formulation_for_trees_and_energy_from_twists():
     assert default_formulation(System(chain)) == "articulated"
     four_bar = with_coordinates(casmbd.load_scene(f"{EXAMPLES}/four_bar.toml"), "joint")
     assert default_formulation(System(four_bar)) == "augmented_lagrangian"
-    assert default_formulation(System(pendulum_chain(3))) == "augmented_lagrangian"
+    assert default_formulation(System(pendulum_chain(3), coordinates="absolute")) == \
+        "augmented_lagrangian"
+    assert default_formulation(System(pendulum_chain(3))) == "articulated"  # auto: joint
     default = Simulator(chain).run(t_end=1.0, steps=10, rtol=1e-12)
     assert default.stats["formulation"] == "articulated"
     kkt = Simulator(chain, formulation="kkt_ode").run(t_end=1.0, steps=10, rtol=1e-12)

@@ -95,6 +95,8 @@ def info(mechanism_or_model, mode: str = "auto") -> dict:
         "forces": list(mech.forces), "actuators": list(mech.actuators),
         "markers": list(mech.markers), "parameters": model.parameters,
         "coordinates": model.coordinate_names,
+        "coordinate_choice": model.system.coordinates,
+        "coordinate_reason": model.system.coordinate_reason,
         "constraints": [{"kind": lab.kind, "joint": lab.element, "equation": lab.label}
                         for lab in labels],
         "n_coordinates": model.nq, "n_constraints": model.nc, "rank": rep.rank,

@@ -151,9 +151,41 @@ def _series(result: Result, column: str, where: str) -> np.ndarray:
     columns = dict(result.csv_columns())
     if column in columns:
         return columns[column]
+    pose = _absolute_alias(result, column)
+    if pose is not None:
+        return pose
     known = [c for c in columns if "[" not in c or c.startswith("q[")]
     raise AnalysisError(f"{where}: unknown column '{column}' (e.g. {', '.join(known[:12])}; "
                         "or body.NAME.FIELD[.AXIS], joint.NAME.FIELD)")
+
+
+#: absolute-coordinate column names -> (body field by derivative order, component)
+_ALIASES = {"x": 0, "y": 1, "z": 2, "angle": None, "e0": 0, "e1": 1, "e2": 2, "e3": 3}
+_ALIAS = re.compile(r"^([qva])\[([^\]]+)\.(x|y|z|angle|e0|e1|e2|e3)\]$")
+
+
+def _absolute_alias(result: Result, column: str) -> np.ndarray | None:
+    """``q[NAME.x]``, ``q[NAME.angle]``, ``q[NAME.e0]`` … of a body when the result is in other
+    coordinates (the automatic choice takes joint coordinates for trees and few loops): the
+    body's pose, which *is* its absolute coordinates when the reference point is the centre of
+    mass (``v[…]``/``a[…]`` of the position and planar angle likewise; Euler parameters only
+    as positions).  Keeps sweep outputs written for absolute coordinates working."""
+    m = _ALIAS.match(column)
+    if m is None or m.group(2) not in result.names.get("bodies", []):
+        return None
+    order, name, coord = m.groups()
+    data = result.body(name)
+    if coord.startswith("e"):
+        if order != "q" or "quaternion" not in data:
+            return None
+        return np.asarray(data["quaternion"], float)[:, _ALIASES[coord]]
+    fld = {"q": "position", "v": "velocity", "a": "acceleration"}[order]
+    if coord == "angle":
+        fld = {"q": "angle", "v": "angular_velocity", "a": "angular_acceleration"}[order]
+        arr = np.asarray(data.get(fld, np.zeros((0, 0))), float)
+        return arr if arr.ndim == 1 else None
+    arr = np.asarray(data[fld], float)
+    return arr[:, _ALIASES[coord]] if _ALIASES[coord] < arr.shape[1] else None
 
 
 def _check_output_names(runner, spec: dict, values: Mapping[str, float]) -> None:

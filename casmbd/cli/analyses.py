@@ -29,6 +29,7 @@ def _cmd_info(args) -> tuple[dict, str]:
     lines = [f"mechanism '{data['name']}' ({kind}, {len(data['bodies'])} bodies, "
              f"{data['coordinate_choice']} coordinates)",
              f"  coordinates ({data['n_coordinates']}): {', '.join(data['coordinates'])}",
+             f"  coordinate choice: {data.get('coordinate_reason', 'given')}",
              f"  constraints: {data['n_constraints']} equations{body_rows}, "
              f"rank {data['rank']}",
              f"  degrees of freedom: {data['degrees_of_freedom']}"]

@@ -8,7 +8,7 @@ parsed by :mod:`casmbd.model.expressions` (never Python ``eval``).
 Contract (SI units, angles in radians; vectors have ``dimension`` components)::
 
     [scene]       name, dimension = 2|3, gravity = [gx, gy(, gz)], format = 1,
-                  coordinates = "absolute"|"natural"|"joint",
+                  coordinates = "auto"|"absolute"|"natural"|"joint",
                   tree = ["joint", ...] (joints that must be tree joints, coordinates = "joint")
     [parameters]  k = 100.0 ...
     [[bodies]]    name, type = "rigid" (default; the keys of each type are declared by its
@@ -65,7 +65,7 @@ _TABLES = {"scene", "parameters", "bodies", "markers", "joints", "drivers", "for
            "actuators", "ocp", "simulation", "meta"}
 _SCENE_KEYS = {"name", "dimension", "gravity", "format", "description", "coordinates",
                "tree", "urdf", "initial", "locked", "damping", "friction"}
-_COORDINATES = ("absolute", "natural", "joint")
+_COORDINATES = ("auto", "absolute", "natural", "joint")
 _MARKER_KEYS = {"name", "body", "point", "description", "orientation", "euler_zxz", "angle"}
 _DRIVER_KEYS = {"name", "joint", "body", "coordinate", "position", "description"}
 _ACTUATOR_KEYS = {"name", "joint", "coordinate", "description"}
@@ -262,7 +262,7 @@ def _build(data: dict, source: str) -> Mechanism:
     if isinstance(dim, bool) or dim not in (2, 3):
         raise scene.error("dimension", f"unsupported dimension {dim!r} (2: planar, 3: spatial)")
     dim = int(dim)
-    coords = scene.data.get("coordinates", "absolute")
+    coords = scene.data.get("coordinates", "auto")
     if coords not in _COORDINATES:
         raise scene.error("coordinates", f"unsupported coordinates {coords!r} (allowed: "
                           f"{', '.join(repr(c) for c in _COORDINATES)})")

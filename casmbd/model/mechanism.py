@@ -48,22 +48,24 @@ class Mechanism:
         Gravitational acceleration vector, default zero.
     dimension : {2, 3}, optional
         Planar or spatial; by default the length of ``gravity`` (2 when it is not given).
-    coordinates : {"absolute", "natural"}
+    coordinates : {"auto", "absolute", "natural", "joint"}
         Default choice of generalized coordinates of the systems built from it
         (:mod:`casmbd.system.descriptions`); a description property, not a model one.
+        ``"auto"`` (default): joint coordinates for trees and few loops, else absolute
+        (:mod:`casmbd.system.choice`).
     """
 
     def __init__(self, name: str = "mechanism", gravity: Sequence[float] | None = None,
-                 dimension: int | None = None, coordinates: str = "absolute"):
+                 dimension: int | None = None, coordinates: str = "auto"):
         self.name = str(name)
         if dimension is None:
             dimension = 2 if gravity is None else len(gravity)
         if dimension not in (2, 3):
             raise ModelError(f"mechanism field 'dimension': expected 2 or 3, got {dimension!r}")
         self.dimension = int(dimension)
-        if coordinates not in ("absolute", "natural", "joint"):
-            raise ModelError(f"mechanism field 'coordinates': expected 'absolute', 'natural' "
-                             f"or 'joint', got {coordinates!r}")
+        if coordinates not in ("auto", "absolute", "natural", "joint"):
+            raise ModelError(f"mechanism field 'coordinates': expected 'auto', 'absolute', "
+                             f"'natural' or 'joint', got {coordinates!r}")
         self.coordinates = coordinates
         #: joints that must belong to the spanning tree of joint coordinates (optional)
         self.tree: list[str] = []

@@ -26,6 +26,7 @@ import numpy as np
 from casmbd.errors import ModelError
 from casmbd.model.bodies import GROUND
 from casmbd.model.values import resolve
+from casmbd.system.choice import AUTO, choose_coordinates
 from casmbd.system.context import Context
 from casmbd.system.descriptions import COORDINATE_CHOICES, describe
 from casmbd.system.forces import AppliedForces
@@ -82,14 +83,22 @@ class System(AppliedForces, Outputs, Reactions):
         mechanism.validate()
         self.mechanism = mechanism
         self.dimension = mechanism.dimension
-        self.coordinates = coordinates or getattr(mechanism, "coordinates", "absolute")
+        self.coordinates = coordinates or getattr(mechanism, "coordinates", AUTO)
+        #: why these coordinates: "given" or the automatic choice's reason (system/choice.py)
+        self.coordinate_reason = "given"
+        choice = None
+        if self.coordinates == AUTO:
+            choice = choose_coordinates(mechanism)
+            self.coordinates, self.coordinate_reason = choice.coordinates, choice.reason
         if self.coordinates not in COORDINATE_CHOICES:
             raise ModelError(f"unknown coordinate choice {self.coordinates!r} (known: "
-                             f"{', '.join(COORDINATE_CHOICES)})")
+                             f"{', '.join(COORDINATE_CHOICES)}, {AUTO})")
         self.body_names = list(mechanism.bodies)
         #: joints whose equations the coordinates satisfy identically (the spanning tree)
         self.tree_joints: list[str] = []
-        if self.coordinates == "joint":
+        if choice is not None and choice.descriptions is not None:
+            self.descriptions, self.tree_joints = choice.descriptions, choice.tree_joints
+        elif self.coordinates == "joint":
             self.descriptions, self.tree_joints = tree_descriptions(
                 mechanism, getattr(mechanism, "tree", None))
         else:
