@@ -106,3 +106,9 @@ def test_info_reports_the_choice():
     assert data["coordinate_choice"] == "joint"
     assert data["coordinate_reason"].startswith("1 loop joint (C)")
     assert data["coordinates"] == ["A.angle", "B.angle", "D.angle"]
+    assert data["default_formulation"] == "augmented_lagrangian"
+    assert data["default_integrator"] == "adams" and "BDF" in data["integrator_reason"]
+    out = subprocess.run([sys.executable, "-m", "casmbd", "info", "--json",
+                          str(ROOT / "examples" / "double_pendulum.toml")],
+                         capture_output=True, text=True, check=True, timeout=300)
+    assert json.loads(out.stdout)["default_formulation"] == "articulated"

@@ -13,11 +13,13 @@ import time
 import numpy as np
 
 from casmbd.analysis.assembly import accelerations, assemble, velocities
+from casmbd.analysis.integrators import INTEGRATORS
 from casmbd.analysis.redundancy import rank_report
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, AssemblyError, CasmbdError, RedundantConstraintError
 from casmbd.limits import check_steps, output_values
 from casmbd.results import Result
+from casmbd.system.formulations import FORMULATIONS, default_formulation
 
 
 def _model(mechanism_or_model, analysis: str, mode: str) -> NumericModel:
@@ -105,8 +107,27 @@ def info(mechanism_or_model, mode: str = "auto") -> dict:
                                  "equation": labels[i].label} for i in dependent],
         "initial_coordinates": q.tolist(),
         "stats": model.report_dict,
+        **default_path(model.system),
     })
     return out
+
+
+def default_path(system) -> dict:
+    """What ``simulate`` does when nothing is chosen: the formulation and integrator it takes
+    for ``system`` and why (the coordinates are the system's own, :mod:`casmbd.system.choice`)."""
+    name = default_formulation(system)
+    kind = FORMULATIONS[name]
+    why = ("a tree in joint coordinates: the articulated-body recursion (O(N))"
+           if name == "articulated" else
+           f"{system.nc} constraint equations: the default for constrained systems (stays on "
+           "its branch at singular poses, keeps redundant equations)")
+    integ = INTEGRATORS[kind.default_integrator]
+    stiff = integ.stiff_alternative
+    how = f"{kind.default_integrator} ({integ.label})" + (
+        f"; {stiff} ({INTEGRATORS[stiff].label}) instead when the start is stiff" if stiff
+        else "")
+    return {"default_formulation": name, "formulation_reason": why,
+            "default_integrator": kind.default_integrator, "integrator_reason": how}
 
 
 def kinematics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.0,

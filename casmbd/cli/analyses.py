@@ -30,6 +30,8 @@ def _cmd_info(args) -> tuple[dict, str]:
              f"{data['coordinate_choice']} coordinates)",
              f"  coordinates ({data['n_coordinates']}): {', '.join(data['coordinates'])}",
              f"  coordinate choice: {data.get('coordinate_reason', 'given')}",
+             f"  simulate by default: {data['default_formulation']} "
+             f"({data['formulation_reason']}), integrator {data['integrator_reason']}",
              f"  constraints: {data['n_constraints']} equations{body_rows}, "
              f"rank {data['rank']}",
              f"  degrees of freedom: {data['degrees_of_freedom']}"]
