@@ -84,20 +84,24 @@ def test_inverse_dynamics_names_force_not_finite_later():
     assert_names(exc, "inverse dynamics at t = 0.5", "force 'push'", "-inf")
 
 
-def test_user_force_not_finite_names_the_element():
+@pytest.mark.parametrize("coordinates, shown", [("absolute", "rod.x = -inf"),
+                                                 ("auto", "pivot.angle = nan")])
+def test_user_force_not_finite_names_the_element(coordinates, shown):
     """A Python user force (no value field to evaluate) that is -inf at t = 0: the element is
-    named from its own generalized force."""
+    named from its own generalized force.  In absolute coordinates the force's row is rod.x;
+    in the automatic choice (joint coordinates) it is projected on the pivot angle,
+    J^T F = -0.5 sin(0) (-inf) = nan."""
     import casadi as ca
 
     from casmbd.model import Mechanism
 
-    mech = Mechanism("user", gravity=[0.0, -9.81])
+    mech = Mechanism("user", gravity=[0.0, -9.81], coordinates=coordinates)
     mech.add_body("rod", mass=1.0, inertia=0.1, position=[0.5, 0.0])
     mech.add_revolute("pivot", "ground", "rod", [0.0, 0.0])
     mech.add_user_force("wild", lambda ctx: ca.vertcat(ca.log(ctx.t), 0.0), body="rod")
     with pytest.raises(ModelError) as exc:
         simulate(mech, t_end=0.1, steps=2, mode="vm")
-    assert_names(exc, "simulation at t = 0", "force 'wild'", "not finite", "rod.x = -inf")
+    assert_names(exc, "simulation at t = 0", "force 'wild'", "not finite", shown)
 
 
 @pytest.mark.parametrize("expr", ['"log(t)"', '"sqrt(-1)"'])
@@ -230,20 +234,31 @@ def push(position_toml: str) -> str:
 
 def test_driver_contradicting_weld_in_position():
     """x = 0.82 for a block welded at x = 0.5: the assembly error names the driver first and
-    prints the residuals (the least-squares iterate splits the 0.32 m between the driver and
-    the weld: -0.16 each)."""
+    prints the residuals.  In absolute coordinates the least-squares iterate splits the 0.32 m
+    between the driver and the weld (-0.16 each); in the automatic choice (joint coordinates)
+    the weld is a tree joint that leaves no coordinate, so the driver keeps all of it (-0.32)
+    and the hint gives the only x the joints allow."""
+    mech = loads_scene(push("0.82"))
+    mech.coordinates = "absolute"
     with pytest.raises(AssemblyError) as exc:
-        kinematics(loads_scene(push("0.82")), t_end=1.0, steps=2, mode="vm")
+        kinematics(mech, t_end=1.0, steps=2, mode="vm")
     message = assert_names(exc, "driver 'push' equation 'x' residual -0.16",
                            "joint 'weld' equation 'x' residual -0.16")
     assert message.index("driver 'push'") < message.index("joint 'weld'")
+    with pytest.raises(AssemblyError) as exc:
+        kinematics(loads_scene(push("0.82")), t_end=1.0, steps=2, mode="vm")
+    assert_names(exc, "driver 'push' asks for body 'block' x = 0.82 at t = 0",
+                 "allow only body 'block' x at most 0.5",
+                 "driver 'push' equation 'x' residual -0.32")
 
 
 @pytest.mark.parametrize("position, level", [('"0.5 + t"', "velocity"),
                                              ('"0.5 + t**2"', "acceleration")])
 def test_simulation_start_with_contradicting_driver_rates(position, level):
     """Agrees with the weld at t = 0 in position but not in rate: the simulation used to run
-    with minimum-norm multipliers and end with |C| = 1; now an AssemblyError at the start."""
+    with minimum-norm multipliers and end with |C| = 1; now an AssemblyError at the start.
+    In the automatic choice (joint coordinates) the welded block has no coordinate at all:
+    the augmented-Lagrangian penalty used to fail on the empty mass matrix (numpy ValueError)."""
     with pytest.raises(AssemblyError) as exc:
         simulate(loads_scene(push(position)), t_end=1.0, steps=4, mode="vm")
     assert_names(exc, "t = 0", f"{level} level", "driver 'push'", "residual")
@@ -259,11 +274,22 @@ def test_two_drivers_disagreeing_in_rate():
 
 def test_driver_unreachable_later_in_kinematics():
     """The rod's centre (0.5 m from the pivot) driven to x = 0.4 + 0.2 t leaves its reach at
-    t = 0.5: kinematics stops at the first output after it, naming the equations."""
+    t = 0.5: kinematics stops at the first output after it, naming the equations (absolute
+    coordinates: the driver and the pivot; the automatic choice, joint coordinates: the pivot
+    is the tree, the driver is named with the range |x| <= 0.5 the pivot allows)."""
     text = (HEAD + body("rod", x=0.4, y=0.3, angle="0.6435")
             + joint("pivot", "revolute", point="[0.0, 0.0]")
             + entry("drivers", name='"reach"', body='"rod"', coordinate='"x"',
                     position='"0.4 + 0.2*t"'))
+    mech = loads_scene(text)
+    mech.coordinates = "absolute"
+    with pytest.raises(AssemblyError) as exc:
+        kinematics(mech, t_end=1.0, steps=10, mode="vm")
+    assert_names(exc, "t = 0.6", "joint 'pivot'", "residual")
     with pytest.raises(AssemblyError) as exc:
         kinematics(loads_scene(text), t_end=1.0, steps=10, mode="vm")
-    assert_names(exc, "t = 0.6", "joint 'pivot'", "residual")
+    message = assert_names(exc, "t = 0.6", "driver 'reach' asks for body 'rod' x = 0.52",
+                           "residual")
+    low, high = (float(x) for x in
+                 message.split("x from ")[1].split(",")[0].split(" to "))
+    assert abs(low + 0.5) < 1e-3 and abs(high - 0.5) < 1e-3, message

@@ -70,6 +70,8 @@ def _default_penalty(system: System) -> float:
     f = ca.Function("scale", [system.q, system.t, system.p],
                     [ca.diag(system.mass_matrix), ca.sum1(system.constraint_jacobian**2).T])
     m_diag, c_diag = (np.asarray(x).ravel() for x in f(q0, 0.0, system.parameter_values))
+    if not m_diag.size:  # no coordinates (every body welded, joint coordinates): K is 0 × 0
+        return 1.0
     c_mean = float(np.mean(c_diag[c_diag > 0])) if np.any(c_diag > 0) else 1.0
     with np.errstate(all="ignore"):
         penalty = 1e5 * float(np.mean(m_diag)) / c_mean
