@@ -81,11 +81,13 @@ def test_structured_derivatives_equal_casadi_derivatives(label):
 
 
 def test_derivative_modes_reach_the_same_optimum():
-    """The swing-up on 10 intervals: structured derivatives in the virtual machine (default),
-    compiled per-element functions (then loaded from the cache, nothing compiled) and CasADi's
-    MX derivatives reach the same optimum (1e-8 relative) and controls (1e-6)."""
+    """The swing-up on 10 intervals: structured derivatives in the virtual machine
+    (``compile=False``), compiled per-element functions (``"elements"``; the second process-like
+    solve loads them through the element index, nothing differentiated or compiled),
+    ``"auto"`` (small elements: compiled, here found in the cache) and CasADi's MX derivatives
+    reach the same optimum (1e-8 relative) and controls (1e-6)."""
     sols = {}
-    for mode in ("auto", "elements", "elements", "vm"):
+    for mode in (False, "elements", "elements", "auto", "vm"):
         ocp = load_ocp(OCP / "double_pendulum_swingup.toml")
         ocp.intervals, ocp.subintervals, ocp.compile = 10, 1, mode
         sols.setdefault(mode, []).append(ocp.solve())
@@ -94,12 +96,41 @@ def test_derivative_modes_reach_the_same_optimum():
         for sol in runs:
             assert abs(sol.objective - ref.objective) < 1e-8 * abs(ref.objective), mode
             np.testing.assert_allclose(sol.u, ref.u, atol=1e-6)
+    assert sols[False][0].stats["derivatives"] == "structured, virtual machine"
+    assert not sols[False][0].stats["compiled"]
     first, again = sols["elements"]
     if first.stats["compiled"]:  # a C compiler is there (CASMBD_COMPILE not 0)
         assert first.stats["derivatives"] == "structured, compiled elements"
         assert again.stats["cache_hit"] and again.stats["compile_seconds"] == 0.0
-    assert sols["auto"][0].stats["derivatives"] == "structured, virtual machine"
-    assert not sols["auto"][0].stats["compiled"]
+        auto = sols["auto"][0].stats
+        assert auto["derivatives"] == "structured, compiled elements" and auto["cache_hit"]
+
+
+def test_element_index_refuses_a_changed_library(tmp_path, monkeypatch):
+    """The index that maps element functions to their compiled library is only followed when
+    the library passes the cache's checks: after its bytes change, nothing is loaded from it
+    (and the next solve builds it again, with the same optimum)."""
+    import casmbd.ocp.structured as st
+
+    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path))
+    ocp = load_ocp(OCP / "cart_pole.toml")
+    ocp.intervals, ocp.compile = 4, "elements"
+    first = ocp.solve()
+    if not first.stats["compiled"]:
+        pytest.skip("no C compiler (or CASMBD_COMPILE=0)")
+    tr = Transcription(ocp)
+    key = st._element_key(tr.calls)
+    names = [f"casmbd_ocp_{key[:12]}_d{i}_{k}" for i in range(len(tr.calls))
+             for k in st._KINDS]
+    assert st._load_indexed("casmbd_ocp", key, names) is not None
+    libraries = sorted(tmp_path.glob("casmbd_ocp_el_*.so"))
+    assert libraries
+    with open(libraries[0], "ab") as handle:
+        handle.write(b"\0")
+    assert st._load_indexed("casmbd_ocp", key, names) is None
+    with pytest.warns(RuntimeWarning, match="not used"):
+        again = ocp.solve()
+    assert abs(again.objective - first.objective) < 1e-12 * first.objective
 
 
 def test_unknown_mode_and_non_affine_arguments_are_refused():

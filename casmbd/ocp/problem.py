@@ -105,18 +105,19 @@ class Ocp:
         compiler or file options) when the problem is built and again when it is solved;
         trusted code passes anything else to :meth:`solve` (``options=``), unchecked.
     compile : {"auto", False, True, "elements", "nlp", "vm"}
-        How the NLP's derivatives are built (:data:`casmbd.ocp.structured.MODES`; measured
-        in docs/ocp.md). ``"auto"`` (default) and False: each mapped element function (one
-        collocation element or shooting interval, one mesh node) is differentiated once in
-        SX and the NLP's gradient, Jacobian and Lagrangian Hessian are assembled from those
-        with constant sparse matrices, evaluated in CasADi's virtual machine — set-up in
-        tenths of a second, nothing compiled. True or ``"elements"``: the same with the
-        per-element derivative functions compiled to C and cached (small translation units;
-        a faster solve where the element is large, e.g. a 6-joint arm). ``"nlp"``: the whole
-        NLP's derivative functions generated from the MX graph, compiled and cached (minutes
-        of C compilation on larger problems). ``"vm"``: CasADi's own derivatives of the MX
-        graph in the virtual machine. Without a C compiler the compiled modes use the
-        virtual machine.
+        How the NLP's derivatives are built (:func:`casmbd.ocp.structured.nlp_solver`;
+        measured in docs/ocp.md). Each mapped element function (one collocation element or
+        shooting interval, one mesh node) is differentiated once in SX and the NLP's
+        gradient, Jacobian and Lagrangian Hessian are assembled from those with constant
+        sparse matrices. ``"auto"`` (default): these per-element functions are compiled to C
+        and cached when small (:data:`~casmbd.ocp.structured.AUTO_COMPILE_INSTRUCTIONS`) or
+        already cached, else evaluated in CasADi's virtual machine — set-up in seconds at
+        most. False: always the virtual machine, nothing cached. True or ``"elements"``:
+        always compiled (a faster solve where the element is large, e.g. a 6-joint arm, after
+        a long compilation). ``"nlp"``: the whole NLP's derivative functions generated from
+        the MX graph, compiled and cached (minutes of C compilation on larger problems).
+        ``"vm"``: CasADi's own derivatives of the MX graph in the virtual machine. Without a
+        C compiler the compiled modes use the virtual machine.
     """
 
     mechanism: object

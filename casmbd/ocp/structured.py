@@ -28,12 +28,19 @@ compiled to C (small translation units) and cached (:func:`compile_functions`).
 
 from __future__ import annotations
 
+import hashlib
+import json
+import os
+import pathlib
+import platform
+import time
 from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
 
-from casmbd.compiled.codegen import compile_functions, compile_nlp_solver
+from casmbd.compiled import cache
+from casmbd.compiled.codegen import BuildReport, compile_functions, compile_nlp_solver
 from casmbd.errors import AnalysisError
 
 __all__ = ["MODES", "MappedCall", "check_mode", "derivative_functions", "nlp_solver",
@@ -226,7 +233,7 @@ def structured_nlp_functions(w: ca.MX, g_blocks: list, objective_rest, calls: li
 
 
 #: How the NLP's derivatives are evaluated, by :attr:`Ocp.compile <casmbd.ocp.problem.Ocp>`.
-MODES = {"auto": "structured, virtual machine", False: "structured, virtual machine",
+MODES = {"auto": "structured, compiled if small", False: "structured, virtual machine",
          True: "structured, compiled elements", "elements": "structured, compiled elements",
          "nlp": "compiled NLP", "vm": "virtual machine, MX"}
 
@@ -240,14 +247,94 @@ def check_mode(value) -> str | bool:
                         f"{', '.join(repr(k) for k in MODES)}")
 
 
+#: ``compile="auto"`` compiles the per-element derivative functions when they hold at most
+#: this many SX instructions in all (about 2 s of ``cc -O2`` on the 2-core machine of
+#: docs/ocp.md: cart-pole 1.6k, double pendulum 8.4k; the four-bar's 37k took 4–9 s, the UR5's
+#: 580k over a minute) and evaluates them in the virtual machine otherwise.
+AUTO_COMPILE_INSTRUCTIONS = 20_000
+#: Bumped when the derivative functions built for the same element functions change.
+_DERIVATIVES_FORMAT = "casmbd-ocp-derivatives-1"
+_KINDS = ("g", "q", "jac", "grad", "hess")
+
+
+def _element_key(calls: list) -> str:
+    """SHA-256 of what the derivative functions are made from: the element functions
+    (CasADi's exact serialization), their roles, CasADi, the platform and the compiler
+    settings that reach the library."""
+    digest = hashlib.sha256()
+    for part in (_DERIVATIVES_FORMAT, ca.__version__, platform.platform(),
+                 os.environ.get("CC", ""), os.environ.get("CASMBD_CFLAGS", "")):
+        digest.update(part.encode() + b"\x1e")
+    for call in calls:
+        digest.update(call.function.serialize().encode())
+        digest.update(repr((call.quad, call.g_block is None)).encode() + b"\x1e")
+    return digest.hexdigest()
+
+
+def _index_path(name: str, key: str) -> pathlib.Path:
+    return cache.cache_dir() / f"{name}_{key[:16]}.index.json"
+
+
+def _load_indexed(name: str, key: str, names: list[str]) -> dict | None:
+    """The compiled derivative functions ``names`` recorded under the element ``key``, each
+    library verified by :func:`casmbd.compiled.cache.check_entry` (size, SHA-256, build key,
+    signatures) before it is opened and the loaded signatures compared again; None when
+    anything is missing or does not match (then they are built again)."""
+    path = _index_path(name, key)
+    try:
+        index = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(index, dict) or index.get("key") != key:
+        return None
+    out = {}
+    for entry in index.get("libraries", []):
+        library = path.parent / str(entry.get("file", ""))
+        expected = entry.get("functions") or {}
+        if library.parent != path.parent or cache.check_entry(
+                library, str(entry.get("key")), expected) is not None:
+            return None
+        try:
+            loaded = {n: ca.external(n, str(library), {"enable_fd": True}) for n in expected}
+        except RuntimeError:
+            return None
+        if cache.differences(cache.signatures(loaded.values()), expected):
+            return None
+        out.update(loaded)
+    return out if sorted(out) == sorted(names) else None
+
+
+def _compiled_derivatives(calls: list, name: str, key: str, derivatives: list):
+    """(derivatives compiled by :func:`compile_functions` and loaded, report, compiled?);
+    the libraries are then indexed under the element ``key`` (:func:`_load_indexed`)."""
+    flat = [f for group in derivatives for f in group]
+    loaded, report = compile_functions(flat, f"{name}_el")
+    if report.mode != "compiled":
+        return derivatives, report, False
+    entries = []
+    for library in report.libraries or (report.library,):
+        record = cache.read_record(pathlib.Path(library))
+        entries.append({"file": os.path.basename(library), "key": record.get("key"),
+                        "functions": record.get("functions", {})})
+    try:
+        cache.write_atomic(_index_path(name, key), json.dumps(
+            {"key": key, "libraries": entries}, sort_keys=True))
+    except OSError:
+        pass  # the libraries stay usable, found by the generated code's key
+    return [[loaded[f.name()] for f in group] for group in derivatives], report, True
+
+
 def nlp_solver(name: str, plugin: str, w: ca.MX, objective, objective_rest, g_blocks: list,
                calls: list, options: dict, mode, structured: bool = True):
     """The NLP solver of a transcription and how it was built.
 
-    ``mode`` (:data:`MODES`): ``"auto"``/False — derivatives assembled from the per-element
-    SX derivative functions (:func:`structured_nlp_functions`) in CasADi's virtual machine;
+    ``mode`` (:data:`MODES`): False — derivatives assembled from the per-element SX
+    derivative functions (:func:`structured_nlp_functions`) in CasADi's virtual machine;
     True/``"elements"`` — the same with those functions compiled to C and cached
-    (:func:`casmbd.compiled.codegen.compile_functions`: one small translation unit);
+    (:func:`casmbd.compiled.codegen.compile_functions`, indexed under the element functions'
+    serialization so that a later process loads them without differentiating);
+    ``"auto"`` — compiled when already cached or small (:data:`AUTO_COMPILE_INSTRUCTIONS`),
+    else in the virtual machine;
     ``"nlp"`` — the whole NLP's derivative functions generated from the MX graph, compiled
     and cached (:func:`casmbd.compiled.codegen.compile_nlp_solver`); ``"vm"`` — CasADi's own
     derivatives of the MX graph in the virtual machine.  Without structure (an MX integrator
@@ -268,13 +355,26 @@ def nlp_solver(name: str, plugin: str, w: ca.MX, objective, objective_rest, g_bl
         return solver, report, MODES["nlp"] if report.mode == "compiled" else MODES["vm"]
     if mode == "vm" or not structured:
         return ca.nlpsol(name, plugin, problem, options), None, MODES["vm"]
-    derivatives = [derivative_functions(c, f"{name}_d{i}") for i, c in enumerate(calls)]
-    report = None
-    if mode in (True, "elements"):
-        flat = [f for group in derivatives for f in group]
-        loaded, report = compile_functions(flat, f"{name}_el")
-        derivatives = [[loaded[f.name()] for f in group] for group in derivatives]
+    report, compiled, hit = None, False, None
+    key = _element_key(calls) if mode is not False else ""
+    stem = f"{name}_{key[:12]}" if key else name
+    names = [[f"{stem}_d{i}_{k}" for k in _KINDS] for i in range(len(calls))]
+    if key and os.environ.get("CASMBD_COMPILE", "1") != "0":
+        start = time.perf_counter()
+        hit = _load_indexed(name, key, [n for group in names for n in group])
+    if hit is not None:  # compiled before: loaded, nothing differentiated or generated
+        derivatives, compiled = [[hit[n] for n in group] for group in names], True
+        report = BuildReport(mode="compiled", cache_hit=True, compiled=False,
+                             codegen_seconds=0.0, compile_seconds=0.0,
+                             load_seconds=time.perf_counter() - start,
+                             library=str(_index_path(name, key)), key=key)
+    else:
+        derivatives = [derivative_functions(c, f"{stem}_d{i}") for i, c in enumerate(calls)]
+        small = sum(f.n_instructions() for group in derivatives for f in group) \
+            <= AUTO_COMPILE_INSTRUCTIONS
+        if mode in (True, "elements") or (mode == "auto" and small):
+            derivatives, report, compiled = _compiled_derivatives(calls, name, key,
+                                                                  derivatives)
     built = structured_nlp_functions(w, g_blocks, objective_rest, calls, derivatives)
     solver = ca.nlpsol(name, plugin, built["problem"], {**options, **built["options"]})
-    compiled = report is not None and report.mode == "compiled"
     return solver, report, MODES[True] if compiled else MODES[False]
