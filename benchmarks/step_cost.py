@@ -1,0 +1,261 @@
+"""Cost of one integrator step against the cost of the right-hand side (issue 22, item 5).
+
+For the pendulum chains of :func:`benchmarks.chains.pendulum_chain` (N = 8 and 32 rods, joint
+and absolute coordinates, each with the formulation ``Simulator`` chooses) this measures, in
+one process and on one compiled model:
+
+* *RHS*: µs per evaluation of the compiled right-hand side through ``Function.buffer()``
+  (what an integrator calls; the fastest of ``--repeat`` timeit runs);
+* the default integrator (``Simulator.run`` without ``integrator``: CVODES-Adams) at rtol =
+  atol = :data:`TOL` over t ∈ [0, :data:`T_END`] with one output interval: *µs/step* is
+  ``stats['solve_seconds'] / stats['steps']`` (fastest of ``--repeat`` runs), *µs/eval* the
+  same time per right-hand-side evaluation; *raw call* is the CasADi integrator called
+  directly (no casmbd around it), and *floor* the same CVODES-Adams call on a right-hand side
+  that costs next to nothing (uncoupled oscillators with as many states: CasADi's and
+  SUNDIALS' own cost per step);
+* fixed-step RK4 (``integrator="rk4"``, step :data:`RK4_STEP`) with one output interval and
+  with :data:`OUTPUTS` output intervals (10 steps each).
+
+*ratio* = µs/step ÷ RHS: the issue's target is ≤ 3 on chain8 and chain32.  Timings are the
+fastest of the repeats because the machine is shared; the solve's numbers (steps, errors) do
+not depend on them.
+
+Run ``python -m benchmarks.step_cost [--repeat 5] [--update-docs]``; ``--render`` rewrites
+the docs section from ``benchmarks/results/step_cost.json``.
+"""
+
+from __future__ import annotations
+
+import json
+import platform
+import time
+from pathlib import Path
+
+import casadi as ca
+import numpy as np
+
+from benchmarks.bench_equations import buffer_evaluator
+from benchmarks.chains import pendulum_chain
+from benchmarks.docs import run_study, study_parser
+
+ROOT = Path(__file__).resolve().parent.parent
+RESULTS = ROOT / "benchmarks" / "results" / "step_cost.json"
+#: the same study on the code before issue 22 item 5 (commit d9ae833: fixed-step folds called
+#: with CasADi's argument conversion, progress callback at every step), for the "before"
+#: columns; kept as measured
+BEFORE = ROOT / "benchmarks" / "results" / "step_cost_before.json"
+DOC = ROOT / "docs" / "performance.md"
+HEAD = "## Integrator steps against the right-hand side"
+
+#: the chains and coordinates measured
+CASES = ((8, "joint"), (32, "joint"), (8, "absolute"), (32, "absolute"))
+#: time span [s], tolerance of the default integrator, RK4 step [s], RK4 output intervals
+T_END, TOL, RK4_STEP, OUTPUTS = 2.0, 1e-7, 1e-3, 200
+#: the issue's target: µs per step ≤ TARGET × µs per right-hand side
+TARGET = 3.0
+
+
+#: where the default integrator's time goes (``perf record`` of CVODES-Adams on chain8 in joint
+#: coordinates over t ∈ [0, 200] s, 114 272 steps, 181 323 right-hand sides: ``perf record -o
+#: p.data python run.py; perf report -i p.data --sort dso``), measured once on 2026-11-25
+WHERE = (
+    "Where a default (CVODES-Adams) step goes, by `perf record` of chain8 in joint coordinates "
+    "over t ∈ [0, 200] s (114 272 steps, 1.6 right-hand sides per step; `perf report --sort "
+    "dso`; the process's set-up included): the kernel 36 % — almost all of it "
+    "`clock_gettime(CLOCK_PROCESS_CPUTIME_ID)`, the processor-time clock CasADi's `FStats` "
+    "reads before and after every right-hand-side evaluation "
+    "(`OracleFunction::calc_function`, unconditionally; `record_time` does not switch it "
+    "off) —, the compiled right-hand side 14 % (with libm), CasADi's dispatch 10 %, SUNDIALS "
+    "12 %, libc 5 %. The *floor* column is that fixed cost alone (the same CVODES call on a "
+    "right-hand side that costs nothing): 2–7 µs per step here, more than 3× the right-hand "
+    "side of chain8 (0.35 µs on a quiet machine, docs above), so the ratio cannot reach 3 on "
+    "chain8 through CasADi's integrator whatever casmbd does; it does on larger models. "
+    "casmbd's own code in a run costs 34 µs (`CapturedOutput`: a temporary file and two "
+    "`dup2`) plus 8 µs (`stats()`), measured alone; *raw* is the integrator called in a "
+    "tight loop, 0.3–0.5 ms per run faster than inside `Simulator.run`. Cut in casmbd: "
+    "the fixed-step loops (compiled folds of 256, 64, 16, 4 and 1 steps called through "
+    "`Function.buffer()` on arrays bound once instead of CasADi's argument conversion: "
+    "50–150 µs a call) and the progress bar of SUNDIALS runs (its Python callback ran at "
+    "every step, about 2 µs; now only for the steps ending in the first eighth of an output "
+    "interval).",
+)
+
+
+def _fastest(fn, repeat: int, min_seconds: float = 0.05) -> float:
+    """Seconds per call of ``fn``: the fastest of ``repeat`` runs of enough calls to last
+    ``min_seconds``."""
+    fn()
+    number = 1
+    while True:
+        t0 = time.perf_counter()
+        for _ in range(number):
+            fn()
+        elapsed = time.perf_counter() - t0
+        if elapsed >= min_seconds:
+            break
+        number *= 2
+    best = elapsed / number
+    for _ in range(repeat - 1):
+        t0 = time.perf_counter()
+        for _ in range(number):
+            fn()
+        best = min(best, (time.perf_counter() - t0) / number)
+    return best
+
+
+def _rhs_us(sim, repeat: int) -> float:
+    f = sim.dyn
+    nx = f.nnz_in(1)
+    rng = np.random.default_rng(0)
+    args = [np.zeros(f.nnz_in(i)) for i in range(f.n_in())]
+    args[1][:] = np.concatenate([sim.model.initial_coordinates(),
+                                 np.zeros(nx - sim.model.nq)]) + 1e-3 * rng.standard_normal(nx)
+    args[3][:] = sim.model.p
+    trigger, outs = buffer_evaluator(f, args)
+    trigger()
+    if not np.all(np.isfinite(outs[0])):
+        raise RuntimeError("non-finite right-hand side at the timing state")
+    return 1e6 * _fastest(trigger, repeat, 0.02)
+
+
+def _run(sim, repeat: int, **kw) -> dict:
+    """The fastest of ``repeat`` runs of ``sim.run(T_END, …, **kw)``: solve time and counts."""
+    best, outputs = None, kw.pop("outputs", 1)
+    for _ in range(repeat):
+        res = sim.run(T_END, outputs, **kw)
+        st = res.stats
+        row = {"outputs": len(res.t) - 1, "solve_s": st["solve_seconds"],
+               "steps": int(st["steps"]), "evals": int(st["rhs_evaluations"]),
+               "integrator": st["integrator"],
+               "tip": np.asarray(res.marker("tip")["position"][-1], float)[:2].tolist()}
+        if best is None or row["solve_s"] < best["solve_s"]:
+            best = row
+    best["us_step"] = 1e6 * best["solve_s"] / best["steps"]
+    best["us_eval"] = 1e6 * best["solve_s"] / best["evals"]
+    return best
+
+
+def _raw_call(sim, name: str, repeat: int) -> dict:
+    """The CasADi integrator of the run called directly (no casmbd code around it)."""
+    from casmbd.analysis import integrators as integ
+
+    solver = integ.sundials(sim.dyn, name, 0.0, [T_END], TOL, TOL, 500_000)
+    x0 = np.concatenate([sim.model.initial_coordinates(), sim.model.initial_velocities()])
+    z0, p = np.zeros(sim.dyn.nnz_in(2)), sim.model.p
+    seconds = _fastest(lambda: solver(x0=x0, z0=z0, p=p), repeat, 0.0)
+    return {"seconds": seconds, "steps": int(solver.stats()["nsteps"])}
+
+
+def _floor(nx: int, name: str, repeat: int) -> dict:
+    """CVODES through CasADi on nx / 2 uncoupled oscillators q̈ = −ω² q (ω = 2π·(1 … 2)
+    rad/s, a right-hand side of nx multiplications in CasADi's virtual machine): µs per step
+    of CasADi's and SUNDIALS' own work."""
+    from casmbd.analysis import integrators as integ
+
+    m = nx // 2
+    q, v, t = ca.SX.sym("q", m), ca.SX.sym("v", m), ca.SX.sym("t")
+    omega2 = (2 * np.pi * np.linspace(1.0, 2.0, m)) ** 2
+    kind = integ.integrator_kind(name)
+    solver = ca.integrator("floor", kind.plugin,
+                           {"x": ca.vertcat(q, v), "t": t, "ode": ca.vertcat(v, -omega2 * q)},
+                           0.0, [T_END], {"reltol": TOL, "abstol": TOL, **dict(kind.options)})
+    x0 = np.concatenate([np.ones(m), np.zeros(m)])
+    seconds = _fastest(lambda: solver(x0=x0), repeat, 0.0)
+    steps = int(solver.stats()["nsteps"])
+    return {"us_step": 1e6 * seconds / steps, "steps": steps}
+
+
+def measure(repeat: int = 10) -> dict:
+    from casmbd.analysis.simulate import Simulator
+
+    rows = []
+    for n, coords in CASES:
+        mech = pendulum_chain(n)
+        mech.coordinates = coords
+        mech.name = f"step_cost_chain{n}_{coords}"
+        sim = Simulator(mech)
+        row = {"n": n, "coordinates": coords, "formulation": sim.formulation_name,
+               "nx": int(sim.dyn.nnz_in(1)), "rhs_us": _rhs_us(sim, repeat)}
+        row["default"] = _run(sim, repeat, rtol=TOL, atol=TOL)
+        raw = _raw_call(sim, row["default"]["integrator"], repeat)
+        row["raw_us_step"] = 1e6 * raw["seconds"] / raw["steps"]
+        row["floor"] = _floor(row["nx"], row["default"]["integrator"], repeat)
+        row["rk4_one"] = _run(sim, repeat, integrator="rk4", step=RK4_STEP)
+        row["rk4_grid"] = _run(sim, repeat, integrator="rk4", step=RK4_STEP, outputs=OUTPUTS)
+        rows.append(row)
+        d = row["default"]
+        print(f"chain{n} {coords}: RHS {row['rhs_us']:.3g} µs; {d['integrator']} "
+              f"{d['us_step']:.3g} µs/step (raw {row['raw_us_step']:.3g}, floor "
+              f"{row['floor']['us_step']:.3g}); rk4 {row['rk4_one']['us_step']:.3g} / "
+              f"{row['rk4_grid']['us_step']:.3g} µs/step", flush=True)
+    return {"date": time.strftime("%Y-%m-%d"), "machine": platform.machine(),
+            "python": platform.python_version(), "casadi": ca.__version__, "repeat": repeat,
+            "rows": rows}
+
+
+def _f(x: float) -> str:
+    return f"{x:.3g}"
+
+
+def markdown(data: dict) -> str:
+    """The docs section."""
+    lines = [
+        HEAD, "",
+        "Written by `python -m benchmarks.step_cost --update-docs` "
+        f"({data['date']}, CasADi {data['casadi']}, fastest of {data['repeat']} runs on a "
+        "shared 2-core machine). Pendulum chains released horizontally, t ∈ [0, "
+        f"{T_END:g}] s, each with the formulation `Simulator` chooses. *RHS*: µs per "
+        "evaluation of the compiled right-hand side through `Function.buffer()`. *default*: "
+        f"`Simulator.run` without an integrator (rtol = atol = {TOL:g}, one output interval); "
+        "*µs/step* = `solve_seconds / steps`, *µs/eval* = `solve_seconds / rhs_evaluations`, "
+        "*ratio* = µs/step ÷ RHS (target ≤ 3); *raw*: the same CasADi integrator called "
+        "directly; *floor*: the same CVODES call on uncoupled oscillators with as many states "
+        "(a right-hand side that costs next to nothing: CasADi's and SUNDIALS' own cost per "
+        "step). *rk4*: "
+        f"fixed step {RK4_STEP:g} s ({round(T_END / RK4_STEP)} steps, 4 evaluations "
+        f"each) with 1 and with {OUTPUTS} output intervals.", "",
+        "| chain | coordinates | formulation | nx | RHS [µs] | default | steps | µs/step | "
+        "µs/eval | ratio | raw µs/step | floor µs/step | rk4 µs/step (1 output) | ratio | "
+        f"rk4 µs/step ({OUTPUTS} outputs) | ratio |",
+        "|---|---|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in data["rows"]:
+        d, one, grid = r["default"], r["rk4_one"], r["rk4_grid"]
+        lines.append(
+            f"| chain{r['n']} | {r['coordinates']} | {r['formulation']} | {r['nx']} | "
+            f"{_f(r['rhs_us'])} | {d['integrator']} | {d['steps']} | {_f(d['us_step'])} | "
+            f"{_f(d['us_eval'])} | {d['us_step'] / r['rhs_us']:.2f} | "
+            f"{_f(r['raw_us_step'])} | {_f(r['floor']['us_step'])} | {_f(one['us_step'])} | "
+            f"{one['us_step'] / r['rhs_us']:.2f} | {_f(grid['us_step'])} | "
+            f"{grid['us_step'] / r['rhs_us']:.2f} |")
+    met = [f"chain{r['n']} {r['coordinates']} {r['default']['us_step'] / r['rhs_us']:.2f}"
+           for r in data["rows"]]
+    lines += ["", "Ratio µs/step ÷ RHS of the default integrator (target ≤ "
+              f"{TARGET:g}): " + "; ".join(met) + "."]
+    if BEFORE.exists():
+        before = {(r["n"], r["coordinates"]): r
+                  for r in json.loads(BEFORE.read_text())["rows"]}
+        lines += ["", "Fixed-step RK4 before and after (µs/step; *before*: the same script on "
+                  "commit d9ae833, where every compiled fold was called with CasADi's argument "
+                  f"conversion, measured {json.loads(BEFORE.read_text())['date']}):", "",
+                  "| chain | coordinates | 1 output, before | 1 output, now | "
+                  f"{OUTPUTS} outputs, before | {OUTPUTS} outputs, now |",
+                  "|---|---|---:|---:|---:|---:|"]
+        for r in data["rows"]:
+            b = before.get((r["n"], r["coordinates"]))
+            if b:
+                lines.append(f"| chain{r['n']} | {r['coordinates']} | "
+                             f"{_f(b['rk4_one']['us_step'])} | {_f(r['rk4_one']['us_step'])} | "
+                             f"{_f(b['rk4_grid']['us_step'])} | "
+                             f"{_f(r['rk4_grid']['us_step'])} |")
+    lines += ["", *WHERE]
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None) -> int:
+    parser = study_parser(__doc__.splitlines()[0], RESULTS)
+    args = parser.parse_args(argv)
+    return run_study(args, RESULTS, lambda: measure(args.repeat), markdown, DOC, HEAD)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
