@@ -35,11 +35,14 @@ def chain(points: np.ndarray, name: str) -> casmbd.Mechanism:
     return m
 
 
-def hinge_points(mech: casmbd.Mechanism, q: np.ndarray) -> np.ndarray:
-    """The five hinge points of a chain built by :func:`chain` at coordinates q."""
+def hinge_points(equilibrium) -> np.ndarray:
+    """The five hinge points of a chain built by :func:`chain` at a static equilibrium.
+
+    Read from the rods' centres and angles (``body_positions``, ``body_angles``), which do not
+    depend on the generalized coordinates casmbd chose (joint coordinates for this chain).
+    """
     pts = [np.zeros(2)]
-    for i in range(4):
-        x, y, th = q[3 * i:3 * i + 3]
+    for (x, y), th in zip(equilibrium.body_positions, equilibrium.body_angles):
         pts.append(np.array([x, y]) + 0.5 * np.array([np.cos(th), np.sin(th)]))
     return np.array(pts)
 
@@ -58,13 +61,13 @@ def study() -> dict:
     """Hanging equilibrium, the mirrored arch, their stability and the arch's eigenvalues."""
     hanging = chain(initial_hanging_points(), "hanging_chain4")
     eq_h = static_equilibrium(hanging)
-    points = hinge_points(hanging, eq_h.q)
+    points = hinge_points(eq_h)
     arch_points = points * np.array([1.0, -1.0])
     arch = chain(arch_points, "five_hinged_arch")
     eq_a = static_equilibrium(arch)
     lin = linearize(arch, q=eq_a.q)
     return {"hanging": eq_h, "arch": eq_a, "arch_mechanism": arch,
-            "hanging_points": points, "arch_points": hinge_points(arch, eq_a.q),
+            "hanging_points": points, "arch_points": hinge_points(eq_a),
             "arch_linear": lin}
 
 
@@ -79,4 +82,6 @@ if __name__ == "__main__":
     arch.bodies["rod1"].angular_velocity = 1e-3          # an almost symmetric start
     res = casmbd.simulate(arch, 3.0, 300)
     apex = res.body("rod1")["position"][:, 1]
-    print(f"collapse: apex-side rod centre height {apex[0]:.3f} m -> {apex[-1]:.3f} m in 3 s")
+    low = int(np.argmin(apex))
+    print(f"collapse: apex-side rod centre height {apex[0]:.3f} m -> {apex[low]:.3f} m "
+          f"at t = {res.t[low]:.2f} s")

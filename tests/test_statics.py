@@ -37,41 +37,69 @@ def pendulum(k: float = 0.0, up: bool | None = None) -> casmbd.Mechanism:
     return m
 
 
+#: the metric of the unit tangent of the pendulum's constraint manifold: absolute coordinates
+#: (x, y, θ) have the tangent (−(L/2) sin θ, (L/2) cos θ, 1) / √(1 + (L/2)²); the automatic
+#: choice takes the joint angle θ alone (a tree), whose unit tangent is 1
+METRIC = {"absolute": 1 + 0.5 ** 2, "auto": 1.0}
+
+
+def coordinate_checks(r, coordinates: str, n_bodies: int = 1) -> None:
+    """q is (x, y, θ) per body in absolute coordinates, the joint angles under "auto"."""
+    if coordinates == "absolute":
+        assert len(r.q) == 3 * n_bodies
+        assert np.allclose(r.q.reshape(-1, 3)[:, :2], r.body_positions, atol=1e-14)
+        assert np.allclose(r.q.reshape(-1, 3)[:, 2], r.body_angles, atol=1e-14)
+    else:
+        assert len(r.q) == n_bodies and r.names["coordinates"][0].endswith(".angle")
+        assert len(r.lagrange_multipliers) == 0  # a tree: no constraint equation
+
+
+@pytest.mark.parametrize("coordinates", ["absolute", "auto"])
 @pytest.mark.parametrize("method", ["augmented", "reduced"])
 @pytest.mark.parametrize("k", [2.0, 10.0, 100.0])
-def test_torsional_spring_pendulum(method, k):
+def test_torsional_spring_pendulum(method, k, coordinates):
     """θ counter-clockwise from +x, gravity −y: V = m g (L/2) sin θ + ½ k θ², so V'(θ) = 0 gives
     k θ = −m g (L/2) cos θ (the spring moment −kθ balances the gravity moment −m g (L/2) cos θ).
     For k > m g L/2 the root in (−π/2, 0) is unique."""
     mass, length = 1.0, 1.0
     ref = brentq(lambda th: k * th + mass * G * length / 2 * np.cos(th), -np.pi / 2, 0.0,
                  xtol=1e-15, rtol=4 * np.finfo(float).eps)
-    r = static_equilibrium(pendulum(k), method=method, mode="vm")
+    mech = pendulum(k)
+    mech.coordinates = coordinates
+    r = static_equilibrium(mech, method=method, mode="vm")
     assert r.method == method
-    assert abs(r.q[2] - ref) < 1e-12
-    assert np.allclose(r.q[:2], 0.5 * np.array([np.cos(ref), np.sin(ref)]), atol=1e-12)
+    coordinate_checks(r, coordinates)
+    assert abs(r.body_angles[0] - ref) < 1e-12
+    assert np.allclose(r.body_positions[0], 0.5 * np.array([np.cos(ref), np.sin(ref)]),
+                       atol=1e-12)
     assert r.residual < 1e-10 and r.iterations <= 20
     # reaction: the pin carries the weight and no moment (the spring is a force element)
     assert np.allclose(r.joint_reactions[0], [0.0, mass * G, 0.0], atol=1e-9)
     assert r.stable is True
-    # V''(θ) = k − m g (L/2) sin θ > 0; the unit tangent of the constraint manifold is
-    # (−(L/2) sin θ, (L/2) cos θ, 1) / √(1 + (L/2)²), so K̄ = V''(θ) / (1 + (L/2)²)
-    expected = (k - mass * G * length / 2 * np.sin(ref)) / (1 + (length / 2) ** 2)
+    # V''(θ) = k − m g (L/2) sin θ > 0 over the metric of the unit tangent, K̄ = V''(θ) / METRIC
+    expected = (k - mass * G * length / 2 * np.sin(ref)) / METRIC[coordinates]
     assert r.eigenvalues == pytest.approx([expected], rel=1e-9)
 
 
+@pytest.mark.parametrize("coordinates", ["absolute", "auto"])
 @pytest.mark.parametrize("method", ["augmented", "reduced"])
-def test_hanging_stable_inverted_unstable(method):
-    down = static_equilibrium(pendulum(up=False), method=method, mode="vm")
-    up = static_equilibrium(pendulum(up=True), method=method, mode="vm")
-    for r in (down, up):
+def test_hanging_stable_inverted_unstable(method, coordinates):
+    results = []
+    for up in (False, True):
+        mech = pendulum(up=up)
+        mech.coordinates = coordinates
+        results.append(static_equilibrium(mech, method=method, mode="vm"))
+    down, up = results
+    for r, sign in ((down, -1.0), (up, 1.0)):
         assert r.residual < 1e-10
-        assert np.allclose(r.q[:2], [0.0, 0.5 * np.sign(r.q[1])], atol=1e-12)
+        coordinate_checks(r, coordinates)
+        assert np.allclose(r.body_positions[0], [0.0, 0.5 * sign], atol=1e-12)
         assert np.allclose(r.joint_reactions[0], [0.0, G, 0.0], atol=1e-9)
         assert r.iterations <= 1  # the initial pose is already the equilibrium
-    # V''(θ) = ∓ m g L/2 over the metric 1 + (L/2)² of the unit tangent
-    assert down.stable is True and down.eigenvalues[0] == pytest.approx(G / 2 / 1.25)
-    assert up.stable is False and up.eigenvalues[0] == pytest.approx(-G / 2 / 1.25)
+    # V''(θ) = ∓ m g L/2 over the metric of the unit tangent
+    metric = METRIC[coordinates]
+    assert down.stable is True and down.eigenvalues[0] == pytest.approx(G / 2 / metric)
+    assert up.stable is False and up.eigenvalues[0] == pytest.approx(-G / 2 / metric)
 
 
 @pytest.mark.parametrize("method", ["augmented", "reduced"])
@@ -91,9 +119,10 @@ def test_double_pendulum_from_horizontal(method):
     r = static_equilibrium(load_scene("examples/double_pendulum.toml"), method=method,
                            mode="vm")
     assert r.residual < 1e-9
-    assert np.allclose(np.cos(r.q[[2, 5]]), 0.0, atol=1e-9)
+    assert np.allclose(np.cos(r.body_angles), 0.0, atol=1e-9)
     assert r.joint_reactions[0, 1] == pytest.approx(2 * G, abs=1e-9)
-    assert r.stable is bool(r.q[1] < 0 and r.q[4] < r.q[1])  # stable only hanging down
+    y1, y2 = r.body_positions[:, 1]
+    assert r.stable is bool(y1 < 0 and y2 < y1)  # stable only hanging down
 
 
 def test_unknown_method():
@@ -122,7 +151,10 @@ def test_hanging_chain(method):
     assert np.allclose(r.q, other.q, atol=1e-10)
 
 
-def test_cli_statics_json(capsys):
+def test_cli_statics_json(capsys, tmp_path):
+    """The multipliers are those of the chosen coordinates' equations: under the automatic
+    choice the chain is a tree of three rods closed by knee_2 (2 equations on 3 joint
+    angles); pinned to absolute coordinates, 4 revolute joints give 8 equations."""
     assert main(["statics", CHAIN, "--json"]) == 0
     data = json.loads(capsys.readouterr().out)
     for key in ("bodies", "joints", "lagrange_multipliers", "stable", "iterations", "residual",
@@ -134,7 +166,20 @@ def test_cli_statics_json(capsys):
     assert set(data["joints"]) == {"anchor_a", "knee_1", "knee_2", "anchor_b"}
     assert {"coordinate", "reaction"} <= set(data["joints"]["anchor_a"])
     assert len(data["joints"]["anchor_a"]["reaction"]) == 3
-    assert len(data["lagrange_multipliers"]) == 8
+    assert len(data["lagrange_multipliers"]) == 2
+    assert data["stats"]["coordinates"] == "joint"
+    assert data["stats"]["coordinate_choice"] == ("1 loop joint (knee_2) with 2 equations on 3 "
+                                                  "tree coordinates")
+    pinned = tmp_path / "chain_absolute.toml"
+    text = open(CHAIN).read()
+    pinned.write_text(text.replace("[scene]\n", '[scene]\ncoordinates = "absolute"\n', 1))
+    assert main(["statics", str(pinned), "--json", "--mode", "vm"]) == 0
+    absolute = json.loads(capsys.readouterr().out)
+    assert len(absolute["lagrange_multipliers"]) == 8
+    assert absolute["stats"]["coordinate_choice"] == "given"
+    for body in ("rod1", "rod2", "rod3"):
+        assert np.allclose(absolute["bodies"][body]["position"],
+                           data["bodies"][body]["position"], atol=1e-9)
     assert main(["statics", CHAIN, "--method", "reduced"]) == 0
     assert "stable" in capsys.readouterr().out
 
