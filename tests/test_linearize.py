@@ -123,11 +123,18 @@ def test_inverted_pendulum_is_unstable():
     assert max(e[0] for e in data["eigenvalues"]) == pytest.approx(rate, rel=1e-9)
 
 
-def test_input_matrix_of_pivot_actuator():
-    lin = linearize(pendulum(k=2.0, actuator=True))
+@pytest.mark.parametrize(("coordinates", "angle"),
+                         [("absolute", "rod.angle"), ("auto", "pivot.angle")])
+def test_input_matrix_of_pivot_actuator(coordinates, angle):
+    """The automatic choice takes the joint angle itself as the coordinate (a tree)."""
+    mech = pendulum(k=2.0, actuator=True)
+    mech.coordinates = coordinates
+    lin = linearize(mech)
     # the actuator torque acts along the joint angle φ = θ_rod − θ_ground: B̄ = ∂φ/∂z = N[angle]
     assert lin.B.shape == (1, 1)
-    assert lin.B[0, 0] == pytest.approx(lin.N[2, 0], rel=1e-12)
+    assert len(lin.coordinate_names) == (3 if coordinates == "absolute" else 1)
+    row = lin.coordinate_names.index(angle)
+    assert lin.B[0, 0] == pytest.approx(lin.N[row, 0], rel=1e-12)
     assert lin.B[0, 0] ** 2 / lin.M[0, 0] == pytest.approx(3 / (MASS * L**2), rel=1e-9)
     assert lin.Bss[1, 0] == pytest.approx(lin.B[0, 0] / lin.M[0, 0], rel=1e-12)
 
@@ -172,10 +179,16 @@ def test_null_space_basis_orthonormal():
 
 
 def test_rejects_unassembled_configuration():
+    """A pose off the constraints exists only in absolute coordinates (pinned); under the
+    automatic choice the pendulum is a tree without equations and an absolute-length q is
+    refused by its size."""
     mech = pendulum()
+    mech.coordinates = "absolute"
     q = casmbd.System(mech).initial_coordinates() + np.array([0.1, 0.0, 0.0])
     with pytest.raises(AnalysisError, match="violates the constraints"):
         linearize(mech, q=q, mode="vm")
+    with pytest.raises(casmbd.ModelError, match="q must have 1 entries, got 3"):
+        linearize(pendulum(), q=q, mode="vm")
 
 
 def test_cli_linearize(tmp_path, capsys):
@@ -225,7 +238,7 @@ def test_spring_pendulum_frequency_at_the_static_equilibrium():
     mech.add_revolute("pivot", "ground", "rod", (0.0, 0.0))
     mech.add_rotational_spring_damper("spring", "pivot", stiffness=k)
     eq = static_equilibrium(mech)
-    theta = float(eq.q[2])
+    theta = float(eq.body_angles[0])
     assert abs(k * theta + m_ * g * length / 2 * np.cos(theta)) <= 1e-12
     lin = linearize(mech, q=eq.q)
     omega2 = (k - m_ * g * length / 2 * np.sin(theta)) / (m_ * length**2 / 3)
@@ -238,6 +251,17 @@ def test_rigid_body_pair_is_not_a_saddle():
     import pathlib
 
     scene = pathlib.Path(__file__).resolve().parent.parent / "examples" / "crane.toml"
-    lin = casmbd.linearize(casmbd.load_scene(scene), q=[0, 0, 0, 0, -0.5, 0])
+    mech = casmbd.load_scene(scene)
+    mech.coordinates = "absolute"  # q below: (x, y, angle) of the cart and the load
+    lin = casmbd.linearize(mech, q=[0, 0, 0, 0, -0.5, 0])
     assert lin.damping_ratios[0] == 0.0 and lin.natural_frequencies_hz[0] < 1e-6
     assert 0.0 < lin.damping_ratios[1] < 0.05 and lin.stable
+    # the automatic choice (joint coordinates rail, hinge; zero at the scene's pose, the load
+    # swung out by 0.3 rad): the same hanging pose and the same modes
+    auto = casmbd.linearize(casmbd.load_scene(scene), q=[0.0, -0.3])
+    assert auto.coordinate_names == ["rail.translation", "hinge.angle"]
+    assert auto.damping_ratios[0] == 0.0 and auto.natural_frequencies_hz[0] < 1e-6
+    assert auto.damping_ratios[1] == pytest.approx(lin.damping_ratios[1], rel=1e-9)
+    assert auto.natural_frequencies_hz[1] == pytest.approx(lin.natural_frequencies_hz[1],
+                                                           rel=1e-9)
+    assert auto.stable

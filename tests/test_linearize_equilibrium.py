@@ -220,16 +220,29 @@ def test_from_a_saved_simulation_equals_linearize_at_that_state(capsys, tmp_path
 
 def test_from_a_drifted_simulation_is_projected(capsys, tmp_path):
     """At rtol 1e-8 the stored q violates the constraints by ~3e-8 (above the 1e-8 that q=
-    accepts): the stored state is moved onto them and the move is reported."""
+    accepts): the stored state is moved onto them and the move is reported.  Drift needs
+    constraint equations: the scene is pinned to absolute coordinates; under the automatic
+    choice the double pendulum is a tree (joint angles, no equations) and nothing moves."""
+    scene = tmp_path / "double_pendulum_absolute.toml"
+    text = pathlib.Path(PENDULUM2).read_text()
+    scene.write_text(text.replace("[scene]\n", '[scene]\ncoordinates = "absolute"\n', 1))
     out = tmp_path / "drift.npz"
-    assert cli.main(["simulate", PENDULUM2, "--t-end", "1", "--steps", "10", "--out",
+    assert cli.main(["simulate", str(scene), "--t-end", "1", "--steps", "10", "--out",
                      str(out), "--json"]) == 0, capsys.readouterr().err
     capsys.readouterr()
-    data, _ = run(capsys, "linearize", PENDULUM2, "--from", str(out), "--time", "1")
+    data, _ = run(capsys, "linearize", str(scene), "--from", str(out), "--time", "1")
     res = casmbd.load_result(out)
     assert 0.0 < data["stats"]["projection_dq"] <= 1e-6
     assert np.max(np.abs(np.asarray(data["q"]) - res["q"][-1])) == pytest.approx(
         data["stats"]["projection_dq"], rel=1e-12)
+    auto = tmp_path / "auto.npz"
+    assert cli.main(["simulate", PENDULUM2, "--t-end", "1", "--steps", "10", "--out",
+                     str(auto), "--json"]) == 0, capsys.readouterr().err
+    capsys.readouterr()
+    data, _ = run(capsys, "linearize", PENDULUM2, "--from", str(auto), "--time", "1")
+    assert data["coordinates"] == ["shoulder.angle", "elbow.angle"]
+    assert data["stats"]["projection_dq"] == 0.0
+    assert np.array_equal(data["q"], casmbd.load_result(auto)["q"][-1])
 
 
 def test_from_errors_name_the_time_and_the_mismatch(capsys, tmp_path):
@@ -240,10 +253,10 @@ def test_from_errors_name_the_time_and_the_mismatch(capsys, tmp_path):
     cases = [([PENDULUM2, "--from", str(out), "--time", "2.5"],
               "time 2.5 is outside the result's output times [0, 1] (5 outputs)"),
              ([TOP, "--from", str(out), "--time", "0.5"],
-              "the result is not of this scene (it has 6 coordinates, the scene 7)"),
-             ([CRANE, "--from", str(out), "--time", "0.5"],
-              "the result is not of this scene (its coordinate 0 is 'rod1.x', the scene's "
-              "'cart.x')"),
+              "the result is not of this scene (it has 2 coordinates, the scene 7)"),
+             ([CRANE, "--from", str(out), "--time", "0.5"],  # both joint coordinates (auto)
+              "the result is not of this scene (its coordinate 0 is 'shoulder.angle', the "
+              "scene's 'rail.translation')"),
              ([PENDULUM2, "--from", str(out)], "--from RESULT.npz and --time T go together")]
     for argv, message in cases:
         assert cli.main(["linearize", *argv]) == 1
