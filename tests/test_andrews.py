@@ -49,6 +49,7 @@ from casmbd import info
 from casmbd.analysis.assembly import assemble
 from casmbd.analysis.simulate import Simulator
 from casmbd.io.scene import load_scene
+from casmbd.system.equations import System
 
 SCENE = pathlib.Path(__file__).resolve().parent.parent / "examples" / "andrews.toml"
 T_END = 0.03
@@ -141,6 +142,12 @@ def test_initial_configuration(sim):
     assert np.max(np.abs(guess - q0)) > 1e-2            # the guess is really off
     assembled = published(rep.q[[names.index(f"{b}.angle") for b in BODIES]])
     assert np.max(np.abs(assembled - Q0)) < 1e-12
+    # the scene pins absolute coordinates; the automatic choice would take joint coordinates
+    mech = load_scene(SCENE)
+    assert sim.system.coordinates == "absolute" and sim.system.coordinate_reason == "given"
+    mech.coordinates = "auto"
+    auto = System(mech)
+    assert (auto.coordinates, auto.nq, auto.nc) == ("joint", 7, 6), auto.coordinate_reason
 
 
 def test_initial_accelerations_and_multipliers(tight):
