@@ -89,9 +89,11 @@ def numbers_after(text: str, words: str) -> list[float]:
     return [float(match.group(1)), float(match.group(2))]
 
 
-def failure(text: str) -> AssemblyError:
+def failure(text: str, coordinates: str = "auto") -> AssemblyError:
+    mech = loads_scene(text)
+    mech.coordinates = coordinates
     with pytest.raises(AssemblyError) as exc:
-        kinematics(loads_scene(text), t_end=1.0, steps=4)
+        kinematics(mech, t_end=1.0, steps=4)
     return exc.value
 
 
@@ -102,8 +104,11 @@ def run_cli(capsys, *argv: str) -> tuple[int, str, str]:
 
 
 # ---------------------------------------------------------------------- Python API
-def test_unreachable_distance_names_the_distance_first():
-    exc = failure(UNREACHABLE_DISTANCE)
+@pytest.mark.parametrize("coordinates", ["absolute", "auto"])
+def test_unreachable_distance_names_the_distance_first(coordinates):
+    """In absolute coordinates the pivot's equations are ranked second; in the automatic
+    choice (joint coordinates) the pivot is a tree joint without equations: the tether alone."""
+    exc = failure(UNREACHABLE_DISTANCE, coordinates)
     top = exc.culprits[0]
     assert (top.kind, top.element, top.fixes) == ("joint", "tether", True)
     assert first_named(str(exc)) == "tether"
@@ -111,7 +116,8 @@ def test_unreachable_distance_names_the_distance_first():
     low, high = numbers_after(top.hint, "are between")
     assert abs(low - 2.0) < 1e-3 and abs(high - 4.0) < 1e-3, top.hint
     # the pivot also lets the rest assemble, but is a 2-equation change: ranked second
-    assert [c.element for c in exc.culprits] == ["tether", "pivot"]
+    assert [c.element for c in exc.culprits] == (["tether", "pivot"] if coordinates == "absolute"
+                                                 else ["tether"])
 
 
 def test_misplaced_coupler_pin_names_the_coupler_first():
@@ -129,12 +135,17 @@ def test_misplaced_coupler_pin_names_the_coupler_first():
     assert not drive.fixes and drive.remaining > 1.0
 
 
-def test_contradictory_driver_names_the_driver_first():
-    exc = failure(CONTRADICTORY_DRIVER)
+@pytest.mark.parametrize("coordinates", ["absolute", "auto"])
+def test_contradictory_driver_names_the_driver_first(coordinates):
+    """The hint names what the driver contradicts: the pivot in absolute coordinates, "the
+    joints" in the automatic choice (joint coordinates: the pivot is the tree)."""
+    exc = failure(CONTRADICTORY_DRIVER, coordinates)
     top = exc.culprits[0]
     assert (top.kind, top.element) == ("driver", "reach")
     assert first_named(str(exc)) == "reach"
-    assert "asks for body 'rod' x = 3 at t = 0" in top.hint and "'pivot'" in top.hint
+    assert "asks for body 'rod' x = 3 at t = 0" in top.hint
+    assert ("contradicting joint 'pivot'" if coordinates == "absolute"
+            else "contradicting the joints") in top.hint, top.hint
     low, high = numbers_after(top.hint, "allow only body 'rod' x from")
     assert abs(low + 0.5) < 1e-3 and abs(high - 0.5) < 1e-3, top.hint
 
@@ -149,14 +160,16 @@ def test_info_reports_culprits_and_skips_redundancy():
     assert first_named(data["assembly_error"]) == "reach"
 
 
-def test_misdrawn_four_bar_reaches_a_limit_position_naming_the_driver():
+@pytest.mark.parametrize("coordinates", ["absolute", "auto"])
+def test_misdrawn_four_bar_reaches_a_limit_position_naming_the_driver(coordinates):
     """A revolute coupler pin B typed at (0, 0.6) instead of (0, 0.2): the crank (0.6 m)
     can no longer turn (non-Grashof); kinematics stops at the limit position with the crank
-    driver first and the crank angles the loop allows, ±acos(−0.34975…) = ±1.9281 rad."""
+    driver first and the crank angles the loop allows, ±acos(−0.34975…) = ±1.9281 rad.
+    In joint coordinates the range search used to jump whole turns (-165.3 to 20.78 rad)."""
     from pathlib import Path
 
     scene = (Path(__file__).resolve().parent.parent / "examples" / "four_bar.toml").read_text()
-    exc = failure(scene.replace("point = [0.0, 0.2]", "point = [0.0, 0.6]"))
+    exc = failure(scene.replace("point = [0.0, 0.2]", "point = [0.0, 0.6]"), coordinates)
     assert exc.culprits[0].element == "crank_drive"
     assert first_named(str(exc)) == "crank_drive" and "at t = " in str(exc)
     crank, coupler = 0.6, math.hypot(0.6437, 0.475 - 0.6)
@@ -181,16 +194,20 @@ def test_cli_info_and_kinematics_fail_naming_the_culprit(tmp_path, capsys, text,
     assert status == 1 and first_named(err) == culprit, err
 
 
-def test_cli_info_json_is_one_object_with_the_ranking(tmp_path, capsys):
+@pytest.mark.parametrize("coordinates, ranking", [("absolute", ["tether", "pivot"]),
+                                                   ("auto", ["tether"])])
+def test_cli_info_json_is_one_object_with_the_ranking(tmp_path, capsys, coordinates, ranking):
+    """The pivot is ranked in absolute coordinates only (a tree joint has no equations)."""
     import json
 
     scene = tmp_path / "broken.toml"
-    scene.write_text(UNREACHABLE_DISTANCE)
+    scene.write_text(UNREACHABLE_DISTANCE.replace(
+        "[scene]\n", f'[scene]\ncoordinates = "{coordinates}"\n'))
     status, out, err = run_cli(capsys, "info", str(scene), "--json")
     data = json.loads(out)  # exactly one JSON object on stdout
     assert status == 1 and first_named(err) == "tether"
     assert data["assembled"] is False and data["rank_reliable"] is False
-    assert [c["element"] for c in data["assembly_culprits"]] == ["tether", "pivot"]
+    assert [c["element"] for c in data["assembly_culprits"]] == ranking
     for key in ("rank", "degrees_of_freedom", "redundant_equations", "assembly_error",
                 "coordinates", "constraints", "initial_coordinates"):
         assert key in data  # the keys other programs read are kept
@@ -199,10 +216,15 @@ def test_cli_info_json_is_one_object_with_the_ranking(tmp_path, capsys):
 def test_pin_named_when_no_single_driver_is_at_fault():
     """The 1 m rod's centre driven to x = 3 and y = 3: neither driver alone can be met
     (|x|, |y| <= 0.5), so the pin is the one element whose removal lets the rest assemble;
-    its hint gives the least distance between the two points, |(3, 3)| − 0.5 m."""
+    its hint gives the least distance between the two points, |(3, 3)| − 0.5 m.  That needs
+    the pin's equations: absolute coordinates.  In the automatic choice (joint coordinates)
+    the pin is the tree and only the drivers are ranked, neither fixing it alone."""
     text = CONTRADICTORY_DRIVER + entry("drivers", name='"lift"', body='"rod"',
                                         coordinate='"y"', position="3.0")
-    exc = failure(text)
+    auto = failure(text)
+    assert sorted(c.element for c in auto.culprits) == ["lift", "reach"]
+    assert not any(c.fixes for c in auto.culprits)
+    exc = failure(text, "absolute")
     top = exc.culprits[0]
     assert (top.kind, top.element, top.fixes) == ("joint", "pivot", True)
     assert [c.fixes for c in exc.culprits[1:]] == [False, False]

@@ -163,7 +163,18 @@ def _range(model, q: np.ndarray, t: float, row: int, rest: np.ndarray, free: np.
 def _extrema(model, q: np.ndarray, t: float, row: int, rest: np.ndarray, free: np.ndarray,
              tol: float) -> list[float | None]:
     """One local minimisation and maximisation of equation ``row`` from ``q`` subject to
-    the equations ``rest`` (SLSQP)."""
+    the equations ``rest`` (SLSQP).
+
+    Angles (coordinates ``*.angle``) are kept within ±2π of ``q``: every equation is
+    2π-periodic in them, so an unbounded search may jump to the same branch of poses a few
+    turns away (a crank driver's range came out as -165.3 to 20.78 rad instead of ±1.928 in
+    joint coordinates).  A branch that does not turn fully spans less than 2π in each angle,
+    so its extrema lie inside the bounds, and those of the branches a turn away beyond them:
+    an extremum on a bound is not reported."""
+    names = list(getattr(model, "coordinate_names", []))
+    angle = [i < len(names) and names[i].endswith(".angle") for i in free]
+    bounds = [(q[i] - 2 * np.pi, q[i] + 2 * np.pi) if a else (None, None)
+              for i, a in zip(free, angle, strict=True)]
     out: list[float | None] = []
     for sign in (1.0, -1.0):
         def fun(x, sign=sign):
@@ -188,8 +199,12 @@ def _extrema(model, q: np.ndarray, t: float, row: int, rest: np.ndarray, free: n
 
         constraints = [{"type": "eq", "fun": cons, "jac": cons_jac}] if rest.size else []
         res = _minimize()(fun, q[free], jac=grad, constraints=constraints, method="SLSQP",
+                       bounds=bounds if any(angle) else None,
                        options={"maxiter": 100, "ftol": 1e-12})
-        ok = res.success and (not rest.size or float(np.max(np.abs(cons(res.x)))) <= tol)
+        on_bound = any(a and abs(abs(x - q[i]) - 2 * np.pi) <= 1e-9
+                       for i, a, x in zip(free, angle, res.x, strict=True))
+        ok = res.success and not on_bound and (
+            not rest.size or float(np.max(np.abs(cons(res.x)))) <= tol)
         out.append(sign * float(res.fun) if ok and np.isfinite(res.fun) else None)
     return out
 
