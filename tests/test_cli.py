@@ -90,7 +90,18 @@ def slider_json(capsys, tmp_path) -> tuple[dict, pathlib.Path]:
 
 
 # ---------------------------------------------------------------------- info
-def test_info_slider_crank_json(capsys):
+def pinned_absolute(tmp_path, scene: str) -> str:
+    """A copy of ``scene`` with ``coordinates = "absolute"`` (the default is the automatic
+    choice)."""
+    path = tmp_path / ("absolute_" + pathlib.Path(scene).name)
+    text = pathlib.Path(scene).read_text()
+    path.write_text(text.replace("[scene]\n", '[scene]\ncoordinates = "absolute"\n', 1))
+    return str(path)
+
+
+def test_info_slider_crank_json(capsys, tmp_path):
+    """Automatic choice: joint coordinates of the tree O, A, slide, closed by B (2 equations)
+    plus the crank driver; pinned to absolute coordinates: 9 coordinates, 9 equations."""
     status, out, err = run(capsys, "info", SLIDER_CRANK, "--json")
     assert status == 0, err
     data = json.loads(out)
@@ -99,6 +110,16 @@ def test_info_slider_crank_json(capsys):
         assert key in data
     assert data["degrees_of_freedom"] == 0
     assert data["redundant_equations"] == []
+    assert data["coordinate_choice"] == "joint"
+    assert data["coordinates"] == ["O.angle", "A.angle", "slide.translation"]
+    assert data["constraints"] == [
+        {"kind": "joint", "joint": "B", "equation": "x"},
+        {"kind": "joint", "joint": "B", "equation": "y"},
+        {"kind": "driver", "joint": "crank_speed", "equation": "coordinate"}]
+    status, out, err = run(capsys, "info", pinned_absolute(tmp_path, SLIDER_CRANK), "--json")
+    assert status == 0, err
+    data = json.loads(out)
+    assert data["degrees_of_freedom"] == 0 and data["redundant_equations"] == []
     assert "slider.x" in data["coordinates"] and len(data["coordinates"]) == 9
     assert {"kind": "driver", "joint": "crank_speed", "equation": "coordinate"} in \
         data["constraints"]
@@ -114,11 +135,17 @@ def test_info_double_pendulum_json(capsys):
     assert data["redundant_equations"] == []
 
 
-def test_info_summary_names_coordinates_and_dof(capsys):
+def test_info_summary_names_coordinates_and_dof(capsys, tmp_path):
     status, out, _ = run(capsys, "info", DOUBLE_PENDULUM)
     assert status == 0
-    assert "double_pendulum" in out
-    assert "rod1.angle" in out and "rod2.x" in out
+    assert "double_pendulum" in out and "joint coordinates" in out
+    assert "coordinates (2): shoulder.angle, elbow.angle" in out
+    assert "coordinate choice: a tree: 2 joint coordinates, no loop equations" in out
+    assert "degrees of freedom: 2" in out
+    status, out, _ = run(capsys, "info", pinned_absolute(tmp_path, DOUBLE_PENDULUM))
+    assert status == 0
+    assert "rod1.angle" in out and "rod2.x" in out and "absolute coordinates" in out
+    assert "coordinate choice: given" in out
     assert "degrees of freedom: 2" in out
 
 
