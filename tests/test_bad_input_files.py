@@ -163,9 +163,11 @@ def test_cli_missing_result_file(tmp_path, capsys):
 
 
 def test_good_file_still_loads(good, tmp_path):
-    """The checks accept what casmbd writes: 5 times, q of 3 coordinates."""
+    """The checks accept what casmbd writes: 5 times, q of 1 coordinate (the pivot angle:
+    the automatic choice takes joint coordinates for the pendulum; 3 in absolute ones)."""
     path = tmp_path / "good.npz"
     path.write_bytes(good)
     res = load(path)
-    assert res.kind == "simulation" and res["q"].shape == (5, 3)
+    assert res.kind == "simulation" and res["q"].shape == (5, 1)
+    assert res.names["coordinates"] == ["pivot.angle"]
     assert res.mechanism().name == "pendulum"

@@ -275,8 +275,11 @@ def test_animate_cli_dpi_and_frames_refused_before_simulating(tmp_path, capsys, 
 # ---------------------------------------------------------------------- info on large chains
 def test_info_on_a_2000_body_chain():
     """A pendulum chain of N rods: 3N coordinates, 2N independent equations, N degrees of
-    freedom (the sparse rank path; the dense one would take minutes)."""
-    data = info(loads_scene(chain_scene(2000), "chain2000.toml"))
+    freedom (the sparse rank path; the dense one would take minutes).  Absolute coordinates:
+    the automatic choice takes N joint coordinates and no equation for a chain."""
+    mech = loads_scene(chain_scene(2000), "chain2000.toml")
+    mech.coordinates = "absolute"
+    data = info(mech)
     assert (data["n_coordinates"], data["n_constraints"]) == (6000, 4000)
     assert data["rank"] == 4000 and data["degrees_of_freedom"] == 2000
     assert data["redundant_equations"] == [] and data["assembled"]
@@ -285,10 +288,13 @@ def test_info_on_a_2000_body_chain():
 
 def test_sparse_rank_names_the_redundant_joint_of_a_long_chain():
     """A duplicate of pin 150 in a 300-rod chain (C_q of 602 × 900, sparse path): its two
-    equations — and nothing else — are dependent; 300 degrees of freedom."""
+    equations — and nothing else — are dependent; 300 degrees of freedom.  Absolute
+    coordinates (the sparse path needs the 600 pin equations; the automatic choice keeps the
+    twin's 2 equations on 300 joint coordinates)."""
     text = chain_scene(300) + ('\n[[joints]]\nname = "twin"\ntype = "revolute"\n'
                                'body1 = "rod149"\nbody2 = "rod150"\npoint = [150.0, 0.0]\n')
     mech = loads_scene(text, "chain300.toml")
+    mech.coordinates = "absolute"
     assert 602 * 900 > DENSE_MAX_ENTRIES
     data = info(mech)
     assert data["degrees_of_freedom"] == 300 and data["rank"] == 600
@@ -335,8 +341,11 @@ def test_sparse_rank_matches_dense_on_random_dependent_rows():
 
 def test_large_minimum_norm_assembly_equals_the_dense_one(monkeypatch):
     """A 150-rod chain whose first pin is driven to 0.3 rad: the sparse augmented-system
-    Newton steps assemble the same pose as the dense SVD ones, to 1e-12."""
+    Newton steps assemble the same pose as the dense SVD ones, to 1e-12.  Absolute
+    coordinates (q[2] is rod0.angle; in joint coordinates the chain has no equation to
+    assemble but the driver's)."""
     text = chain_scene(150) + '\n[[drivers]]\nname = "lift"\njoint = "pin0"\nposition = "0.3"\n'
+    text = text.replace("[scene]\n", '[scene]\ncoordinates = "absolute"\n')
     dense = info(loads_scene(text, "c150.toml"))
     monkeypatch.setattr(assembly, "DENSE_MAX_ENTRIES", 0)
     sparse = info(loads_scene(text, "c150.toml"))
