@@ -38,7 +38,8 @@ def sweep_args(out, *extra: str) -> list[str]:
 
 
 @pytest.mark.parametrize("output, fragments", [
-    ("final:q[nope.x]", ("unknown column 'q[nope.x]'", "q[rod1.x]")),
+    # the columns suggested are the result's: joint coordinates (the automatic choice)
+    ("final:q[nope.x]", ("unknown column 'q[nope.x]'", "q[shoulder.angle]")),
     ("max:body.nope.x", ("unknown body 'nope'", "rod1, rod2")),
     ("max:body.rod1.nope", ("body 'rod1' has no 'nope'",)),
     ("max:joint.nope.coordinate", ("unknown joint 'nope'",)),
