@@ -165,7 +165,9 @@ def delta_robot(position=START, geom: Geometry = GEOMETRY, path=None,
     """
     p = np.asarray(position, float)
     theta = inverse_kinematics(p, geom)
-    m = casmbd.Mechanism(name, gravity=(0.0, 0.0, -G))
+    # absolute coordinates (Euler parameters), as the module docstring and docs/delta_robot.md
+    # count them; the automatic choice would take joint coordinates (11, 8 loop equations)
+    m = casmbd.Mechanism(name, gravity=(0.0, 0.0, -G), coordinates="absolute")
     r_hand = geom.b
     m.add_body("hand", geom.m_hand, [geom.m_hand * r_hand**2 / 4, geom.m_hand * r_hand**2 / 4,
                                      geom.m_hand * r_hand**2 / 2], p)

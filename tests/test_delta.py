@@ -50,6 +50,14 @@ def test_three_dof_no_redundancy():
     # the initial pose from the closed-form IK is already assembled (no Newton correction)
     q0 = casmbd.System(delta.delta_robot()).initial_coordinates()
     assert np.max(np.abs(np.asarray(out["initial_coordinates"]) - q0)) <= 1e-12
+    # the example pins absolute coordinates; the automatic choice: the tree shoulder, elbow
+    # (2) per arm and the hand on one wrist (2), the other two wrists close the loops
+    mech = delta.delta_robot()
+    mech.coordinates = "auto"
+    auto = casmbd.info(mech)
+    assert auto["coordinate_choice"] == "joint"
+    assert (auto["n_coordinates"], auto["n_constraints"], auto["rank"]) == (11, 8, 8)
+    assert auto["degrees_of_freedom"] == 3 and auto["redundant_equations"] == []
 
 
 def test_inverse_kinematics_matches_kinematics():
