@@ -48,8 +48,39 @@ def test_import_casmbd_loads_only_the_error_classes():
 
 def test_the_cli_loads_no_optimizer_or_plotting():
     """The command line (``casmbd info`` …) loads no scipy.optimize, matplotlib or dask: those
-    are imported by the functions that use them (a failed assembly's diagnosis, a plot)."""
-    assert _loaded("import casmbd.cli", ("scipy.optimize", "matplotlib", "dask")) == []
+    are imported by the functions that use them (a failed assembly's diagnosis, a plot); the
+    verbs' modules are imported when their verb runs, so building the parser loads neither the
+    OCP, the simulation, the sweeps nor the animation code."""
+    assert _loaded("import casmbd.cli", ("scipy.optimize", "matplotlib", "dask", "casmbd.ocp",
+                                         "casmbd.analysis.simulate", "casmbd.analysis.sweep",
+                                         "casmbd.viz.animation", "casmbd.cli.analyses")) == []
+
+
+def test_info_loads_only_the_info_verb(tmp_path):
+    """``casmbd info`` (the CLI's main, in a fresh interpreter) imports the info verb's module
+    and none of the other verbs'."""
+    code = ("import sys, io, contextlib, casmbd.cli\n"
+            "with contextlib.redirect_stdout(io.StringIO()):\n"
+            "    status = casmbd.cli.main(['info', 'examples/double_pendulum.toml', '--mode', "
+            "'vm'])\n"
+            "print(status, sorted(m for m in ('casmbd.cli.info', 'casmbd.cli.analyses', "
+            "'casmbd.cli.workbench', 'casmbd.cli.optimal', 'casmbd.ocp') if m in sys.modules))")
+    root = __import__("pathlib").Path(__file__).resolve().parent.parent
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=300, check=True, cwd=root).stdout.strip()
+    assert out == "0 ['casmbd.cli.info']"
+
+
+def test_every_verb_names_an_existing_handler():
+    """Each lazy entry of ``casmbd.cli.VERBS`` names a function of its module."""
+    import importlib
+
+    import casmbd.cli as cli
+
+    assert set(cli.VERBS) == set(cli._HANDLERS)
+    for verb, (module, name) in cli._HANDLERS.items():
+        handler = getattr(importlib.import_module(f"casmbd.cli.{module}"), name)
+        assert callable(handler) and cli.VERBS[verb].__name__ == name, verb
 
 
 def test_every_public_name_resolves_to_its_module_object():

@@ -10,15 +10,17 @@ every array.  Errors end with a non-zero exit status and one ``error: …`` line
 (a traceback only with ``--debug``).
 
 The package: this module holds the parser and :func:`main`; the verbs live in
-:mod:`casmbd.cli.analyses` (info … linearize), :mod:`casmbd.cli.workbench` (plot, animate,
-sweep, sensitivity) and :mod:`casmbd.cli.optimal` (ocp, bench), their shared helpers in
-:mod:`casmbd.cli.common`.  The CLI is the top layer: it loads scene files (casmbd.io) and
-hands Mechanisms to the analyses.
+:mod:`casmbd.cli.info`, :mod:`casmbd.cli.analyses` (kinematics … linearize),
+:mod:`casmbd.cli.workbench` (plot, animate, sweep, sensitivity) and :mod:`casmbd.cli.optimal`
+(ocp, bench) and are imported when their verb runs (:data:`VERBS`); the parsers of the last
+two in :mod:`casmbd.cli.verbs`, the shared helpers in :mod:`casmbd.cli.common`.  The CLI is
+the top layer: it loads scene files (casmbd.io) and hands Mechanisms to the analyses.
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import os
 import sys
@@ -28,24 +30,12 @@ from collections.abc import Sequence
 
 from casmbd import __version__, interrupts
 from casmbd.analysis.integrators import INTEGRATORS
-from casmbd.cli.analyses import (
-    _cmd_info,
-    _cmd_inverse,
-    _cmd_kinematics,
-    _cmd_linearize,
-    _cmd_simulate,
-    _cmd_statics,
-)
 from casmbd.cli.common import _finite_json, _Parser, _positive_float, _positive_int, _UsageError
-from casmbd.cli.optimal import _add_bench_verb, _cmd_bench, _cmd_ocp
-from casmbd.cli.workbench import (
+from casmbd.cli.verbs import (
+    _add_bench_verb,
     _add_sensitivity_verb,
     _add_sweep_verb,
     _add_workbench_verbs,
-    _cmd_animate,
-    _cmd_plot,
-    _cmd_sensitivity,
-    _cmd_sweep,
 )
 from casmbd.errors import CasmbdError
 from casmbd.results import _json_default
@@ -55,10 +45,26 @@ EXIT_ERROR = 1
 EXIT_USAGE = 2
 EXIT_INTERRUPTED = 130  # 128 + SIGINT
 
-VERBS = {"info": _cmd_info, "kinematics": _cmd_kinematics, "simulate": _cmd_simulate,
-         "inverse": _cmd_inverse, "statics": _cmd_statics, "linearize": _cmd_linearize,
-         "ocp": _cmd_ocp, "plot": _cmd_plot, "sensitivity": _cmd_sensitivity,
-         "bench": _cmd_bench, "animate": _cmd_animate, "sweep": _cmd_sweep}
+#: verb -> (module, function): the module is imported when its verb runs (lazy loading, as
+#: in ``casmbd/__init__``), so ``casmbd info`` loads neither the OCP, the sweeps nor the plots
+_HANDLERS = {"info": ("info", "_cmd_info"), "kinematics": ("analyses", "_cmd_kinematics"),
+             "simulate": ("analyses", "_cmd_simulate"), "inverse": ("analyses", "_cmd_inverse"),
+             "statics": ("analyses", "_cmd_statics"),
+             "linearize": ("analyses", "_cmd_linearize"), "ocp": ("optimal", "_cmd_ocp"),
+             "plot": ("workbench", "_cmd_plot"), "sensitivity": ("workbench", "_cmd_sensitivity"),
+             "bench": ("optimal", "_cmd_bench"), "animate": ("workbench", "_cmd_animate"),
+             "sweep": ("workbench", "_cmd_sweep")}
+
+
+def _verb(module: str, name: str):
+    """The function ``name`` of ``casmbd.cli.<module>``, imported on its first call."""
+    def run(args):
+        return getattr(importlib.import_module(f"casmbd.cli.{module}"), name)(args)
+    run.__name__ = run.__qualname__ = name
+    return run
+
+
+VERBS = {verb: _verb(*where) for verb, where in _HANDLERS.items()}
 
 
 def build_parser() -> argparse.ArgumentParser:

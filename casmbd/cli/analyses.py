@@ -1,59 +1,18 @@
-"""The analysis verbs: ``info``, ``kinematics``, ``simulate``, ``inverse``, ``statics`` and
-``linearize`` (one scene in, a summary or one JSON object out).
+"""The analysis verbs: ``kinematics``, ``simulate``, ``inverse``, ``statics`` and ``linearize``
+(one scene in, a summary or one JSON object out; ``info`` is in :mod:`casmbd.cli.info`).
 """
 
 from __future__ import annotations
 
-import json
-import sys
-
 from casmbd.analysis.inverse import inverse_dynamics
-from casmbd.analysis.kinematics import info, kinematics
+from casmbd.analysis.kinematics import kinematics
 from casmbd.analysis.linearize import linearize
 from casmbd.analysis.simulate import simulate
 from casmbd.analysis.statics import static_equilibrium
-from casmbd.cli.common import _finite_json, _load, _range, _save, _summary_table, _timing
-from casmbd.errors import AnalysisError, AssemblyError, IntegratorError
-from casmbd.results import _json_default
+from casmbd.cli.common import _load, _range, _save, _summary_table, _timing
+from casmbd.errors import AnalysisError, IntegratorError
 from casmbd.results import load as load_result
 from casmbd.viz.quantities import effort_units, energy_exchange, joint_coordinate_unit
-
-
-def _cmd_info(args) -> tuple[dict, str]:
-    mech = _load(args)
-    data = info(mech, mode=args.mode)
-    data.setdefault("coordinate_choice", mech.coordinates)
-    kind = "planar" if data.get("dimension", 2) == 2 else "spatial"
-    n_body_rows = sum(1 for row in data["constraints"] if row["kind"] == "body")
-    body_rows = f" ({n_body_rows} of the bodies' own)" if n_body_rows else ""
-    lines = [f"mechanism '{data['name']}' ({kind}, {len(data['bodies'])} bodies, "
-             f"{data['coordinate_choice']} coordinates)",
-             f"  coordinates ({data['n_coordinates']}): {', '.join(data['coordinates'])}",
-             f"  coordinate choice: {data.get('coordinate_reason', 'given')}",
-             f"  simulate by default: {data['default_formulation']} "
-             f"({data['formulation_reason']}), integrator {data['integrator_reason']}",
-             f"  constraints: {data['n_constraints']} equations{body_rows}, "
-             f"rank {data['rank']}",
-             f"  degrees of freedom: {data['degrees_of_freedom']}"]
-    if not data["assembled"]:
-        lines[-2] += " (at the initial guess: not assembled)"
-        lines.append("  redundant equations: not analysed (not assembled)")
-    elif data["redundant_equations"]:
-        lines.append("  redundant equations: " + ", ".join(
-            f"{d['joint']}.{d['equation']}" for d in data["redundant_equations"]))
-    else:
-        lines.append("  redundant equations: none")
-    if not data["assembled"]:
-        # the summary (or the one JSON object) on stdout, the culprit on stderr, exit 1
-        if args.json:
-            sys.stdout.write(json.dumps(_finite_json(json.loads(json.dumps(
-                data, default=_json_default))), allow_nan=False) + "\n")
-        else:
-            print("\n".join(lines))
-        sys.stdout.flush()
-        raise AssemblyError(f"mechanism '{data['name']}' cannot be assembled — "
-                            f"{data['assembly_error']}", data.get("assembly_culprits"))
-    return data, "\n".join(lines)
 
 
 def _cmd_kinematics(args) -> tuple[dict, str]:

@@ -1,5 +1,5 @@
 """The ``ocp`` verb (the scene's ``[ocp]`` table) and the ``bench`` verb (the benchmark suite of
-a source checkout).
+a source checkout); the ``bench`` parser is in :mod:`casmbd.cli.verbs`.
 """
 
 from __future__ import annotations
@@ -56,18 +56,6 @@ def _cmd_ocp(args) -> tuple[dict, str]:
         lines.append(f"  control {name:12s} [{u.min():+.4g}, {u.max():+.4g}]")
     lines += [f"  saved {f}" for f in (args.out, args.plot) if f]
     return data, "\n".join(lines)
-
-
-def _add_bench_verb(sub) -> None:
-    """The ``bench`` verb: the benchmark suite of a source checkout (``python -m benchmarks``)."""
-    p = sub.add_parser("bench", help="run the benchmark suite of a casmbd checkout "
-                                     "(python -m benchmarks)")
-    p.add_argument("--quick", action="store_true",
-                   help="a few minutes: check the printed errors against their bounds")
-    p.add_argument("--update-docs", action="store_true",
-                   help="regenerate docs/performance.md (full suite only)")
-    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
 
 
 def _cmd_bench(args) -> tuple[dict, str]:

@@ -1,7 +1,8 @@
 """The workbench verbs: ``plot`` and ``animate`` (figures of results), ``sweep`` (one analysis
 at many parameter values) and ``sensitivity`` (derivatives with respect to parameters).
 
-matplotlib is imported by casmbd.viz only when a figure is drawn.
+matplotlib is imported by casmbd.viz only when a figure is drawn; the verbs' command-line
+parsers are in :mod:`casmbd.cli.verbs`.
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ from pathlib import Path
 from casmbd.analysis.sensitivity import sensitivity
 from casmbd.analysis.simulate import simulate
 from casmbd.analysis.sweep import parse_values, sweep
-from casmbd.cli.common import _check_out, _load, _positive_float, _positive_int
+from casmbd.cli.common import _check_out, _load
 from casmbd.errors import AnalysisError
 from casmbd.io.scene import load_scene
 from casmbd.limits import MAX_FRAMES, check_count
@@ -23,97 +24,7 @@ from casmbd.viz.animation import (
     draw_frame,
     save_animation,
 )
-from casmbd.viz.plots import KINDS, available_kinds, check_figure_size, plot_result
-
-
-def _add_workbench_verbs(sub) -> None:
-    """The ``plot`` and ``animate`` verbs (figures and animations of results)."""
-    p = sub.add_parser("plot", help="figures of a saved result against time")
-    p.add_argument("result", help="result file (.npz) written with --out")
-    p.add_argument("--kind", action="append", default=None, metavar="KIND",
-                   help=f"what to draw: {', '.join(KINDS)} (repeatable; default every kind "
-                        "the result holds); each kind gets one panel per unit")
-    p.add_argument("--element", action="append", default=None, metavar="NAME",
-                   help="draw only the lines of this body, joint, driver or actuator "
-                        "(repeatable)")
-    p.add_argument("--euler", choices=("xyz", "zxz"), default="xyz",
-                   help="Euler angles drawn for spatial bodies instead of quaternions "
-                        "(default xyz, regular at the identity; zxz is singular there)")
-    p.add_argument("--out", required=True, help="figure file (.png, .pdf, .svg)")
-    p.add_argument("--dpi", type=_positive_float, default=100.0, help="resolution (default 100)")
-    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
-
-    p = sub.add_parser("animate", help="animation (.gif, .mp4 with ffmpeg) or still frame "
-                                       "(.png) of a scene or a saved result")
-    p.add_argument("source", help="scene file (TOML; simulated first) or result file (.npz)")
-    p.add_argument("--out", required=True,
-                   help=".gif (Pillow), .mp4 (needs ffmpeg) or .png/.pdf/.svg (a still frame "
-                        "with earlier poses faded)")
-    p.add_argument("--t-end", type=_positive_float, default=2.0,
-                   help="final time of the simulation of a scene [s] (default 2)")
-    p.add_argument("--steps", type=_positive_int, default=50,
-                   help="output intervals of the simulation of a scene (default 50)")
-    p.add_argument("--max-frames", type=_positive_int, default=None,
-                   help="show at most this many evenly spread output steps (default 301)")
-    p.add_argument("--fps", type=_positive_float, default=None,
-                   help="highest frame rate (default 30; a GIF plays at most 50)")
-    p.add_argument("--speed", type=_positive_float, default=1.0,
-                   help="playback speed factor (default 1: real time; 2: twice as fast)")
-    p.add_argument("--trace", action="append", default=None, metavar="MARKER",
-                   help="draw the path of this marker (repeatable; 'all' for every marker)")
-    p.add_argument("--dpi", type=_positive_float, default=80.0, help="resolution (default 80)")
-    p.add_argument("--mode", choices=("auto", "compiled", "vm"), default="auto",
-                   help="compile equations to C (default auto) or use CasADi's VM")
-    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
-
-
-def _add_sweep_verb(sub) -> None:
-    """The ``sweep`` verb (one analysis at many parameter values, casmbd.analysis.sweep)."""
-    p = sub.add_parser("sweep", help="parameter sweep: one analysis at many values of the "
-                                     "scene's [parameters]")
-    p.add_argument("scene", help="scene file (TOML) with a [parameters] table")
-    p.add_argument("--param", action="append", required=True, metavar="NAME=VALUES",
-                   help="NAME=A:B:N (N values from A to B inclusive), NAME=A,B,C or NAME=A; "
-                        "repeat for a grid product")
-    p.add_argument("--analysis", choices=("simulate", "kinematics", "inverse", "statics"),
-                   default="simulate", help="analysis run at every point (default simulate)")
-    p.add_argument("--t-end", type=_positive_float, default=None, help="final time [s]")
-    p.add_argument("--steps", type=_positive_int, default=None,
-                   help="number of output intervals (N + 1 output times from 0 to T)")
-    p.add_argument("--output", action="append", default=None, metavar="REDUCTION:COLUMN",
-                   help="scalar output per point, e.g. final:q[crank.angle], "
-                        "max:body.rod.angle, energy_drift (repeatable; default final q, "
-                        "largest constraint violation, energy drift)")
-    p.add_argument("--workers", type=_positive_int, default=None,
-                   help="local worker processes (default: serial in this process)")
-    p.add_argument("--scheduler", default=None, metavar="ADDR",
-                   help="Dask scheduler address (needs dask.distributed: casmbd[sweep])")
-    p.add_argument("--out", default=None, metavar="DIR",
-                   help="folder for point_XXX.npz, sweep.csv and sweep.npz")
-    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
-    p.add_argument("--mode", choices=("auto", "compiled", "vm"), default="auto",
-                   help="compile equations to C (default auto) or use CasADi's VM")
-
-
-def _add_sensitivity_verb(sub) -> None:
-    """The ``sensitivity`` verb (casmbd.analysis.sensitivity)."""
-    p = sub.add_parser("sensitivity", help="exact derivatives of simulation outputs with "
-                                           "respect to scene parameters (IDAS)")
-    p.add_argument("scene", help="scene file (TOML) with a [parameters] table")
-    p.add_argument("--output", action="append", required=True, metavar="EXPR",
-                   help="output: an expression at t_end (e.g. tip_x) or 'integral: EXPR' "
-                        "(e.g. 'integral: O_Fy'); repeatable")
-    p.add_argument("--param", action="append", default=None, metavar="NAME",
-                   help="parameter to differentiate with respect to (default: all); repeatable")
-    p.add_argument("--t-end", type=_positive_float, required=True, help="final time [s]")
-    p.add_argument("--method", choices=("forward", "adjoint"), default="forward",
-                   help="IDAS forward sensitivities (per parameter) or adjoint (per output)")
-    p.add_argument("--rtol", type=_positive_float, default=1e-10, help="relative tolerance")
-    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+from casmbd.viz.plots import available_kinds, check_figure_size, plot_result
 
 
 def _cmd_plot(args) -> tuple[dict, str]:

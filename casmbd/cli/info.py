@@ -1,0 +1,50 @@
+"""The ``info`` verb: coordinates, constraints, degrees of freedom, dependent equations (a
+module of its own so that ``casmbd info`` loads only what it needs).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+
+from casmbd.analysis.kinematics import info
+from casmbd.cli.common import _finite_json, _load
+from casmbd.errors import AssemblyError
+from casmbd.results import _json_default
+
+
+def _cmd_info(args) -> tuple[dict, str]:
+    mech = _load(args)
+    data = info(mech, mode=args.mode)
+    data.setdefault("coordinate_choice", mech.coordinates)
+    kind = "planar" if data.get("dimension", 2) == 2 else "spatial"
+    n_body_rows = sum(1 for row in data["constraints"] if row["kind"] == "body")
+    body_rows = f" ({n_body_rows} of the bodies' own)" if n_body_rows else ""
+    lines = [f"mechanism '{data['name']}' ({kind}, {len(data['bodies'])} bodies, "
+             f"{data['coordinate_choice']} coordinates)",
+             f"  coordinates ({data['n_coordinates']}): {', '.join(data['coordinates'])}",
+             f"  coordinate choice: {data.get('coordinate_reason', 'given')}",
+             f"  simulate by default: {data['default_formulation']} "
+             f"({data['formulation_reason']}), integrator {data['integrator_reason']}",
+             f"  constraints: {data['n_constraints']} equations{body_rows}, "
+             f"rank {data['rank']}",
+             f"  degrees of freedom: {data['degrees_of_freedom']}"]
+    if not data["assembled"]:
+        lines[-2] += " (at the initial guess: not assembled)"
+        lines.append("  redundant equations: not analysed (not assembled)")
+    elif data["redundant_equations"]:
+        lines.append("  redundant equations: " + ", ".join(
+            f"{d['joint']}.{d['equation']}" for d in data["redundant_equations"]))
+    else:
+        lines.append("  redundant equations: none")
+    if not data["assembled"]:
+        # the summary (or the one JSON object) on stdout, the culprit on stderr, exit 1
+        if args.json:
+            sys.stdout.write(json.dumps(_finite_json(json.loads(json.dumps(
+                data, default=_json_default))), allow_nan=False) + "\n")
+        else:
+            print("\n".join(lines))
+        sys.stdout.flush()
+        raise AssemblyError(f"mechanism '{data['name']}' cannot be assembled — "
+                            f"{data['assembly_error']}", data.get("assembly_culprits"))
+    return data, "\n".join(lines)
