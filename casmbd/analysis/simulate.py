@@ -185,9 +185,13 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
         self._dyn_system = ConstraintSubset(system, keep) if keep is not None else system
         self.formulation = self.kind.build(self._dyn_system, inputs=u_expr,
                                            **dict(formulation_options or {}))
+        # an ODE of an unconstrained system gives q̈ to the post-processing (no M solve)
+        ode = self.formulation.function if self.formulation.kind == "ode" else None
         self.model = NumericModel(system, "dynamics", mode=mode,
                                   extra=[*self.formulation.functions,
-                                         post_processing(system, u_expr), self.ufun])
+                                         post_processing(system, u_expr, ode), self.ufun],
+                                  hot=None if self.kind.numeric else  # per step: optimised
+                                  [f.name() for f in self.formulation.functions])
         self.system = system
         self.dyn = self.model.function(self.formulation.function.name())
         self.ufun = self.model.function(INPUTS_FUNCTION)

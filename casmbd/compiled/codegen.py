@@ -1,11 +1,12 @@
 """Compile CasADi functions to a shared library and cache it on disk.
 
-:func:`compile_functions` generates C code for a list of :class:`casadi.Function` objects into
-one source file with :class:`casadi.CodeGenerator`, compiles it with the system C compiler into
-a shared library, and loads every function back with :func:`casadi.external`.  The library is
-cached in :func:`cache_dir` under a name derived from a hash of the generated source, the
-compiler flags, the compiler path, the CasADi version and the platform, so that a later call (in
-this or another process) with the same functions loads it without compiling again.  A cached
+:func:`compile_functions` generates C code for a list of :class:`casadi.Function` objects with
+:class:`casadi.CodeGenerator` (one source file, or for large builds one translation unit per
+function compiled in parallel, :mod:`casmbd.compiled.units`), compiles it with the system C
+compiler into a shared library, and loads every function back with :func:`casadi.external`. The
+library is cached in :func:`cache_dir` under a name derived from a hash of the generated source,
+the compiler flags, the compiler path, the CasADi version and the platform, so that a later call
+(in this or another process) with the same functions loads it without compiling again. A cached
 library is opened only after its SHA-256, build key and function signatures have been checked
 against the record written beside it (:mod:`casmbd.compiled.cache`); one that fails a check,
 cannot be loaded or loads functions of other signatures is rebuilt with a
@@ -39,12 +40,12 @@ import sys
 import tempfile
 import time
 import warnings
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass
 
 import casadi
 
-from casmbd.compiled import cache
+from casmbd.compiled import cache, units
 from casmbd.compiled.cache import cache_dir
 from casmbd.errors import CompileError
 
@@ -223,8 +224,8 @@ def _load(names: list[str], library: pathlib.Path) -> dict[str, casadi.Function]
     return {fname: casadi.external(fname, str(library), {"enable_fd": True}) for fname in names}
 
 
-def _run_compiler(command: list[str], source: pathlib.Path, library: pathlib.Path,
-                  record: dict | None = None) -> float:
+def _run_compiler(command: list[str], source: pathlib.Path | list[pathlib.Path],
+                  library: pathlib.Path, record: dict | None = None) -> float:
     """Compile ``source`` into ``library`` atomically; return the seconds spent compiling.
 
     The compiler writes a temporary file of the cache directory; with ``record`` (the build key
@@ -241,7 +242,8 @@ def _run_compiler(command: list[str], source: pathlib.Path, library: pathlib.Pat
                            ) from exc
     os.close(fd)
     try:
-        full = [*command, str(source), "-o", tmp, *LINK_LIBS]
+        inputs = [str(p) for p in source] if isinstance(source, list) else [str(source)]
+        full = [*command, *inputs, "-o", tmp, *LINK_LIBS]
         COMPILE_COUNT += 1
         start = time.perf_counter()
         try:
@@ -258,7 +260,7 @@ def _run_compiler(command: list[str], source: pathlib.Path, library: pathlib.Pat
                 os.killpg(proc.pid, signal.SIGKILL)
             proc.communicate()
             raise CompileError(
-                f"C compiler timed out after {COMPILE_TIMEOUT:g} s compiling {source.name}: "
+                f"C compiler timed out after {COMPILE_TIMEOUT:g} s compiling {inputs[-1]}: "
                 f"{shlex.join(full)}"
             ) from exc
         except BaseException:
@@ -273,7 +275,7 @@ def _run_compiler(command: list[str], source: pathlib.Path, library: pathlib.Pat
             tail = output[-_STDERR_TAIL:].strip()
             raise CompileError(
                 f"C compiler failed with exit code {result.returncode} compiling "
-                f"{source.name}: {shlex.join(full)}\n{tail}"
+                f"{pathlib.Path(inputs[-1]).name}: {shlex.join(full)}\n{tail}"
             )
         try:
             os.chmod(tmp, 0o755)
@@ -297,8 +299,11 @@ def _build(
     names: list[str],
     name: str,
     flags: Sequence[str] | None,
+    hot: Collection[str] | None = None,
 ) -> tuple[dict[str, casadi.Function], BuildReport]:
-    """Generate, compile (unless cached) and load; raise CompileError on any failure."""
+    """Generate, compile (unless cached) and load; raise CompileError on any failure.  The
+    functions go into the translation units of :func:`casmbd.compiled.units.plan`, compiled
+    in parallel and linked into one library."""
     compiler = _find_compiler()
     if compiler is None:
         raise CompileError(
@@ -306,16 +311,19 @@ def _build(
             f"{os.environ.get('CC', '')!r} and PATH)"
         )
     resolved_flags = _resolve_flags(flags)
-    command = [*compiler, *resolved_flags, *SHARED_FLAGS]
+    chosen = resolved_flags if flags is not None or os.environ.get("CASMBD_CFLAGS", "").strip() \
+        else None
 
     start = time.perf_counter()
     try:
-        template = _generate_template(functions)
+        plan = units.plan(functions, _generate_template, chosen, resolved_flags, hot)
     except RuntimeError as exc:
         raise CompileError(f"CasADi cannot generate C code for {name!r}: {exc}") from exc
-    key = _compute_key(template, name, compiler, resolved_flags)
+    key = _compute_key("\x1e".join(" ".join(fl) + "\x1d" + tpl for _, tpl, fl in plan),
+                       name, compiler, resolved_flags)
     stem = f"{name}_{key[:16]}"
-    source_text = template.replace(_PREFIX_MARKER, stem)
+    sources = [tpl.replace(_PREFIX_MARKER, stem if len(plan) == 1 else f"{stem}_u{i}")
+               for i, (_, tpl, _) in enumerate(plan)]
     codegen_seconds = time.perf_counter() - start
 
     directory = cache_dir()
@@ -347,13 +355,22 @@ def _build(
             )
             return loaded, report
 
+    record = {"key": key, "functions": expected}
     with tempfile.TemporaryDirectory(prefix="casmbd_cg_") as tmpdir:
-        source = pathlib.Path(tmpdir) / f"{stem}.c"
-        source.write_text(source_text, encoding="utf-8")
-        compile_seconds = _run_compiler(command, source, library,
-                                        {"key": key, "functions": expected})
+        paths = [pathlib.Path(tmpdir) / f"{stem}_u{i}.c" for i in range(len(plan))]
+        for path, text in zip(paths, sources, strict=True):
+            path.write_text(text, encoding="utf-8")
+        if len(plan) == 1:
+            compile_seconds = _run_compiler([*compiler, *plan[0][2], *SHARED_FLAGS], paths[0],
+                                            library, record)
+        else:  # objects on every core, then one link
+            commands, objects = units.object_commands(compiler, plan, paths)
+            compile_seconds = units.compile_objects(
+                commands, [o.with_suffix(".log") for o in objects], COMPILE_TIMEOUT)
+            compile_seconds += _run_compiler([*compiler, *SHARED_FLAGS], objects, library,
+                                             record)
     with contextlib.suppress(OSError):
-        cache.write_atomic(kept_source, source_text)
+        cache.write_atomic(kept_source, "\n".join(sources))
 
     start = time.perf_counter()
     loaded, reason = _load_verified(names, library, expected)
@@ -373,60 +390,13 @@ def _build(
     return loaded, report
 
 
-#: a function whose C source alone exceeds this many bytes is compiled at ``-O0`` in a library
-#: of its own when the flags are the defaults: gcc's optimiser is superlinear on long
-#: straight-line functions (a 100-rod chain in joint coordinates: 214 s at -O2, 190 s at -O1,
-#: 11 s at -O0 for 5.9 MB of C, most of it the dense joint-space mass matrix and the
-#: post-processing KKT solve, evaluated once per output), while the right-hand sides the
-#: integrators call millions of times stay below it and keep ``-O2``
-LARGE_SOURCE = 1_000_000
-LARGE_FLAGS = ("-O0",)
-
-
-def _source_size(function: casadi.Function) -> int:
-    """Bytes of C that ``function`` alone generates."""
-    generator = casadi.CodeGenerator("size.c", dict(_CODEGEN_OPTIONS))
-    generator.add(function)
-    return len(generator.dump())
-
-
-def _build_split(functions, names, name, flags):
-    """:func:`_build`, with the functions above :data:`LARGE_SOURCE` in a second library at
-    :data:`LARGE_FLAGS` when no flags were chosen (argument or ``$CASMBD_CFLAGS``)."""
-    chosen = flags is not None or os.environ.get("CASMBD_CFLAGS", "").strip()
-    if chosen or len(functions) < 2:
-        return _build(functions, names, name, flags)
-    try:
-        large = {f.name() for f in functions if _source_size(f) > LARGE_SOURCE}
-    except RuntimeError as exc:
-        raise CompileError(f"CasADi cannot generate C code for {name!r}: {exc}") from exc
-    if not large or len(large) == len(functions):
-        return _build(functions, names, name, flags if not large else list(LARGE_FLAGS))
-    small_f = [f for f in functions if f.name() not in large]
-    large_f = [f for f in functions if f.name() in large]
-    out_a, rep_a = _build(small_f, [f.name() for f in small_f], name, None)
-    out_b, rep_b = _build(large_f, [f.name() for f in large_f], f"{name}_large",
-                          list(LARGE_FLAGS))
-    report = BuildReport(
-        mode="compiled",
-        cache_hit=rep_a.cache_hit and rep_b.cache_hit,
-        compiled=rep_a.compiled or rep_b.compiled,
-        codegen_seconds=rep_a.codegen_seconds + rep_b.codegen_seconds,
-        compile_seconds=rep_a.compile_seconds + rep_b.compile_seconds,
-        load_seconds=rep_a.load_seconds + rep_b.load_seconds,
-        library=rep_a.library,
-        key=rep_a.key + rep_b.key,
-        libraries=rep_a.libraries + rep_b.libraries,
-    )
-    return {**out_a, **out_b}, report
-
-
 def compile_functions(
     functions: Sequence[casadi.Function],
     name: str = "casmbd_model",
     *,
     mode: str = "auto",
     flags: Sequence[str] | None = None,
+    hot: Collection[str] | None = None,
 ) -> tuple[dict[str, casadi.Function], BuildReport]:
     """Compile CasADi functions into one cached shared library and load them back.
 
@@ -445,6 +415,12 @@ def compile_functions(
     flags : sequence of str, optional
         Optimisation flags; default ``$CASMBD_CFLAGS`` split on spaces, else ``-O2``.
         ``-shared -fPIC`` are always added.
+    hot : collection of str, optional
+        Names of the functions evaluated often (an integrator's right-hand side): when no
+        flags were chosen, only these get the default flags and the others
+        :data:`casmbd.compiled.units.COLD_FLAGS` (``-O0``); by default every function gets
+        them (and any whose C alone exceeds 1 MB ``-O0``).  Large builds are compiled as one
+        translation unit per function on every core (:mod:`casmbd.compiled.units`).
 
     Returns
     -------
@@ -490,7 +466,7 @@ def compile_functions(
         return _vm_result(functions)
 
     try:
-        return _build_split(functions, names, name, flags)
+        return _build(functions, names, name, flags, hot)
     except CompileError as exc:
         if mode == "compiled":
             raise

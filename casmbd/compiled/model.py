@@ -54,6 +54,10 @@ class NumericModel:
         Compile to C (with on-disk cache), or use CasADi's virtual machine.
     extra : iterable of casadi.Function
         Further Functions compiled into the same library (e.g. a dynamics formulation).
+    hot : iterable of str, optional
+        The Functions evaluated often (an integrator's right-hand side): only these are
+        optimised, the others compiled at ``-O0`` (see
+        :func:`~casmbd.compiled.codegen.compile_functions`); default: all optimised.
 
     Notes
     -----
@@ -80,7 +84,8 @@ class NumericModel:
     """
 
     def __init__(self, system, functions: Iterable[str] | str = "kinematics",
-                 mode: str = "auto", extra: Iterable[ca.Function] = ()):
+                 mode: str = "auto", extra: Iterable[ca.Function] = (),
+                 hot: Iterable[str] | None = None):
         t0 = time.perf_counter()
         system = system if isinstance(system, System) else System(system)
         #: the symbolic equations; only for diagnostics that build new Functions (see Notes)
@@ -90,7 +95,8 @@ class NumericModel:
         symbolic = [system.function(n) for n in names] + list(extra)
         t1 = time.perf_counter()
         self.functions, self.report = compile_functions(
-            symbolic, name=_c_name(system.mechanism.name), mode=mode)
+            symbolic, name=_c_name(system.mechanism.name), mode=mode,
+            hot=None if hot is None else set(hot))
         t2 = time.perf_counter()
         self.symbolic_seconds = t1 - t0
         self.build_seconds = t2 - t0

@@ -1,0 +1,77 @@
+"""Translation units of casmbd.compiled.codegen (casmbd.compiled.units, issue 22 item 3):
+which functions share a unit and at which flags, and the parallel build of many units into
+one library, whose functions evaluate as the originals do."""
+
+from __future__ import annotations
+
+import casadi
+import numpy as np
+import pytest
+
+from casmbd.compiled import codegen, units
+from casmbd.errors import CompileError
+
+needs_compiler = pytest.mark.skipif(codegen._find_compiler() is None,
+                                    reason="no C compiler available")
+
+
+def functions() -> list[casadi.Function]:
+    x = casadi.SX.sym("x", 3)
+    return [casadi.Function("rhs", [x], [casadi.sin(x) * x[0]]),
+            casadi.Function("post", [x], [casadi.dot(x, x), casadi.exp(x[1])]),
+            casadi.Function("energy", [x], [casadi.sum1(casadi.cos(x))])]
+
+
+def test_plan_flags_and_grouping(monkeypatch):
+    fs = functions()
+    plan = units.plan(fs, codegen._generate_template, None, ["-O2"], {"rhs"})
+    # small: one unit per flag set, hot at the default flags, the rest cold
+    assert [([f.name() for f in u[0]], u[2]) for u in plan] == \
+        [(["rhs"], ["-O2"]), (["post", "energy"], list(units.COLD_FLAGS))]
+    assert [u[2] for u in units.plan(fs, codegen._generate_template, None, ["-O2"], None)] \
+        == [["-O2"]]  # nothing named hot: all optimised, one unit
+    chosen = units.plan(fs, codegen._generate_template, ["-O3"], ["-O3"], {"rhs"})
+    assert [u[2] for u in chosen] == [["-O3"]]  # chosen flags win
+    monkeypatch.setattr(units, "SPLIT_SOURCE", 0)  # large: one unit per function
+    plan = units.plan(fs, codegen._generate_template, None, ["-O2"], {"rhs"})
+    assert [[f.name() for f in u[0]] for u in plan] == [["rhs"], ["post"], ["energy"]]
+    assert [u[2] for u in plan] == [["-O2"], list(units.COLD_FLAGS), list(units.COLD_FLAGS)]
+    monkeypatch.setattr(units, "LARGE_SOURCE", 0)  # above LARGE_SOURCE: cold even if hot
+    assert {tuple(u[2]) for u in units.plan(fs, codegen._generate_template, None, ["-O2"],
+                                            None)} == {units.COLD_FLAGS}
+
+
+@needs_compiler
+def test_units_compile_in_parallel_into_one_library(tmp_path, monkeypatch):
+    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path))
+    monkeypatch.delenv("CASMBD_CFLAGS", raising=False)
+    monkeypatch.setattr(units, "SPLIT_SOURCE", 0)
+    fs = functions()
+    out, report = codegen.compile_functions(fs, "units_test", mode="compiled", hot={"rhs"})
+    assert report.compiled and len(report.libraries) == 1
+    x = np.array([0.3, -1.2, 2.5])
+    for f in fs:
+        for got, want in zip(out[f.name()].call([x]), f.call([x]), strict=True):
+            np.testing.assert_allclose(np.asarray(got), np.asarray(want), rtol=1e-15,
+                                       atol=1e-15)
+    _, report = codegen.compile_functions(fs, "units_test", mode="compiled", hot={"rhs"})
+    assert report.cache_hit and not report.compiled
+    # other flags for the same functions are another build
+    _, other = codegen.compile_functions(fs, "units_test", mode="compiled")
+    assert other.compiled and other.key != report.key
+
+
+@needs_compiler
+def test_a_failing_unit_names_its_command(tmp_path):
+    good = tmp_path / "good.c"
+    good.write_text("int f(void) { return 1; }\n")
+    bad = tmp_path / "bad.c"
+    bad.write_text("int g(void) { return syntax error; }\n")
+    cc = codegen._find_compiler()
+    commands = [[*cc, "-c", str(src), "-o", str(src.with_suffix(".o"))] for src in (good, bad)]
+    logs = [src.with_suffix(".log") for src in (good, bad)]
+    with pytest.raises(CompileError, match=r"bad\.c"):
+        units.compile_objects(commands, logs, timeout=60.0)
+    (tmp_path / "good.o").unlink(missing_ok=True)
+    units.compile_objects(commands[:1], logs[:1], timeout=60.0)
+    assert (tmp_path / "good.o").exists()
