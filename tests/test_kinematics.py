@@ -342,9 +342,11 @@ def test_assembly_keeps_fixed_coordinate_exactly():
     """Undriven four-bar: with fixed=['crank.angle'] the crank angle is kept bit-exactly and
     the rest is the closed-form configuration of that crank angle (1e-10)."""
     mech = four_bar_api(crank_angle=1.2, driver=False, name="fb_fixed")
+    mech.coordinates = "absolute"  # q = (x, y, angle) of crank, coupler, rocker
     model = NumericModel(mech, "kinematics")
     target = 1.2 + 0.25
     reference = four_bar_api(crank_angle=target, driver=False, name="fb_ref")
+    reference.coordinates = "absolute"
     ref = System(reference).initial_coordinates()
     q0 = System(mech).initial_coordinates()
     q0[2] = target  # new crank angle, every other coordinate is now off
@@ -358,6 +360,18 @@ def test_assembly_keeps_fixed_coordinate_exactly():
     # without fixing it, the minimum-norm Newton iteration is free to move the crank angle
     free = assemble(model, q0, 0.0)
     assert free.q[2] != target
+    # the automatic choice: joint angles A, B, D (zero at the built pose), C closes the loop;
+    # the closed-form joint angles of the target are differences of the bodies' angles
+    auto = four_bar_api(crank_angle=1.2, driver=False, name="fb_fixed_auto")
+    model = NumericModel(auto, "kinematics")
+    assert model.coordinate_names == ["A.angle", "B.angle", "D.angle"]
+    th0, th = System(mech).initial_coordinates()[2::3], ref[2::3]  # crank, coupler, rocker
+    expected = [th[0] - th0[0], (th[1] - th[0]) - (th0[1] - th0[0]), th[2] - th0[2]]
+    q0 = np.array([0.25, -0.01, 0.01])
+    rep = assemble(model, q0, 0.0, fixed=["A.angle"])
+    assert rep.q[0] == 0.25 and rep.change[0] == 0.0
+    assert np.max(np.abs(model.constraints(rep.q, 0.0))) <= 1e-11
+    np.testing.assert_allclose(rep.q, expected, rtol=0, atol=1e-10)
 
 
 # ---------------------------------------------------------------------------- rank analysis
@@ -384,26 +398,44 @@ def parallelogram(extra_link: bool = True, driver: bool = False) -> Mechanism:
     return m
 
 
-def test_degrees_of_freedom_of_examples():
-    dp = info(load_scene(EXAMPLES / "double_pendulum.toml"))
+#: (n_coordinates, n_constraints, rank) of the double pendulum, slider-crank and four-bar:
+#: absolute coordinates 3 per body; the automatic choice takes joint coordinates (the double
+#: pendulum is a tree; the slider-crank and the four-bar close one loop with 2 equations, plus
+#: the slider-crank's driver)
+SIZES = {"absolute": [(6, 4, 4), (9, 9, 9), (9, 8, 8)],
+         "auto": [(2, 0, 0), (3, 3, 3), (3, 2, 2)]}
+
+
+@pytest.mark.parametrize("coordinates", ["absolute", "auto"])
+def test_degrees_of_freedom_of_examples(coordinates):
+    mechs = [load_scene(EXAMPLES / "double_pendulum.toml"),
+             load_scene(EXAMPLES / "slider_crank.toml"),
+             four_bar_api(driver=False, name="fb_info")]
+    for mech in mechs:
+        mech.coordinates = coordinates
+    dp, sc, fb = (info(m) for m in mechs)
     assert dp["degrees_of_freedom"] == 2
-    assert (dp["n_coordinates"], dp["n_constraints"], dp["rank"]) == (6, 4, 4)
-    sc = info(load_scene(EXAMPLES / "slider_crank.toml"))
+    assert (dp["n_coordinates"], dp["n_constraints"], dp["rank"]) == SIZES[coordinates][0]
     assert sc["degrees_of_freedom"] == 0
-    assert (sc["n_coordinates"], sc["n_constraints"], sc["rank"]) == (9, 9, 9)
+    assert (sc["n_coordinates"], sc["n_constraints"], sc["rank"]) == SIZES[coordinates][1]
     assert sc["redundant_equations"] == []
-    fb = info(four_bar_api(driver=False, name="fb_info"))
     assert fb["degrees_of_freedom"] == 1
-    assert (fb["n_coordinates"], fb["n_constraints"], fb["rank"]) == (9, 8, 8)
+    assert (fb["n_coordinates"], fb["n_constraints"], fb["rank"]) == SIZES[coordinates][2]
     assert fb["redundant_equations"] == []
 
 
-def test_parallelogram_redundant_link():
-    base = info(parallelogram(extra_link=False))
+@pytest.mark.parametrize(("coordinates", "sizes"), [("absolute", (12, 12, 11)),
+                                                    ("auto", (4, 4, 3))])
+def test_parallelogram_redundant_link(coordinates, sizes):
+    """Absolute: 4 bodies x 3 coordinates, 6 revolute joints x 2 equations; the automatic
+    choice: joint angles O1, JA, O2, O3 with JB and JE closing two loops (4 equations)."""
+    mechs = [parallelogram(extra_link=False), parallelogram(extra_link=True)]
+    for mech in mechs:
+        mech.coordinates = coordinates
+    base = info(mechs[0])
     assert base["degrees_of_freedom"] == 1 and base["redundant_equations"] == []
-    rep = info(parallelogram(extra_link=True))
-    assert rep["n_coordinates"] == 12 and rep["n_constraints"] == 12
-    assert rep["rank"] == 11
+    rep = info(mechs[1])
+    assert (rep["n_coordinates"], rep["n_constraints"], rep["rank"]) == sizes
     assert rep["degrees_of_freedom"] == 1
     assert len(rep["redundant_equations"]) == 1
     red = rep["redundant_equations"][0]
