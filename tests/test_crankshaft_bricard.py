@@ -165,9 +165,11 @@ def test_undetermined_reactions_absolute_coordinates(redundant, inline, option):
 
 # ------------------------------------------------------------------------------ Bricard
 def bricard(coordinates: str = "absolute") -> casmbd.Mechanism:
+    """The example in ``coordinates`` (set explicitly: the scene leaves the choice to casmbd,
+    which takes joint coordinates for its single loop)."""
     mech = load_scene(ROOT / "examples" / "bricard.toml")
+    mech.coordinates = coordinates
     if coordinates != "absolute":
-        mech.coordinates = coordinates
         mech.name = f"bricard_{coordinates}"
     return mech
 
