@@ -67,7 +67,10 @@ def test_canonical_is_exact_and_ordered():
         modelkey.canonical({"motor": lambda t: t})
     mech = two_rods()
     mech.scene_text = "# a comment"  # the embedded scene text is not what is built
+    mech.scene_data = {"simulate": {"t_end": 3.0}}  # nor the scene's analysis settings
     assert modelkey.canonical(mech) == modelkey.canonical(two_rods())
+    mech.gravity = mech.gravity * 1.01  # but the description is
+    assert modelkey.canonical(mech) != modelkey.canonical(two_rods())
 
 
 @needs_compiler

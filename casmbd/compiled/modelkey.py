@@ -54,9 +54,10 @@ __all__ = ["MODEL_RECORD_FORMAT", "UnkeyableError", "canonical", "load", "model_
 #: version of the model record; a record of another version is a miss
 MODEL_RECORD_FORMAT = 1
 MODEL_SUFFIX = ".model.json"
-#: attributes of a mechanism that do not change what is built (the scene's text is embedded
-#: in results from the mechanism at hand; a sweep's points are read by the sweep)
-_SKIPPED = frozenset({"scene_text", "scene_points"})
+#: attributes of a mechanism that do not change what is built (the scene's text and parsed
+#: tables, whose analysis settings — t_end, steps, tolerances — are the caller's, and a
+#: sweep's points; the results take them from the mechanism at hand)
+_SKIPPED = frozenset({"scene_text", "scene_data", "scene_points"})
 _MAX_DEPTH = 12
 
 
