@@ -1,5 +1,9 @@
 """Symbolic equations of motion against finite differences, hand formulas and each other.
 
+Every mechanism here is in absolute coordinates (set explicitly: the hand formulas, the numpy
+virtual work and the user generalized force of 9 weights are written for them; joint
+coordinates are checked in tests/test_joint_coordinates.py).
+
 Tolerances (all stated per test):
 
 * C_q, C_t, γ, Q_v (Lagrange) and Q_e = −∂V/∂q against central finite differences with
@@ -94,7 +98,7 @@ def forced_four_bar(conservative: bool = False) -> Mechanism:
     which Q_e(q, v) = −∂V/∂q.
     """
     name = "fb_conservative" if conservative else "fb_forced"
-    m = Mechanism(name, gravity=(0.0, -9.81))
+    m = Mechanism(name, gravity=(0.0, -9.81), coordinates="absolute")
     m.add_parameter("k_s", SPRING["k"])
     m.add_body("crank", 0.4, 0.4 * 0.2**2 / 12, position=(0.0, 0.1), angle=math.pi / 2)
     m.add_body("coupler", 1.4, 1.4 * 0.7**2 / 12, position=(0.32, 0.34), angle=0.4037)
@@ -130,7 +134,8 @@ OFFSET_BODIES = {  # name: mass, inertia, centre of mass, angle, reference point
 def offset_mechanism(conservative: bool = False) -> Mechanism:
     """Non-centroidal bodies with a revolute, a distance and a rigid joint, a body-coordinate
     driver with a time expression, springs and gravity."""
-    m = Mechanism("offset_conservative" if conservative else "offset", gravity=(0.7, -9.81))
+    m = Mechanism("offset_conservative" if conservative else "offset", gravity=(0.7, -9.81),
+                  coordinates="absolute")
     for name, (mass, inertia, pos, ang, s) in OFFSET_BODIES.items():
         m.add_body(name, mass, inertia, position=pos, angle=ang, reference_point=s)
     m.add_revolute("pivot", "ground", "arm", (0.0, 0.0))
@@ -146,7 +151,9 @@ def offset_mechanism(conservative: bool = False) -> Mechanism:
 
 
 def slider_crank() -> Mechanism:
-    return load_scene(EXAMPLES / "slider_crank.toml")
+    mech = load_scene(EXAMPLES / "slider_crank.toml")
+    mech.coordinates = "absolute"
+    return mech
 
 
 BUILDERS = {"slider_crank": slider_crank, "forced_four_bar": forced_four_bar,
@@ -376,7 +383,7 @@ def test_quadratic_velocity_forces_of_non_centroidal_bodies():
 
 
 def free_body(reference_point=(0.0, 0.0), name="free") -> Mechanism:
-    m = Mechanism(name, gravity=(0.7, -9.81))
+    m = Mechanism(name, gravity=(0.7, -9.81), coordinates="absolute")
     m.add_body("b", mass=2.5, inertia=0.3, position=(0.2, -0.4), angle=0.3,
                reference_point=reference_point)
     return m
