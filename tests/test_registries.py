@@ -42,8 +42,9 @@ def _cache(tmp_path_factory, monkeypatch):
 
 
 def pendulum() -> casmbd.Mechanism:
-    """Slender rod pinned at one end, released horizontally (absolute coordinates: n_c = 2)."""
-    m = casmbd.Mechanism("pendulum", gravity=(0.0, -G))
+    """Slender rod pinned at one end, released horizontally (absolute coordinates: n_c = 2;
+    set explicitly, the automatic choice takes the pivot angle and no equation)."""
+    m = casmbd.Mechanism("pendulum", gravity=(0.0, -G), coordinates="absolute")
     m.add_body("rod", 1.0, 1.0 / 12, (0.5, 0.0))
     m.add_revolute("pivot", "ground", "rod", (0.0, 0.0))
     return m
