@@ -92,10 +92,29 @@ def test_every_axis_has_a_unit_and_every_multi_line_panel_a_legend(which, reques
     assert fig.axes[-1].get_xlabel() == "t [s]"
 
 
-def test_units_split_the_panels(crank3d):
+@pytest.fixture(scope="module")
+def crank3d_absolute():
+    """The spatial slider-crank pinned to absolute coordinates (x, y, z, e0..e3 per body)."""
+    text = (EXAMPLES / "spatial_slider_crank.toml").read_text()
+    text = text.replace("[scene]\n", '[scene]\ncoordinates = "absolute"\n', 1)
+    return _simulate("spatial_slider_crank", 1.0, 20, text=text)
+
+
+#: panels of the coordinates (q), joints, efforts and reactions: absolute coordinates give the
+#: bodies' positions (their quaternions drawn as Euler angles); the automatic choice gives the
+#: joint coordinates O.angle [rad] and slide.translation [m] (the spherical joint A's quaternion
+#: is drawn through the bodies' Euler angles)
+PANELS = {"absolute": ["positions [m]", "Euler angles XYZ [rad]"],
+          "auto": ["angles [rad]", "positions [m]", "Euler angles XYZ [rad]"]}
+
+
+@pytest.mark.parametrize("coordinates", ["absolute", "auto"])
+def test_units_split_the_panels(request, coordinates):
+    crank3d = request.getfixturevalue("crank3d_absolute" if coordinates == "absolute"
+                                      else "crank3d")
     fig = plots.plot_result(crank3d, ["coordinates", "joints", "efforts", "reactions"])
     labels = [ax.get_ylabel() for ax in fig.axes]
-    assert labels == ["positions [m]", "Euler angles XYZ [rad]", "joint angles [rad]",
+    assert labels == [*PANELS[coordinates], "joint angles [rad]",
                       "joint translations [m]", "torques [N m]", "reaction forces [N]",
                       "reaction moments [N m]"]
     by_label = {ax.get_ylabel(): ax for ax in fig.axes}
