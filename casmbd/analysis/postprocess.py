@@ -20,6 +20,7 @@ from casmbd.analysis.redundancy import (
     equilibrated_singular_values,
     near_singular_passes,
     rank_report,
+    reference_equilibration,
 )
 from casmbd.interrupts import reraise_interrupt
 from casmbd.results import Result
@@ -42,7 +43,10 @@ class PostProcessing:
         q = result["q"][-1] + h * result["v"][-1] + 0.5 * h * h * result["a"][-1]
         t += h
         rep = rank_report(self.model.constraint_jacobian(q, t))
-        sigma = equilibrated_singular_values(self.model.constraint_jacobian(q, t))
+        # scaled like the conditioning monitor: by the factors of the run's first step
+        sigma = equilibrated_singular_values(
+            self.model.constraint_jacobian(q, t),
+            reference_equilibration(self.model, result["q"], result.t))
         rank0 = self.redundancy.get("constraint_rank", rep.rank)
         ratio = sigma[rank0 - 1] / sigma[0] if rank0 >= 1 and sigma[0] > 0 else float("nan")
         text = (f"; at t ≈ {t:.6g} C_q has rank {rep.rank} of {rep.n_equations} equations "

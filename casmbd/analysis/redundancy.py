@@ -227,20 +227,38 @@ FLOP_BUDGET = 1e8
 MIN_SAMPLES = 50
 
 
-def equilibrated_singular_values(jacobian) -> np.ndarray:
-    """Singular values (descending) of C_q with unit-norm rows and columns."""
+def equilibration(jacobian) -> tuple[np.ndarray, np.ndarray]:
+    """Row and column factors (r, c) that give C_q unit-norm rows, then unit-norm columns:
+    diag(r) C_q diag(c)."""
     a = _dense(jacobian)
-    for axis in (1, 0):
-        norms = np.linalg.norm(a, axis=axis)
-        norms[norms == 0.0] = 1.0
-        a = a / (norms[:, None] if axis == 1 else norms[None, :])
-    return np.linalg.svd(a, compute_uv=False)
+    rows = np.linalg.norm(a, axis=1)
+    rows = 1.0 / np.where(rows == 0.0, 1.0, rows)
+    cols = np.linalg.norm(a * rows[:, None], axis=0)
+    cols = 1.0 / np.where(cols == 0.0, 1.0, cols)
+    return rows, cols
+
+
+def equilibrated_singular_values(jacobian, scaling=None) -> np.ndarray:
+    """Singular values (descending) of diag(r) C_q diag(c).
+
+    Without ``scaling`` the factors are C_q's own (:func:`equilibration`: unit-norm rows and
+    columns).  Along a trajectory pass the factors of a regular reference configuration
+    instead: a singular pose where whole rows of C_q vanish (a loop closure in joint
+    coordinates with all links aligned) keeps its small singular values, whereas rescaling
+    those rows to unit norm would hide the rank loss.
+    """
+    a = _dense(jacobian)
+    rows, cols = equilibration(a) if scaling is None else scaling
+    return np.linalg.svd(a * rows[:, None] * cols[None, :], compute_uv=False)
 
 
 def conditioning(model, qs: np.ndarray, grid: np.ndarray, rank: int | None = None,
                  extra=()) -> np.ndarray:
     """σ_rank/σ_1 of the equilibrated C_q along a trajectory (NaN where not evaluated).
 
+    The row and column factors are those of the first step (:func:`equilibration`, the
+    regular reference configuration), the same at every step, so that rows of C_q that vanish
+    at a singular pose show as a small σ (:func:`equilibrated_singular_values`).
     ``rank`` is the rank of the regular configurations (default: at the first step), so that
     redundant equations, which make C_q rank deficient everywhere, do not count as a
     singularity: the ratio measures how close the independent equations come to losing rank
@@ -260,12 +278,10 @@ def conditioning(model, qs: np.ndarray, grid: np.ndarray, rank: int | None = Non
         steps = np.unique(np.concatenate([np.linspace(0, n - 1, budget).astype(int),
                                           np.asarray(list(extra), dtype=int)]))
     steps = np.asarray(steps, dtype=int)
+    rows, cols = reference_equilibration(model, qs, grid)
     for chunk in np.array_split(steps, max(1, len(steps) // 64)):
         mats = np.stack([_dense(model.constraint_jacobian(qs[k], float(grid[k])))
-                         for k in chunk])
-        for axis in (2, 1):  # rows, then columns to unit norm
-            norms = np.linalg.norm(mats, axis=axis, keepdims=True)
-            mats = mats / np.where(norms == 0.0, 1.0, norms)
+                         for k in chunk]) * rows[None, :, None] * cols[None, None, :]
         # σ² are the eigenvalues of the Gram matrix: one batched LAPACK call, and the ratio
         # is resolved down to ~1e-8, far below the reporting threshold
         gram = mats @ np.swapaxes(mats, 1, 2) if mats.shape[1] <= mats.shape[2] else \
@@ -276,6 +292,11 @@ def conditioning(model, qs: np.ndarray, grid: np.ndarray, rank: int | None = Non
         if rank >= 1:
             out[chunk] = sigma[:, rank - 1] / np.where(sigma[:, 0] > 0, sigma[:, 0], np.inf)
     return out
+
+
+def reference_equilibration(model, qs: np.ndarray, grid: np.ndarray):
+    """:func:`equilibration` of C_q at the trajectory's first step (the reference)."""
+    return equilibration(model.constraint_jacobian(qs[0], float(grid[0])))
 
 
 #: grid minima of the conditioning above this are not refined (a passage within one output
@@ -300,6 +321,7 @@ def near_singular_passes(model, grid: np.ndarray, qs: np.ndarray, vs: np.ndarray
     n = len(grid)
     if n < 3 or rank is None:
         return out
+    scaling = reference_equilibration(model, qs, grid)  # the factors of :func:`conditioning`
 
     def at(k: int, t: float) -> float:
         h = grid[k + 1] - grid[k]
@@ -307,7 +329,7 @@ def near_singular_passes(model, grid: np.ndarray, qs: np.ndarray, vs: np.ndarray
         h00, h10 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s
         h01, h11 = -2 * s**3 + 3 * s**2, s**3 - s**2
         q = h00 * qs[k] + h10 * h * vs[k] + h01 * qs[k + 1] + h11 * h * vs[k + 1]
-        sigma = equilibrated_singular_values(model.constraint_jacobian(q, float(t)))
+        sigma = equilibrated_singular_values(model.constraint_jacobian(q, float(t)), scaling)
         return float(sigma[rank - 1] / sigma[0]) if sigma[0] > 0 else 0.0
 
     evaluated = np.flatnonzero(np.isfinite(cond))  # a subsampled run: minima among these
