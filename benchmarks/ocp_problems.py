@@ -68,6 +68,7 @@ BASELINE_VARIANTS: dict[str, dict] = {
     SAME: {"subintervals": 1, "degree": 3},
     f"{SAME}, virtual machine": {"subintervals": 1, "degree": 3, "compile": False},
     f"{SAME}, whole NLP compiled": {"subintervals": 1, "degree": 3, "compile": "nlp"},
+    f"{SAME}, explicit dynamics": {"subintervals": 1, "degree": 3, "dynamics": "explicit"},
     "degree 4, 1 element (the library default)": {"subintervals": 1, "degree": 4}}
 #: The derivative modes the default may choose, for every other problem file (a mode the
 #: default row already used is not run again).
@@ -318,8 +319,48 @@ def _same_as_file(path: pathlib.Path, overrides: dict) -> bool:
     return all(table.get(k, defaults.get(k)) == v for k, v in overrides.items())
 
 
+def _baseline(name: str, repeat: int) -> dict | None:
+    """The baseline ``name`` measured (None if it failed, logged)."""
+    log(f"baseline {name}")
+    try:
+        b = measure_baseline(name, repeat)
+    except (RuntimeError, subprocess.TimeoutExpired) as exc:
+        log(f"  baseline failed: {exc}")
+        return None
+    log(f"  objective {b['objective']}, {b['iterations']} iterations, "
+        f"solve {b['solve_seconds']:.4g} s")
+    return b
+
+
+def _attach(rows: list[Row], name: str, runs: list[dict]) -> None:
+    """Compare the rows of ``name`` with its baseline, measured just before and just after
+    them (times: the mean of the two medians, so that a change of load during the problem's
+    variants affects both sides alike)."""
+    b = dict(runs[0])
+    for key in ("solve_seconds", "solve_cpu_seconds", "setup_seconds", "ipopt_wall_seconds"):
+        b[key] = statistics.mean(r.get(key, math.nan) for r in runs)
+    for row in rows:
+        if row.problem != name or "objective" not in row.figures:
+            continue
+        ours = row.figures["objective"]
+        row.figures.update({
+            "baseline_objective": b["objective"],
+            "baseline_iterations": b["iterations"],
+            "baseline_setup_s": b["setup_seconds"],
+            "baseline_solve_s": b["solve_seconds"],
+            "baseline_solve_cpu_s": b.get("solve_cpu_seconds", math.nan),
+            "ratio_cpu": row.figures.get("solve_cpu_median_s", math.nan)
+            / b.get("solve_cpu_seconds", math.nan),
+            "baseline_ipopt_wall_s": b["ipopt_wall_seconds"],
+            "baseline_variables": b["variables"],
+            "objective_rel_diff": (ours - b["objective"]) / abs(b["objective"]),
+            "ratio_solve": row.figures["solve_median_s"] / b["solve_seconds"],
+        })
+
+
 def run(paths: list[pathlib.Path], repeat: int, baselines: bool) -> list[Row]:
-    """Every problem and variant, then the baselines; attach the comparison."""
+    """Every problem and variant; a problem with a hand-written baseline has it measured just
+    before and just after its variants, and the comparison attached."""
     from benchmarks.ocp_handwritten import PROBLEMS
 
     rows: list[Row] = []
@@ -333,6 +374,8 @@ def run(paths: list[pathlib.Path], repeat: int, baselines: bool) -> list[Row]:
                     f"solve {f.get('solve_median_s')} s"
                     + (f", ERROR {f['error']}" if "error" in f else ""))
             continue
+        compare = baselines and path.stem in PROBLEMS
+        runs = [b for b in [_baseline(path.stem, repeat) if compare else None] if b]
         variants = {"as in the file": {}}
         if path.stem in PROBLEMS:
             variants.update(BASELINE_VARIANTS)
@@ -354,36 +397,10 @@ def run(paths: list[pathlib.Path], repeat: int, baselines: bool) -> list[Row]:
                 f"set-up {f.get('setup_cold_s')} / {f.get('setup_cached_s')} s, solve "
                 f"{f.get('solve_median_s')} s, replay {f.get('replay_error')}"
                 + (f", ERROR {f['error']}" if "error" in f else ""))
-    if baselines:
-        measured = {p.stem for p in paths}
-        for name in PROBLEMS:
-            if name not in measured:
-                continue
-            log(f"baseline {name}")
-            try:
-                b = measure_baseline(name, repeat)
-            except (RuntimeError, subprocess.TimeoutExpired) as exc:
-                log(f"  baseline failed: {exc}")
-                continue
-            log(f"  objective {b['objective']}, {b['iterations']} iterations, "
-                f"solve {b['solve_seconds']:.4g} s")
-            for row in rows:
-                if row.problem != name or "objective" not in row.figures:
-                    continue
-                ours = row.figures["objective"]
-                row.figures.update({
-                    "baseline_objective": b["objective"],
-                    "baseline_iterations": b["iterations"],
-                    "baseline_setup_s": b["setup_seconds"],
-                    "baseline_solve_s": b["solve_seconds"],
-                    "baseline_solve_cpu_s": b.get("solve_cpu_seconds", math.nan),
-                    "ratio_cpu": row.figures.get("solve_cpu_median_s", math.nan)
-                    / b.get("solve_cpu_seconds", math.nan),
-                    "baseline_ipopt_wall_s": b["ipopt_wall_seconds"],
-                    "baseline_variables": b["variables"],
-                    "objective_rel_diff": (ours - b["objective"]) / abs(b["objective"]),
-                    "ratio_solve": row.figures["solve_median_s"] / b["solve_seconds"],
-                })
+        if compare:
+            runs += [b for b in [_baseline(path.stem, repeat)] if b]
+            if runs:
+                _attach(rows, path.stem, runs)
     return rows
 
 

@@ -183,6 +183,12 @@ def _is_default(r: Row) -> bool:
     return r.kind == "py" or not r.variant.endswith(FORCED_LABELS)
 
 
+def _same_label(r: Row) -> str:
+    """A row of the baseline's transcription named by its derivatives (and dynamics)."""
+    explicit = ", explicit dynamics" if r.variant.endswith("explicit dynamics") else ""
+    return f"{_derivatives(r.figures)}{explicit}"
+
+
 def target_lines(rows: list[Row]) -> list[str]:
     """The issue-22 item-4 targets, stated as met or missed with the figures."""
     out = []
@@ -214,12 +220,12 @@ def target_lines(rows: list[Row]) -> list[str]:
     if same:
         parts = []
         for problem in dict.fromkeys(r.problem for r in same):
-            cells = [f"{_derivatives(r.figures)} {r.figures['ratio_solve']:.2f}× "
+            cells = [f"{_same_label(r)} {r.figures['ratio_solve']:.2f}× "
                      f"(CPU {_num(r.figures.get('ratio_cpu'), 2)}×)"
                      for r in same if r.problem == problem]
             parts.append(f"`{problem}` " + ", ".join(cells))
         met = [r for r in same if r.figures["ratio_solve"] <= TARGETS["ratio"]]
-        met_text = ", ".join(f"`{r.problem}` {_derivatives(r.figures)}" for r in met)
+        met_text = ", ".join(f"`{r.problem}` {_same_label(r)}" for r in met)
         out.append(
             f"*NLP solve ≤ {TARGETS['ratio']:g}× the hand-written baseline with the same "
             f"transcription* (wall time in the same run; CPU time of the solver call in "
@@ -245,7 +251,8 @@ def derivative_lines(rows: list[Row]) -> list[str]:
         for r in group:
             if r.variant.startswith(SAME) or r.variant in ("as in the file", *FORCED_LABELS):
                 f = r.figures
-                label = _derivatives(f) + (" (d=3)" if r.variant.startswith(SAME) else "")
+                label = (_same_label(r) + " (d=3)" if r.variant.startswith(SAME)
+                         else _derivatives(f))
                 cells.append(f"{label} {_sec(f['setup_cold_s'])} / "
                              f"{_sec(f['solve_median_s'])}")
         if len(cells) > 1:
@@ -258,9 +265,10 @@ def derivative_lines(rows: list[Row]) -> list[str]:
         "and the NLP's gradient, Jacobian and Lagrangian Hessian are assembled from the "
         "element derivatives with constant sparse matrices (`casmbd/ocp/structured.py`). "
         "`compile=\"auto\"` (default) compiles these per-element functions to C when they "
-        "hold at most 20 000 SX instructions (about 2 s of `cc`) or are already in the cache "
-        "(indexed by the element functions' serialization, so a later process loads them "
-        "without differentiating), and evaluates them in the virtual machine otherwise. "
+        "hold at most 20 000 SX instructions (`-O2`; about 2 s of `cc`), or 60 000 (`-O0`), "
+        "or are already in the cache (indexed by the element functions' serialization, so a "
+        "later process loads them without differentiating), and evaluates them in the "
+        "virtual machine otherwise. "
         "Set-up cold / NLP solve by derivative mode: " + "; ".join(parts) + ". Compiling "
         "the whole NLP (the previous default, `compile=\"nlp\"`) costs seconds to minutes "
         "of C compilation for no faster solve; compiled per-element functions of a large "
@@ -347,7 +355,8 @@ def render_perf(rows: list[Row], command: str, info: dict, info_end: str) -> str
         "`benchmarks/ocp_handwritten.py`, CasADi Opti with the equations of motion in closed "
         "form, degree-3 Radau collocation with one element per interval, N = 50, "
         "`expand=True`, IPOPT/MUMPS, linear guess, the same boundary conditions; its solve "
-        "time is the median wall time of the solver call, in its own process. *ours / "
+        "time is the median wall time of the solver call, in its own process, run just "
+        "before and just after the problem's variants (mean of the two). *ours / "
         "hand-written* is the ratio of the NLP solve times, wall and process CPU time (the "
         "latter less sensitive to other jobs on the machine). Both use IPOPT's default "
         f"tolerance (1e-8). `ocp/*.py` scripts run as `python ocp/NAME.py ARGS --json` "

@@ -247,11 +247,14 @@ def check_mode(value) -> str | bool:
                         f"{', '.join(repr(k) for k in MODES)}")
 
 
-#: ``compile="auto"`` compiles the per-element derivative functions when they hold at most
-#: this many SX instructions in all (about 2 s of ``cc -O2`` on the 2-core machine of
-#: docs/ocp.md: cart-pole 1.6k, double pendulum 8.4k; the four-bar's 37k took 4–9 s, the UR5's
-#: 580k over a minute) and evaluates them in the virtual machine otherwise.
+#: ``compile="auto"`` compiles the per-element derivative functions with the default flags
+#: when they hold at most this many SX instructions in all (about 2 s of ``cc -O2`` on the
+#: shared 2-core machine of docs/ocp.md: cart-pole 1.6k, double pendulum 8.4k) …
 AUTO_COMPILE_INSTRUCTIONS = 20_000
+#: … at ``-O0`` up to this many (the four-bar's 37k and the slider-crank's 34k: 4.4–4.6 s at
+#: a load average of 10, against 8.7 s at ``-O2``) and evaluates them in the virtual machine
+#: above (the UR5's 580k: over a minute of ``cc``).
+AUTO_COMPILE_O0_INSTRUCTIONS = 60_000
 #: Bumped when the derivative functions built for the same element functions change.
 _DERIVATIVES_FORMAT = "casmbd-ocp-derivatives-1"
 _KINDS = ("g", "q", "jac", "grad", "hess")
@@ -304,11 +307,13 @@ def _load_indexed(name: str, key: str, names: list[str]) -> dict | None:
     return out if sorted(out) == sorted(names) else None
 
 
-def _compiled_derivatives(calls: list, name: str, key: str, derivatives: list):
-    """(derivatives compiled by :func:`compile_functions` and loaded, report, compiled?);
-    the libraries are then indexed under the element ``key`` (:func:`_load_indexed`)."""
+def _compiled_derivatives(calls: list, name: str, key: str, derivatives: list,
+                          flags: list[str] | None = None):
+    """(derivatives compiled by :func:`compile_functions` with ``flags`` and loaded, report,
+    compiled?); the libraries are then indexed under the element ``key``
+    (:func:`_load_indexed`)."""
     flat = [f for group in derivatives for f in group]
-    loaded, report = compile_functions(flat, f"{name}_el")
+    loaded, report = compile_functions(flat, f"{name}_el", flags=flags)
     if report.mode != "compiled":
         return derivatives, report, False
     entries = []
@@ -333,8 +338,8 @@ def nlp_solver(name: str, plugin: str, w: ca.MX, objective, objective_rest, g_bl
     True/``"elements"`` — the same with those functions compiled to C and cached
     (:func:`casmbd.compiled.codegen.compile_functions`, indexed under the element functions'
     serialization so that a later process loads them without differentiating);
-    ``"auto"`` — compiled when already cached or small (:data:`AUTO_COMPILE_INSTRUCTIONS`),
-    else in the virtual machine;
+    ``"auto"`` — compiled when already cached or small (:data:`AUTO_COMPILE_INSTRUCTIONS`,
+    at ``-O0`` up to :data:`AUTO_COMPILE_O0_INSTRUCTIONS`), else in the virtual machine;
     ``"nlp"`` — the whole NLP's derivative functions generated from the MX graph, compiled
     and cached (:func:`casmbd.compiled.codegen.compile_nlp_solver`); ``"vm"`` — CasADi's own
     derivatives of the MX graph in the virtual machine.  Without structure (an MX integrator
@@ -370,11 +375,15 @@ def nlp_solver(name: str, plugin: str, w: ca.MX, objective, objective_rest, g_bl
                              library=str(_index_path(name, key)), key=key)
     else:
         derivatives = [derivative_functions(c, f"{stem}_d{i}") for i, c in enumerate(calls)]
-        small = sum(f.n_instructions() for group in derivatives for f in group) \
-            <= AUTO_COMPILE_INSTRUCTIONS
-        if mode in (True, "elements") or (mode == "auto" and small):
+        size = sum(f.n_instructions() for group in derivatives for f in group)
+        flags = None
+        if mode == "auto" and size > AUTO_COMPILE_INSTRUCTIONS \
+                and not os.environ.get("CASMBD_CFLAGS", "").strip():
+            flags = ["-O0"]
+        if mode in (True, "elements") or (mode == "auto"
+                                          and size <= AUTO_COMPILE_O0_INSTRUCTIONS):
             derivatives, report, compiled = _compiled_derivatives(calls, name, key,
-                                                                  derivatives)
+                                                                  derivatives, flags)
     built = structured_nlp_functions(w, g_blocks, objective_rest, calls, derivatives)
     solver = ca.nlpsol(name, plugin, built["problem"], {**options, **built["options"]})
     return solver, report, MODES[True] if compiled else MODES[False]

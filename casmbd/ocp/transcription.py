@@ -5,8 +5,10 @@ equations of motion with q̈ and λ as variables at every collocation point, the
 velocity constraints imposed at every mesh node and per-interval projection multipliers μ, ν
 (:mod:`casmbd.ocp.dynamics`); or multiple shooting with RK4 (exact Hessians) or CVODES (exact
 first-order sensitivities, limited-memory Hessian).  Controls are piecewise constant on the N
-intervals.  The NLP is built in CasADi's SX (MX for CVODES) and solved by IPOPT (MUMPS) or any
-CasADi NLP solver by name.
+intervals.  The NLP is built in MX from element and node functions mapped over the mesh
+(:class:`~casmbd.ocp.structured.MappedCall`); its derivatives are assembled from per-element
+SX derivatives (:mod:`casmbd.ocp.structured`) and it is solved by IPOPT (MUMPS) or any CasADi
+NLP solver by name.
 """
 
 from __future__ import annotations
