@@ -396,7 +396,7 @@ class Result:
             labels = per(names.get("actuators", []), (key.split("_", 1)[1].rstrip("s"),))
         elif key == "lambda" and len(names.get("constraints", [])) == n:
             labels = []
-            for text in names["constraints"]:
+            for text in names.get("constraints", []):  # none: a tree, lambda of size 0
                 m = _EQUATION.match(text)
                 labels.append(f"{m.group(2)}.{m.group(3)}" if m else text)
         if labels is None:

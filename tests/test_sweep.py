@@ -82,7 +82,12 @@ def test_serial_sweep_records_the_failure_and_saves_the_others(serial):
         res = load(serial.files[i])
         assert res.stats["sweep_point"] == POINTS[i]
         assert res.mechanism().parameters["k"] == POINTS[i]["k"]
-        assert res["q"][-1, 0] == serial["final:q[block.x]"][i]
+        # q[block.x] names the absolute coordinate; the automatic choice takes the slide's
+        # translation (a tree), and the sweep reads the block's x from its pose
+        assert res.names["coordinates"] == ["slide.translation"]
+        assert res["q"][-1, 0] == pytest.approx(res.body("block")["position"][-1, 0] - 1.1,
+                                                abs=1e-12)
+        assert res.body("block")["position"][-1, 0] == serial["final:q[block.x]"][i]
         assert res.body("block")["position"][-1, 0] == serial["final:body.block.position.x"][i]
     # compiled once, in this process; no compiler run during any point
     assert serial.stats["parent_build"]["compiled"] is True
@@ -174,7 +179,7 @@ def test_runtime_parameters_equal_a_scene_with_those_values(cache):
     direct = simulate(loads_scene(_scene_with(text, {"k": 250.0, "m": 2.0}, SPRING)), 0.5, 10,
                       formulation="index1")
     assert direct.stats["cache_hit"] is True and direct.stats["compiled"] is False
-    assert abs(direct["q"][-1, 0] - res["final:q[block.x]"][1]) < 1e-12
+    assert abs(direct.body("block")["position"][-1, 0] - res["final:q[block.x]"][1]) < 1e-12
 
 
 def test_statics_sweep_matches_the_hanging_spring(cache, tmp_path):
@@ -186,10 +191,54 @@ def test_statics_sweep_matches_the_hanging_spring(cache, tmp_path):
     path.write_text(text)
     ks = [50.0, 100.0, 400.0]
     res = sweep(load_scene(path), {"k": ks}, analysis="statics")
-    assert res.failed == []
-    np.testing.assert_allclose(res["final:q[block.y]"],
-                               [-(1.0 + 9.81 / k) for k in ks], rtol=0, atol=1e-10)
+    assert res.failed == [], res.errors
+    # default outputs: the chosen coordinates (the slide's translation from y = −1.1)
+    assert res.output_names[0] == "final:q[slide.translation]"
+    np.testing.assert_allclose(res["final:q[slide.translation]"],
+                               [1.1 - (1.0 + 9.81 / k) for k in ks], rtol=0, atol=1e-10)
     np.testing.assert_allclose(res["min_stiffness_eigenvalue"], ks, rtol=1e-9)  # K̄ = k
+    # the block's pose, by body field and by its absolute-coordinate name
+    res = sweep(load_scene(path), {"k": ks}, analysis="statics",
+                outputs=["final:q[block.y]", "final:body.block.position.y",
+                         "final:body.block.angle"])
+    assert res.failed == [], res.errors
+    for name in ("final:q[block.y]", "final:body.block.position.y"):
+        np.testing.assert_allclose(res[name], [-(1.0 + 9.81 / k) for k in ks], rtol=0,
+                                   atol=1e-10)
+    np.testing.assert_array_equal(res["final:body.block.angle"], 0.0)
+
+
+def test_statics_sweep_reads_spatial_body_poses(cache):
+    """A spatial rod on a horizontal revolute axis (x) with a torsional spring k, released
+    horizontal along y under gravity −z: the sweep's body outputs (position, quaternion) of
+    each point equal static_equilibrium's body poses (1e-12), and the quaternion is a rotation
+    about x by the angle θ of k θ = −m g (L/2) cos θ (1e-10 rad)."""
+    from scipy.optimize import brentq
+
+    import casmbd
+    from casmbd.analysis.statics import static_equilibrium
+
+    mech = casmbd.Mechanism("spatial_spring_rod", gravity=(0.0, 0.0, -9.81))
+    mech.add_parameter("k", 20.0)
+    mech.add_body("rod", 1.0, [1 / 12, 1e-3, 1 / 12], (0.0, 0.5, 0.0))
+    mech.add_revolute("pin", "ground", "rod", (0.0, 0.0, 0.0), axis=(1.0, 0.0, 0.0))
+    mech.add_rotational_spring_damper("spring", "pin", stiffness="k")
+    ks = [20.0, 50.0]
+    outputs = ["final:body.rod.position.y", "final:body.rod.position.z",
+               *[f"final:body.rod.quaternion.{c}" for c in "wxyz"]]
+    res = sweep(mech, {"k": ks}, analysis="statics", outputs=outputs, mode="vm")
+    assert res.failed == [], res.errors
+    for i, k in enumerate(ks):
+        mech.parameters["k"] = k
+        eq = static_equilibrium(mech, mode="vm")
+        got = [res[name][i] for name in outputs]
+        np.testing.assert_allclose(got[:2], eq.body_positions[0, 1:], rtol=0, atol=1e-12)
+        q = eq.body_quaternions[0] * np.sign(eq.body_quaternions[0, 0] * got[2])
+        np.testing.assert_allclose(got[2:], q, rtol=0, atol=1e-12)
+        theta = brentq(lambda th, k=k: k * th + 9.81 * 0.5 * np.cos(th), -np.pi / 2, 0.0,
+                       xtol=1e-15)
+        np.testing.assert_allclose(got[2:], [np.cos(theta / 2), np.sin(theta / 2), 0.0, 0.0],
+                                   rtol=0, atol=1e-10)
 
 
 def test_kinematics_and_inverse_sweeps_of_the_slider_crank(cache):
@@ -251,15 +300,18 @@ def test_cli_sweep_writes_files_that_reload(cache, tmp_path, capsys):
     assert data["parameters"] == ["L", "m"] and data["failed"] == 0
     assert [p["parameters"]["L"] for p in data["points"]] == [0.5, 1.0, 1.5]
     assert [p["status"] for p in data["points"]] == ["ok"] * 3
-    assert "final:q[rod2.angle]" in data["outputs"] and "energy_drift" in data["outputs"]
+    # default outputs: the chosen coordinates, the joint angles of the tree (automatic choice;
+    # both rods start horizontal, so shoulder.angle is rod1's angle)
+    assert "final:q[elbow.angle]" in data["outputs"] and "energy_drift" in data["outputs"]
     for p in data["points"]:
         res = load(p["file"])
         mech = res.mechanism()  # the embedded scene carries the point's values
         assert mech.parameters == {"L": p["parameters"]["L"], "m": 2.0}
-        assert res["q"][-1, 5] == p["outputs"]["final:q[rod2.angle]"]
+        assert res["q"][-1, 1] == p["outputs"]["final:q[elbow.angle]"]
+        assert res["q"][-1, 0] == pytest.approx(res.body("rod1")["angle"][-1], abs=1e-12)
     assert (out / "sweep.csv").exists() and load_sweep(out / "sweep.npz").failed == []
     # a larger moment of inertia of the rods (L = 1.5) makes them fall more slowly
-    angles = [p["outputs"]["final:q[rod1.angle]"] for p in data["points"]]
+    angles = [p["outputs"]["final:q[shoulder.angle]"] for p in data["points"]]
     assert angles[0] < angles[1] < angles[2] < 0
     # text output and a usage error
     assert cli.main(["sweep", DOUBLE_PENDULUM, "--param", "m=1,2", "--t-end", "0.1",

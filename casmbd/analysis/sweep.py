@@ -139,11 +139,30 @@ def _statics_result(res) -> Result:
               "lambda": np.asarray(res.lagrange_multipliers, float)[None, :],
               "joint_reactions": np.asarray(res.joint_reactions, float)[None, :, :],
               "potential_energy": np.array([res.potential_energy]),
-              "stiffness_eigenvalues": eig[None, :]}
+              "stiffness_eigenvalues": eig[None, :],
+              # the bodies' poses, so that body.NAME.… outputs and the absolute-coordinate
+              # names q[NAME.x] … read them whatever coordinates were chosen
+              "body_positions": np.asarray(res.body_positions, float).reshape(1, -1)}
+    if len(res.body_quaternions):
+        arrays["rotation_matrices"] = _rotation_rows(np.asarray(res.body_quaternions, float))
+    else:
+        arrays["angle_positions"] = np.asarray(res.body_angles, float)[None, :]
     stats = {**res.stats, "iterations": int(res.iterations), "residual": float(res.residual),
              "stable": res.stable, "method": res.method,
              "min_stiffness_eigenvalue": float(eig.min()) if eig.size else math.nan}
     return Result("statics", np.array([float(res.t)]), arrays, names, stats)
+
+
+def _rotation_rows(quats: np.ndarray) -> np.ndarray:
+    """(1, 9 n) rotation matrices, row by row, of n unit quaternions [w, x, y, z]:
+    A = (w² − eᵀe) I + 2 e eᵀ + 2 w ẽ (seed 001, Euler parameters)."""
+    w, e = quats[:, 0], quats[:, 1:]
+    skew = np.zeros((len(quats), 3, 3))
+    skew[:, 0, 1], skew[:, 0, 2], skew[:, 1, 2] = -e[:, 2], e[:, 1], -e[:, 0]
+    skew -= skew.transpose(0, 2, 1)
+    mats = ((w**2 - np.sum(e * e, axis=1))[:, None, None] * np.eye(3)
+            + 2.0 * e[:, :, None] * e[:, None, :] + 2.0 * w[:, None, None] * skew)
+    return mats.reshape(1, -1)
 
 
 #: most runners (compiled engines) kept per process
