@@ -252,13 +252,15 @@ def test_rigid_body_pair_is_not_a_saddle():
 
     scene = pathlib.Path(__file__).resolve().parent.parent / "examples" / "crane.toml"
     mech = casmbd.load_scene(scene)
-    mech.coordinates = "absolute"  # q below: (x, y, angle) of the cart and the load
+    assert mech.coordinates == "absolute"  # q below: (x, y, angle) of the cart and the load
     lin = casmbd.linearize(mech, q=[0, 0, 0, 0, -0.5, 0])
     assert lin.damping_ratios[0] == 0.0 and lin.natural_frequencies_hz[0] < 1e-6
     assert 0.0 < lin.damping_ratios[1] < 0.05 and lin.stable
     # the automatic choice (joint coordinates rail, hinge; zero at the scene's pose, the load
     # swung out by 0.3 rad): the same hanging pose and the same modes
-    auto = casmbd.linearize(casmbd.load_scene(scene), q=[0.0, -0.3])
+    mech = casmbd.load_scene(scene)  # the scene pins absolute coordinates (docs/tutorial.md)
+    mech.coordinates = "auto"
+    auto = casmbd.linearize(mech, q=[0.0, -0.3])
     assert auto.coordinate_names == ["rail.translation", "hinge.angle"]
     assert auto.damping_ratios[0] == 0.0 and auto.natural_frequencies_hz[0] < 1e-6
     assert auto.damping_ratios[1] == pytest.approx(lin.damping_ratios[1], rel=1e-9)

@@ -250,11 +250,14 @@ def test_from_errors_name_the_time_and_the_mismatch(capsys, tmp_path):
     assert cli.main(["simulate", PENDULUM2, "--t-end", "1", "--steps", "4", "--out",
                      str(out), "--json"]) == 0
     capsys.readouterr()
+    crane = tmp_path / "crane_auto.toml"  # the scene pins absolute coordinates: choose here
+    crane.write_text(pathlib.Path(CRANE).read_text().replace('coordinates = "absolute"',
+                                                            'coordinates = "auto"'))
     cases = [([PENDULUM2, "--from", str(out), "--time", "2.5"],
               "time 2.5 is outside the result's output times [0, 1] (5 outputs)"),
              ([TOP, "--from", str(out), "--time", "0.5"],
               "the result is not of this scene (it has 2 coordinates, the scene 7)"),
-             ([CRANE, "--from", str(out), "--time", "0.5"],  # both joint coordinates (auto)
+             ([str(crane), "--from", str(out), "--time", "0.5"],  # both in joint coordinates
               "the result is not of this scene (its coordinate 0 is 'shoulder.angle', the "
               "scene's 'rail.translation')"),
              ([PENDULUM2, "--from", str(out)], "--from RESULT.npz and --time T go together")]

@@ -62,10 +62,17 @@ def test_tutorial_writes_only_into_the_ignored_out_folder():
 
 
 def test_scene_info():
-    """Step 1: 6 absolute coordinates, 4 joint equations of full rank, 2 degrees of freedom."""
+    """Step 1: 6 absolute coordinates (the scene pins them), 4 joint equations of full rank,
+    2 degrees of freedom; left to the automatic choice, the tree's 2 joint coordinates."""
     info = run("info", CRANE)
     assert info["degrees_of_freedom"] == 2
     assert (info["n_coordinates"], info["n_constraints"], info["rank"]) == (6, 4, 4)
+    assert info["coordinate_choice"] == "absolute" and info["coordinate_reason"] == "given"
+    crane = casmbd.load_scene(CRANE)
+    crane.coordinates = "auto"
+    auto = casmbd.info(crane, mode="vm")
+    assert auto["coordinates"] == ["rail.translation", "hinge.angle"]
+    assert (auto["n_constraints"], auto["degrees_of_freedom"]) == (0, 2)
     assert info["redundant_equations"] == []
     assert info["parameters"] == {"m_cart": M_CART, "m_load": M_LOAD, "c_hinge": C_HINGE}
 
