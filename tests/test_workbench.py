@@ -85,7 +85,8 @@ def test_every_plot_kind_renders_the_result_arrays(planar, kind, tmp_path):
              "drift": np.where(planar["constraint_violation"] > 0,
                                planar["constraint_violation"], np.nan)}[kind]
     np.testing.assert_array_equal(np.asarray(line.get_ydata(), float), first)
-    n_lines = {"coordinates": 9, "joints": 4, "efforts": 2, "reactions": 12, "energy": 4,
+    # coordinates: the automatic choice's 3 (O.angle, A.angle, slide.translation; 9 absolute)
+    n_lines = {"coordinates": 3, "joints": 4, "efforts": 2, "reactions": 12, "energy": 4,
                "drift": 2}[kind]  # over the kind's panels (one unit each); energy: + change
     assert sum(len(ax.get_lines()) for ax in fig.axes) == n_lines
 
@@ -93,7 +94,8 @@ def test_every_plot_kind_renders_the_result_arrays(planar, kind, tmp_path):
 def test_plot_result_all_kinds_and_errors(planar, spatial, tmp_path):
     fig = plots.plot_result(planar, out=tmp_path / "all.pdf")
     labels = [ax.get_ylabel() for ax in fig.axes]  # every kind, split by unit
-    assert labels == ["positions [m]", "angles [rad]", "joint angles [rad]",
+    # q: the joint angles O, A, then the slide's translation (automatic choice)
+    assert labels == ["angles [rad]", "positions [m]", "joint angles [rad]",
                       "joint translations [m]", "torques [N m]",  # driver, motor at O
                       "reaction forces [N]", "reaction moments [N m]", "energy [J]",
                       "total − total(0) [J]", "max |C| [m, rad or 1]",
@@ -236,24 +238,43 @@ def test_cli_plot_and_animate_saved_result(capsys, tmp_path):
 
 
 # ---------------------------------------------------------------------- result files
-def test_csv_export_reloads_to_the_arrays(planar, tmp_path):
+@pytest.fixture(scope="module")
+def planar_absolute():
+    """The slider-crank of ``planar`` in absolute coordinates (virtual machine, no scene)."""
+    mech = casmbd.load_scene(SLIDER_CRANK)
+    mech.coordinates = "absolute"
+    return casmbd.simulate(mech, t_end=0.5, steps=20, mode="vm")
+
+
+#: columns named by the coordinates and the equations, and their index in q/v and lambda:
+#: joint coordinates O, A, slide with B's 2 loop equations and the driver (automatic choice),
+#: or x, y, angle per body with 8 joint equations and the driver (absolute)
+CSV_COLUMNS = {"auto": {"q[O.angle]": ("q", 0), "v[slide.translation]": ("v", 2),
+                        "lambda[B.y]": ("lambda", 1),
+                        "lambda[crank_speed.coordinate]": ("lambda", 2)},
+               "absolute": {"q[crank.angle]": ("q", 2), "v[slider.x]": ("v", 6),
+                            "lambda[crank_speed.coordinate]": ("lambda", 8)}}
+
+
+@pytest.mark.parametrize("coordinates", ["auto", "absolute"])
+def test_csv_export_reloads_to_the_arrays(request, coordinates, tmp_path):
+    planar = request.getfixturevalue("planar" if coordinates == "auto" else "planar_absolute")
     path = planar.to_csv(tmp_path / "run.csv")
     with open(path, newline="") as fh:
         header = next(csv.reader(fh))
     table = np.loadtxt(path, delimiter=",", skiprows=1)
     assert table.shape == (len(planar.t), len(header))
     col = {name: table[:, k] for k, name in enumerate(header)}
-    checks = {"t": planar.t, "q[crank.angle]": planar["q"][:, 2],
-              "v[slider.x]": planar["v"][:, 6],
-              "body_positions[rod.y]": planar["body_positions"][:, 3],
-              "angle_positions[rod.angle]": planar["angle_positions"][:, 1],
-              "marker_positions[crank_pin.x]": planar["marker_positions"][:, 0],
-              "joint_positions[slide]": planar["joint_positions"][:, 3],
-              "joint_reactions[A.Fy]": planar["joint_reactions"][:, 1, 1],
-              "joint_reactions[slide.M]": planar["joint_reactions"][:, 3, 2],
-              "driver_efforts[crank_speed.effort]": planar["driver_efforts"][:, 0],
-              "lambda[crank_speed.coordinate]": planar["lambda"][:, 8],
-              "total_energy": planar["total_energy"]}
+    checks = {name: planar[key][:, k] for name, (key, k) in CSV_COLUMNS[coordinates].items()}
+    checks |= {"t": planar.t,
+               "body_positions[rod.y]": planar["body_positions"][:, 3],
+               "angle_positions[rod.angle]": planar["angle_positions"][:, 1],
+               "marker_positions[crank_pin.x]": planar["marker_positions"][:, 0],
+               "joint_positions[slide]": planar["joint_positions"][:, 3],
+               "joint_reactions[A.Fy]": planar["joint_reactions"][:, 1, 1],
+               "joint_reactions[slide.M]": planar["joint_reactions"][:, 3, 2],
+               "driver_efforts[crank_speed.effort]": planar["driver_efforts"][:, 0],
+               "total_energy": planar["total_energy"]}
     for name, expected in checks.items():
         np.testing.assert_allclose(col[name], expected, rtol=1e-12, atol=1e-12,
                                    err_msg=name)
