@@ -71,3 +71,17 @@ def run_study(args, results: Path, measure, markdown, doc: Path, head: str) -> i
         replace_section(doc, head, text)
         print(f"wrote {doc}", file=sys.stderr)
     return 0
+
+
+def used(row: dict) -> str:
+    """What a run actually used, from its ``res.stats`` as stored in the row: coordinates,
+    formulation / integrator (``cvodes`` is CVODES' BDF)."""
+    integ = "cvodes (BDF)" if row["integrator"] == "cvodes" else row["integrator"]
+    return f"{row['coordinates']} coordinates, {row['formulation']} / {integ}"
+
+
+def heading(label: str, rows: list[dict], chose_nothing: bool) -> str:
+    """A configuration's label; for one that left choices to casmbd (``chose_nothing``), with
+    what its successful runs used (:func:`used`)."""
+    seen = dict.fromkeys(used(r) for r in rows if r["config"] == label and r["status"] == "ok")
+    return f"{label}: {'; '.join(seen)}" if chose_nothing and seen else label
