@@ -26,8 +26,9 @@ with either degree.
 (x/0.05)² + ((z + 0.78)/0.06)² ≥ 1 in the x–z plane (top at z = −0.72 m, 3 cm above the
 pick and place points) at every mesh node and collocation point, so the hand is lifted over it.
 
-The Delta's constraint Hessians make a large C file (``-O2`` did not finish in 600 s), so the
-NLP runs in CasADi's virtual machine by default (``--compile`` generates and caches it).
+The Delta's constraint Hessians make a large C file (the whole NLP at ``-O2`` did not finish in
+600 s), so the NLP's per-element derivatives run in CasADi's virtual machine by default
+(``--compile`` compiles and caches them).
 
 Run::
 
@@ -99,7 +100,7 @@ def main(argv=None) -> int:
     parser.add_argument("--degree", type=int, default=None,
                         help="Radau degree (default: the library's, 4)")
     parser.add_argument("--compile", action="store_true",
-                        help="compile the NLP to C (slow for the Delta; cached)")
+                        help="compile the per-element derivative functions to C (cached)")
     parser.add_argument("--no-replay", action="store_true")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
