@@ -85,14 +85,16 @@ class AppliedForces:
             total += ca.jtimes(ca.vertcat(*omegas), self.v, ca.vertcat(*torques), True)
         return total
 
-    def _force_terms(self, ctx) -> list[_Term]:
+    def _force_terms(self, ctx, gravity_of: str | None = None) -> list[_Term]:
         """The virtual-work terms of every applied force, measures written with ``ctx`` (the
-        system's context or a perturbed copy), weights with the system's context."""
+        system's context or a perturbed copy), weights with the system's context; with
+        ``gravity_of`` the weight of that body only (a copy perturbing one body moves no
+        other body's centre of mass)."""
         mech = self.mechanism
         terms: list[_Term] = []
         g = ca.DM(mech.gravity)
         if np.any(mech.gravity):
-            for name in self.body_names:
+            for name in (self.body_names if gravity_of is None else [gravity_of]):
                 m, _ = self._mass_inertia(mech.bodies[name])
                 terms.append(_Term("measure", ctx.centre_of_mass(name), m * g))
         for force in mech.forces.values():
