@@ -168,7 +168,7 @@ def test_cli_statics_json(capsys, tmp_path):
     assert len(data["joints"]["anchor_a"]["reaction"]) == 3
     assert len(data["lagrange_multipliers"]) == 2
     assert data["stats"]["coordinates"] == "joint"
-    assert data["stats"]["coordinate_choice"] == ("1 loop joint (knee_2) with 2 equations on 3 "
+    assert data["stats"]["coordinate_reason"] == ("1 loop joint (knee_2) with 2 equations on 3 "
                                                   "tree coordinates")
     pinned = tmp_path / "chain_absolute.toml"
     text = open(CHAIN).read()
@@ -176,7 +176,7 @@ def test_cli_statics_json(capsys, tmp_path):
     assert main(["statics", str(pinned), "--json", "--mode", "vm"]) == 0
     absolute = json.loads(capsys.readouterr().out)
     assert len(absolute["lagrange_multipliers"]) == 8
-    assert absolute["stats"]["coordinate_choice"] == "given"
+    assert absolute["stats"]["coordinate_reason"] == "given"
     for body in ("rod1", "rod2", "rod3"):
         assert np.allclose(absolute["bodies"][body]["position"],
                            data["bodies"][body]["position"], atol=1e-9)

@@ -359,7 +359,8 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
     names = {"coordinates": model.coordinate_names, "bodies": list(model.body_names),
              "joints": list(model.joint_coordinate_names), "all_joints": all_joints}
     stats = dict(model.report_dict)
-    stats.update({"coordinates": model.coordinates, "coordinate_choice": model.coordinate_reason,
+    stats.update({"coordinates": model.coordinates, "coordinate_choice": model.coordinates,
+                  "coordinate_reason": model.coordinate_reason,
                   "solve_seconds": solve_seconds, "n_coordinates": prob.nq,
                   "n_constraints": prob.nc, "degrees_of_freedom": int(n.shape[1])})
     joint_coordinates = np.ravel(out["joint_positions"][0]).copy()
