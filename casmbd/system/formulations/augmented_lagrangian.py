@@ -4,6 +4,19 @@ Bayo and García de Jalón (seed 003, mass-orthogonal projections): (M + α C_q�
 C_qᵀ λ_i + α C_qᵀ γ_b, λ_{i+1} = λ_i + α (C_q q̈ − γ_b), with Baumgarte-stabilised γ_b, four
 iterations.  The matrix stays positive definite at singular configurations and with redundant
 constraints, so the multipliers stay in the range of C_q (minimum-norm multipliers).
+
+K = M + α C_qᵀC_q is factorised once (symbolic sparse LDLᵀ, :func:`casadi.ldl`) and every
+iteration after the first is written as a correction driven by the residual of the KKT rows
+(iterative refinement with K as the preconditioner)::
+
+    q̈₀ = K⁻¹ (Q + α C_qᵀ γ_b),    λ₀ = 0,
+    λᵢ = λᵢ₋₁ + α (C_q q̈ᵢ₋₁ − γ_b),
+    q̈ᵢ = q̈ᵢ₋₁ + K⁻¹ (Q − M q̈ᵢ₋₁ − C_qᵀ λᵢ − α C_qᵀ (C_q q̈ᵢ₋₁ − γ_b)),
+
+which is the same iteration in exact arithmetic.  Solving for q̈ itself puts the rounding
+error of the factorisation, ≈ cond(K) ε ≈ 1e5 ε, into every right-hand side (measured 1e-11
+relative on the four-bar and the 8-rod chain); the correction form only solves for the
+shrinking corrections, so q̈ matches the exact KKT solution to ≈ 1e-14 relative.
 """
 
 from __future__ import annotations
@@ -24,19 +37,20 @@ from casmbd.system.formulations.base import (
 from casmbd.system.formulations.kkt_ode import kkt_ode
 
 
-def augmented_lagrangian(system: System, penalty: float | None = None, iterations: int = 4,
+def augmented_lagrangian(system: System, penalty: float | None = None, iterations: int = 10,
                          alpha: float = 20.0, beta: float = 20.0,
                          inputs: ca.SX | None = None) -> Formulation:
     """ODE on (q, v) by the augmented-Lagrangian iteration with Baumgarte terms.
 
     ``penalty`` defaults to 1e5 times the ratio of the mean mass-matrix diagonal to the mean
-    diagonal of C_qᵀ C_q at the initial guess, so that it is unit-consistent.  Measured
-    trade-off (docs/performance.md): a larger penalty converges in fewer iterations but makes
-    M + α C_qᵀC_q ill-conditioned (cond ≈ α), which puts noise of ≈ cond·ε into every
-    right-hand side; a smaller one leaves weakly constrained modes unconverged.  At rtol 1e-12:
-    1e7 with 3 iterations floored the 8-rod chain's tip error at 6e-10 (25 000 Adams steps);
-    1e4 with 4 floored the 32-rod chain at 5e-7; 1e5 with 4 reaches 8e-12 (8 rods) and 1e-10
-    (32 rods).
+    diagonal of C_qᵀ C_q at the initial guess, so that it is unit-consistent.  A constraint
+    direction with singular value σ of C_q converges at the rate 1/(1 + α σ²/m) per
+    iteration; ``iterations`` = 10 (one factorisation, then cheap corrections: the module
+    docstring) converges every benchmark problem at regular poses to the exact KKT q̈ within
+    ≈ 1e-15 relative (tests/test_al_accuracy.py; the spatial 8-rod chain, whose slowest
+    direction has α σ²/m ≈ 26, was still 1e-6 off with the former 4).  Near a singular pose
+    σ → 0 and that direction stays unconverged: the regularisation that keeps the motion on
+    its branch (docs/dynamics.md, "Accuracy of the right-hand side").
     """
     t, q, v, pu = _sym_inputs(system)
     if system.nc == 0:
@@ -46,23 +60,57 @@ def augmented_lagrangian(system: System, penalty: float | None = None, iteration
         penalty = _default_penalty(system)
     if not (np.isfinite(penalty) and penalty > 0):
         raise ModelError(f"augmented_lagrangian: penalty must be > 0, got {penalty}")
+    if not (isinstance(iterations, (int, np.integer)) and iterations >= 1):
+        raise ModelError(f"augmented_lagrangian: iterations must be an integer >= 1, got "
+                         f"{iterations!r}")
     gamma_b = _baumgarte_gamma(system, alpha, beta)
-    k_mat = system.mass_matrix + penalty * ca.mtimes(cq.T, cq)
-    parts = ca.Function("al_parts", [t, q, v, pu], [k_mat, _forces(system, inputs), cq, gamma_b])
+    parts = ca.Function("al_parts", [t, q, v, pu],
+                        [system.mass_matrix, _forces(system, inputs), cq, gamma_b])
     tm, qm, vm, pm = (ca.MX.sym(n, s.sparsity()) for n, s in
                       (("t", t), ("q", q), ("v", v), ("p", pu)))
-    k_x, f_x, cq_x, g_x = parts(tm, qm, vm, pm)
-    solver = ca.Linsol("al_ldl", "ldl", k_mat.sparsity())
-    lam = ca.MX.zeros(system.nc)
-    acc = None
-    for _ in range(iterations):
-        acc = solver.solve(k_x, f_x - ca.mtimes(cq_x.T, lam) + penalty * ca.mtimes(cq_x.T, g_x))
-        lam = lam + penalty * (ca.mtimes(cq_x, acc) - g_x)
+    solver = al_solver(system.mass_matrix.sparsity(), cq.sparsity(), penalty, iterations)
+    acc = solver(*parts(tm, qm, vm, pm))
     f = _dyn("dyn_augmented_lagrangian", tm, ca.vertcat(qm, vm), ca.MX(0, 1), pm,
              ca.vertcat(vm, acc), ca.MX(0, 1))
     return Formulation("augmented_lagrangian", "ode", f, system.nq, 0, [],
                        {"penalty": penalty, "iterations": iterations, "alpha": alpha,
                         "beta": beta})
+
+
+def al_solver(m_sparsity: ca.Sparsity, cq_sparsity: ca.Sparsity, penalty: float,
+              iterations: int) -> ca.Function:
+    """The augmented-Lagrangian solve ``al_solve(M, Q, C_q, γ_b) -> q̈`` as one SX Function.
+
+    K = M + α C_qᵀC_q is factorised once by a sparse LDLᵀ with an approximate-minimum-degree
+    ordering (:func:`casadi.ldl`, symbolic, code-generable; K is symmetric positive definite
+    for α > 0 whenever M is, also for a rank-deficient C_q), then ``iterations`` solves in the
+    residual (correction) form of the module docstring.
+
+    Parameters
+    ----------
+    m_sparsity, cq_sparsity : casadi.Sparsity
+        Patterns of M (n × n, symmetric) and C_q (m × n).
+    penalty : float
+        α > 0.
+    iterations : int
+        Solves with K (≥ 1); the multipliers are updated between them.
+    """
+    n, nc = m_sparsity.size1(), cq_sparsity.size1()
+    m_mat = ca.SX.sym("M", m_sparsity)
+    forces = ca.SX.sym("Q", n)
+    cq = ca.SX.sym("Cq", cq_sparsity)
+    gamma = ca.SX.sym("gamma", nc)
+    d, lt, perm = ca.ldl(m_mat + penalty * ca.mtimes(cq.T, cq), True)
+    acc = ca.ldl_solve(forces + penalty * ca.mtimes(cq.T, gamma), d, lt, perm)
+    lam = ca.SX.zeros(nc)
+    for _ in range(iterations - 1):
+        violation = ca.mtimes(cq, acc) - gamma
+        lam = lam + penalty * violation
+        residual = (forces - ca.mtimes(m_mat, acc) - ca.mtimes(cq.T, lam)
+                    - penalty * ca.mtimes(cq.T, violation))
+        acc = acc + ca.ldl_solve(residual, d, lt, perm)
+    return ca.Function("al_solve", [m_mat, forces, cq, gamma], [acc],
+                       ["M", "Q", "Cq", "gamma"], ["a"])
 
 
 def _default_penalty(system: System) -> float:
