@@ -16,7 +16,9 @@ Run ``python -m benchmarks.startup [--repeat 10] [--update-docs]``.
 from __future__ import annotations
 
 import json
+import math
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -55,11 +57,17 @@ print(json.dumps({{"seconds": dt, "casmbd": sum(m.startswith("casmbd") for m in 
 _ENV: dict = {}
 
 
-def _child(args: list[str]) -> tuple[float, str]:
-    t0 = time.perf_counter()
+def _cpu_children() -> float:
+    use = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return use.ru_utime + use.ru_stime
+
+
+def _child(args: list[str]) -> tuple[float, str, float]:
+    """Wall time, stdout and processor time (user + system) of one child process."""
+    c0, t0 = _cpu_children(), time.perf_counter()
     out = subprocess.run(args, capture_output=True, text=True, check=True, cwd=ROOT,
                          timeout=300, env=_ENV or None).stdout
-    return time.perf_counter() - t0, out
+    return time.perf_counter() - t0, out, _cpu_children() - c0
 
 
 def measure(repeat: int = 10) -> dict:
@@ -73,20 +81,23 @@ def measure(repeat: int = 10) -> dict:
     for label, statement in IMPORTS:
         runs = []
         for _ in range(repeat):
-            wall, out = _child([sys.executable, "-c", _CHILD.format(statement=statement)])
-            runs.append({**json.loads(out.strip().splitlines()[-1]), "process": wall})
+            wall, out, cpu = _child([sys.executable, "-c", _CHILD.format(statement=statement)])
+            runs.append({**json.loads(out.strip().splitlines()[-1]), "process": wall,
+                         "cpu": cpu})
         best = {**min(runs, key=lambda r: r["seconds"]),
-                "process": min(r["process"] for r in runs)}
+                "process": min(r["process"] for r in runs), "cpu": min(r["cpu"] for r in runs)}
         rows.append({"what": label, **best})
-        print(f"{label}: import {best['seconds']:.3f} s, process {best['process']:.3f} s, "
-              f"{best['casmbd']} casmbd modules, {best['modules']} modules", flush=True)
+        print(f"{label}: import {best['seconds']:.3f} s, process {best['process']:.3f} s "
+              f"(CPU {best['cpu']:.3f} s), {best['casmbd']} casmbd modules, "
+              f"{best['modules']} modules", flush=True)
     info = []
     for scene in SCENES:
         cmd = [sys.executable, "-m", "casmbd", "info", scene]
         _child(cmd)  # fills the cache
-        wall = min(_child(cmd)[0] for _ in range(repeat))
-        info.append({"scene": scene, "wall": wall})
-        print(f"casmbd info {scene}: {wall:.3f} s", flush=True)
+        runs = [_child(cmd) for _ in range(repeat)]
+        wall, cpu = min(r[0] for r in runs), min(r[2] for r in runs)
+        info.append({"scene": scene, "wall": wall, "cpu": cpu})
+        print(f"casmbd info {scene}: {wall:.3f} s (CPU {cpu:.3f} s)", flush=True)
     return {"date": time.strftime("%Y-%m-%d"), "python": sys.version.split()[0],
             "repeat": repeat, "imports": rows, "info": info}
 
@@ -103,22 +114,28 @@ def markdown(data: dict) -> str:
         "`casmbd.errors`: the public names (`casmbd.simulate`, `from casmbd import Mechanism`, "
         "…) import their modules on first use (PEP 562 `__getattr__` in `casmbd/__init__.py`; "
         "tests/test_startup.py checks the module list), and scipy.optimize is imported by the "
-        "functions that use it. Target (issue 22): `import casmbd` ≤ "
+        "functions that use it; the CLI imports a verb's module when the verb runs. *CPU*: "
+        "user + system time of the child (`getrusage`), the wall time it would take alone on "
+        "an idle core. Target (issue 22): `import casmbd` ≤ "
         f"{IMPORT_TARGET:g} s; `casmbd info SCENE` on a cached scene ≤ {INFO_TARGET:g} s.", "",
-        "| statement | import [s] | process [s] | casmbd modules | modules |",
-        "|---|---:|---:|---:|---:|"]
+        "| statement | import [s] | process [s] | process CPU [s] | casmbd modules | modules |",
+        "|---|---:|---:|---:|---:|---:|"]
     for r in data["imports"]:
         lines.append(f"| `{r['what']}` | {r['seconds']:.3f} | {r['process']:.3f} | "
-                     f"{r['casmbd']} | {r['modules']} |")
-    lines += ["", "| command (cached scene) | wall [s] |", "|---|---:|"]
+                     f"{r.get('cpu', float('nan')):.3f} | {r['casmbd']} | {r['modules']} |")
+    lines += ["", "| command (cached scene) | wall [s] | CPU [s] |", "|---|---:|---:|"]
     for r in data["info"]:
-        lines.append(f"| `casmbd info {r['scene']}` | {r['wall']:.3f} |")
+        lines.append(f"| `casmbd info {r['scene']}` | {r['wall']:.3f} | "
+                     f"{r.get('cpu', float('nan')):.3f} |")
     imp = next(r for r in data["imports"] if r["what"] == "import casmbd")
     worst = max(r["wall"] for r in data["info"])
+    worst_cpu = max(r.get("cpu", math.nan) for r in data["info"])
+    shared = "" if worst <= INFO_TARGET or not worst_cpu <= INFO_TARGET else (
+        "; its processor time is within it: the wall time waited for a shared core")
     lines += ["", f"`import casmbd`: {imp['seconds']:.3f} s (target ≤ {IMPORT_TARGET:g}: "
               f"{'met' if imp['seconds'] <= IMPORT_TARGET else 'not met'}); slowest `casmbd "
-              f"info` {worst:.3f} s (target ≤ {INFO_TARGET:g}: "
-              f"{'met' if worst <= INFO_TARGET else 'not met'})."]
+              f"info` {worst:.3f} s wall, {worst_cpu:.3f} s CPU (target ≤ {INFO_TARGET:g} s "
+              f"wall: {'met' if worst <= INFO_TARGET else 'not met'} in this run{shared})."]
     return "\n".join(lines) + "\n"
 
 
