@@ -66,3 +66,23 @@ def test_constrained_systems_keep_the_kkt_solve():
     q, v = system.initial_coordinates(), np.zeros(system.nq)
     lam = np.asarray(post(q, v, 0.0, system.parameter_values)[1]).ravel()
     assert lam.size == system.nc and np.max(np.abs(lam)) > 1.0  # the pins carry the weight
+
+
+def test_initial_rates_at_rest_without_the_twist_jacobian():
+    """Joint coordinates, bodies at rest: the model's initial q̇ is 0 without building the
+    symbolic Jacobian of the twists, and equals the System's minimiser; a moving body still
+    goes through the System (the minimiser of the kinetic energy of the difference)."""
+    from casmbd.compiled.model import NumericModel
+
+    mech = pendulum_chain(5)
+    mech.coordinates = "joint"
+    system = System(mech)
+    model = NumericModel(system, "info", mode="vm")
+    np.testing.assert_array_equal(model.initial_velocities(), np.zeros(5))
+    np.testing.assert_allclose(system.initial_velocities(), 0.0, atol=1e-15)
+    mech.bodies["rod2"].angular_velocity = 0.7
+    system = System(mech)
+    model = NumericModel(system, "info", mode="vm")
+    rates = model.initial_velocities()
+    np.testing.assert_allclose(rates, system.initial_velocities(), rtol=0, atol=1e-15)
+    assert np.max(np.abs(rates)) > 0.1

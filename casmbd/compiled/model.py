@@ -246,6 +246,11 @@ class NumericModel:
             return self._v0.copy()
         if self._v0_at is not None and self._v0_at[0] == self.p.tolist():
             return self._v0_at[1].copy()
+        if all(not np.any(getattr(body, key, 0.0)) for body in self.mechanism.bodies.values()
+               for key in ("velocity", "angular_velocity")):
+            # bodies at rest: q̇ = 0 minimises the kinetic energy of the difference (and the
+            # least squares), without the symbolic Jacobian of every twist (O(N²) for a tree)
+            return np.zeros(self.nq)
         return self.system.initial_velocities(self.p)
 
     def vector(self, name: str, *args) -> np.ndarray:
