@@ -151,29 +151,36 @@ class System(AppliedForces, Outputs, Reactions):
         """
         if self.local:
             return np.concatenate([d.initial_rates() for d in self.descriptions.values()])
-        twists, given, energy = [], [], ca.SX(0.0)
+        twists, given, metric = [], [], []
         for name in self.body_names:
             body = self.mechanism.bodies[name]
-            vel = ca.jtimes(self.ctx.centre_of_mass(name), self.q, self.v)
-            omega = self.ctx.angular_velocity(name)
-            twists += [vel, omega]
+            twists += [ca.jtimes(self.ctx.centre_of_mass(name), self.q, self.v),
+                       self.ctx.angular_velocity(name)]
             given += [np.ravel(body.velocity), np.ravel(body.angular_velocity)]
             mass, inertia = self._mass_inertia(body)
-            dv = vel - ca.DM(np.ravel(body.velocity)[:vel.numel()])
-            dw = omega - ca.DM(np.ravel(body.angular_velocity)[:omega.numel()])
-            if self.dimension == 3:
-                dw = ca.mtimes(self.ctx.rotation(name).T, dw)
-            energy += 0.5 * (mass * ca.dot(dv, dv) + ca.bilin(ca.SX(inertia), dw, dw))
-        hess, grad = ca.hessian(energy, self.v)
-        fun = ca.Function("twists", [self.q, self.p, self.t, self.v],
-                          [ca.jacobian(ca.vertcat(*twists), self.v), hess, grad])
+            rot = self.ctx.rotation(name) if self.dimension == 3 else ca.SX(1.0)
+            # the block of W for (ṙ_G, ω): m I and A J Aᵀ (J in the plane)
+            metric += [mass, ca.vec(ca.mtimes([rot, ca.SX(inertia), rot.T]))]
+        fun = ca.Function("twists", [self.q, self.p, self.t],
+                          [ca.jacobian(ca.vertcat(*twists), self.v), ca.vertcat(*metric)])
         p = self.parameter_values if p is None else np.asarray(p, dtype=float)
-        matrix, h_mat, g_vec = (np.asarray(x, dtype=float) for x in fun(
-            self.initial_coordinates(), p, 0.0, np.zeros(self.nq)))
+        matrix, blocks = (np.asarray(x, dtype=float) for x in
+                          fun(self.initial_coordinates(), p, 0.0))
+        target = np.concatenate(given)
+        nw = 1 if self.dimension == 2 else 3
+        w_mat = np.zeros((matrix.shape[0], matrix.shape[0]))
+        row = k = 0
+        for _ in self.body_names:  # W = blockdiag(m I, A J Aᵀ) per body
+            d = self.dimension
+            w_mat[row:row + d, row:row + d] = blocks[k, 0] * np.eye(d)
+            w_mat[row + d:row + d + nw, row + d:row + d + nw] = \
+                blocks[k + 1:k + 1 + nw * nw, 0].reshape(nw, nw)
+            row, k = row + d + nw, k + 1 + nw * nw
+        h_mat = matrix.T @ w_mat @ matrix
         if self.nq and np.all(np.isfinite(h_mat)) and \
                 np.linalg.matrix_rank(h_mat) == self.nq:
-            return np.linalg.solve(h_mat, -g_vec.ravel())
-        rates, *_ = np.linalg.lstsq(matrix, np.concatenate(given), rcond=None)
+            return np.linalg.solve(h_mat, matrix.T @ w_mat @ target)
+        rates, *_ = np.linalg.lstsq(matrix, target, rcond=None)
         return rates
 
     # ------------------------------------------------------------------ helpers
