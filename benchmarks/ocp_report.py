@@ -156,7 +156,7 @@ def ocp_table(rows: list[Row]) -> str:
     from benchmarks.ocp_handwritten import PROBLEMS
 
     header = ["problem (`ocp/`)", "objective (hand-written CasADi here; issue)", "iterations",
-              "set-up cold / cached", "NLP solve", "replay error"]
+              "set-up cold / cached (CPU)", "NLP solve", "replay error"]
     lines = ["| " + " | ".join(header) + " |", "| " + " | ".join(["---"] * len(header)) + " |"]
     seen = set()
     for r in rows:
@@ -176,7 +176,7 @@ def ocp_table(rows: list[Row]) -> str:
         seen.add(r.problem)
         lines.append("| " + " | ".join([
             cell, obj, str(f.get("iterations", "–")),
-            f"{_sec(f.get('setup_cold_s'))} / {_sec(f.get('setup_cached_s'))}",
+            f"{_with_cpu(f, 'setup_cold')} / {_with_cpu(f, 'setup_cached')}",
             _sec(f.get("solve_median_s")), _num(f.get("replay_error"), 2)]) + " |")
     return "\n".join(lines)
 
@@ -223,9 +223,15 @@ def target_lines(rows: list[Row]) -> list[str]:
                      "missed by " + ", ".join(f"`{r.problem}` ({r.variant}) "
                                               f"{_sec(r.figures['setup_cached_s'])}"
                                               for r in slow))
-        text += (f". In CPU seconds (this process and the C compiler; less sensitive to the "
-                 f"other jobs on the machine) the largest default set-up is {_sec(cpu_cold)} cold "
-                 f"and {_sec(cpu_warm)} cached")
+        slow_cpu = [r for r in warm
+                    if r.figures.get("setup_cached_cpu_s", 0.0) > TARGETS["cached"]]
+        text += (f". In CPU seconds (this process and the C compiler; what the wall time "
+                 f"would be on an idle core — the machine ran at the load averages above) the "
+                 f"largest default set-up is {_sec(cpu_cold)} cold (target "
+                 f"{'met' if cpu_cold <= TARGETS['cold'] else 'missed'}) and {_sec(cpu_warm)} "
+                 f"cached (target " + ("met" if not slow_cpu else "met except " + ", ".join(
+                     f"`{r.problem}` {_sec(r.figures['setup_cached_cpu_s'])}"
+                     for r in slow_cpu)) + ")")
         text += ("; a second process loads compiled element functions through the element "
                  "index without differentiating anything, while a problem left in the virtual "
                  "machine differentiates its elements again.")
