@@ -86,3 +86,24 @@ def test_second_build_does_not_compile(cache):
     assert codegen.COMPILE_COUNT == count
     assert second.model.report.cache_hit and not second.model.report.compiled
     assert second.model.report.library == first.model.report.library
+
+
+def test_targets_read_the_rows():
+    """The issue-22 target lines of the docs: N = 1000 build, cached load, RHS against
+    Pinocchio's ABA (same run), solve growth — met or missed from the figures given."""
+    from benchmarks.scaling import targets
+
+    rows = []
+    for n, build, second, rhs, pin, solve in ((100, 12.0, 0.05, 6.0, 4.0, 0.02),
+                                              (1000, 45.0, 0.40, 61.0, 40.0, 0.25)):
+        rows.append({"config": "joint_aba", "variant": "O2", "n": n, "status": "ok",
+                     "build_total_s": build, "second_run_s": second, "import_s": 0.3,
+                     "rhs_us": rhs, "pinocchio_aba_us": pin, "solve_s_per_s": solve,
+                     "steps": 400, "second_compiled": False, "second_cache_hit": True})
+    text = "\n".join(targets(rows))
+    assert "joint_aba 45.0 s (**missed**)" in text           # > 30 s at N = 1000
+    assert "0.400 s at N = 1000" in text and "met;" in text  # second run ≤ 1 s
+    assert "N = 100: 1.5, N = 1000: 1.5 (met)" in text       # RHS / ABA ≤ 2
+    assert "N^1.10" in text and "(met)" in text              # 0.02 → 0.25: k = 1.097
+    rows[1]["pinocchio_aba_us"] = 20.0
+    assert "N = 1000: 3 (**missed**)" in "\n".join(targets(rows))
