@@ -10,6 +10,13 @@ solved here independently by numpy (least squares, then iterative refinement wit
 accumulated in extended precision), with γ_b the formulation's own right-hand side (Baumgarte
 terms α = β = 20 for the augmented Lagrangian, none for ``kkt_ode``; at a state with C ≈ 1e-15
 the Baumgarte terms are not negligible at this accuracy).  Bound: 1e-12 relative to max |q̈|.
+States and the exact solve: :mod:`benchmarks.al_accuracy`.  The states avoid singular poses
+(as many singular values of C_q above 1e-2 of the largest as at the design pose): near one,
+σ → 0 and the exact q̈ answers the part of γ_b along the vanishing direction with O(1/σ),
+while the augmented Lagrangian converges that direction at the rate 1/(1 + α σ²/m) per
+iteration — the regularisation that keeps it on its branch.  Measured on the redundant triple
+crank: 6.7e-12 relative at σ/σ_max ≈ 1e-8 beside the redundant zero, 17 at 1.6e-4;
+tests/test_dynamics.py and tests/test_singular_chains.py cover those poses.
 Before the residual (correction) form of the augmented-Lagrangian iteration the error was
 ≈ 1e-11 (rounding of cond(M + α C_qᵀC_q) ≈ 1e5) on the four-bar and the chains and 1e-6 on the
 spatial chain (four iterations left its slowest constraint direction, α s = 26, unconverged).
@@ -17,20 +24,24 @@ spatial chain (four iterations left its slowest constraint direction, α s = 26,
 
 from __future__ import annotations
 
+import importlib
+
 import casadi as ca
 import numpy as np
 import pytest
 
 import casmbd
+from benchmarks.al_accuracy import acceleration, consistent_states, exact_acceleration
 from benchmarks.chains import pendulum_chain
 from benchmarks.work_precision import chain_in_space
 from casmbd.errors import ModelError
 from casmbd.system.equations import System
 from casmbd.system.formulations import build
 from casmbd.system.formulations.augmented_lagrangian import al_solver
-from casmbd.system.formulations.base import _baumgarte_gamma, _forces
 from tests.mechanisms import triple_crank
 
+#: the module (the package re-exports a function of the same name)
+AL_MODULE = importlib.import_module("casmbd.system.formulations.augmented_lagrangian")
 BOUND = 1e-12
 STATES = 6
 
@@ -58,67 +69,6 @@ CASES = {
 }
 
 
-def _rank(cq: np.ndarray) -> int:
-    sv = np.linalg.svd(cq, compute_uv=False)
-    return int(np.sum(sv > 1e-2 * sv[0]))
-
-
-def consistent_states(system: System, scale: float, count: int, seed: int = 7):
-    """``count`` states (q, q̇) with |C| ≤ 1e-13 and C_q q̇ + C_t = 0 (least squares), away
-    from singular poses: C_q has as many singular values above 1e-2 of the largest as at the
-    design pose.  Near a singular pose (σ → 0) the exact q̈ answers the part of γ_b along the
-    vanishing direction with O(1/σ), while the augmented Lagrangian converges that direction
-    at the rate 1/(1 + α σ²/m) per iteration — the regularisation that keeps it on its branch
-    there.  Measured on the redundant triple crank (default penalty, 10 iterations): 6.7e-12
-    relative at a state with σ/σ_max ≈ 1e-8 beside the redundant zero, 17 relative at one
-    with 1.6e-4; tests/test_dynamics.py and tests/test_singular_chains.py cover those poses."""
-    rng = np.random.default_rng(seed)
-    parts = ca.Function("c", [system.q, system.t, system.p],
-                        [system.constraints, system.constraint_jacobian,
-                         system.constraint_time_derivative])
-    p = system.parameter_values
-
-    def assemble(q):
-        for _ in range(50):
-            c, cq, _ = (np.asarray(x) for x in parts(q, 0.0, p))
-            q = q - np.linalg.lstsq(cq, c.ravel(), rcond=None)[0]
-        return q
-
-    rank = _rank(np.asarray(parts(assemble(system.initial_coordinates()), 0.0, p)[1]))
-    states = []
-    while len(states) < count:
-        q = assemble(system.initial_coordinates() + scale * rng.standard_normal(system.nq))
-        c, cq, ct = (np.asarray(x) for x in parts(q, 0.0, p))
-        if not (np.all(np.isfinite(q)) and np.max(np.abs(c)) <= 1e-13 and _rank(cq) == rank):
-            continue
-        v = rng.standard_normal(system.nq)
-        v = v - np.linalg.lstsq(cq, cq @ v + ct.ravel(), rcond=None)[0]
-        states.append((q, v))
-    return states
-
-
-def exact_acceleration(system: System, q, v, baumgarte: float) -> np.ndarray:
-    """q̈ of the dense KKT system (least squares + refinement in extended precision)."""
-    f = ca.Function("kkt", [system.q, system.v, system.t, system.p],
-                    [system.mass_matrix, _forces(system, None), system.constraint_jacobian,
-                     _baumgarte_gamma(system, baumgarte, baumgarte)])
-    m, forces, cq, gamma = (np.asarray(x) for x in f(q, v, 0.0, system.parameter_values))
-    nc = system.nc
-    kkt = np.block([[m, cq.T], [cq, np.zeros((nc, nc))]])
-    rhs = np.concatenate([forces.ravel(), gamma.ravel()])
-    x = np.linalg.lstsq(kkt, rhs, rcond=None)[0]
-    wide = kkt.astype(np.longdouble)
-    for _ in range(3):
-        residual = (wide @ x.astype(np.longdouble) - rhs.astype(np.longdouble)).astype(float)
-        x = x - np.linalg.lstsq(kkt, residual, rcond=None)[0]
-    return x[:system.nq]
-
-
-def _acceleration(system: System, form, q, v) -> np.ndarray:
-    out = form.function(0.0, np.concatenate([q, v]), [], system.parameter_values, [])[0]
-    return np.asarray(out).ravel()[system.nq:]
-
-
 def _relative_errors(name, formulation, baumgarte, **options):
     make, scale = CASES[name]
     system = System(make())
@@ -126,7 +76,7 @@ def _relative_errors(name, formulation, baumgarte, **options):
     errors = []
     for q, v in consistent_states(system, scale, STATES):
         exact = exact_acceleration(system, q, v, baumgarte)
-        got = _acceleration(system, form, q, v)
+        got = acceleration(system, form, q, v)
         errors.append(np.max(np.abs(got - exact)) / np.max(np.abs(exact)))
     return np.array(errors)
 
@@ -154,10 +104,14 @@ def test_unconverged_iterations_are_detected():
     assert np.max(errors) > 1e3 * BOUND
 
 
-def test_solver_is_the_augmented_lagrangian_fixed_point():
+@pytest.mark.parametrize("limit", [None, 0])
+def test_solver_is_the_augmented_lagrangian_fixed_point(monkeypatch, limit):
     """``al_solver`` with k iterations equals k steps of the textbook iteration
     (M + α CᵀC) q̈ = Q − Cᵀλ + α Cᵀγ, λ ← λ + α (C q̈ − γ), done in numpy with a small
-    penalty (where rounding is negligible) on a random SPD M and a rank-deficient C."""
+    penalty (where rounding is negligible) on a random SPD M and a rank-deficient C; with the
+    shared symbolic factorisation and (limit 0) with a re-factorising solve per iteration."""
+    if limit is not None:
+        monkeypatch.setattr(AL_MODULE, "SYMBOLIC_LIMIT", limit)
     rng = np.random.default_rng(3)
     n, nc, alpha = 6, 4, 0.7
     root = rng.standard_normal((n, n))
@@ -175,7 +129,16 @@ def test_solver_is_the_augmented_lagrangian_fixed_point():
         solver = al_solver(ca.Sparsity.dense(n, n), ca.Sparsity.dense(nc, n), alpha,
                            iterations)
         got = np.asarray(solver(m, forces, cq, gamma)).ravel()
+        assert solver.iterations == iterations
         assert np.max(np.abs(got - acc)) <= 1e-12 * np.max(np.abs(acc))
+
+
+def test_default_iterations_follow_the_factorisation(monkeypatch):
+    """10 iterations with the shared factorisation, 4 when every solve re-factorises."""
+    system = System(_fourbar("absolute"))
+    assert build(system, "augmented_lagrangian").options["iterations"] == 10
+    monkeypatch.setattr(AL_MODULE, "SYMBOLIC_LIMIT", 0)
+    assert build(system, "augmented_lagrangian").options["iterations"] == 4
 
 
 @pytest.mark.parametrize("iterations", [0, 2.5, "4"])

@@ -37,7 +37,8 @@ from casmbd.system.formulations.base import (
 from casmbd.system.formulations.kkt_ode import kkt_ode
 
 
-def augmented_lagrangian(system: System, penalty: float | None = None, iterations: int = 10,
+def augmented_lagrangian(system: System, penalty: float | None = None,
+                         iterations: int | None = None,
                          alpha: float = 20.0, beta: float = 20.0,
                          inputs: ca.SX | None = None) -> Formulation:
     """ODE on (q, v) by the augmented-Lagrangian iteration with Baumgarte terms.
@@ -45,10 +46,12 @@ def augmented_lagrangian(system: System, penalty: float | None = None, iteration
     ``penalty`` defaults to 1e5 times the ratio of the mean mass-matrix diagonal to the mean
     diagonal of C_qᵀ C_q at the initial guess, so that it is unit-consistent.  A constraint
     direction with singular value σ of C_q converges at the rate 1/(1 + α σ²/m) per
-    iteration; ``iterations`` = 10 (one factorisation, then cheap corrections: the module
-    docstring) converges every benchmark problem at regular poses to the exact KKT q̈ within
-    ≈ 1e-15 relative (tests/test_al_accuracy.py; the spatial 8-rod chain, whose slowest
-    direction has α σ²/m ≈ 26, was still 1e-6 off with the former 4).  Near a singular pose
+    iteration; ``iterations`` defaults to 10 when K is factorised once (one factorisation,
+    then cheap corrections: the module docstring), which converges every benchmark problem at
+    regular poses to the exact KKT q̈ within ≈ 1e-15 relative (tests/test_al_accuracy.py; the
+    spatial 8-rod chain, whose slowest direction has α σ²/m ≈ 26, was still 1e-6 off with 4),
+    and to 4 when K is too large for the straight-line factorisation and every solve
+    re-factorises it (:data:`SYMBOLIC_LIMIT`).  Near a singular pose
     σ → 0 and that direction stays unconverged: the regularisation that keeps the motion on
     its branch (docs/dynamics.md, "Accuracy of the right-hand side").
     """
@@ -60,7 +63,8 @@ def augmented_lagrangian(system: System, penalty: float | None = None, iteration
         penalty = _default_penalty(system)
     if not (np.isfinite(penalty) and penalty > 0):
         raise ModelError(f"augmented_lagrangian: penalty must be > 0, got {penalty}")
-    if not (isinstance(iterations, (int, np.integer)) and iterations >= 1):
+    if not (iterations is None or (isinstance(iterations, (int, np.integer))
+            and iterations >= 1)):
         raise ModelError(f"augmented_lagrangian: iterations must be an integer >= 1, got "
                          f"{iterations!r}")
     gamma_b = _baumgarte_gamma(system, alpha, beta)
@@ -69,6 +73,7 @@ def augmented_lagrangian(system: System, penalty: float | None = None, iteration
     tm, qm, vm, pm = (ca.MX.sym(n, s.sparsity()) for n, s in
                       (("t", t), ("q", q), ("v", v), ("p", pu)))
     solver = al_solver(system.mass_matrix.sparsity(), cq.sparsity(), penalty, iterations)
+    iterations = solver.iterations
     acc = solver(*parts(tm, qm, vm, pm))
     f = _dyn("dyn_augmented_lagrangian", tm, ca.vertcat(qm, vm), ca.MX(0, 1), pm,
              ca.vertcat(vm, acc), ca.MX(0, 1))
@@ -77,14 +82,29 @@ def augmented_lagrangian(system: System, penalty: float | None = None, iteration
                         "beta": beta})
 
 
+#: largest factorisation of K (SX instructions of :func:`casadi.ldl`) generated as
+#: straight-line C and shared by the iterations.  Above it every solve calls CasADi's sparse
+#: LDLᵀ routine, which re-factorises K (compact code, 4 iterations by default): the
+#: straight-line code grows like the factorisation's operations, ~2.5× the former right-hand
+#: side's C (chain of 32 rods: 277 kB against 128 kB, gcc -O2 3.9 s against 1.0 s; 128 rods,
+#: 16 500 instructions: 1.2 MB, beyond the size compiled at -O2, casmbd.compiled.units).
+SYMBOLIC_LIMIT = 12_000
+
+
 def al_solver(m_sparsity: ca.Sparsity, cq_sparsity: ca.Sparsity, penalty: float,
-              iterations: int) -> ca.Function:
-    """The augmented-Lagrangian solve ``al_solve(M, Q, C_q, γ_b) -> q̈`` as one SX Function.
+              iterations: int | None = None) -> ca.Function:
+    """The augmented-Lagrangian solve ``al_solve(M, Q, C_q, γ_b) -> q̈`` (an MX Function).
 
     K = M + α C_qᵀC_q is factorised once by a sparse LDLᵀ with an approximate-minimum-degree
     ordering (:func:`casadi.ldl`, symbolic, code-generable; K is symmetric positive definite
     for α > 0 whenever M is, also for a rank-deficient C_q), then ``iterations`` solves in the
-    residual (correction) form of the module docstring.
+    residual (correction) form of the module docstring.  Two SX Functions — the
+    factorisation and one correction — are generated once each and the correction is called
+    ``iterations`` times (the first call, from q̈ = 0 and λ = α γ_b, is the first solve), so
+    the C code does not grow with the iteration count.  When the factorisation exceeds
+    :data:`SYMBOLIC_LIMIT` instructions, the corrections use ``casadi.Linsol("ldl")`` instead,
+    which re-factorises K at every solve.  The returned Function has an ``iterations``
+    attribute (the count used).
 
     Parameters
     ----------
@@ -92,25 +112,49 @@ def al_solver(m_sparsity: ca.Sparsity, cq_sparsity: ca.Sparsity, penalty: float,
         Patterns of M (n × n, symmetric) and C_q (m × n).
     penalty : float
         α > 0.
-    iterations : int
-        Solves with K (≥ 1); the multipliers are updated between them.
+    iterations : int, optional
+        Solves with K (≥ 1); the multipliers are updated between them.  Default: 10 with
+        the shared factorisation, 4 when every solve re-factorises.
     """
     n, nc = m_sparsity.size1(), cq_sparsity.size1()
     m_mat = ca.SX.sym("M", m_sparsity)
     forces = ca.SX.sym("Q", n)
     cq = ca.SX.sym("Cq", cq_sparsity)
     gamma = ca.SX.sym("gamma", nc)
-    d, lt, perm = ca.ldl(m_mat + penalty * ca.mtimes(cq.T, cq), True)
-    acc = ca.ldl_solve(forces + penalty * ca.mtimes(cq.T, gamma), d, lt, perm)
-    lam = ca.SX.zeros(nc)
-    for _ in range(iterations - 1):
-        violation = ca.mtimes(cq, acc) - gamma
-        lam = lam + penalty * violation
-        residual = (forces - ca.mtimes(m_mat, acc) - ca.mtimes(cq.T, lam)
-                    - penalty * ca.mtimes(cq.T, violation))
-        acc = acc + ca.ldl_solve(residual, d, lt, perm)
-    return ca.Function("al_solve", [m_mat, forces, cq, gamma], [acc],
-                       ["M", "Q", "Cq", "gamma"], ["a"])
+    k_mat = m_mat + penalty * ca.mtimes(cq.T, cq)
+    d, lt, perm = ca.ldl(k_mat, True)
+    factor = ca.Function("al_factor", [m_mat, cq], [d, lt])
+    shared = factor.n_instructions() <= SYMBOLIC_LIMIT
+    if iterations is None:
+        iterations = 10 if shared else 4
+    d_s, lt_s = ca.SX.sym("D", d.sparsity()), ca.SX.sym("LT", lt.sparsity())
+    acc, lam = ca.SX.sym("a", n), ca.SX.sym("lambda", nc)
+    violation = ca.mtimes(cq, acc) - gamma
+    lam_next = lam + penalty * violation
+    residual = (forces - ca.mtimes(m_mat, acc) - ca.mtimes(cq.T, lam_next)
+                - penalty * ca.mtimes(cq.T, violation))
+    mm, fm, cm, gm = (ca.MX.sym(name, x.sparsity()) for name, x in
+                      (("M", m_mat), ("Q", forces), ("Cq", cq), ("gamma", gamma)))
+    # from q̈ = 0, λ = α γ_b the first correction is the first solve K⁻¹ (Q + α C_qᵀ γ_b), λ = 0
+    acc_x, lam_x = ca.MX.zeros(n), penalty * gm
+    if shared:
+        correct = ca.Function("al_correct", [acc, lam, m_mat, forces, cq, gamma, d_s, lt_s],
+                              [acc + ca.ldl_solve(residual, d_s, lt_s, perm), lam_next])
+        d_x, lt_x = factor(mm, cm)
+        for _ in range(iterations):
+            acc_x, lam_x = correct(acc_x, lam_x, mm, fm, cm, gm, d_x, lt_x)
+    else:
+        step = ca.Function("al_residual", [acc, lam, m_mat, forces, cq, gamma],
+                           [residual, lam_next])
+        linsol = ca.Linsol("al_ldl", "ldl", k_mat.sparsity())
+        k_x = mm + penalty * ca.mtimes(cm.T, cm)
+        for _ in range(iterations):
+            res_x, lam_x = step(acc_x, lam_x, mm, fm, cm, gm)
+            acc_x = acc_x + linsol.solve(k_x, res_x)
+    solver = ca.Function("al_solve", [mm, fm, cm, gm], [acc_x], ["M", "Q", "Cq", "gamma"],
+                         ["a"])
+    solver.iterations = iterations
+    return solver
 
 
 def _default_penalty(system: System) -> float:
