@@ -175,6 +175,11 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
             return
         system = mechanism if isinstance(mechanism, System) else System(mechanism)
         self.formulation_name = formulation or default_formulation(system)
+        #: why this formulation: "given" or the default rule (articulated for trees)
+        self.formulation_reason = "given" if formulation else (
+            "default: the articulated-body recursion (a tree in joint coordinates)"
+            if self.formulation_name == "articulated" else
+            f"default: {self.formulation_name} (constraint equations: {system.nc})")
         #: the registered formulation (UnknownMethodError listing the choices otherwise)
         self.kind = formulation_kind(self.formulation_name)
         self.redundancy = plan_redundancy(system, self.kind, redundancy)
@@ -279,7 +284,11 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
                 name = stiff
                 choice = (f"{stiff} ({integ.INTEGRATORS[stiff].label}): stiff, largest decay "
                           f"rate {rho:.3g} 1/s × {t_end - t_start:g} s > {STIFF_STEPS:g}")
-        stats: dict = {"formulation": self.formulation_name, "integrator": name,
+        stats: dict = {"coordinates": model.coordinates,
+                       "coordinate_choice": model.coordinates,
+                       "coordinate_reason": model.coordinate_reason,
+                       "formulation": self.formulation_name,
+                       "formulation_choice": self.formulation_reason, "integrator": name,
                        "integrator_choice": choice or ("default" if integrator is None
                                                        else "given"),
                        **{k: v for k, v in self.redundancy.items() if k != "kept_rows"},
