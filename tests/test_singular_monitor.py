@@ -16,7 +16,12 @@ import numpy as np
 import pytest
 
 from benchmarks.n_four_bar import n_four_bar, singular_pass_times
-from casmbd.analysis.redundancy import equilibrated_singular_values, equilibration
+from casmbd.analysis.redundancy import (
+    conditioning,
+    equilibrated_singular_values,
+    equilibration,
+    near_singular_passes,
+)
 from casmbd.analysis.simulate import Simulator
 
 T_END = 4.0
@@ -63,3 +68,24 @@ def test_four_bar_passes_reported_in_both_descriptions(coordinates):
     assert len(passes) == 4 and len(found) == 4
     assert np.max(np.abs(found - passes)) <= 1e-4
     assert res.stats["min_constraint_conditioning"] < 1e-4
+
+
+def test_subsampled_monitor_refines_between_evaluated_steps():
+    """A large model's monitor evaluates every few output steps only: with the conditioning
+    of the N = 3 chain (absolute coordinates, 4 s, rtol 1e-10) kept at every 8th step, the
+    passes are still located within 1e-4 s of the closed form with conditioning < 1e-4 (the
+    steps between the evaluated neighbours of a minimum are evaluated, the two intervals
+    around the smallest refined)."""
+    mech = n_four_bar(3)
+    mech.coordinates = "absolute"
+    sim = Simulator(mech)
+    res = sim.run(T_END, STEPS, rtol=1e-10)
+    rank = sim.redundancy["constraint_rank"]
+    cond = conditioning(sim.model, res["q"], res.t, rank)
+    sub = np.full_like(cond, np.nan)
+    sub[::8] = cond[::8]
+    passes = near_singular_passes(sim.model, res.t, res["q"], res["v"], sub, rank)
+    closed = singular_pass_times(3, T_END)
+    assert len(passes) == 4
+    assert np.max(np.abs(np.array([t for t, _ in passes]) - closed)) <= 1e-4
+    assert max(c for _, c in passes) < 1e-4
