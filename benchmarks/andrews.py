@@ -40,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.docs import heading, study_parser, update_hard_cases, used
+from benchmarks.docs import coordinate_reason, heading, study_parser, update_hard_cases, used
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENE = ROOT / "examples" / "andrews.toml"
@@ -251,7 +251,7 @@ def measure(config, repeat: int) -> list[dict]:
                    steps=res.stats["steps"], solve_seconds=statistics.median(times),
                    violation=float(np.max(res["constraint_violation"])),
                    integrator=res.stats["integrator"],
-                   coordinate_choice=res.stats.get("coordinate_choice"),
+                   coordinate_choice=coordinate_reason(res.stats),
                    integrator_choice=res.stats.get("integrator_choice"))
         rows.append(row)
         print(f"{label:42s} rtol {rtol:.0e}  err pub {row['err_pub']:.2e}  ld "

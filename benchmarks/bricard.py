@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.docs import heading, study_parser, update_hard_cases, used
+from benchmarks.docs import coordinate_reason, heading, study_parser, update_hard_cases, used
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENE = ROOT / "examples" / "bricard.toml"
@@ -132,7 +132,7 @@ def measure(config, repeat: int, slow: float) -> tuple[list[dict], dict]:
                    violation=float(np.max(res["constraint_violation"])),
                    energy_error=float(np.max(np.abs(energy - energy[0]))),
                    integrator=res.stats["integrator"],
-                   coordinate_choice=res.stats.get("coordinate_choice"),
+                   coordinate_choice=coordinate_reason(res.stats),
                    integrator_choice=res.stats.get("integrator_choice"))
         rows.append(row)
         print(f"{label:58s} rtol {rtol:.0e}  P3 {np.array2string(p3[-1], precision=9)}  "

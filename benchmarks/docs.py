@@ -85,3 +85,9 @@ def heading(label: str, rows: list[dict], chose_nothing: bool) -> str:
     what its successful runs used (:func:`used`)."""
     seen = dict.fromkeys(used(r) for r in rows if r["config"] == label and r["status"] == "ok")
     return f"{label}: {'; '.join(seen)}" if chose_nothing and seen else label
+
+
+def coordinate_reason(stats: dict) -> str | None:
+    """Why the run has its coordinates (``stats['coordinate_reason']``; older stats kept the
+    reason under ``coordinate_choice``)."""
+    return stats.get("coordinate_reason", stats.get("coordinate_choice"))

@@ -40,7 +40,7 @@ from pathlib import Path
 import numpy as np
 from scipy.integrate import cumulative_simpson
 
-from benchmarks.docs import study_parser, update_hard_cases
+from benchmarks.docs import coordinate_reason, study_parser, update_hard_cases
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENE = ROOT / "examples" / "flyball_governor.toml"
@@ -152,7 +152,7 @@ def measure(config, repeat: int, slow: float) -> list[dict]:
                    integrator=res.stats["integrator"],
                    coordinates=res.stats["coordinates"],
                    formulation=res.stats["formulation"],
-                   coordinate_choice=res.stats.get("coordinate_choice"),
+                   coordinate_choice=coordinate_reason(res.stats),
                    integrator_choice=res.stats.get("integrator_choice"))
         rows.append(row)
         print(f"{label:52s} rtol {rtol:.0e}  s {s:.12f}  omega {w:.12f}  steps {row['steps']:8d}"

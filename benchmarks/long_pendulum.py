@@ -43,7 +43,7 @@ from pathlib import Path
 import numpy as np
 from scipy.special import ellipj, ellipk
 
-from benchmarks.docs import study_parser, update_hard_cases
+from benchmarks.docs import coordinate_reason, study_parser, update_hard_cases
 from casmbd.model import Mechanism
 
 __all__ = ["exact_position", "exact_velocity", "pendulum_period", "simple_pendulum"]
@@ -193,7 +193,7 @@ def measure(repeat_below: float = 5.0) -> list[dict]:
         de = np.abs(energy - energy[0]) / energy_scale
         row.update(status="ok", steps=res.stats["steps"], integrator=res.stats["integrator"],
                    integrator_choice=res.stats.get("integrator_choice"),
-                   coordinate_choice=res.stats.get("coordinate_choice"),
+                   coordinate_choice=coordinate_reason(res.stats),
                    solve_seconds=res.stats["solve_seconds"],
                    position_error=_stored(err), energy_error=_stored(de),
                    max_position_error=float(err.max()), end_error=float(err[-1]),

@@ -41,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.docs import heading, study_parser, update_hard_cases, used
+from benchmarks.docs import coordinate_reason, heading, study_parser, update_hard_cases, used
 from benchmarks.n_four_bar_reference import (
     N_BENCH,
     PUBLISHED_B0,
@@ -296,7 +296,7 @@ def measure(config, n: int, repeat: int, slow: float) -> list[dict]:
         row.update(status="ok", steps=res.stats["steps"],
                    solve_seconds=statistics.median(times), repeats=len(times),
                    integrator=res.stats["integrator"],
-                   coordinate_choice=res.stats.get("coordinate_choice"),
+                   coordinate_choice=coordinate_reason(res.stats),
                    integrator_choice=res.stats.get("integrator_choice"), **evaluate(res, n))
         rows.append(row)
         print(f"{label:50s} rtol {rtol:.0e}  B0 err {row['b0_error']:.2e}  θ err "
