@@ -20,7 +20,9 @@ import numpy as np
 import pytest
 
 import casmbd
+from benchmarks.chains import pendulum_chain
 from casmbd.system import System
+from casmbd.system.choice import JOINT_LIMIT, choose_coordinates
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 
@@ -66,6 +68,20 @@ def test_many_loops_and_no_tree_get_absolute_coordinates():
     assert system.coordinates == "absolute"
     assert system.coordinate_reason.startswith("no spanning tree of joint coordinates (tree: "
                                                "joint 'rope' (Distance) cannot be a tree joint")
+
+
+def test_large_trees_get_absolute_coordinates():
+    """Past JOINT_LIMIT tree coordinates the joint-coordinate build grows like N² (a 300-rod
+    chain took over 300 s): the automatic choice takes absolute coordinates; at the limit it
+    still takes joint coordinates."""
+    at_limit = choose_coordinates(pendulum_chain(JOINT_LIMIT))
+    assert at_limit.coordinates == "joint"
+    beyond = choose_coordinates(pendulum_chain(JOINT_LIMIT + 1))
+    assert beyond.coordinates == "absolute"
+    assert beyond.reason.startswith(f"{JOINT_LIMIT + 1} tree coordinates > {JOINT_LIMIT}")
+    explicit = pendulum_chain(JOINT_LIMIT + 1)
+    explicit.coordinates = "joint"
+    assert System(explicit).coordinates == "joint"
 
 
 def test_an_explicit_choice_wins():

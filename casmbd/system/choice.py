@@ -15,7 +15,13 @@ mechanism's structure (issue 22, item 1; the measurements are in docs/performanc
 * **absolute coordinates** otherwise: a tree that cannot be built (a joint kind without tree
   coordinates in the only possible tree) or many loops (a truss, a lattice), where the
   joint-space mass matrix turns dense and the loop equations long while absolute
-  coordinates keep M block-diagonal and every equation local (seed 000).
+  coordinates keep M block-diagonal and every equation local (seed 000) — and a tree of more
+  than :data:`JOINT_LIMIT` coordinates: the joint-coordinate code (dense joint-space mass
+  matrix, outputs, reactions) still grows like N², so a 100-rod chain builds in about 20 s
+  (4.7 MB of C) against 15 s in absolute coordinates, but a 300-rod chain takes over 300 s
+  against 24 s (docs/performance.md, "Scaling to a thousand bodies", loaded machine).  Past
+  the limit the absolute-coordinate build is the one that finishes; its right-hand side is
+  slower per step.
 
 Natural coordinates are never chosen automatically: they are a modelling choice (constant
 mass matrix, seed 003), not a speed one.
@@ -28,10 +34,13 @@ from dataclasses import dataclass
 from casmbd.errors import ModelError
 from casmbd.system.tree import tree_descriptions
 
-__all__ = ["AUTO", "CoordinateChoice", "choose_coordinates"]
+__all__ = ["AUTO", "JOINT_LIMIT", "CoordinateChoice", "choose_coordinates"]
 
 #: the value of ``coordinates`` that asks casmbd to choose
 AUTO = "auto"
+#: the most tree coordinates for which the automatic choice takes joint coordinates (their
+#: generated code grows like N²: measured limit between 100 and 300 rods, module docstring)
+JOINT_LIMIT = 150
 
 
 @dataclass
@@ -57,6 +66,10 @@ def choose_coordinates(mechanism) -> CoordinateChoice:
     n_tree = sum(d.size for d in descriptions.values())
     loops = [j for name, j in mechanism.joints.items() if name not in absorbed]
     n_loop = sum(len(j.labels) for j in loops)
+    if n_tree > JOINT_LIMIT:
+        return CoordinateChoice(
+            "absolute", f"{n_tree} tree coordinates > {JOINT_LIMIT} (the joint-coordinate code "
+            "grows like N²; absolute coordinates build in linear time)")
     if n_loop > n_tree:
         return CoordinateChoice(
             "absolute", f"{len(loops)} loop joints with {n_loop} equations on {n_tree} tree "
