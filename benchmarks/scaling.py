@@ -74,8 +74,9 @@ CONFIGS: dict[str, tuple[str, str]] = {
 }
 CONFIG_LABEL = {"abs_al": "absolute, augmented_lagrangian (the default in absolute coordinates)",
                 "abs_kkt": "absolute, kkt_ode",
-                "joint_aba": "joint, articulated (ABA): the default path, the automatic choice "
-                             "for a chain (a tree: joint coordinates, the recursion)"}
+                "joint_aba": "joint, articulated (ABA): the default path of a chain up to 150 "
+                             "rods (a tree: joint coordinates, the recursion); beyond, the "
+                             "automatic choice takes abs_al (casmbd/system/choice.py)"}
 #: compile variant -> (mode, CASMBD_CFLAGS); "O2" is the library default
 VARIANTS: dict[str, tuple[str, str | None]] = {
     "O2": ("compiled", None), "O1": ("compiled", "-O1"), "O0": ("compiled", "-O0"),
