@@ -116,9 +116,10 @@ def test_unknown_formulation_names_the_choices():
 def test_unknown_integrator_names_the_choices():
     with pytest.raises(UnknownMethodError) as info:
         simulate(pendulum(), 1.0, 2, integrator="rk5", mode="vm")
-    assert info.value.choices == tuple(INTEGRATORS) == ("idas", "cvodes", "adams", "rk4", "abm")
+    assert info.value.choices == tuple(INTEGRATORS) == ("idas", "cvodes", "adams", "rk4", "abm",
+                                                         "dopri5")
     assert str(info.value) == ("unknown integrator 'rk5' (known: idas, cvodes, adams, rk4, "
-                               "abm)")
+                               "abm, dopri5)")
     with pytest.raises(UnknownMethodError, match=r"unknown integrator 'lsoda'"):
         integ.sundials(Simulator(pendulum(), "kkt_ode", mode="vm").dyn, "lsoda", 0.0, [1.0],
                        1e-8, 1e-8, 100)

@@ -96,11 +96,12 @@ def abm_step(dyn: ca.Function) -> ca.Function:
 def fixed_fold(step: ca.Function, count: int, name: str) -> ca.Function:
     """``name(s, p, h) -> s_next``: ``count`` steps of ``step(s, p, h)`` in one call.
 
-    ``step.fold(count)`` (a loop in the generated code) with ``p`` and ``h`` given once and
-    repeated inside, so that the inputs are single columns bound once to numpy arrays.
+    ``step.fold(count)`` (a loop in the generated code) with ``p`` and ``h`` (the step size,
+    or any column of step controls) given once and repeated inside, so that the inputs are
+    single columns bound once to numpy arrays.
     """
     s, p, h = ca.MX.sym("s", step.size1_in(0)), ca.MX.sym("p", step.sparsity_in(1)), \
-        ca.MX.sym("h")
+        ca.MX.sym("h", step.sparsity_in(2))  # a column of step controls (DOPRI5) or h
     out = step.fold(count)(s, ca.repmat(p, 1, count), ca.repmat(h, 1, count))
     return ca.Function(name, [s, p, h], [out], ["s", "p", "h"], ["s_next"])
 
@@ -341,6 +342,9 @@ class IntegratorKind:
         Serves the optimal-control problem's multiple shooting (:meth:`shooting_step`).
     stiff_alternative : str or None
         The integrator taken instead when none is named and the ODE is stiff (Adams -> BDF).
+    compiled : bool
+        An adaptive method whose steps run in compiled blocks (``runner(dyn, mode, name)``,
+        :class:`casmbd.analysis.dopri.Dopri`).
     """
 
     name: str
@@ -351,6 +355,7 @@ class IntegratorKind:
     fixed_step: bool = False
     shooting: bool = False
     stiff_alternative: str | None = None
+    compiled: bool = False
 
     def integrates(self, kind: str) -> bool:
         """Whether this integrator accepts a formulation of ``kind`` ("ode", "dae",
@@ -487,3 +492,6 @@ register_integrator(FixedStepKind("rk4", "RK4", shooting=True, step_builder=rk4_
                                   evaluations_per_step=4))
 register_integrator(FixedStepKind("abm", "ABM4", step_builder=abm_step, history=3,
                                   evaluations_per_step=2))
+
+# Dormand–Prince 5(4) in compiled blocks (its own module; registers "dopri5" on import)
+from casmbd.analysis import dopri as _dopri  # noqa: E402,F401

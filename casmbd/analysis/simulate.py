@@ -383,6 +383,8 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
         if self.formulation.kind == "numeric":
             return numeric_run.integrate(self, name, grid, x0, rtol, atol, max_steps,
                                           projection=projection)
+        if integ.INTEGRATORS[name].compiled:  # adaptive steps in compiled blocks (DOPRI5)
+            return self._compiled_run(name, grid, x0, rtol, atol, max_steps, projection)
         if projection:
             return self._interval_by_interval(name, grid, x0, z0, rtol, atol, step, max_steps,
                                               project=True)

@@ -136,6 +136,37 @@ class Stepping:
             pbar.update()
         return xs, state
 
+    def _compiled_run(self, name, grid, x0, rtol, atol, max_steps, project: bool):
+        """An adaptive method in compiled blocks (DOPRI5, :mod:`casmbd.analysis.dopri`) over
+        the output grid, each step clipped to the next output; optional projection (then a
+        restart with the same step size).  A failure raises an :class:`IntegratorError` that
+        keeps the outputs before it."""
+        runner = self._solver((name, "compiled"), lambda: integ.INTEGRATORS[name].runner(
+            self.formulation.function, self._mode, f"{_c_name(self.model.name)}_{name}"))
+        p, nq = self.model.p, self.model.nq
+        xs = [np.asarray(x0, float)]
+        k = 0
+        try:
+            state = runner.start(x0, grid[0], grid[-1], p, rtol, atol)
+            with progress.bar(len(grid) - 1, f"{name} {self.model.name}", "output") as pbar:
+                for k in range(len(grid) - 1):
+                    state = runner.advance(state, p, grid[k + 1], rtol, atol, max_steps)
+                    x = state.x()
+                    if project:
+                        t = grid[k + 1]
+                        q = assemble(self.model, x[:nq], t).q
+                        x = np.concatenate([q, project_velocities(self.model, q, x[nq:], t)])
+                        state = runner.start(x, t, grid[-1], p, rtol, atol, after=state)
+                    xs.append(x)
+                    pbar.update()
+        except IntegratorError as exc:
+            xv = np.vstack(xs)
+            partial = self._post(grid[:k + 1], xv[:, :nq], xv[:, nq:],
+                                 {"formulation": self.formulation_name, "integrator": name})
+            raise IntegratorError(f"{exc}; results kept up to t = {grid[k]:.6g}", exc.time,
+                                  exc.flag, partial) from None
+        return np.vstack(xs), state.stats()
+
     def _partial(self, name, grid, x0, z0, rtol, atol, step, max_steps,
                  t_fail: float | None = None):
         """Keep every output before the failure.
