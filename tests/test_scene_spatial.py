@@ -386,8 +386,12 @@ def test_heavy_top_conserves_energy_momentum_and_spin():
     assert np.shape(data["joints"]["tip"]["reaction"]) == (51, 6)
     inv = top_invariants(data, mech)
     assert abs(inv["spin"][0] - 100.0) < 1e-9  # the scene's spin
+    # 3e-8 of each invariant at rtol 1e-12: measured 1.8e-8 for the energy with the converged
+    # augmented Lagrangian (10 corrections, default since issue 22 item 2; 5-8 corrections
+    # give 1.7-1.9e-8, kkt_ode 2.5e-9; the former 4 re-factorising solves happened to give
+    # 1.5e-9), momentum and spin below
     for key, values in inv.items():
-        assert np.ptp(values) <= 1e-8 * abs(values[0]), (key, np.ptp(values) / abs(values[0]))
+        assert np.ptp(values) <= 3e-8 * abs(values[0]), (key, np.ptp(values) / abs(values[0]))
     # the top precesses: its centre of mass moves by centimetres
     pos = np.array(data["bodies"]["top"]["position"])
     assert np.ptp(pos[:, 0]) > 1e-2
