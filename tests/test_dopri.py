@@ -140,10 +140,12 @@ def test_underflow_and_max_steps_name_the_time():
     # ẋ = (1/sqrt(1 − t), 0): a non-finite right-hand side past t = 1 (steps shrink to nothing)
     blow = Dopri(oscillator(lambda t, x, w: ca.vertcat(1 / ca.sqrt(1 - t), 0 * x[1])),
                  mode="vm")
-    with pytest.raises(IntegratorError, match=r"step size underflow .* at t = 1$") as info:
+    underflow = r"failed at t = 1 with TOO_SMALL_STEP \(step size underflow"
+    with pytest.raises(IntegratorError, match=underflow) as info:
         run(blow, 1.0, 1e-6, 2.0, 1)
     assert info.value.flag == "TOO_SMALL_STEP" and 0.999 < info.value.time < 1
-    with pytest.raises(IntegratorError, match=r"more than 10 steps .* reaching t = 10") as info:
+    work = r"TOO_MUCH_WORK \(more than 10 steps .* ending at t = 10\)"
+    with pytest.raises(IntegratorError, match=work) as info:
         run(Dopri(oscillator(), mode="vm"), 2.0, 1e-9, 10.0, 1, max_steps=10)
     assert info.value.flag == "TOO_MUCH_WORK" and 0 < info.value.time < 10
 
@@ -151,8 +153,8 @@ def test_underflow_and_max_steps_name_the_time():
 def test_simulation_failure_keeps_earlier_outputs():
     sim = Simulator(casmbd.load_scene(ROOT / "examples" / "double_pendulum.toml"), "kkt_ode",
                     mode="vm")
-    with pytest.raises(IntegratorError, match="more than 50 steps") as info:
-        sim.run(2.0, 20, integrator="dopri5", rtol=1e-10, atol=1e-10, max_steps=50)
+    with pytest.raises(IntegratorError, match="more than 5 steps") as info:
+        sim.run(2.0, 20, integrator="dopri5", rtol=1e-10, atol=1e-10, max_steps=5)
     partial = info.value.partial
     assert partial is not None and 1 <= len(partial.t) < 21
     assert partial.stats["integrator"] == "dopri5"

@@ -17,11 +17,14 @@ after a rejection h_new = h · max(0.2, 0.9 · err^(−α)) and no growth on the
 The first step comes from Hairer's heuristic (HNW I §II.4, "Starting step size").
 
 One *attempted* step is a CasADi Function; it is folded (:func:`integrators.fixed_fold`) into
-blocks of 1, 4, 16 or 64 attempts, each clipped to the next output time (h ← t_out − t when
+a block of :data:`BLOCK` attempts, each clipped to the next output time (h ← t_out − t when
 t + 1.01 h ≥ t_out, so outputs are hit exactly, no dense output), and an attempt once t has
-reached t_out does nothing (a short-circuit ``if_else``: no right-hand side is evaluated).  The
-blocks are generated to C and compiled with the model's right-hand side, and called through
-``Function.buffer()`` like :class:`integrators.FixedStep`: no Python per step, only per block.
+reached t_out does nothing (a short-circuit ``if_else``: no right-hand side is evaluated), so
+one block size serves long and short output intervals.  The block alone is generated to C and
+compiled (one translation unit: the right-hand side's C once) and called through
+``Function.buffer()`` like :class:`integrators.FixedStep`: no Python per step, only per block
+of 16 attempts.  The few right-hand sides outside the block (the first step's heuristic, a
+restart after a projection) run in CasADi's virtual machine.
 """
 
 from __future__ import annotations
@@ -55,9 +58,8 @@ _E = (71 / 57600, 0.0, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 4
 SAFETY, FAC_MIN, FAC_MAX = 0.9, 0.2, 5.0
 BETA = 0.04
 ALPHA = 0.2 - 0.75 * BETA
-#: attempts per compiled call; the block for the next output is the smallest one at least as
-#: long as the previous interval needed (64 at most, then repeated)
-BLOCKS = (64, 16, 4, 1)
+#: attempts per compiled call (the attempts after t_out cost a branch and a copy of the state)
+BLOCK = 16
 #: the state after the x and k₁ parts: t, h, err_old, last_rejected, accepted, rejected, failed
 _TAIL = 7
 
@@ -180,16 +182,13 @@ class Dopri:
     def __init__(self, dyn: ca.Function, mode: str = "vm", name: str = "casmbd_dopri5"):
         self.nx = dyn.size1_in("x")
         t, x, p = ca.MX.sym("t"), ca.MX.sym("x", self.nx), ca.MX.sym("p", dyn.size1_in("p"))
-        rhs = ca.Function("rhs", [t, x, p], [dyn(t=t, x=x, p=p)["ode"]])
-        attempt = dopri_attempt(dyn)
-        funcs = [rhs, *(fixed_fold(attempt, k, f"dopri5_block{k}") for k in BLOCKS)]
+        self._f = _Buffered(ca.Function("rhs", [t, x, p], [dyn(t=t, x=x, p=p)["ode"]]))
+        block = fixed_fold(dopri_attempt(dyn), BLOCK, f"dopri5_block{BLOCK}")
         self.report = None
         if mode != "vm":
-            compiled, self.report = compile_functions(funcs, name=name, mode=mode)
-            funcs = [compiled[f.name()] for f in funcs]
-        self._f = _Buffered(funcs[0])
-        self._blocks = {k: _Buffered(f) for k, f in zip(BLOCKS, funcs[1:])}
-        self._last = 16  # attempts the previous output interval needed
+            compiled, self.report = compile_functions([block], name=name, mode=mode)
+            block = compiled[block.name()]
+        self._block = _Buffered(block)
 
     def start(self, x0, t0: float, t_end: float, p, rtol: float, atol: float,
               after: DopriState | None = None) -> DopriState:
@@ -236,29 +235,25 @@ class Dopri:
         ------
         IntegratorError
             The step size underflows (flag ``TOO_SMALL_STEP``) or more than ``max_steps``
-            attempts in all (``TOO_MUCH_WORK``), naming the time reached.
+            attempts in this call, i.e. output interval (``TOO_MUCH_WORK``, checked after
+            each block), naming the time reached.
         """
         c = np.array([t_out, rtol, atol])
-        s, used = state.s, 0
-        start = sum(state.counts())
+        s, start = state.s, sum(state.counts())
         while True:
-            k = next(b for b in reversed(BLOCKS) if b >= min(self._last, BLOCKS[0]))
-            s = self._blocks[k](s, p, c)
+            s = self._block(s, p, c)
             state = DopriState(s, self.nx, state.extra_evaluations)
-            used = sum(state.counts()) - start
             if state.t >= t_out:
-                break
+                return state
             if state.failed:
                 raise IntegratorError(
-                    f"dopri5: step size underflow (h = {state.h:.3g}) at t = {state.t:.6g}",
-                    state.t, "TOO_SMALL_STEP")
-            if start + used > max_steps:
+                    f"dopri5 failed at t = {state.t:.6g} with TOO_SMALL_STEP (step size "
+                    f"underflow, h = {state.h:.3g})", state.t, "TOO_SMALL_STEP")
+            if sum(state.counts()) - start > max_steps:  # per output, like SUNDIALS' mxstep
                 raise IntegratorError(
-                    f"dopri5: more than {max_steps} steps (max_steps) before reaching "
-                    f"t = {t_out:.6g}; stopped at t = {state.t:.6g}", state.t, "TOO_MUCH_WORK")
-            self._last = max(self._last, used + 1)
-        self._last = max(1, used)
-        return state
+                    f"dopri5 failed at t = {state.t:.6g} with TOO_MUCH_WORK (more than "
+                    f"{max_steps} steps (max_steps) in the output interval ending at "
+                    f"t = {t_out:.6g})", state.t, "TOO_MUCH_WORK")
 
 
 @dataclass(frozen=True)
