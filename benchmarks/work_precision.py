@@ -51,6 +51,7 @@ import numpy as np
 
 import casmbd
 from benchmarks.chains import body_name, joint_name, pendulum_chain
+from benchmarks.peers import _curves
 from benchmarks.references import load_reference
 from benchmarks.work_precision_docs import (  # noqa: F401 (machine: used by other studies)
     CHOICES,
@@ -278,8 +279,6 @@ def plot(rows: list[dict], problems, peer_rows: list[dict] | None = None) -> lis
                 err, sec = zip(*pts)
                 ax.loglog(err, np.array(sec) * 1e3, "o-", label=f"{formulation}/{integrator}")
         if peer_rows:
-            from benchmarks.peers import _curves
-
             for name, pts in _curves(peer_rows, pname).items():
                 err, sec = zip(*pts)
                 ax.loglog(err, np.array(sec) * 1e3, "x--", color="0.45", linewidth=0.9,

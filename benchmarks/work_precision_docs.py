@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.docs import replace_section
+from benchmarks.peers import best_peer_time
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -142,14 +143,10 @@ def coordinates_table(rows: list[dict], problems) -> list[str]:
 
 
 def best_peer(peer_rows, pname, target) -> tuple[float, str] | None:
-    """Smallest solve time of any peer case of ``pname`` whose error is below ``target`` (the
-    rule :func:`best_time` applies to casmbd), with the peer's method label."""
-    from benchmarks.peers import label
-
-    ok = [(float(r["solve_seconds"]), label(r)) for r in peer_rows
-          if r["problem"] == pname and r["status"] == "ok" and r["error"] != ""
-          and float(r["error"]) <= target]
-    return min(ok) if ok else None
+    """Smallest solve time of any peer run of ``pname`` whose error is at most ``target``, with
+    the peer's method label: :func:`benchmarks.peers.best_peer_time`, the rule
+    :func:`best_time` applies to casmbd."""
+    return best_peer_time(peer_rows, pname, target)
 
 
 def _peer_versions(peer_rows: list[dict]) -> str:
