@@ -44,6 +44,7 @@ import pathlib
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 from casmbd import info
 from casmbd.analysis.assembly import assemble
@@ -81,14 +82,7 @@ Q_IND = np.array([15.81077119515372763, -15.756371058411865772, 0.04082224011964
                   1.0480807410419380374])
 
 
-@pytest.fixture(autouse=True, scope="module")
-def _cache(tmp_path_factory):
-    """Compiled code goes to one temporary directory for this module."""
-    mp = pytest.MonkeyPatch()
-    mp.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.mktemp("cache_andrews")))
-    mp.delenv("CASMBD_COMPILE", raising=False)
-    yield
-    mp.undo()
+_cache = private_cache("cache_andrews", scope="module", CASMBD_COMPILE=None)
 
 
 def published(absolute: np.ndarray) -> np.ndarray:

@@ -21,17 +21,14 @@ import math
 import re
 
 import pytest
+from conftest import private_cache
 
 from casmbd import cli
 from casmbd.analysis.kinematics import info, kinematics
 from casmbd.errors import AssemblyError
 from casmbd.io.scene import loads_scene
 
-
-@pytest.fixture(autouse=True)
-def _no_compiler(monkeypatch, tmp_path_factory):
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.mktemp("culprit_cache")))
-    monkeypatch.setenv("CASMBD_COMPILE", "0")
+_no_compiler = private_cache(CASMBD_COMPILE="0")
 
 
 def entry(table: str, **fields) -> str:

@@ -11,6 +11,7 @@ import pathlib
 import re
 
 import pytest
+from conftest import private_cache
 
 from casmbd.analysis.kinematics import info, kinematics
 from casmbd.errors import (
@@ -29,16 +30,7 @@ REPO_ROOT = pathlib.Path(__file__).resolve().parent.parent
 EXAMPLES = REPO_ROOT / "examples"
 
 
-@pytest.fixture(scope="session")
-def _bad_input_cache(tmp_path_factory):
-    return tmp_path_factory.mktemp("casmbd_cache_bad_input")
-
-
-@pytest.fixture(autouse=True)
-def _temporary_cache(monkeypatch, _bad_input_cache):
-    """Never touch the user's compiled-code cache; these tests need no C compiler either."""
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(_bad_input_cache))
-    monkeypatch.setenv("CASMBD_COMPILE", "0")
+_cache = private_cache("casmbd_cache_bad_input", scope="module", CASMBD_COMPILE="0")
 
 
 # ---------------------------------------------------------------------- scene builders

@@ -27,6 +27,7 @@ import warnings
 import casadi as ca
 import numpy as np
 import pytest
+from conftest import private_cache
 
 from casmbd.compiled import cache, codegen
 from casmbd.errors import CompileError
@@ -107,12 +108,7 @@ def build_here(variant: int = 0, mode: str = "compiled"):
     return funs, rep, [str(w.message) for w in caught if w.category is RuntimeWarning]
 
 
-@pytest.fixture(autouse=True)
-def _env(tmp_path, monkeypatch):
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path / "cache"))
-    monkeypatch.delenv("CASMBD_COMPILE", raising=False)
-    monkeypatch.delenv("CASMBD_CFLAGS", raising=False)
-    monkeypatch.setenv("CASMBD_PROGRESS", "0")
+_env = private_cache(CASMBD_COMPILE=None, CASMBD_CFLAGS=None, CASMBD_PROGRESS="0")
 
 
 def assert_rebuilt(rep, messages, library: pathlib.Path, why: str, variant: int = 0,

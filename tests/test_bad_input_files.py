@@ -13,6 +13,7 @@ import zipfile
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 from casmbd.analysis.simulate import simulate
 from casmbd.cli import main
@@ -40,10 +41,7 @@ point = [0.0, 0.0]
 """
 
 
-@pytest.fixture(autouse=True)
-def _vm(monkeypatch, tmp_path_factory):
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "cache_files"))
-    monkeypatch.setenv("CASMBD_COMPILE", "0")
+_vm = private_cache("cache_files", CASMBD_COMPILE="0")
 
 
 @pytest.fixture(scope="module")

@@ -17,6 +17,7 @@ import re
 import casadi as ca
 import numpy as np
 import pytest
+from conftest import private_cache
 
 from casmbd import cli
 from casmbd.compiled import codegen
@@ -79,11 +80,7 @@ def write_scene(tmp_path, ocp_extra: str = "", name: str = "slider", mass: str =
     return path
 
 
-@pytest.fixture(autouse=True)
-def _env(tmp_path, monkeypatch):
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path / "cache"))
-    monkeypatch.setenv("CASMBD_COMPILE", "0")
-    monkeypatch.setenv("CASMBD_PROGRESS", "0")
+_env = private_cache(CASMBD_COMPILE="0", CASMBD_PROGRESS="0")
 
 
 def jit_options(marker: pathlib.Path) -> dict:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import private_cache
 from test_bad_input import HEAD, PENDULUM, body, entry, joint
 
 from casmbd.analysis.inverse import inverse_dynamics
@@ -22,12 +23,7 @@ from casmbd.errors import AssemblyError, IntegratorError, ModelError, SceneError
 from casmbd.io.scene import loads_scene
 from casmbd.model.values import Samples
 
-
-@pytest.fixture(autouse=True)
-def _vm(monkeypatch, tmp_path_factory):
-    """A private compiled-code cache; the virtual machine (no C compiler)."""
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "cache_numbers"))
-    monkeypatch.setenv("CASMBD_COMPILE", "0")
+_vm = private_cache("cache_numbers", CASMBD_COMPILE="0")
 
 
 def force(value_toml: str, name: str = "push") -> str:

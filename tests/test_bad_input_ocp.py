@@ -10,6 +10,7 @@ from __future__ import annotations
 import pathlib
 
 import pytest
+from conftest import private_cache
 
 from casmbd.cli import main
 from casmbd.errors import SceneError
@@ -21,10 +22,7 @@ BASE = (EXAMPLES / "double_pendulum.toml").read_text()
 OCP = '\n[ocp]\nhorizon = 1.0\nintervals = 3\n{extra}\n[ocp.controls]\nshoulder_torque = [-1, 1]\n'
 
 
-@pytest.fixture(autouse=True)
-def _vm(monkeypatch, tmp_path_factory):
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "cache_ocp"))
-    monkeypatch.setenv("CASMBD_COMPILE", "0")
+_vm = private_cache("cache_ocp", CASMBD_COMPILE="0")
 
 
 def run(argv, capsys) -> tuple[int, list[str]]:

@@ -10,6 +10,7 @@ import pathlib
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 import casmbd.analysis.kinematics as kinematics_module
 import casmbd.analysis.simulate as simulate_module
@@ -49,12 +50,8 @@ SPRING = REPO / "tests" / "scenes" / "spring_mass.toml"
 CART_POLE = REPO / "ocp" / "cart_pole.toml"
 
 
-@pytest.fixture(autouse=True)
-def _vm(monkeypatch, tmp_path_factory):
-    """A private cache, the virtual machine, a fixed memory budget of 4 GiB."""
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "cache_sizes"))
-    monkeypatch.setenv("CASMBD_COMPILE", "0")
-    monkeypatch.setenv("CASMBD_MEMORY_BUDGET", "4G")
+#: a private cache, the virtual machine, a fixed memory budget of 4 GiB
+_vm = private_cache("cache_sizes", CASMBD_COMPILE="0", CASMBD_MEMORY_BUDGET="4G")
 
 
 @pytest.fixture

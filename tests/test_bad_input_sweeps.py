@@ -10,6 +10,7 @@ from __future__ import annotations
 import pathlib
 
 import pytest
+from conftest import private_cache
 
 from casmbd.analysis.sweep import sweep
 from casmbd.cli import main
@@ -19,10 +20,7 @@ from casmbd.io.scene import load_scene
 SCENE = pathlib.Path(__file__).resolve().parent.parent / "examples" / "double_pendulum.toml"
 
 
-@pytest.fixture(autouse=True)
-def _vm(monkeypatch, tmp_path_factory):
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "cache_sweeps"))
-    monkeypatch.setenv("CASMBD_COMPILE", "0")
+_vm = private_cache("cache_sweeps", CASMBD_COMPILE="0")
 
 
 def run(argv, capsys) -> tuple[int, list[str]]:

@@ -16,6 +16,7 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 from casmbd import cli, results
 from casmbd.errors import CasmbdError, SceneError
@@ -43,16 +44,7 @@ point = [0.0, 0.0]
 """
 
 
-@pytest.fixture(scope="session")
-def _cli_cache(tmp_path_factory):
-    """One compiled-code cache for the whole session (the slider-crank compiles once)."""
-    return tmp_path_factory.mktemp("casmbd_cache_cli")
-
-
-@pytest.fixture(autouse=True)
-def _temporary_cache(monkeypatch, _cli_cache):
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(_cli_cache))
-    monkeypatch.delenv("CASMBD_COMPILE", raising=False)
+_cache = private_cache("casmbd_cache_cli", scope="module", CASMBD_COMPILE=None)
 
 
 def run(capsys, *argv: str) -> tuple[int, str, str]:

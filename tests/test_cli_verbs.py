@@ -8,6 +8,7 @@ import pathlib
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 import casmbd
 from casmbd import cli
@@ -20,9 +21,7 @@ CHAIN = str(ROOT / "examples" / "hanging_chain.toml")
 SPRING = str(ROOT / "tests" / "scenes" / "spring_mass.toml")
 
 
-@pytest.fixture(autouse=True)
-def _cache(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "cache_verbs"))
+_cache = private_cache("cache_verbs")
 
 
 def run_json(capsys, *argv: str) -> dict:

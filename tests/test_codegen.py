@@ -12,6 +12,7 @@ import warnings
 import casadi
 import numpy as np
 import pytest
+from conftest import private_cache
 
 from casmbd.compiled import codegen
 from casmbd.compiled.codegen import BuildReport, cache_dir, compile_functions
@@ -87,14 +88,8 @@ def assert_same_function(original: casadi.Function, compiled: casadi.Function, s
             )
 
 
-@pytest.fixture(autouse=True)
-def isolated_cache(tmp_path, monkeypatch) -> pathlib.Path:
-    """Point the cache at a temporary directory and clear the variables that steer builds."""
-    directory = tmp_path / "cache"
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(directory))
-    for variable in ("CASMBD_COMPILE", "CASMBD_CFLAGS"):
-        monkeypatch.delenv(variable, raising=False)
-    return directory
+#: every test has an empty cache; nothing steers the builds
+isolated_cache = private_cache(CASMBD_COMPILE=None, CASMBD_CFLAGS=None)
 
 
 def test_cache_dir_locations(tmp_path, monkeypatch, isolated_cache):

@@ -23,6 +23,7 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 import casmbd
 from casmbd.io.scene import load_scene
@@ -41,11 +42,7 @@ P_REDUNDANT = [("P", "z"), ("P", "axis f"), ("P", "axis g")]
 OUT_OF_PLANE = [2, 3, 4]
 
 
-@pytest.fixture(scope="module", autouse=True)
-def _cache(tmp_path_factory):
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "cache_loops"))
-        yield
+_cache = private_cache("cache_loops", scope="module")
 
 
 def _quiet(fn, *args, **kwargs):

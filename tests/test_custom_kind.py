@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 import casmbd
 from casmbd.errors import ModelError, SceneError
@@ -21,9 +22,7 @@ from casmbd.model.registry import FORCE_KINDS, register_force
 EXAMPLE = pathlib.Path(__file__).resolve().parent.parent / "examples" / "custom_joint.py"
 
 
-@pytest.fixture(autouse=True)
-def _cache(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "cache_kind"))
+_cache = private_cache("cache_kind")
 
 
 @pytest.fixture(scope="module")

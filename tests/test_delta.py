@@ -14,6 +14,7 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 import casmbd
 from casmbd.errors import AnalysisError
@@ -27,12 +28,7 @@ _spec.loader.exec_module(delta)
 STEPS = 300
 
 
-@pytest.fixture(autouse=True, scope="module")
-def _cache(tmp_path_factory):
-    mp = pytest.MonkeyPatch()
-    mp.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.mktemp("cache_delta")))
-    yield
-    mp.undo()
+_cache = private_cache("cache_delta", scope="module")
 
 
 @pytest.fixture(scope="module")

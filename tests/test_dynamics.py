@@ -6,6 +6,7 @@ import pathlib
 
 import numpy as np
 import pytest
+from conftest import private_cache
 from scipy.special import ellipk
 
 import casmbd
@@ -15,12 +16,7 @@ from casmbd.errors import AnalysisError, IntegratorError
 G = 9.81
 
 
-@pytest.fixture(autouse=True, scope="module")
-def _cache(tmp_path_factory):
-    mp = pytest.MonkeyPatch()
-    mp.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.mktemp("cache_dynamics")))
-    yield
-    mp.undo()
+_cache = private_cache("cache_dynamics", scope="module")
 
 
 def pendulum(length: float = 1.0, mass: float = 1.0) -> casmbd.Mechanism:

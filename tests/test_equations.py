@@ -26,6 +26,7 @@ import sys
 import casadi as ca
 import numpy as np
 import pytest
+from conftest import private_cache
 
 from casmbd import Mechanism, NumericModel, System, load_scene
 from casmbd.compiled import codegen
@@ -40,15 +41,7 @@ needs_compiler = pytest.mark.skipif(codegen._find_compiler() is None,
                                     reason="no C compiler available")
 
 
-@pytest.fixture(scope="session")
-def _equations_cache_root(tmp_path_factory):
-    return tmp_path_factory.mktemp("casmbd_cache_equations")
-
-
-@pytest.fixture(autouse=True)
-def _temporary_cache(monkeypatch, _equations_cache_root):
-    """Compiled code goes to a temporary directory, never to the user's cache."""
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(_equations_cache_root))
+_cache = private_cache("casmbd_cache_equations", scope="module")
 
 
 def rot(theta: float) -> np.ndarray:

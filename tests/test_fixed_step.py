@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 import casmbd
 from casmbd.analysis import integrators as integ
@@ -32,13 +33,7 @@ SUBSTEPS = (1, 2, 3, 7, 42, 210)
 SAME = 1e-12
 
 
-@pytest.fixture(autouse=True, scope="module")
-def _env(tmp_path_factory):
-    mp = pytest.MonkeyPatch()
-    mp.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.mktemp("cache_fixed_step")))
-    mp.setenv("CASMBD_COMPILE", "0")
-    yield
-    mp.undo()
+_env = private_cache("cache_fixed_step", scope="module", CASMBD_COMPILE="0")
 
 
 def driven_pendulum() -> casmbd.Mechanism:

@@ -34,6 +34,7 @@ import pathlib
 
 import numpy as np
 import pytest
+from conftest import private_cache
 from scipy.integrate import cumulative_simpson
 
 from casmbd import info, simulate
@@ -61,14 +62,7 @@ BODIES = {"shaft": (M_BAR, J_SHAFT), "sleeve": (M_SLEEVE, J_SLEEVE),
 K, C = 8.0e5, 4.0e4
 
 
-@pytest.fixture(autouse=True, scope="module")
-def _cache(tmp_path_factory):
-    """Compiled code goes to one temporary directory for this module."""
-    mp = pytest.MonkeyPatch()
-    mp.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.mktemp("cache_flyball")))
-    mp.delenv("CASMBD_COMPILE", raising=False)
-    yield
-    mp.undo()
+_cache = private_cache("cache_flyball", scope="module", CASMBD_COMPILE=None)
 
 
 def joint_scene(factor: float = 1.0):

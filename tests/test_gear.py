@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 import casmbd
 from casmbd import Mechanism
@@ -26,9 +27,7 @@ PIVOT2 = 2.0
 COORDINATES = ("absolute", "natural", "joint")
 
 
-@pytest.fixture(autouse=True)
-def _cache(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "cache_gear"))
+_cache = private_cache("cache_gear")
 
 
 def gear_pair(coordinates: str, dim: int, rate: float = 0.0, torque: float | None = None,

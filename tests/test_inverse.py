@@ -7,6 +7,7 @@ import json
 import casadi as ca
 import numpy as np
 import pytest
+from conftest import private_cache
 
 import casmbd
 from casmbd.analysis.inverse import inverse_dynamics
@@ -15,12 +16,7 @@ from casmbd.analysis.simulate import simulate
 G = 9.81
 
 
-@pytest.fixture(autouse=True, scope="module")
-def _cache(tmp_path_factory):
-    mp = pytest.MonkeyPatch()
-    mp.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.mktemp("cache_inverse")))
-    yield
-    mp.undo()
+_cache = private_cache("cache_inverse", scope="module")
 
 
 def lagrange_crank_torque(theta: np.ndarray, omega: float) -> np.ndarray:

@@ -8,6 +8,7 @@ import pathlib
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 import casmbd
 from benchmarks.chains import pendulum_chain, spatial_chain
@@ -19,9 +20,7 @@ G = 9.81
 EXAMPLES = pathlib.Path(__file__).resolve().parent.parent / "examples"
 
 
-@pytest.fixture(autouse=True)
-def _cache(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "cache_joint"))
+_cache = private_cache("cache_joint")
 
 
 def with_coordinates(mech: Mechanism, coordinates: str) -> Mechanism:

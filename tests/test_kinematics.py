@@ -20,6 +20,7 @@ import pathlib
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 from casmbd import (
     Mechanism,
@@ -37,15 +38,7 @@ REPO = pathlib.Path(__file__).resolve().parent.parent
 EXAMPLES = REPO / "examples"
 
 
-@pytest.fixture(scope="session")
-def _kinematics_cache_root(tmp_path_factory):
-    return tmp_path_factory.mktemp("casmbd_cache_kinematics")
-
-
-@pytest.fixture(autouse=True)
-def _temporary_cache(monkeypatch, _kinematics_cache_root):
-    """Compiled code goes to a temporary directory, never to the user's cache."""
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(_kinematics_cache_root))
+_cache = private_cache("casmbd_cache_kinematics", scope="module")
 
 
 # ---------------------------------------------------------------------------- slider-crank
@@ -86,17 +79,12 @@ def slider_closed_form(theta, r=R_CRANK, rod=L_ROD, w=OMEGA):
 
 
 @pytest.fixture(scope="module", params=["api", "scene"])
-def slider_crank_result(request, _kinematics_cache_root):
-    mp = pytest.MonkeyPatch()
-    mp.setenv("CASMBD_CACHE_DIR", str(_kinematics_cache_root))
-    try:
-        if request.param == "api":
-            mech = slider_crank_api()
-        else:
-            mech = load_scene(EXAMPLES / "slider_crank.toml")
-        yield kinematics(mech, t_end=1.0, steps=200)
-    finally:
-        mp.undo()
+def slider_crank_result(request):
+    if request.param == "api":
+        mech = slider_crank_api()
+    else:
+        mech = load_scene(EXAMPLES / "slider_crank.toml")
+    return kinematics(mech, t_end=1.0, steps=200)
 
 
 def test_closed_form_derivatives_are_consistent():
@@ -163,7 +151,7 @@ def test_slider_crank_crank_rod_and_marker(slider_crank_result):
                                -R_CRANK * OMEGA**2 * np.column_stack([c, s]), rtol=0, atol=1e-10)
 
 
-def test_slider_crank_api_and_scene_are_identical(_kinematics_cache_root):
+def test_slider_crank_api_and_scene_are_identical():
     """Both builders give the same equations: histories agree to 1e-14."""
     a = kinematics(slider_crank_api(), t_end=0.25, steps=10)
     b = kinematics(load_scene(EXAMPLES / "slider_crank.toml"), t_end=0.25, steps=10)
@@ -228,13 +216,8 @@ def test_four_bar_closed_form_reproduces_initial_pose():
 
 
 @pytest.fixture(scope="module")
-def four_bar_fine(_kinematics_cache_root):
-    mp = pytest.MonkeyPatch()
-    mp.setenv("CASMBD_CACHE_DIR", str(_kinematics_cache_root))
-    try:
-        yield kinematics(load_scene(EXAMPLES / "four_bar.toml"), t_end=1.0, steps=1000)
-    finally:
-        mp.undo()
+def four_bar_fine():
+    return kinematics(load_scene(EXAMPLES / "four_bar.toml"), t_end=1.0, steps=1000)
 
 
 def test_four_bar_loop_closure_and_driver(four_bar_fine):

@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 import casmbd
 from casmbd import cli
@@ -21,9 +22,7 @@ L = 1.0
 MASS = 1.0
 
 
-@pytest.fixture(autouse=True)
-def _cache(tmp_path, monkeypatch):
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path / "cache"))
+_cache = private_cache()
 
 
 def pendulum(inverted: bool = False, k: float | None = None, c: float = 0.0,

@@ -14,6 +14,7 @@ import pathlib
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 import casmbd
 from casmbd import cli
@@ -50,10 +51,7 @@ point = [0.0, 0.0]
 """
 
 
-@pytest.fixture(autouse=True)
-def _vm(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("CASMBD_COMPILE", "0")
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "cache_lin"))
+_vm = private_cache("cache_lin", CASMBD_COMPILE="0")
 
 
 def run(capsys, *argv: str) -> tuple[dict, str]:

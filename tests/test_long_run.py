@@ -16,6 +16,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import private_cache
 from scipy.integrate import solve_ivp
 
 from benchmarks.long_pendulum import (
@@ -32,12 +33,7 @@ T_END = 100.0
 STEPS = 200
 
 
-@pytest.fixture(autouse=True, scope="module")
-def _cache(tmp_path_factory):
-    mp = pytest.MonkeyPatch()
-    mp.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.mktemp("cache_long_run")))
-    yield
-    mp.undo()
+_cache = private_cache("cache_long_run", scope="module")
 
 
 def test_exact_solution_against_scipy_and_published():

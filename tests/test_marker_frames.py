@@ -7,16 +7,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 import casmbd
 from casmbd import Mechanism, loads_urdf
 from casmbd.errors import ModelError
 from casmbd.model.rotations import euler_zxz_to_quaternion, rotation_matrix
 
-
-@pytest.fixture(autouse=True)
-def _cache(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "cache_mk"))
+_cache = private_cache("cache_mk")
 
 
 def zxz(phi, theta, psi) -> np.ndarray:

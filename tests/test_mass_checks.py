@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 import casmbd
 from casmbd import Mechanism
@@ -15,9 +16,7 @@ LA, LB, LC = 0.8, 0.5, 0.6
 MA, MC = 2.0, 3.0
 
 
-@pytest.fixture(autouse=True)
-def _cache(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "cache_mass"))
+_cache = private_cache("cache_mass")
 
 
 def chain(coordinates: str = "joint", end_massless: bool = False) -> Mechanism:

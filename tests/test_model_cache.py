@@ -13,6 +13,7 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 from casmbd.analysis.simulate import Simulator
 from casmbd.compiled import codegen, modelkey
@@ -49,13 +50,8 @@ def from_record(sim: Simulator) -> bool:
     return "system" not in sim.model.__dict__ and sim.model.report.cache_hit
 
 
-@pytest.fixture
-def cache(tmp_path, monkeypatch):
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path / "cache"))
-    monkeypatch.setenv("CASMBD_PROGRESS", "0")
-    monkeypatch.delenv("CASMBD_COMPILE", raising=False)
-    monkeypatch.delenv("CASMBD_CFLAGS", raising=False)
-    return tmp_path / "cache"
+cache = private_cache(autouse=False, CASMBD_PROGRESS="0", CASMBD_COMPILE=None,
+                      CASMBD_CFLAGS=None)
 
 
 def test_canonical_is_exact_and_ordered():

@@ -32,6 +32,7 @@ import pathlib
 import casadi as ca
 import numpy as np
 import pytest
+from conftest import private_cache
 
 import casmbd
 from benchmarks.chains import pendulum_chain
@@ -44,15 +45,7 @@ COORDINATES = ("absolute", "natural")
 TOL = 1e-8  # agreement of two integrations at rtol 1e-12
 
 
-@pytest.fixture(scope="module")
-def _cache_dir(tmp_path_factory):
-    return tmp_path_factory.mktemp("cache_natural")
-
-
-@pytest.fixture(autouse=True)
-def _cache(monkeypatch, _cache_dir):
-    """Compiled code goes to a temporary directory, never to the user's cache."""
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(_cache_dir))
+_cache = private_cache("cache_natural", scope="module")
 
 
 def with_coordinates(mech: Mechanism, coordinates: str) -> Mechanism:
@@ -162,11 +155,9 @@ def spatial_double_pendulum(coordinates: str) -> Mechanism:
 
 
 @pytest.fixture(scope="module")
-def spatial_double(_cache_dir):
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("CASMBD_CACHE_DIR", str(_cache_dir))
-        return {c: casmbd.simulate(spatial_double_pendulum(c), 3.0, 60, rtol=1e-12)
-                for c in COORDINATES}
+def spatial_double():
+    return {c: casmbd.simulate(spatial_double_pendulum(c), 3.0, 60, rtol=1e-12)
+            for c in COORDINATES}
 
 
 def test_spatial_double_pendulum_same_trajectory(spatial_double):
@@ -352,11 +343,9 @@ OMEGA_CRANK = 2.0 * math.pi  # rad/s of examples/slider_crank.toml
 
 
 @pytest.fixture(scope="module")
-def five_turns(_cache_dir):
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("CASMBD_CACHE_DIR", str(_cache_dir))
-        return {c: casmbd.inverse_dynamics(scene("slider_crank", c), 5.0, 100)
-                for c in COORDINATES}
+def five_turns():
+    return {c: casmbd.inverse_dynamics(scene("slider_crank", c), 5.0, 100)
+            for c in COORDINATES}
 
 
 def slider_x(phi):

@@ -12,6 +12,7 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, OptimizationError
@@ -22,9 +23,7 @@ ROOT = pathlib.Path(__file__).resolve().parent.parent
 OCP = ROOT / "ocp"
 
 
-@pytest.fixture(autouse=True)
-def _cache(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "cache_ocp"))
+_cache = private_cache("cache_ocp")
 
 
 @pytest.fixture(scope="module")

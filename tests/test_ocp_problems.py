@@ -17,6 +17,7 @@ import sys
 import casadi as ca
 import numpy as np
 import pytest
+from conftest import private_cache
 
 import casmbd
 from casmbd.analysis.simulate import Simulator
@@ -29,10 +30,7 @@ OCP = ROOT / "ocp"
 sys.path.insert(0, str(OCP))
 import delta_pick_and_place as delta  # noqa: E402
 
-
-@pytest.fixture(autouse=True)
-def _cache(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "cache_ocp"))
+_cache = private_cache("cache_ocp")
 
 
 def _worst_constraint(ocp, sol) -> float:

@@ -11,6 +11,7 @@ import pathlib
 import casadi as ca
 import numpy as np
 import pytest
+from conftest import private_cache
 
 from casmbd.errors import AnalysisError
 from casmbd.io.ocp_table import load_ocp
@@ -20,9 +21,7 @@ from casmbd.ocp.transcription import IPOPT_DEFAULTS, Transcription
 OCP = pathlib.Path(__file__).resolve().parent.parent / "ocp"
 
 
-@pytest.fixture(autouse=True)
-def _cache(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "cache_st"))
+_cache = private_cache("cache_st")
 
 
 def _solvers(ocp):

@@ -24,6 +24,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import private_cache
 from scipy.special import ellipk
 
 from casmbd import Mechanism
@@ -36,15 +37,7 @@ G = 9.81
 FORMULATIONS = ("partitioning", "nullspace")
 
 
-@pytest.fixture(scope="session")
-def _partitioning_cache(tmp_path_factory):
-    return tmp_path_factory.mktemp("casmbd_cache_partitioning")
-
-
-@pytest.fixture(autouse=True)
-def _temporary_cache(monkeypatch, _partitioning_cache):
-    """Compiled code goes to a temporary directory, never to the user's cache."""
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(_partitioning_cache))
+_cache = private_cache("casmbd_cache_partitioning", scope="module")
 
 
 # ---------------------------------------------------------------------------- mechanisms

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 import casmbd
 from casmbd import Mechanism
@@ -32,9 +33,7 @@ FORCE, FORCE_AT = np.array([3.0, -1.0, 2.0]), np.array([0.5, 0.0, 1.1])
 RATES = np.array([0.4, -0.3, 1.5])  # ẋ, ẏ, θ̇
 
 
-@pytest.fixture(autouse=True)
-def _cache(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "cache_pl"))
+_cache = private_cache("cache_pl")
 
 
 def plate(coordinates: str, rates=RATES) -> Mechanism:

@@ -16,6 +16,7 @@ import re
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 import casmbd
 from casmbd import cli
@@ -30,10 +31,7 @@ UNIT = re.compile(r"\[[^\]]+\]$")  # "positions [m]", "torques [N m]"
 QUATERNION = re.compile(r"\.e[0-3]$")
 
 
-@pytest.fixture(autouse=True)
-def _vm(monkeypatch, tmp_path_factory):
-    monkeypatch.setenv("CASMBD_COMPILE", "0")
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "cache19"))
+_vm = private_cache("cache19", CASMBD_COMPILE="0")
 
 
 def _simulate(name: str, t_end: float, steps: int, text: str | None = None):

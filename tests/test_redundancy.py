@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 import casmbd
 from casmbd import Mechanism
@@ -18,9 +19,7 @@ from tests.mechanisms import triple_crank as shared_triple_crank
 G = 9.81
 
 
-@pytest.fixture(autouse=True)
-def _cache(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "cache_red"))
+_cache = private_cache("cache_red")
 
 
 def triple_crank() -> Mechanism:

@@ -12,6 +12,7 @@ import pathlib
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 import casmbd
 from casmbd import cli
@@ -36,9 +37,7 @@ G = 9.81
 TOL = 1e-10
 
 
-@pytest.fixture(autouse=True)
-def _cache(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "cache_reg"))
+_cache = private_cache("cache_reg")
 
 
 def pendulum() -> casmbd.Mechanism:

@@ -13,19 +13,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 from benchmarks.scaling import mechanism
 from casmbd.analysis.simulate import Simulator
 from casmbd.compiled import codegen
 
-
-@pytest.fixture
-def cache(tmp_path, monkeypatch):
-    """An empty compile cache for this test (so that the first build really compiles)."""
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path))
-    monkeypatch.delenv("CASMBD_CFLAGS", raising=False)
-    monkeypatch.delenv("CASMBD_COMPILE", raising=False)
-    return tmp_path
+#: an empty compile cache for a test (so that the first build really compiles)
+cache = private_cache(autouse=False, CASMBD_CFLAGS=None, CASMBD_COMPILE=None)
 
 
 def _source_bytes(sim: Simulator) -> int:

@@ -32,6 +32,7 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 from casmbd import cli, info, inverse_dynamics, kinematics, results, simulate
 from casmbd.errors import CasmbdError, SceneError
@@ -46,14 +47,7 @@ TOP = EXAMPLES / "heavy_top.toml"
 PLANAR_SLIDER = EXAMPLES / "slider_crank.toml"
 
 
-@pytest.fixture(autouse=True, scope="module")
-def _cache(tmp_path_factory):
-    """Compiled code goes to one temporary directory for this module (subprocesses too)."""
-    mp = pytest.MonkeyPatch()
-    mp.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.mktemp("cache_scene_spatial")))
-    mp.delenv("CASMBD_COMPILE", raising=False)
-    yield
-    mp.undo()
+_cache = private_cache("cache_scene_spatial", scope="module", CASMBD_COMPILE=None)
 
 
 def run_cli(capsys, *argv: str) -> tuple[int, str, str]:

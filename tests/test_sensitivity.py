@@ -13,6 +13,7 @@ import pathlib
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 import casmbd
 from casmbd import Mechanism
@@ -25,9 +26,7 @@ SLIDER_CRANK = ROOT / "examples" / "slider_crank.toml"
 T_CRANK = 0.3
 
 
-@pytest.fixture(autouse=True)
-def _cache(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "cache_sens"))
+_cache = private_cache("cache_sens")
 
 
 def parametric_chain() -> Mechanism:

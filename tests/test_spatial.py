@@ -30,6 +30,7 @@ import warnings
 import casadi as ca
 import numpy as np
 import pytest
+from conftest import private_cache
 from scipy.optimize import brentq
 
 from casmbd import (
@@ -55,15 +56,7 @@ N_STATES = 4
 COORDINATES = ("absolute", "natural")
 
 
-@pytest.fixture(scope="session")
-def _spatial_cache_root(tmp_path_factory):
-    return tmp_path_factory.mktemp("casmbd_cache_spatial")
-
-
-@pytest.fixture(autouse=True)
-def _temporary_cache(monkeypatch, _spatial_cache_root):
-    """Compiled code goes to a temporary directory, never to the user's cache."""
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(_spatial_cache_root))
+_cache = private_cache("casmbd_cache_spatial", scope="module")
 
 
 def assert_rel(actual, desired, rtol, floor=1e-2, what=""):

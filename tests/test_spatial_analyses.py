@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 import casmbd
 from casmbd import Mechanism
@@ -14,9 +15,7 @@ from casmbd import Mechanism
 G = 9.81
 
 
-@pytest.fixture(autouse=True)
-def _cache(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "cache3d"))
+_cache = private_cache("cache3d")
 
 
 def double_pendulum(dimension: int, coordinates: str = "absolute") -> Mechanism:

@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pytest
+from conftest import private_cache
 from scipy.optimize import brentq
 
 import casmbd
@@ -18,9 +19,7 @@ G = 9.81
 CHAIN = "examples/hanging_chain.toml"
 
 
-@pytest.fixture(autouse=True)
-def _cache(tmp_path, monkeypatch):
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path / "cache"))
+_cache = private_cache()
 
 
 def pendulum(k: float = 0.0, up: bool | None = None) -> casmbd.Mechanism:

@@ -9,6 +9,7 @@ import json
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 import casmbd
 from casmbd.analysis.assembly import assemble
@@ -29,9 +30,7 @@ RTOL = 1e-10   # equilibrium residual, relative to the largest applied force at 
 ANGLE_TOL = 1e-8
 
 
-@pytest.fixture(autouse=True)
-def _cache(tmp_path_factory, monkeypatch):
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.getbasetemp() / "cache"))
+_cache = private_cache("cache")
 
 
 @functools.cache

@@ -17,6 +17,7 @@ import sys
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 from casmbd import cli
 from casmbd.analysis.sweep import load_sweep, parse_values, sweep
@@ -38,14 +39,7 @@ NAMED = ["final:q[block.x]", "final:body.block.position.x", "max:joint.slide.vel
          "energy_drift", "max_constraint_violation"]
 
 
-@pytest.fixture(scope="module")
-def cache(tmp_path_factory):
-    """A fresh compiled-code cache for this module (the first sweep compiles, in the parent)."""
-    path = tmp_path_factory.mktemp("casmbd_cache_sweep")
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("CASMBD_CACHE_DIR", str(path))
-        mp.delenv("CASMBD_COMPILE", raising=False)
-        yield path
+cache = private_cache("casmbd_cache_sweep", scope="module", autouse=False, CASMBD_COMPILE=None)
 
 
 @pytest.fixture(scope="module")

@@ -16,6 +16,7 @@ import shutil
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 import casmbd
 from casmbd import cli
@@ -32,33 +33,21 @@ SLIDER_CRANK = REPO_ROOT / "examples" / "slider_crank.toml"
 SPATIAL_SLIDER_CRANK = REPO_ROOT / "examples" / "spatial_slider_crank.toml"
 
 
-@pytest.fixture(scope="module")
-def _cache(tmp_path_factory):
-    return tmp_path_factory.mktemp("casmbd_cache_workbench")
-
-
-@pytest.fixture(autouse=True)
-def _temporary_cache(monkeypatch, _cache):
-    monkeypatch.setenv("CASMBD_CACHE_DIR", str(_cache))
-    monkeypatch.delenv("CASMBD_COMPILE", raising=False)
+_cache = private_cache("casmbd_cache_workbench", scope="module", CASMBD_COMPILE=None)
 
 
 @pytest.fixture(scope="module")
-def planar(_cache):
+def planar():
     """Slider-crank simulated for 0.5 s (20 steps) with its scene text embedded."""
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("CASMBD_CACHE_DIR", str(_cache))
-        mech = casmbd.load_scene(SLIDER_CRANK)
-        return casmbd.simulate(mech, t_end=0.5, steps=20).attach_scene(mech)
+    mech = casmbd.load_scene(SLIDER_CRANK)
+    return casmbd.simulate(mech, t_end=0.5, steps=20).attach_scene(mech)
 
 
 @pytest.fixture(scope="module")
-def spatial(_cache):
+def spatial():
     """Spatial slider-crank: kinematics over 0.5 s (10 steps)."""
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setenv("CASMBD_CACHE_DIR", str(_cache))
-        mech = casmbd.load_scene(SPATIAL_SLIDER_CRANK)
-        return casmbd.kinematics(mech, t_end=0.5, steps=10).attach_scene(mech)
+    mech = casmbd.load_scene(SPATIAL_SLIDER_CRANK)
+    return casmbd.kinematics(mech, t_end=0.5, steps=10).attach_scene(mech)
 
 
 def no_temporaries(folder: pathlib.Path) -> None:
