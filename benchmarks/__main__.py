@@ -69,7 +69,8 @@ def _andrews() -> tuple[float, float]:
 
 
 def _n_four_bar() -> tuple[float, float]:
-    from benchmarks.n_four_bar import bar_angles, n_four_bar, one_dof_reference
+    from benchmarks.n_four_bar import bar_angles, n_four_bar
+    from benchmarks.n_four_bar_reference import one_dof_reference
     from casmbd.analysis.simulate import Simulator
 
     res = Simulator(n_four_bar(3)).run(4.0, 400, rtol=1e-10)

@@ -30,7 +30,8 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.docs import replace_section
-from benchmarks.n_four_bar import bar_angles, n_four_bar, one_dof_reference
+from benchmarks.n_four_bar import bar_angles, n_four_bar
+from benchmarks.n_four_bar_reference import one_dof_reference
 from benchmarks.work_precision import problem
 from casmbd.analysis.simulate import Simulator
 

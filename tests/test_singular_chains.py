@@ -28,15 +28,14 @@ import math
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 import casmbd
-from benchmarks.n_four_bar import (
+from benchmarks.n_four_bar import bar_angles, coupler_angles, n_four_bar
+from benchmarks.n_four_bar_reference import (
     PUBLISHED_B0,
     b0_position,
-    bar_angles,
     closed_form_angle,
-    coupler_angles,
-    n_four_bar,
     one_dof_rate,
     one_dof_reference,
     singular_pass_times,
@@ -48,12 +47,7 @@ T_END = 4.0
 STEPS = 400
 
 
-@pytest.fixture(autouse=True, scope="module")
-def _cache(tmp_path_factory):
-    mp = pytest.MonkeyPatch()
-    mp.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.mktemp("cache_singular_chains")))
-    yield
-    mp.undo()
+_cache = private_cache("cache_singular_chains", scope="module")
 
 
 def absolute(n: int):

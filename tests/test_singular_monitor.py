@@ -14,8 +14,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
-from benchmarks.n_four_bar import n_four_bar, singular_pass_times
+from benchmarks.n_four_bar import n_four_bar
+from benchmarks.n_four_bar_reference import singular_pass_times
 from casmbd.analysis.redundancy import (
     conditioning,
     equilibrated_singular_values,
@@ -28,12 +30,7 @@ T_END = 4.0
 STEPS = 400
 
 
-@pytest.fixture(autouse=True, scope="module")
-def _cache(tmp_path_factory):
-    mp = pytest.MonkeyPatch()
-    mp.setenv("CASMBD_CACHE_DIR", str(tmp_path_factory.mktemp("cache_singular_monitor")))
-    yield
-    mp.undo()
+_cache = private_cache("cache_singular_monitor", scope="module")
 
 
 def test_reference_scaling_keeps_a_vanishing_row_small():
