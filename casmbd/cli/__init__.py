@@ -30,7 +30,15 @@ from collections.abc import Sequence
 
 from casmbd import __version__, interrupts
 from casmbd.analysis.integrators import INTEGRATORS
-from casmbd.cli.common import _finite_json, _Parser, _positive_float, _positive_int, _UsageError
+from casmbd.cli.common import (
+    _add_mode,
+    _add_output_flags,
+    _finite_json,
+    _Parser,
+    _positive_float,
+    _positive_int,
+    _UsageError,
+)
 from casmbd.cli.verbs import (
     _add_bench_verb,
     _add_sensitivity_verb,
@@ -75,10 +83,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     def common(p):
         p.add_argument("scene", help="scene file (TOML)")
-        p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-        p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
-        p.add_argument("--mode", choices=("auto", "compiled", "vm"), default="auto",
-                       help="compile equations to C (default auto) or use CasADi's VM")
+        _add_output_flags(p)
+        _add_mode(p)
 
     def grid(p):
         p.add_argument("--t-end", type=_positive_float, required=True, help="final time [s]")

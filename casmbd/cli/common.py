@@ -47,6 +47,24 @@ def _positive_float(text: str) -> float:
     return val
 
 
+def _add_output_flags(p: argparse.ArgumentParser) -> None:
+    """``--json`` and ``--debug``, which every verb takes."""
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+
+
+def _add_mode(p: argparse.ArgumentParser) -> None:
+    """``--mode``: equations compiled to C or evaluated by CasADi's virtual machine."""
+    p.add_argument("--mode", choices=("auto", "compiled", "vm"), default="auto",
+                   help="compile equations to C (default auto) or use CasADi's VM")
+
+
+def _add_dpi(p: argparse.ArgumentParser, default: float) -> None:
+    """``--dpi`` of a figure or an animation."""
+    p.add_argument("--dpi", type=_positive_float, default=default,
+                   help=f"resolution (default {default:g})")
+
+
 def _check_out(args) -> None:
     """Fail before the analysis when ``--out`` cannot be written."""
     out = getattr(args, "out", None)

@@ -6,7 +6,13 @@ handlers are imported when their verb runs: ``casmbd.cli.VERBS``).
 
 from __future__ import annotations
 
-from casmbd.cli.common import _positive_float, _positive_int
+from casmbd.cli.common import (
+    _add_dpi,
+    _add_mode,
+    _add_output_flags,
+    _positive_float,
+    _positive_int,
+)
 from casmbd.viz.plots import KINDS
 
 
@@ -24,9 +30,8 @@ def _add_workbench_verbs(sub) -> None:
                    help="Euler angles drawn for spatial bodies instead of quaternions "
                         "(default xyz, regular at the identity; zxz is singular there)")
     p.add_argument("--out", required=True, help="figure file (.png, .pdf, .svg)")
-    p.add_argument("--dpi", type=_positive_float, default=100.0, help="resolution (default 100)")
-    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    _add_dpi(p, 100.0)
+    _add_output_flags(p)
 
     p = sub.add_parser("animate", help="animation (.gif, .mp4 with ffmpeg) or still frame "
                                        "(.png) of a scene or a saved result")
@@ -46,11 +51,9 @@ def _add_workbench_verbs(sub) -> None:
                    help="playback speed factor (default 1: real time; 2: twice as fast)")
     p.add_argument("--trace", action="append", default=None, metavar="MARKER",
                    help="draw the path of this marker (repeatable; 'all' for every marker)")
-    p.add_argument("--dpi", type=_positive_float, default=80.0, help="resolution (default 80)")
-    p.add_argument("--mode", choices=("auto", "compiled", "vm"), default="auto",
-                   help="compile equations to C (default auto) or use CasADi's VM")
-    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    _add_dpi(p, 80.0)
+    _add_mode(p)
+    _add_output_flags(p)
 
 
 def _add_sweep_verb(sub) -> None:
@@ -76,10 +79,8 @@ def _add_sweep_verb(sub) -> None:
                    help="Dask scheduler address (needs dask.distributed: casmbd[sweep])")
     p.add_argument("--out", default=None, metavar="DIR",
                    help="folder for point_XXX.npz, sweep.csv and sweep.npz")
-    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
-    p.add_argument("--mode", choices=("auto", "compiled", "vm"), default="auto",
-                   help="compile equations to C (default auto) or use CasADi's VM")
+    _add_output_flags(p)
+    _add_mode(p)
 
 
 def _add_sensitivity_verb(sub) -> None:
@@ -96,8 +97,7 @@ def _add_sensitivity_verb(sub) -> None:
     p.add_argument("--method", choices=("forward", "adjoint"), default="forward",
                    help="IDAS forward sensitivities (per parameter) or adjoint (per output)")
     p.add_argument("--rtol", type=_positive_float, default=1e-10, help="relative tolerance")
-    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    _add_output_flags(p)
 
 
 def _add_bench_verb(sub) -> None:
@@ -108,5 +108,4 @@ def _add_bench_verb(sub) -> None:
                    help="a few minutes: check the printed errors against their bounds")
     p.add_argument("--update-docs", action="store_true",
                    help="regenerate docs/performance.md (full suite only)")
-    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
-    p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
+    _add_output_flags(p)
