@@ -31,10 +31,10 @@ from conftest import private_cache
 from casmbd import Mechanism, NumericModel, System, load_scene
 from casmbd.compiled import codegen
 from casmbd.system.equations import SIGNATURES
+from tests.symbolic_checks import Evaluator, H, assert_rel, fd_gradient
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
 EXAMPLES = REPO / "examples"
-H = 1e-6  # finite-difference step
 N_STATES = 5
 
 needs_compiler = pytest.mark.skipif(codegen._find_compiler() is None,
@@ -53,15 +53,6 @@ def drot(theta: float) -> np.ndarray:
     """A_θ = dA/dθ."""
     c, s = math.cos(theta), math.sin(theta)
     return np.array([[-s, -c], [c, -s]])
-
-
-def assert_rel(actual, desired, rtol, floor=1e-2, what=""):
-    """max|actual − desired| ≤ rtol · max(max|desired|, floor)."""
-    actual, desired = np.asarray(actual, float), np.asarray(desired, float)
-    assert actual.shape == desired.shape, (what, actual.shape, desired.shape)
-    scale = max(float(np.max(np.abs(desired))) if desired.size else 0.0, floor)
-    err = float(np.max(np.abs(actual - desired))) if desired.size else 0.0
-    assert err <= rtol * scale, f"{what}: error {err:.3g} > {rtol:g} * {scale:.3g}"
 
 
 # ---------------------------------------------------------------------------- mechanisms
@@ -161,54 +152,6 @@ def random_states(system: System, seed: int, n: int = N_STATES):
     for _ in range(n):
         yield (q0 + rng.uniform(-0.3, 0.3, q0.size), rng.uniform(-2.0, 2.0, q0.size),
                float(rng.uniform(0.0, 2.0)), rng.uniform(-1.0, 1.0, system.u.numel()))
-
-
-class Evaluator:
-    """Dense numpy evaluation of the symbolic Functions of a System (virtual machine)."""
-
-    def __init__(self, system: System):
-        self.system, self.p = system, system.parameter_values
-
-    def __call__(self, name: str, *args) -> np.ndarray:
-        out = self.system.function(name)(*args, self.p)
-        return np.array(ca.DM(out).full())
-
-    def c(self, q, t):
-        return self("constraints", q, t).ravel()
-
-    def cq(self, q, t):
-        return self("constraint_jacobian", q, t)
-
-    def ct(self, q, t):
-        return self("constraint_time_derivative", q, t).ravel()
-
-    def gamma(self, q, v, t):
-        return self("acceleration_rhs", q, v, t).ravel()
-
-    def mass(self, q):
-        return self("mass_matrix", q)
-
-    def qv(self, q, v):
-        return self("quadratic_velocity_forces", q, v).ravel()
-
-    def qe(self, q, v, t, u):
-        return self("applied_forces", q, v, t, u).ravel()
-
-    def kinetic(self, q, v):
-        return float(self("kinetic_energy", q, v)[0, 0])
-
-    def potential(self, q, t):
-        return float(self("potential_energy", q, t)[0, 0])
-
-
-def fd_gradient(fun, x, h=H):
-    """Central differences of fun (scalar or vector valued) with respect to every entry of x."""
-    cols = []
-    for j in range(x.size):
-        e = np.zeros(x.size)
-        e[j] = h
-        cols.append((np.asarray(fun(x + e)) - np.asarray(fun(x - e))) / (2 * h))
-    return np.array(cols).T
 
 
 @pytest.fixture(scope="module", params=list(BUILDERS))
