@@ -116,30 +116,53 @@ class Context:
         and the moment about the centre of mass (the rest) that ``body`` feels from a term
         whose generalized force is (∂expr/∂q)ᵀ w are (∂expr/∂e)ᵀ w (principle of virtual work,
         seed 000 eqs. 6.40–6.48; seed 001, virtual rotations).
+
+        In the copy every pose (R, A and the planar angle) is a placeholder symbol standing
+        for the frozen pose of this context, so that an expression of the copy holds only
+        the few operations of the element itself: differentiating it costs O(1) per body,
+        not a pass over the body's ancestors (which made reactions and the articulated
+        recursion of an N-body chain O(N²) to build).  :meth:`resolve` puts e = 0 and the
+        poses back.
         """
-        for name in self.descriptions:  # freeze every pose so that e moves one body only
-            self._frame(name)
-            if self.dimension == 2:
-                self.angle(name)
+        if not getattr(self, "_frozen", False):  # every pose built once: e moves one body
+            for name in self.descriptions:
+                self._frame(name)
+                if self.dimension == 2:
+                    self.angle(name)
+            self._frozen = True
         dim = self.dimension
         e = ca.SX.sym(f"e_{body}", dim + (1 if dim == 2 else 3))
         other = copy.copy(self)
-        other._frames = dict(self._frames)
-        other._angles = dict(self._angles)
-        _, rot = self._frames[body]
+        other._frames = _Placeholders(self._frames, _frame_symbols)
+        other._angles = _Placeholders(self._angles, _angle_symbols)
+        other._perturbation = e
+        ref0, rot = other._frame(body)
         dth = e[dim:]
         if dim == 2:
             spin = ca.vertcat(ca.horzcat(0, -dth[0]), ca.horzcat(dth[0], 0))
-            other._angles[body] = self._angles[body] + dth[0]
+            other._angles[body] = other.angle(body) + dth[0]
         else:
             spin = ca.vertcat(ca.horzcat(0, -dth[2], dth[1]), ca.horzcat(dth[2], 0, -dth[0]),
                               ca.horzcat(-dth[1], dth[0], 0))
         moved = rot + ca.mtimes(spin, rot)
-        com = self.centre_of_mass(body) + e[:dim]
         s = self.descriptions[body].offset
+        com = (ref0 - ca.mtimes(rot, ca.DM(s)) if np.any(s) else ref0) + e[:dim]
         ref = com + ca.mtimes(moved, ca.DM(s)) if np.any(s) else com
         other._frames[body] = (ref, moved)
         return other, e
+
+    def resolve(self, expr: ca.SX) -> ca.SX:
+        """``expr`` of a :meth:`perturbed` copy at e = 0 with the placeholder poses replaced
+        by the poses they stand for (identity on a context that is no perturbed copy)."""
+        e = getattr(self, "_perturbation", None)
+        if e is None:
+            return expr
+        syms, values = [e], [ca.SX.zeros(e.numel())]
+        for table in (self._frames, self._angles):
+            for sym, value in table.pairs():
+                syms.append(sym)
+                values.append(value)
+        return ca.substitute(expr, ca.vertcat(*syms), ca.vertcat(*values))
 
     # ---------------------------------------------------------------- points and directions
     def point(self, body: str, local) -> ca.SX:
@@ -278,3 +301,44 @@ def normal_to(axis) -> np.ndarray:
     trial[int(np.argmin(np.abs(h)))] = 1.0
     f = trial - h * np.dot(trial, h)
     return f / np.linalg.norm(f)
+
+
+def _frame_symbols(body: str, frame: tuple[ca.SX, ca.SX]) -> tuple[tuple, list]:
+    """Placeholder (R, A) of a frozen frame and the (symbol, value) pairs to put it back."""
+    ref, rot = frame
+    r_s = ca.SX.sym(f"R_{body}", ref.numel())
+    a_s = ca.SX.sym(f"A_{body}", rot.size1(), rot.size2())
+    return (r_s, a_s), [(r_s, ca.densify(ca.vec(ref))), (ca.vec(a_s), ca.densify(ca.vec(rot)))]
+
+
+def _angle_symbols(body: str, angle: ca.SX) -> tuple[ca.SX, list]:
+    """Placeholder θ of a frozen planar angle and its (symbol, value) pair."""
+    th = ca.SX.sym(f"theta_{body}")
+    return th, [(th, ca.densify(ca.SX(angle)))]
+
+
+class _Placeholders:
+    """A pose table of a perturbed context: a frozen entry is read as a placeholder symbol,
+    made on first use; an entry set on the copy (the perturbed body) is kept as given."""
+
+    def __init__(self, frozen: dict, make) -> None:
+        self._frozen, self._make = frozen, make
+        self._own: dict = {}
+        self._pairs: list = []
+
+    def __contains__(self, body: str) -> bool:
+        return body in self._own or body in self._frozen
+
+    def __getitem__(self, body: str):
+        if body not in self._own:
+            value, pairs = self._make(body, self._frozen[body])
+            self._own[body] = value
+            self._pairs += pairs
+        return self._own[body]
+
+    def __setitem__(self, body: str, value) -> None:
+        self._own[body] = value
+
+    def pairs(self) -> list:
+        """(placeholder, frozen value) of every placeholder made so far."""
+        return list(self._pairs)

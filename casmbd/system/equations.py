@@ -296,7 +296,7 @@ class System(AppliedForces, Outputs, Reactions):
         Hessian is exact and structurally sparse.
         """
         if not self.local:
-            return self._kane[0]
+            return self._composite_mass_matrix()
         blocks = []
         for name in self.body_names:
             vi = self.ctx.rates(name)
@@ -309,24 +309,23 @@ class System(AppliedForces, Outputs, Reactions):
         return all(d.local for d in self.descriptions.values())
 
     @cached_property
-    def _kane(self) -> tuple[ca.SX, ca.SX]:
-        """M and Q_v of a coupled (joint-coordinate) system by Kane's equations.
+    def _kane(self) -> tuple[dict, dict]:
+        """Per-body spatial inertias D_i and inertia-force weights of a coupled system.
 
         Each body's twist is linear in the joint rates, t_i = (ṙ_G, ω) = J_i(q) q̇ (seed 001,
-        eqs. 256–290: the velocity influence matrices).  With D_i = diag(m 1, A J Aᵀ), the
+        eqs. 256–290: the velocity influence matrices).  With D_i = diag(A J Aᵀ, m 1), the
         generalized inertia forces give (seed 002, "Open Loop Equations of Motion")
 
-            M = Σ J_iᵀ D_i J_i,   Q_v = −Σ J_iᵀ (D_i J̇_i q̇ + (0, ω × (A J Aᵀ) ω)),
+            M = Σ J_iᵀ D_i J_i,   Q_v = −Σ J_iᵀ w_i,   w_i = D_i J̇_i q̇ + (ω × (A J Aᵀ) ω, 0),
 
-        with J̇_i q̇ = ∂t_i/∂q · q̇.  Q_v is formed by one reverse-mode product Jᵀ w, linear in
-        the number of bodies; differentiating ½ q̇ᵀ M q̇ instead would cost O(N⁴).  Ball-joint
-        Euler parameters add c p pᵀ to M and −c |ṗ|² p to Q_v (the term ½ c (pᵀṗ)², see
-        :mod:`casmbd.system.descriptions`).
+        with J̇_i q̇ the recursive bias acceleration.  :meth:`mass_matrix` and
+        :meth:`quadratic_velocity_forces` sum them by the composite-body recursions; Q_v
+        alone costs O(N), the dense M O(N²) entries.
         """
-        ctx, q, v, dim = self.ctx, self.q, self.v, self.dimension
+        ctx, dim = self.ctx, self.dimension
         tk = self.tree_kinematics
         nw = 1 if dim == 2 else 3
-        weights, blocks = [], []
+        weights, blocks = {}, {}
         for name in self.body_names:
             mass, inertia = self._mass_inertia(self.mechanism.bodies[name])
             omega, alpha = tk.twist[name][:nw], tk.bias[name][:nw]
@@ -338,24 +337,20 @@ class System(AppliedForces, Outputs, Reactions):
                 rot = ctx.rotation(name)
                 tensor = ca.mtimes([rot, inertia, rot.T])
                 moment = ca.mtimes(tensor, alpha) + ca.cross(omega, ca.mtimes(tensor, omega))
-            weights.append(ca.vertcat(moment, mass * acc))
-            blocks.append(ca.diagcat(tensor, mass * ca.SX.eye(dim)))
-        mass_matrix, qv = self._composite_bodies(tk, dict(zip(self.body_names, blocks,
-                                                               strict=True)),
-                                                 dict(zip(self.body_names, weights, strict=True)))
+            weights[name] = ca.vertcat(moment, mass * acc)
+            blocks[name] = ca.diagcat(tensor, mass * ca.SX.eye(dim))
+        return blocks, weights
+
+    def _normalization(self):
+        """(rows, c, p, ṗ) of every body with Euler parameters whose description adds the
+        normalisation term ½ c (pᵀṗ)² to T (ball joints: c p pᵀ in M, −c |ṗ|² p in Q_v)."""
         for name, desc in self.descriptions.items():
             extra = getattr(desc, "normalization_inertia", None)
             c = extra(self._mass_inertia(self.mechanism.bodies[name])[1]) if extra else None
             if c is None:
                 continue
             sl = self.body_slice(name)
-            p, pdot = q[sl][-4:], v[sl][-4:]
-            idx = list(range(sl.stop - 4, sl.stop))
-            pad = ca.SX(self.nq, 4)
-            pad[idx, :] = c * ca.mtimes(p, p.T)
-            mass_matrix[:, idx] = mass_matrix[:, idx] + pad
-            qv[idx] = qv[idx] - c * ca.dot(pdot, pdot) * p
-        return mass_matrix, qv
+            yield list(range(sl.stop - 4, sl.stop)), c, self.q[sl][-4:], self.v[sl][-4:]
 
     @cached_property
     def tree_kinematics(self):
@@ -374,16 +369,9 @@ class System(AppliedForces, Outputs, Reactions):
         return ca.vertcat(ca.horzcat(ca.SX.eye(3), skew),
                           ca.horzcat(ca.SX.zeros(3, 3), ca.SX.eye(3)))
 
-    def _composite_bodies(self, tk, inertia: dict, weights: dict) -> tuple[ca.SX, ca.SX]:
-        """M by the composite-rigid-body recursion and Q_v = −Σ J_iᵀ w_i by accumulating the
-        bodies' inertia forces from the leaves (both O(1) operations per entry).
-
-        I^c_i = I_i + Σ_c X_cᵀ I^c_c X_c; for body i, F = I^c_i S_i gives M_ii = S_iᵀ F and,
-        carried to each ancestor j, M_ji = S_jᵀ F.  f_i = w_i + Σ_c X_cᵀ f_c and
-        Q_v,i = −S_iᵀ f_i (Featherstone's CRBA and RNEA in global components, centre-of-mass
-        reference points).
-        """
-        order = tk.order
+    def _tree_links(self) -> tuple[list[str], dict, dict, dict]:
+        """Order (parents first), parents, children and force transports Xᵀ of the tree."""
+        order = self.tree_kinematics.order
         parent = {name: self.descriptions[name].parent for name in order}
         children: dict[str, list[str]] = {name: [] for name in order}
         for name in order:
@@ -391,24 +379,39 @@ class System(AppliedForces, Outputs, Reactions):
                 children[parent[name]].append(name)
         carry = {name: self._force_transport(name, parent[name])
                  for name in order if parent[name] != GROUND}
-        composite, force = {}, {}
+        return order, parent, children, carry
+
+    def _composite_mass_matrix(self) -> ca.SX:
+        """M by the composite-rigid-body recursion (Featherstone's CRBA in global components,
+        centre-of-mass reference points): I^c_i = I_i + Σ_c X_cᵀ I^c_c X_c; for body i,
+        F = I^c_i S_i gives M_ii = S_iᵀ F and, carried to each ancestor j, M_ji = S_jᵀ F.
+        The blocks are assembled from triplets (setting entries one by one is quadratic)."""
+        tk = self.tree_kinematics
+        inertia, _ = self._kane
+        order, parent, children, carry = self._tree_links()
+        composite = {}
         for name in reversed(order):
-            comp, f = inertia[name], weights[name]
+            comp = inertia[name]
             for child in children[name]:
                 x_t = carry[child]
                 comp = comp + ca.mtimes([x_t, composite[child], x_t.T])
-                f = f + ca.mtimes(x_t, force[child])
-            composite[name], force[name] = comp, f
-        mass_matrix = ca.SX(self.nq, self.nq)
-        qv = ca.SX(self.nq, 1)
+            composite[name] = comp
+        rows, cols, vals = [], [], []
+
+        def put(rows_b: slice, cols_b: slice, block: ca.SX) -> None:
+            for i, r in enumerate(range(rows_b.start, rows_b.stop)):
+                for j, c in enumerate(range(cols_b.start, cols_b.stop)):
+                    rows.append(r)
+                    cols.append(c)
+                    vals.append(block[i, j])
+
         for name in order:
             s_i = tk.motion[name]
             if not s_i.size2():
                 continue
             rows_i = self.body_slice(name)
-            qv[rows_i] = -ca.mtimes(s_i.T, force[name])
             f_mat = ca.mtimes(composite[name], s_i)
-            mass_matrix[rows_i, rows_i] = ca.mtimes(s_i.T, f_mat)
+            put(rows_i, rows_i, ca.mtimes(s_i.T, f_mat))
             node = name
             while parent[node] != GROUND:
                 f_mat = ca.mtimes(carry[node], f_mat)
@@ -416,31 +419,33 @@ class System(AppliedForces, Outputs, Reactions):
                 s_j = tk.motion[node]
                 if s_j.size2():
                     block = ca.mtimes(s_j.T, f_mat)
-                    mass_matrix[self.body_slice(node), rows_i] = block
-                    mass_matrix[rows_i, self.body_slice(node)] = block.T
-        return mass_matrix, qv
+                    put(self.body_slice(node), rows_i, block)
+                    put(rows_i, self.body_slice(node), block.T)
+        for idx, c, p, _ in self._normalization():
+            put(slice(idx[0], idx[-1] + 1), slice(idx[0], idx[-1] + 1), c * ca.mtimes(p, p.T))
+        return _from_triplets(self.nq, rows, cols, vals)
 
-    def _twist_jacobian(self, name: str, tk) -> ca.SX:
-        """∂(ω, ṙ_G)/∂q̇ of body ``name``: the column block of each ancestor joint j is its
-        motion subspace carried to the body, (S_ω, S_v + S_ω × (r_i − r_j)), O(1) per entry."""
-        dim = self.dimension
-        nw = 1 if dim == 2 else 3
-        out = ca.SX(nw + dim, self.nq)
-        r_i = self.ctx.centre_of_mass(name)
-        node = name
-        while node != GROUND:
-            s_mat = tk.motion[node]
-            if s_mat.size2():
-                d = r_i - self.ctx.centre_of_mass(node)
-                ang = s_mat[:nw, :]
-                if dim == 2:
-                    lin = s_mat[nw:, :] + ca.vertcat(-d[1] * ang, d[0] * ang)
-                else:
-                    lin = s_mat[nw:, :] + ca.horzcat(*[ca.cross(ang[:, k], d)
-                                                       for k in range(ang.size2())])
-                out[:, self.body_slice(node)] = ca.vertcat(ang, lin)
-            node = self.descriptions[node].parent
-        return out
+    def _composite_forces(self) -> ca.SX:
+        """Q_v,i = −S_iᵀ f_i with f_i = w_i + Σ_c X_cᵀ f_c accumulated from the leaves
+        (Featherstone's RNEA at q̈ = 0 without applied loads): O(1) per body."""
+        tk = self.tree_kinematics
+        _, weights = self._kane
+        order, _, children, carry = self._tree_links()
+        force = {}
+        parts = [ca.SX(0, 1)] * len(order)
+        slot = {name: k for k, name in enumerate(self.body_names)}
+        for name in reversed(order):
+            f = weights[name]
+            for child in children[name]:
+                f = f + ca.mtimes(carry[child], force[child])
+            force[name] = f
+            s_i = tk.motion[name]
+            parts[slot[name]] = -ca.mtimes(s_i.T, f) if s_i.size2() else \
+                ca.SX(self.body_slice(name).stop - self.body_slice(name).start, 1)
+        qv = ca.vertcat(*parts)
+        for idx, c, p, pdot in self._normalization():
+            qv[idx] = qv[idx] - c * ca.dot(pdot, pdot) * p
+        return qv
 
     @cached_property
     def _total_energy(self) -> ca.SX:
@@ -460,9 +465,9 @@ class System(AppliedForces, Outputs, Reactions):
         description and is structurally zero where the mass matrix is constant (centroidal
         planar frames, natural coordinates).
         """
-        m = self.mass_matrix
         if not self.local:
-            return self._kane[1]
+            return self._composite_forces()
+        m = self.mass_matrix
         parts = []
         for name in self.body_names:
             sl = self.body_slice(name)
@@ -500,6 +505,24 @@ class System(AppliedForces, Outputs, Reactions):
             total += 0.5 * (mass * ca.dot(vel, vel) + spin)
         return total
 
+    def _mapped_mass_matrix(self) -> ca.Function:
+        """M(q, p) of a coupled (joint-coordinate) system as N columns M e_k of one O(N)
+        function: M v = ∂T/∂v (T = ½ vᵀ M v, with the Euler-parameter normalisation term), so
+        column k is that gradient at the unit rate e_k, mapped over k.  The generated code
+        grows like N (the dense CRBA matrix of :meth:`mass_matrix` has N² entries: 13.7 MB of C
+        for a 300-rod chain); evaluating it costs the O(N²) it must."""
+        q, v, p = self.q, self.v, self.p
+        product = ca.gradient(self.kinetic_energy, v)
+        for idx, c, pe, _ in self._normalization():
+            product[idx] = product[idx] + c * pe * ca.dot(pe, v[idx])
+        k = ca.SX.sym("k")
+        unit = ca.eq(ca.DM(np.arange(self.nq, dtype=float)), k)
+        column = ca.Function("mass_matrix_column", [q, k, p],
+                             [ca.substitute(product, v, unit)], ["q", "k", "p"], ["M_k"])
+        qm, pm = ca.MX.sym("q", self.nq), ca.MX.sym("p", p.numel())
+        columns = column.map(self.nq, "serial")(qm, ca.DM(np.arange(self.nq)).T, pm)
+        return ca.Function("mass_matrix", [qm, pm], [columns], ["q", "p"], ["M"])
+
     # ------------------------------------------------------------------ functions
     def function(self, name: str) -> ca.Function:
         """The named equation as a ``casadi.Function`` with named inputs and output."""
@@ -507,6 +530,8 @@ class System(AppliedForces, Outputs, Reactions):
             return self.outputs_function()
         if name == "joint_reactions":
             return self.reactions_function()
+        if name == "mass_matrix" and not self.local and name not in self._functions:
+            self._functions[name] = self._mapped_mass_matrix()
         if name not in SIGNATURES:
             raise ModelError(f"unknown equation '{name}' (known: {', '.join(SIGNATURES)})")
         if name not in self._functions:
@@ -515,3 +540,16 @@ class System(AppliedForces, Outputs, Reactions):
             expr = getattr(self, name)
             self._functions[name] = ca.Function(name, syms, [expr], list(inputs), [output])
         return self._functions[name]
+
+
+def _from_triplets(n: int, rows: list[int], cols: list[int], vals: list) -> ca.SX:
+    """An n×n SX matrix from (row, column, value) triplets (repeated entries summed), in
+    one construction."""
+    entries: dict[tuple[int, int], ca.SX] = {}
+    for r, c, val in zip(rows, cols, vals, strict=True):
+        entries[(c, r)] = entries[(c, r)] + val if (c, r) in entries else val
+    if not entries:
+        return ca.SX(n, n)
+    keys = sorted(entries)
+    sparsity = ca.Sparsity.triplet(n, n, [r for _, r in keys], [c for c, _ in keys])
+    return ca.SX(sparsity, ca.vertcat(*[entries[k] for k in keys]))

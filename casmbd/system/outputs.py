@@ -53,15 +53,22 @@ class Outputs:
                 groups.append(("angle_", ca.vertcat(*[ctx.angle(b) for b in self.body_names])))
             groups += [("marker_", markers), ("joint_", joints)]
             names, exprs = [], []
+            rates = None if self.local else self._tree_rates(a)
             for label, expr in groups:
-                vel = ca.jtimes(expr, self.q, self.v)
-                acc = ca.jtimes(expr, self.q, a) + ca.jtimes(vel, self.q, self.v)
+                if rates is not None and label in rates:
+                    vel, acc = rates[label]
+                else:
+                    vel = ca.jtimes(expr, self.q, self.v)
+                    acc = ca.jtimes(expr, self.q, a) + ca.jtimes(vel, self.q, self.v)
                 exprs += [expr, vel, acc]
                 names += [label + "positions", label + "velocities", label + "accelerations"]
             if self.dimension == 3:
                 rot = ca.vertcat(*[ca.vec(ctx.rotation(b).T) for b in self.body_names])
-                omega = ca.vertcat(*[ctx.angular_velocity(b) for b in self.body_names])
-                alpha = ca.jtimes(omega, self.q, self.v) + ca.jtimes(omega, self.v, a)
+                if rates is None:
+                    omega = ca.vertcat(*[ctx.angular_velocity(b) for b in self.body_names])
+                    alpha = ca.jtimes(omega, self.q, self.v) + ca.jtimes(omega, self.v, a)
+                else:
+                    omega, alpha = rates["spin"]
                 exprs += [rot, omega, alpha]
                 names += ["rotation_matrices", "angular_velocities", "angular_accelerations"]
             if mech.markers:  # their frames: A_body (Aᵦᵀ A_m), θ_body + θ_m − θᵦ
@@ -71,6 +78,44 @@ class Outputs:
                 "outputs", [self.q, self.v, a, self.t, self.p], exprs,
                 ["q", "v", "a", "t", "p"], names)
         return self._functions["outputs"]
+
+    def _tree_rates(self, a: ca.SX) -> dict[str, tuple[ca.SX, ca.SX]]:
+        """Velocities and accelerations of the body and marker outputs of a coupled
+        (joint-coordinate) system from the recursive twists and accelerations of
+        :class:`~casmbd.system.tree.TreeKinematics`, O(1) per body and marker — ∂r/∂q q̇ by
+        AD would sweep every body's ancestors (240 operations per body of a 100-rod chain).
+        A marker P of body B with d = r_P − r_G moves as v_P = ṙ_G + ω × d and
+        a_P = r̈_G + α × d + ω × (ω × d) (seed 001, eqs. 256–290)."""
+        ctx, dim = self.ctx, self.dimension
+        tk = self.tree_kinematics
+        nw = 1 if dim == 2 else 3
+        acc = tk.accelerations(a)
+
+        def cross(w: ca.SX, d: ca.SX) -> ca.SX:
+            return ca.vertcat(-w[0] * d[1], w[0] * d[0]) if dim == 2 else ca.cross(w, d)
+
+        zero = ca.SX.zeros(dim)
+        mv, ma = [], []
+        for m in self.mechanism.markers.values():
+            if m.body not in tk.twist:  # on the ground
+                mv.append(zero)
+                ma.append(zero)
+                continue
+            w, alpha = tk.twist[m.body][:nw], acc[m.body][:nw]
+            d = ctx.position(m.body, m.point) - ctx.centre_of_mass(m.body)
+            mv.append(tk.twist[m.body][nw:] + cross(w, d))
+            ma.append(acc[m.body][nw:] + cross(alpha, d) + cross(w, cross(w, d)))
+        names = self.body_names
+        stack = ca.vertcat
+        out = {"body_": (stack(*[tk.twist[b][nw:] for b in names]),
+                         stack(*[acc[b][nw:] for b in names])),
+               "spin": (stack(*[tk.twist[b][:nw] for b in names]),
+                        stack(*[acc[b][:nw] for b in names]))}
+        if dim == 2:
+            out["angle_"] = out["spin"]
+        if mv:
+            out["marker_"] = (stack(*mv), stack(*ma))
+        return out
 
     def _marker_rotations(self) -> ca.SX:
         """Marker frames stacked: 9 entries (A row by row) per marker in space, the angle in

@@ -48,7 +48,7 @@ class Reactions:
             return ca.SX.zeros(e.numel())
         jac = ca.jacobian(cons[keep], e)
         lam_k = ca.vertcat(*[lam[index[k]] for k in keep])
-        return ca.substitute(-ca.mtimes(jac.T, lam_k), e, ca.DM.zeros(e.numel()))
+        return ctx.resolve(-ca.mtimes(jac.T, lam_k))
 
     @cached_property
     def _element_rows(self) -> dict[tuple[str, str], list[int]]:
@@ -84,7 +84,15 @@ class Reactions:
 
     def _applied_wrench(self, body: str) -> tuple[ca.SX, list[str]]:
         """Force and moment about G of every applied force on ``body``, and the names of user
-        generalized forces that cannot be attributed to bodies."""
+        generalized forces that cannot be attributed to bodies (built once per body: the
+        articulated recursion and the tree reactions share it)."""
+        if not hasattr(self, "_wrenches"):
+            self._wrenches: dict[str, tuple[ca.SX, list[str]]] = {}
+        if body not in self._wrenches:
+            self._wrenches[body] = self._build_applied_wrench(body)
+        return self._wrenches[body]
+
+    def _build_applied_wrench(self, body: str) -> tuple[ca.SX, list[str]]:
         ctx, e = self._perturbation(body)
         total = ca.SX.zeros(e.numel())
         unknown, exprs, weights = [], [], []
@@ -102,7 +110,7 @@ class Reactions:
         # term made the build O(N²): 20 000 Jacobians for a 100-body tree's ABA and reactions)
         if exprs:
             total += ca.jtimes(ca.vertcat(*exprs), e, ca.vertcat(*weights), True)
-        return ca.substitute(total, e, ca.DM.zeros(e.numel())), unknown
+        return ctx.resolve(total), unknown
 
     def _inertial_wrench(self, body: str, a: ca.SX) -> ca.SX:
         """(m a_G, Ḣ_G): Newton–Euler's rate of momentum of ``body`` (seed 001; seed 004)."""
