@@ -70,16 +70,29 @@ def test_many_loops_and_no_tree_get_absolute_coordinates():
                                                "joint 'rope' (Distance) cannot be a tree joint")
 
 
-def test_large_trees_get_absolute_coordinates():
-    """Past JOINT_LIMIT tree coordinates the joint-coordinate build grows like N² (a 300-rod
-    chain took over 300 s): the automatic choice takes absolute coordinates; at the limit it
-    still takes joint coordinates."""
-    at_limit = choose_coordinates(pendulum_chain(JOINT_LIMIT))
+def _looped_chain(n: int):
+    """The n-rod chain with its last rod tied to the ground by a distance (one loop)."""
+    mech = pendulum_chain(n)
+    last = list(mech.bodies)[-1]
+    mech.add_distance("rope", "ground", last, [0.0, -5.0], list(mech.bodies[last].position))
+    return mech
+
+
+def test_large_trees_keep_joint_coordinates_large_loops_get_absolute():
+    """A tree of any size takes joint coordinates: the articulated-body recursion, outputs,
+    reactions and the mass-matrix function are O(N) code.  Past JOINT_LIMIT tree coordinates
+    with loops the joint-coordinate code (dense joint-space M of the KKT path) grows like N²
+    (a 300-rod chain took over 300 s): the automatic choice takes absolute coordinates; at
+    the limit it still takes joint coordinates."""
+    big_tree = choose_coordinates(pendulum_chain(4 * JOINT_LIMIT))
+    assert big_tree.coordinates == "joint"
+    assert big_tree.reason == f"a tree: {4 * JOINT_LIMIT} joint coordinates, no loop equations"
+    at_limit = choose_coordinates(_looped_chain(JOINT_LIMIT))
     assert at_limit.coordinates == "joint"
-    beyond = choose_coordinates(pendulum_chain(JOINT_LIMIT + 1))
+    beyond = choose_coordinates(_looped_chain(JOINT_LIMIT + 1))
     assert beyond.coordinates == "absolute"
     assert beyond.reason.startswith(f"{JOINT_LIMIT + 1} tree coordinates > {JOINT_LIMIT}")
-    explicit = pendulum_chain(JOINT_LIMIT + 1)
+    explicit = _looped_chain(JOINT_LIMIT + 1)
     explicit.coordinates = "joint"
     assert System(explicit).coordinates == "joint"
 

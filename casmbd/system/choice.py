@@ -15,13 +15,13 @@ mechanism's structure (issue 22, item 1; the measurements are in docs/performanc
 * **absolute coordinates** otherwise: a tree that cannot be built (a joint kind without tree
   coordinates in the only possible tree) or many loops (a truss, a lattice), where the
   joint-space mass matrix turns dense and the loop equations long while absolute
-  coordinates keep M block-diagonal and every equation local (seed 000) — and a tree of more
-  than :data:`JOINT_LIMIT` coordinates: the joint-coordinate code (dense joint-space mass
-  matrix, outputs, reactions) still grows like N², so a 100-rod chain builds in about 20 s
-  (4.7 MB of C) against 15 s in absolute coordinates, but a 300-rod chain takes over 300 s
-  against 24 s (docs/performance.md, "Scaling to a thousand bodies", loaded machine).  Past
-  the limit the absolute-coordinate build is the one that finishes; its right-hand side is
-  slower per step.
+  coordinates keep M block-diagonal and every equation local (seed 000) — and a mechanism
+  of more than :data:`JOINT_LIMIT` tree coordinates with loops or Euler parameters (ball
+  joints, floating bodies): its joint-coordinate code (the dense joint-space mass matrix of
+  the KKT or Kane path) grows like N², while absolute coordinates build in linear time.
+  A tree the articulated-body recursion integrates has no such limit: its right-hand side,
+  outputs, reactions and mass-matrix function are O(N) code (a 1000-rod chain builds in
+  seconds in the virtual machine, docs/performance.md, "Scaling to a thousand bodies").
 
 Natural coordinates are never chosen automatically: they are a modelling choice (constant
 mass matrix, seed 003), not a speed one.
@@ -38,8 +38,9 @@ __all__ = ["AUTO", "JOINT_LIMIT", "CoordinateChoice", "choose_coordinates"]
 
 #: the value of ``coordinates`` that asks casmbd to choose
 AUTO = "auto"
-#: the most tree coordinates for which the automatic choice takes joint coordinates (their
-#: generated code grows like N²: measured limit between 100 and 300 rods, module docstring)
+#: the most tree coordinates for which the automatic choice takes joint coordinates when the
+#: mechanism has loops or Euler parameters (their generated code grows like N²: measured
+#: limit between 100 and 300 rods, module docstring); plain trees have no limit
 JOINT_LIMIT = 150
 
 
@@ -66,10 +67,13 @@ def choose_coordinates(mechanism) -> CoordinateChoice:
     n_tree = sum(d.size for d in descriptions.values())
     loops = [j for name, j in mechanism.joints.items() if name not in absorbed]
     n_loop = sum(len(j.labels) for j in loops)
-    if n_tree > JOINT_LIMIT:
+    recursion = not loops and all(d.joint is not None and not d.joint.euler_parameters
+                                  for d in descriptions.values())
+    if n_tree > JOINT_LIMIT and not recursion:
         return CoordinateChoice(
             "absolute", f"{n_tree} tree coordinates > {JOINT_LIMIT} (the joint-coordinate code "
-            "grows like N²; absolute coordinates build in linear time)")
+            "with loops or Euler parameters grows like N²; absolute coordinates build in "
+            "linear time)")
     if n_loop > n_tree:
         return CoordinateChoice(
             "absolute", f"{len(loops)} loop joints with {n_loop} equations on {n_tree} tree "
