@@ -68,7 +68,7 @@ BASELINE_VARIANTS: dict[str, dict] = {
     SAME: {"subintervals": 1, "degree": 3},
     f"{SAME}, virtual machine": {"subintervals": 1, "degree": 3, "compile": False},
     f"{SAME}, whole NLP compiled": {"subintervals": 1, "degree": 3, "compile": "nlp"},
-    f"{SAME}, explicit dynamics": {"subintervals": 1, "degree": 3, "dynamics": "explicit"},
+    f"{SAME}, implicit dynamics": {"subintervals": 1, "degree": 3, "dynamics": "implicit"},
     "degree 4, 1 element (the library default)": {"subintervals": 1, "degree": 4}}
 #: The derivative modes the default may choose, for every other problem file (a mode the
 #: default row already used is not run again).
@@ -126,7 +126,7 @@ def _transcription_label(stats: dict) -> str:
     if t == "multiple_shooting":
         return "multiple shooting"
     return (f"{t} d={stats.get('degree')}, {stats.get('intervals')}×"
-            f"{stats.get('subintervals')}")
+            f"{stats.get('subintervals')}, {stats.get('dynamics')}")
 
 
 def worker(path: str, overrides: dict, repeat: int, replay: bool) -> dict:
@@ -151,7 +151,8 @@ def worker(path: str, overrides: dict, repeat: int, replay: bool) -> dict:
                          "compile_seconds": sol.stats.get("compile_seconds")})
     out = {"description": _describe(ocp), "setups": setups, "setup_cpus": setup_cpus,
            "solves": solves, "cpus": cpus,
-           "compiled": compiled, "derivatives": sol.stats.get("derivatives")}
+           "compiled": compiled, "derivatives": sol.stats.get("derivatives"),
+           "dynamics": sol.stats.get("dynamics")}
     s = sol.stats
     if replay and s.get("success"):
         try:
@@ -254,6 +255,7 @@ def measure_toml(path: pathlib.Path, variant: str, overrides: dict, repeat: int)
         "description", "success", "status", "objective", "iterations", "final_time",
         "constraint_violation", "replay_error", "variables", "constraints", "transcription",
         "derivatives")})
+    row.figures["dynamics"] = warm.get("dynamics")
     if "replay_failure" in warm:
         row.figures["error"] = warm["replay_failure"][:300]
     row.figures.update({

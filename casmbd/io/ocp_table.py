@@ -113,7 +113,7 @@ def ocp_from_scene(mech, table: dict | None = None, source: str = "<scene>") -> 
     try:
         ocp = Ocp(mech, horizon=horizon, transcription=table.get("transcription", "radau"),
                   integrator=table.get("integrator", DEFAULT_SHOOTING_INTEGRATOR),
-                  dynamics=table.get("dynamics", "implicit"),
+                  dynamics=table.get("dynamics", "auto"),
                   t_start=num(table.get("t_start", 0.0), "t_start"),
                   solver=solver, solver_options=options, **ints)
         for key, bounds in table.get("controls", {}).items():

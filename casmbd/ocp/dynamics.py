@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import casadi as ca
 
+from casmbd.errors import AnalysisError
 from casmbd.system.articulated import articulated_accelerations, supported
 
 
@@ -67,3 +68,49 @@ def explicit_accelerations(system) -> ca.Function:
         else:
             acc = ca.solve(system.mass_matrix, forces)
     return ca.Function("ocp_acc", [q, v, u, t, p], [acc], ["q", "v", "u", "t", "p"], ["a"])
+
+
+#: ``dynamics="auto"`` substitutes explicit accelerations in collocation when the mechanism has
+#: no constraint equations and its equations of motion M q̈ − Q hold at most this many SX
+#: instructions (measured in docs/ocp.md: the two-coordinate trees of ``ocp/`` — 45 to 205
+#: instructions — solve faster with q̈ substituted because the KKT system is a third smaller
+#: and function evaluation is a small part of an iteration; on the UR5, 3763 instructions,
+#: the articulated recursion's second derivatives make each element's Hessian 2.3× larger
+#: and its solve 2× slower).
+AUTO_EXPLICIT_INSTRUCTIONS = 1000
+
+
+def choose_dynamics(system, requested: str, collocation: bool = True
+                    ) -> tuple[bool, str, ca.Function | None, ca.Function | None]:
+    """(explicit?, why, the explicit accelerations or None, the implicit residual or None)
+    for ``Ocp.dynamics``.
+
+    ``"implicit"`` and ``"explicit"`` are kept as given (explicit needs nc = 0: an
+    AnalysisError otherwise); ``"auto"`` picks explicit for collocation when nc = 0 and the
+    implicit residual M q̈ − Q holds at most :data:`AUTO_EXPLICIT_INSTRUCTIONS` SX
+    instructions, else implicit.  Multiple shooting
+    always integrates the explicit form (the choice does not apply: reported as such).
+    """
+    nc = system.nc
+    if requested == "explicit" and nc:
+        raise AnalysisError(f"ocp: dynamics='explicit' needs a mechanism without constraint "
+                            f"equations; this one has {nc} (use 'implicit')")
+    if not collocation:
+        return False, "multiple shooting integrates q̈ = f(q, q̇, u, t)", None, None
+    if requested == "explicit":
+        return True, "given", explicit_accelerations(system), None
+    res = implicit_residual(system)
+    if requested == "implicit":
+        return False, "given", None, res
+    if nc:
+        return False, (f"auto: implicit, the mechanism has {nc} constraint equations "
+                       "(explicit accelerations would invert the KKT matrix symbolically)"), \
+            None, res
+    size = res.n_instructions()
+    if size <= AUTO_EXPLICIT_INSTRUCTIONS:
+        return True, (f"auto: explicit, no constraint equations and small equations of motion "
+                      f"(M q̈ − Q: {size} <= {AUTO_EXPLICIT_INSTRUCTIONS} SX instructions)"), \
+            explicit_accelerations(system), None
+    return False, (f"auto: implicit, large equations of motion (M q̈ − Q: {size} > "
+                   f"{AUTO_EXPLICIT_INSTRUCTIONS} SX instructions; the second derivatives of "
+                   "q̈ = f(q, q̇, u, t) would dominate each iteration)"), None, res

@@ -153,10 +153,13 @@ def initial_guess(tr, kind) -> np.ndarray:
     return _fill(tr, T, state, controls, mults, kind == "simulation")
 
 
-def _point_fraction(tr, c: int) -> float:
-    """Horizon fraction s of collocation point column ``c`` (element c // d, point c % d)."""
-    d, taus = tr.ocp.degree, getattr(tr, "tau", [0.0])
-    return (c // d + taus[c % d + 1]) / tr.M
+def _point_fraction(tr, c: int, per: int | None = None) -> float:
+    """Horizon fraction s of collocation point column ``c`` (element c // per, point
+    c % per) of a block with ``per`` columns per element (default the degree d; the XC block
+    of Radau collocation holds d − 1, its last point being the next mesh node)."""
+    per = per or tr.ocp.degree
+    taus = getattr(tr, "tau", [0.0])
+    return (c // per + taus[c % per + 1]) / tr.M
 
 
 def _fill_fractions(tr) -> list[float]:
@@ -165,7 +168,7 @@ def _fill_fractions(tr) -> list[float]:
     out = [e / tr.M for e in range(tr.M + 1)]
     if "XC" in tr.b.names:
         cols = tr.b.shapes[tr.b.block("XC")][1]
-        out += [_point_fraction(tr, c) for c in range(cols)]
+        out += [_point_fraction(tr, c, tr.xc_columns) for c in range(cols)]
     return list(dict.fromkeys(out))
 
 
@@ -182,7 +185,7 @@ def _fill(tr, T, state, controls=None, mults=None, accelerations=False) -> np.nd
                 val[e] = state(e / M)
         elif name == "XC":
             for c in range(cols):
-                val[c] = state(_point_fraction(tr, c))
+                val[c] = state(_point_fraction(tr, c, tr.xc_columns))
         elif name == "U" and controls is not None:
             for k in range(cols):
                 val[k] = controls((k + 0.5) / N)

@@ -36,7 +36,7 @@ from casmbd.system.quantities import quantities
 
 TRANSCRIPTIONS = ("radau", "legendre", "multiple_shooting")
 OBJECTIVES = ("effort", "time", "energy")
-DYNAMICS = ("implicit", "explicit")
+DYNAMICS = ("auto", "implicit", "explicit")
 GUESSES = ("linear", "simulation", "inverse")
 
 
@@ -89,14 +89,19 @@ class Ocp:
         replay 2e-2 off), or multiple shooting with
         ``integrator`` ("rk4": ``steps`` fixed steps per interval with exact Hessians;
         "cvodes": CVODES with exact first-order sensitivities and a limited-memory Hessian).
-    dynamics : {"implicit", "explicit"}
-        How collocation states the equations of motion. ``"implicit"`` (default): q̈ and λ are
-        NLP variables at every collocation point with M q̈ + C_qᵀλ = Q, C_q q̈ = γ (nothing
+    dynamics : {"auto", "implicit", "explicit"}
+        How collocation states the equations of motion. ``"implicit"``: q̈ and λ are NLP
+        variables at every collocation point with M q̈ + C_qᵀλ = Q, C_q q̈ = γ (nothing
         inverted; any mechanism). ``"explicit"``: q̈ = f(q, q̇, u, t) is substituted (the
-        articulated-body recursion for a joint-coordinate tree, else M⁻¹Q), so the NLP has the
-        size of a hand-written ODE transcription; only for mechanisms without constraint
-        equations. Measured on the trees of ``ocp/`` (docs/ocp.md) it saves a quarter of the
-        variables but not solve time: per iteration a little cheaper, iteration counts ±20 %.
+        articulated-body recursion for a joint-coordinate tree, else M⁻¹Q) and, on Radau
+        points, the last collocation state is the next mesh node, so the NLP is smaller than
+        a hand-written ODE transcription; only for mechanisms without constraint equations.
+        ``"auto"`` (default): explicit when the mechanism has no constraint equations and
+        small equations of motion, else implicit
+        (:func:`casmbd.ocp.dynamics.choose_dynamics`; measured in docs/ocp.md: explicit
+        solves the two-coordinate trees of ``ocp/`` faster, implicit the UR5). The choice
+        and its reason are in the solution's ``stats["dynamics"]`` and
+        ``stats["dynamics_choice"]``.
     solver : {"ipopt", "sqpmethod"}
         The NLP solver (:data:`casmbd.ocp.options.SOLVERS`).
     solver_options : dict
@@ -128,7 +133,7 @@ class Ocp:
     subintervals: int = 1
     integrator: str = DEFAULT_SHOOTING_INTEGRATOR
     steps: int = 4
-    dynamics: str = "implicit"
+    dynamics: str = "auto"
     t_start: float = 0.0
     solver: str = "ipopt"
     solver_options: dict = field(default_factory=dict)
