@@ -179,12 +179,16 @@ class Dopri:
         Library name (a C identifier).
     """
 
-    def __init__(self, dyn: ca.Function, mode: str = "vm", name: str = "casmbd_dopri5"):
+    def __init__(self, dyn: ca.Function, mode: str = "vm", name: str = "casmbd_dopri5",
+                 block: ca.Function | None = None):
         self.nx = dyn.size1_in("x")
         t, x, p = ca.MX.sym("t"), ca.MX.sym("x", self.nx), ca.MX.sym("p", dyn.size1_in("p"))
         self._f = _Buffered(ca.Function("rhs", [t, x, p], [dyn(t=t, x=x, p=p)["ode"]]))
-        block = fixed_fold(dopri_attempt(dyn), BLOCK, f"dopri5_block{BLOCK}")
         self.report = None
+        if block is not None:  # compiled with the model (DopriKind.model_functions)
+            self._block = _Buffered(block)
+            return
+        block = dopri_block(dyn)
         if mode != "vm":
             compiled, self.report = compile_functions([block], name=name, mode=mode)
             block = compiled[block.name()]
@@ -256,15 +260,33 @@ class Dopri:
                     f"t = {t_out:.6g})", state.t, "TOO_MUCH_WORK")
 
 
+#: name of the block Function (compiled with the model or on its own)
+BLOCK_NAME = f"dopri5_block{BLOCK}"
+
+
+def dopri_block(dyn: ca.Function) -> ca.Function:
+    """:data:`BLOCK` attempted steps of ``dyn``: ``(s, p, c) -> s_next`` (see
+    :func:`dopri_attempt`)."""
+    return fixed_fold(dopri_attempt(dyn), BLOCK, BLOCK_NAME)
+
+
 @dataclass(frozen=True)
 class DopriKind(IntegratorKind):
     """An adaptive explicit Runge–Kutta method run by :class:`Dopri` in compiled blocks."""
 
     compiled: bool = True
+    model_function_names: tuple[str, ...] = (BLOCK_NAME,)
 
-    def runner(self, dyn: ca.Function, mode: str, name: str) -> Dopri:
-        """The compiled stepping of ``dyn`` (built once per simulator)."""
-        return Dopri(dyn, mode=mode, name=name)
+    def model_functions(self, dyn: ca.Function) -> list[ca.Function]:
+        """The block of attempted steps, compiled in the model's library beside ``dyn``."""
+        return [dopri_block(dyn)]
+
+    def runner(self, dyn: ca.Function, mode: str, name: str,
+               functions: dict | None = None) -> Dopri:
+        """The compiled stepping of ``dyn`` (built once per simulator); with the block among
+        the model's compiled ``functions`` (then ``dyn`` should be the compiled dynamics),
+        nothing is generated or compiled."""
+        return Dopri(dyn, mode=mode, name=name, block=(functions or {}).get(BLOCK_NAME))
 
 
 register_integrator(DopriKind("dopri5", "Dormand–Prince 5(4)", stiff_alternative="cvodes"))

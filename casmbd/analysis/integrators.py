@@ -345,6 +345,8 @@ class IntegratorKind:
     compiled : bool
         An adaptive method whose steps run in compiled blocks (``runner(dyn, mode, name)``,
         :class:`casmbd.analysis.dopri.Dopri`).
+    model_function_names : tuple of str
+        Names of the Functions of :meth:`model_functions` (compiled with the model).
     """
 
     name: str
@@ -356,6 +358,14 @@ class IntegratorKind:
     shooting: bool = False
     stiff_alternative: str | None = None
     compiled: bool = False
+    #: names of the :meth:`model_functions`
+    model_function_names: tuple[str, ...] = ()
+
+    def model_functions(self, dyn: ca.Function) -> list[ca.Function]:
+        """Functions of this method over the dynamics ``dyn`` worth compiling with the model
+        (in its library, its translation unit shared with ``dyn``), so that a cached run
+        neither builds the symbolic formulation nor compiles again; none by default."""
+        return []
 
     def integrates(self, kind: str) -> bool:
         """Whether this integrator accepts a formulation of ``kind`` ("ode", "dae",

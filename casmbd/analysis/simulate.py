@@ -192,11 +192,16 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
                                            **dict(formulation_options or {}))
         # an ODE of an unconstrained system gives q̈ to the post-processing (no M solve)
         ode = self.formulation.function if self.formulation.kind == "ode" else None
+        # the default integrator's own compiled stepping (DOPRI5's block) goes into the
+        # model's library, in one translation unit with the dynamics it calls
+        stepping = integ.INTEGRATORS.get(self.kind.default_integrator)
+        steps = stepping.model_functions(ode) if ode is not None and stepping is not None \
+            and mode != "vm" and stepping.integrates("ode") else []
+        hot = [f.name() for f in [*self.formulation.functions, *steps]]
         self.model = NumericModel(system, "dynamics", mode=mode,
-                                  extra=[*self.formulation.functions,
+                                  extra=[*self.formulation.functions, *steps,
                                          post_processing(system, u_expr, ode), self.ufun],
-                                  hot=None if self.kind.numeric else  # per step: optimised
-                                  [f.name() for f in self.formulation.functions])
+                                  hot=None if self.kind.numeric else hot)  # per step: -O2
         self.system = system
         self.dyn = self.model.function(self.formulation.function.name())
         self.ufun = self.model.function(INPUTS_FUNCTION)

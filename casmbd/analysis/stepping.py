@@ -141,8 +141,14 @@ class Stepping:
         the output grid, each step clipped to the next output; optional projection (then a
         restart with the same step size).  A failure raises an :class:`IntegratorError` that
         keeps the outputs before it."""
-        runner = self._solver((name, "compiled"), lambda: integ.INTEGRATORS[name].runner(
-            self.formulation.function, self._mode, f"{_c_name(self.model.name)}_{name}"))
+        kind = integ.INTEGRATORS[name]
+        # the model's library may hold the method's block over the compiled dynamics: then no
+        # symbolic formulation is built and nothing is compiled (a cached run)
+        prebuilt = {n: self.model.functions[n] for n in kind.model_function_names
+                    if n in self.model.functions}
+        runner = self._solver((name, "compiled"), lambda: kind.runner(
+            self.dyn if prebuilt else self.formulation.function, self._mode,
+            f"{_c_name(self.model.name)}_{name}", prebuilt))
         p, nq = self.model.p, self.model.nq
         xs = [np.asarray(x0, float)]
         k = 0

@@ -16,7 +16,9 @@ Rules (:func:`plan`): with flags chosen by the caller or ``$CASMBD_CFLAGS`` ever
 them; otherwise a function gets :data:`COLD_FLAGS` when its C alone exceeds
 :data:`LARGE_SOURCE` or when ``hot`` is given and does not name it, and the default flags
 otherwise.  Below :data:`SPLIT_SOURCE` bytes of C in all, one unit per distinct flag set (the
-compiler's start-up dominates small builds); above it, one unit per function.
+compiler's start-up dominates small builds); above it, one unit per function, except the hot
+functions, which share one (an integrator's compiled block and the dynamics it calls: the
+dynamics' C once).
 """
 
 from __future__ import annotations
@@ -63,7 +65,16 @@ def plan(functions: Sequence[casadi.Function], generate: Callable[[list], str],
                     or (hot is not None and f.name() not in hot) else list(default)
                     for f in functions}
     if sum(map(len, alone.values())) > SPLIT_SOURCE:
-        return [([f], alone[f.name()], flags_of[f.name()]) for f in functions]
+        # the hot functions share one unit: an integrator's block calls the dynamics, whose
+        # C then appears (and is compiled) once
+        together = [f for f in functions if hot is not None and f.name() in hot]
+        if len(together) < 2:
+            return [([f], alone[f.name()], flags_of[f.name()]) for f in functions]
+        source = generate(together)
+        flags = list(chosen) if chosen is not None else \
+            list(COLD_FLAGS) if len(source) > LARGE_SOURCE else list(default)
+        return [(together, source, flags)] + [([f], alone[f.name()], flags_of[f.name()])
+                                              for f in functions if f not in together]
     groups: dict[tuple[str, ...], list[casadi.Function]] = {}
     for f in functions:
         groups.setdefault(tuple(flags_of[f.name()]), []).append(f)
