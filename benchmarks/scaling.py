@@ -74,9 +74,9 @@ CONFIGS: dict[str, tuple[str, str]] = {
 }
 CONFIG_LABEL = {"abs_al": "absolute, augmented_lagrangian (the default in absolute coordinates)",
                 "abs_kkt": "absolute, kkt_ode",
-                "joint_aba": "joint, articulated (ABA): the default path of a chain up to 150 "
-                             "rods (a tree: joint coordinates, the recursion); beyond, the "
-                             "automatic choice takes abs_al (casmbd/system/choice.py)"}
+                "joint_aba": "joint, articulated (ABA) with its default integrator DOPRI5: "
+                             "the default path of a chain of any length (a tree: joint "
+                             "coordinates, the recursion; casmbd/system/choice.py)"}
 #: compile variant -> (mode, CASMBD_CFLAGS); "O2" is the library default
 VARIANTS: dict[str, tuple[str, str | None]] = {
     "O2": ("compiled", None), "O1": ("compiled", "-O1"), "O0": ("compiled", "-O0"),
@@ -765,7 +765,7 @@ def markdown(data: dict) -> str:
         "timeit runs; the ODE formulations build no Jacobian, so *FD Jac* is CasADi's "
         "finite-difference Jacobian of the compiled Function — 2 n_x + 1 evaluations "
         "— measured where it costs < 2 s), and solves with the default integrator "
-        "(CVODES-Adams, functional iteration) at rtol = atol = 1e-4, 1e-5, … until the "
+        "(CVODES-Adams for the absolute-coordinate configurations, DOPRI5 for joint_aba) at rtol = atol = 1e-4, 1e-5, … until the "
         "tip-position error is ≤ 1e-6: *solve* is `stats['solve_seconds']` (integration "
         "only; median of up to 3 runs) at the loosest tolerance that reaches it. *ref*: the "
         "stored minimal-coordinate reference (N = 2, 8, 32) or the same Simulator at "

@@ -138,8 +138,10 @@ def diagnose_failure(model, t: float) -> list[str]:
     return []
 
 
-def _evaluations(model, q, v, t: float, u) -> Iterator[tuple[str, np.ndarray, list[str]]]:
-    """(description, values, row labels) of each equation the model has, at the state."""
+def _evaluations(model, q, v, t: float, u, every: bool = False
+                 ) -> Iterator[tuple[str, np.ndarray, list[str]]]:
+    """(description, values, row labels) of each equation the model has, at the state (with
+    ``every`` also those it did not compile: built in the virtual machine)."""
     coords = model.coordinate_names
     rows = [str(label) for label in model.constraint_labels]
     calls = [("constraints", "the constraints C", rows, lambda: model.constraints(q, t)),
@@ -155,7 +157,7 @@ def _evaluations(model, q, v, t: float, u) -> Iterator[tuple[str, np.ndarray, li
              ("quadratic_velocity_forces", "the quadratic-velocity forces", coords,
               lambda: model.quadratic_velocity_forces(q, v))]
     for name, text, labels, call in calls:
-        if name in model.functions and (labels is coords or model.nc):
+        if (every or name in model.functions) and (labels is coords or model.nc):
             yield text, call(), labels
 
 
@@ -169,7 +171,7 @@ def _bad_rows(values) -> np.ndarray:
 
 
 def check_start(model, q, v, t: float, u=None, what: str = "analysis",
-                forces: np.ndarray | None = None) -> None:
+                forces: np.ndarray | None = None, every: bool = False) -> None:
     """Raise naming the culprit when the start state or an equation there is not finite.
 
     Parameters
@@ -186,6 +188,9 @@ def check_start(model, q, v, t: float, u=None, what: str = "analysis",
     forces : array, optional
         Generalized forces the analysis evaluated itself at (q, v, t) (statics has its own
         function), checked with the equations.
+    every : bool
+        Also evaluate the equations the model did not compile (an ODE right-hand side that
+        is not finite at the start: its culprit is in the forces it was compiled without).
 
     Raises
     ------
@@ -205,7 +210,7 @@ def check_start(model, q, v, t: float, u=None, what: str = "analysis",
                              + ", ".join(f"{names[i]} = {arr[i]}" for i in bad[:4]))
     if not np.all(np.isfinite(u)):
         raise ModelError(f"{what} at t = {t:g}: the actuator inputs are not finite: {u}")
-    evaluations = list(_evaluations(model, q, v, t, u))
+    evaluations = list(_evaluations(model, q, v, t, u, every))
     if forces is not None:
         evaluations.append(("the generalized forces", np.asarray(forces, float), names))
     for text, values, labels in evaluations:

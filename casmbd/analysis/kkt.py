@@ -90,13 +90,20 @@ class ConsistentState:
     assembly_iterations: int
 
 
-def consistent_state(model, q0, v0, t: float = 0.0, u=None,
-                     fixed=None) -> ConsistentState:
-    """Assemble q, project v and compute q̈, λ; report how much q and v were changed."""
+def consistent_state(model, q0, v0, t: float = 0.0, u=None, fixed=None,
+                     accelerations=None) -> ConsistentState:
+    """Assemble q, project v and compute q̈, λ; report how much q and v were changed.
+
+    ``accelerations(q, v)``, for a system without constraint equations, gives q̈ from an
+    ODE right-hand side (the articulated recursion) instead of solving M q̈ = Q.
+    """
     q0 = np.asarray(q0, dtype=float)
     v0 = np.asarray(v0, dtype=float)
     rep = assemble(model, q0, t, fixed=fixed)
     v = project_velocities(model, rep.q, v0, t)
-    a, lam = accelerations_and_multipliers(model, rep.q, v, t, u)
+    if accelerations is not None and model.nc == 0:
+        a, lam = np.asarray(accelerations(rep.q, v), float), np.zeros(0)
+    else:
+        a, lam = accelerations_and_multipliers(model, rep.q, v, t, u)
     return ConsistentState(rep.q, v, a, lam, float(np.max(np.abs(rep.q - q0), initial=0.0)),
                            float(np.max(np.abs(v - v0), initial=0.0)), rep.iterations)

@@ -198,7 +198,9 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
         steps = stepping.model_functions(ode) if ode is not None and stepping is not None \
             and mode != "vm" and stepping.integrates("ode") else []
         hot = [f.name() for f in [*self.formulation.functions, *steps]]
-        self.model = NumericModel(system, "dynamics", mode=mode,
+        # q̈ of an unconstrained ODE from its own right-hand side: no M, Q_e, Q_v compiled
+        needs = "ode_dynamics" if ode is not None and system.nc == 0 else "dynamics"
+        self.model = NumericModel(system, needs, mode=mode,
                                   extra=[*self.formulation.functions, *steps,
                                          post_processing(system, u_expr, ode), self.ufun],
                                   hot=None if self.kind.numeric else hot)  # per step: -O2
@@ -229,6 +231,20 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
             cq = self.model.constraint_jacobian(q, 0.0).toarray()
             lam = np.linalg.lstsq(cq[keep].T, cq.T @ lam, rcond=None)[0]
         return self.kind.initial_algebraic(a, lam)
+
+    def _ode_accelerations(self, t: float):
+        """q̈(q, v) at ``t`` from the ODE right-hand side of an unconstrained system whose
+        model has no compiled forces (``NEEDS["ode_dynamics"]``), else None."""
+        if self.formulation.kind != "ode" or self.model.nc or \
+                "quadratic_velocity_forces" in self.model.functions:
+            return None
+        nq, p = self.model.nq, self.model.p
+
+        def accelerations(q, v):
+            x = np.concatenate([q, v])
+            return np.asarray(self.dyn(t, x, np.zeros(0), p, np.zeros(0))[0],
+                              dtype=float).ravel()[nq:]
+        return accelerations
 
     def _integrator_name(self, integrator: str | None) -> str:
         name = integrator or self.kind.default_integrator
@@ -273,10 +289,12 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
         q0 = model.initial_coordinates() if q0 is None else np.asarray(q0, float)
         v0 = model.initial_velocities() if v0 is None else np.asarray(v0, float)
         u0 = self.inputs_at(t_start)
-        check_start(model, q0, v0, t_start, u0, what="simulation")  # names a NaN's culprit
+        ode_acc = self._ode_accelerations(t_start)
+        check_start(model, q0, v0, t_start, u0, what="simulation",  # names a NaN's culprit
+                    every=ode_acc is not None and not np.all(np.isfinite(ode_acc(q0, v0))))
         # names the bodies without mass where M is singular (at the assembled start)
         check_mass_matrix(model, assemble(model, q0, t_start).q, t_start)
-        start = consistent_state(model, q0, v0, t_start, u0)
+        start = consistent_state(model, q0, v0, t_start, u0, accelerations=ode_acc)
         check_consistent_start(model, start.q, start.v, start.a, t_start)
         x0 = np.concatenate([start.q, start.v])
         z0 = self._z0(start.q, start.a, start.lam)

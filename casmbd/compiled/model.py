@@ -21,7 +21,7 @@ import scipy.sparse as sp
 from casmbd.compiled.codegen import BuildReport, compile_functions
 from casmbd.compiled.workspace import Workspace
 from casmbd.errors import ModelError
-from casmbd.system.equations import Equation, System
+from casmbd.system.equations import SIGNATURES, Equation, System
 
 #: Functions each analysis needs; nothing else is generated or compiled for it.
 NEEDS: dict[str, tuple[str, ...]] = {
@@ -33,6 +33,30 @@ NEEDS: dict[str, tuple[str, ...]] = {
                  "kinetic_energy", "potential_energy", "outputs", "joint_reactions",
                  "input_matrix"),
 }
+#: an ODE formulation of a system without constraint equations (the articulated recursion)
+#: takes q̈ from its own right-hand side: no Q_e, Q_v or B is compiled for it (built on
+#: first use in the virtual machine, see :class:`_Functions`); M stays, for the check that
+#: names bodies without inertia
+NEEDS["ode_dynamics"] = tuple(n for n in NEEDS["dynamics"] if n not in (
+    "applied_forces", "quadratic_velocity_forces", "input_matrix"))
+
+
+class _Functions(dict):
+    """The model's Functions by name; a known equation that was not built for the model is
+    built on first use from the model's System, in CasADi's virtual machine (``name in``
+    stays False until then, so diagnostics can tell what was compiled)."""
+
+    def __init__(self, functions: dict, model: NumericModel) -> None:
+        super().__init__(functions)
+        self._model = model
+
+    def __missing__(self, name: str) -> ca.Function:
+        from_system = name in ("outputs", "joint_reactions") or name in SIGNATURES
+        if not from_system:
+            raise KeyError(name)
+        function = self._model.system.function(name)
+        self[name] = function
+        return function
 
 
 def _c_name(name: str) -> str:
@@ -94,9 +118,10 @@ class NumericModel:
         names = list(dict.fromkeys(names))
         symbolic = [system.function(n) for n in names] + list(extra)
         t1 = time.perf_counter()
-        self.functions, self.report = compile_functions(
+        functions, self.report = compile_functions(
             symbolic, name=_c_name(system.mechanism.name), mode=mode,
             hot=None if hot is None else set(hot))
+        self.functions = _Functions(functions, self)
         t2 = time.perf_counter()
         self.symbolic_seconds = t1 - t0
         self.build_seconds = t2 - t0
@@ -161,7 +186,7 @@ class NumericModel:
         build that made them, without building a System (built on first use of
         :attr:`system`, :attr:`descriptions` or :attr:`coordinate_index`)."""
         self = cls.__new__(cls)
-        self.functions, self.report = functions, report
+        self.functions, self.report = _Functions(functions, self), report
         self.symbolic_seconds, self.build_seconds = 0.0, seconds
         self.mechanism = mechanism
         self.name, self.dimension = record["name"], int(record["dimension"])
@@ -210,9 +235,10 @@ class NumericModel:
                 "cache_hit": r.cache_hit, "mode": r.mode}
 
     def function(self, name: str) -> ca.Function:
-        """The (compiled) Function ``name``; raise if it was not built for this model."""
+        """The (compiled) Function ``name``; a known equation that was not compiled for this
+        model is built in the virtual machine on first use; raise for any other name."""
         try:
-            return self.functions[name]
+            return self.functions[name]  # a known equation not built: virtual machine
         except KeyError:
             raise ModelError(f"function '{name}' was not built for this analysis (built: "
                              f"{', '.join(self.functions)})") from None
