@@ -17,8 +17,8 @@ them; otherwise a function gets :data:`COLD_FLAGS` when its C alone exceeds
 :data:`LARGE_SOURCE` or when ``hot`` is given and does not name it, and the default flags
 otherwise.  Below :data:`SPLIT_SOURCE` bytes of C in all, one unit per distinct flag set (the
 compiler's start-up dominates small builds); above it, one unit per function, except the hot
-functions, which share one (an integrator's compiled block and the dynamics it calls: the
-dynamics' C once).
+functions and the functions that call one of them (an integrator's compiled block, the
+post-processing that takes q̈ from the dynamics) share one: the dynamics' C once.
 """
 
 from __future__ import annotations
@@ -65,9 +65,11 @@ def plan(functions: Sequence[casadi.Function], generate: Callable[[list], str],
                     or (hot is not None and f.name() not in hot) else list(default)
                     for f in functions}
     if sum(map(len, alone.values())) > SPLIT_SOURCE:
-        # the hot functions share one unit: an integrator's block calls the dynamics, whose
-        # C then appears (and is compiled) once
-        together = [f for f in functions if hot is not None and f.name() in hot]
+        # the hot functions and their callers share one unit: an integrator's block and the
+        # post-processing call the dynamics, whose C then appears (and is compiled) once
+        hot_names = set(hot or ())
+        together = [f for f in functions if f.name() in hot_names
+                    or (hot_names and _calls(f) & hot_names)]
         if len(together) < 2:
             return [([f], alone[f.name()], flags_of[f.name()]) for f in functions]
         source = generate(together)
@@ -80,6 +82,17 @@ def plan(functions: Sequence[casadi.Function], generate: Callable[[list], str],
         groups.setdefault(tuple(flags_of[f.name()]), []).append(f)
     return [(group, alone[group[0].name()] if len(group) == 1 else generate(group), list(fl))
             for fl, group in groups.items()]
+
+
+def _calls(function: casadi.Function) -> set[str]:
+    """Names of the Functions an MX ``function`` calls (empty for SX functions)."""
+    if not function.is_a("MXFunction"):
+        return set()
+    out = set()
+    for i in range(function.n_instructions()):
+        if function.instruction_id(i) == casadi.OP_CALL:
+            out.add(function.instruction_MX(i).which_function().name())
+    return out
 
 
 def _kill(proc: subprocess.Popen) -> None:
