@@ -49,6 +49,10 @@ G = 9.81
 #: Number of control intervals and collocation degree of every baseline.
 INTERVALS = 50
 DEGREE = 3
+#: With ``repeat`` above 1 short solves are repeated until they add up to this many seconds
+#: (at most ``MAX_SOLVES``), as in :mod:`benchmarks.ocp_problems`.
+MIN_SOLVE_SECONDS = 0.5
+MAX_SOLVES = 25
 IPOPT_OPTIONS = {"expand": True, "print_time": False, "ipopt.print_level": 0,
                  "ipopt.sb": "yes", "ipopt.max_iter": 3000}
 
@@ -187,7 +191,8 @@ PROBLEMS: dict[str, float] = {"cart_pole": 53.66, "double_pendulum_swingup": 59.
 
 
 def solve(name: str, repeat: int = 1) -> Baseline:
-    """Build and solve the baseline ``name`` ``repeat`` times from the same guess.
+    """Build and solve the baseline ``name`` ``repeat`` times from the same guess (more when
+    the solves are short: :data:`MIN_SOLVE_SECONDS`).
 
     *setup*: building the Opti problem and the solver from its ``x``, ``f``, ``g`` (what
     ``Opti.solve`` does: ``nlpsol`` with expansion to SX and the derivative graphs); *solve*:
@@ -202,7 +207,8 @@ def solve(name: str, repeat: int = 1) -> Baseline:
            "ubg": ca.evalf(opti.ubg)}
     setup = time.perf_counter() - start
     walls, cpus, ipopt_walls = [], [], []
-    for _ in range(max(1, repeat)):
+    while len(walls) < max(1, repeat) or (repeat > 1 and sum(walls) < MIN_SOLVE_SECONDS
+                                          and len(walls) < MAX_SOLVES):
         t0, c0 = time.perf_counter(), time.process_time()
         out = solver(**arg)
         walls.append(time.perf_counter() - t0)

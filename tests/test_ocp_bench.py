@@ -28,11 +28,12 @@ def test_radau_matrices_differentiate_cubics_exactly():
 
 def test_cart_pole_baseline_matches_casmbd():
     """Cart-pole swing-up (ocp/cart_pole.toml): the hand-written Opti problem (closed-form
-    Lagrangian, explicit accelerations) and casmbd's (implicit equations with q̈ as variables)
-    with the same transcription (one degree-3 Radau element per interval, N = 50) have the same
-    optimum: measured 53.664762661923 for both (difference 4e-16 relative), asserted to 1e-9
-    relative (IPOPT's tolerance 1e-8 on the scaled KKT conditions, a converged solution of two
-    algebraically equivalent NLPs).  The issue quotes 53.66 (1e-3 relative)."""
+    Lagrangian, explicit accelerations) and casmbd's (the default dynamics="auto": explicit
+    accelerations, the last Radau point shared with the next node) with the same transcription
+    (one degree-3 Radau element per interval, N = 50) have the same optimum: measured
+    53.664762661923 for both (difference 3e-14 relative), asserted to 1e-9 relative (IPOPT's
+    tolerance 1e-8 on the scaled KKT conditions, a converged solution of two algebraically
+    equivalent NLPs).  The issue quotes 53.66 (1e-3 relative)."""
     base = solve("cart_pole")
     assert base.success
     ocp = load_ocp(OCP_DIR / "cart_pole.toml")
@@ -41,3 +42,16 @@ def test_cart_pole_baseline_matches_casmbd():
     assert abs(base.objective - ours.objective) < 1e-9 * ours.objective
     assert abs(base.objective - PROBLEMS["cart_pole"]) < 1e-3 * PROBLEMS["cart_pole"]
     assert math.isfinite(base.solve_seconds) and base.iterations > 0
+
+
+def test_short_solves_are_repeated_until_half_a_second():
+    """benchmarks.ocp_problems.enough: ``--repeat`` solves at least, and with ``--repeat`` > 1
+    more until they add up to MIN_SOLVE_SECONDS (0.5 s) or MAX_SOLVES (25) — a cold run
+    (``--repeat 1``) solves once."""
+    from benchmarks.ocp_problems import MAX_SOLVES, MIN_SOLVE_SECONDS, enough
+
+    assert MIN_SOLVE_SECONDS == 0.5 and MAX_SOLVES == 25
+    assert not enough([], 1) and enough([0.01], 1)
+    assert not enough([0.2, 0.2], 3) and enough([0.2, 0.2, 0.2], 3)
+    assert not enough([0.1] * 3, 3) and enough([0.1] * 5, 3)
+    assert not enough([0.01] * 24, 3) and enough([0.01] * 25, 3)
