@@ -6,6 +6,7 @@ variables, and the sizes of both NLPs counted by hand."""
 
 from __future__ import annotations
 
+import json
 import pathlib
 import re
 
@@ -91,3 +92,17 @@ def test_explicit_dynamics_refused_for_a_closed_loop_and_unknown_names():
     with pytest.raises(AnalysisError, match=r"dynamics must be one of auto, implicit, "
                                             r"explicit.*'ode'"):
         type(loop)(loop.system, dynamics="ode")
+
+
+def test_cli_reports_the_dynamics_and_why(capsys):
+    """``casmbd ocp`` prints the dynamics used and the reason of the choice; ``--json`` has
+    both in its stats (the cart-pole: explicit, small equations of motion)."""
+    from casmbd import cli
+
+    scene = str(OCP / "cart_pole.toml")
+    assert cli.main(["ocp", scene, "--intervals", "6", "--no-replay"]) == 0
+    text = capsys.readouterr().out
+    assert re.search(r"dynamics explicit \(auto: explicit, no constraint equations", text), text
+    assert cli.main(["ocp", scene, "--intervals", "6", "--no-replay", "--json"]) == 0
+    stats = json.loads(capsys.readouterr().out)["stats"]
+    assert stats["dynamics"] == "explicit" and stats["dynamics_choice"].startswith("auto:")

@@ -50,6 +50,7 @@ def _cmd_ocp(args) -> tuple[dict, str]:
              f"{s['constraints']} constraints",
              f"  max constraint violation {s['constraint_violation']:.3g}"
              + (f", replay error {replay:.3g}" if replay is not None else ""),
+             f"  dynamics {s.get('dynamics')} ({s.get('dynamics_choice')})",
              f"  setup {s['setup_seconds']:.3g} s, NLP solve {s['solve_seconds']:.3g} s"]
     for name in sol.controls:
         u = sol.control(name)
