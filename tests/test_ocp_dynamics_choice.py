@@ -106,3 +106,17 @@ def test_cli_reports_the_dynamics_and_why(capsys):
     assert cli.main(["ocp", scene, "--intervals", "6", "--no-replay", "--json"]) == 0
     stats = json.loads(capsys.readouterr().out)["stats"]
     assert stats["dynamics"] == "explicit" and stats["dynamics_choice"].startswith("auto:")
+
+
+def test_multiple_shooting_reports_explicit_dynamics():
+    """Multiple shooting integrates q̈ = f(q, q̇, u, t) whatever ``dynamics`` says: reported
+    as explicit, with that reason; the RK4 optimum of the cart-pole equals collocation's to
+    the discretisation error (1e-4 relative at N = 12; measured 4.1e-6)."""
+    ocp = load_ocp(OCP / "cart_pole.toml")
+    ocp.compile, ocp.intervals = False, 12
+    colloc = ocp.solve()
+    ocp.transcription, ocp.integrator, ocp.steps = "multiple_shooting", "rk4", 4
+    sol = ocp.solve()
+    assert sol.stats["dynamics"] == "explicit"
+    assert sol.stats["dynamics_choice"].startswith("multiple shooting integrates")
+    assert abs(sol.objective - colloc.objective) < 1e-4 * colloc.objective

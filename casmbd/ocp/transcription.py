@@ -532,7 +532,8 @@ class Transcription:
                 "transcription": ocp.transcription, "intervals": self.N,
                 "subintervals": self.S,
                 "degree": ocp.degree if ocp.transcription != "multiple_shooting" else None,
-                "dynamics": "explicit" if self.explicit else "implicit",
+                "dynamics": "explicit" if self.explicit or ocp.transcription
+                == "multiple_shooting" else "implicit",
                 "dynamics_choice": self.dynamics_choice,
                 "solver": ocp.solver, "derivatives": used,
                 "compiled": bool(report and report.mode == "compiled"),
