@@ -5,7 +5,7 @@ Near a singular pose a constraint direction with singular value σ → 0 converg
 1/(1 + α σ²/m) per correction, so ten corrections leave q̈ off by ≈ σ Δλ where that direction
 carries load.  On the unit parallelogram four-bar in joint coordinates (the cut joint C carries
 the coupler's centripetal load along the collinear links) the default right-hand side, on the
-exact trajectory 1e-3 rad from the collinear pose, is 3e-3 m/s² off the closed form
+exact trajectory 1e-3 rad from the collinear pose, is 3e-3 rad/s² off the closed form
 φ̈ = −(6 g / 5 L) cos φ; the crank error at t = 10 s then floors at 1.2e-8 – 1.8e-8 rad for
 rtol 1e-12 … 1e-14 (Adams, DOPRI5 and RK4 alike).  ``refine`` adds corrections only where the
 iteration says it is not done.  Reference: :func:`benchmarks.references.four_bar_angle_at_time`
