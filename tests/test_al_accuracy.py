@@ -43,6 +43,9 @@ from tests.mechanisms import triple_crank
 #: the module (the package re-exports a function of the same name)
 AL_MODULE = importlib.import_module("casmbd.system.formulations.augmented_lagrangian")
 BOUND = 1e-12
+#: the augmented Lagrangian's bound, issue 22's target (measured ≤ 7e-16 on every case; kkt_ode
+#: reaches 9.3e-14 on the four-bar in absolute coordinates and keeps BOUND)
+AL_BOUND = 1e-13
 STATES = 6
 
 
@@ -83,10 +86,10 @@ def _relative_errors(name, formulation, baumgarte, **options):
 
 @pytest.mark.parametrize("name", list(CASES))
 def test_augmented_lagrangian_matches_exact_kkt(name):
-    """Default penalty and iterations: q̈ within 1e-12 relative of the exact KKT solution
-    (measured ≤ 1e-15 on these cases; redundant equations included)."""
+    """Default penalty and iterations: q̈ within 1e-13 relative of the exact KKT solution
+    (measured ≤ 7e-16 on these cases; redundant equations included)."""
     errors = _relative_errors(name, "augmented_lagrangian", 20.0)
-    assert np.max(errors) <= BOUND, errors
+    assert np.max(errors) <= AL_BOUND, errors
 
 
 @pytest.mark.parametrize("name", [n for n in CASES if "redundant" not in n])
