@@ -8,7 +8,8 @@ the coupler's centripetal load along the collinear links) the default right-hand
 exact trajectory 1e-3 rad from the collinear pose, is 3e-3 rad/s² off the closed form
 φ̈ = −(6 g / 5 L) cos φ; the crank error at t = 10 s then floors at 1.2e-8 – 1.8e-8 rad for
 rtol 1e-12 … 1e-14 (Adams, DOPRI5 and RK4 alike).  ``refine`` adds corrections only where the
-iteration says it is not done.  Reference: :func:`benchmarks.references.four_bar_angle_at_time`
+iteration says it is not done, at consistent states (drift ≤ ``REFINE_DRIFT``); by default.
+Reference: :func:`benchmarks.references.four_bar_angle_at_time`
 (elliptic integral, checked against DOP853 at rtol 1e-13 to 6.6e-12 rad).
 """
 
@@ -27,7 +28,7 @@ from casmbd.analysis.simulate import Simulator
 from casmbd.errors import ModelError
 from casmbd.system.equations import System
 from casmbd.system.formulations import build
-from casmbd.system.formulations.augmented_lagrangian import REFINE, al_solver
+from casmbd.system.formulations.augmented_lagrangian import REFINE, REFINE_DRIFT, al_solver
 
 G = 9.81
 
@@ -50,13 +51,13 @@ def _on_branch(phi: float):
 
 @pytest.mark.parametrize("offset", [-1e-3, 1e-3, 2e-3])
 def test_refine_removes_the_bias_near_the_collinear_pose(offset):
-    """On the exact trajectory near φ = π the default q̈ is > 1e-5 off (the bias the refinement
-    exists for: 3e-3 at 1e-3 rad, 7e-5 at 2e-3 rad); with ``refine = REFINE`` within 1e-12
-    relative of the closed form (measured ≤ 4e-15)."""
+    """On the exact trajectory near φ = π, q̈ without refinement is > 1e-5 off (the bias the
+    refinement exists for: 3e-3 at 1e-3 rad, 7e-5 at 2e-3 rad); by default (refine = REFINE,
+    the state consistent) within 1e-12 relative of the closed form (measured ≤ 4e-15)."""
     system = System(_fourbar())
     q, v, exact = _on_branch(math.pi + offset)
-    plain = acceleration(system, build(system, "augmented_lagrangian"), q, v)
-    refined = acceleration(system, build(system, "augmented_lagrangian", refine=REFINE), q, v)
+    plain = acceleration(system, build(system, "augmented_lagrangian", refine=0), q, v)
+    refined = acceleration(system, build(system, "augmented_lagrangian"), q, v)
     assert np.max(np.abs(plain - exact)) > 1e-5
     assert np.max(np.abs(refined - exact)) <= 1e-12 * np.max(np.abs(exact))
 
@@ -66,8 +67,9 @@ def test_refine_is_idle_at_regular_poses(coordinates):
     """Away from singular poses ten corrections have converged, the switch keeps q̈: the same
     numbers bit for bit at random consistent states."""
     system = System(_fourbar(coordinates))
-    plain = build(system, "augmented_lagrangian")
-    refined = build(system, "augmented_lagrangian", refine=REFINE)
+    plain = build(system, "augmented_lagrangian", refine=0)
+    refined = build(system, "augmented_lagrangian", refine=REFINE, refine_drift=None)
+    assert build(system, "augmented_lagrangian").options["refine"] == REFINE
     for q, v in consistent_states(system, 0.3, 4):
         assert np.array_equal(acceleration(system, plain, q, v),
                               acceleration(system, refined, q, v))
@@ -104,13 +106,12 @@ def test_solver_refines_only_a_slow_iteration():
             assert np.max(np.abs(got - plain)) > 1e-6 * np.max(np.abs(want))
 
 
-def test_fourbar_reaches_1e_9_on_the_default_path_with_refinement():
-    """The default path (nothing chosen: joint coordinates, augmented Lagrangian, Adams) with
-    ``formulation_options={"refine": REFINE}`` at rtol = atol = 1e-13: crank angle at t = 10 s
-    within 1e-9 rad of the closed form through its ten collinear passes (measured 2.3e-10;
-    without the refinement 1.8e-8)."""
+def test_fourbar_reaches_1e_9_on_the_default_path():
+    """The default path (nothing chosen: joint coordinates, augmented Lagrangian, Adams) at
+    rtol = atol = 1e-13: crank angle at t = 10 s within 1e-9 rad of the closed form through its
+    ten collinear passes (measured 2.3e-10; without the refinement 1.8e-8)."""
     phi_ref = float(load_reference("parallelogram_four_bar")["results"]["phi_end"])
-    sim = Simulator(_fourbar("auto"), formulation_options={"refine": REFINE})
+    sim = Simulator(_fourbar("auto"))
     res = sim.run(10.0, 1, rtol=1e-13, atol=1e-13)
     assert (res.stats["coordinates"], res.stats["formulation"], res.stats["integrator"]) == (
         "joint", "augmented_lagrangian", "adams")
@@ -128,7 +129,30 @@ def test_fourbar_in_absolute_coordinates_has_no_floor():
     assert abs(res.body("crank")["angle"][-1] - phi_ref) <= 1e-9
 
 
+@pytest.mark.parametrize("offset", [1e-8, 1e-12])
+def test_refinement_only_at_consistent_states(offset):
+    """The drift gate: 1e-3 rad from the pose with the rocker moved off the loop by ``offset``
+    (drift ≈ offset), q̈ equals the unrefined one bit for bit above ``REFINE_DRIFT`` and the
+    ungated refined one below it."""
+    system = System(_fourbar())
+    q, v, _ = _on_branch(math.pi + 1e-3)
+    q = q + np.array([0.0, 0.0, offset])
+    got = acceleration(system, build(system, "augmented_lagrangian"), q, v)
+    plain = acceleration(system, build(system, "augmented_lagrangian", refine=0), q, v)
+    forced = acceleration(system, build(system, "augmented_lagrangian", refine=REFINE,
+                                        refine_drift=None), q, v)
+    same, other = (plain, forced) if offset > REFINE_DRIFT else (forced, plain)
+    assert np.array_equal(got, same)
+    assert np.max(np.abs(got - other)) > 1e-6
+
+
 @pytest.mark.parametrize("refine", [-1, 2.5, "9"])
 def test_bad_refine_is_refused(refine):
     with pytest.raises(ModelError, match="refine must be an integer >= 0"):
         build(System(_fourbar()), "augmented_lagrangian", refine=refine)
+
+
+@pytest.mark.parametrize("drift", [0.0, -1e-9, float("nan"), "1e-9"])
+def test_bad_refine_drift_is_refused(drift):
+    with pytest.raises(ModelError, match="refine_drift must be a number > 0 or None"):
+        build(System(_fourbar()), "augmented_lagrangian", refine_drift=drift)

@@ -36,15 +36,18 @@ from casmbd.system.formulations.base import (
 )
 from casmbd.system.formulations.kkt_ode import kkt_ode
 
-#: corrections suggested for ``refine`` (tight tolerances through singular poses: the
-#: four-bar's crank error 1.2e-8 → 2.3e-10 at rtol 1e-13, docs/dynamics.md) and the error
-#: left by the regular iterations, relative to max |q̈|, above which they run
+#: extra corrections near singular poses (``refine``; the four-bar's crank error at rtol
+#: 1e-13: 1.8e-8 → 2.3e-10, docs/hard_cases.md) and the error left by the regular
+#: iterations, relative to max |q̈|, above which they run
 REFINE = 290
 REFINE_TOLERANCE = 1e-14
+#: the refinement runs only at states this consistent: max(‖C‖∞, ‖Ċ‖∞ / (2 α_B + 1)) ≤ it
+REFINE_DRIFT = 1e-10
 
 
 def augmented_lagrangian(system: System, penalty: float | None = None,
-                         iterations: int | None = None, refine: int = 0,
+                         iterations: int | None = None, refine: int | None = None,
+                         refine_drift: float | None = REFINE_DRIFT,
                          alpha: float = 20.0, beta: float = 20.0,
                          inputs: ca.SX | None = None) -> Formulation:
     """ODE on (q, v) by the augmented-Lagrangian iteration with Baumgarte terms.
@@ -63,17 +66,23 @@ def augmented_lagrangian(system: System, penalty: float | None = None,
     carries load (the four-bar in joint coordinates: the cut joint's force along the
     collinear links), q̈ is off by ≈ σ Δλ within |σ| ≲ √(m/α) — 3e-3 m/s² on the exact
     trajectory 1e-3 rad from the pose — and the motion gains ≈ 1.7e-9 J per pass whatever
-    the tolerance.  ``refine`` (e.g. :data:`REFINE`) more corrections run where the last two
-    say the iteration is not done (:func:`_refined`): the window narrows by √(1 + refine/10)
-    (290: below 1e-13 at 1e-3 rad, 1.2e-3 at 1e-4 rad).  Off by default: the narrower window is a sharper feature
-    of the right-hand side, and at rtol ≥ 1e-8 the four-bar then leaves its accuracy more
-    often (median crank error at rtol 1e-6: 1.6 rad against 2.6e-2).
+    the tolerance.  ``refine`` more corrections (default :data:`REFINE` with the shared
+    factorisation, 0 when every solve re-factorises) run where the last two say the
+    iteration is not done (:func:`_refined`) and the state is consistent,
+    max(‖C‖∞, ‖Ċ‖∞/(2α + 1)) ≤ ``refine_drift`` (:data:`REFINE_DRIFT`; ``None``: at any
+    state): the window narrows by √(1 + refine/10) (290: below 1e-13 at 1e-3 rad, 1.2e-3 at
+    1e-4 rad) and the four-bar's default path reaches 2.3e-10 at rtol 1e-13 (1.8e-8 without).
+    The gate matters: refined at any state, the narrower window is a sharper feature of the
+    right-hand side and loose-tolerance runs leave their accuracy (median crank error at
+    rtol 1e-6 over eight runs: 1.6 rad against 2.6e-2 unrefined, 1.8e-2 gated), since a
+    state that far off the constraints carries errors the unconverged direction must not
+    resolve.  At regular poses the switch is idle and q̈ bit-identical (tests/test_al_refine.py).
 
     Raises
     ------
     ModelError
-        For a penalty that is not a positive finite number, ``iterations`` < 1 or
-        ``refine`` < 0.
+        For a penalty that is not a positive finite number, ``iterations`` < 1,
+        ``refine`` < 0 or a ``refine_drift`` that is not a positive number.
     """
     t, q, v, pu = _sym_inputs(system)
     if system.nc == 0:
@@ -87,22 +96,30 @@ def augmented_lagrangian(system: System, penalty: float | None = None,
             and iterations >= 1)):
         raise ModelError(f"augmented_lagrangian: iterations must be an integer >= 1, got "
                          f"{iterations!r}")
-    if not (isinstance(refine, (int, np.integer)) and refine >= 0):
+    if not (refine is None or (isinstance(refine, (int, np.integer)) and refine >= 0)):
         raise ModelError(f"augmented_lagrangian: refine must be an integer >= 0, got "
                          f"{refine!r}")
+    if not (refine_drift is None or (isinstance(refine_drift, (int, float, np.floating))
+                                     and np.isfinite(refine_drift) and refine_drift > 0)):
+        raise ModelError(f"augmented_lagrangian: refine_drift must be a number > 0 or None, "
+                         f"got {refine_drift!r}")
     gamma_b = _baumgarte_gamma(system, alpha, beta)
+    cdot = ca.mtimes(cq, system.v) + system.constraint_time_derivative
+    drift = ca.fmax(ca.norm_inf(system.constraints), ca.norm_inf(cdot) / (2.0 * alpha + 1.0))
     parts = ca.Function("al_parts", [t, q, v, pu],
-                        [system.mass_matrix, _forces(system, inputs), cq, gamma_b])
+                        [system.mass_matrix, _forces(system, inputs), cq, gamma_b, drift])
     tm, qm, vm, pm = (ca.MX.sym(n, s.sparsity()) for n, s in
                       (("t", t), ("q", q), ("v", v), ("p", pu)))
     solver = al_solver(system.mass_matrix.sparsity(), cq.sparsity(), penalty, iterations,
-                       refine)
-    iterations, refine = solver.iterations, solver.refine
-    acc = solver(*parts(tm, qm, vm, pm))
+                       refine, refine_drift)
+    iterations, refine, refine_drift = solver.iterations, solver.refine, solver.refine_drift
+    pieces = parts(tm, qm, vm, pm)
+    acc = solver(*pieces[:solver.n_in()])
     f = _dyn("dyn_augmented_lagrangian", tm, ca.vertcat(qm, vm), ca.MX(0, 1), pm,
              ca.vertcat(vm, acc), ca.MX(0, 1))
     return Formulation("augmented_lagrangian", "ode", f, system.nq, 0, [],
                        {"penalty": penalty, "iterations": iterations, "refine": refine,
+                        "refine_drift": refine_drift,
                         "alpha": alpha,
                         "beta": beta})
 
@@ -117,7 +134,8 @@ SYMBOLIC_LIMIT = 12_000
 
 
 def al_solver(m_sparsity: ca.Sparsity, cq_sparsity: ca.Sparsity, penalty: float,
-              iterations: int | None = None, refine: int = 0) -> ca.Function:
+              iterations: int | None = None, refine: int | None = 0,
+              refine_drift: float | None = None) -> ca.Function:
     """The augmented-Lagrangian solve ``al_solve(M, Q, C_q, γ_b) -> q̈`` (an MX Function).
 
     K = M + α C_qᵀC_q is factorised once by a sparse LDLᵀ with an approximate-minimum-degree
@@ -140,6 +158,12 @@ def al_solver(m_sparsity: ca.Sparsity, cq_sparsity: ca.Sparsity, penalty: float,
     iterations : int, optional
         Solves with K (≥ 1); the multipliers are updated between them.  Default: 10 with
         the shared factorisation, 4 when every solve re-factorises.
+    refine : int or None, optional
+        More corrections where the iteration has not converged (:func:`_refined`); ``None``:
+        :data:`REFINE` with the shared factorisation, 0 otherwise.
+    refine_drift : float, optional
+        With it the Function takes a fifth input, the state's drift, and refines only where
+        that is at most ``refine_drift``.
     """
     n, nc = m_sparsity.size1(), cq_sparsity.size1()
     m_mat = ca.SX.sym("M", m_sparsity)
@@ -152,12 +176,17 @@ def al_solver(m_sparsity: ca.Sparsity, cq_sparsity: ca.Sparsity, penalty: float,
     shared = factor.n_instructions() <= SYMBOLIC_LIMIT
     if iterations is None:
         iterations = 10 if shared else 4
+    if refine is None:
+        refine = REFINE if shared else 0
+    if not refine:
+        refine_drift = None
     d_s, lt_s = ca.SX.sym("D", d.sparsity()), ca.SX.sym("LT", lt.sparsity())
     acc, lam = ca.SX.sym("a", n), ca.SX.sym("lambda", nc)
     violation = ca.mtimes(cq, acc) - gamma
     lam_next = lam + penalty * violation
     residual = (forces - ca.mtimes(m_mat, acc) - ca.mtimes(cq.T, lam_next)
                 - penalty * ca.mtimes(cq.T, violation))
+    drift_m = ca.MX.sym("drift")
     mm, fm, cm, gm = (ca.MX.sym(name, x.sparsity()) for name, x in
                       (("M", m_mat), ("Q", forces), ("Cq", cq), ("gamma", gamma)))
     # from q̈ = 0, λ = α γ_b the first correction is the first solve K⁻¹ (Q + α C_qᵀ γ_b), λ = 0
@@ -188,18 +217,20 @@ def al_solver(m_sparsity: ca.Sparsity, cq_sparsity: ca.Sparsity, penalty: float,
         before, (acc_x, lam_x) = acc_x, corrections(acc_x, lam_x, data, 1)
         last, (acc_x, lam_x) = acc_x, corrections(acc_x, lam_x, data, 1)
         acc_x = _refined(acc_x, lam_x, [last - before, acc_x - last], data, corrections,
-                         refine)
+                         refine, None if refine_drift is None else (drift_m, refine_drift))
     else:
         acc_x, lam_x = corrections(acc_x, lam_x, data, iterations)
-    solver = ca.Function("al_solve", [mm, fm, cm, gm], [acc_x], ["M", "Q", "Cq", "gamma"],
-                         ["a"])
+    ins, names = [mm, fm, cm, gm], ["M", "Q", "Cq", "gamma"]
+    if refine_drift is not None:
+        ins, names = [*ins, drift_m], [*names, "drift"]
+    solver = ca.Function("al_solve", ins, [acc_x], names, ["a"])
     solver.iterations = iterations
-    solver.refine = refine
+    solver.refine, solver.refine_drift = refine, refine_drift
     return solver
 
 
 def _refined(acc: ca.MX, lam: ca.MX, changes: list, data: list, corrections,
-             refine: int) -> ca.MX:
+             refine: int, gate=None) -> ca.MX:
     """``refine`` more corrections when the iteration has not converged: with the changes
     d₉, d₁₀ of the last two corrections (max norm) and their ratio ρ = d₁₀/d₉ (the slowest
     contraction rate 1/(1 + α σ²/m)), the error left is ≈ d₁₀ ρ/(1 − ρ); more corrections
@@ -217,6 +248,8 @@ def _refined(acc: ca.MX, lam: ca.MX, changes: list, data: list, corrections,
     bound = REFINE_TOLERANCE * ca.norm_inf(acc)
     # geometric tail: with the rate ρ = change / previous, the error left is ≈ change ρ/(1 − ρ)
     slow = ca.logic_and(change > bound, change * change > bound * (previous - change))
+    if gate is not None:
+        slow = ca.logic_and(slow, gate[0] <= gate[1])
     return switch(1 - slow, acc, lam, *data)
 
 
