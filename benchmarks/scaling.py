@@ -212,9 +212,19 @@ def _rhs_timings(sim, jac_budget: float) -> dict:
     return out
 
 
+#: largest chain for which Pinocchio's ``Data`` is allocated: ``model.createData()`` takes
+#: 0.18 / 0.63 / 4.1 GB of memory at N = 100 / 200 / 400 (Pinocchio 4.1, growing like
+#: N^2.7), so the 1000-rod chain's would exceed this machine's 24 GB (its run child was
+#: killed by the kernel's OOM killer)
+PINOCCHIO_MAX_N = 400
+
+
 def _pinocchio(n: int) -> dict:
     """µs per ``pinocchio.aba`` call on the same chain (``JointModelRZ`` joints, as
-    :mod:`benchmarks.pinocchio_aba`), in the same run; nothing without Pinocchio."""
+    :mod:`benchmarks.pinocchio_aba`), in the same run; nothing without Pinocchio or above
+    :data:`PINOCCHIO_MAX_N`."""
+    if n > PINOCCHIO_MAX_N:
+        return {}
     try:
         import pinocchio as pin
     except ImportError:

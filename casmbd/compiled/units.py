@@ -13,9 +13,10 @@ load): the right-hand side 376 kB of C, 15.9 s at ``-O2``; the post-processing 3
 ``-O2``, 9 s at ``-O0``.
 
 Rules (:func:`plan`): with flags chosen by the caller or ``$CASMBD_CFLAGS`` every function gets
-them; otherwise a function gets :data:`COLD_FLAGS` when its C alone exceeds
-:data:`LARGE_SOURCE` or when ``hot`` is given and does not name it, and the default flags
-otherwise.  Below :data:`SPLIT_SOURCE` bytes of C in all, one unit per distinct flag set (the
+them; otherwise a function gets :data:`COLD_FLAGS` when ``hot`` is given and does not name it
+or its C alone exceeds :data:`LARGE_SOURCE`, :data:`MEDIUM_FLAGS` when it exceeds
+:data:`MEDIUM_SOURCE`, and the default flags otherwise.  Below :data:`SPLIT_SOURCE` bytes
+of C in all, one unit per distinct flag set (the
 compiler's start-up dominates small builds); above it, one unit per function, except the hot
 functions and the functions that call one of them (an integrator's compiled block, the
 post-processing that takes q̈ from the dynamics) share one: the dynamics' C once.
@@ -36,12 +37,21 @@ import casadi
 
 from casmbd.errors import CompileError
 
-__all__ = ["COLD_FLAGS", "LARGE_SOURCE", "SPLIT_SOURCE", "compile_objects", "plan"]
+__all__ = ["COLD_FLAGS", "LARGE_SOURCE", "MEDIUM_FLAGS", "MEDIUM_SOURCE", "SPLIT_SOURCE",
+           "compile_objects", "plan"]
 
+#: a hot function whose C alone exceeds this many bytes gets :data:`MEDIUM_FLAGS`: gcc's
+#: ``-O2`` is superlinear on CasADi's long straight-line functions.  Measured (gcc 12, one
+#: core, right-hand sides of pendulum chains): articulated, 300 rods, 1.5 MB: -O2 97.8 s /
+#: 28.1 µs per call, -O1 16.4 s / 20.8 µs, -O0 2.8 s / 93.8 µs; augmented Lagrangian,
+#: 300 rods, 1.5 MB: -O1 50.4 s / 311 µs, -O0 6.0 s / 1193 µs.  Below this size ``-O2`` stays
+#: (augmented Lagrangian, 100 rods, 485 kB: -O2 13.0 s / 88 µs, -O1 7.8 s / 117 µs).
+MEDIUM_SOURCE = 1_000_000
+#: flags of the hot functions between :data:`MEDIUM_SOURCE` and :data:`LARGE_SOURCE`
+MEDIUM_FLAGS: tuple[str, ...] = ("-O1",)
 #: a function whose C alone exceeds this many bytes gets :data:`COLD_FLAGS` unless flags were
-#: chosen (a 100-rod chain in joint coordinates: 214 s at -O2, 190 s at -O1, 11 s at -O0 for
-#: 5.9 MB of C)
-LARGE_SOURCE = 1_000_000
+#: chosen (1000 rods, 5.7 MB: -O0 7.7 s; -O1 did not finish in 8 min on a loaded machine)
+LARGE_SOURCE = 2_000_000
 #: flags of the functions that are not hot, and of the large ones
 COLD_FLAGS: tuple[str, ...] = ("-O0",)
 #: above this many bytes of C in all, one translation unit per function
@@ -58,12 +68,14 @@ def plan(functions: Sequence[casadi.Function], generate: Callable[[list], str],
     """The translation units of ``functions`` (see the module notes); ``generate`` gives the
     C template of a list of functions."""
     alone = {f.name(): generate([f]) for f in functions}
-    if chosen is not None:
-        flags_of = {f.name(): list(chosen) for f in functions}
-    else:
-        flags_of = {f.name(): list(COLD_FLAGS) if len(alone[f.name()]) > LARGE_SOURCE
-                    or (hot is not None and f.name() not in hot) else list(default)
-                    for f in functions}
+    def by_size(size: int) -> list[str]:
+        return list(chosen) if chosen is not None else list(COLD_FLAGS) \
+            if size > LARGE_SOURCE else list(MEDIUM_FLAGS) if size > MEDIUM_SOURCE \
+            else list(default)
+
+    flags_of = {f.name(): list(COLD_FLAGS) if chosen is None and hot is not None
+                and f.name() not in hot else by_size(len(alone[f.name()]))
+                for f in functions}
     if sum(map(len, alone.values())) > SPLIT_SOURCE:
         # the hot functions and their callers share one unit: an integrator's block and the
         # post-processing call the dynamics, whose C then appears (and is compiled) once
@@ -72,9 +84,8 @@ def plan(functions: Sequence[casadi.Function], generate: Callable[[list], str],
                     or (hot_names and _calls(f) & hot_names)]
         if len(together) < 2:
             return [([f], alone[f.name()], flags_of[f.name()]) for f in functions]
-        source = generate(together)
-        flags = list(chosen) if chosen is not None else \
-            list(COLD_FLAGS) if len(source) > LARGE_SOURCE else list(default)
+        source = generate(together)  # flags by its largest hot function
+        flags = by_size(max(len(alone[f.name()]) for f in together if f.name() in hot_names))
         return [(together, source, flags)] + [([f], alone[f.name()], flags_of[f.name()])
                                               for f in functions if f not in together]
     groups: dict[tuple[str, ...], list[casadi.Function]] = {}
