@@ -703,48 +703,45 @@ NOTES = """\
 Read off the tables above and from one-off measurements on the same machine during the same
 hour (the latter not re-measured by the command):
 
-* *Cached second runs load in milliseconds.* Since commit 6ea9381 a build is found by what the
-  model is (`casmbd/compiled/modelkey.py`: a digest of the mechanism, the options, casmbd's
-  sources, CasADi, compiler and flags, computed before anything symbolic) and a model record
-  beside the verified libraries holds what the run needs, so the second `Simulator`
-  construction builds no System and writes no C: 0.01–0.08 s at every N measured here, against
-  1.7 s (abs_al) and 6.2 s (joint_aba) at N = 100 in the previous study, where a hit still
-  built every expression and hashed the generated code. At N = 1000 (abs_al, one-off: its run
-  child above was killed before it could report) the first build took 118.6 s and the second
-  construction 0.45 s and 0.42 s in two new processes (`import casmbd` before it: 2.3 s on the
-  loaded machine).
-* *Compile.* Since commit 1f2f216 large builds compile one translation unit per Function on
-  both cores, `-O2` only for the right-hand side the integrator calls, `-O0` for the rest
-  (`casmbd/compiled/units.py`); measured side by side on the 100-rod chain, abs_al: 13.9 s →
-  6.9 s for the whole first build. The `-O2` right-hand side is now the critical path: gcc
-  spends most of its time in register allocation on CasADi's long straight-line functions
-  (`-ftime-report`: LRA and IRA 5.0 of 8.2 s for the 512 kB articulated right-hand side at
-  N = 100; no flag set found that is much faster without a slower right-hand side).
-* *Symbolic build.* Since commit 6eab5cb a body's applied wrench (reactions, articulated
-  recursion) is one reverse sweep over its own force terms, not a Jacobian per term of the
-  whole mechanism: System + articulated formulation + reactions for 100 rods in joint
-  coordinates 18.2 s → 2.8 s (VM). Since commit ce80065 bodies at rest give q̇₀ = 0 in joint
-  coordinates without the symbolic Jacobian and Hessian of every twist (23.5 s of a 42.6 s
-  joint_aba first build at N = 100). The joint_aba rows come from a second run after these
-  commits; the abs_al and abs_kkt rows from the first, at commit ef5d21e, before 7c80449
-  replaced the augmented Lagrangian's sparse solve by a symbolic LDLᵀ (its right-hand side:
-  16 MB of C at N = 1000, measured once) — see the commands.
-* *What misses the N = 1000 target.* abs_al builds in 114 s (92 s of it gcc, 10 MB of C: one
-  unit per Function repeats the shared sub-Functions), and its right-hand side exceeds 1 MB at
-  N = 1000, so it is compiled at `-O0`. joint_aba is still O(N²) in code: the dense
-  joint-space mass matrix (13.7 MB of C at N = 300, compiled for the consistent start and the
-  mass-matrix check), the outputs (3.6 MB) and the reactions; only the post-processing of an
-  unconstrained tree now takes q̈ from the recursion (15.7 MB → the recursion's size at
-  N = 300). Reaching 30 s needs per-element Functions called in loops (`map` over bodies of
-  one kind, the recursion and the outputs as recursions): not done.
-* *Pinocchio, same run*: `pinocchio.aba` on the same chain (`JointModelRZ`) timed like our
-  right-hand side, per Python call, in the run child; both are inflated by the machine's load
-  (a quiet run: *Right-hand side against Pinocchio's ABA* below).
-* *Run children at N ≥ 300* exceeded the 300 s timeout on this machine: the reference solve at
-  rtol = 1e-12 of 1800–6000 states is what takes the time, so the solve-growth fits stop at
-  N = 100.
-* *Machine load*: shared with other sessions' jobs, load average 6–12 on 2 cores during the
-  first run; every second is inflated, by 2–4× against the previous study for the RHS.
+* *The default path of a chain is joint coordinates and the articulated recursion at every N*
+  (`casmbd/system/choice.py`: the size limit now applies only to mechanisms with loops or
+  Euler parameters). Its first build at N = 1000 takes 24.7 s (symbolic 5.6 s, C generation
+  2.7 s, compilation 16.4 s on both cores; 18.8 MB of C): the target of 30 s is met, at a
+  load average of 2.2–2.8 on the 2 cores. A cached second run constructs the simulator in
+  0.10 s. Before this session's changes the same build did not finish in 400 s at N = 300.
+* *Why it is O(N) now* (commits 16d4611, 6b03b46, afbd9ac and the `units` commits after them): the
+  virtual displacements of reactions and of the recursion are written with placeholder poses
+  (no AD sweep over a body's ancestors, which made the build O(N²)); each body's applied
+  wrench is built once; Q_v comes from the force recursion alone; the compiled M of joint
+  coordinates is N mapped columns ∂T/∂q̇ at unit rates (O(N) code, 2.1 MB at N = 1000,
+  instead of N² entries: 13.7 MB of C at N = 300 before); the outputs' velocities and
+  accelerations come from the recursive twists (147 k instead of 514 k operations at
+  N = 1000); an unconstrained ODE compiles no Q_e, Q_v or B (its consistent start takes q̈
+  from the recursion); the integrator's compiled block (DOPRI5) is compiled with the model in
+  one translation unit with the right-hand side and the post-processing that calls it (the
+  right-hand side's 5.7 MB of C were compiled three times).
+* *Compile flags by size.* A hot function up to 1 MB of C gets `-O2`, 1–2 MB `-O1` (gcc's
+  `-O2` is superlinear on CasADi's straight-line code: at N = 300 the articulated right-hand
+  side takes 97.8 s at `-O2` for 28.1 µs per call, 16.4 s at `-O1` for 20.8 µs, 2.8 s at
+  `-O0` for 93.8 µs, measured alone on one core), above 2 MB `-O0`. The N = 1000 right-hand
+  side (5.7 MB) is therefore `-O0`: 271 µs per call where `-O1` code would take about
+  70 µs, and `-O1` did not compile in 8 minutes on the loaded machine. This is why the solve
+  time grows like N^1.16 over 2–1000 (RHS N^1.05, steps N^-0.17) and misses N^1.1; with
+  `CASMBD_CFLAGS=-O1` a user trades minutes of compilation for the faster code. The
+  absolute-coordinate rows at N = 300 were measured before the `-O1` band (their right-hand
+  sides of 1–2 MB now compile at `-O1`: augmented Lagrangian 50.4 s / 311 µs against 6.0 s /
+  1193 µs at `-O0`).
+* *Pinocchio at N = 1000*: not measured. `pinocchio.Model.createData()` for the chain with
+  `JointModelRZ` joints takes 0.18 / 0.63 / 4.1 GB at N = 100 / 200 / 400 (Pinocchio 4.1,
+  growing like N^2.7); at N = 1000 the run children were killed by the kernel's OOM killer
+  after 24 GB, which cost the absolute-coordinate rows at N = 1000 their run figures (their
+  builds: abs_al 34.9 s, abs_kkt 28.8 s). The benchmark now skips Pinocchio above N = 400.
+  Up to N = 300 our right-hand side costs 0.13–0.30× Pinocchio's `aba` per Python call.
+* *Absolute coordinates* are the automatic choice only for mechanisms with many loops or no
+  spanning tree; their right-hand side (augmented Lagrangian: a symbolic sparse LDLᵀ of the
+  KKT matrix) grows like N^1.4 and is 8.4× Pinocchio at N = 300.
+* *Machine load*: the 2 cores were shared with other jobs (load averages above); the times
+  are upper bounds.
 
 """
 
@@ -775,7 +772,8 @@ def markdown(data: dict) -> str:
         "timeit runs; the ODE formulations build no Jacobian, so *FD Jac* is CasADi's "
         "finite-difference Jacobian of the compiled Function — 2 n_x + 1 evaluations "
         "— measured where it costs < 2 s), and solves with the default integrator "
-        "(CVODES-Adams for the absolute-coordinate configurations, DOPRI5 for joint_aba) at rtol = atol = 1e-4, 1e-5, … until the "
+        "(CVODES-Adams for the absolute-coordinate configurations, DOPRI5 for joint_aba) "
+        "at rtol = atol = 1e-4, 1e-5, … until the "
         "tip-position error is ≤ 1e-6: *solve* is `stats['solve_seconds']` (integration "
         "only; median of up to 3 runs) at the loosest tolerance that reaches it. *ref*: the "
         "stored minimal-coordinate reference (N = 2, 8, 32) or the same Simulator at "
