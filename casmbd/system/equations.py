@@ -512,6 +512,8 @@ class System(AppliedForces, Outputs, Reactions):
         grows like N (the dense CRBA matrix of :meth:`mass_matrix` has N² entries: 13.7 MB of C
         for a 300-rod chain); evaluating it costs the O(N²) it must."""
         q, v, p = self.q, self.v, self.p
+        if self.nq == 0:  # nothing moves: an empty matrix (a map over no column is refused)
+            return ca.Function("mass_matrix", [q, p], [ca.SX(0, 0)], ["q", "p"], ["M"])
         product = ca.gradient(self.kinetic_energy, v)
         for idx, c, pe, _ in self._normalization():
             product[idx] = product[idx] + c * pe * ca.dot(pe, v[idx])
