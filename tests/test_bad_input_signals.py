@@ -210,21 +210,25 @@ def _chain_scene(n: int) -> str:
 
 
 def test_ctrl_c_stops_the_c_compiler(tmp_path):
-    """A 150-body chain (the automatic choice: joint coordinates) compiles for tens of seconds
-    in an empty cache: Ctrl-C ends gcc, exits 130 (not a fallback to the virtual machine, not
-    status 0) and leaves no partial library in the cache — a library finished before the
-    interrupt (a small one is compiled first) stays only with its hash record."""
+    """A 300-body chain (the automatic choice: joint coordinates) compiles for over ten
+    seconds in an empty cache (its right-hand side at -O1): Ctrl-C ends gcc, exits 130 (not a
+    fallback to the virtual machine, not status 0) and leaves no partial library in the
+    cache — a library finished before the interrupt (a small one is compiled first) stays
+    only with its hash record."""
     scene = tmp_path / "chain.toml"
-    scene.write_text(_chain_scene(150))
+    scene.write_text(_chain_scene(300))
     cache, out = tmp_path / "cache", tmp_path / "run.npz"
     proc = _start(["simulate", str(scene), "--t-end", "0.01", "--steps", "1", "--mode", "auto",
                    "--out", str(out)], {"CASMBD_CACHE_DIR": str(cache)})
-    # the compiler writes to a temporary name in the cache (renamed when it is done)
-    _wait_until(proc, lambda: cache.is_dir() and any(cache.glob(".*.so.tmp")), "the compiler")
+    # the compiler writes its translation units, objects and library under temporary names
+    # in the cache (the library renamed when it is done)
+    _wait_until(proc, lambda: cache.is_dir() and (any(cache.glob(".*.so.tmp"))
+                                                  or any(cache.glob(".*.units.*"))),
+                "the compiler")
     time.sleep(0.5)
     _interrupt(proc, "simulate")
     assert not out.exists()
-    assert [p.name for p in cache.iterdir() if p.suffix == ".tmp"] == []
+    assert [p.name for p in cache.iterdir() if p.suffix == ".tmp" or ".units." in p.name] == []
     for lib in cache.glob("*.so"):  # finished and recorded (cache.py writes the record first)
         assert lib.with_name(lib.name + ".json").is_file(), lib.name
 

@@ -356,7 +356,10 @@ def _build(
             return loaded, report
 
     record = {"key": key, "functions": expected}
-    with tempfile.TemporaryDirectory(prefix="casmbd_cg_") as tmpdir:
+    # the translation units and objects beside the library: an interrupted build leaves
+    # nothing behind, and the compiler's files are where the cache is
+    with tempfile.TemporaryDirectory(dir=library.parent, prefix=f".{library.stem}.units.") \
+            as tmpdir:
         paths = [pathlib.Path(tmpdir) / f"{stem}_u{i}.c" for i in range(len(plan))]
         for path, text in zip(paths, sources, strict=True):
             path.write_text(text, encoding="utf-8")
