@@ -1,0 +1,306 @@
+"""Modal reduction of a finite-element model: Craig–Bampton and free-interface normal modes.
+
+Component mode synthesis (seed 002, "Equations of Motion with Flexible Bodies": the
+deformation is a combination of "Component Mode Synthesis base vectors Φ(i)").  Sources:
+R. R. Craig and M. C. C. Bampton, "Coupling of substructures for dynamic analyses", AIAA J.
+6(7), 1968; Craig and Kurdila, *Fundamentals of Structural Dynamics* (2nd ed., 2006), ch. 17.
+
+Craig–Bampton
+    Interface dofs B (every dof of the interface nodes), interior dofs I.  Fixed-interface
+    normal modes ``(K_II − ω² M_II) φ = 0`` (the lowest ``modes``) and static constraint modes
+    ``Ψ_IB = −K_II⁻¹ K_IB`` (unit displacement of one interface dof, the others held, no load
+    inside).  The rigid-body motion of a free body lies in the span of the constraint modes;
+    the floating frame carries it, so the constraint modes of the *reference node* (the first
+    interface) are left out: the basis is that of the body clamped at the reference node, whose
+    undeformed frame is the body frame.  The basis ``T = [Φ_fixed, Ψ]`` is then orthonormalised
+    by the small eigenproblem ``(Tᵀ K T) q = ω² (Tᵀ M T) q``, ``Φ = T Q``: the reduced M and K
+    are ``I`` and ``diag(ω²)``, so a damping ratio applies per mode.
+Free-interface normal modes
+    The lowest ``modes`` elastic eigenmodes of the free structure ``(K − ω² M) φ = 0``.  The
+    rigid-body modes (``K R = 0``; plane: 2 translations and the rotation about z, space: 3 + 3)
+    are dropped and the elastic ones explicitly mass-orthogonalised against them,
+    ``φ ← φ − R (RᵀMR)⁻¹ RᵀM φ`` (the linearised mean-axis conditions ``RᵀMΦ = 0``; exact
+    eigenvectors satisfy them already, the projection removes rounding), then re-normalised.
+
+Eigenproblems up to :data:`DENSE_LIMIT` dofs use ``scipy.linalg.eigh``; larger ones
+``scipy.sparse.linalg.eigsh`` in shift-invert mode (σ = 0 for a clamped structure, σ < 0 for a
+free one, whose K is singular), constraint modes a sparse LU of ``K_II``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import scipy.linalg as sl
+import scipy.sparse as sp
+import scipy.sparse.linalg as spl
+
+from casmbd.errors import ModelError
+from casmbd.model.modal import (
+    FEModel,
+    ModalData,
+    cache_key,
+    rotational_dofs,
+)
+
+__all__ = ["DENSE_LIMIT", "craig_bampton", "free_modes", "reduce", "rigid_body_modes"]
+
+#: Largest eigenproblem (dofs) solved densely; above it shift-invert Lanczos.
+DENSE_LIMIT = 1500
+
+
+def rigid_body_modes(model: FEModel) -> np.ndarray:
+    """Rigid-body modes R (n_dof × 3 plane, × 6 space) about the body-frame origin.
+
+    Columns: translations along x, y (, z), then small rotations about z (plane) or x, y, z
+    (space): nodal translation ``ω × x_i``, nodal rotation ``ω`` (for nodes with rotational
+    dofs).
+    """
+    dim, d, n = model.dimension, model.dofs_per_node, model.n_nodes
+    x = model.positions
+    rot = rotational_dofs(dim, d)
+    if dim == 2:
+        R = np.zeros((n, d, 3))
+        R[:, 0, 0] = 1.0
+        R[:, 1, 1] = 1.0
+        R[:, 0, 2] = -x[:, 1]
+        R[:, 1, 2] = x[:, 0]
+        if rot:
+            R[:, rot[0], 2] = 1.0
+        return R.reshape(n * d, 3)
+    R = np.zeros((n, d, 6))
+    for k in range(3):
+        R[:, k, k] = 1.0
+        w = np.zeros(3)
+        w[k] = 1.0
+        R[:, :3, 3 + k] = np.cross(w, x)
+        if rot:
+            R[:, rot[k], 3 + k] = 1.0
+    return R.reshape(n * d, 6)
+
+
+def _as_dense(A) -> np.ndarray:
+    return A.toarray() if sp.issparse(A) else np.asarray(A, dtype=float)
+
+
+def _lowest(K, M, k: int, *, singular: bool, where: str) -> tuple[np.ndarray, np.ndarray]:
+    """The ``k`` lowest eigenpairs of ``K φ = λ M φ``, M-normalised, ascending."""
+    n = K.shape[0]
+    if k < 1:
+        raise ModelError(f"{where}: at least one mode is needed, got {k}")
+    if k > n:
+        raise ModelError(f"{where}: {k} modes asked for but the problem has only {n} dofs")
+    try:
+        if n <= DENSE_LIMIT or k >= n - 1:
+            lam, V = sl.eigh(_as_dense(K), _as_dense(M), subset_by_index=[0, k - 1])
+        else:
+            Ks, Ms = sp.csc_matrix(K), sp.csc_matrix(M)
+            sigma = 0.0
+            if singular:
+                # a small negative shift: K − σM is regular, the lowest modes are nearest σ
+                ratio = Ks.diagonal() / np.where(Ms.diagonal() > 0, Ms.diagonal(), np.inf)
+                sigma = -1e-6 * float(np.median(ratio[ratio > 0])) if np.any(ratio > 0) else -1.0
+            lam, V = spl.eigsh(Ks, k=k, M=Ms, sigma=sigma, which="LM")
+            order = np.argsort(lam)
+            lam, V = lam[order], V[:, order]
+            V = V / np.sqrt(np.einsum("ij,ij->j", V, Ms @ V))
+    except (np.linalg.LinAlgError, sl.LinAlgError, RuntimeError, ValueError) as exc:
+        raise ModelError(f"{where}: the eigenproblem failed ({exc}); is the mass matrix "
+                         "positive definite on every dof?") from exc
+    return lam, V
+
+
+def _split(model: FEModel, Phi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Nodal translations (n, dim, m) and rotations ((n, m) plane, (n, 3, m) space) of Φ."""
+    dim, d, n, m = model.dimension, model.dofs_per_node, model.n_nodes, Phi.shape[1]
+    P = Phi.reshape(n, d, m)
+    rot = rotational_dofs(dim, d)
+    phi_t = P[:, :dim, :].copy()
+    if dim == 2:
+        phi_r = P[:, rot[0], :].copy() if rot else np.zeros((n, m))
+    else:
+        phi_r = P[:, list(rot), :].copy() if rot else np.zeros((n, 3, m))
+    return phi_t, phi_r
+
+
+def _finish(model: FEModel, Phi: np.ndarray, reduction: str, reference: int | None,
+            key: str) -> ModalData:
+    M, K = model.mass_matrix, model.stiffness_matrix
+    Mr = Phi.T @ (M @ Phi)
+    Kr = Phi.T @ (K @ Phi)
+    Mr, Kr = 0.5 * (Mr + Mr.T), 0.5 * (Kr + Kr.T)
+    lam = np.diag(Kr).copy()
+    if np.any(lam < 0.0):
+        lam = np.maximum(lam, 0.0)
+    R = rigid_body_modes(model)
+    rigid = R.T @ (M @ R)
+    phi_t, phi_r = _split(model, Phi)
+    return ModalData(dimension=model.dimension, positions=model.positions.copy(),
+                     masses=model.masses.copy(), inertias=model.inertias.copy(),
+                     phi_t=phi_t, phi_r=phi_r, mass=Mr, stiffness=Kr,
+                     frequencies=np.sqrt(lam), node_names=dict(model.node_names),
+                     reduction=reduction, reference=reference,
+                     rigid_mass=0.5 * (rigid + rigid.T), source=model.source, key=key)
+
+
+def _model_key(model: FEModel):
+    if model.inputs:
+        return model.inputs
+    return {"M": model.mass_matrix, "K": model.stiffness_matrix, "x": model.positions,
+            "d": model.dofs_per_node, "m": model.masses, "J": model.inertias,
+            "names": dict(model.node_names)}
+
+
+def _node_index(model: FEModel, node: str | int, what: str) -> int:
+    if isinstance(node, str):
+        return model.node(node)
+    if isinstance(node, bool) or not isinstance(node, int | np.integer) \
+            or not 0 <= node < model.n_nodes:
+        raise ModelError(f"{model.source}: {what} {node!r} is neither a node name nor a node "
+                         f"index in [0, {model.n_nodes})")
+    return int(node)
+
+
+def craig_bampton(model: FEModel, modes: int, interfaces: Sequence[str | int], *,
+                  reference: str | int | None = None) -> ModalData:
+    """Craig–Bampton basis: ``modes`` fixed-interface normal modes + the static constraint
+    modes of every dof of the interface nodes other than the reference node, orthonormalised.
+
+    Parameters
+    ----------
+    model : FEModel
+    modes : int
+        Number of fixed-interface normal modes (0 keeps only constraint modes).
+    interfaces : sequence of node names or indices
+        Interface nodes (where joints, forces attach); the first is the reference node unless
+        ``reference`` is given (it is then added to the interfaces).
+    reference : str or int, optional
+        The node clamped in the body frame.
+
+    Returns
+    -------
+    ModalData
+        ``modes + d·(n_interfaces − 1)`` modes (d dofs per node), frequencies ascending.
+    """
+    src = model.source
+    if isinstance(modes, bool) or not isinstance(modes, int | np.integer) or modes < 0:
+        raise ModelError(f"{src}: modes must be a non-negative integer, got {modes!r}")
+    if isinstance(interfaces, str):
+        interfaces = [interfaces]
+    nodes = [_node_index(model, v, "interface") for v in interfaces]
+    if reference is not None:
+        ref = _node_index(model, reference, "reference node")
+        nodes = [ref, *[i for i in nodes if i != ref]]
+    if not nodes:
+        raise ModelError(f"{src}: Craig–Bampton needs at least one interface node (the first "
+                         "is clamped in the body frame)")
+    if len(set(nodes)) != len(nodes):
+        raise ModelError(f"{src}: interface nodes repeat: {list(interfaces)}")
+    ref = nodes[0]
+    B = np.concatenate([model.node_dofs(i) for i in nodes])
+    Bc = np.concatenate([model.node_dofs(i) for i in nodes[1:]]) if len(nodes) > 1 \
+        else np.zeros(0, dtype=int)
+    interior = np.setdiff1d(np.arange(model.n_dof), B)
+    if modes + Bc.size == 0:
+        raise ModelError(f"{src}: Craig–Bampton with one interface needs modes >= 1")
+    K = sp.csr_matrix(model.stiffness_matrix)
+    M = sp.csr_matrix(model.mass_matrix)
+    Kii = K[interior][:, interior]
+    Mii = M[interior][:, interior]
+    cols = []
+    if modes:
+        lam, V = _lowest(Kii, Mii, int(modes), singular=False,
+                         where=f"{src}: fixed-interface normal modes")
+        if lam[0] <= 0.0:
+            raise ModelError(f"{src}: the structure clamped at its interfaces still moves "
+                             f"freely (eigenvalue {lam[0]:.3g}); add interface nodes")
+        F = np.zeros((model.n_dof, modes))
+        F[interior] = V
+        cols.append(F)
+    if Bc.size:
+        try:
+            rhs = -K[interior][:, Bc].toarray()
+            if interior.size <= DENSE_LIMIT:
+                X = sl.solve(Kii.toarray(), rhs, assume_a="sym")
+            else:
+                X = spl.splu(sp.csc_matrix(Kii)).solve(rhs)
+        except (np.linalg.LinAlgError, sl.LinAlgError, RuntimeError) as exc:
+            raise ModelError(f"{src}: the interior stiffness K_II is singular ({exc}): the "
+                             "structure clamped at its interfaces can still move") from exc
+        if not np.all(np.isfinite(X)):
+            raise ModelError(f"{src}: the interior stiffness K_II is singular: the structure "
+                             "clamped at its interfaces can still move")
+        C = np.zeros((model.n_dof, Bc.size))
+        C[Bc, np.arange(Bc.size)] = 1.0
+        C[interior] = X
+        cols.append(C)
+    T = np.hstack(cols)
+    Mt = T.T @ (M @ T)
+    Kt = T.T @ (K @ T)
+    try:
+        lam, Q = sl.eigh(0.5 * (Kt + Kt.T), 0.5 * (Mt + Mt.T))
+    except (np.linalg.LinAlgError, sl.LinAlgError) as exc:
+        raise ModelError(f"{src}: the Craig–Bampton reduced mass matrix is singular ({exc}); "
+                         "do interface nodes carry mass?") from exc
+    if lam[0] <= 1e-10 * max(lam[-1], 1e-300):
+        raise ModelError(f"{src}: clamping the reference node {ref} leaves a rigid-body motion "
+                         f"(eigenvalue {lam[0]:.3g}); nodes without rotational dofs need "
+                         "another reference")
+    key = cache_key("craig_bampton", _model_key(model), int(modes), nodes)
+    return _finish(model, T @ Q, "craig_bampton", ref, key)
+
+
+def free_modes(model: FEModel, modes: int, *, rigid_tolerance: float = 1e-8) -> ModalData:
+    """Free-interface normal modes, rigid-body modes removed (module docstring).
+
+    Parameters
+    ----------
+    model : FEModel
+    modes : int
+        Number of elastic modes kept.
+    rigid_tolerance : float
+        A rigid-body mode R_k counts when ``‖K R_k‖ ≤ tol · ‖K‖ · ‖R_k‖`` (max norms); only
+        those are dropped (an imported model held somewhere has fewer).
+    """
+    src = model.source
+    if isinstance(modes, bool) or not isinstance(modes, int | np.integer) or modes < 1:
+        raise ModelError(f"{src}: modes must be a positive integer, got {modes!r}")
+    K = sp.csr_matrix(model.stiffness_matrix)
+    M = sp.csr_matrix(model.mass_matrix)
+    R = rigid_body_modes(model)
+    knorm = float(abs(K).max()) if K.nnz else 0.0
+    KR = K @ R
+    keep = [j for j in range(R.shape[1])
+            if np.abs(KR[:, j]).max() <= rigid_tolerance * knorm * np.abs(R[:, j]).max()]
+    R = R[:, keep]
+    nr = R.shape[1]
+    lam, V = _lowest(K, M, int(modes) + nr, singular=nr > 0,
+                     where=f"{src}: free-interface normal modes")
+    scale = max(abs(lam[-1]), 1e-300)
+    if nr and np.any(np.abs(lam[:nr]) > 1e-6 * scale):
+        raise ModelError(f"{src}: expected {nr} rigid-body modes with zero frequency, got "
+                         f"eigenvalues {lam[:nr].tolist()}")
+    if lam[nr] <= 1e-8 * scale:
+        raise ModelError(f"{src}: the free structure has more zero-energy modes than its {nr} "
+                         f"rigid-body modes (eigenvalue {lam[nr]:.3g}): a mechanism or a "
+                         "disconnected part")
+    Phi = V[:, nr:]
+    if nr:
+        MR = M @ R
+        Phi = Phi - R @ np.linalg.solve(R.T @ MR, MR.T @ Phi)
+        Phi = Phi / np.sqrt(np.einsum("ij,ij->j", Phi, M @ Phi))
+    key = cache_key("free", _model_key(model), int(modes), float(rigid_tolerance))
+    return _finish(model, Phi, "free", None, key)
+
+
+def reduce(model: FEModel, reduction: str, modes: int,
+           interfaces: Sequence[str | int] = ()) -> ModalData:
+    """Dispatch on the scene key ``reduction``: ``"craig_bampton"`` (interfaces required) or
+    ``"free"`` (interfaces ignored: joints attach at any node)."""
+    if reduction == "craig_bampton":
+        return craig_bampton(model, modes, interfaces)
+    if reduction == "free":
+        return free_modes(model, modes)
+    raise ModelError(f"{model.source}: reduction must be 'craig_bampton' or 'free', "
+                     f"got {reduction!r}")
