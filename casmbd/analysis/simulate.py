@@ -368,7 +368,8 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
             raise IntegratorError(
                 f"integrator '{name}' ({self.formulation_name}) failed at t = {t_fail:.6g} with "
                 f"{flag} ({msg}); results kept up to t = {grid[n_ok - 1]:.6g} "
-                f"({n_ok} of {len(grid)} output times){self._diagnose(result, t_fail)}", t_fail,
+                f"({n_ok} of {len(grid)} output times){self._diagnose(result, t_fail)}"
+                f"{self.kind.failure_hint(flag, rtol)}", t_fail,
                 flag,
                 result)
         return result

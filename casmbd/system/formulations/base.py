@@ -98,6 +98,11 @@ class FormulationKind:
         multipliers ``lam``: (q̈, λ) for a DAE, empty otherwise."""
         return np.concatenate([a, lam]) if self.kind == "dae" else np.zeros(0)
 
+    def failure_hint(self, flag: str, rtol: float) -> str:
+        """Advice appended to an integrator failure of this formulation (the SUNDIALS
+        ``flag`` at relative tolerance ``rtol``); none by default."""
+        return ""
+
     def preferred_for(self, system: System) -> bool:
         """Whether this formulation is the default for ``system`` (checked in registration
         order before :data:`DEFAULT_FORMULATION`)."""
