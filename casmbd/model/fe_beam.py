@@ -133,7 +133,7 @@ def _per_element(name: str, value, n: int, source: str, *, required: bool = True
     if bad.size:
         raise ModelError(f"{source}: property {name} must be finite and "
                          f"{'positive' if positive else 'non-negative'}; element {int(bad[0])} "
-                         f"has {a[bad[0]]!r}")
+                         f"has {float(a[bad[0]])!r}")
     return a
 
 
