@@ -119,7 +119,7 @@ def markdown(data: dict) -> str:
              "J_N: optimal objective on N control intervals; d_N = J_N − J_2N; ratio "
              "d_N / d_2N (4 for a second-order convergence); J_∞: Richardson estimate from the "
              "finest three grids; replay: largest state error of the controls "
-             "forward-simulated on IDAS (rtol 1e-10).", ""]
+             "forward-simulated on IDAS (rtol 1e-12, the default of `OcpSolution.replay`).", ""]
     for problem in CASES:
         keys = [k for k in res if k[0] == problem]
         lines += [f"`ocp/{problem}.toml`:", "",

@@ -136,7 +136,7 @@ class OcpSolution:
                 else float(self.u[0, i]) for i, name in enumerate(self.controls)}
 
     # ------------------------------------------------------------------ replay
-    def replay(self, rtol: float = 1e-10, formulation: str = "index1",
+    def replay(self, rtol: float = 1e-12, formulation: str = "index1",
                integrator: str | None = None, steps_per_interval: int = 1):
         """Forward-simulate the optimal controls from the optimal initial state.
 
@@ -145,7 +145,9 @@ class OcpSolution:
         history: 5e-4 instead of 3e-5 on the double-pendulum swing-up).  Returns the simulation
         :class:`~casmbd.results.Result` and stores ``stats["replay_error"]``: the largest
         |q − q_ocp| and |q̇ − q̇_ocp| over the mesh nodes (a measure of the transcription's
-        discretisation error, amplified by the dynamics).
+        discretisation error, amplified by the dynamics).  The default tolerance 1e-12 keeps
+        the integrator's own error out of that figure: at 1e-10 the double-pendulum swing-up
+        (two elements per interval) replayed to 1.5e-4, at 1e-12 to 6.4e-7.
         """
         if self.ocp is None:
             raise AnalysisError("replay needs the problem (solution loaded from a file)")
