@@ -1,0 +1,547 @@
+"""Floating-frame equations of a modally reduced flexible body (lumped-mass invariants).
+
+A flexible body carries a body frame (origin R, rotation A) and modal coordinates η.  Node i of
+the lumped model (mass m_i, rotary inertia J_i about the node, body axes) sits at
+
+    r_i = R + A u_i,   u_i = u_i0 + Φ_i η,                       (seed 002, eq. 5–26)
+
+with Φ_i the nodal translations and Ψ_i the nodal small rotations of the component-mode-synthesis
+base vectors (:class:`casmbd.model.modal.ModalData`: ``positions``, ``phi_t``, ``phi_r``).  With
+the body-frame angular velocity ω̄ (ω = A ω̄; the plane: ω̄ = θ̇) the node velocity is
+ṙ_i = Ṙ + A (ω̄ × u_i + Φ_i η̇) and the node frame turns with ω̄ + Ψ_i η̇ (body axes), so
+
+    T = ½ Σ m_i |ṙ_i|² + ½ Σ (ω̄ + Ψ_i η̇)ᵀ J_i (ω̄ + Ψ_i η̇) = ½ wᵀ M(A, η) w,
+    w = (Ṙ, ω̄, η̇)
+
+(Shabana, *Dynamics of Multibody Systems*, 4th ed., 2013, ch. 5, eqs. 5.89–5.112: the floating
+frame of reference; the rotary term is the first-order nodal rotation, exact in the plane).
+Seed 002 decomposes M and the right-hand side "over a basis of invariant terms, which are computed
+only once in the generation pass ... using a lumped mass approach" (eqs. 5–29 to 5–34).  The set
+used here (d = 2 or 3 the dimension, n the number of modes, Φ_ik the column k of Φ_i):
+
+=========  ==============================  ==========================================
+invariant  definition                      use
+=========  ==============================  ==========================================
+m          Σ m_i                           M_RR = m 1
+S0, S1     Σ m_i u_i0,  Σ m_i Φ_i          S(η) = S0 + S1 η (first moment)
+P0         Σ m_i u_i0 u_i0ᵀ                P(η) = Σ m_i u_i u_iᵀ (pseudo-inertia)
+P1[k]      Σ m_i u_i0 Φ_ikᵀ                  = P0 + Σ η_k (P1[k] + P1[k]ᵀ)
+P2[k, l]   Σ m_i Φ_ik Φ_ilᵀ                    + Σ η_k η_l P2[k, l];  I_θθ = tr P 1 − P
+Q0, Q1     Σ m_i u_i0 × Φ_ik,               I_θf(η) = Σ m_i ũ_i Φ_i = Q0 + Σ η_l Q1[l]
+           Σ m_i Φ_il × Φ_ik
+M_ff       Σ m_i Φ_iᵀ Φ_i = tr P2          flexible mass (or ModalData.mass)
+J_r, J_Ψ   Σ J_i,  Σ J_i Ψ_i                rotary parts of M_ωω, M_ωf
+Ψ J Ψ      Σ Ψ_iᵀ J_i Ψ_i                   rotary part of M_ff
+=========  ==============================  ==========================================
+
+(Shabana's Ī_θθ, Ī_θf, S̄, S̄_f; Q0, Q1 are the antisymmetric parts of P1, P2, kept separate for
+clarity.)  The mass matrix in w = (Ṙ, ω̄, η̇) is
+
+    M = [[m 1,  −A S̃(η),           A S1        ],
+         [ ·,   I_θθ(η) + J_r,      I_θf(η) + J_Ψ],
+         [ ·,   ·,                  M_ff + ΨJΨ  ]]
+
+and the quadratic-velocity forces (M ẇ = Q_v + Q_e; Kane's generalized inertia forces of the
+nodes, with b_i = ω̄ × (ω̄ × u_i) + 2 ω̄ × Φ_i η̇, W_k = Σ m_i u_i Φ_ikᵀ = P1[k] + Σ η_l P2[l, k],
+D = Σ m_i u̇_i u_iᵀ = Σ η̇_k W_kᵀ, G = Σ η̇_l Q1[l]) are
+
+    Q_R = −A (ω̄ × (ω̄ × S) + 2 ω̄ × S1 η̇)
+    Q_ω = −ω̄ × (I_θθ ω̄) − 2 (tr D ω̄ − D ω̄) − ω̄ × (J_r ω̄ + J_Ψ η̇)
+    Q_f,k = −(ω̄ᵀ W_k ω̄ − |ω̄|² tr W_k) − 2 (Gᵀ ω̄)_k
+
+(Shabana, eqs. 5.160–5.170, written with the lumped invariants; the rotary part by the
+Euler–Poincaré form d/dt ∂T/∂ω̄ + ω̄ × ∂T/∂ω̄ of T's rotary term).  In the plane, ω̄ = θ̇ ẑ,
+x × y becomes the scalar x_x y_y − x_y y_x and u⊥ = ẑ × u:
+
+    M = [[m 1, A S⊥, A S1], [·, tr P + J_r, I_θf + J_Ψ], [·, ·, M_ff + ΨJΨ]]
+    Q_R = A (θ̇² S − 2 θ̇ (S1 η̇)⊥),  Q_θ = −2 θ̇ tr D,  Q_f = θ̇² tr W − 2 θ̇ Gᵀ,
+
+which are Lagrange's M = ∂²T/∂q̇² and Q_v = ∂T/∂q − Ṁ q̇ for q = (R, θ, η).  In space w is not a
+coordinate rate: with ω̄ = B(q) q̇ for a rotation parametrisation q, M_q = Bᵀ M B and
+Q_v,q = Bᵀ (Q_v − M Ḃ q̇) (checked in tests/test_ffrf.py with Euler angles).
+
+Elastic and damping forces: Q_f += −K η − C η̇ with C = M_ff V diag(2 ζ_k ω_k) Vᵀ M_ff, V the
+M_ff-normalised eigenvectors of (K, M_ff) — diag(2 ζ_k ω_k) for mass-normalised modes.
+
+Geometric stiffening (issue 23 item 1; Kane, Ryan & Banerjee, J. Guid. Control Dyn. 10(2),
+1987, the spin-up beam; Wallrapp & Wiedemann, Nonlinear Dyn. 34, 2003): the linear modal model
+misses the bending stiffness of the axial (centrifugal) load, and a beam spun above its first
+bending frequency diverges.  For a beam whose nodes lie on the body x axis (node order by x, the
+root at the smallest x, rotation about the body origin), the lumped centrifugal load gives the
+axial force of the element (x_j, x_j+1) as N_j = s(ω̄) Σ_{i>j} m_i x_i with s = θ̇² (plane) or
+ω̄_y² + ω̄_z² (space), and each element contributes the geometric stiffness of the Hermite beam
+(Przemieniecki, *Theory of Matrix Structural Analysis*, 1968, eq. 15.19; Cook et al.,
+*Concepts and Applications of FEA*, 4th ed., eq. 18.3-5)
+
+    K_G,e = N / (30 h) [[36, 3h, −36, 3h], [3h, 4h², −3h, −h²], [−36, −3h, 36, −3h],
+                        [3h, −h², −3h, 4h²]]   on (v_1, θ_1, v_2, θ_2)
+
+(the string form N/h [[1, −1], [−1, 1]] on v when the nodes carry no rotations), in each bending
+plane ((v, θz) and (w, −θy)).  Projected on the modes, K_G(ω̄) = s(ω̄) K_G1 and
+Q_f += −K_G(ω̄) η.  Neglected: the axial loads of the frame's linear and angular accelerations.
+
+Everything here is a CasADi SX expression of symbols the caller gives; the invariants are DM
+constants, so the expressions are built once and AD does the rest.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+import scipy.linalg
+
+from casmbd.errors import ModelError
+from casmbd.model.modal import ModalData
+from casmbd.model.rotations import rotation_matrix
+
+__all__ = ["FlexibleBody", "Invariants", "invariants", "planar_rotation"]
+
+FLEXIBLE_MASS = ("lumped", "reduced")
+
+
+@dataclass(frozen=True, eq=False)
+class Invariants:
+    """The lumped-mass invariants of one flexible body (module docstring for the definitions).
+
+    ``d`` = dimension, ``c`` = 1 (plane) or 3 (space) rotation components, ``n`` = modes.
+
+    Attributes
+    ----------
+    dimension : int
+    mass : float
+        Σ m_i [kg].
+    S0 : (d,) ; S1 : (d, n)
+        First moments Σ m_i u_i0, Σ m_i Φ_i.
+    P0 : (d, d) ; P1 : (d, d, n) ; P2 : (d, d, n, n)
+        Pseudo-inertia invariants: P1[:, :, k] = Σ m_i u_i0 Φ_ikᵀ,
+        P2[:, :, k, l] = Σ m_i Φ_ik Φ_ilᵀ.
+    Q0 : (c, n) ; Q1 : (c, n, n)
+        Q0[:, k] = Σ m_i u_i0 × Φ_ik, Q1[:, k, l] = Σ m_i Φ_il × Φ_ik.
+    J_r : (c, c) ; J_psi : (c, n) ; psi_j_psi : (n, n)
+        Rotary inertia invariants Σ J_i, Σ J_i Ψ_i, Σ Ψ_iᵀ J_i Ψ_i.
+    M_ff : (n, n)
+        Flexible mass used (lumped Σ m_i Φ_iᵀΦ_i + ΨJΨ, or ModalData.mass).
+    K, C : (n, n)
+        Reduced stiffness and modal damping.
+    K_G1 : (n, n) or None
+        Geometric stiffness per unit s(ω̄) (None: no stiffening).
+    positions : (N, d) ; phi_t : (N, d, n) ; phi_r : (N, c, n)
+        Node data for the node outputs.
+    node_names : dict[str, int]
+    """
+
+    dimension: int
+    mass: float
+    S0: np.ndarray
+    S1: np.ndarray
+    P0: np.ndarray
+    P1: np.ndarray
+    P2: np.ndarray
+    Q0: np.ndarray
+    Q1: np.ndarray
+    J_r: np.ndarray
+    J_psi: np.ndarray
+    psi_j_psi: np.ndarray
+    M_ff: np.ndarray
+    K: np.ndarray
+    C: np.ndarray
+    K_G1: np.ndarray | None
+    positions: np.ndarray
+    phi_t: np.ndarray
+    phi_r: np.ndarray
+    node_names: dict
+
+    @property
+    def n_modes(self) -> int:
+        """Number of modal coordinates."""
+        return int(self.S1.shape[1])
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a × b along axis 1 (shape (N, d, ...)); (N, 1, ...) scalar cross in the plane."""
+    if a.shape[1] == 3:
+        return np.cross(a, b, axis=1)
+    return (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])[:, None]
+
+
+def _array(value, shape: tuple, where: str) -> np.ndarray:
+    try:
+        arr = np.asarray(value, float)
+    except (TypeError, ValueError) as exc:
+        raise ModelError(f"{where}: expected numbers of shape {shape}") from exc
+    if arr.shape != shape:
+        raise ModelError(f"{where}: expected shape {shape}, got {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ModelError(f"{where}: non-finite value")
+    return arr
+
+
+def _checked(modal: ModalData, where: str) -> tuple[np.ndarray, ...]:
+    """(u0, m, J, Φ, Ψ, K, M_reduced) of ``modal`` with shapes and values checked."""
+    dim = modal.dimension
+    if dim not in (2, 3):
+        raise ModelError(f"{where} field 'dimension': expected 2 or 3, got {dim!r}")
+    u0 = np.asarray(modal.positions, float)
+    if u0.ndim != 2 or u0.shape[1] != dim:
+        raise ModelError(f"{where} field 'positions': expected shape (nodes, {dim}), "
+                         f"got {u0.shape}")
+    nn, c = u0.shape[0], 1 if dim == 2 else 3
+    phi = np.asarray(modal.phi_t, float)
+    if phi.ndim != 3 or phi.shape[:2] != (nn, dim):
+        raise ModelError(f"{where} field 'phi_t': expected shape ({nn}, {dim}, modes), "
+                         f"got {phi.shape}")
+    n = phi.shape[2]
+    u0 = _array(u0, (nn, dim), f"{where} field 'positions'")
+    phi = _array(phi, (nn, dim, n), f"{where} field 'phi_t'")
+    psi = _array(modal.phi_r, (nn, n) if dim == 2 else (nn, 3, n), f"{where} field 'phi_r'")
+    psi = psi.reshape(nn, c, n)
+    m = _array(modal.masses, (nn,), f"{where} field 'masses'")
+    jn = _array(modal.inertias, (nn,) if dim == 2 else (nn, 3, 3), f"{where} field 'inertias'")
+    jn = jn.reshape(nn, c, c)
+    if np.any(m < 0.0) or m.sum() <= 0.0:
+        raise ModelError(f"{where} field 'masses': nodal masses must be >= 0 with a positive sum")
+    if np.any(np.linalg.eigvalsh(0.5 * (jn + jn.transpose(0, 2, 1))) < -1e-12 * max(
+            1.0, float(np.abs(jn).max()))):
+        raise ModelError(f"{where} field 'inertias': a nodal rotary inertia is not positive "
+                         "semi-definite")
+    k = _array(modal.stiffness, (n, n), f"{where} field 'stiffness'")
+    mr = _array(modal.mass, (n, n), f"{where} field 'mass'")
+    return u0, m, jn, phi, psi, 0.5 * (k + k.T), 0.5 * (mr + mr.T)
+
+
+def _damping(K: np.ndarray, M: np.ndarray, ratio, where: str) -> np.ndarray:
+    """C = M V diag(2 ζ_k ω_k) Vᵀ M, V the M-normalised eigenvectors of K V = M V Λ."""
+    n = K.shape[0]
+    zeta = np.broadcast_to(np.asarray(ratio, float), (n,)) if np.ndim(ratio) == 0 else \
+        np.asarray(ratio, float)
+    if zeta.shape != (n,) or not np.all(np.isfinite(zeta)) or np.any(zeta < 0.0):
+        raise ModelError(f"{where} field 'damping_ratio': expected a number >= 0 or {n} of them, "
+                         f"got {ratio!r}")
+    if not np.any(zeta) or n == 0:
+        return np.zeros((n, n))
+    lam, vec = scipy.linalg.eigh(K, M)
+    omega = np.sqrt(np.clip(lam, 0.0, None))
+    mv = M @ vec
+    return mv @ np.diag(2.0 * zeta * omega) @ mv.T
+
+
+def _geometric_stiffness(u0, m, phi, psi, where: str) -> np.ndarray:
+    """K_G1 = Σ_e Φ_eᵀ K_G,e(N̂_e) Φ_e of a beam along the body x axis (module docstring)."""
+    dim, n = u0.shape[1], phi.shape[2]
+    scale = max(1.0, float(np.abs(u0).max()))
+    if np.any(np.abs(u0[:, 1:]) > 1e-12 * scale):
+        raise ModelError(f"{where}: geometric stiffening needs the nodes on the body x axis "
+                         "(a beam along x)")
+    order = np.argsort(u0[:, 0], kind="stable")
+    x = u0[order, 0]
+    if np.any(np.diff(x) <= 0.0):
+        raise ModelError(f"{where}: geometric stiffening needs distinct node positions along x")
+    # axial force per unit s(ω̄) in element j: the centrifugal load of the outboard nodes
+    outboard = np.cumsum((m[order] * x)[::-1])[::-1]
+    hermite = np.any(psi)
+    planes = [(1, 2, 1.0)] if dim == 2 else [(1, 2, 1.0), (2, 1, -1.0)]
+    kg = np.zeros((n, n))
+    for j in range(len(x) - 1):
+        h, axial = x[j + 1] - x[j], outboard[j + 1]
+        a, b = order[j], order[j + 1]
+        for trans, rot, sign in planes:
+            if hermite:
+                ke = axial / (30.0 * h) * np.array(
+                    [[36, 3 * h, -36, 3 * h], [3 * h, 4 * h * h, -3 * h, -h * h],
+                     [-36, -3 * h, 36, -3 * h], [3 * h, -h * h, -3 * h, 4 * h * h]])
+                rrow = 0 if dim == 2 else rot
+                basis = np.vstack([phi[a, trans], sign * psi[a, rrow], phi[b, trans],
+                                   sign * psi[b, rrow]])
+            else:
+                ke = axial / h * np.array([[1.0, -1.0], [-1.0, 1.0]])
+                basis = np.vstack([phi[a, trans], phi[b, trans]])
+            kg += basis.T @ ke @ basis
+    return 0.5 * (kg + kg.T)
+
+
+def invariants(modal: ModalData, *, damping_ratio=0.0, flexible_mass: str = "lumped",
+               stiffening: bool = False, name: str = "flexible body") -> Invariants:
+    """Compute the lumped-mass invariants of a flexible body once, with numpy.
+
+    Parameters
+    ----------
+    modal : casmbd.model.modal.ModalData
+        Node positions, masses, rotary inertias, modes (translations ``phi_t``, rotations
+        ``phi_r``), reduced stiffness and mass.
+    damping_ratio : float or array_like (n,)
+        Modal damping ratio ζ per mode (C = diag(2 ζ_k ω_k) for mass-normalised modes).
+    flexible_mass : {"lumped", "reduced"}
+        M_ff from the lumped nodes (Σ m_i Φ_iᵀΦ_i + Σ Ψ_iᵀ J_i Ψ_i: the exact lumped model, the
+        default) or ModalData.mass (Φᵀ M Φ of the FE mass matrix, the identity for
+        mass-normalised modes; consistent with the reduced frequencies).  M_ff is constant, so
+        the choice does not change Q_v.
+    stiffening : bool
+        Compute the centrifugal geometric stiffness K_G1 (beam along the body x axis).
+    name : str
+        Body name for messages.
+
+    Returns
+    -------
+    Invariants
+
+    Raises
+    ------
+    ModelError
+        Malformed modal data (naming the body and field), a bad damping ratio or
+        ``flexible_mass``, stiffening of nodes off the x axis.
+    """
+    where = f"flexible body '{name}'"
+    if flexible_mass not in FLEXIBLE_MASS:
+        raise ModelError(f"{where} field 'flexible_mass': expected one of {FLEXIBLE_MASS}, got "
+                         f"{flexible_mass!r}")
+    u0, m, jn, phi, psi, K, m_red = _checked(modal, where)
+    S0 = m @ u0
+    S1 = np.einsum("i,iak->ak", m, phi)
+    P0 = np.einsum("i,ia,ib->ab", m, u0, u0)
+    P1 = np.einsum("i,ia,ibk->abk", m, u0, phi)
+    P2 = np.einsum("i,iak,ibl->abkl", m, phi, phi)
+    u0e = np.broadcast_to(u0[:, :, None], phi.shape)
+    Q0 = np.einsum("i,iak->ak", m, _cross(u0e, phi))
+    # Q1[:, k, l] = Σ m_i Φ_il × Φ_ik
+    Q1 = np.einsum("i,iakl->akl", m, _cross(phi[:, :, None, :], phi[:, :, :, None]))
+    J_r = jn.sum(axis=0)
+    J_psi = np.einsum("iab,ibk->ak", jn, psi)
+    psi_j_psi = np.einsum("iak,iab,ibl->kl", psi, jn, psi)
+    lumped = np.einsum("aakl->kl", P2) + psi_j_psi
+    M_ff = 0.5 * (lumped + lumped.T) if flexible_mass == "lumped" else m_red
+    if M_ff.size and np.linalg.eigvalsh(M_ff)[0] <= 0.0:
+        raise ModelError(f"{where}: the flexible mass matrix ({flexible_mass}) is not positive "
+                         "definite (a mode moves no mass)")
+    C = _damping(K, M_ff, damping_ratio, where)
+    K_G1 = _geometric_stiffness(u0, m, phi, psi, where) if stiffening else None
+    return Invariants(modal.dimension, float(m.sum()), S0, S1, P0, P1, P2, Q0, Q1, J_r, J_psi,
+                      psi_j_psi, M_ff, K, C, K_G1, u0, phi, psi,
+                      dict(getattr(modal, "node_names", {}) or {}))
+
+
+def planar_rotation(theta) -> ca.SX:
+    """A(θ) = [[cos θ, −sin θ], [sin θ, cos θ]]."""
+    c, s = ca.cos(theta), ca.sin(theta)
+    return ca.vertcat(ca.horzcat(c, -s), ca.horzcat(s, c))
+
+
+def _dm(arr: np.ndarray) -> ca.DM:
+    return ca.DM(np.asarray(arr, float))
+
+
+def _flat(arr: np.ndarray) -> ca.DM:
+    """A (…, n) array as the DM (prod(…), n) whose columns are the column-major slices."""
+    arr = np.asarray(arr, float)
+    return _dm(arr.reshape(int(np.prod(arr.shape[:-1])), arr.shape[-1], order="F"))
+
+
+def _perp(vec):
+    return ca.vertcat(-vec[1], vec[0])
+
+
+class FlexibleBody:
+    """CasADi expressions of a flexible body in a floating frame (module docstring).
+
+    Inputs are SX expressions: ``A`` the rotation matrix (2×2 or 3×3, body → global), ``eta``
+    and ``etadot`` (n), ``Rdot`` (d), ``omega`` the body-frame angular velocity ω̄ (a scalar θ̇
+    in the plane, 3 in space).  Velocity order w = (Ṙ, ω̄, η̇), size d + c + n.
+
+    Parameters
+    ----------
+    inv : Invariants
+        From :func:`invariants`.
+    """
+
+    def __init__(self, inv: Invariants):
+        self.inv = inv
+        self.dimension = d = inv.dimension
+        self.rotations = c = 1 if d == 2 else 3
+        self.n_modes = n = inv.n_modes
+        self.size = d + c + n
+        self._S0, self._S1 = _dm(inv.S0), _dm(inv.S1)
+        self._P0, self._P1 = _dm(inv.P0), _flat(inv.P1)
+        # W-part: column k = vec Σ_l P2[:, :, l, k] η_l  → contract P2ᵀ(k, l) over l
+        self._P2 = _flat(inv.P2.transpose(0, 1, 3, 2).reshape(d, d, n, n))
+        self._Q0, self._Q1 = _dm(inv.Q0), _flat(inv.Q1)
+        self._trace = _dm(np.eye(d).reshape(1, -1))
+        self._Jr, self._Jpsi, self._Mff = _dm(inv.J_r), _dm(inv.J_psi), _dm(inv.M_ff)
+        self._K, self._C = _dm(inv.K), _dm(inv.C)
+        self._KG = None if inv.K_G1 is None else _dm(inv.K_G1)
+
+    # ------------------------------------------------------------------ invariant sums
+    def _first_moment(self, eta) -> ca.SX:
+        """S(η) = S0 + S1 η."""
+        return self._S0 + ca.mtimes(self._S1, eta)
+
+    def _w_matrix(self, eta) -> ca.SX:
+        """(d², n): column k = vec W_k, W_k = P1[k] + Σ_l η_l P2[l, k]."""
+        d, n = self.dimension, self.n_modes
+        if n == 0:
+            return ca.SX(d * d, 0)
+        return self._P1 + ca.reshape(ca.mtimes(self._P2, eta), d * d, n)
+
+    def pseudo_inertia(self, eta) -> ca.SX:
+        """P(η) = Σ m_i u_i u_iᵀ = P0 + Σ η_k (P1[k] + P1[k]ᵀ) + Σ η_k η_l P2[k, l]."""
+        d = self.dimension
+        if self.n_modes == 0:
+            return ca.SX(self._P0)
+        lin = ca.reshape(ca.mtimes(self._P1, eta), d, d)
+        quad = ca.reshape(ca.mtimes(ca.reshape(ca.mtimes(self._P2, eta), d * d, self.n_modes),
+                                    eta), d, d)
+        return self._P0 + lin + lin.T + quad
+
+    def _coupling(self, eta) -> ca.SX:
+        """I_θf(η) = Σ m_i ũ_i Φ_i = Q0 + Σ_l η_l Q1[:, :, l] (c × n)."""
+        c, n = self.rotations, self.n_modes
+        if n == 0:
+            return ca.SX(c, 0)
+        return self._Q0 + ca.reshape(ca.mtimes(self._Q1, eta), c, n)
+
+    # ------------------------------------------------------------------ inertia
+    def mass_matrix(self, A, eta) -> ca.SX:
+        """M(A, η) in w = (Ṙ, ω̄, η̇) (module docstring), symmetric, size d + c + n."""
+        d, inv = self.dimension, self.inv
+        S = self._first_moment(eta)
+        P = self.pseudo_inertia(eta)
+        if d == 2:
+            m_rw = ca.mtimes(A, _perp(S))
+            m_ww = ca.trace(P) + self._Jr
+        else:
+            m_rw = -ca.mtimes(A, ca.skew(S))
+            m_ww = ca.trace(P) * ca.SX.eye(3) - P + self._Jr
+        m_rf = ca.mtimes(A, self._S1)
+        m_wf = self._coupling(eta) + self._Jpsi
+        top = ca.horzcat(inv.mass * ca.SX.eye(d), m_rw, m_rf)
+        mid = ca.horzcat(m_rw.T, m_ww, m_wf)
+        bot = ca.horzcat(m_rf.T, m_wf.T, ca.SX(self._Mff))
+        return ca.vertcat(top, mid, bot)
+
+    def kinetic_energy(self, A, eta, Rdot, omega, etadot) -> ca.SX:
+        """T = ½ wᵀ M(A, η) w with w = (Ṙ, ω̄, η̇)."""
+        w = ca.vertcat(Rdot, omega, etadot)
+        return 0.5 * ca.bilin(self.mass_matrix(A, eta), w, w)
+
+    def quadratic_velocity_forces(self, A, eta, omega, etadot) -> ca.SX:
+        """Q_v(A, η, ω̄, η̇) with M ẇ = Q_v + Q_e (module docstring; size d + c + n).
+
+        In the plane these are Lagrange's ∂T/∂q − Ṁ q̇ for q = (R, θ, η).
+        """
+        S = self._first_moment(eta)
+        wm = self._w_matrix(eta)
+        tr_w = ca.mtimes(self._trace, wm)  # (1, n)
+        s1e = ca.mtimes(self._S1, etadot)
+        g = ca.reshape(ca.mtimes(self._Q1, etadot), self.rotations, self.n_modes) \
+            if self.n_modes else ca.SX(self.rotations, 0)
+        tr_d = ca.mtimes(tr_w, etadot)
+        if self.dimension == 2:
+            th = omega
+            q_r = ca.mtimes(A, th ** 2 * S - 2.0 * th * _perp(s1e))
+            q_w = -2.0 * th * tr_d
+            q_f = th ** 2 * tr_w.T - 2.0 * th * g.T
+            return ca.vertcat(q_r, q_w, q_f)
+        om = omega
+        P = self.pseudo_inertia(eta)
+        inertia = ca.trace(P) * ca.SX.eye(3) - P
+        dmat = ca.reshape(ca.mtimes(wm, etadot), 3, 3).T if self.n_modes else ca.SX(3, 3)
+        q_r = -ca.mtimes(A, ca.cross(om, ca.cross(om, S)) + 2.0 * ca.cross(om, s1e))
+        spin = ca.mtimes(inertia + self._Jr, om) + ca.mtimes(self._Jpsi, etadot)
+        q_w = -ca.cross(om, spin) - 2.0 * (tr_d * om - ca.mtimes(dmat, om))
+        oo = ca.vec(ca.mtimes(om, om.T))
+        q_f = -(ca.mtimes(wm.T, oo) - ca.dot(om, om) * tr_w.T) - 2.0 * ca.mtimes(g.T, om)
+        return ca.vertcat(q_r, q_w, q_f)
+
+    # ------------------------------------------------------------------ elastic forces
+    def stiffening_factor(self, omega) -> ca.SX:
+        """s(ω̄) = θ̇² (plane) or ω̄_y² + ω̄_z² (space): K_G(ω̄) = s K_G1."""
+        if self.dimension == 2:
+            return omega ** 2
+        return omega[1] ** 2 + omega[2] ** 2
+
+    def elastic_forces(self, eta, etadot, omega=None) -> ca.SX:
+        """Q_f = −K η − C η̇ − s(ω̄) K_G1 η (the last only with stiffening and ``omega`` given).
+
+        Raises
+        ------
+        ModelError
+            Stiffening computed but ``omega`` missing.
+        """
+        out = -ca.mtimes(self._K, eta) - ca.mtimes(self._C, etadot)
+        if self._KG is not None:
+            if omega is None:
+                raise ModelError("flexible body: geometric stiffening needs the angular "
+                                 "velocity (omega)")
+            out -= self.stiffening_factor(omega) * ca.mtimes(self._KG, eta)
+        return out
+
+    def elastic_energy(self, eta) -> ca.SX:
+        """V = ½ ηᵀ K η."""
+        return 0.5 * ca.bilin(self._K, eta, eta)
+
+    def generalized_forces(self, eta, etadot, omega, A=None) -> ca.SX:
+        """Elastic, damping (and stiffening) forces padded to the size of w (zeros on Ṙ, ω̄)."""
+        del A
+        return ca.vertcat(ca.SX(self.dimension + self.rotations, 1),
+                          self.elastic_forces(eta, etadot, omega))
+
+    # ------------------------------------------------------------------ nodes
+    def _node(self, node) -> int:
+        if isinstance(node, str):
+            if node not in self.inv.node_names:
+                raise ModelError(f"flexible body: no node named {node!r}; named nodes: "
+                                 f"{sorted(self.inv.node_names)}")
+            return int(self.inv.node_names[node])
+        count = self.inv.positions.shape[0]
+        if not (isinstance(node, int | np.integer) and 0 <= node < count):
+            raise ModelError(f"flexible body: node {node!r} is not a node name or an index "
+                             f"0..{count - 1}")
+        return int(node)
+
+    def node_offset(self, node, eta) -> ca.SX:
+        """u_i = u_i0 + Φ_i η (body frame)."""
+        i = self._node(node)
+        return _dm(self.inv.positions[i]) + ca.mtimes(_dm(self.inv.phi_t[i]), eta)
+
+    def node_position(self, node, R, A, eta) -> ca.SX:
+        """r_i = R + A (u_i0 + Φ_i η)  (seed 002, eq. 5–26)."""
+        return R + ca.mtimes(A, self.node_offset(node, eta))
+
+    def node_velocity(self, node, A, eta, Rdot, omega, etadot) -> ca.SX:
+        """ṙ_i = Ṙ + A (ω̄ × u_i + Φ_i η̇)."""
+        i = self._node(node)
+        u = self.node_offset(i, eta)
+        spin = omega * _perp(u) if self.dimension == 2 else ca.cross(omega, u)
+        return Rdot + ca.mtimes(A, spin + ca.mtimes(_dm(self.inv.phi_t[i]), etadot))
+
+    def node_rotation_vector(self, node, eta) -> ca.SX:
+        """ψ_i = Ψ_i η: the node's small rotation in body axes (an angle in the plane)."""
+        i = self._node(node)
+        return ca.mtimes(_dm(self.inv.phi_r[i]), eta)
+
+    def node_rotation(self, node, A, eta, exact: bool = True) -> ca.SX:
+        """Rotation matrix of the node frame (node → global).
+
+        Plane: A(θ) A(ψ_i), exact.  Space: ``exact=False`` gives the first-order A (1 + ψ̃_i);
+        ``exact=True`` the orthonormal A A(p), p = (1, ψ_i/2)/|(1, ψ_i/2)| (Euler parameters of
+        the Gibbs vector ψ_i/2: rotation angle 2 atan(|ψ|/2) = |ψ| − |ψ|³/12 + …, equal to
+        exp(ψ̃_i) to second order and smooth at ψ = 0).
+        """
+        psi = self.node_rotation_vector(node, eta)
+        if self.dimension == 2:
+            return ca.mtimes(A, planar_rotation(psi))
+        if not exact:
+            return ca.mtimes(A, ca.SX.eye(3) + ca.skew(psi))
+        p = ca.vertcat(1.0, 0.5 * psi)
+        return ca.mtimes(A, rotation_matrix(p / ca.norm_2(p)))
+
+    def node_angular_velocity(self, node, A, omega, etadot) -> ca.SX:
+        """Global angular velocity of the node frame A (ω̄ + Ψ_i η̇) (plane: θ̇ + Ψ_i η̇)."""
+        i = self._node(node)
+        rel = omega + ca.mtimes(_dm(self.inv.phi_r[i]), etadot)
+        return rel if self.dimension == 2 else ca.mtimes(A, rel)
+
+    def linear_momentum(self, A, eta, Rdot, omega, etadot) -> ca.SX:
+        """p = Σ m_i ṙ_i = ∂T/∂Ṙ = m Ṙ + M_Rω ω̄ + A S1 η̇."""
+        w = ca.vertcat(Rdot, omega, etadot)
+        return ca.mtimes(self.mass_matrix(A, eta)[:self.dimension, :], w)
