@@ -375,3 +375,27 @@ def test_bad_input(change, kwargs, message):
     data.update(change)
     with pytest.raises(ModelError, match=f"flexible body 'beam'.*{message}"):
         invariants(ModalData(**data), name="beam", **kwargs)
+
+
+def test_euler_parameter_form():
+    """With Euler parameters (ω̄ = 2 G(p) ṗ) and |p| = 1, pᵀṗ = 0: Bᵀ M B equals the Hessian of
+    T(A(p), 2 G ṗ) (1e-12) and Bᵀ Q_v equals AD's ∂T/∂q − Ṁ q̇ up to a multiple of the
+    normalisation gradient p (projected difference 1e-12)."""
+    modal = _modal(3, seed=3)
+    body, n = FlexibleBody(invariants(modal)), modal.n_modes
+    q, v = ca.SX.sym("q", 7 + n), ca.SX.sym("v", 7 + n)
+    p, pd, eta, etad = q[3:7], v[3:7], q[7:], v[7:]
+    A, om = rotation_matrix(p), 2.0 * ca.mtimes(G_matrix(p), pd)
+    M, Q = _lagrange(body.kinetic_energy(A, eta, v[:3], om, etad), q, v)
+    B = ca.diagcat(ca.SX.eye(3), 2.0 * G_matrix(p), ca.SX.eye(n))
+    f = ca.Function("f", [q, v], [M, ca.mtimes([B.T, body.mass_matrix(A, eta), B]), Q,
+                                  ca.mtimes(B.T, body.quadratic_velocity_forces(A, eta, om, etad))])
+    rng = np.random.default_rng(4)
+    qn, vn = rng.normal(size=7 + n), rng.normal(size=7 + n)
+    qn[3:7] /= np.linalg.norm(qn[3:7])
+    vn[3:7] -= qn[3:7] * np.dot(qn[3:7], vn[3:7])
+    m_ad, m_f, q_ad, q_f = (np.array(x) for x in f(qn, vn))
+    assert _rel(m_f, m_ad) < RTOL
+    proj = np.eye(7 + n)
+    proj[3:7, 3:7] -= np.outer(qn[3:7], qn[3:7])
+    assert np.max(np.abs(proj @ (q_f - q_ad))) < RTOL * np.max(np.abs(q_ad))

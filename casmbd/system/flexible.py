@@ -13,8 +13,8 @@ the body-frame angular velocity ω̄ (ω = A ω̄; the plane: ω̄ = θ̇) the n
     T = ½ Σ m_i |ṙ_i|² + ½ Σ (ω̄ + Ψ_i η̇)ᵀ J_i (ω̄ + Ψ_i η̇) = ½ wᵀ M(A, η) w,
     w = (Ṙ, ω̄, η̇)
 
-(Shabana, *Dynamics of Multibody Systems*, 4th ed., 2013, ch. 5, eqs. 5.89–5.112: the floating
-frame of reference; the rotary term is the first-order nodal rotation, exact in the plane).
+(Shabana, *Dynamics of Multibody Systems*, 4th ed., 2013, ch. 5, the floating frame of
+reference formulation; the rotary term is the first-order nodal rotation, exact in the plane).
 Seed 002 decomposes M and the right-hand side "over a basis of invariant terms, which are computed
 only once in the generation pass ... using a lumped mass approach" (eqs. 5–29 to 5–34).  The set
 used here (d = 2 or 3 the dimension, n the number of modes, Φ_ik the column k of Φ_i):
@@ -49,7 +49,7 @@ D = Σ m_i u̇_i u_iᵀ = Σ η̇_k W_kᵀ, G = Σ η̇_l Q1[l]) are
     Q_ω = −ω̄ × (I_θθ ω̄) − 2 (tr D ω̄ − D ω̄) − ω̄ × (J_r ω̄ + J_Ψ η̇)
     Q_f,k = −(ω̄ᵀ W_k ω̄ − |ω̄|² tr W_k) − 2 (Gᵀ ω̄)_k
 
-(Shabana, eqs. 5.160–5.170, written with the lumped invariants; the rotary part by the
+(Shabana, ch. 5, Newton–Euler form, written with the lumped invariants; the rotary part by the
 Euler–Poincaré form d/dt ∂T/∂ω̄ + ω̄ × ∂T/∂ω̄ of T's rotary term).  In the plane, ω̄ = θ̇ ẑ,
 x × y becomes the scalar x_x y_y − x_y y_x and u⊥ = ẑ × u:
 
@@ -58,7 +58,10 @@ x × y becomes the scalar x_x y_y − x_y y_x and u⊥ = ẑ × u:
 
 which are Lagrange's M = ∂²T/∂q̇² and Q_v = ∂T/∂q − Ṁ q̇ for q = (R, θ, η).  In space w is not a
 coordinate rate: with ω̄ = B(q) q̇ for a rotation parametrisation q, M_q = Bᵀ M B and
-Q_v,q = Bᵀ (Q_v − M Ḃ q̇) (checked in tests/test_ffrf.py with Euler angles).
+Q_v,q = Bᵀ (Q_v − M Ḃ q̇) (checked in tests/test_ffrf.py with Euler angles).  For Euler
+parameters (ω̄ = 2 G(p) ṗ, B = diag(1, 2G, 1)) Ḃ q̇ = 0 (G(ṗ) ṗ = 0): on |p| = 1, Bᵀ M B equals
+the Hessian of T(A(p), 2 G ṗ) exactly, and Bᵀ Q_v differs from AD's ∂T/∂q − Ṁ q̇ only along p,
+which the normalisation constraint's multiplier absorbs (also checked in the tests).
 
 Elastic and damping forces: Q_f += −K η − C η̇ with C = M_ff V diag(2 ζ_k ω_k) Vᵀ M_ff, V the
 M_ff-normalised eigenvectors of (K, M_ff) — diag(2 ζ_k ω_k) for mass-normalised modes.
@@ -70,8 +73,8 @@ bending frequency diverges.  For a beam whose nodes lie on the body x axis (node
 root at the smallest x, rotation about the body origin), the lumped centrifugal load gives the
 axial force of the element (x_j, x_j+1) as N_j = s(ω̄) Σ_{i>j} m_i x_i with s = θ̇² (plane) or
 ω̄_y² + ω̄_z² (space), and each element contributes the geometric stiffness of the Hermite beam
-(Przemieniecki, *Theory of Matrix Structural Analysis*, 1968, eq. 15.19; Cook et al.,
-*Concepts and Applications of FEA*, 4th ed., eq. 18.3-5)
+(Przemieniecki, *Theory of Matrix Structural Analysis*, 1968, ch. 15; Cook et al.,
+*Concepts and Applications of Finite Element Analysis*, 4th ed., ch. 18)
 
     K_G,e = N / (30 h) [[36, 3h, −36, 3h], [3h, 4h², −3h, −h²], [−36, −3h, 36, −3h],
                         [3h, −h², −3h, 4h²]]   on (v_1, θ_1, v_2, θ_2)
@@ -479,9 +482,8 @@ class FlexibleBody:
         """V = ½ ηᵀ K η."""
         return 0.5 * ca.bilin(self._K, eta, eta)
 
-    def generalized_forces(self, eta, etadot, omega, A=None) -> ca.SX:
+    def generalized_forces(self, eta, etadot, omega) -> ca.SX:
         """Elastic, damping (and stiffening) forces padded to the size of w (zeros on Ṙ, ω̄)."""
-        del A
         return ca.vertcat(ca.SX(self.dimension + self.rotations, 1),
                           self.elastic_forces(eta, etadot, omega))
 
