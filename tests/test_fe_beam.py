@@ -335,3 +335,49 @@ def test_bad_npz_input(tmp_path):
         load_fe_npz(f)
     with pytest.raises(ModelError, match="no such file"):
         load_fe_npz(tmp_path / "absent.npz")
+
+
+def _truss(tmp_path):
+    """A plane truss (2 dofs per node, no rotations): two square bays with diagonals."""
+    nodes = np.array([[0, 0], [1, 0], [2, 0], [0, 1], [1, 1], [2, 1]], float)
+    bars = [(0, 1), (1, 2), (3, 4), (4, 5), (0, 3), (1, 4), (2, 5), (0, 4), (1, 5)]
+    n = len(nodes) * 2
+    K, M = np.zeros((n, n)), np.zeros((n, n))
+    ea, rho = 1.0e6, 2.0
+    for a, b in bars:
+        d = nodes[b] - nodes[a]
+        h = np.linalg.norm(d)
+        c = d / h
+        idx = [2 * a, 2 * a + 1, 2 * b, 2 * b + 1]
+        k = ea / h * np.outer(np.r_[-c, c], np.r_[-c, c])
+        m = rho * h / 6 * np.kron([[2.0, 1.0], [1.0, 2.0]], np.eye(2))
+        K[np.ix_(idx, idx)] += k
+        M[np.ix_(idx, idx)] += m
+    path = tmp_path / "truss.npz"
+    save_fe_npz(path, sp.csr_matrix(M), sp.csr_matrix(K), nodes, 2,
+                node_names={"left": 0, "right": 5})
+    return path, K, M
+
+
+def test_translation_only_model_free_modes_and_reference(tmp_path, monkeypatch):
+    path, K, M = _truss(tmp_path)
+    fe = load_fe_npz(path)
+    lam = np.linalg.eigvalsh(np.linalg.solve(np.linalg.cholesky(M), np.linalg.solve(
+        np.linalg.cholesky(M), K).T))                      # independent: L⁻¹ K L⁻ᵀ
+    elastic = np.sqrt(np.sort(lam)[3:6])                   # 3 rigid-body modes in the plane
+    md = free_modes(fe, 3)
+    assert md.frequencies == pytest.approx(elastic, rel=1e-10)
+    assert md.phi_r.shape == (6, 3) and not md.phi_r.any() and not md.inertias.any()
+    assert fe.masses.sum() == pytest.approx(M.sum() / 2, rel=1e-12)   # total mass, 2 directions
+    monkeypatch.setattr(modal_reduction, "DENSE_LIMIT", 4)            # deflated Lanczos path
+    assert free_modes(fe, 3).frequencies == pytest.approx(elastic, rel=1e-9)
+    # one translation-only node cannot hold the rotation: refused, naming the cause
+    with pytest.raises(ModelError, match="clamped at its interfaces still moves freely"):
+        craig_bampton(fe, 2, ["left"])
+    # two interfaces: the constraint modes span the rotation about node 0; it is dropped
+    two = craig_bampton(fe, 2, ["left", "right"])
+    assert two.n_modes == 2 + 2 - 1 and np.all(two.frequencies > 1.0)
+    Phi = two.phi_t.reshape(12, -1)
+    R = rigid_body_modes(fe)
+    assert np.abs(R[:, 2] @ M @ Phi).max() < 1e-10 * np.sqrt(R[:, 2] @ M @ R[:, 2])
+    assert np.abs(two.phi_t[0]).max() == 0.0                 # reference translations held

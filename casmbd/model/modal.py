@@ -144,7 +144,10 @@ class ModalData:
       ``reference`` (the first interface): every mode has zero translation and rotation there
       (the node is clamped in the body frame; the rigid motion of the whole body is carried by
       the floating frame, and the constraint modes of the reference node — which together
-      with the others span the rigid-body modes — are left out);
+      with the others span the rigid-body modes — are left out).  If the reference node has
+      no rotational dofs (solid meshes) the constraint modes of the other interfaces span
+      rigid rotations about it; those are dropped and the kept modes are mass-orthogonal to
+      them (the frame's rotation then follows the linearised mean rotation);
     * ``reduction == "free"``: free-interface normal modes mass-orthogonal to the rigid-body
       modes (``R_kᵀ M Φ = 0``, linearised mean-axis conditions); ``reference`` is ``None`` and
       every node, node 0 included, may move in the body frame.

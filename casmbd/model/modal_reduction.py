@@ -14,7 +14,9 @@ Craig–Bampton
     interface) are left out: the basis is that of the body clamped at the reference node, whose
     undeformed frame is the body frame.  The basis ``T = [Φ_fixed, Ψ]`` is then orthonormalised
     by the small eigenproblem ``(Tᵀ K T) q = ω² (Tᵀ M T) q``, ``Φ = T Q``: the reduced M and K
-    are ``I`` and ``diag(ω²)``, so a damping ratio applies per mode.
+    are ``I`` and ``diag(ω²)``, so a damping ratio applies per mode.  Zero eigenvalues of
+    that problem (rigid rotations about a reference node without rotational dofs) are
+    dropped.
 Free-interface normal modes
     The lowest ``modes`` elastic eigenmodes of the free structure ``(K − ω² M) φ = 0``.  The
     rigid-body modes (``K R = 0``; plane: 2 translations and the rotation about z, space: 3 + 3)
@@ -222,7 +224,9 @@ def craig_bampton(model: FEModel, modes: int, interfaces: Sequence[str | int], *
     Returns
     -------
     ModalData
-        ``modes + d·(n_interfaces − 1)`` modes (d dofs per node), frequencies ascending.
+        ``modes + d·(n_interfaces − 1)`` modes (d dofs per node), frequencies ascending;
+        fewer when the reference node has no rotational dofs and the constraint modes span
+        rigid rotations about it (dropped: the floating frame carries them).
     """
     src = model.source
     if isinstance(modes, bool) or not isinstance(modes, int | np.integer) or modes < 0:
@@ -284,10 +288,18 @@ def craig_bampton(model: FEModel, modes: int, interfaces: Sequence[str | int], *
     except (np.linalg.LinAlgError, sl.LinAlgError) as exc:
         raise ModelError(f"{src}: the Craig–Bampton reduced mass matrix is singular ({exc}); "
                          "do interface nodes carry mass?") from exc
-    if lam[0] <= 1e-10 * max(lam[-1], 1e-300):
-        raise ModelError(f"{src}: clamping the reference node {ref} leaves a rigid-body motion "
-                         f"(eigenvalue {lam[0]:.3g}); nodes without rotational dofs need "
-                         "another reference")
+    # with translation-only nodes the reference node does not hold the rotations: the basis
+    # then spans rigid rotations (zero eigenvalues), which the floating frame carries; they
+    # are dropped and the kept modes are M-orthogonal to them
+    zero = lam <= 1e-9 * max(abs(lam[-1]), 1e-300)
+    if np.any(zero):
+        Z = T @ Q[:, zero]
+        R = rigid_body_modes(model)
+        fit = R @ np.linalg.lstsq(R, Z, rcond=None)[0]
+        if np.abs(Z - fit).max() > 1e-6 * np.abs(Z).max() or zero.all():
+            raise ModelError(f"{src}: the Craig–Bampton basis has {int(zero.sum())} "
+                             "zero-energy modes that are not rigid-body motions (a mechanism)")
+        Q = Q[:, ~zero]
     key = cache_key("craig_bampton", _model_key(model), int(modes), nodes)
     return _finish(model, T @ Q, "craig_bampton", ref, key)
 
