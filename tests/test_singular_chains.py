@@ -149,12 +149,15 @@ def test_tight_penalty_matches_one_dof_reference_to_1e7():
     assert np.max(np.abs(energy - energy[0])) / energy[0] <= 1e-8
 
 
-def test_index1_failure_names_the_singular_pose(capsys):
+def test_index1_failure_names_the_singular_pose(capsys, monkeypatch):
     """index1 (IDAS) cannot pass a singular pose of the N = 3 chain: the error comes at a pass
     (within 1e-4 s; measured 1.233240 against 1.233250) and its message says so, with the
     rank of C_q there.  Run with pytest's capture suspended: casmbd reads the failure time
     from the solver's message on stderr, which CasADi writes through Python's ``sys.stderr``
-    (captured by pytest otherwise; reported to the lead)."""
+    (captured by pytest otherwise; reported to the lead).  Compiled code, also under
+    ``CASMBD_COMPILE=0``: where IDAS gives up at the pass depends on the last bits of the
+    evaluation, and CasADi's virtual machine rounds differently (it passes the pose there)."""
+    monkeypatch.delenv("CASMBD_COMPILE", raising=False)
     passes = singular_pass_times(3, T_END)
     with capsys.disabled(), pytest.raises(IntegratorError) as info:
         Simulator(absolute(3), "index1").run(T_END, STEPS, rtol=1e-10)
