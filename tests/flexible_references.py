@@ -1,0 +1,345 @@
+"""Independent reference models for the flexible-body validation of issue 23 (test support).
+
+Plain numpy/scipy (the linear model takes its stiffness matrix from
+:func:`casmbd.model.fe_beam.beam_model`); no casmbd System, no modal reduction.  Two models of
+the spin-up beam of Kane, Ryan & Banerjee, "Dynamics of a cantilever beam attached to a moving
+base", *J. Guidance, Control, and Dynamics* 10(2), 1987, 139–151 (L = 10 m, ρA = 1.2 kg/m,
+EI = 1.4e4 N m², EA = 2.8e7 N), clamped to a hub at the origin whose angle is prescribed,
+
+    θ(t) = (Ω/Ts) (t²/2 + (Ts/2π)² (cos(2πt/Ts) − 1))      t < Ts  (Ts = 15 s)
+    θ(t) = Ω (t − Ts/2)                                      t ≥ Ts,
+
+(:func:`hub_angle` returns θ, θ̇, θ̈), and a static co-rotational solver for the cantilever
+checks.  Both dynamic models use the same mesh of two-node Euler–Bernoulli elements and the same
+lumped masses (node i: mass m_i = Σ ρA h/2 and rotary inertia J_i = Σ ρA (h/2)³/3 of its
+half-elements, as :func:`beam_model` lumps them), so that at equal mesh they differ only by the
+kinematics of the deformation (linear against geometrically exact).
+
+Reference (a), :func:`linear_ffrf_spinup` — full (unreduced) floating-frame FE model in the
+rotating hub frame (Shabana, *Dynamics of Multibody Systems*, 4th ed., 2013, ch. 5; the
+"conventional" linear model of Kane et al. 1987).  Node i sits at (x_i + u_i, v_i) in the hub
+frame, its section turned by θ + φ_i.  With the hub's angular velocity θ̇ ẑ the inertial
+acceleration in hub components is a = r̈ + 2 θ̇ ẑ × ṙ + θ̈ ẑ × r − θ̇² r (r relative), so
+
+    m_i (ü_i − 2 θ̇ v̇_i − θ̈ v_i − θ̇² (x_i + u_i)) + (K q)_{u_i} = 0
+    m_i (v̈_i + 2 θ̇ u̇_i + θ̈ (x_i + u_i) − θ̇² v_i) + (K q)_{v_i} = 0
+    J_i (φ̈_i + θ̈) + (K q)_{φ_i} = 0,
+
+K the linear stiffness of :func:`beam_model` (root dofs clamped).  The −θ̇² m_i v_i term softens
+the bending stiffness and nothing stiffens it: above the first bending frequency ω1 = 3.516
+sqrt(EI/(ρA L⁴)) = 3.80 rad/s the model diverges (Kane et al. 1987, their "conventional"
+approach).  With ``stiffening=True`` the geometric stiffness of the steady centrifugal tension is
+added, K + θ̇² K_G: element e carries N_e = θ̇² Σ_{j beyond e} m_j x_j (the lumped centrifugal
+load outboard of it) and K_G,e = N_e/(30 h) [[36, 3h, −36, 3h], [3h, 4h², −3h, −h²],
+[−36, −3h, 36, −3h], [3h, −h², −3h, 4h²]] on (v1, φ1, v2, φ2) (Przemieniecki, *Theory of
+Matrix Structural Analysis*, 1968, §15.2, the consistent geometric stiffness of the Hermite beam
+element); this is the "stiffening" term of issue 23 item 1.
+
+Reference (b), :func:`corotational_spinup` — geometrically exact plane beam in the inertial
+frame, Crisfield's co-rotational Euler–Bernoulli element (Crisfield, *Non-linear Finite Element
+Analysis of Solids and Structures*, vol. 1, 1991, §7.2; Battini, *Co-rotational beam elements in
+instability problems*, KTH thesis, 2002, ch. 2).  Nodes carry (X, Y, ψ) (ψ the absolute section
+rotation).  For an element of initial length l0 and chord angle β0, current chord length l and
+angle β (c = cos β, s = sin β), the local deformations are
+
+    u_l = l − l0,  θ̄_1 = ψ_1 − (β − β0),  θ̄_2 = ψ_2 − (β − β0)      (angles wrapped to (−π, π]),
+
+the local forces of the linear element N = EA u_l/l0, M_{1,2} = EI/l0 (4 θ̄_{1,2} + 2 θ̄_{2,1}),
+the internal force f = Bᵀ (N, M1, M2) with
+B = [[−c, −s, 0, c, s, 0], [−s/l, c/l, 1, s/l, −c/l, 0], [−s/l, c/l, 0, s/l, −c/l, 1]] and the
+tangent K_t = Bᵀ K_l B + z zᵀ N/l + (r zᵀ + z rᵀ)(M1 + M2)/l², r = (−c, −s, 0, c, s, 0),
+z = (s, −c, 0, −s, c, 0) (Crisfield eqs. 7.23–7.32 in this notation).  With lumped masses the
+plane kinetic energy ½ Σ (m_i (Ẋ_i² + Ẏ_i²) + J_i ψ̇_i²) has a constant mass matrix, so
+M q̈ + f(q) = 0 exactly; the root node is (0, 0, θ(t)) (prescribed: it drives the beam through
+the root element's forces).  The tip deflection relative to the rotating hub axis is
+−sin θ X_tip + cos θ Y_tip.  The model converges to the continuum with the mesh (the lumped mass
+to O(h²)).
+
+Both are integrated with ``scipy.integrate.solve_ivp`` (Radau, analytic Jacobian, rtol 1e-9 by
+default).  Static cantilever checks of the co-rotational element (:func:`corotational_cantilever`,
+Newton on the tangent): small tip load P against P L³/(3 EI) (exact for cubic elements in the
+linear limit), large load against the elastica of Mattiasson, "Numerical results from large
+deflection beam and frame problems analysed by means of elliptic integrals", *Int. J. Numer.
+Meth. Engng* 17, 1981, 145–153, table 1 (:data:`MATTIASSON_TIP_LOAD`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from casmbd.model.fe_beam import beam_model
+
+__all__ = ["KANE_BEAM", "MATTIASSON_TIP_LOAD", "SpinupResult", "corotational_cantilever",
+           "corotational_spinup", "hub_angle", "linear_ffrf_spinup"]
+
+KANE_BEAM = {"length": 10.0, "rhoA": 1.2, "EI": 1.4e4, "EA": 2.8e7, "Ts": 15.0}
+"""The spin-up beam of issue 23 (Kane, Ryan & Banerjee 1987)."""
+
+MATTIASSON_TIP_LOAD = {1.0: (0.30172, 0.05643, 0.46135),
+                       2.0: (0.49346, 0.16064, 0.78175),
+                       10.0: (0.81061, 0.55500, 1.43029)}
+"""Cantilever under a tip load P normal to its axis, k = P L²/EI → (w/L, u/L, ψ): tip deflection
+normal to the axis, tip shortening along it and tip rotation [rad] (Mattiasson 1981, table 1)."""
+
+
+def hub_angle(t: float, omega: float, ts: float = 15.0) -> tuple[float, float, float]:
+    """Prescribed hub angle θ, rate θ̇ and acceleration θ̈ of the spin-up manoeuvre.
+
+    θ = (Ω/Ts)(t²/2 + (Ts/2π)²(cos(2πt/Ts) − 1)), θ̇ = (Ω/Ts)(t − (Ts/2π) sin(2πt/Ts)),
+    θ̈ = (Ω/Ts)(1 − cos(2πt/Ts)) for t < Ts; then Ω (t − Ts/2), Ω, 0 (Kane et al. 1987).
+    """
+    if t >= ts:
+        return omega * (t - ts / 2.0), omega, 0.0
+    w = 2.0 * np.pi / ts
+    a = omega / ts
+    return (a * (t * t / 2.0 + (np.cos(w * t) - 1.0) / w**2),
+            a * (t - np.sin(w * t) / w), a * (1.0 - np.cos(w * t)))
+
+
+@dataclass
+class SpinupResult:
+    """Tip deflection history of a spin-up run.
+
+    Attributes
+    ----------
+    t : numpy.ndarray
+        Output times [s].
+    tip : numpy.ndarray
+        Tip deflection normal to the rotating hub axis [m] (positive: towards +θ).
+    tip_axial : numpy.ndarray
+        Tip displacement along the hub axis relative to the undeformed length [m].
+    status : int
+        solve_ivp status (0 reached the end, 1 stopped by the divergence event).
+    nfev : int
+        Right-hand-side evaluations (cost figure).
+    """
+
+    t: np.ndarray
+    tip: np.ndarray
+    tip_axial: np.ndarray
+    status: int
+    nfev: int
+
+
+def _lumped(length: float, elements: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Node positions, lumped masses and rotary inertias (per unit ρA) of a uniform mesh."""
+    h = length / elements
+    x = np.linspace(0.0, length, elements + 1)
+    m = np.full(elements + 1, h)
+    m[[0, -1]] = h / 2.0
+    j = np.full(elements + 1, 2.0 * (h / 2.0) ** 3 / 3.0)
+    j[[0, -1]] = (h / 2.0) ** 3 / 3.0
+    return x, m, j
+
+
+def _check(elements: int, omega: float, t_end: float) -> None:
+    if isinstance(elements, bool) or not isinstance(elements, int) or elements < 1:
+        raise ValueError(f"elements must be a positive integer, got {elements!r}")
+    if not (np.isfinite(omega) and np.isfinite(t_end) and t_end > 0.0):
+        raise ValueError(f"omega and t_end must be finite (t_end > 0), got {omega!r}, {t_end!r}")
+
+
+def _diverged(limit: float, index: int):
+    def event(t, y):
+        return limit - abs(y[index])
+    event.terminal = True
+    return event
+
+
+def linear_ffrf_spinup(omega: float, *, elements: int = 10, t_end: float = 20.0,
+                       n_out: int = 401, stiffening: bool = False, rtol: float = 1e-9,
+                       beam: dict | None = None, limit: float | None = None) -> SpinupResult:
+    """Reference (a): full linear floating-frame FE model in the rotating hub frame.
+
+    Parameters
+    ----------
+    omega : float
+        Final hub rate Ω [rad/s].
+    elements : int
+        Uniform Euler–Bernoulli elements (lumped mass, module docstring).
+    t_end : float
+        End time [s].
+    n_out : int
+        Output samples (uniform in [0, t_end]).
+    stiffening : bool
+        Add the geometric stiffness of the centrifugal tension θ̇² K_G (module docstring).
+    rtol : float
+        solve_ivp relative tolerance (atol = rtol · 1e-2 m).
+    beam : dict, optional
+        length, rhoA, EI, EA, Ts (default :data:`KANE_BEAM`).
+    limit : float, optional
+        Stop when |tip deflection| exceeds it (default the beam length: divergence).
+
+    Returns
+    -------
+    SpinupResult
+    """
+    _check(elements, omega, t_end)
+    p = {**KANE_BEAM, **(beam or {})}
+    L, ts = p["length"], p["Ts"]
+    K = beam_model(L, elements, EA=p["EA"], rhoA=p["rhoA"], EI=p["EI"]).stiffness_matrix
+    K = K.toarray()[3:, 3:]                               # root clamped in the hub frame
+    x, m, j = _lumped(L, elements)
+    x, m, j = x[1:], p["rhoA"] * m[1:], p["rhoA"] * j[1:]
+    n = 3 * elements
+    iu, iv, ip = np.arange(0, n, 3), np.arange(1, n, 3), np.arange(2, n, 3)
+    minv = np.empty(n)
+    minv[iu], minv[iv], minv[ip] = 1.0 / m, 1.0 / m, 1.0 / j
+    KG = np.zeros((n + 3, n + 3))                          # per unit θ̇², root included
+    h = L / elements
+    for e in range(elements):
+        N = float(np.sum(m[e:] * x[e:]))                  # centrifugal tension / θ̇²
+        kg = N / (30.0 * h) * np.array([[36.0, 3 * h, -36.0, 3 * h],
+                                        [3 * h, 4 * h * h, -3 * h, -h * h],
+                                        [-36.0, -3 * h, 36.0, -3 * h],
+                                        [3 * h, -h * h, -3 * h, 4 * h * h]])
+        idx = [3 * e + 1, 3 * e + 2, 3 * e + 4, 3 * e + 5]
+        KG[np.ix_(idx, idx)] += kg
+    KG = KG[3:, 3:] if stiffening else np.zeros((n, n))
+
+    def accel_matrix(t: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        _, w, a = hub_angle(t, omega, ts)
+        A = -minv[:, None] * (K + w * w * KG)            # q̈ = A q + C q̇ + b
+        A[iu, iu] += w * w
+        A[iu, iv] += a
+        A[iv, iu] -= a
+        A[iv, iv] += w * w
+        C = np.zeros((n, n))
+        C[iu, iv] = 2.0 * w
+        C[iv, iu] = -2.0 * w
+        b = np.zeros(n)
+        b[iu] = w * w * x
+        b[iv] = -a * x
+        b[ip] = -a
+        return A, C, b
+
+    def rhs(t, y):
+        A, C, b = accel_matrix(t)
+        return np.concatenate([y[n:], A @ y[:n] + C @ y[n:] + b])
+
+    def jac(t, y):
+        A, C, _ = accel_matrix(t)
+        return np.block([[np.zeros((n, n)), np.eye(n)], [A, C]])
+
+    t_eval = np.linspace(0.0, t_end, n_out)
+    sol = solve_ivp(rhs, (0.0, t_end), np.zeros(2 * n), method="Radau", jac=jac, rtol=rtol,
+                    atol=rtol * 1e-2, t_eval=t_eval, events=_diverged(limit or L, n - 2))
+    return SpinupResult(sol.t, sol.y[n - 2], sol.y[n - 3], sol.status, sol.nfev)
+
+
+def _element_forces(q: np.ndarray, l0: float, beta0: np.ndarray, EA: float, EI: float,
+                    tangent: bool) -> tuple[np.ndarray, np.ndarray | None]:
+    """Co-rotational internal forces (and tangent) of a chain of elements, q = (X, Y, ψ) per
+    node (module docstring, Crisfield 1991 §7.2)."""
+    qn = q.reshape(-1, 3)
+    d = qn[1:, :2] - qn[:-1, :2]
+    length = np.hypot(d[:, 0], d[:, 1])
+    c, s = d[:, 0] / length, d[:, 1] / length
+    alpha = np.arctan2(s * np.cos(beta0) - c * np.sin(beta0),
+                       c * np.cos(beta0) + s * np.sin(beta0))           # β − β0
+    t1 = np.angle(np.exp(1j * (qn[:-1, 2] - alpha)))
+    t2 = np.angle(np.exp(1j * (qn[1:, 2] - alpha)))
+    N = EA * (length - l0) / l0
+    M1 = EI / l0 * (4.0 * t1 + 2.0 * t2)
+    M2 = EI / l0 * (2.0 * t1 + 4.0 * t2)
+    ne = len(length)
+    zero, one = np.zeros(ne), np.ones(ne)
+    r = np.stack([-c, -s, zero, c, s, zero], axis=1)
+    z = np.stack([s, -c, zero, -s, c, zero], axis=1)
+    g = np.stack([-s / length, c / length, zero, s / length, -c / length, zero], axis=1)
+    b1 = g + np.stack([zero, zero, one, zero, zero, zero], axis=1)
+    b2 = g + np.stack([zero, zero, zero, zero, zero, one], axis=1)
+    fe = r * N[:, None] + b1 * M1[:, None] + b2 * M2[:, None]
+    f = np.zeros_like(q)
+    for a in range(6):
+        np.add.at(f, 3 * np.arange(ne) + a, fe[:, a])
+    if not tangent:
+        return f, None
+    Kt = np.zeros((q.size, q.size))
+    kl = EI / l0 * np.array([[4.0, 2.0], [2.0, 4.0]])
+    for e in range(ne):
+        Bm = np.stack([b1[e], b2[e]])
+        ke = (EA / l0 * np.outer(r[e], r[e]) + Bm.T @ kl @ Bm
+              + np.outer(z[e], z[e]) * N[e] / length[e]
+              + (np.outer(r[e], z[e]) + np.outer(z[e], r[e])) * (M1[e] + M2[e]) / length[e]**2)
+        Kt[3 * e:3 * e + 6, 3 * e:3 * e + 6] += ke
+    return f, Kt
+
+
+def corotational_spinup(omega: float, *, elements: int = 10, t_end: float = 20.0,
+                        n_out: int = 401, rtol: float = 1e-9, beam: dict | None = None,
+                        limit: float | None = None) -> SpinupResult:
+    """Reference (b): co-rotational plane beam in the inertial frame, root rotation prescribed.
+
+    Parameters and return as :func:`linear_ffrf_spinup` (no stiffening option: the geometric
+    stiffening is part of the exact kinematics).
+    """
+    _check(elements, omega, t_end)
+    p = {**KANE_BEAM, **(beam or {})}
+    L, ts, EA, EI = p["length"], p["Ts"], p["EA"], p["EI"]
+    x, m, j = _lumped(L, elements)
+    n = 3 * elements
+    minv = 1.0 / (p["rhoA"] * np.column_stack([m, m, j])[1:].ravel())
+    beta0 = np.zeros(elements)
+    l0 = L / elements
+    q0 = np.column_stack([x, np.zeros_like(x), np.zeros_like(x)]).ravel()
+
+    def full(t, y):
+        q = np.concatenate([[0.0, 0.0, hub_angle(t, omega, ts)[0]], y[:n]])
+        return q
+
+    def rhs(t, y):
+        f, _ = _element_forces(full(t, y), l0, beta0, EA, EI, False)
+        return np.concatenate([y[n:], -minv * f[3:]])
+
+    def jac(t, y):
+        _, Kt = _element_forces(full(t, y), l0, beta0, EA, EI, True)
+        return np.block([[np.zeros((n, n)), np.eye(n)],
+                         [-minv[:, None] * Kt[3:, 3:], np.zeros((n, n))]])
+
+    t_eval = np.linspace(0.0, t_end, n_out)
+    sol = solve_ivp(rhs, (0.0, t_end), np.concatenate([q0[3:], np.zeros(n)]), method="Radau",
+                    jac=jac, rtol=rtol, atol=rtol * 1e-2, t_eval=t_eval)
+    th = np.array([hub_angle(t, omega, ts)[0] for t in sol.t])
+    X, Y = sol.y[n - 3], sol.y[n - 2]
+    tip = -np.sin(th) * X + np.cos(th) * Y
+    axial = np.cos(th) * X + np.sin(th) * Y - L
+    if limit is not None and np.any(np.abs(tip) > limit):
+        return SpinupResult(sol.t, tip, axial, 1, sol.nfev)
+    return SpinupResult(sol.t, tip, axial, sol.status, sol.nfev)
+
+
+def corotational_cantilever(load: float, *, elements: int = 20, length: float = 1.0,
+                            EI: float = 1.0, EA: float = 1.0e7, steps: int = 10,
+                            tol: float = 1e-10) -> tuple[float, float, float]:
+    """Static cantilever (clamped at x = 0) under a fixed vertical tip load P (+y).
+
+    Newton iterations on the co-rotational tangent (Crisfield 1991 §7.2) over ``steps`` equal
+    load increments.
+
+    Returns
+    -------
+    tuple of float
+        (w, u, ψ): tip deflection along +y, tip shortening along −x and tip rotation [rad].
+    """
+    if isinstance(elements, bool) or not isinstance(elements, int) or elements < 1:
+        raise ValueError(f"elements must be a positive integer, got {elements!r}")
+    x = np.linspace(0.0, length, elements + 1)
+    q = np.column_stack([x, np.zeros_like(x), np.zeros_like(x)]).ravel()
+    l0, beta0 = length / elements, np.zeros(elements)
+    fext = np.zeros_like(q)
+    for k in range(1, steps + 1):
+        fext[-2] = load * k / steps
+        for _ in range(50):
+            f, Kt = _element_forces(q, l0, beta0, EA, EI, True)
+            res = (fext - f)[3:]
+            dq = np.linalg.solve(Kt[3:, 3:], res)
+            q[3:] += dq
+            if np.linalg.norm(dq) <= tol * length:
+                break
+        else:
+            raise RuntimeError(f"co-rotational cantilever: Newton did not converge at P={load}")
+    return float(q[-2]), float(length - q[-3]), float(q[-1])
