@@ -254,8 +254,9 @@ def _element_forces(q: np.ndarray, l0: float, beta0: np.ndarray, EA: float, EI: 
     b2 = g + np.stack([zero, zero, zero, zero, zero, one], axis=1)
     fe = r * N[:, None] + b1 * M1[:, None] + b2 * M2[:, None]
     f = np.zeros_like(q)
-    for a in range(6):
-        np.add.at(f, 3 * np.arange(ne) + a, fe[:, a])
+    fn = f.reshape(-1, 3)
+    fn[:-1] += fe[:, :3]
+    fn[1:] += fe[:, 3:]
     if not tangent:
         return f, None
     Kt = np.zeros((q.size, q.size))
