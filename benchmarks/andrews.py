@@ -40,7 +40,14 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.docs import coordinate_reason, heading, study_parser, update_hard_cases, used
+from benchmarks.docs import (
+    against_fastest,
+    coordinate_reason,
+    heading,
+    study_parser,
+    update_hard_cases,
+    used,
+)
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENE = ROOT / "examples" / "andrews.toml"
@@ -516,11 +523,7 @@ def findings(rows: list[dict], timing: dict, variants: list[dict]) -> list[str]:
                               key=lambda r: r["solve_seconds"]) for k, c in enumerate(CONFIGS)}
             mine, top = fast.pop(AUTO), min((r for r in fast.values() if r), default=None,
                                             key=lambda r: r["solve_seconds"])
-            text += (f" Error ≤ {target:.0e} rad: " + (
-                "not reached." if not (mine and top) else
-                f"{1e3 * mine['solve_seconds']:.2f} ms (rtol {mine['rtol']:.0e}), "
-                f"{mine['solve_seconds'] / top['solve_seconds']:.2g}× the fastest pinned "
-                f"configuration ({top['config']}, {1e3 * top['solve_seconds']:.2f} ms)."))
+            text += against_fastest(mine, top, f"Error ≤ {target:.0e} rad", digits=2)
         best_auto = min(auto, key=lambda r: r["err_ld"])
         text += (f" Its best against the independent reference: {_fmt(best_auto['err_ld'])} rad "
                  f"(rtol {best_auto['rtol']:.0e}).")

@@ -43,7 +43,14 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.docs import coordinate_reason, heading, study_parser, update_hard_cases, used
+from benchmarks.docs import (
+    against_fastest,
+    coordinate_reason,
+    heading,
+    study_parser,
+    update_hard_cases,
+    used,
+)
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENE = ROOT / "examples" / "bricard.toml"
@@ -407,11 +414,7 @@ def findings(rows: list[dict], ref: dict, accel: dict | None = None) -> list[str
             mine = fast.pop(DEFAULT)
             top = min((r for r in fast.values() if r), default=None,
                       key=lambda r: r["solve_seconds"])
-            text += (f" Δ ≤ {target:.0e} m: " + (
-                "not reached." if not (mine and top) else
-                f"{1e3 * mine['solve_seconds']:.1f} ms (rtol {mine['rtol']:.0e}), "
-                f"{mine['solve_seconds'] / top['solve_seconds']:.2g}× the fastest pinned "
-                f"configuration ({top['config']}, {1e3 * top['solve_seconds']:.1f} ms)."))
+            text += against_fastest(mine, top, f"Δ ≤ {target:.0e} m", digits=1)
         for label, *_ in CONFIGS[1:]:
             twin = {r["rtol"]: r for r in rows if r["config"] == label and r["status"] == "ok"}
             if all(r["rtol"] in twin and used(r) == used(twin[r["rtol"]])

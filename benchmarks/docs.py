@@ -91,3 +91,15 @@ def coordinate_reason(stats: dict) -> str | None:
     """Why the run has its coordinates (``stats['coordinate_reason']``; older stats kept the
     reason under ``coordinate_choice``)."""
     return stats.get("coordinate_reason", stats.get("coordinate_choice"))
+
+
+def against_fastest(mine: dict | None, top: dict | None, level: str, digits: int = 2) -> str:
+    """One sentence of a hard case's default-path paragraph: the default's solve time at an
+    error ``level`` (e.g. "Error ≤ 1e-06 rad") against the fastest pinned configuration (rows
+    with ``solve_seconds``, ``rtol``, ``config``; ``None`` where the level was not reached)."""
+    if not (mine and top):
+        return f" {level}: not reached."
+    return (f" {level}: {1e3 * mine['solve_seconds']:.{digits}f} ms (rtol {mine['rtol']:.0e}), "
+            f"{mine['solve_seconds'] / top['solve_seconds']:.2g}× the fastest pinned "
+            f"configuration ({top['config']}, {1e3 * top['solve_seconds']:.{digits}f} ms).")
+
