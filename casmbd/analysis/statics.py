@@ -137,6 +137,7 @@ class StaticsResult:
     body_angles: np.ndarray = field(default_factory=lambda: np.zeros(0))
     body_quaternions: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
     joint_coordinates: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    marker_positions: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     stats: dict = field(default_factory=dict)
     stability: Stability | None = None
 
@@ -149,6 +150,12 @@ class StaticsResult:
                 bodies[name]["quaternion"] = [float(x) for x in self.body_quaternions[k]]
             else:
                 bodies[name]["angle"] = float(self.body_angles[k])
+            modal = [float(x) for x, c in zip(self.q, self.names.get("coordinates", []),
+                                              strict=False) if c.startswith(f"{name}.eta")]
+            if modal:  # a flexible body's modal coordinates η
+                bodies[name]["modal_coordinates"] = modal
+        markers = {name: {"position": [float(x) for x in self.marker_positions[k]]}
+                   for k, name in enumerate(self.names.get("markers", []))}
         joints: dict = {name: {} for name in self.names.get("all_joints", [])}
         for k, name in enumerate(self.names.get("joints", [])):  # "joint.angle": 2nd coordinate
             joint, key = (name, "coordinate") if name in joints else name.rsplit(".", 1)
@@ -156,6 +163,7 @@ class StaticsResult:
         for k, name in enumerate(self.names.get("all_joints", [])):
             joints[name]["reaction"] = [float(x) for x in self.joint_reactions[k]]
         return {"kind": "statics", "t": float(self.t), "bodies": bodies, "joints": joints,
+                "markers": markers,
                 "q": [float(x) for x in self.q],
                 "lagrange_multipliers": [float(x) for x in self.lagrange_multipliers],
                 "stable": self.stable, "iterations": int(self.iterations),
@@ -357,7 +365,8 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
                         np.array([t]))
     nb = len(model.body_names)
     names = {"coordinates": model.coordinate_names, "bodies": list(model.body_names),
-             "joints": list(model.joint_coordinate_names), "all_joints": all_joints}
+             "joints": list(model.joint_coordinate_names), "all_joints": all_joints,
+             "markers": list(mech.markers)}
     stats = dict(model.report_dict)
     stats.update({"coordinates": model.coordinates, "coordinate_choice": model.coordinates,
                   "coordinate_reason": model.coordinate_reason,
@@ -378,8 +387,8 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
         names=names, body_positions=np.reshape(out["body_positions"][0], (nb, model.dimension)),
         body_angles=np.array([_wrap(a) for a in np.ravel(out["angle_positions"][0])])
         if model.dimension == 2 else np.zeros(0), body_quaternions=quats,
-        joint_coordinates=joint_coordinates, stats=stats,
-        stability=stability)
+        joint_coordinates=joint_coordinates, stats=stats, stability=stability,
+        marker_positions=np.reshape(out["marker_positions"][0], (-1, model.dimension)))
 
 
 def _converged(prob: _Problem, f: np.ndarray, fscale: float, lscale: float) -> bool:

@@ -107,6 +107,9 @@ class _Entry:
         return SceneError(f"{self.where}" + (f" key '{key}'" if key else "") + f": {why}")
 
     def check_keys(self, allowed: set[str]) -> None:
+        # an element attached to a body may name a node of a flexible body: 'node' with
+        # 'body', 'node1' with 'body1', 'node2' with 'body2' (issue 23)
+        allowed = set(allowed) | {_NODE_KEYS[k] for k in _NODE_KEYS if k in allowed}
         for key in self.data:
             if key not in allowed:
                 raise self.error(key, f"unknown key (allowed: {', '.join(sorted(allowed))})")
@@ -120,6 +123,8 @@ class _Entry:
         return self.data[key]
 
     def string(self, key: str, default: str | None = None, required: bool = True) -> str | None:
+        if key in _NODE_KEYS and _NODE_KEYS[key] in self.data:
+            return self._node_attachment(key)
         if key not in self.data:
             if required and default is None:
                 raise self.error(key, "missing required key")
@@ -128,6 +133,17 @@ class _Entry:
         if not isinstance(val, str) or not val.strip():
             raise self.error(key, f"expected a non-empty string, got {val!r}")
         return val
+
+    def _node_attachment(self, key: str) -> str:
+        """``"<body>@<node>"``: the frame of a named node of a flexible body."""
+        node_key = _NODE_KEYS[key]
+        body = self.data.get(key)
+        node = self.data[node_key]
+        if not isinstance(body, str) or not body.strip():
+            raise self.error(key, f"expected a body name with '{node_key}', got {body!r}")
+        if not isinstance(node, str) or not node.strip() or "@" in node:
+            raise self.error(node_key, f"expected a node name, got {node!r}")
+        return f"{body}@{node}"
 
     def number(self, key: str, default: float | None = None, required: bool = True) -> float:
         """A finite number (or an expression string of the parameters evaluated now)."""
@@ -231,6 +247,10 @@ class _Entry:
         return [[self._number(x, key) for x in v] for v in val]
 
 
+#: body key → the key naming a node of that body (a flexible body's node frame)
+_NODE_KEYS = {"body": "node", "body1": "node1", "body2": "node2"}
+
+
 def _name(entry: _Entry) -> str:
     return entry.string("name")
 
@@ -290,6 +310,7 @@ def _build(data: dict, source: str) -> Mechanism:
         except CasmbdError as exc:
             raise SceneError(f"{entry.where}: {exc}") from None
 
+    base_dir = str(Path(source).parent) if Path(source).exists() else "."
     for pname, pval in params.items():
         guarded(_Entry("parameters", None, {}, params),
                 lambda pname=pname, pval=pval: mech.add_parameter(pname, pval))
@@ -301,7 +322,10 @@ def _build(data: dict, source: str) -> Mechanism:
                              f"{type(raw).__name__}")
         check_count(f"{source}: [[{table}]] entries", len(raw),
                     MAX_BODIES if table == "bodies" else MAX_ELEMENTS)
-        return [_Entry(table, i, item, params) for i, item in enumerate(raw)]
+        out = [_Entry(table, i, item, params) for i, item in enumerate(raw)]
+        for entry in out:  # files named by an entry (a flexible body's [bodies.fe]) are
+            entry.base_dir = base_dir  # relative to the scene file
+        return out
 
     for e in entries("bodies"):  # each kind reads its own keys (casmbd.model.registry)
         btype = e.string("type", default="rigid")

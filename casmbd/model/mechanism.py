@@ -22,6 +22,7 @@ from casmbd.errors import ModelError
 from casmbd.limits import MAX_BODIES, MAX_ELEMENTS, check_count
 from casmbd.model.bodies import GROUND, Body, Marker, SpatialBody, check_inertia, vector
 from casmbd.model.drivers import BODY_COORDINATES, Driver
+from casmbd.model.flexible_bodies import NodeFrame, is_flexible, node_attachment
 from casmbd.model.forces import (
     Actuator,
     ForceElement,
@@ -74,6 +75,8 @@ class Mechanism:
         self.parameters: dict[str, float] = {}
         self.bodies: dict[str, Body] = {}
         self.markers: dict[str, Marker] = {}
+        #: node frames of flexible bodies by attachment name ``"<body>@<node>"``
+        self.nodes: dict[str, NodeFrame] = {}
         self.joints: dict[str, Joint] = {}
         self.drivers: dict[str, Driver] = {}
         self.forces: dict[str, object] = {}
@@ -94,10 +97,47 @@ class Mechanism:
     def _body(self, name: str, where: str) -> str:
         if not isinstance(name, str):
             raise ModelError(f"{where}: expected a body name (string), got {name!r}")
+        if node_attachment(name) is not None:
+            self.node_frame(name, where)
+            return name
         if name != GROUND and name not in self.bodies:
             known = ", ".join([GROUND, *self.bodies]) or GROUND
             raise ModelError(f"{where}: unknown body '{name}' (known: {known})")
         return name
+
+    def node_frame(self, name: str, where: str = "") -> NodeFrame:
+        """The frame of the node attachment ``"<body>@<node>"`` (a named node of a flexible
+        body, :mod:`casmbd.model.flexible_bodies`), made once.
+
+        Raises
+        ------
+        ModelError
+            Not an attachment name, an unknown body, a rigid body, or no such node.
+        """
+        if name in self.nodes:
+            return self.nodes[name]
+        where = where or f"attachment '{name}'"
+        parts = node_attachment(name)
+        if parts is None:
+            raise ModelError(f"{where}: '{name}' is not a node attachment ('<body>@<node>')")
+        body, node = parts
+        if body not in self.bodies:
+            known = ", ".join(self.bodies) or "none"
+            raise ModelError(f"{where}: unknown body '{body}' of node '{node}' (known: {known})")
+        if not is_flexible(self.bodies[body]):
+            raise ModelError(f"{where}: body '{body}' is rigid; nodes ('node', 'node1', "
+                             "'node2') belong to flexible bodies")
+        try:
+            frame = self.bodies[body].node_frame(node)
+        except ModelError as exc:
+            raise ModelError(f"{where}: {exc}") from None
+        self.nodes[name] = frame
+        return frame
+
+    def owner(self, name: str) -> str:
+        """The body an attachment name belongs to (itself for a body or the ground)."""
+        parts = node_attachment(name)
+        return name if parts is None else parts[0]
 
     def _joint(self, name: str, where: str, coordinate: bool = True) -> Joint:
         if not isinstance(name, str):
@@ -226,6 +266,11 @@ class Mechanism:
             cls = body_kind(kind.removeprefix("body:"), self.dimension, f"body '{name}'")
             body = cls.create(self, name, *args, **fields)
             self.bodies[body.name] = body
+            if is_flexible(body):  # each named node reports its pose as a marker
+                for node in body.nodes:
+                    frame = self.node_frame(f"{body.name}@{node}", f"body '{body.name}'")
+                    if frame.name not in self.markers:
+                        self.add_marker(frame.name, frame.name, frame.position)
             return body
         if not isinstance(kind, str) or (kind not in JOINT_KINDS and kind not in FORCE_KINDS):
             raise ModelError(f"element '{name}': unknown kind {kind!r} (joints: "

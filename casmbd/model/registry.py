@@ -149,7 +149,9 @@ def register_body(kind: _Kind | None = None, *, replace: bool = False):
     Usable as a class decorator like :func:`register_joint`.  The class declares ``kind`` (the
     ``[[bodies]] type`` name), ``dimensions``, ``scene_keys``, ``create``/``from_scene``,
     ``drawing`` and ``descriptions`` (coordinate choice → description key of
-    :data:`casmbd.system.descriptions.DESCRIPTIONS`; ``"joint"``: the body as a floating root).
+    :data:`casmbd.system.descriptions.DESCRIPTIONS`; ``"joint"``: the body as a floating root)
+    for each coordinate choice it supports (``coordinate_choices``, default all three: a
+    flexible body has absolute coordinates only).
     Body names live in their own table: ``"rigid"`` is a body and a joint kind
     (``Mechanism.add`` takes ``"body:rigid"`` for the body).
 
@@ -163,7 +165,8 @@ def register_body(kind: _Kind | None = None, *, replace: bool = False):
         return lambda cls: register_body(cls, replace=replace)
     name, dims = _declared(kind, "body")
     descriptions = getattr(kind, "descriptions", None)
-    missing = [c for c in ("absolute", "natural", "joint")
+    choices = getattr(kind, "coordinate_choices", ("absolute", "natural", "joint"))
+    missing = [c for c in choices
                if not isinstance(descriptions, dict) or not isinstance(descriptions.get(c), str)]
     if missing:
         raise ModelError(f"body kind '{name}' ({kind.__name__}): class attribute "

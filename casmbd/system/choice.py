@@ -58,8 +58,15 @@ def choose_coordinates(mechanism) -> CoordinateChoice:
     """Joint coordinates for trees and few loops, else absolute coordinates (module docstring).
 
     Returns the joint-coordinate descriptions it built (so that the system does not build them
-    twice) when it chooses joint coordinates.
+    twice) when it chooses joint coordinates.  A body kind that supports absolute coordinates
+    only (a flexible body: frame + modal coordinates) makes the choice absolute.
     """
+    only_absolute = [name for name, body in mechanism.bodies.items()
+                     if "joint" not in getattr(body, "coordinate_choices", ("joint",))]
+    if only_absolute:
+        shown = ", ".join(only_absolute[:3]) + (" …" if len(only_absolute) > 3 else "")
+        return CoordinateChoice("absolute", f"flexible bodies ({shown}) carry frame and modal "
+                                "coordinates: absolute coordinates")
     try:
         descriptions, absorbed = tree_descriptions(mechanism, getattr(mechanism, "tree", None))
     except ModelError as exc:

@@ -46,6 +46,8 @@ class Context:
         self.nq = offset
         self._frames: dict[str, tuple[ca.SX, ca.SX]] = {}
         self._angles: dict[str, ca.SX] = {}
+        #: node frames of flexible bodies (``"<body>@<node>"``), made from the body's frame
+        self._node_frames: dict[str, tuple[ca.SX, ca.SX]] = {}
 
     # ---------------------------------------------------------------- coordinates
     def block(self, body: str) -> slice:
@@ -62,9 +64,29 @@ class Context:
         return self.v[self.block(body)]
 
     def _frame(self, body: str) -> tuple[ca.SX, ca.SX]:
+        if body in self.mechanism.nodes:
+            return self._node_frame(body)
         if body not in self._frames:
             self._frames[body] = self.descriptions[body].pose(self, body)
         return self._frames[body]
+
+    def frame_of(self, body: str) -> tuple[ca.SX, ca.SX]:
+        """(R, A) of a moving body: its reference point and rotation matrix."""
+        return self._frame(body)
+
+    def _node_frame(self, name: str) -> tuple[ca.SX, ca.SX]:
+        """(position, rotation) of a node frame ``"<body>@<node>"`` of a flexible body: the
+        deformed node r = R + A (u0 + Φ η) and its turned frame (the body's description)."""
+        if name not in self._node_frames:
+            node = self.mechanism.nodes[name]
+            self._node_frames[name] = self.descriptions[node.body].node_frame(
+                self, node.body, node.index)
+        return self._node_frames[name]
+
+    def owner(self, body: str) -> str:
+        """The moving body (or ground) an attachment name belongs to."""
+        node = self.mechanism.nodes.get(body)
+        return body if node is None else node.body
 
     def rotation(self, body: str) -> ca.SX:
         """A(q_i) of a body (identity for the ground), built once."""
@@ -76,10 +98,18 @@ class Context:
         """Global position of the body's reference point R."""
         return self._frame(body)[0]
 
+    def mass_centre(self, body: str) -> ca.SX:
+        """Where the body's weight acts: r_G, or the deformed centre of mass of a flexible
+        body (its description's ``mass_centre``)."""
+        hook = getattr(self.descriptions[body], "mass_centre", None)
+        return self.centre_of_mass(body) if hook is None else hook(self, body)
+
     def centre_of_mass(self, body: str) -> ca.SX:
-        """Global centre-of-mass position r_G = R − A s."""
+        """Global centre-of-mass position r_G = R − A s (a node frame: the node's position)."""
         if body == GROUND:
             return ca.SX.zeros(self.dimension)
+        if body in self.mechanism.nodes:
+            return self._node_frame(body)[0]
         ref, rot = self._frame(body)
         s = self.descriptions[body].offset
         if not np.any(s):
@@ -92,18 +122,27 @@ class Context:
             raise ModelError(f"body '{body}': a rotation angle exists only in the plane")
         if body == GROUND:
             return ca.SX(0.0)
+        node = self.mechanism.nodes.get(body)
+        if node is not None:
+            return self.descriptions[node.body].node_angle(self, node.body, node.index)
         if body not in self._angles:
             self._angles[body] = self.descriptions[body].planar_angle(self, body)
         return self._angles[body]
 
     def has_angle(self, body: str) -> bool:
         """True when the planar angle of ``body`` is a coordinate (or the body is ground)."""
+        if body in self.mechanism.nodes:  # θ + Ψ η: continuous, as a coordinate
+            return self.has_angle(self.mechanism.nodes[body].body)
         return body == GROUND or self.descriptions[body].has_angle
 
     def angular_velocity(self, body: str) -> ca.SX:
         """Global angular velocity (a scalar in the plane), linear in v."""
         if body == GROUND:
             return ca.SX.zeros(1 if self.dimension == 2 else 3)
+        node = self.mechanism.nodes.get(body)
+        if node is not None:
+            return self.descriptions[node.body].node_angular_velocity(self, node.body,
+                                                                      node.index)
         return self.descriptions[body].omega(self, body)
 
     def perturbed(self, body: str) -> tuple[Context, ca.SX]:
@@ -135,6 +174,7 @@ class Context:
         other = copy.copy(self)
         other._frames = _Placeholders(self._frames, _frame_symbols)
         other._angles = _Placeholders(self._angles, _angle_symbols)
+        other._node_frames = {}  # nodes follow their (perhaps perturbed) body
         other._perturbation = e
         ref0, rot = other._frame(body)
         dth = e[dim:]
@@ -181,17 +221,23 @@ class Context:
             return ca.SX(ca.DM(local))
         return ca.mtimes(self.rotation(body), ca.DM(local))
 
+    def _element(self, body: str):
+        """The model object of a body or node frame (initial pose, ``local``)."""
+        node = self.mechanism.nodes.get(body)
+        return self.mechanism.bodies[body] if node is None else node
+
     def initial_rotation(self, body: str) -> np.ndarray:
-        """A of a body at its initial pose."""
+        """A of a body (or node frame) at its initial pose."""
         if body == GROUND:
             return np.eye(self.dimension)
-        return self.mechanism.bodies[body].initial_rotation
+        return self._element(body).initial_rotation
 
     def local(self, body: str, point_global) -> np.ndarray:
-        """Body-frame coordinates (about G) of a global point at the initial pose."""
+        """Body-frame coordinates (about G; about the node for a node frame) of a global point
+        at the initial pose."""
         if body == GROUND:
             return np.asarray(point_global, float)
-        return self.mechanism.bodies[body].local(point_global)
+        return self._element(body).local(point_global)
 
     def local_direction(self, body: str, direction_global) -> np.ndarray:
         """Body-frame components of a global direction at the initial pose."""
@@ -199,13 +245,13 @@ class Context:
 
     def initial_angle(self, body: str) -> float:
         """Planar angle of a body at its initial pose."""
-        return 0.0 if body == GROUND else self.mechanism.bodies[body].angle
+        return 0.0 if body == GROUND else self._element(body).angle
 
     def initial_position(self, body: str) -> np.ndarray:
         """Centre-of-mass position of a body at its initial pose."""
         if body == GROUND:
             return np.zeros(self.dimension)
-        return self.mechanism.bodies[body].position
+        return self._element(body).position
 
     # ---------------------------------------------------------------- relative rotation
     def relative_rotation(self, body1: str, body2: str, axis=None) -> tuple[ca.SX, ca.SX]:
@@ -268,7 +314,8 @@ class Context:
 
     # ---------------------------------------------------------------- user-facing helpers
     def _known(self, body: str) -> None:
-        if body != GROUND and body not in self.mechanism.bodies:
+        if body != GROUND and body not in self.mechanism.bodies and \
+                body not in self.mechanism.nodes:
             raise ModelError(f"unknown body '{body}' in a user expression")
 
     def position(self, body: str, point=None) -> ca.SX:

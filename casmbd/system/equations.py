@@ -29,6 +29,7 @@ from casmbd.model.values import resolve
 from casmbd.system.choice import AUTO, choose_coordinates
 from casmbd.system.context import Context
 from casmbd.system.descriptions import COORDINATE_CHOICES, describe
+from casmbd.system.flexible_descriptions import FlexibleDescription  # noqa: F401 (registers)
 from casmbd.system.forces import AppliedForces
 from casmbd.system.outputs import Outputs
 from casmbd.system.reactions import Reactions
@@ -93,6 +94,13 @@ class System(AppliedForces, Outputs, Reactions):
         if self.coordinates not in COORDINATE_CHOICES:
             raise ModelError(f"unknown coordinate choice {self.coordinates!r} (known: "
                              f"{', '.join(COORDINATE_CHOICES)}, {AUTO})")
+        for name, body in mechanism.bodies.items():
+            allowed = getattr(body, "coordinate_choices", COORDINATE_CHOICES)
+            if self.coordinates not in allowed:
+                raise ModelError(
+                    f"body '{name}' ({getattr(body, 'kind', 'body')}): {self.coordinates} "
+                    f"coordinates are not available for this kind (it supports "
+                    f"{', '.join(allowed)}; use coordinates = '{allowed[0]}' or 'auto')")
         self.body_names = list(mechanism.bodies)
         #: joints whose equations the coordinates satisfy identically (the spanning tree)
         self.tree_joints: list[str] = []

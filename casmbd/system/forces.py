@@ -83,7 +83,22 @@ class AppliedForces:
             total += ca.jtimes(ca.vertcat(*exprs), self.q, ca.vertcat(*weights), True)
         if omegas:
             total += ca.jtimes(ca.vertcat(*omegas), self.v, ca.vertcat(*torques), True)
-        return total
+        return total + self._body_forces()
+
+    def _body_forces(self) -> ca.SX:
+        """Forces a body's description exerts on its own coordinates: the elastic, damping and
+        stiffening forces −K η − C η̇ − s K_G1 η of flexible bodies (internal forces: no work
+        in a rigid motion of the body, so the reactions do not see them)."""
+        parts, any_force = [], False
+        for name in self.body_names:
+            desc = self.descriptions[name]
+            hook = getattr(desc, "body_forces", None)
+            if hook is None:
+                parts.append(ca.SX(desc.size, 1))
+                continue
+            any_force = True
+            parts.append(hook(self.ctx.coordinates(name), self.ctx.rates(name)))
+        return ca.vertcat(*parts) if any_force else ca.SX.zeros(self.nq)
 
     def _force_terms(self, ctx, gravity_of: str | None = None) -> list[_Term]:
         """The virtual-work terms of every applied force, measures written with ``ctx`` (the
@@ -96,7 +111,7 @@ class AppliedForces:
         if np.any(mech.gravity):
             for name in (self.body_names if gravity_of is None else [gravity_of]):
                 m, _ = self._mass_inertia(mech.bodies[name])
-                terms.append(_Term("measure", ctx.centre_of_mass(name), m * g))
+                terms.append(_Term("measure", ctx.mass_centre(name), m * g))
         for force in mech.forces.values():
             terms += self._element_terms(force, ctx)
         for i, act in enumerate(mech.actuators.values()):
@@ -183,7 +198,10 @@ class AppliedForces:
         total = ca.SX(0.0)
         for name in self.body_names:
             m, _ = self._mass_inertia(mech.bodies[name])
-            total -= m * ca.dot(ca.DM(mech.gravity), ctx.centre_of_mass(name))
+            total -= m * ca.dot(ca.DM(mech.gravity), ctx.mass_centre(name))
+            elastic = getattr(self.descriptions[name], "elastic_energy", None)
+            if elastic is not None:  # ½ ηᵀ K η of a flexible body
+                total += elastic(ctx.coordinates(name))
         for force in mech.forces.values():  # each kind says whether its work is in V
             energy = force.potential(self._force_kit)
             if energy is not None:

@@ -70,13 +70,14 @@ class Reactions:
             index += elements[("body", body)]
         touching = set()
         for joint in self.mechanism.joints.values():
-            if body in joint.bodies:  # a gear involves the bodies of both its joints
+            # a gear involves the bodies of both its joints; a node frame is its body's
+            if body in joint.bodies or body in (ctx.owner(b) for b in joint.bodies):
                 touching.add(joint.name)
                 if ("joint", joint.name) in elements:
                     rows.append(ca.vec(joint.equations(ctx)))
                     index += elements[("joint", joint.name)]
         for driver in self.mechanism.drivers.values():
-            if (driver.joint in touching or driver.body == body) and \
+            if (driver.joint in touching or (driver.body and ctx.owner(driver.body) == body)) and \
                     ("driver", driver.name) in elements:
                 rows.append(ca.vec(self._driver_residual(driver, ctx)))
                 index += elements[("driver", driver.name)]
@@ -102,7 +103,7 @@ class Reactions:
                 exprs.append(ca.vec(term.expr))
                 weights.append(ca.vec(term.weight))
             elif term.kind == "torque":
-                if term.body == body:
+                if ctx.owner(term.body) == body:
                     total[dim:] += term.weight
             else:
                 unknown.append(term.name)
@@ -171,10 +172,11 @@ class Reactions:
                 if name in self.tree_joints:
                     continue
                 joint = mech.joints[name]
-                body, sign = (joint.body2, 1.0) if joint.body2 != GROUND else \
+                attach, sign = (joint.body2, 1.0) if joint.body2 != GROUND else \
                     (joint.body1, -1.0)
+                body = self.ctx.owner(attach)  # a node frame's body moves as a whole
                 wrench = sign * self._constraint_wrench(body, lam, rows)
-                cols[name] = self._at_point(joint, body, wrench)
+                cols[name] = self._at_point(joint, attach, wrench, body)
             if self.tree_joints:
                 cols.update(self._tree_reactions(a, lam, joint_only))
             size = self.reaction_size
@@ -185,11 +187,12 @@ class Reactions:
                 ["q", "v", "a", "t", "u", "p", "lambda"], ["reactions"])
         return self._functions["joint_reactions"]
 
-    def _at_point(self, joint, body: str, wrench: ca.SX) -> ca.SX:
-        """Carry a wrench (force, moment about G of ``body``) to the joint's point."""
+    def _at_point(self, joint, body: str, wrench: ca.SX, owner: str | None = None) -> ca.SX:
+        """Carry a wrench (force, moment about G of ``owner``, default ``body``) to the joint's
+        point on ``body`` (a node frame of a flexible ``owner``: the deformed node)."""
         dim = self.dimension
         force, moment = wrench[:dim], wrench[dim:]
-        arm = self._reaction_point(joint, body) - self.ctx.centre_of_mass(body)
+        arm = self._reaction_point(joint, body) - self.ctx.centre_of_mass(owner or body)
         return ca.vertcat(force, moment - self._cross(arm, force))
 
     def _tree_reactions(self, a: ca.SX, lam: ca.SX, rows: list[int]) -> dict[str, ca.SX]:
