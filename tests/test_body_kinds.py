@@ -186,14 +186,14 @@ def test_add_dispatches_body_kinds():
     m = Mechanism("m", gravity=(0.0, 0.0, -9.81))
     body = m.add("body:rigid", "b", 1.0, [0.1, 0.2, 0.3], (0.0, 0.0, 0.0))
     assert isinstance(body, SpatialBody) and m.bodies["b"] is body
-    with pytest.raises(ModelError, match=r"body 'c': unknown body type 'flexible' "
-                                         r"\(allowed: rigid, slender_rod\)"):
-        m.add("body:flexible", "c", 1.0, 1.0, (0.0, 0.0, 0.0))
+    with pytest.raises(ModelError, match=r"body 'c': unknown body type 'elastic' "
+                                         r"\(allowed: rigid, .*slender_rod"):
+        m.add("body:elastic", "c", 1.0, 1.0, (0.0, 0.0, 0.0))
     with pytest.raises(ModelError, match=r"body 'r': a slender_rod body needs a planar "
                                          r"mechanism \(dimension = 2\)"):
         m.add("slender_rod", "r", mass=1.0, length=1.0, position=(0.0, 0.0, 0.0))
     with pytest.raises(ModelError, match=r"element 'x': unknown kind 'nope' .*bodies: "
-                                         r"body:rigid, body:slender_rod"):
+                                         r"body:rigid, body:flexible, body:slender_rod"):
         m.add("nope", "x")
     with pytest.raises(ModelError, match=r"body 'r' field 'length': must be > 0, got -1.0"):
         Mechanism("p").add("slender_rod", "r", mass=1.0, length=-1.0, position=(0, 0))
@@ -202,9 +202,9 @@ def test_add_dispatches_body_kinds():
 def test_scene_errors_name_the_entry():
     """An unknown body type names the entry and lists the kinds; a kind's own keys rule."""
     text = SCENE.format(kind="rigid", size="inertia = 0.1")
-    bad = text.replace('type = "rigid"', 'type = "flexible"', 1)
+    bad = text.replace('type = "rigid"', 'type = "elastic"', 1)
     with pytest.raises(SceneError, match=r"\[\[bodies\]\] entry 1 \('rod1'\) key 'type': "
-                                         r"unknown body type 'flexible' \(allowed: rigid, "
+                                         r"unknown body type 'elastic' \(allowed: rigid, flexible, "
                                          r"slender_rod\)"):
         loads_scene(bad)
     rod_with_inertia = text.replace('type = "rigid"', 'type = "slender_rod"', 1)
