@@ -24,6 +24,7 @@ from casmbd.analysis.reactions import flag_undetermined
 from casmbd.compiled.model import NEEDS, NumericModel
 from casmbd.errors import AnalysisError, ModelError, SingularConfigurationError
 from casmbd.interrupts import reraise_interrupt
+from casmbd.model.flexible_bodies import rigidified
 from casmbd.results import Result
 
 
@@ -87,7 +88,8 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
     if isinstance(mechanism_or_model, NumericModel):
         model = mechanism_or_model
     else:
-        model = NumericModel(mechanism_or_model, NEEDS["dynamics"], mode=mode)
+        # flexible bodies move rigidly: η = 0 (kinematics.py, _model)
+        model = NumericModel(rigidified(mechanism_or_model), NEEDS["dynamics"], mode=mode)
     kin = kinematics(model, t_end, steps, t_start=t_start)
     t0 = time.perf_counter()
     grid, qs, vs, acc = kin.t, kin["q"], kin["v"], kin["a"]

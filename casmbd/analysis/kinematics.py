@@ -18,14 +18,17 @@ from casmbd.analysis.redundancy import rank_report
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, AssemblyError, CasmbdError, RedundantConstraintError
 from casmbd.limits import check_steps, output_values
+from casmbd.model.flexible_bodies import rigidified
 from casmbd.results import Result
 from casmbd.system.formulations import FORMULATIONS, default_formulation
 
 
 def _model(mechanism_or_model, analysis: str, mode: str) -> NumericModel:
+    """The numeric model of a mechanism (its flexible bodies rigidified: kinematics prescribes
+    the rigid motion, :func:`casmbd.model.flexible_bodies.rigidified`) or the model given."""
     if isinstance(mechanism_or_model, NumericModel):
         return mechanism_or_model
-    return NumericModel(mechanism_or_model, analysis, mode=mode)
+    return NumericModel(rigidified(mechanism_or_model), analysis, mode=mode)
 
 
 def check_result_size(mechanism_or_model, steps: int, what: str) -> None:

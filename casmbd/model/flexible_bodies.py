@@ -40,6 +40,8 @@ Scene keys (issue 23)::
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -58,7 +60,7 @@ from casmbd.model.registry import register_body
 from casmbd.model.rotations import euler_zxz_to_quaternion, rotation_matrix
 
 __all__ = ["FLEXIBLE_SCENE_KEYS", "NodeFrame", "PlanarFlexibleBody", "SpatialFlexibleBody",
-           "is_flexible", "modal_data", "node_attachment"]
+           "is_flexible", "modal_data", "node_attachment", "rigidified"]
 
 #: separator of attachment names ``"<body>@<node>"``
 NODE_SEPARATOR = "@"
@@ -352,6 +354,8 @@ class PlanarFlexibleBody(_Flexible):
     damping_ratio: float | Sequence[float] = 0.0
     stiffening: bool = False
     flexible_mass: str = "lumped"
+    #: modal coordinates held at zero (the rigid motion: kinematics and inverse dynamics)
+    locked_modes: bool = False
 
     dimension = 2
     dimensions: ClassVar[tuple[int, ...]] = (2,)
@@ -415,6 +419,8 @@ class SpatialFlexibleBody(_Flexible):
     damping_ratio: float | Sequence[float] = 0.0
     stiffening: bool = False
     flexible_mass: str = "lumped"
+    #: modal coordinates held at zero (the rigid motion: kinematics and inverse dynamics)
+    locked_modes: bool = False
 
     dimension = 3
     dimensions: ClassVar[tuple[int, ...]] = (3,)
@@ -478,6 +484,26 @@ class SpatialFlexibleBody(_Flexible):
                         velocity=e.vector("velocity", 3, default=zeros),
                         angular_velocity=e.vector("angular_velocity", 3, default=zeros),
                         **options)
+
+
+def rigidified(mechanism):
+    """A shallow copy of ``mechanism`` whose flexible bodies hold their modal coordinates at
+    zero (``locked_modes``: one body equation η_k = 0 per mode), or ``mechanism`` itself when
+    it has none.
+
+    Kinematics and inverse dynamics prescribe a motion with as many drivers as the rigid
+    mechanism has degrees of freedom; the modes of a flexible body are free degrees of freedom
+    that no driver fixes, so these analyses run on the *rigid motion* (Adams' and Simpack's
+    "rigidified" flexible bodies): the coordinates keep their layout (η = 0), the node frames
+    and markers their names, and the multipliers of η = 0 are the modal forces that keep each
+    body undeformed along the prescribed motion.
+    """
+    if not any(is_flexible(b) for b in mechanism.bodies.values()):
+        return mechanism
+    out = copy.copy(mechanism)
+    out.bodies = {name: dataclasses.replace(body, locked_modes=True) if is_flexible(body)
+                  else body for name, body in mechanism.bodies.items()}
+    return out
 
 
 def is_flexible(body) -> bool:

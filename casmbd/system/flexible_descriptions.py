@@ -52,6 +52,16 @@ class FlexibleDescription:
         self.lengths = tuple(type(self).lengths) + (False,) * n
         self.n_modes = n
 
+    def constraints(self, q):
+        """The frame's own equations (Euler parameters: normalisation) and, with
+        ``locked_modes`` (:func:`casmbd.model.flexible_bodies.rigidified`), η_k = 0."""
+        eqs, labels = super().constraints(q)
+        if not getattr(self.body, "locked_modes", False) or not self.n_modes:
+            return eqs, labels
+        eta = q[self.frame_size:]
+        return (ca.vertcat(eqs, eta),
+                tuple(labels) + tuple(f"eta{k + 1} locked" for k in range(self.n_modes)))
+
     def split(self, q: ca.SX) -> tuple[ca.SX, ca.SX]:
         """(frame coordinates, η) of the block."""
         return q[:self.frame_size], q[self.frame_size:]
