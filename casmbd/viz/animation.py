@@ -2,7 +2,10 @@
 
 Each body is a polyline through its joint, marker and force-element points (a triangle or
 polygon for a body with three or more non-collinear points, see
-:class:`~casmbd.viz.geometry.Geometry`), with its centre of mass as a dot; joints are open
+:class:`~casmbd.viz.geometry.Geometry`), with its centre of mass as a dot; a flexible body is
+the polyline through all its deformed nodes in their numbering order (a built-in beam: root
+to tip), with its deformed centre of mass Σ m_i r_i / Σ m_i (lumped nodal masses) as the dot;
+``deformation_scale`` magnifies the elastic displacements (the clock says so).  Joints are open
 circles, ground attachments black triangles, ground slides dashed lines, springs and distance
 links thin lines.  Spatial mechanisms are drawn in a 3-D projection (matplotlib ``mplot3d``)
 with equal axis scales.  Positions come from the result (centres of mass and rotations) and the
@@ -31,7 +34,15 @@ from casmbd import progress
 from casmbd.errors import AnalysisError, CasmbdError, LimitError
 from casmbd.limits import MAX_FPS, MAX_FRAMES, check_count
 from casmbd.results import atomic_write
-from casmbd.viz.geometry import Geometry, _geometry, _place, body_poses, scene_name
+from casmbd.viz.geometry import (
+    Geometry,
+    _geometry,
+    _place,
+    flexible_nodes,
+    flexible_states,
+    frame_poses,
+    scene_name,
+)
 from casmbd.viz.playback import FPS_CAP, FRAME_BUDGET, GIF_MAX_FPS, FramePlan, plan_frames
 from casmbd.viz.plots import check_figure_size, new_figure, save_figure
 
@@ -40,7 +51,7 @@ class _Drawing:
     """The artists of one mechanism drawing and their update for output step ``k``."""
 
     def __init__(self, result, mechanism=None, ax=None, trace=None, figsize=None,
-                 view=(22.0, -60.0)):
+                 view=(22.0, -60.0), deformation_scale: float = 1.0):
         from matplotlib import colormaps
 
         self.result = result
@@ -49,10 +60,17 @@ class _Drawing:
         if result.dimension != self.dim:
             raise AnalysisError(f"the mechanism is {self.dim}-D but the result "
                                 f"{result.dimension}-D")
-        pos, rot = body_poses(result)
+        scale = _deformation_scale(deformation_scale)
+        self.scale = scale
+        states = flexible_states(result, self.geo)
+        pos, rot = frame_poses(result, self.geo, scale, states)
         n_t = len(result.t)
-        self.com = pos
-        self.pts = {b: [_place(pos, rot, b, u, n_t) for _, u in p]
+        self.nodes = flexible_nodes(result, self.geo, scale, states)
+        self.com = {b: pos[b] for b in self.geo.points}
+        for b, nodes in self.nodes.items():  # the deformed centre of mass (lumped masses)
+            m = self.geo.flexible[b].masses
+            self.com[b] = np.einsum("i,kia->ka", m, nodes) / m.sum()
+        self.pts = {b: [_place(pos, rot, f, u, n_t) for (_, u), f in zip(p, self.geo.frames[b])]
                     for b, p in self.geo.points.items()}
         self.links = [(_place(pos, rot, b1, u1, n_t), _place(pos, rot, b2, u2, n_t), kind)
                       for _, b1, u1, b2, u2, kind in self.geo.links]
@@ -97,7 +115,8 @@ class _Drawing:
         self.body_lines, self.com_dots = {}, {}
         for i, body in enumerate(self.geo.points):
             colour = colours(i % 10)
-            block = {} if self.geo.outline[body] else {"marker": "s", "ms": 11}  # one point
+            single = not self.geo.outline[body] and body not in self.nodes
+            block = {"marker": "s", "ms": 11} if single else {}  # a body of one point
             self.body_lines[body] = ax.plot(*self._empty(), lw=2.6, color=colour,
                                             solid_capstyle="round", label=body, zorder=3,
                                             **block)[0]
@@ -127,6 +146,7 @@ class _Drawing:
     def _limits(self) -> None:
         """Equal-scale limits holding every drawn point over the whole run (8 % margin)."""
         clouds = [self.com[b] for b in self.com] + [p for pts in self.pts.values() for p in pts]
+        clouds += list(self.nodes.values())
         clouds += [p for a, b, _ in self.links for p in (a, b)]
         clouds += list(self.traces.values())
         if self.geo.ground:
@@ -163,7 +183,9 @@ class _Drawing:
         for body, line in self.body_lines.items():
             order = self.geo.outline[body]
             pts = self.pts[body]
-            if order:
+            if body in self.nodes:  # a flexible body: its deformed nodes
+                self._set(line, self.nodes[body][k])
+            elif order:
                 self._set(line, np.array([pts[i][k] for i in order]))
             else:  # a body with one attachment point: join it to the centre of mass
                 self._set(line, np.array([p[k] for p in pts] + [self.com[body][k]]))
@@ -174,9 +196,24 @@ class _Drawing:
             self._set(self.joint_dots, np.array([p[k] for p in self.joint_xy]))
         for m, line in self.trace_lines.items():
             self._set(line, self.traces[m][:k + 1])
-        self.clock.set_text(f"t = {self.result.t[k]:.3f} s")
+        scaled = f", deformation x{self.scale:g}" if self.nodes and self.scale != 1 else ""
+        self.clock.set_text(f"t = {self.result.t[k]:.3f} s{scaled}")
         return [*self.body_lines.values(), *self.com_dots.values(), *self.link_lines,
                 self.joint_dots, *self.trace_lines.values(), self.clock]
+
+
+def _deformation_scale(scale) -> float:
+    """A finite positive deformation scale.
+
+    Raises
+    ------
+    AnalysisError
+        For anything else (naming the value).
+    """
+    if isinstance(scale, bool) or not isinstance(scale, int | float | np.number) or not (
+            np.isfinite(scale) and scale > 0):
+        raise AnalysisError(f"deformation_scale must be a finite number > 0, got {scale!r}")
+    return float(scale)
 
 
 def _index(result, index: int | None, time: float | None) -> int:
@@ -193,7 +230,8 @@ def _index(result, index: int | None, time: float | None) -> int:
 
 def draw_frame(result, index: int | None = None, mechanism=None, *, time: float | None = None,
                ghosts: int = 0, trace=None, ax=None, out: str | os.PathLike | None = None,
-               dpi: float = 100, figsize=None, view=(22.0, -60.0), title: str | None = None):
+               dpi: float = 100, figsize=None, view=(22.0, -60.0), title: str | None = None,
+               deformation_scale: float = 1.0):
     """Draw the mechanism at one output time (a still frame).
 
     Parameters
@@ -213,13 +251,18 @@ def draw_frame(result, index: int | None = None, mechanism=None, *, time: float 
         Draw into this axes (3-D axes for a spatial mechanism) instead of a new figure.
     out : path, optional
         Save the figure there (atomically).
+    deformation_scale : float
+        Magnify the elastic displacements of flexible bodies by this factor (their nodes
+        r_i = R + A (u_i0 + s Φ_i η), :mod:`casmbd.viz.geometry`); rigid bodies and the traced
+        marker paths are drawn as computed.
 
     Returns
     -------
     matplotlib.figure.Figure
     """
     k = _index(result, index, time)
-    drawing = _Drawing(result, mechanism, ax=ax, trace=trace, figsize=figsize, view=view)
+    drawing = _Drawing(result, mechanism, ax=ax, trace=trace, figsize=figsize, view=view,
+                       deformation_scale=deformation_scale)
     if ghosts > 0:
         for g in np.unique(np.linspace(0, k, ghosts + 2).round().astype(int))[:-1]:
             drawing.update(int(g))
@@ -248,7 +291,7 @@ def frame_indices(n_t: int, max_frames: int | None) -> np.ndarray:
 
 def animate(result, mechanism=None, *, max_frames: int | None = None, fps: float | None = None,
             speed: float = 1.0, trace=None, figsize=None, view=(22.0, -60.0),
-            title: str | None = None):
+            title: str | None = None, deformation_scale: float = 1.0):
     """A ``matplotlib.animation.FuncAnimation`` of the mechanism playing in real time.
 
     Parameters
@@ -265,6 +308,9 @@ def animate(result, mechanism=None, *, max_frames: int | None = None, fps: float
         Playback speed factor: 1 plays in real time, 2 twice as fast.
     trace : str, list of str, True or None
         Marker paths to draw (see :func:`draw_frame`).
+    deformation_scale : float
+        Magnification of the elastic displacements of flexible bodies (see
+        :func:`draw_frame`).
 
     Returns
     -------
@@ -281,7 +327,8 @@ def animate(result, mechanism=None, *, max_frames: int | None = None, fps: float
     frames = plan.indices
     check_count("animation: frames", len(frames), MAX_FRAMES,
                 "give max_frames (--max-frames) to show evenly spread output steps")
-    drawing = _Drawing(result, mechanism, trace=trace, figsize=figsize, view=view)
+    drawing = _Drawing(result, mechanism, trace=trace, figsize=figsize, view=view,
+                       deformation_scale=deformation_scale)
     fps = plan.fps
     if title is None:
         title = scene_name(result)

@@ -11,6 +11,22 @@ with r_G the centre of mass (``body_positions``) and A the rotation of the body
 (``angle_positions`` in the plane, ``rotation_matrices`` in space) stored in the result.  Joint
 points are not stored in a result: :func:`joint_points` computes them this way from the
 mechanism (the one given, or the scene text embedded in the result).
+
+Flexible bodies (issue 23, :mod:`casmbd.model.flexible_bodies`, drawing hint ``"nodes"``) are
+drawn as the polyline through all their deformed nodes,
+
+    r_i(t) = R(t) + A(t) (u_i0 + s Φ_i η(t))                    (seed 002, eq. 5–26)
+
+with the frame origin R, the rotation A (angle θ in the plane; A(p) of the Euler parameters p
+in space, seed 001 eq. 15) and the modal coordinates η read from the coordinates ``q`` of the
+result (``"<body>.x"`` … ``"<body>.eta1"`` …), the undeformed node positions u_i0 and the
+translational base vectors Φ_i of the body's modal data, and s = 1 (a *deformation scale*
+s ≠ 1 magnifies the elastic displacements for a picture).  A point attached to a named node
+(``"<body>@<node>"``: joints, forces, the node markers) moves with the node frame: position
+r_i and rotation A A(s ψ_i), ψ_i = Ψ_i η the node's small rotation (plane: the angle θ + s ψ_i;
+space: A times the rotation of the Euler parameters (1, s ψ_i/2)/|(1, s ψ_i/2)|, the exact
+form of :meth:`casmbd.system.flexible.FlexibleBody.node_rotation`).  A point attached to a
+flexible body itself (not to a node) follows its undeformed frame, as in the model.
 """
 
 from __future__ import annotations
@@ -22,6 +38,46 @@ import numpy as np
 from casmbd.errors import AnalysisError, CasmbdError
 from casmbd.io import scene as _scene  # noqa: F401  (registers the reader of Result.mechanism)
 from casmbd.model.bodies import GROUND
+from casmbd.model.flexible_bodies import is_flexible, node_attachment
+
+
+@dataclass
+class FlexibleShape:
+    """What a flexible body is drawn from: arrays of its modal data
+    (:class:`casmbd.model.modal.ModalData`).
+
+    Attributes
+    ----------
+    positions : ndarray, (n_nodes, dim)
+        Undeformed node positions u_i0 in the body frame, about the frame origin R [m].
+    phi_t : ndarray, (n_nodes, dim, n_modes)
+        Translational base vectors Φ_i.
+    phi_r : ndarray, (n_nodes, n_modes) plane or (n_nodes, 3, n_modes) space
+        Rotational base vectors Ψ_i (small node rotations).
+    masses : ndarray, (n_nodes,)
+        Lumped nodal masses (the deformed centre of mass Σ m_i r_i / Σ m_i).
+    nodes : dict of str to int
+        Named nodes → node index.
+    """
+
+    positions: np.ndarray
+    phi_t: np.ndarray
+    phi_r: np.ndarray
+    masses: np.ndarray
+    nodes: dict[str, int] = field(default_factory=dict)
+
+    @classmethod
+    def from_body(cls, body) -> FlexibleShape:
+        """The shape of a flexible body of the model layer."""
+        modal = body.modal
+        return cls(np.asarray(modal.positions, float), np.asarray(modal.phi_t, float),
+                   np.asarray(modal.phi_r, float), np.asarray(modal.masses, float),
+                   dict(modal.node_names))
+
+    @property
+    def n_modes(self) -> int:
+        """Number of modal coordinates η."""
+        return int(self.phi_t.shape[2])
 
 
 @dataclass
@@ -47,9 +103,17 @@ class Geometry:
         Force elements and distance links: name, body1, u1, body2, u2 (global points when the
         body is the ground) and the kind (``"spring"`` or ``"link"``).
     joints : dict of str to (str, ndarray)
-        Per joint with a point: the body it is drawn on (body2 unless that is the ground) and
-        the body-fixed vector of the point (a global point for a joint between ground and
-        ground, which does not occur).
+        Per joint with a point: the body (or node frame) it is drawn on (body2 unless that is
+        the ground) and the body-fixed vector of the point (a global point for a joint between
+        ground and ground, which does not occur).
+    frames : dict of str to list of str
+        Per body, the frame each of its :attr:`points` is fixed in: the body, or the node
+        frame ``"<body>@<node>"`` of a flexible body (``u`` then in node-frame axes).
+    flexible : dict of str to FlexibleShape
+        The flexible bodies, drawn through their deformed nodes (their :attr:`outline` is
+        empty).
+    node_frames : dict of str to (str, int)
+        Node frames ``"<body>@<node>"`` → (flexible body, node index).
     """
 
     dimension: int
@@ -59,22 +123,39 @@ class Geometry:
     guides: list[tuple[np.ndarray, np.ndarray]] = field(default_factory=list)
     links: list[tuple] = field(default_factory=list)
     joints: dict[str, tuple[str, np.ndarray]] = field(default_factory=dict)
+    frames: dict[str, list[str]] = field(default_factory=dict)
+    flexible: dict[str, FlexibleShape] = field(default_factory=dict)
+    node_frames: dict[str, tuple[str, int]] = field(default_factory=dict)
 
     @classmethod
     def from_mechanism(cls, mechanism) -> Geometry:
         """Collect the attachment points of every body of ``mechanism``."""
         bodies = mechanism.bodies
-        geo = cls(int(mechanism.dimension), {name: [] for name in bodies})
+        geo = cls(int(mechanism.dimension), {name: [] for name in bodies},
+                  frames={name: [] for name in bodies})
+        geo.flexible = {name: FlexibleShape.from_body(body) for name, body in bodies.items()
+                        if is_flexible(body)}
+
+        def frame(body: str):
+            """The body, or the node frame of an attachment name ``body@node``."""
+            if body in bodies or node_attachment(body) is None:
+                return bodies[body]
+            node = mechanism.node_frame(body)
+            geo.node_frames[body] = (node.body, int(node.index))
+            return node
 
         def local(body: str, point) -> np.ndarray:
             point = np.asarray(point, float)
-            return point if body == GROUND else bodies[body].local(point)
+            return point if body == GROUND else frame(body).local(point)
 
         def attach(body: str, label: str, point) -> None:
             if body == GROUND:
                 geo.ground.append((label, np.asarray(point, float)))
             else:
-                geo.points[body].append((label, local(body, point)))
+                u = local(body, point)
+                owner = geo.node_frames[body][0] if body in geo.node_frames else body
+                geo.points[owner].append((label, u))
+                geo.frames[owner].append(body)
 
         for name, joint in mechanism.joints.items():  # each kind's ``drawing`` hint
             b1, b2 = joint.body1, joint.body2
@@ -112,7 +193,7 @@ class Geometry:
                 attach(b1, f"force:{name}", force.point1)
                 attach(b2, f"force:{name}", force.point2)
         for body, pts in geo.points.items():
-            geo.outline[body] = _outline([u for _, u in pts])
+            geo.outline[body] = [] if body in geo.flexible else _outline([u for _, u in pts])
         return geo
 
 
@@ -174,6 +255,101 @@ def body_poses(result) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
     return pos, rot
 
 
+def _rotations(theta: np.ndarray) -> np.ndarray:
+    """Plane rotation matrices (n_t, 2, 2) of the angles θ (n_t,)."""
+    c, s = np.cos(theta), np.sin(theta)
+    return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
+
+
+def _euler_rotations(p: np.ndarray) -> np.ndarray:
+    """A(p) (n_t, 3, 3) of Euler parameters p (n_t, 4), not normalised: the formula of
+    :func:`casmbd.model.rotations.rotation_matrix` (seed 001, "Transformation matrix",
+    eq. 15), A = (2 e0² − 1) I + 2 (e eᵀ + e0 ẽ)."""
+    e0, e = p[:, 0], p[:, 1:4]
+    skew = np.zeros((len(p), 3, 3))
+    skew[:, 0, 1], skew[:, 0, 2], skew[:, 1, 2] = -e[:, 2], e[:, 1], -e[:, 0]
+    skew = skew - np.swapaxes(skew, 1, 2)
+    return ((2.0 * e0 * e0 - 1.0)[:, None, None] * np.eye(3)
+            + 2.0 * (np.einsum("ki,kj->kij", e, e) + e0[:, None, None] * skew))
+
+
+def flexible_states(result, geo: Geometry) -> dict[str, tuple[np.ndarray, ...]]:
+    """Frame origin R (n_t, dim), rotation A (n_t, dim, dim) and modal coordinates η
+    (n_t, n_modes) of every flexible body, read from the result's coordinates ``q``.
+
+    Raises
+    ------
+    AnalysisError
+        When the result holds no coordinates or lacks one of a flexible body's (naming it).
+    """
+    if not geo.flexible:
+        return {}
+    names = list(result.names.get("coordinates", []))
+    q = result.arrays.get("q")
+    if q is None or not names:
+        raise AnalysisError(f"the {result.kind} result holds no coordinates 'q': cannot draw "
+                            f"the flexible bodies {', '.join(geo.flexible)}")
+    frame = ("x", "y", "angle") if geo.dimension == 2 else ("x", "y", "z", "e0", "e1", "e2",
+                                                           "e3")
+    column = {name: k for k, name in enumerate(names)}
+    states = {}
+    for body, shape in geo.flexible.items():
+        wanted = [f"{body}.{c}" for c in frame] + [f"{body}.eta{k + 1}"
+                                                   for k in range(shape.n_modes)]
+        missing = [w for w in wanted if w not in column]
+        if missing:
+            raise AnalysisError(f"flexible body '{body}': the {result.kind} result has no "
+                                f"coordinate '{missing[0]}' (the body's frame and modal "
+                                "coordinates are needed to draw its nodes)")
+        cols = q[:, [column[w] for w in wanted]]
+        if geo.dimension == 2:
+            rot = _rotations(cols[:, 2])
+            states[body] = (cols[:, 0:2], rot, cols[:, 3:])
+        else:
+            states[body] = (cols[:, 0:3], _euler_rotations(cols[:, 3:7]), cols[:, 7:])
+    return states
+
+
+def _node_pose(shape: FlexibleShape, state, index: int, scale: float):
+    """Position r_i = R + A (u_i0 + s Φ_i η) (n_t, dim) and rotation (n_t, dim, dim) of
+    node ``index`` (module docstring)."""
+    ref, rot, eta = state
+    offset = shape.positions[index] + scale * eta @ shape.phi_t[index].T
+    position = ref + np.einsum("kij,kj->ki", rot, offset)
+    if shape.positions.shape[1] == 2:
+        psi = scale * eta @ shape.phi_r[index]
+        return position, np.einsum("kij,kjl->kil", rot, _rotations(psi))
+    half = 0.5 * scale * eta @ shape.phi_r[index].T
+    p = np.concatenate([np.ones((len(eta), 1)), half], axis=1)
+    p = p / np.linalg.norm(p, axis=1, keepdims=True)
+    return position, np.einsum("kij,kjl->kil", rot, _euler_rotations(p))
+
+
+def flexible_nodes(result, geo: Geometry, scale: float = 1.0,
+                   states: dict | None = None) -> dict[str, np.ndarray]:
+    """Deformed node positions (n_t, n_nodes, dim) of every flexible body of ``geo``,
+    r_i = R + A (u_i0 + s Φ_i η) (module docstring; ``scale`` is s)."""
+    states = flexible_states(result, geo) if states is None else states
+    nodes = {}
+    for body, shape in geo.flexible.items():
+        ref, rot, eta = states[body]
+        offsets = shape.positions[None] + scale * np.einsum("ijm,km->kij", shape.phi_t, eta)
+        nodes[body] = ref[:, None, :] + np.einsum("kab,kib->kia", rot, offsets)
+    return nodes
+
+
+def frame_poses(result, geo: Geometry, scale: float = 1.0,
+                states: dict | None = None) -> tuple[dict, dict]:
+    """:func:`body_poses` and, for every node frame ``"<body>@<node>"`` of ``geo``, the
+    deformed node position and node-frame rotation (``scale`` magnifies the deformation)."""
+    pos, rot = body_poses(result)
+    if geo.node_frames:
+        states = flexible_states(result, geo) if states is None else states
+        for name, (body, index) in geo.node_frames.items():
+            pos[name], rot[name] = _node_pose(geo.flexible[body], states[body], index, scale)
+    return pos, rot
+
+
 def _place(pos, rot, body: str, u: np.ndarray, n_t: int) -> np.ndarray:
     """r_G + A u on the grid, (n_t, dim); a ground point stays where it is."""
     if body == GROUND:
@@ -203,18 +379,37 @@ def body_points(result, mechanism=None) -> dict[str, np.ndarray]:
         Default: the scene embedded in the result (:meth:`Result.mechanism`).
     """
     geo = _geometry(result, mechanism)
-    pos, rot = body_poses(result)
+    pos, rot = frame_poses(result, geo)
     n_t = len(result.t)
-    return {body: (np.stack([_place(pos, rot, body, u, n_t) for _, u in pts], axis=1)
+    return {body: (np.stack([_place(pos, rot, frame, u, n_t)
+                             for (_, u), frame in zip(pts, geo.frames[body])], axis=1)
                    if pts else np.empty((n_t, 0, geo.dimension)))
             for body, pts in geo.points.items()}
 
 
+def deformed_nodes(result, mechanism=None, *, scale: float = 1.0) -> dict[str, np.ndarray]:
+    """Global positions (n_t, n_nodes, dim) of the nodes of every flexible body, the points
+    its drawing joins: r_i = R + A (u_i0 + s Φ_i η) (module docstring).
+
+    Parameters
+    ----------
+    result : Result
+        With the coordinates ``q`` (every kinematics, simulation, statics or inverse result).
+    mechanism : Mechanism or Geometry, optional
+        Default: the scene embedded in the result (:meth:`Result.mechanism`).
+    scale : float
+        Deformation scale s (1: the computed deformation).
+    """
+    geo = _geometry(result, mechanism)
+    return flexible_nodes(result, geo, scale)
+
+
 def joint_points(result, mechanism=None) -> dict[str, np.ndarray]:
     """Global position (n_t, dim) of every joint point on the grid, r_G + A u of the joint's
-    second body (its first when the second is the ground); for a distance link the point on
-    that body."""
+    second body (its first when the second is the ground; the node frame's position and
+    rotation for a joint at a node of a flexible body); for a distance link the point on that
+    body."""
     geo = _geometry(result, mechanism)
-    pos, rot = body_poses(result)
+    pos, rot = frame_poses(result, geo)
     return {name: _place(pos, rot, body, u, len(result.t))
             for name, (body, u) in geo.joints.items()}
