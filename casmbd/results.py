@@ -268,6 +268,10 @@ class Result:
             if "velocity" in b:
                 bodies[name]["velocity"] = _list(b["velocity"])
                 bodies[name]["angular_velocity"] = _list(b["angular_velocity"])
+            modal = [k for k, c in enumerate(self.names.get("coordinates", []))
+                     if c.startswith(f"{name}.eta")]
+            if modal and "q" in self.arrays:  # a flexible body's modal coordinates η
+                bodies[name]["modal_coordinates"] = _list(self.arrays["q"][:, modal])
         all_joints = self._joint_names()
         joints: dict = {name: {} for name in all_joints}
         for k, column in enumerate(self.names["joints"]):
