@@ -43,6 +43,7 @@ from pathlib import Path
 from typing import Any
 
 from casmbd import results
+from casmbd.compiled import modal_cache  # noqa: F401 (registers the on-disk store of modes)
 from casmbd.errors import CasmbdError, ExpressionError, SceneError
 from casmbd.io.files import read_text
 from casmbd.io.scene_points import ScenePoints

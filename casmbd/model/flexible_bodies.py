@@ -43,7 +43,7 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import ClassVar
@@ -60,7 +60,8 @@ from casmbd.model.registry import register_body
 from casmbd.model.rotations import euler_zxz_to_quaternion, rotation_matrix
 
 __all__ = ["FLEXIBLE_SCENE_KEYS", "NodeFrame", "PlanarFlexibleBody", "SpatialFlexibleBody",
-           "is_flexible", "modal_data", "node_attachment", "rigidified"]
+           "is_flexible", "modal_data", "node_attachment", "register_modal_store",
+           "rigidified"]
 
 #: separator of attachment names ``"<body>@<node>"``
 NODE_SEPARATOR = "@"
@@ -79,13 +80,33 @@ _FE_KEYS = {"file"}
 _MODES: dict[str, ModalData] = {}
 
 
+#: (load, save) of the on-disk store of modal data, registered by
+#: :mod:`casmbd.compiled.modal_cache` (the model layer does not import the compiled one)
+_STORE: tuple[Callable, Callable] | None = None
+
+
+def register_modal_store(load: Callable[[str], ModalData | None],
+                         save: Callable[[str, ModalData], None]) -> None:
+    """Set the on-disk store of modal data: ``load(key)`` (None on a miss) and
+    ``save(key, modal)``."""
+    global _STORE
+    _STORE = (load, save)
+
+
 def modal_data(model: FEModel, reduction: str, modes: int,
                interfaces: Sequence[str] = ()) -> ModalData:
     """The reduced modal data of ``model`` (:func:`casmbd.model.modal_reduction.reduce`),
-    computed once per process for the same FE data, reduction, modes and interfaces."""
+    computed once for the same FE data, reduction, modes and interfaces: kept for the process
+    and, when the compiled layer is loaded, on disk beside the compiled code
+    (:mod:`casmbd.compiled.modal_cache`)."""
     key = cache_key(_model_key(model), reduction, int(modes), list(interfaces))
     if key not in _MODES:
-        _MODES[key] = reduce(model, reduction, modes, interfaces)
+        stored = _STORE[0](key) if _STORE is not None else None
+        if stored is None:
+            stored = reduce(model, reduction, modes, interfaces)
+            if _STORE is not None:
+                _STORE[1](key, stored)
+        _MODES[key] = stored
     return _MODES[key]
 
 

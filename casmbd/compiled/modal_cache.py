@@ -1,0 +1,94 @@
+"""The on-disk cache of reduced modal data (flexible bodies, issue 23).
+
+The eigenproblem of a flexible body (:mod:`casmbd.model.modal_reduction`) depends only on its
+finite-element data, the reduction, the number of modes and the interfaces; its result is kept
+beside the compiled libraries as ``modes_<key>.npz`` in :func:`casmbd.compiled.cache.cache_dir`,
+``key`` the SHA-256 of those inputs (:func:`casmbd.model.modal.cache_key`).  A file is written
+atomically (a temporary file renamed into place), read with ``allow_pickle=False`` (data, never
+objects) and used only when it holds the same key, the expected fields with consistent shapes
+and finite numbers; anything else is a miss (the modes are computed again and the file
+replaced).  The model layer cannot import this one: it calls the store through the hook
+:func:`casmbd.model.flexible_bodies.register_modal_store`, set when this module is imported
+(by :mod:`casmbd.compiled`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+import zipfile
+
+import numpy as np
+
+from casmbd.compiled.cache import cache_dir
+from casmbd.model.flexible_bodies import register_modal_store
+from casmbd.model.modal import ModalData
+
+__all__ = ["load_modes", "save_modes"]
+
+_ARRAYS = ("positions", "masses", "inertias", "phi_t", "phi_r", "mass", "stiffness",
+           "frequencies", "rigid_mass")
+
+
+def _path(key: str):
+    return cache_dir() / f"modes_{key[:32]}.npz"
+
+
+def save_modes(key: str, modal: ModalData) -> None:
+    """Write ``modal`` under ``key`` atomically (an unwritable cache is silently skipped:
+    the modes are recomputed next time)."""
+    names = list(modal.node_names)
+    data = {name: np.asarray(getattr(modal, name), float) for name in _ARRAYS}
+    data.update(key=np.array(key), dimension=np.array(modal.dimension),
+                node_names=np.array(names, dtype=str),
+                node_index=np.array([modal.node_names[n] for n in names], dtype=int),
+                reduction=np.array(modal.reduction),
+                reference=np.array(-1 if modal.reference is None else modal.reference),
+                source=np.array(modal.source), modal_key=np.array(modal.key))
+    with contextlib.suppress(OSError):
+        path = _path(key)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".modes-", suffix=".npz")
+        try:
+            with os.fdopen(fd, "wb") as handle:
+                np.savez(handle, **data)
+            os.replace(tmp, path)
+        finally:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+
+
+def load_modes(key: str) -> ModalData | None:
+    """The modal data stored under ``key``, or None (no file, another key, a malformed or
+    non-finite field)."""
+    path = _path(key)
+    if not path.is_file():
+        return None
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            if str(z["key"]) != key:
+                return None
+            arrays = {name: np.array(z[name], float) for name in _ARRAYS}
+            dim = int(z["dimension"])
+            names = [str(n) for n in z["node_names"]]
+            index = [int(i) for i in z["node_index"]]
+            reference = int(z["reference"])
+            extra = {k: str(z[k]) for k in ("reduction", "source", "modal_key")}
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
+        return None
+    n_nodes = arrays["positions"].shape[0]
+    n_modes = arrays["frequencies"].shape[0]
+    shapes_ok = (arrays["positions"].shape == (n_nodes, dim)
+                 and arrays["phi_t"].shape == (n_nodes, dim, n_modes)
+                 and arrays["masses"].shape == (n_nodes,)
+                 and arrays["stiffness"].shape == (n_modes, n_modes)
+                 and len(names) == len(index) and all(0 <= i < n_nodes for i in index))
+    if not shapes_ok or not all(np.all(np.isfinite(a)) for a in arrays.values()):
+        return None
+    return ModalData(dimension=dim, node_names=dict(zip(names, index, strict=True)),
+                     reduction=extra["reduction"],
+                     reference=None if reference < 0 else reference,
+                     source=extra["source"], key=extra["modal_key"], **arrays)
+
+
+register_modal_store(load_modes, save_modes)
