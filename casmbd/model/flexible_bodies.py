@@ -285,7 +285,7 @@ class _Flexible:
     #: drawn as the polyline of its deformed nodes (:mod:`casmbd.viz.geometry`)
     drawing: ClassVar[str] = "nodes"
     #: the coordinate choices the kind supports: frame coordinates + modal coordinates
-    coordinate_choices: ClassVar[tuple[str, ...]] = ("absolute",)
+    coordinate_choices: ClassVar[tuple[str, ...]] = ("absolute", "natural")
 
     def _finish(self) -> None:
         """Mass, inertia, centre of mass and reference point from the modal data."""
@@ -380,7 +380,8 @@ class PlanarFlexibleBody(_Flexible):
 
     dimension = 2
     dimensions: ClassVar[tuple[int, ...]] = (2,)
-    descriptions: ClassVar[dict[str, str]] = {"absolute": "planar_flexible"}
+    descriptions: ClassVar[dict[str, str]] = {"absolute": "planar_flexible",
+                                              "natural": "planar_flexible_natural"}
 
     def __post_init__(self):
         where = f"body '{self.name}' field"
@@ -445,7 +446,8 @@ class SpatialFlexibleBody(_Flexible):
 
     dimension = 3
     dimensions: ClassVar[tuple[int, ...]] = (3,)
-    descriptions: ClassVar[dict[str, str]] = {"absolute": "spatial_flexible"}
+    descriptions: ClassVar[dict[str, str]] = {"absolute": "spatial_flexible",
+                                              "natural": "spatial_flexible_natural"}
 
     def __post_init__(self):
         where = f"body '{self.name}' field"

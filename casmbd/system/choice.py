@@ -66,7 +66,8 @@ def choose_coordinates(mechanism) -> CoordinateChoice:
     if only_absolute:
         shown = ", ".join(only_absolute[:3]) + (" …" if len(only_absolute) > 3 else "")
         return CoordinateChoice("absolute", f"flexible bodies ({shown}) carry frame and modal "
-                                "coordinates: absolute coordinates")
+                                "coordinates (no joint coordinates through them): absolute "
+                                "coordinates")
     try:
         descriptions, absorbed = tree_descriptions(mechanism, getattr(mechanism, "tree", None))
     except ModelError as exc:

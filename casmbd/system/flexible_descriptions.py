@@ -30,10 +30,17 @@ import casadi as ca
 import numpy as np
 
 from casmbd.model.rotations import G_matrix
-from casmbd.system.descriptions import PlanarAbsolute, SpatialAbsolute, register_description
+from casmbd.system.descriptions import (
+    PlanarAbsolute,
+    PlanarNatural,
+    SpatialAbsolute,
+    SpatialNatural,
+    register_description,
+)
 from casmbd.system.flexible import FlexibleBody, invariants
 
-__all__ = ["PlanarFlexible", "SpatialFlexible"]
+__all__ = ["PlanarFlexible", "PlanarFlexibleNatural", "SpatialFlexible",
+           "SpatialFlexibleNatural"]
 
 
 class FlexibleDescription:
@@ -191,3 +198,77 @@ class SpatialFlexible(FlexibleDescription, SpatialAbsolute):
         p, pdot = q[3:7], v[3:7]
         spin = 2.0 * ca.mtimes(G_matrix(p).T, qv[3:6]) - self._c * ca.dot(pdot, pdot) * p
         return ca.vertcat(qv[0:3], spin, qv[6:])
+
+
+class _NaturalFlexible(FlexibleDescription):
+    """Natural frame coordinates (seed 003): A is linear in q, the rigid-body conditions c_k
+    are the body's own equations.  ω̄ = Aᵀ ω with ω = ½ Σ a_k × ȧ_k (exact on the manifold).
+    T_flex(w) has no energy along the rates that violate d/dt c_k = 0 (a unit vector that
+    grows), so the description adds ½ c Σ_k ċ_k², ċ_k = ∂c_k/∂q q̇, with c = tr J of the
+    undeformed body: it vanishes with its first derivatives on the manifold (every ∂ċ_k/∂q̇ is
+    a row of C_q, so its generalized force is absorbed by the multipliers, as the Euler-parameter
+    term ½ c (pᵀṗ)² is) and makes the mass matrix positive definite.  Q_v by AD."""
+
+    def _natural_velocity(self, q, v):
+        frame = q[:self.frame_size]
+        rot = self.frame(frame)[1]
+        omega = self.angular_velocity(frame, v[:self.frame_size])
+        body_omega = omega if self.dimension == 2 else ca.mtimes(rot.T, omega)
+        n = self.frame_size
+        return rot, q[n:], v[0:self.dimension], body_omega, v[n:]
+
+    def kinetic_energy(self, q, v, mass, inertia):
+        """T = ½ wᵀ M(A, η) w + ½ c Σ ċ_k² (class docstring)."""
+        conditions, _ = self._rigid.constraints(self, q[:self.frame_size])
+        rates = ca.jtimes(conditions, q, v) if conditions.numel() else ca.SX(0, 1)
+        return (FlexibleDescription.kinetic_energy(self, q, v, mass, inertia)
+                + 0.5 * self._c * ca.sumsqr(rates))
+
+    def quadratic_velocity_forces(self, q, v, mass, inertia):
+        return None  # AD of ∂T/∂q − Ṁ q̇ (System.quadratic_velocity_forces)
+
+
+@register_description("planar_flexible_natural")
+class PlanarFlexibleNatural(_NaturalFlexible, PlanarNatural):
+    """(x, y, uₓ, u_y, η): a planar flexible body in natural coordinates."""
+
+    kind = "planar flexible natural"
+    frame_size = 4
+    _rigid = PlanarNatural
+
+    def __init__(self, body):
+        PlanarNatural.__init__(self, body)
+        self._flexible_init(body)
+        self._c = float(body.inertia)
+
+    def _frame_initial(self) -> np.ndarray:
+        return PlanarNatural.initial(self)
+
+    def _frame_rates(self, q, vel_g, omega):
+        return PlanarNatural.rates(self, q, vel_g, omega)
+
+    def _frame_velocity(self, q, v):
+        return self._natural_velocity(q, v)
+
+
+@register_description("spatial_flexible_natural")
+class SpatialFlexibleNatural(_NaturalFlexible, SpatialNatural):
+    """(x, y, z, u, v, w, η): a spatial flexible body in natural coordinates."""
+
+    kind = "spatial flexible natural"
+    frame_size = 12
+    _rigid = SpatialNatural
+
+    def __init__(self, body):
+        SpatialNatural.__init__(self, body)
+        self._flexible_init(body)
+        self._c = float(sum(body.inertia[:3]))
+
+    def _frame_initial(self) -> np.ndarray:
+        return SpatialNatural.initial(self)
+
+    def _frame_rates(self, q, vel_g, omega):
+        return SpatialNatural.rates(self, q, vel_g, omega)
+
+    def _frame_velocity(self, q, v):
+        return self._natural_velocity(q, v)
