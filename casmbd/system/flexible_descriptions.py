@@ -76,6 +76,17 @@ class FlexibleDescription:
     def initial(self) -> np.ndarray:
         return np.concatenate([self._frame_initial(), np.zeros(self.n_modes)])
 
+    def initial_rates(self) -> np.ndarray:
+        """q̇ at the start: the body's ``velocity`` is that of the frame origin (its scene
+        ``position``), so the centre of mass moves at v_G = v_R + ω × (A c); η̇ = 0."""
+        body = self.body
+        rot = body.initial_rotation
+        omega = np.atleast_1d(np.asarray(body.angular_velocity, float))
+        arm = rot @ np.asarray(body.centre, float)
+        spin = omega[0] * np.array([-arm[1], arm[0]]) if self.dimension == 2 else \
+            np.cross(omega, arm)
+        return self._rates_numeric(rot, np.asarray(body.velocity, float) + spin, omega)
+
     def rates(self, q, vel_g, omega):
         frame = self._frame_rates(q[:self.frame_size], vel_g, omega)
         return ca.vertcat(frame, ca.SX(self.n_modes, 1))

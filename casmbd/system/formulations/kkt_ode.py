@@ -2,8 +2,8 @@
 
 λ from S = C_q M⁻¹ C_qᵀ (sparse, symmetric positive definite when C_q has full rank) with
 CasADi's code-generable sparse LDLᵀ; M⁻¹ is block diagonal (3×3 blocks) in absolute and natural
-coordinates, so nothing dense is ever formed; a coupled (joint-coordinate) M is factorised by a
-sparse LDLᵀ instead.
+coordinates, so nothing dense is ever formed; a coupled (joint-coordinate) M, or one with the
+dense frame–mode blocks of flexible bodies, is factorised by a sparse LDLᵀ instead.
 """
 
 from __future__ import annotations
@@ -35,12 +35,20 @@ def _block_inverse(system: System) -> ca.SX:
     return ca.diagcat(*blocks)
 
 
+def _flexible(system: System) -> bool:
+    """True when a body block holds modal coordinates: its frame–mode block is dense and
+    ill-conditioned (cond 4e5–9e6 for beams of 6–20 elements), where the symbolic inverse of
+    :func:`_block_inverse` (unpivoted QR) loses cond² ε — 8e-4 in |M⁻¹M − I| — so M is
+    factorised by the sparse LDLᵀ of the coupled path instead."""
+    return any(getattr(d, "n_modes", 0) for d in system.descriptions.values())
+
+
 def kkt_ode(system: System, alpha: float = 0.0, beta: float = 0.0,
             inputs: ca.SX | None = None) -> Formulation:
     """ODE on (q, v) with λ from the sparse Schur complement and an LDLᵀ solve."""
     t, q, v, pu = _sym_inputs(system)
     q_dot = v
-    if not system.local:
+    if not system.local or _flexible(system):
         return _kkt_ode_coupled(system, alpha, beta, inputs)
     if system.nc == 0:
         a = ca.mtimes(_block_inverse(system), _forces(system, inputs))
