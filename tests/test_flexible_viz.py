@@ -1,11 +1,12 @@
 """Drawing flexible bodies (issue 23 item 4): the polyline through the deformed nodes.
 
 The viz layer places node i of a flexible body at r_i = R + A (u_i0 + s Φ_i η) (seed 002,
-eq. 5–26) from the coordinates q of a result.  Checked here, planar and spatial, on short
-simulations of a flexible pendulum (VM, no compilation):
+eq. 5–26) from the coordinates q of a result.  Checked here, planar and spatial, in absolute
+and natural coordinates, on short simulations of a flexible pendulum (VM, no compilation):
 
-* the drawn nodes against the same formula written out in the test node by node (R, θ or the
-  Euler parameters and η picked from q by name, A(θ) / A(p) of seed 001 eq. 15), to 1e-12 m;
+* the drawn nodes against the same formula written out in the test node by node (R, θ, the
+  Euler parameters or the body axes and η picked from q by name; A(θ), A(p) of seed 001
+  eq. 15, [u, ẑ × u] or [u v w]), to 1e-12 m;
 * the named-node markers the System computed (an independent CasADi formulation of the node
   position) against the drawn nodes, to 1e-12 m, and a marker offset from a node (node-frame
   rotation A A(ψ)) against the System's marker, to 1e-12 m;
@@ -133,14 +134,17 @@ point = [0.5, 0.5, 0.5]
 """
 
 
-def _run(text: str):
+def _run(text: str, natural: bool = False):
+    if natural:
+        text = text.replace("dimension = ", 'coordinates = "natural"\ndimension = ', 1)
     mech = casmbd.loads_scene(text)
     return casmbd.simulate(mech, t_end=0.5, steps=10).attach_scene(mech)
 
 
 @pytest.fixture(scope="module")
 def results():
-    return {"planar": _run(PLANAR), "spatial": _run(SPATIAL)}
+    return {"planar": _run(PLANAR), "spatial": _run(SPATIAL),
+            "planar_natural": _run(PLANAR, True), "spatial_natural": _run(SPATIAL, True)}
 
 
 def reference_nodes(result, body: str, scale: float = 1.0) -> np.ndarray:
@@ -157,8 +161,14 @@ def reference_nodes(result, body: str, scale: float = 1.0) -> np.ndarray:
     ref = np.stack([col(c) for c in ("x", "y", "z")[:dim]], axis=1)
     eta = np.stack([col(f"eta{k + 1}") for k in range(modal.phi_t.shape[2])], axis=1)
     out = np.empty((len(q), len(modal.positions), dim))
+    natural = f"{body}.ux" in names
     for k in range(len(q)):
-        if dim == 2:
+        if natural and dim == 2:  # A = [u, ẑ × u] (seed 003)
+            ux, uy = col("ux")[k], col("uy")[k]
+            rot = np.array([[ux, -uy], [uy, ux]])
+        elif natural:  # A = [u v w]
+            rot = np.array([[col(f"{a}{x}")[k] for a in "uvw"] for x in "xyz"])
+        elif dim == 2:
             c, s = math.cos(col("angle")[k]), math.sin(col("angle")[k])
             rot = np.array([[c, -s], [s, c]])
         else:
@@ -173,9 +183,10 @@ def reference_nodes(result, body: str, scale: float = 1.0) -> np.ndarray:
     return out
 
 
-@pytest.mark.parametrize("which", ["planar", "spatial"])
+@pytest.mark.parametrize("which", ["planar", "spatial", "planar_natural", "spatial_natural"])
 def test_drawn_nodes_follow_the_floating_frame_formula(results, which):
     result = results[which]
+    assert ("beam.ux" in result.names["coordinates"]) == which.endswith("natural")
     mech = result.mechanism()
     nodes = geometry.deformed_nodes(result)["beam"]
     expected = reference_nodes(result, "beam")
@@ -209,7 +220,7 @@ def test_joint_at_a_node_meets_the_rigid_body(results):
                                rtol=0, atol=1e-12)
 
 
-@pytest.mark.parametrize("which", ["planar", "spatial"])
+@pytest.mark.parametrize("which", ["planar", "spatial_natural"])
 def test_still_frame_draws_the_deformed_nodes(results, which, tmp_path):
     result = results[which]
     mech = result.mechanism()
@@ -219,13 +230,14 @@ def test_still_frame_draws_the_deformed_nodes(results, which, tmp_path):
                          dpi=40)
         ax = fig.axes[0]
         line = next(ln for ln in ax.get_lines() if ln.get_label() == "beam")
-        data = np.array(line.get_data_3d() if which == "spatial" else line.get_data()).T
+        spatial = which.startswith("spatial")
+        data = np.array(line.get_data_3d() if spatial else line.get_data()).T
         expected = reference_nodes(result, "beam", scale)[k]
         np.testing.assert_allclose(data, expected, rtol=0, atol=1e-12)
         masses = mech.bodies["beam"].modal.masses
         dots = [ln for ln in ax.get_lines() if ln.get_marker() == "o" and ln.get_linestyle()
                 == "None" and ln.get_color() == line.get_color()]
-        com = np.array(dots[0].get_data_3d() if which == "spatial" else dots[0].get_data())
+        com = np.array(dots[0].get_data_3d() if spatial else dots[0].get_data())
         np.testing.assert_allclose(com.ravel(), masses @ expected / masses.sum(), rtol=0,
                                    atol=1e-12)
         said = "deformation x10" in " ".join(t.get_text() for t in ax.texts)

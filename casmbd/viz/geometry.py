@@ -18,8 +18,9 @@ drawn as the polyline through all their deformed nodes,
     r_i(t) = R(t) + A(t) (u_i0 + s Φ_i η(t))                    (seed 002, eq. 5–26)
 
 with the frame origin R, the rotation A (angle θ in the plane; A(p) of the Euler parameters p
-in space, seed 001 eq. 15) and the modal coordinates η read from the coordinates ``q`` of the
-result (``"<body>.x"`` … ``"<body>.eta1"`` …), the undeformed node positions u_i0 and the
+in space, seed 001 eq. 15; in natural coordinates the body axes, A = [u, ẑ × u] or [u v w])
+and the modal coordinates η read from the coordinates ``q`` of the result (``"<body>.x"`` …
+``"<body>.eta1"`` …), the undeformed node positions u_i0 and the
 translational base vectors Φ_i of the body's modal data, and s = 1 (a *deformation scale*
 s ≠ 1 magnifies the elastic displacements for a picture).  A point attached to a named node
 (``"<body>@<node>"``: joints, forces, the node markers) moves with the node frame: position
@@ -273,9 +274,17 @@ def _euler_rotations(p: np.ndarray) -> np.ndarray:
             + 2.0 * (np.einsum("ki,kj->kij", e, e) + e0[:, None, None] * skew))
 
 
+#: frame coordinates of a flexible body per dimension: absolute (angle / Euler parameters), then
+#: natural (the body axes, seed 003; A = [u, ẑ × u] in the plane, [u v w] in space)
+_FRAME_COORDINATES = {2: (("x", "y", "angle"), ("x", "y", "ux", "uy")),
+                      3: (("x", "y", "z", "e0", "e1", "e2", "e3"),
+                          ("x", "y", "z", "ux", "uy", "uz", "vx", "vy", "vz", "wx", "wy", "wz"))}
+
+
 def flexible_states(result, geo: Geometry) -> dict[str, tuple[np.ndarray, ...]]:
     """Frame origin R (n_t, dim), rotation A (n_t, dim, dim) and modal coordinates η
-    (n_t, n_modes) of every flexible body, read from the result's coordinates ``q``.
+    (n_t, n_modes) of every flexible body, read from the result's coordinates ``q`` (absolute
+    or natural frame coordinates, :data:`_FRAME_COORDINATES`).
 
     Raises
     ------
@@ -289,11 +298,12 @@ def flexible_states(result, geo: Geometry) -> dict[str, tuple[np.ndarray, ...]]:
     if q is None or not names:
         raise AnalysisError(f"the {result.kind} result holds no coordinates 'q': cannot draw "
                             f"the flexible bodies {', '.join(geo.flexible)}")
-    frame = ("x", "y", "angle") if geo.dimension == 2 else ("x", "y", "z", "e0", "e1", "e2",
-                                                           "e3")
     column = {name: k for k, name in enumerate(names)}
+    dim = geo.dimension
     states = {}
     for body, shape in geo.flexible.items():
+        frame = next((f for f in _FRAME_COORDINATES[dim] if f"{body}.{f[-1]}" in column),
+                     _FRAME_COORDINATES[dim][0])
         wanted = [f"{body}.{c}" for c in frame] + [f"{body}.eta{k + 1}"
                                                    for k in range(shape.n_modes)]
         missing = [w for w in wanted if w not in column]
@@ -302,11 +312,17 @@ def flexible_states(result, geo: Geometry) -> dict[str, tuple[np.ndarray, ...]]:
                                 f"coordinate '{missing[0]}' (the body's frame and modal "
                                 "coordinates are needed to draw its nodes)")
         cols = q[:, [column[w] for w in wanted]]
-        if geo.dimension == 2:
+        n = len(frame)
+        if len(frame) == 3:  # plane, absolute: the angle
             rot = _rotations(cols[:, 2])
-            states[body] = (cols[:, 0:2], rot, cols[:, 3:])
-        else:
-            states[body] = (cols[:, 0:3], _euler_rotations(cols[:, 3:7]), cols[:, 7:])
+        elif len(frame) == 4:  # plane, natural: A = [u, ẑ × u]
+            u = cols[:, 2:4]
+            rot = np.stack([u, np.stack([-u[:, 1], u[:, 0]], axis=1)], axis=2)
+        elif len(frame) == 7:  # space, absolute: Euler parameters
+            rot = _euler_rotations(cols[:, 3:7])
+        else:  # space, natural: A = [u v w]
+            rot = cols[:, 3:12].reshape(-1, 3, 3).transpose(0, 2, 1)
+        states[body] = (cols[:, 0:dim], rot, cols[:, n:])
     return states
 
 
