@@ -343,7 +343,7 @@ def slider_crank(quick: bool, have_exudyn: bool) -> dict:
                 s = run.signals
                 d = chord_deflection(s["A"], s["B"], s["mid"])
                 rows.append({"code": "exudyn", "h": h, "seconds": run.seconds,
-                             "steps": run.steps, "config": "generalized-alpha rho 0.8",
+                             "steps": run.steps, "config": "generalized-α ρ∞ 0.8, dense LU",
                              "err_deflection": float(np.abs(d - ref["deflection"]).max()),
                              "err_slider": float(np.abs(s["slider"] - ref["slider"]).max())})
                 if h == (2.5e-5 if quick else 2.5e-6):
