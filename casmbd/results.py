@@ -111,6 +111,10 @@ class Result:
     names: dict[str, list[str]]
     stats: dict = field(default_factory=dict)
     scene: str = ""
+    #: events of an event-driven run (contacts, joint limits: casmbd.analysis.events), each
+    #: ``{"time": float, "element": str, "kind": str}`` (impact, limit, contact, detach,
+    #: stick, slip)
+    events: list = field(default_factory=list)
 
     def __getitem__(self, key: str) -> np.ndarray:
         return self.t if key == "t" else self.arrays[key]
@@ -314,6 +318,11 @@ class Result:
         if "velocity_violation" in self.arrays:
             vv = self.arrays["velocity_violation"]
             out["velocity_violation"] = float(np.max(vv)) if vv.size else 0.0
+        if self.events or self.stats.get("event_driven"):
+            out["events"] = [dict(e) for e in self.events]
+        if "contact_forces" in self.arrays:
+            out["contacts"] = {name: {"normal_force": _list(self.arrays["contact_forces"][:, k])}
+                               for k, name in enumerate(self.names.get("contacts", []))}
         return out
 
     # ------------------------------------------------------------------ files
@@ -321,7 +330,8 @@ class Result:
         """Write every array, the names, stats and scene text to an npz file atomically."""
         payload = {"t": self.t, **{f"array/{k}": v for k, v in self.arrays.items()}}
         payload["meta"] = np.array(json.dumps({"kind": self.kind, "names": self.names,
-                                               "stats": self.stats}, default=_json_default))
+                                               "stats": self.stats, "events": self.events},
+                                              default=_json_default))
         payload["scene"] = np.array(self.scene)
 
         def write(tmp: str) -> None:
@@ -554,7 +564,14 @@ def load(path: str | os.PathLike) -> Result:
     scene = data.get("scene", np.array(""))
     if scene.dtype.kind != "U" or scene.ndim != 0:
         raise ResultFileError(f"{where} (its 'scene' entry is not a text)")
-    return Result(meta["kind"], t, arrays, meta["names"], meta["stats"], str(scene))
+    events = meta.get("events", [])
+    if not (isinstance(events, list) and all(
+            isinstance(e, dict) and isinstance(e.get("time"), int | float)
+            and isinstance(e.get("element"), str) and isinstance(e.get("kind"), str)
+            for e in events)):
+        raise ResultFileError(f"{where} ('meta' events must be a list of {{time, element, "
+                              "kind}})")
+    return Result(meta["kind"], t, arrays, meta["names"], meta["stats"], str(scene), events)
 
 
 load_result = load

@@ -29,6 +29,7 @@ from casmbd.analysis.checks import (
     check_start,
     diagnose_failure,
 )
+from casmbd.analysis.events import has_events, simulate_events
 from casmbd.analysis.kkt import consistent_state
 from casmbd.analysis.postprocess import PostProcessing
 from casmbd.analysis.redundancy import rank_report
@@ -473,6 +474,17 @@ def simulate(mechanism, t_end: float, steps: int, *, formulation: str | None = N
     """
     if isinstance(steps, (int, np.integer)) and steps >= 1:  # before anything is built
         check_steps("simulation", int(steps), output_values(mechanism))
+    if has_events(mechanism):  # impacts, contact and detach: phase by phase
+        if projection or step is not None:
+            raise AnalysisError("contacts and joint limits of the impact model run with the "
+                                "variable-step event-driven integrator: no 'projection' or "
+                                "'step' (or use model = 'compliant')")
+        return simulate_events(
+            mechanism, t_end, steps, integrator=integrator, rtol=rtol, atol=atol,
+            t_start=t_start, max_steps=max_steps,
+            simulator_factory=lambda mech: Simulator(
+                mech, formulation, inputs=inputs, mode=mode,
+                formulation_options=formulation_options, redundancy=redundancy))
     sim = Simulator(mechanism, formulation, inputs=inputs, mode=mode,
                     formulation_options=formulation_options, redundancy=redundancy)
     return sim.run(t_end, steps, t_start=t_start, integrator=integrator, rtol=rtol, atol=atol,

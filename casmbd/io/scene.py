@@ -57,13 +57,21 @@ from casmbd.limits import (
 )
 from casmbd.model import Mechanism
 from casmbd.model.expressions import evaluate_number, parse_expression
+from casmbd.model.joint_friction import joint_friction_from_scene
 from casmbd.model.registry import BODY_KINDS, FORCE_KINDS, JOINT_KINDS
 from casmbd.model.values import EXTRAPOLATIONS, Samples
 
 FORMAT = 1
 
 _TABLES = {"scene", "parameters", "bodies", "markers", "joints", "drivers", "forces",
-           "actuators", "ocp", "simulation", "meta"}
+           "actuators", "contacts", "ocp", "simulation", "meta"}
+#: keys of a [[contacts]] entry (casmbd/model/contacts.py)
+_CONTACT_KEYS = {"name", "type", "body", "point", "radius", "origin", "normal", "model",
+                 "restitution", "friction", "body2", "point2", "radius2", "stiffness",
+                 "exponent", "damping", "penetration", "friction_velocity", "description"}
+_COMPLIANT_KEYS = ("stiffness", "exponent", "damping", "penetration", "friction_velocity")
+#: keys every [[joints]] entry may add: stops on its coordinate (issue 24)
+_LIMIT_KEYS = {"lower", "upper", "restitution", "limit_model"}
 _SCENE_KEYS = {"name", "dimension", "gravity", "format", "description", "coordinates",
                "tree", "urdf", "initial", "locked", "damping", "friction"}
 _COORDINATES = ("auto", "absolute", "natural", "joint")
@@ -359,8 +367,18 @@ def _build(data: dict, source: str) -> Mechanism:
             space = "spatial" if dim == 2 else "planar"
             raise e.error("type", f"a {jtype} joint needs a {space} scene ([scene] "
                           f"dimension = {5 - dim})")
-        e.check_keys(set(kind.scene_common | kind.scene_keys))
+        e.check_keys(set(kind.scene_common | kind.scene_keys) | _LIMIT_KEYS | {"friction"})
         guarded(e, lambda kind=kind, e=e: kind.from_scene(mech, e))
+        if e.has("friction"):  # joint friction "<joint>.friction" (model/joint_friction.py)
+            guarded(e, lambda e=e: joint_friction_from_scene(mech, e))
+        if e.has("lower") or e.has("upper"):  # stops on the joint's first coordinate
+            guarded(e, lambda e=e: mech.add_joint_limit(
+                e.string("name"), lower=e.number("lower", None, required=False),
+                upper=e.number("upper", None, required=False),
+                restitution=e.number("restitution", 0.0),
+                model=e.string("limit_model", default="impact")))
+        elif e.has("restitution") or e.has("limit_model"):
+            raise e.error("restitution", "applies to joint limits: give 'lower' or 'upper'")
 
     for e in entries("drivers"):
         e.check_keys(_DRIVER_KEYS)
@@ -378,6 +396,30 @@ def _build(data: dict, source: str) -> Mechanism:
         force_kind = scene_forces[ftype]
         e.check_keys({"name", "type", "description"} | force_kind.scene_keys)
         guarded(e, lambda force_kind=force_kind, e=e: force_kind.from_scene(mech, e))
+
+    for e in entries("contacts"):
+        e.check_keys(_CONTACT_KEYS)
+        ctype = e.string("type", default="plane")
+        if ctype not in ("plane", "sphere"):
+            raise e.error("type", f"unknown contact type {ctype!r} (allowed: plane, sphere)")
+        compliant = {k: e.number(k) for k in _COMPLIANT_KEYS if e.has(k)}
+        if ctype == "plane":
+            guarded(e, lambda e=e, compliant=compliant: mech.add_contact(
+                _name(e), e.string("body"), e.vector("point", dim),
+                radius=e.number("radius", 0.0),
+                origin=e.vector("origin", dim, default=[0.0] * dim),
+                normal=e.vector("normal", dim, required=False),
+                model=e.string("model", default="impact"),
+                restitution=e.number("restitution", 0.0), friction=e.number("friction", 0.0),
+                **compliant))
+        else:
+            guarded(e, lambda e=e, compliant=compliant: mech.add_contact(
+                _name(e), e.string("body"), e.vector("point", dim),
+                radius=e.number("radius", 0.0), body2=e.string("body2"),
+                point2=e.vector("point2", dim), radius2=e.number("radius2", 0.0),
+                model=e.string("model", default="impact"),
+                restitution=e.number("restitution", 0.0), friction=e.number("friction", 0.0),
+                **compliant))
 
     for e in entries("actuators"):
         e.check_keys(_ACTUATOR_KEYS)

@@ -21,6 +21,7 @@ import numpy as np
 from casmbd.errors import ModelError
 from casmbd.limits import MAX_BODIES, MAX_ELEMENTS, check_count
 from casmbd.model.bodies import GROUND, Body, Marker, SpatialBody, check_inertia, vector
+from casmbd.model.contacts import JointLimit, PlaneContact, SphereContact, Unilateral
 from casmbd.model.drivers import BODY_COORDINATES, Driver
 from casmbd.model.flexible_bodies import NodeFrame, is_flexible, node_attachment
 from casmbd.model.forces import (
@@ -33,6 +34,7 @@ from casmbd.model.forces import (
     UserForce,
 )
 from casmbd.model.joints import Joint
+from casmbd.model.measures import Output, add_output
 from casmbd.model.registry import BODY_KINDS, FORCE_KINDS, JOINT_KINDS, body_kind, joint_kind
 from casmbd.model.rotations import euler_zxz_to_quaternion
 from casmbd.model.values import Value, check_value, numeric
@@ -75,12 +77,16 @@ class Mechanism:
         self.parameters: dict[str, float] = {}
         self.bodies: dict[str, Body] = {}
         self.markers: dict[str, Marker] = {}
+        #: unilateral elements (contacts, joint limits) by name, :mod:`casmbd.model.contacts`
+        self.contacts: dict[str, Unilateral] = {}
         #: node frames of flexible bodies by attachment name ``"<body>@<node>"``
         self.nodes: dict[str, NodeFrame] = {}
         self.joints: dict[str, Joint] = {}
         self.drivers: dict[str, Driver] = {}
         self.forces: dict[str, object] = {}
         self.actuators: dict[str, Actuator] = {}
+        #: requests: named expressions of measures reported on result grids (``[[outputs]]``)
+        self.outputs: dict[str, Output] = {}
 
     # ------------------------------------------------------------------ helpers
     def _unique(self, table: dict, kind: str, name: str) -> str:
@@ -417,7 +423,63 @@ class Mechanism:
         self.actuators[name] = actuator
         return actuator
 
+    # ------------------------------------------------------------------ unilateral elements
+    def add_contact(self, name: str, body: str, point: Sequence[float], radius: float = 0.0,
+                    origin: Sequence[float] | None = None, normal: Sequence[float] | None = None,
+                    model: str = "impact", restitution: float = 0.0, friction: float = 0.0,
+                    body2: str | None = None, point2: Sequence[float] | None = None,
+                    radius2: float = 0.0, **compliant) -> Unilateral:
+        """A sphere (``radius``; 0: a point) at the global ``point`` on ``body`` against the
+        ground plane through ``origin`` with ``normal`` or, with ``body2``, against a sphere
+        (``radius2``) at ``point2`` on ``body2``; ``model`` "impact" (events and restitution)
+        or "compliant" (``stiffness``, ``exponent``, ``damping``, ``penetration``,
+        ``friction_velocity``).  See :mod:`casmbd.model.contacts`."""
+        self._unique(self.contacts, "contact", name)
+        self._body(body, f"contact '{name}' field 'body'")
+        dim = self.dimension
+        if body2 is None:
+            zeros = [0.0] * dim
+            up = [0.0] * dim
+            up[-1] = 1.0
+            element = PlaneContact(name, restitution, friction, model, body, point, radius,
+                                   zeros if origin is None else origin,
+                                   up if normal is None else normal, dim)
+        else:
+            self._body(body2, f"contact '{name}' field 'body2'")
+            element = SphereContact(name, restitution, friction, model, body, body2, point,
+                                    point2 if point2 is not None else point, radius, radius2,
+                                    dim)
+        return self._unilateral(element, compliant)
+
+    def add_joint_limit(self, joint: str, lower: float | None = None,
+                        upper: float | None = None, restitution: float = 0.0,
+                        coordinate: str | None = None, model: str = "impact",
+                        **compliant) -> Unilateral:
+        """Stops ``lower`` ≤ q ≤ ``upper`` on a joint coordinate (the element
+        ``"<joint>.limit"``; restitution e of Newton's law at the stop)."""
+        joint_obj = self._joint(joint, f"joint '{joint}' field 'lower'")
+        if coordinate is not None:
+            joint_obj._which(coordinate)
+        name = self._unique(self.contacts, "contact", f"{joint}.limit")
+        return self._unilateral(JointLimit(name, restitution, 0.0, model, joint, coordinate,
+                                           lower, upper), compliant)
+
+    def _unilateral(self, element: Unilateral, compliant: dict) -> Unilateral:
+        if element.model == "compliant":
+            self.add("compliant_contact", f"{element.name}.force", element, **compliant)
+        elif compliant:
+            raise ModelError(f"contact '{element.name}': {', '.join(compliant)} apply to "
+                             "model = 'compliant'")
+        self.contacts[element.name] = element
+        return element
+
     # ------------------------------------------------------------------ checks
+    def add_output(self, name: str, value: float | str, unit: str = "-") -> Output:
+        """Add a request: ``value``, an expression of measures (``angle("J")``, ``x("tip")``,
+        … :mod:`casmbd.model.measures`), reported as ``outputs`` on the result grid of every
+        analysis with one; ``unit`` labels its plot axis."""
+        return add_output(self, name, value, unit)
+
     def validate(self) -> None:
         """Check what can only be checked once everything is declared (expression values)."""
         if not self.bodies:

@@ -1,0 +1,484 @@
+"""Event-driven forward dynamics with unilateral elements: impacts, contact, detach (issue 24).
+
+A mechanism with contacts or joint limits of the ``"impact"`` model
+(:mod:`casmbd.model.contacts`) is integrated phase by phase (Pfeiffer & Glocker, *Multibody
+Dynamics with Unilateral Contacts*, 1996, ch. 6–7; the event-driven scheme of Adams' and
+Simpack's non-smooth contacts):
+
+1. **Smooth phase.** The mechanism with the *closed* gaps as bilateral constraints (a
+   :class:`~casmbd.model.contacts.GapClosure` joint each; one compiled
+   :class:`~casmbd.analysis.simulate.Simulator` per set of closed gaps, built once) is
+   integrated in sub-intervals of the output grid (``substeps`` per interval; a variable-step
+   SUNDIALS integrator on the time-scaled dynamics h f(t0 + h s, x), s ∈ [0, 1], so one
+   compiled integrator serves every step length).
+2. **Events.** After each sub-interval: an open gap g_k(q) < 0 is an *impact* (``limit`` for a
+   joint stop), a closed gap whose normal force −λ_k turned negative a *detach*.  The event
+   time is found by the Illinois variant of regula falsi on g_k(x(t)) (or λ_k), integrating
+   from the sub-interval's start, to |Δt| ≤ 1e-13 (1 + |t|) — the first event of the
+   sub-interval wins.
+3. **Impact.** The post-impact velocity v⁺ solves Newton's law on the active gaps I with the
+   bilateral constraints (impulses P ≥ 0, μ):
+
+       [M  C_qᵀ G_Iᵀ] [v⁺]   [M v⁻       ]
+       [C_q 0    0  ] [μ ] = [−C_t       ]
+       [G_I 0    0  ] [P ]   [−e G_I v⁻  ]
+
+   G = ∂g/∂q.  A gap with P_k < 0 leaves the set and the system is solved again.  With
+   friction μ_f at a contact, the tangential impulse first sticks (T v⁺ = 0 added); if
+   |P_t| > μ_f P_n the contact slips and P_t = −μ_f P_n sign(T v⁻) (the impulse direction
+   becomes G − μ_f sign(v_t) T) — Coulomb's law on the impulse level.  Events ``stick`` or
+   ``slip`` follow the impact of a frictional contact.
+4. **Rest.** A gap whose rebound speed G_k v⁺ is below ``rest_velocity`` (default
+   sqrt(2 g_r 1e-9 m): a bounce lower than a nanometre) closes — Zeno's infinite sequence of
+   ever smaller bounces is cut there — and stays closed until its normal force vanishes
+   (``contact`` then ``detach``).
+
+The result carries ``events`` (time, element, kind), ``contact_forces`` (the closed gaps'
+normal forces, zero when open, n_t × n_gaps) and every array of a smooth run.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import time
+
+import casadi as ca
+import numpy as np
+
+from casmbd.analysis import integrators as integ
+from casmbd.analysis.kkt import accelerations_and_multipliers, consistent_state
+from casmbd.errors import AnalysisError, IntegratorError
+from casmbd.model.bodies import GROUND
+from casmbd.model.contacts import GapClosure
+from casmbd.results import Result
+from casmbd.system import System
+
+__all__ = ["has_events", "simulate_events"]
+
+#: default sub-intervals per output interval in which gaps are checked
+SUBSTEPS = 4
+#: rebound height below which a contact closes instead of bouncing again (m)
+REST_HEIGHT = 1e-9
+
+
+def has_events(mechanism) -> bool:
+    """True when the mechanism has unilateral elements of the impact model."""
+    return any(c.model == "impact" for c in getattr(mechanism, "contacts", {}).values())
+
+
+def _scaled(dyn: ca.Function) -> ca.Function:
+    """g(s, x, z, [p; t0; h], u) = (h f(t0 + h s, …), alg): the dynamics on s ∈ [0, 1]."""
+    s = ca.MX.sym("t")
+    x = ca.MX.sym("x", dyn.sparsity_in("x"))
+    z = ca.MX.sym("z", dyn.sparsity_in("z"))
+    p = ca.MX.sym("p", dyn.size1_in("p") + 2)
+    u = ca.MX.sym("u", dyn.sparsity_in("u"))
+    h = p[-1]
+    out = dyn(t=p[-2] + h * s, x=x, z=z, p=p[:-2], u=u)
+    return ca.Function("scaled", [s, x, z, p, u],
+                       [h * out["ode"], out["alg"], h * out["quad"], out["zero"]],
+                       ca.dyn_in(), ca.dyn_out())
+
+
+class _Gaps:
+    """Numeric gap functions of the impact elements, from a System."""
+
+    def __init__(self, system, elements):
+        ctx = system.ctx
+        self.rows: list[tuple] = []
+        gaps, tangent_rows, tangent_of = [], [], []
+        for element in elements:
+            g = ca.vec(element.gaps(ctx))
+            for k in range(g.numel()):
+                self.rows.append((element, k))
+                gaps.append(g[k])
+                vt = element.tangential_velocity(ctx, k) if element.friction else None
+                tangent_of.append(len(tangent_rows) if vt is not None else None)
+                if vt is not None:
+                    tangent_rows.append(ca.vec(vt))
+        g = ca.vertcat(*gaps) if gaps else ca.SX(0, 1)
+        vt = ca.vertcat(*tangent_rows) if tangent_rows else ca.SX(0, 1)
+        self.tangent_of = tangent_of
+        self.tangent_size = 1 if system.dimension == 2 else 2
+        self.fun = ca.Function("gaps", [system.q, system.v, system.t, system.p],
+                               [g, ca.densify(ca.jacobian(g, system.q)),
+                                ca.densify(ca.jacobian(vt, system.v))])
+
+    def __call__(self, q, v, t, p):
+        g, gq, tv = self.fun(q, v, t, p)
+        return (np.asarray(g, float).ravel(), np.asarray(gq, float),
+                np.asarray(tv, float))
+
+    def label(self, i: int) -> str:
+        element, k = self.rows[i]
+        return element.name if len(element.labels) == 1 else \
+            f"{element.name}.{element.labels[k]}"
+
+
+class _Phase:
+    """A Simulator of the mechanism with a set of closed gaps, and its step integrators."""
+
+    def __init__(self, sim, closed: frozenset, closure_rows: list[int], name, rtol, atol,
+                 max_steps):
+        self.sim, self.closed, self.closure_rows = sim, closed, closure_rows
+        self.dae = sim.formulation.kind == "dae"
+        self.integrator = integ.sundials(_scaled(sim.dyn), name, 0.0, [1.0], rtol, atol,
+                                         max_steps)
+
+    def advance(self, x, z, t0, h):
+        r = self.integrator(x0=x, z0=z, p=np.concatenate([self.sim.model.p, [t0, h]]))
+        return np.asarray(r["xf"], float).ravel(), np.asarray(r["zf"], float).ravel()
+
+    def multipliers(self, q, v, t):
+        """λ of the closure rows (the closed gaps' constraint multipliers)."""
+        model = self.sim.model
+        _, lam = accelerations_and_multipliers(model, q, v, t, self.sim.inputs_at(t))
+        return lam[self.closure_rows] if self.closure_rows else np.zeros(0)
+
+    def z0(self, q, v, t):
+        if not self.dae:
+            return np.zeros(0)
+        a, lam = accelerations_and_multipliers(self.sim.model, q, v, t, self.sim.inputs_at(t))
+        return self.sim._z0(q, a, lam)
+
+
+def _closure(mechanism, element, k: int) -> GapClosure:
+    """The bilateral constraint g_k = 0 of a closed gap, between the bodies it touches (the
+    ground first for a contact with the ground plane; a limit's joint's bodies)."""
+    if hasattr(element, "joint"):
+        joint = mechanism.joints[element.joint]
+        return GapClosure(element, k, joint.body1, joint.body2)
+    bodies = tuple(element.bodies)
+    return GapClosure(element, k, *((GROUND, *bodies) if len(bodies) == 1 else bodies))
+
+
+def _inside(value, h: float) -> tuple[float | None, float]:
+    """The largest τ = h 2⁻ᵏ (k = 1 … 60) with value(τ) > 0, and that value (None: none)."""
+    tau = h
+    for _ in range(60):
+        tau *= 0.5
+        f = value(tau)
+        if f > 0.0:
+            return tau, f
+    return None, 0.0
+
+
+def _illinois(f, lo: float, hi: float, f_lo: float, f_hi: float, tol: float) -> float:
+    """A root of f in (lo, hi) with f(lo) > 0 > f(hi) (Illinois regula falsi)."""
+    side = 0
+    for _ in range(200):
+        mid = hi - f_hi * (hi - lo) / (f_hi - f_lo) if f_hi != f_lo else 0.5 * (lo + hi)
+        if not lo < mid < hi:
+            mid = 0.5 * (lo + hi)
+        f_mid = f(mid)
+        if f_mid <= 0.0:
+            hi, f_hi = mid, f_mid
+            if side == -1:
+                f_lo *= 0.5
+            side = -1
+        else:
+            lo, f_lo = mid, f_mid
+            if side == 1:
+                f_hi *= 0.5
+            side = 1
+        if hi - lo <= tol or f_mid == 0.0:
+            break
+    return hi
+
+
+def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
+                    integrator: str | None = None, rtol: float = 1e-8,
+                    atol: float | None = None, t_start: float = 0.0,
+                    substeps: int = SUBSTEPS, rest_velocity: float | None = None,
+                    max_events: int = 10_000, max_steps: int | None = None) -> Result:
+    """Forward dynamics with impacts, contact and detach (module docstring).
+
+    Parameters are those of :func:`casmbd.analysis.simulate.simulate`
+    (``simulator_factory(mechanism)`` builds its :class:`~casmbd.analysis.simulate.Simulator`
+    with the caller's formulation and options); ``substeps`` the
+    sub-intervals of an output interval in which gaps are checked (an event shorter than one
+    can be missed), ``rest_velocity`` the rebound speed below which a gap closes, and
+    ``max_events`` a bound on the number of events (a run that would exceed it stops with an
+    :class:`~casmbd.errors.IntegratorError` carrying the results so far).
+    """
+    t_clock = time.perf_counter()
+    atol = rtol if atol is None else atol
+    if not (isinstance(substeps, int) and substeps >= 1):
+        raise AnalysisError(f"substeps must be an integer >= 1, got {substeps!r}")
+    elements = [c for c in mechanism.contacts.values() if c.model == "impact"]
+    base = simulator_factory(mechanism)
+    if base.formulation.kind not in ("ode", "dae"):
+        raise AnalysisError(f"formulation '{base.formulation_name}': events need a compiled "
+                            "ODE or DAE formulation (not a numeric right-hand side)")
+    name = integrator or ("idas" if base.formulation.kind == "dae" else "adams")
+    if name not in ("cvodes", "idas", "adams"):
+        raise AnalysisError(f"integrator '{name}': the event-driven run uses a variable-step "
+                            "SUNDIALS integrator (cvodes, adams, idas)")
+    gaps = _Gaps(System(mechanism), elements)
+    n_gaps = len(gaps.rows)
+    g_acc = float(np.linalg.norm(mechanism.gravity)) or 9.81
+    v_rest = rest_velocity if rest_velocity is not None else math.sqrt(2 * g_acc * REST_HEIGHT)
+    phases: dict[frozenset, _Phase] = {}
+
+    def phase_of(closed: frozenset) -> _Phase:
+        if closed not in phases:
+            if closed:
+                variant = copy.copy(mechanism)
+                variant.joints = dict(mechanism.joints)
+                for i in sorted(closed):
+                    closure = _closure(mechanism, *gaps.rows[i])
+                    variant.joints[closure.name] = closure
+                sim = simulator_factory(variant)
+                labels = [str(lab) for lab in sim.model.constraint_labels]
+                rows = [labels.index(f"joint '{_closure(mechanism, *gaps.rows[i]).name}' "
+                                     "equation 'gap'") for i in sorted(closed)]
+            else:
+                sim, rows = base, []
+            phases[closed] = _Phase(sim, closed, rows, name, rtol, atol,
+                                    max_steps or 500_000)
+        return phases[closed]
+
+    p = base.model.p
+    grid = np.linspace(t_start, t_end, int(steps) + 1)
+    start = consistent_state(base.model, base.model.initial_coordinates(),
+                             base.model.initial_velocities(), t_start, base.inputs_at(t_start))
+    nq = base.model.nq
+    x = np.concatenate([start.q, start.v])
+    g0, _, _ = gaps(start.q, start.v, t_start, p)
+    if n_gaps and np.min(g0) < -1e-9:
+        k = int(np.argmin(g0))
+        raise AnalysisError(f"contact '{gaps.label(k)}': the initial pose penetrates by "
+                            f"{-g0[k]:.3g} (gap < 0 at t = {t_start:g}); start it open or "
+                            "touching")
+    closed: frozenset = frozenset()
+    phase = phase_of(closed)
+    z = phase.z0(start.q, start.v, t_start)
+    events: list[dict] = []
+    samples = [(t_start, x.copy(), closed)]
+    t = t_start
+    tol_t = 1e-13
+
+    for k_out in range(len(grid) - 1):
+        sub = np.linspace(grid[k_out], grid[k_out + 1], substeps + 1)
+        j = 0
+        while j < substeps:
+            t_b = sub[j + 1]
+            h = t_b - t
+            if h <= tol_t * (1 + abs(t)):
+                j += 1
+                continue
+            x_b, z_b = phase.advance(x, z, t, h)
+            q_b, v_b = x_b[:nq], x_b[nq:]
+            g_b, _, _ = gaps(q_b, v_b, t_b, p)
+            open_hit = [i for i in range(n_gaps) if i not in closed and g_b[i] < -1e-13]
+            lam_b = phase.multipliers(q_b, v_b, t_b) if closed else np.zeros(0)
+            order = sorted(closed)
+            # contact force along +∇g is −λ (Q_c = −C_qᵀ λ): detach when −λ < 0
+            pulls = [order[m] for m in range(len(order)) if -lam_b[m] < 0.0]
+            if not open_hit and not pulls:
+                x, z, t = x_b, z_b, t_b
+                j += 1
+                continue
+            # locate the first event in (t, t_b]
+            x_a, z_a, t_a = x, z, t
+            best = (t_b, None, None)
+            for i in open_hit + pulls:
+                is_detach = i in closed
+
+                def value(tau, i=i, is_detach=is_detach, phase=phase, x_a=x_a, z_a=z_a,
+                          t_a=t_a, order=order):
+                    xt, _ = phase.advance(x_a, z_a, t_a, tau)
+                    if is_detach:
+                        lam = phase.multipliers(xt[:nq], xt[nq:], t_a + tau)
+                        return float(-lam[order.index(i)])
+                    return float(gaps(xt[:nq], xt[nq:], t_a + tau, p)[0][i])
+
+                if is_detach:
+                    lam_a = phase.multipliers(x_a[:nq], x_a[nq:], t_a)
+                    f_lo = max(float(-lam_a[order.index(i)]), 1e-300)
+                else:
+                    f_lo = float(gaps(x_a[:nq], x_a[nq:], t_a, p)[0][i])
+                f_hi = float(-lam_b[order.index(i)]) if is_detach else float(g_b[i])
+                lo, hi = 0.0, h
+                if f_lo <= 1e-12 * (1.0 + abs(f_hi)):
+                    # the sub-interval starts at the event surface (just after an impact or a
+                    # detach): the motion leaves it and may come back within the interval (a
+                    # bounce shorter than the interval) — find an inside time where it is open
+                    lo, f_lo = _inside(value, h)
+                    if lo is None:
+                        continue  # it stays at the surface: no new event of this gap
+                    hi, f_hi = 2.0 * lo, value(2.0 * lo) if 2.0 * lo < h else f_hi
+                    hi = min(hi, h)
+                tau = _illinois(value, lo, hi, f_lo, f_hi, tol_t * (1 + abs(t_b)))
+                if t_a + tau < best[0]:
+                    best = (t_a + tau, i, is_detach)
+            t_ev, i_ev, is_detach = best
+            if i_ev is None:
+                x, z, t = x_b, z_b, t_b
+                j += 1
+                continue
+            x_ev, _ = phase.advance(x_a, z_a, t_a, t_ev - t_a) if t_ev > t_a else (x_a, z_a)
+            q_ev, v_ev = x_ev[:nq], x_ev[nq:]
+            element = gaps.rows[i_ev][0]
+            if is_detach:
+                closed = closed - {i_ev}
+                events.append({"time": float(t_ev), "element": gaps.label(i_ev),
+                               "kind": "detach"})
+                v_new = v_ev
+            else:
+                hit = _impact(phase_of(closed).sim.model, gaps, closed, i_ev, q_ev, v_ev, t_ev,
+                              p, v_rest)
+                if hit is None:  # grazing: the gap touches zero without closing in on it
+                    v_new = v_ev
+                else:
+                    v_new, closed, extra = hit
+                    events.append({"time": float(t_ev), "element": gaps.label(i_ev),
+                                   "kind": element.event_kind})
+                    events += [{"time": float(t_ev), "element": lab, "kind": kind}
+                               for lab, kind in extra]
+            if len(events) > max_events:
+                raise IntegratorError(f"more than {max_events} events by t = {t_ev:.6g} "
+                                      "(raise max_events, or a rest_velocity)", t_ev,
+                                      "MAX_EVENTS", None)
+            phase = phase_of(closed)
+            x = np.concatenate([q_ev, v_new])
+            z = phase.z0(q_ev, v_new, t_ev)
+            t = t_ev
+        samples.append((t, x.copy(), closed))
+    qs = np.array([s[1][:nq] for s in samples])
+    vs = np.array([s[1][nq:] for s in samples])
+    return _assemble_result(base, phase_of, gaps, grid, qs, vs, [s[2] for s in samples],
+                            events, time.perf_counter() - t_clock, name, rtol, atol, p)
+
+
+def _impact(model, gaps, closed, i_ev, q, v, t, p, v_rest):
+    """v⁺ after an impact of gap ``i_ev`` (module docstring, step 3), the new set of closed
+    gaps, and extra events (stick/slip, contact); None when the gap is not closing in."""
+    g, gq, tv = gaps(q, v, t, p)
+    if gq[i_ev] @ v >= 0.0:
+        return None
+    m_mat = model.mass_matrix(q).toarray() if hasattr(model.mass_matrix(q), "toarray") else \
+        np.asarray(model.mass_matrix(q))
+    n = len(v)
+    cq = model.constraint_jacobian(q, t)
+    cq = cq.toarray() if hasattr(cq, "toarray") else np.asarray(cq).reshape(-1, n)
+    ct = np.asarray(model.constraint_time_derivative(q, t), float).ravel() if model.nc else \
+        np.zeros(0)
+    active = sorted({i_ev} | {i for i in range(len(g)) if i not in closed and
+                              abs(g[i]) < 1e-9 and gq[i] @ v < 0.0})
+    extra: list[tuple[str, str]] = []
+    for _ in range(len(active) + 1):
+        rows, rhs, kinds = [], [], []
+        for i in active:
+            element, _ = gaps.rows[i]
+            rows.append(gq[i])
+            rhs.append(-element.restitution * (gq[i] @ v))
+            kinds.append(i)
+        directions = np.array(rows)
+        # friction: try sticking at frictional contacts
+        tangential = []
+        for i in active:
+            element, _ = gaps.rows[i]
+            idx = gaps.tangent_of[i]
+            if idx is not None and element.friction > 0:
+                ts = gaps.tangent_size
+                tangential.append((i, tv[idx * ts:(idx + 1) * ts]))
+        stick_rows = [t_row for _, t_mat in tangential for t_row in t_mat]
+        a_mat, b_vec = _saddle(m_mat, cq, ct, directions, np.array(rhs), stick_rows, v)
+        sol = np.linalg.lstsq(a_mat, b_vec, rcond=None)[0]
+        v_plus = sol[:n]
+        nc = cq.shape[0]
+        impulses = sol[n + nc:n + nc + len(active)]
+        tang = sol[n + nc + len(active):]
+        slipping = []
+        for m, (i, t_mat) in enumerate(tangential):
+            ts = t_mat.shape[0]
+            p_t = tang[m * ts:(m + 1) * ts]
+            p_n = impulses[active.index(i)]
+            if np.linalg.norm(p_t) > gaps.rows[i][0].friction * abs(p_n):
+                slipping.append((i, t_mat))
+        if slipping:  # Coulomb: P_t = −μ P_n ŝ, ŝ the pre-impact slip direction
+            dirs = directions.copy()
+            keep_stick = [r for i, t_mat in tangential if i not in dict(slipping)
+                          for r in t_mat]
+            for i, t_mat in slipping:
+                vt = t_mat @ v
+                s_hat = vt / max(np.linalg.norm(vt), 1e-300)
+                dirs[active.index(i)] = gq[i] - gaps.rows[i][0].friction * (s_hat @ t_mat)
+            a_mat, b_vec = _saddle(m_mat, cq, ct, dirs, np.array(rhs), keep_stick, v,
+                                   normal_rows=directions)
+            sol = np.linalg.lstsq(a_mat, b_vec, rcond=None)[0]
+            v_plus = sol[:n]
+            impulses = sol[n + nc:n + nc + len(active)]
+        negative = [active[m] for m in range(len(active)) if impulses[m] < -1e-12 and
+                    active[m] != i_ev]
+        if not negative:
+            for i, _ in tangential:
+                extra.append((gaps.label(i), "slip" if i in dict(slipping) else "stick"))
+            break
+        active = [i for i in active if i not in negative]
+    new_closed = set(closed)
+    for i in active:
+        if gq[i] @ v_plus < v_rest:
+            new_closed.add(i)
+            extra.append((gaps.label(i), "contact"))
+            v_plus = v_plus  # the closed gap's rebound speed is below the rest threshold
+    if new_closed != set(closed):  # project onto the closed gaps: G v = 0 exactly
+        rows = np.array([gq[i] for i in sorted(new_closed)])
+        a_mat, b_vec = _saddle(m_mat, cq, ct, rows, np.zeros(len(rows)), [], v_plus)
+        v_plus = np.linalg.lstsq(a_mat, b_vec, rcond=None)[0][:n]
+    return v_plus, frozenset(new_closed), extra
+
+
+def _saddle(m_mat, cq, ct, directions, normal_rhs, stick_rows, v, normal_rows=None):
+    """[M, C_qᵀ, Dᵀ, Tᵀ; C_q; N; T] [v⁺; μ; P; P_t] = [M v⁻; −C_t; e-law; 0] with D the
+    impulse directions and N the gap rows of the restitution law (N = D without friction)."""
+    n = m_mat.shape[0]
+    normal_rows = directions if normal_rows is None else normal_rows
+    blocks_t = [cq, directions] + ([np.array(stick_rows)] if len(stick_rows) else [])
+    blocks_c = [cq, normal_rows] + ([np.array(stick_rows)] if len(stick_rows) else [])
+    lower_t = np.vstack([b.reshape(-1, n) for b in blocks_t])
+    lower_c = np.vstack([b.reshape(-1, n) for b in blocks_c])
+    k = lower_t.shape[0]
+    a_mat = np.block([[m_mat, -lower_t.T], [lower_c, np.zeros((k, k))]])
+    rhs = np.concatenate([m_mat @ v, -ct if len(ct) else np.zeros(cq.shape[0]), normal_rhs,
+                          np.zeros(len(stick_rows))])
+    return a_mat, rhs
+
+
+def _assemble_result(base, phase_of, gaps, grid, qs, vs, closed_sets, events, seconds, name,
+                     rtol, atol, p) -> Result:
+    """Post-process each sample with the simulator of its phase; arrays of the base model's
+    shape (closure multipliers go to ``contact_forces``)."""
+    result = base._post(grid, qs, vs, {})
+    n_gaps = len(gaps.rows)
+    forces = np.zeros((len(grid), n_gaps))
+    for k, closed in enumerate(closed_sets):
+        if not closed:
+            continue
+        phase = phase_of(closed)
+        sub = phase.sim._post(grid[k:k + 1], qs[k:k + 1], vs[k:k + 1], {})
+        for key, arr in result.arrays.items():
+            other = sub.arrays.get(key)
+            if other is None or key in ("lambda", "joint_reactions"):
+                continue
+            if other.shape[1:] == arr.shape[1:]:
+                arr[k] = other[0]
+        lam = sub.arrays["lambda"][0]
+        labels = [str(lab) for lab in phase.sim.model.constraint_labels]
+        base_labels = [str(lab) for lab in base.model.constraint_labels]
+        result.arrays["lambda"][k] = [lam[labels.index(lab)] for lab in base_labels]
+        reac = sub.arrays.get("joint_reactions")
+        if reac is not None and "joint_reactions" in result.arrays:
+            width = result.arrays["joint_reactions"].shape[1]
+            result.arrays["joint_reactions"][k] = reac[0][:width]
+        for m, i in enumerate(sorted(closed)):
+            forces[k, i] = -lam[phase.closure_rows[m]]
+    result.arrays["contact_forces"] = forces
+    result.names["contacts"] = [gaps.label(i) for i in range(n_gaps)]
+    result.events = events
+    result.stats.update({"integrator": name, "rtol": rtol, "atol": atol,
+                         "events": len(events), "solve_seconds": seconds,
+                         "event_driven": True})
+    return result

@@ -1,0 +1,328 @@
+"""Unilateral elements: contacts and joint limits (issue 24), g(q) ≥ 0.
+
+Each element measures one or more *gaps* g_k(q) that must stay non-negative:
+
+* :class:`PlaneContact` — a sphere (radius r ≥ 0; r = 0 a point) fixed on a body against a
+  ground plane through ``origin`` with unit ``normal``: g = n·(r_c(q) − o) − r, r_c the sphere's
+  centre;
+* :class:`SphereContact` — two spheres on two bodies: g = |r_1 − r_2| − (r_1 + r_2);
+* :class:`JointLimit` — stops on a joint coordinate q_j: g = q_j − lower and g = upper − q_j.
+
+Two contact models, chosen per element (``model``):
+
+* ``"impact"`` (non-smooth, event-driven): the integrator stops where a gap reaches zero (root
+  finding on g), the velocities jump by Newton's restitution law G v⁺ = −e G v⁻ with impulses
+  solved together with the bilateral constraints on the mass matrix (Pfeiffer & Glocker,
+  *Multibody Dynamics with Unilateral Contacts*, 1996, ch. 6; Glocker, *Set-Valued Force Laws*,
+  2001), Coulomb's law at the contact on the impulse level (stick if |P_t| ≤ μ P_n, else slip),
+  and a contact that stops bouncing is closed — its gap becomes a bilateral constraint — until
+  its normal force would pull (detach); see :mod:`casmbd.analysis.events`;
+* ``"compliant"``: a penalty force F_n = k δ^e + c(δ) δ̇ on the penetration δ = −g > 0, with the
+  damping c(δ) = STEP(δ, 0, 0, d_max, c) of Adams' IMPACT function (it grows from 0 to c over
+  the penetration depth d_max, so the force is continuous at first contact), and regularised
+  Coulomb friction μ F_n tanh(v_t / v_s) (:class:`CompliantContact`, a force element).
+
+The elements only say what their gaps and directions are; the system layer writes them with
+the context and the analyses handle events (layers point one way).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import casadi as ca
+import numpy as np
+
+from casmbd.errors import ModelError
+from casmbd.model.bodies import GROUND, scalar, vector
+from casmbd.model.forces import ForceElement
+from casmbd.model.joints import Joint
+from casmbd.model.registry import register_force
+
+__all__ = ["CONTACT_MODELS", "CompliantContact", "GapClosure", "JointLimit", "PlaneContact",
+           "SphereContact", "Unilateral", "adams_step"]
+
+CONTACT_MODELS = ("impact", "compliant")
+#: default regularisation velocity of compliant friction (m/s)
+FRICTION_VELOCITY = 1e-4
+
+
+def adams_step(x, x0: float, h0: float, x1: float, h1: float):
+    """Adams' cubic STEP(x, x0, h0, x1, h1): h0 below x0, h1 above x1, the cubic
+    h0 + (h1 − h0) s² (3 − 2 s), s = (x − x0)/(x1 − x0), in between (C¹)."""
+    s = ca.fmin(ca.fmax((x - x0) / (x1 - x0), 0.0), 1.0)
+    return h0 + (h1 - h0) * s * s * (3.0 - 2.0 * s)
+
+
+def _unit(value, where: str, dim: int) -> np.ndarray:
+    vec = vector(value, where, dim)
+    norm = float(np.linalg.norm(vec))
+    if norm < 1e-12:
+        raise ModelError(f"{where}: must be a non-zero vector, got {value!r}")
+    return vec / norm
+
+
+def tangents(normal: np.ndarray) -> np.ndarray:
+    """Unit tangent directions of a plane with unit ``normal``: one (rows) in the plane, two
+    orthonormal ones in space (deterministic)."""
+    n = np.asarray(normal, float)
+    if n.size == 2:
+        return np.array([[n[1], -n[0]]])
+    trial = np.zeros(3)
+    trial[int(np.argmin(np.abs(n)))] = 1.0
+    t1 = trial - n * float(n @ trial)
+    t1 /= np.linalg.norm(t1)
+    return np.array([t1, np.cross(n, t1)])
+
+
+@dataclass
+class Unilateral:
+    """What every unilateral element has: a name, its gaps' restitution and friction, its
+    model.  Subclasses write ``gaps(ctx)`` (a column of g_k(q)) and their labels."""
+
+    name: str
+    restitution: float = 0.0
+    friction: float = 0.0
+    model: str = "impact"
+
+    #: the event name of a gap reaching zero ("impact" for contacts, "limit" for stops)
+    event_kind: ClassVar[str] = "impact"
+
+    def _check(self) -> None:
+        where = f"contact '{self.name}'" if self.event_kind == "impact" else \
+            f"joint limit '{self.name}'"
+        self.restitution = scalar(self.restitution, f"{where} field 'restitution'")
+        if not 0.0 <= self.restitution <= 1.0:
+            raise ModelError(f"{where} field 'restitution': must be in [0, 1], got "
+                             f"{self.restitution}")
+        self.friction = scalar(self.friction, f"{where} field 'friction'")
+        if self.friction < 0.0:
+            raise ModelError(f"{where} field 'friction': must be >= 0, got {self.friction}")
+        if self.model not in CONTACT_MODELS:
+            raise ModelError(f"{where} field 'model': expected one of {CONTACT_MODELS}, got "
+                             f"{self.model!r}")
+
+    @property
+    def labels(self) -> tuple[str, ...]:
+        return ("gap",)
+
+    def gaps(self, ctx) -> ca.SX:
+        raise NotImplementedError
+
+    def tangential_velocity(self, ctx, k: int) -> ca.SX | None:
+        """Tangential velocity components of the contact point of gap ``k`` (None: no
+        friction direction, e.g. a joint limit)."""
+        return None
+
+    @property
+    def bodies(self) -> tuple[str, ...]:
+        return ()
+
+
+@dataclass
+class PlaneContact(Unilateral):
+    """A sphere of radius ``radius`` centred at the global ``point`` (initial pose) on
+    ``body`` against the ground plane through ``origin`` with normal ``normal``."""
+
+    body: str = ""
+    point: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    radius: float = 0.0
+    origin: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    normal: np.ndarray = field(default_factory=lambda: np.array([0.0, 1.0]))
+    dimension: int = 2
+
+    def __post_init__(self):
+        self._check()
+        where = f"contact '{self.name}' field"
+        self.point = vector(self.point, f"{where} 'point'", self.dimension)
+        self.origin = vector(self.origin, f"{where} 'origin'", self.dimension)
+        self.normal = _unit(self.normal, f"{where} 'normal'", self.dimension)
+        self.radius = scalar(self.radius, f"{where} 'radius'")
+        if self.radius < 0.0:
+            raise ModelError(f"{where} 'radius': must be >= 0, got {self.radius}")
+
+    @property
+    def bodies(self) -> tuple[str, ...]:
+        return (self.body,)
+
+    def centre(self, ctx) -> ca.SX:
+        return ctx.position(self.body, self.point)
+
+    def gaps(self, ctx) -> ca.SX:
+        return ca.dot(ca.DM(self.normal), self.centre(ctx) - ca.DM(self.origin)) - self.radius
+
+    def tangential_velocity(self, ctx, k: int = 0) -> ca.SX:
+        """t·v_P of the touching material point P = r_c − r n: ṙ_c + ω × (−r n)."""
+        vel = ca.jtimes(self.centre(ctx), ctx.q, ctx.v)
+        if self.radius:
+            omega = ctx.angular_velocity(self.body)
+            arm = ca.DM(-self.radius * self.normal)
+            vel = vel + (omega * ca.vertcat(-arm[1], arm[0]) if self.dimension == 2
+                         else ca.cross(omega, arm))
+        return ca.mtimes(ca.DM(tangents(self.normal)), vel)
+
+
+@dataclass
+class SphereContact(Unilateral):
+    """Two spheres: radius ``radius1`` at ``point1`` on ``body1``, ``radius2`` at ``point2`` on
+    ``body2`` (global points at the initial pose)."""
+
+    body1: str = ""
+    body2: str = ""
+    point1: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    point2: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    radius1: float = 0.0
+    radius2: float = 0.0
+    dimension: int = 2
+
+    def __post_init__(self):
+        self._check()
+        where = f"contact '{self.name}' field"
+        self.point1 = vector(self.point1, f"{where} 'point1'", self.dimension)
+        self.point2 = vector(self.point2, f"{where} 'point2'", self.dimension)
+        for key in ("radius1", "radius2"):
+            setattr(self, key, scalar(getattr(self, key), f"{where} '{key}'"))
+            if getattr(self, key) < 0.0:
+                raise ModelError(f"{where} '{key}': must be >= 0")
+        if self.friction:
+            raise ModelError(f"{where} 'friction': sphere-sphere contacts are frictionless "
+                             "in this version")
+
+    @property
+    def bodies(self) -> tuple[str, ...]:
+        return (self.body1, self.body2)
+
+    def gaps(self, ctx) -> ca.SX:
+        d = ctx.position(self.body2, self.point2) - ctx.position(self.body1, self.point1)
+        return ca.sqrt(ca.dot(d, d)) - (self.radius1 + self.radius2)
+
+
+@dataclass
+class JointLimit(Unilateral):
+    """Stops ``lower`` ≤ q_j ≤ ``upper`` on a joint coordinate (either may be None)."""
+
+    joint: str = ""
+    coordinate: str | None = None
+    lower: float | None = None
+    upper: float | None = None
+
+    event_kind: ClassVar[str] = "limit"
+
+    def __post_init__(self):
+        self._check()
+        where = f"joint '{self.joint}' field"
+        for key in ("lower", "upper"):
+            value = getattr(self, key)
+            if value is not None:
+                setattr(self, key, scalar(value, f"{where} '{key}'"))
+        if self.lower is None and self.upper is None:
+            raise ModelError(f"joint '{self.joint}': a limit needs 'lower' or 'upper'")
+        if self.lower is not None and self.upper is not None and self.lower >= self.upper:
+            raise ModelError(f"joint '{self.joint}' field 'upper': must be > lower "
+                             f"({self.lower}), got {self.upper}")
+
+    @property
+    def labels(self) -> tuple[str, ...]:
+        return tuple(k for k in ("lower", "upper") if getattr(self, k) is not None)
+
+    def gaps(self, ctx) -> ca.SX:
+        coord = ctx.mechanism.joints[self.joint].coordinate(ctx, self.coordinate)
+        rows = []
+        if self.lower is not None:
+            rows.append(coord - self.lower)
+        if self.upper is not None:
+            rows.append(self.upper - coord)
+        return ca.vertcat(*rows)
+
+    @property
+    def bodies(self) -> tuple[str, ...]:
+        return ()
+
+
+class GapClosure(Joint):
+    """A closed unilateral gap as a bilateral constraint g_k(q) = 0 (the contact or stop is
+    active); made by :func:`casmbd.analysis.events` for the phase in which the element stays
+    in contact.  Not a scene kind."""
+
+    def __init__(self, element: Unilateral, k: int, body1: str = GROUND,
+                 body2: str = GROUND):
+        self.name = f"{element.name}.{element.labels[k]}"
+        self.body1, self.body2 = body1, body2
+        self.element, self.k = element, k
+        self.labels = ("gap",)
+        self.coordinate_names = ()
+
+    dimensions: ClassVar[tuple[int, ...]] = (2, 3)
+    drawing: ClassVar[str] = "none"
+
+    @property
+    def bodies(self) -> tuple[str, ...]:
+        return (self.body1, self.body2)
+
+    def equations(self, ctx) -> ca.SX:
+        return ca.vec(self.element.gaps(ctx))[self.k]
+
+    def reaction_point(self):
+        return None
+
+
+@register_force
+@dataclass
+class CompliantContact(ForceElement):
+    """The compliant model of a unilateral element (module docstring): along each gap,
+    F_n = k δ^e + STEP(δ, 0, 0, d_max, c) δ̇ for δ = −g > 0 (0 otherwise), acting by virtual
+    work along g (Q = (∂g/∂q)ᵀ F_n), and friction −μ F_n tanh(v_t/v_s) along the tangential
+    velocity of the contact point."""
+
+    name: str
+    element: Unilateral = None
+    stiffness: float = 1e6
+    exponent: float = 1.5
+    damping: float = 0.0
+    penetration: float = 1e-4
+    friction_velocity: float = FRICTION_VELOCITY
+
+    kind = "compliant_contact"
+    scene_keys = None  # made from a [[contacts]] entry or a joint's limits
+
+    @classmethod
+    def create(cls, mech, name, element, stiffness=1e6, exponent=1.5, damping=0.0,
+               penetration=1e-4, friction_velocity=FRICTION_VELOCITY):
+        mech._unique(mech.forces, "force", name)
+        for key, value in (("stiffness", stiffness), ("exponent", exponent),
+                           ("penetration", penetration),
+                           ("friction_velocity", friction_velocity)):
+            if scalar(value, f"contact '{element.name}' field '{key}'") <= 0.0:
+                raise ModelError(f"contact '{element.name}' field '{key}': must be > 0, got "
+                                 f"{value}")
+        if scalar(damping, f"contact '{element.name}' field 'damping'") < 0.0:
+            raise ModelError(f"contact '{element.name}' field 'damping': must be >= 0")
+        return cls(name, element, float(stiffness), float(exponent), float(damping),
+                   float(penetration), float(friction_velocity))
+
+    def terms(self, kit, ctx):
+        base = kit.ctx
+        gaps = ca.vec(self.element.gaps(ctx))
+        gaps_now = ca.vec(self.element.gaps(base))
+        terms = []
+        for k in range(gaps.numel()):
+            delta = ca.fmax(-gaps_now[k], 0.0)
+            rate = -ca.jtimes(gaps_now[k], base.q, base.v)
+            damp = adams_step(delta, 0.0, 0.0, self.penetration, self.damping)
+            normal = ca.if_else(delta > 0.0, self.stiffness * delta ** self.exponent
+                                + damp * rate, 0.0)
+            normal = ca.fmax(normal, 0.0)  # a contact never pulls
+            terms.append(kit.term("measure", gaps[k], normal))
+            vt = self.element.tangential_velocity(base, k)
+            if vt is not None and self.element.friction:
+                # friction opposes the slip of the contact point, by virtual work along the
+                # point's tangential displacement: Q = (∂v_t/∂v)ᵀ f_t
+                f_t = -self.element.friction * normal * ca.tanh(vt / self.friction_velocity)
+                terms.append(kit.term("generalized", None,
+                                      ca.mtimes(ca.jacobian(vt, base.v).T, f_t), None,
+                                      self.name))
+        return terms
+
+    def energy_exchange(self) -> str | None:
+        return "damper"
