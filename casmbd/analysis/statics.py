@@ -54,7 +54,6 @@ when the mechanism has none).  A mechanism without degrees of freedom is reporte
 
 from __future__ import annotations
 
-import copy
 import time
 from dataclasses import dataclass, field
 
@@ -66,9 +65,10 @@ import scipy.sparse.linalg as spla
 
 from casmbd.analysis.assembly import assemble
 from casmbd.analysis.checks import check_start
-from casmbd.analysis.events import _closure, _Gaps, has_events
+from casmbd.analysis.events import has_events
 from casmbd.analysis.reactions import flag_undetermined
 from casmbd.analysis.redundancy import null_space_basis
+from casmbd.analysis.resting import resting_equilibrium
 from casmbd.analysis.stability import STABILITY_RTOL, Stability, classify_stability
 from casmbd.analysis.trust_region import RANK_RTOL, trust_region_step
 from casmbd.compiled.model import NumericModel
@@ -140,7 +140,8 @@ class StaticsResult:
     body_quaternions: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
     joint_coordinates: np.ndarray = field(default_factory=lambda: np.zeros(0))
     marker_positions: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
-    #: closed contacts and stops: name -> {"normal_force", "gap"} (:func:`_resting`)
+    #: closed contacts and stops: name -> {"normal_force", "gap"}
+    #: (:func:`casmbd.analysis.resting.resting_equilibrium`)
     contacts: dict = field(default_factory=dict)
     stats: dict = field(default_factory=dict)
     stability: Stability | None = None
@@ -329,7 +330,8 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
         raise AnalysisError(f"statics: need tol > 0 and max_iter >= 1 (got {tol}, {max_iter})")
     t = float(t)
     if not isinstance(mechanism, NumericModel) and has_events(mechanism):
-        return _resting(mechanism, t, method, tol, max_iter, mode)
+        return resting_equilibrium(mechanism, t, method, tol, max_iter, mode,
+                                   solve=static_equilibrium)
     if isinstance(mechanism, NumericModel):
         model = mechanism
     else:
@@ -396,45 +398,6 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
         if model.dimension == 2 else np.zeros(0), body_quaternions=quats,
         joint_coordinates=joint_coordinates, stats=stats, stability=stability,
         marker_positions=np.reshape(out["marker_positions"][0], (-1, model.dimension)))
-
-
-def _resting(mechanism, t: float, method: str, tol: float, max_iter: int,
-             mode: str) -> StaticsResult:
-    """Statics with unilateral elements of the impact model: an active set.  Gaps touching at
-    the start (|g| ≤ 1e-9) are closed (bilateral constraints g = 0); after each solution the
-    gaps that penetrate are closed and those whose normal force −λ pulls are opened, until
-    neither happens (at most 2 n_gaps + 2 rounds).  A body resting on a contact: the contact
-    carries its weight.  The result's ``contacts`` give each gap's force (0 when open) and
-    value."""
-    elements = [c for c in mechanism.contacts.values() if c.model == "impact"]
-    gaps = _Gaps(System(mechanism), elements)
-    p = np.array(list(mechanism.parameters.values()), dtype=float)
-    q0 = System(mechanism).initial_coordinates()
-    g0 = gaps(q0, np.zeros_like(q0), t, p)[0]
-    closed = {i for i in range(len(g0)) if g0[i] <= 1e-9}
-    for _ in range(2 * len(g0) + 2):
-        variant = copy.copy(mechanism)
-        variant.contacts = {}
-        variant.joints = dict(mechanism.joints)
-        names = {}
-        for i in sorted(closed):
-            closure = _closure(mechanism, *gaps.rows[i])
-            variant.joints[closure.name] = closure
-            names[i] = f"joint '{closure.name}' equation 'gap'"
-        res = static_equilibrium(variant, t, method, tol, max_iter, mode)
-        labels = [str(lab) for lab in System(variant).constraint_labels]
-        g = gaps(res.q, np.zeros_like(res.q), t, p)[0]
-        force = {i: -float(res.lagrange_multipliers[labels.index(names[i])]) for i in closed}
-        scale = 1.0 + max((abs(f) for f in force.values()), default=0.0)
-        penetrating = {i for i in range(len(g)) if i not in closed and g[i] < -1e-9}
-        pulling = {i for i in closed if force[i] < -tol * scale}
-        if not penetrating and not pulling:
-            res.contacts = {gaps.label(i): {"normal_force": force.get(i, 0.0),
-                                            "gap": float(g[i])} for i in range(len(g))}
-            return res
-        closed = (closed | penetrating) - pulling
-    raise AnalysisError(f"statics at t = {t:g}: no consistent set of closed contacts "
-                        f"({', '.join(gaps.label(i) for i in range(len(g0)))})")
 
 
 def _converged(prob: _Problem, f: np.ndarray, fscale: float, lscale: float) -> bool:
