@@ -56,6 +56,45 @@ FUNCTION_ARITY: dict[str, int] = {
 #: Named constants available in every expression (shadowed by symbols of the same name).
 CONSTANTS: dict[str, float] = {"pi": math.pi, "e": math.e}
 
+
+def _step(x, x0, h0, x1, h1):
+    """Adams' cubic STEP: h0 for x <= x0, h1 for x >= x1, and between them
+    h0 + (h1 − h0) Δ² (3 − 2 Δ) with Δ = (x − x0)/(x1 − x0) (C¹: zero slope at both ends;
+    MSC Adams, "STEP" function reference)."""
+    d = casadi.fmin(casadi.fmax((x - x0) / (x1 - x0), 0.0), 1.0)
+    return h0 + (h1 - h0) * d * d * (3.0 - 2.0 * d)
+
+
+def _smooth_sign(x, eps):
+    """tanh(x/eps): a smooth sign, within 1 − tanh(1) = 0.24 of sign(x) at |x| = eps and
+    2.7e-9 at |x| = 10 eps (the Coulomb law of :mod:`casmbd.model.joint_friction`)."""
+    return casadi.tanh(x / eps)
+
+
+def _dead_zone(x, lo, hi):
+    """0 for lo <= x <= hi, x − hi above, x − lo below (continuous, slope 0 or 1)."""
+    return casadi.fmin(x - lo, 0.0) + casadi.fmax(x - hi, 0.0)
+
+
+#: Smooth helper functions of forces and requests, allowed in every expression (C¹ or C∞;
+#: their number of arguments in :data:`HELPER_ARITY`).
+HELPER_FUNCTIONS: dict[str, Callable[..., Any]] = {
+    "step": _step,
+    "smooth_sign": _smooth_sign,
+    "dead_zone": _dead_zone,
+}
+HELPER_ARITY: dict[str, int] = {"step": 5, "smooth_sign": 2, "dead_zone": 3}
+
+#: Measures of the mechanism's state and the number of quoted names each takes
+#: (:mod:`casmbd.model.measures`); callable only where the caller hands in their resolvers
+#: (``calls`` of :func:`casmbd.model.expressions.parse_expression`): [[outputs]] values and
+#: forces of type "expression".  Elsewhere (drivers, other forces) they are refused by name.
+MEASURE_ARITY: dict[str, int] = {
+    "angle": 1, "translation": 1, "coordinate": 1, "rate": 1,
+    "x": 1, "y": 1, "z": 1, "vx": 1, "vy": 1, "vz": 1, "speed": 1, "distance": 2,
+    "angle_of": 1, "omega_of": 1,
+}
+
 _BINARY_OPERATORS: dict[type, Callable[[Any, Any], Any]] = {
     ast.Add: casadi.plus,
     ast.Sub: casadi.minus,
@@ -276,8 +315,23 @@ def _check_name(node: ast.Name, source: str, symbols: Mapping[str, Any], where: 
     )
 
 
-def _check_call(node: ast.Call, source: str, where: str) -> None:
-    """Accept only positional calls of allowed functions with the right number of arguments."""
+def _function_arity(name: str) -> int | None:
+    """Number of arguments of an allowed or helper function (None: not one)."""
+    if name in ALLOWED_FUNCTIONS:
+        return FUNCTION_ARITY[name]
+    return HELPER_ARITY.get(name)
+
+
+def _check_call(node: ast.Call, source: str, where: str,
+                calls: Mapping[str, Any] | None = None) -> bool:
+    """Accept only positional calls of allowed functions with the right number of arguments,
+    and calls of the measures in ``calls`` (name → (arity, resolver)) with quoted names.
+
+    Returns
+    -------
+    bool
+        True for a measure call (its arguments are names, not expressions to walk).
+    """
     func = node.func
     if isinstance(func, ast.Attribute):
         raise _fail(
@@ -296,17 +350,40 @@ def _check_call(node: ast.Call, source: str, where: str) -> None:
             f"keyword arguments are not allowed (got {shown!r}); pass arguments by position",
         )
     name = func.id
-    if name not in ALLOWED_FUNCTIONS:
-        raise _fail(
-            where,
-            _fragment(source, node),
-            f"unknown function {name!r}; allowed functions are: "
-            + ", ".join(sorted(ALLOWED_FUNCTIONS)),
-        )
     for argument in node.args:
         if isinstance(argument, ast.Starred):
             raise _fail(where, _fragment(source, node), "argument unpacking ('*') is not allowed")
-    expected = FUNCTION_ARITY[name]
+    if calls is not None and name in calls:
+        expected = calls[name][0]
+        plural = "" if expected == 1 else "s"
+        if len(node.args) != expected:
+            raise _fail(where, _fragment(source, node),
+                        f"measure {name!r} takes {expected} quoted name{plural}, "
+                        f"got {len(node.args)} argument(s)")
+        for argument in node.args:
+            if not (isinstance(argument, ast.Constant) and isinstance(argument.value, str)
+                    and argument.value.strip()):
+                raise _fail(where, _fragment(source, node),
+                            f"measure {name!r} takes {expected} quoted name{plural} (a joint, "
+                            f"marker or body, e.g. {name}(\"J1\")), got "
+                            f"{_fragment(source, argument)!r}")
+        return True
+    if name in MEASURE_ARITY and name not in ALLOWED_FUNCTIONS:
+        raise _fail(
+            where,
+            _fragment(source, node),
+            f"measure {name!r} depends on the state of the mechanism; it is allowed only in "
+            "[[outputs]] values and forces of type 'expression' (here: time t and "
+            "parameters only)",
+        )
+    expected = _function_arity(name)
+    if expected is None:
+        known = sorted([*ALLOWED_FUNCTIONS, *HELPER_FUNCTIONS, *(calls or {})])
+        raise _fail(
+            where,
+            _fragment(source, node),
+            f"unknown function {name!r}; allowed functions are: " + ", ".join(known),
+        )
     if len(node.args) != expected:
         plural = "" if expected == 1 else "s"
         raise _fail(
@@ -314,6 +391,7 @@ def _check_call(node: ast.Call, source: str, where: str) -> None:
             _fragment(source, node),
             f"function {name!r} takes {expected} argument{plural}, got {len(node.args)}",
         )
+    return False
 
 
 def _check_operator(op: ast.AST, node: ast.AST, source: str, where: str) -> None:
@@ -329,7 +407,8 @@ def _check_operator(op: ast.AST, node: ast.AST, source: str, where: str) -> None
     raise _fail(where, _fragment(source, node), why)
 
 
-def _check_tree(tree: ast.Expression, source: str, symbols: Mapping[str, Any], where: str) -> None:
+def _check_tree(tree: ast.Expression, source: str, symbols: Mapping[str, Any], where: str,
+                calls: Mapping[str, Any] | None = None) -> None:
     """Walk the tree iteratively, rejecting anything not whitelisted or nested too deeply.
 
     The depth of a node is one more than that of its parent, except for the left operand of a
@@ -346,6 +425,8 @@ def _check_tree(tree: ast.Expression, source: str, symbols: Mapping[str, Any], w
         Names usable in the expression.
     where : str
         Location of the expression, used in error messages.
+    calls : mapping of str to (int, callable), optional
+        Measure functions usable here (name → (number of quoted names, resolver)).
 
     Raises
     ------
@@ -372,8 +453,8 @@ def _check_tree(tree: ast.Expression, source: str, symbols: Mapping[str, Any], w
             _check_operator(node.op, node, source, where)
             stack.append((node.operand, depth + 1))
         elif isinstance(node, ast.Call):
-            _check_call(node, source, where)
-            stack.extend((argument, depth + 1) for argument in reversed(node.args))
+            if not _check_call(node, source, where, calls):
+                stack.extend((argument, depth + 1) for argument in reversed(node.args))
         else:
             why = _FORBIDDEN_NODES.get(type(node), f"{type(node).__name__} is not allowed")
             raise _fail(where, _fragment(source, node), why)

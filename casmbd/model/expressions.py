@@ -30,17 +30,22 @@ from __future__ import annotations
 import ast
 import math
 from collections.abc import Mapping
+from types import MappingProxyType
 from typing import Any
 
 import casadi
 
+from casmbd.errors import ModelError
 from casmbd.model.expression_rules import (
     _BINARY_OPERATORS,
     ALLOWED_FUNCTIONS,
     CONSTANTS,
     FUNCTION_ARITY,
+    HELPER_ARITY,
+    HELPER_FUNCTIONS,
     MAX_DEPTH,
     MAX_LENGTH,
+    MEASURE_ARITY,
     _check_tree,
     _fail,
     _is_real_number,
@@ -55,20 +60,33 @@ __all__ = [
     "ALLOWED_FUNCTIONS",
     "CONSTANTS",
     "FUNCTION_ARITY",
+    "HELPER_ARITY",
+    "HELPER_FUNCTIONS",
     "MAX_DEPTH",
     "MAX_LENGTH",
+    "MEASURE_ARITY",
     "depends_on",
     "evaluate_number",
     "parse_expression",
 ]
 
-def _children(node: ast.AST) -> list[ast.AST]:
+#: no measure calls (the default of the evaluation helpers)
+_NO_CALLS: Mapping[str, Any] = MappingProxyType({})
+
+
+def _is_measure(node: ast.AST, calls: Mapping[str, Any]) -> bool:
+    """Whether a checked node is a call of a measure (its arguments are quoted names)."""
+    return (isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
+            and node.func.id in calls)
+
+
+def _children(node: ast.AST, calls: Mapping[str, Any] = _NO_CALLS) -> list[ast.AST]:
     """Return the operands of a checked node, in evaluation order."""
     if isinstance(node, ast.BinOp):
         return [node.left, node.right]
     if isinstance(node, ast.UnaryOp):
         return [node.operand]
-    if isinstance(node, ast.Call):
+    if isinstance(node, ast.Call) and not _is_measure(node, calls):
         return list(node.args)
     return []
 
@@ -80,10 +98,25 @@ def _apply(node: ast.AST, operands: list[Any]) -> Any:
     if isinstance(node, ast.UnaryOp):
         return -operands[0] if isinstance(node.op, ast.USub) else operands[0]
     assert isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
-    return ALLOWED_FUNCTIONS[node.func.id](*operands)
+    function = ALLOWED_FUNCTIONS.get(node.func.id) or HELPER_FUNCTIONS[node.func.id]
+    return function(*operands)
 
 
-def _evaluate(tree: ast.Expression, symbols: Mapping[str, _Value]) -> Any:
+def _measure(node: ast.Call, calls: Mapping[str, Any], source: str, where: str) -> Any:
+    """The value of a measure call: its resolver applied to the quoted names; a
+    :class:`~casmbd.errors.ModelError` of the resolver (an unknown joint, ...) becomes an
+    :class:`~casmbd.errors.ExpressionError` naming ``where`` and the call."""
+    assert isinstance(node.func, ast.Name)
+    names = [argument.value for argument in node.args]  # checked: string constants
+    try:
+        return calls[node.func.id][1](*names)
+    except ModelError as error:
+        raise _fail(where, ast.get_source_segment(source, node) or source, str(error)) from None
+
+
+def _evaluate(tree: ast.Expression, symbols: Mapping[str, _Value],
+              calls: Mapping[str, Any] = _NO_CALLS, source: str = "",
+              where: str = "expression") -> Any:
     """Evaluate a checked tree without recursion (post-order with an explicit stack)."""
     values: list[Any] = []
     stack: list[tuple[ast.AST, bool]] = [(tree.body, False)]
@@ -93,14 +126,16 @@ def _evaluate(tree: ast.Expression, symbols: Mapping[str, _Value]) -> Any:
             values.append(float(node.value))
         elif isinstance(node, ast.Name):
             values.append(symbols[node.id] if node.id in symbols else CONSTANTS[node.id])
+        elif _is_measure(node, calls):
+            values.append(_measure(node, calls, source, where))
         elif operands_ready:
-            count = len(_children(node))
+            count = len(_children(node, calls))
             operands = values[len(values) - count :]
             del values[len(values) - count :]
             values.append(_apply(node, operands))
         else:
             stack.append((node, True))
-            stack.extend((child, False) for child in reversed(_children(node)))
+            stack.extend((child, False) for child in reversed(_children(node, calls)))
     (result,) = values
     return result
 
@@ -109,6 +144,7 @@ def parse_expression(
     text: str | float,
     symbols: Mapping[str, casadi.SX | casadi.MX | float],
     where: str = "expression",
+    calls: Mapping[str, tuple[int, Any]] | None = None,
 ) -> casadi.SX | casadi.MX | float:
     """Turn an expression string of a scene file into a CasADi expression.
 
@@ -128,6 +164,12 @@ def parse_expression(
     where : str, optional
         Human-readable location of the expression, e.g.
         ``"[[drivers]] 'crank' key 'position'"``; it starts every error message.
+    calls : mapping of str to (int, callable), optional
+        Measures usable here (:data:`MEASURE_ARITY`; :mod:`casmbd.model.measures`): name →
+        (number of quoted names, resolver called with the names and returning the value).
+        ``angle("J1")`` is then the resolver of ``"angle"`` called with ``"J1"``; its
+        :class:`~casmbd.errors.ModelError` becomes an ``ExpressionError`` naming ``where``.
+        Without it a measure is refused as a state-dependent value.
 
     Returns
     -------
@@ -184,9 +226,9 @@ def parse_expression(
         )
     table = _normalize_symbols(symbols, where)
     tree = _parse(source, where)
-    _check_tree(tree, source, table, where)
+    _check_tree(tree, source, table, where, calls)
     try:
-        result = _evaluate(tree, table)
+        result = _evaluate(tree, table, calls or _NO_CALLS, source, where)
     except (RuntimeError, TypeError, ValueError, NotImplementedError, ArithmeticError) as error:
         raise _fail(where, source, f"cannot evaluate expression: {error}") from None
     if isinstance(result, casadi.DM):
