@@ -32,7 +32,8 @@ RUNS = {"andrews": (0.03, 60), "bricard": (4.99, 60), "flyball_governor": (1.0, 
         "heavy_top": (1.0, 100), "hanging_chain": (3.0, 60), "n_four_bar_3": (3.0, 60),
         "slider_crank": (1.0, 40), "slider_crank_inverse": (1.0, 40),
         "spatial_slider_crank": (1.0, 40), "spatial_four_bar": (1.0, 40), "four_bar": (1.0, 40),
-        "crankshaft": (1.0, 40)}
+        "crankshaft": (1.0, 40), "spinup_beam": (20.0, 100),
+        "flexible_slider_crank": (0.1, 100)}
 #: scenes that also get a GIF
 GIFS = ("slider_crank",)
 

@@ -51,6 +51,9 @@ def _add_workbench_verbs(sub) -> None:
                    help="playback speed factor (default 1: real time; 2: twice as fast)")
     p.add_argument("--trace", action="append", default=None, metavar="MARKER",
                    help="draw the path of this marker (repeatable; 'all' for every marker)")
+    p.add_argument("--deformation-scale", type=_positive_float, default=1.0,
+                   help="magnify the elastic displacements of flexible bodies (default 1; "
+                        "the picture says so when it is not 1)")
     _add_dpi(p, 80.0)
     _add_mode(p)
     _add_output_flags(p)

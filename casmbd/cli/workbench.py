@@ -76,7 +76,7 @@ def _cmd_animate(args) -> tuple[dict, str]:
         trace = True
     if suffix in (".gif", ".mp4"):
         anim = animate(result, mech, max_frames=args.max_frames, fps=args.fps,
-                       speed=args.speed, trace=trace)
+                       speed=args.speed, trace=trace, deformation_scale=args.deformation_scale)
         if not args.json:  # before the drawing: what was chosen and how to change it
             print(anim.casmbd_choice, flush=True)
         save_animation(anim, args.out, dpi=args.dpi)
@@ -84,7 +84,8 @@ def _cmd_animate(args) -> tuple[dict, str]:
         playback = anim.casmbd_plan.playback
         lines.append(f"saved {args.out}: {frames} frames at {fps:.3g} fps ({source})")
     else:
-        draw_frame(result, mechanism=mech, ghosts=8, trace=trace, out=args.out, dpi=args.dpi)
+        draw_frame(result, mechanism=mech, ghosts=8, trace=trace, out=args.out, dpi=args.dpi,
+                   deformation_scale=args.deformation_scale)
         frames, fps, playback = 1, None, None
         lines.append(f"saved {args.out}: still frame at t = {result.t[-1]:g} s ({source})")
     data = {"out": args.out, "frames": frames, "fps": fps, "t_end": float(result.t[-1]),
