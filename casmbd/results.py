@@ -260,6 +260,22 @@ class Result:
         return [c for c in self.names["joints"] if c.rpartition(".")[0] not in
                 self.names["joints"]]
 
+    def output(self, name: str) -> np.ndarray:
+        """A request's values (n_t,) on the grid (``[[outputs]]``, :mod:`casmbd.model.measures`)."""
+        return self.arrays["outputs"][:, self.names["outputs"].index(name)]
+
+    def force(self, name: str) -> dict[str, np.ndarray]:
+        """What force element ``name`` reports (n_t,) by quantity: a spring's ``length``,
+        ``rate`` and ``force``, an expression force's ``value``, … (``force_outputs``)."""
+        out = {}
+        for k, label in enumerate(self.names.get("force_outputs", [])):
+            element, _, quantity = label.rpartition(".")
+            if element == name:
+                out[quantity] = self.arrays["force_outputs"][:, k]
+        if not out:
+            raise KeyError(f"force '{name}' reports nothing in this result")
+        return out
+
     # ------------------------------------------------------------------ views
     def to_json(self) -> dict:
         """The JSON object of the CLI contract."""
@@ -318,6 +334,16 @@ class Result:
         if "velocity_violation" in self.arrays:
             vv = self.arrays["velocity_violation"]
             out["velocity_violation"] = float(np.max(vv)) if vv.size else 0.0
+        if "outputs" in self.arrays:  # requests
+            out["outputs"] = {name: _list(self.arrays["outputs"][:, k])
+                              for k, name in enumerate(self.names.get("outputs", []))}
+        if "force_outputs" in self.arrays:  # force elements' own measures
+            forces: dict = {}
+            for k, label in enumerate(self.names.get("force_outputs", [])):
+                element, _, quantity = label.rpartition(".")
+                forces.setdefault(element, {})[quantity] = \
+                    _list(self.arrays["force_outputs"][:, k])
+            out["forces"] = forces
         if self.events or self.stats.get("event_driven"):
             out["events"] = [dict(e) for e in self.events]
         if "contact_forces" in self.arrays:
@@ -404,6 +430,8 @@ class Result:
             labels = list(joints) if len(joints) == n else None
         elif key == "joint_reactions" and arr.ndim == 3:
             labels = per(names.get("all_joints", []), _REACTIONS.get(arr.shape[2], ()))
+        elif key in ("outputs", "force_outputs"):
+            labels = list(names.get(key, [])) if len(names.get(key, [])) == n else None
         elif key == "driver_efforts":
             labels = per(names.get("drivers", []), ("effort",))
         elif key.startswith("actuator_"):

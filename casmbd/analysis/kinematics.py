@@ -19,6 +19,7 @@ from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, AssemblyError, CasmbdError, RedundantConstraintError
 from casmbd.limits import check_steps, output_values
 from casmbd.model.flexible_bodies import rigidified
+from casmbd.model.measures import result_names
 from casmbd.results import Result
 from casmbd.system.formulations import FORMULATIONS, default_formulation
 
@@ -202,7 +203,7 @@ def kinematics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.
     outputs = model.outputs(qs, vs, as_, grid)
     names = {"coordinates": model.coordinate_names, "bodies": model.body_names,
              "markers": list(mech.markers), "joints": model.joint_coordinate_names,
-             "all_joints": list(mech.joints)}
+             "all_joints": list(mech.joints), **result_names(mech)}  # requests, forces
     stats = {"solve_seconds": solve_seconds, "newton_iterations": newton, "steps": int(steps),
              **model.report_dict}
     return Result("kinematics", grid, {"q": qs, "v": vs, "a": as_, **outputs,

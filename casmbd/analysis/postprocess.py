@@ -23,6 +23,7 @@ from casmbd.analysis.redundancy import (
     reference_equilibration,
 )
 from casmbd.interrupts import reraise_interrupt
+from casmbd.model.measures import result_names
 from casmbd.results import Result
 
 
@@ -135,7 +136,8 @@ class PostProcessing:
                  "joints": system.joint_coordinate_names,
                  "all_joints": list(system.mechanism.joints), "drivers": drivers,
                  "actuators": list(system.mechanism.actuators),
-                 "constraints": [str(lab) for lab in system.constraint_labels]}
+                 "constraints": [str(lab) for lab in system.constraint_labels],
+                 **result_names(system.mechanism)}  # requests and force reports
         arrays = {"q": qs, "v": vs, "a": acc, "lambda": lam, **outputs,
                   "joint_reactions": reactions, "driver_efforts": efforts,
                   "actuator_inputs": us, "kinetic_energy": kin, "potential_energy": pot,

@@ -30,6 +30,7 @@ Contract (SI units, angles in radians; vectors have ``dimension`` components)::
     [[forces]]    name, type = force|torque|spring_damper|rotational_spring_damper, ...
                   (torque: value number in the plane, [tx, ty, tz] + frame in space)
     [[actuators]] name, joint, coordinate (optional)
+    [[outputs]]   name, value (expression of measures: angle("J"), x("marker"), ...), unit
 """
 
 from __future__ import annotations
@@ -55,7 +56,7 @@ from casmbd.limits import (
     MAX_TOML_DEPTH,
     check_count,
 )
-from casmbd.model import Mechanism
+from casmbd.model import Mechanism, measures
 from casmbd.model.expressions import evaluate_number, parse_expression
 from casmbd.model.joint_friction import joint_friction_from_scene
 from casmbd.model.registry import BODY_KINDS, FORCE_KINDS, JOINT_KINDS
@@ -64,7 +65,7 @@ from casmbd.model.values import EXTRAPOLATIONS, Samples
 FORMAT = 1
 
 _TABLES = {"scene", "parameters", "bodies", "markers", "joints", "drivers", "forces",
-           "actuators", "contacts", "ocp", "simulation", "meta"}
+           "actuators", "outputs", "contacts", "ocp", "simulation", "meta"}
 #: keys of a [[contacts]] entry (casmbd/model/contacts.py)
 _CONTACT_KEYS = {"name", "type", "body", "point", "radius", "origin", "normal", "model",
                  "restitution", "friction", "body2", "point2", "radius2", "stiffness",
@@ -78,6 +79,7 @@ _COORDINATES = ("auto", "absolute", "natural", "joint")
 _MARKER_KEYS = {"name", "body", "point", "description", "orientation", "euler_zxz", "angle"}
 _DRIVER_KEYS = {"name", "joint", "body", "coordinate", "position", "description"}
 _ACTUATOR_KEYS = {"name", "joint", "coordinate", "description"}
+_OUTPUT_KEYS = {"name", "value", "unit", "description"}
 
 
 def _finite(val: Any) -> float | None:
@@ -425,6 +427,12 @@ def _build(data: dict, source: str) -> Mechanism:
         e.check_keys(_ACTUATOR_KEYS)
         guarded(e, lambda e=e: mech.add_actuator(
             _name(e), e.string("joint"), coordinate=e.string("coordinate", required=False)))
+
+    for e in entries("outputs"):  # requests: expressions of measures (casmbd.model.measures)
+        e.check_keys(_OUTPUT_KEYS)
+        guarded(e, lambda e=e: mech.add_output(
+            _name(e), measures.check(mech, e.require("value"), f"{e.where} key 'value'"),
+            unit=e.string("unit", default="-")))
 
     if not mech.bodies:
         raise SceneError(f"{source}: the scene has no [[bodies]]")

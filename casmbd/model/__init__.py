@@ -2,6 +2,7 @@
 
 from casmbd.model.bodies import GROUND, Body, Marker, SpatialBody
 from casmbd.model.drivers import Driver
+from casmbd.model.expression_force import ExpressionForce
 from casmbd.model.forces import (
     Actuator,
     ForceElement,
@@ -35,7 +36,8 @@ from casmbd.model.spatial_joints import (
 )
 
 __all__ = ["BODY_KINDS", "FORCE_KINDS", "GROUND", "JOINT_KINDS", "Actuator", "Body",
-           "Cylindrical", "Distance", "Driver", "Fixed", "ForceElement", "Gear", "Joint",
+           "Cylindrical", "Distance", "Driver", "ExpressionForce",
+           "Fixed", "ForceElement", "Gear", "Joint",
            "JointFriction", "Marker", "Mechanism", "Planar", "PointForce", "Prismatic", "Revolute",
            "Rigid",
            "RotationalSpringDamper", "SpatialBody", "SpatialFixed", "SpatialPrismatic",

@@ -90,6 +90,35 @@ class ForceElement:
         whole turns, so statics must not reduce that angle to its principal range)."""
         return None
 
+    def report_names(self, dimension: int) -> tuple[tuple[str, str], ...]:
+        """(quantity, unit) of the measures the element reports on every result grid
+        (:mod:`casmbd.system.requests`; ``force_outputs``).  Default: an element acting on one
+        joint coordinate (``joint`` and ``coordinate`` fields, e.g. joint friction) reports
+        ``force``, the generalized force it applies along that coordinate; others nothing."""
+        return (("force", _coordinate_unit(self.coordinate)),) if _on_coordinate(self) else ()
+
+    def reports(self, kit) -> list[ca.SX]:
+        """The values of :meth:`report_names`, written with ``kit.ctx`` (default: the sum of
+        the weights of the element's terms along its joint coordinate)."""
+        if not _on_coordinate(self):
+            return []
+        return [sum((ca.vec(term.weight)[0] for term in self.terms(kit, kit.ctx)
+                     if term.kind == "measure"), ca.SX(0.0))]
+
+
+def _on_coordinate(force) -> bool:
+    """An element acting on one joint coordinate that the default reports describe (not one
+    whose level depends on a joint reaction, unknown on the output grid's inputs)."""
+    reaction = getattr(force, "reaction_joint", None)
+    return (isinstance(getattr(force, "joint", None), str)
+            and isinstance(getattr(force, "coordinate", None), str)
+            and (reaction is None or reaction() is None))
+
+
+def _coordinate_unit(coordinate: str | None) -> str:
+    """Unit of a generalized force along a joint coordinate: N m on an angle, else N."""
+    return "N m" if str(coordinate).startswith("angle") else "N"
+
 
 def _nonzero(value: Value) -> bool:
     """Whether a value may differ from zero (an expression or a parameter may)."""
@@ -166,6 +195,16 @@ class PointForce(ForceElement):
             raise ModelError(f"{where} field 'frame': expected 'global' or 'body', "
                              f"got {self.frame!r}")
 
+    def report_names(self, dimension):
+        """The global force components ``fx``, ``fy`` (, ``fz``) [N]."""
+        return tuple((f"f{a}", "N") for a in "xyz"[:dimension])
+
+    def reports(self, kit):
+        if self.body == GROUND:
+            return [ca.SX(0.0)] * len(self.value)
+        (term,) = self.terms(kit, kit.ctx)
+        return [ca.vec(term.weight)[k] for k in range(len(self.value))]
+
 
 @register_force
 @dataclass
@@ -216,6 +255,15 @@ class Torque(ForceElement):
         self.value = tuple(check_value(v, f"{where} 'value'") for v in values)
         if self.frame not in FRAMES:
             raise ModelError(f"{where} 'frame': expected 'global' or 'body', got {self.frame!r}")
+
+    def report_names(self, dimension):
+        """``torque`` [N m] in the plane; global ``tx``, ``ty``, ``tz`` in space."""
+        return (("torque", "N m"),) if dimension == 2 else \
+            tuple((f"t{a}", "N m") for a in "xyz")
+
+    def reports(self, kit):
+        (term,) = self.terms(kit, kit.ctx)
+        return [ca.vec(term.weight)[k] for k in range(len(self.value))]
 
 
 @register_force
@@ -271,7 +319,8 @@ class SpringDamper(ForceElement):
         d = p2 - p1
         return ca.sqrt(ca.dot(d, d))
 
-    def terms(self, kit, ctx):
+    def _state(self, kit) -> tuple[ca.SX, ca.SX, ca.SX]:
+        """Length l, rate l̇ and tension f = k (l − l0) + c l̇ + a(t), with ``kit.ctx``."""
         base, where = kit.ctx, f"force '{self.name}' field"
         length = self.length(base)
         rate = ca.jtimes(length, base.q, base.v)
@@ -279,7 +328,19 @@ class SpringDamper(ForceElement):
                    * (length - kit.value(self.free_length, f"{where} 'free_length'"))
                    + kit.value(self.damping, f"{where} 'damping'") * rate
                    + kit.value(self.actuator, f"{where} 'actuator'"))
+        return length, rate, tension
+
+    def terms(self, kit, ctx):
+        tension = self._state(kit)[2]
         return [kit.term("measure", self.length(ctx), -tension)]
+
+    def report_names(self, dimension):
+        """``length`` [m], its ``rate`` [m/s] and the ``force`` [N] (tension, positive when
+        it pulls the points together)."""
+        return (("length", "m"), ("rate", "m/s"), ("force", "N"))
+
+    def reports(self, kit):
+        return list(self._state(kit))
 
     def potential(self, kit):
         where = f"force '{self.name}' field"
@@ -341,7 +402,8 @@ class RotationalSpringDamper(ForceElement):
                         stiffness=e.nonnegative("stiffness"), damping=e.nonnegative("damping"),
                         free_angle=e.value("free_angle", 0.0), actuator=e.value("actuator", 0.0))
 
-    def terms(self, kit, ctx):
+    def _state(self, kit) -> tuple[ca.SX, ca.SX, ca.SX]:
+        """Angle φ, rate φ̇ and moment T = k (φ − φ0) + c φ̇ + a(t), with ``kit.ctx``."""
         base, where = kit.ctx, f"force '{self.name}' field"
         joint = base.mechanism.joints[self.joint]
         phi = joint.coordinate(base, self.coordinate)
@@ -350,7 +412,20 @@ class RotationalSpringDamper(ForceElement):
                   * (phi - kit.value(self.free_angle, f"{where} 'free_angle'"))
                   + kit.value(self.damping, f"{where} 'damping'") * rate
                   + kit.value(self.actuator, f"{where} 'actuator'"))
+        return phi, rate, moment
+
+    def terms(self, kit, ctx):
+        moment = self._state(kit)[2]
+        joint = kit.ctx.mechanism.joints[self.joint]
         return [kit.term("measure", joint.coordinate(ctx, self.coordinate), -moment)]
+
+    def report_names(self, dimension):
+        """``angle`` [rad], its ``rate`` [rad/s] and the ``moment`` [N m] (resisting an
+        increase of the angle)."""
+        return (("angle", "rad"), ("rate", "rad/s"), ("moment", "N m"))
+
+    def reports(self, kit):
+        return list(self._state(kit))
 
     def potential(self, kit):
         where = f"force '{self.name}' field"

@@ -12,6 +12,8 @@ from functools import cached_property
 
 import casadi as ca
 
+from casmbd.system.requests import output_groups
+
 
 class Outputs:
     """Output Function and row bookkeeping of a System (a mixin, see the module docstring)."""
@@ -38,7 +40,8 @@ class Outputs:
         (``angle_*``); spatial bodies their rotation matrix (``rotation_matrices``, 9 per body,
         row by row) and global angular velocity and acceleration (3 per body).  With markers,
         their frames: ``marker_rotations`` (9 per marker, row by row) in space, ``marker_angles``
-        in the plane.
+        in the plane.  Requests (``outputs``) and force-element reports (``force_outputs``)
+        when the mechanism has them (:mod:`casmbd.system.requests`).
         """
         if "outputs" not in self._functions:
             ctx, mech = self.ctx, self.mechanism
@@ -74,6 +77,9 @@ class Outputs:
             if mech.markers:  # their frames: A_body (Aᵦᵀ A_m), θ_body + θ_m − θᵦ
                 exprs.append(self._marker_rotations())
                 names.append("marker_rotations" if self.dimension == 3 else "marker_angles")
+            for label, expr in output_groups(self):  # requests and force reports
+                exprs.append(expr)
+                names.append(label)
             self._functions["outputs"] = ca.Function(
                 "outputs", [self.q, self.v, a, self.t, self.p], exprs,
                 ["q", "v", "a", "t", "p"], names)

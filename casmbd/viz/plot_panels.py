@@ -12,7 +12,9 @@ one (``positions [m]``, ``angles [rad]``, ``forces [N]``, ``torques [N m]`` …)
 * ``energy`` — kinetic, potential and total energy [J], then total − total(0) [J], labelled
   numerical drift only for a conservative mechanism (else the work of the named dampers,
   drivers, actuators and forces, :func:`casmbd.viz.quantities.energy_change_label`);
-* ``drift`` — max |C| and max |C_q v + C_t| (log scale; mixed units of the equations).
+* ``drift`` — max |C| and max |C_q v + C_t| (log scale; mixed units of the equations);
+* ``outputs`` — the requests (``[[outputs]]``, by their ``unit``) and what every force element
+  reports (a spring's length [m], rate [m/s] and force [N], …), one panel per unit.
 
 Angles are drawn continuous: the result's joint angles are unwrapped already
 (:meth:`casmbd.compiled.model.NumericModel.outputs`), Euler angles are unwrapped here.
@@ -207,3 +209,23 @@ def drift(result, elements=None, mechanism=None) -> list[Panel]:
         if not np.any(values > 0):
             panel.note = "zero at every output time"
     return panels
+
+
+def outputs(result, elements=None, mechanism=None) -> list[Panel]:
+    """Requests (``outputs``, by their unit) and force-element reports (``force_outputs``:
+    ``element.quantity`` with its unit), one panel per unit; ``elements`` selects requests
+    and force elements by name."""
+    columns = []
+    colour = _element_index()
+    for key, units_key in (("outputs", "output_units"), ("force_outputs", "force_output_units")):
+        if key not in result.arrays:
+            continue
+        names = result.names.get(key, [])
+        units = result.names.get(units_key) or ["-"] * len(names)
+        for k, (label, unit) in enumerate(zip(names, units, strict=True)):
+            element = label.rpartition(".")[0] if key == "force_outputs" else label
+            if _selected(element, elements):
+                columns.append((label, result.arrays[key][:, k], unit, colour(element), 0))
+    return _by_unit(columns, {"m": "lengths", "m/s": "rates", "rad": "angles",
+                              "rad/s": "angular rates", "N": "forces", "N m": "torques",
+                              "-": "requests"})

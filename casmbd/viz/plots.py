@@ -8,7 +8,8 @@ Kinds (:data:`KINDS`): ``coordinates`` (q; Euler angles of spatial bodies instea
 quaternions), ``joints`` (joint coordinates), ``efforts`` (driver efforts, actuator efforts or
 inputs), ``reactions`` (joint reaction forces and moments), ``energy`` (kinetic, potential,
 total and the change of the total: drift or work of dampers/drivers) and ``drift`` (max |C|
-and max |C_q v + C_t| per output time, logarithmic).  Each kind is split into panels of one
+and max |C_q v + C_t| per output time, logarithmic), ``outputs`` (requests and force-element
+reports).  Each kind is split into panels of one
 unit each, built by :mod:`casmbd.viz.plot_panels`.
 """
 
@@ -106,11 +107,12 @@ def _draw_panel(ax, t: np.ndarray, panel: plot_panels.Panel) -> None:
 KINDS: dict[str, Callable] = {"coordinates": plot_panels.coordinates,
                               "joints": plot_panels.joints, "efforts": plot_panels.efforts,
                               "reactions": plot_panels.reactions,
-                              "energy": plot_panels.energy, "drift": plot_panels.drift}
+                              "energy": plot_panels.energy, "drift": plot_panels.drift,
+                              "outputs": plot_panels.outputs}
 _NEEDS = {"coordinates": ("q",), "joints": ("joint_positions",),
           "efforts": ("driver_efforts", "actuator_efforts", "actuator_inputs"),
           "reactions": ("joint_reactions",), "energy": ("total_energy",),
-          "drift": ("constraint_violation",)}
+          "drift": ("constraint_violation",), "outputs": ("outputs", "force_outputs")}
 _WHY = {"joints": "no joint coordinates (its joints are all without one: spherical, rigid, "
                   "…, or it has no joints)",
         "efforts": "no driver or actuator efforts (no drivers or actuators, or a kinematic "
