@@ -64,9 +64,10 @@ def test_scene_errors_of_a_user_kind(example):
     """An unknown key lists the kind's keys; a planar kind in a spatial scene is named."""
     space, _ = example
     text = space["SCENE"].format(coordinates="absolute")
+    # (every joint entry also allows the keys of issue 24: friction, lower, upper, ...)
     with pytest.raises(SceneError, match=r"\('slide'\) key 'length': unknown key \(allowed: "
-                                         r"axis, body1, body2, description, name, node1, node2, "
-                                         r"point, type"):
+                                         r"axis, body1, body2, description, (\w+, )*name, "
+                                         r"node1, node2, point, (\w+, )*type"):
         casmbd.loads_scene(text + "length = 2.0\n")  # the slide is the last entry
     spatial = ('[scene]\ndimension = 3\n[[bodies]]\nname = "b"\nmass = 1.0\n'
                'inertia = [1.0, 1.0, 1.0]\nposition = [0.0, 0.0, 0.0]\n[[joints]]\n'

@@ -9,6 +9,12 @@ linear in the multipliers alone,
 with C_q square and non-singular.  The driver rows of λ give the efforts the drivers must exert
 (effort = −λ_d, the generalized force along the driven coordinate, positive in the direction of
 increasing coordinate); the joint rows give the reactions (eqs. 6.145–6.151).
+
+Joint friction is part of Q_e (viscous and regularised Coulomb), so the efforts include it.
+With reaction-proportional friction (``mu`` > 0) Q_e depends on λ through the transverse
+reaction magnitudes N: λ and N are solved together at each time by the fixed point of
+:func:`casmbd.analysis.joint_friction.solve_normals` (relative 1e-12 in N; the iterations are
+``stats["friction_iterations"]``, the largest over the grid).
 """
 
 from __future__ import annotations
@@ -19,6 +25,7 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 from casmbd.analysis.checks import diagnose
+from casmbd.analysis.joint_friction import has_reaction_friction, solve_normals
 from casmbd.analysis.kinematics import check_result_size, kinematics
 from casmbd.analysis.reactions import flag_undetermined
 from casmbd.compiled.model import NEEDS, NumericModel
@@ -26,6 +33,13 @@ from casmbd.errors import AnalysisError, ModelError, SingularConfigurationError
 from casmbd.interrupts import reraise_interrupt
 from casmbd.model.flexible_bodies import rigidified
 from casmbd.results import Result
+
+
+def _scatter(values: np.ndarray, rows: list[int], size: int) -> np.ndarray:
+    """A vector of ``size`` zeros with ``values`` at ``rows``."""
+    out = np.zeros(size)
+    out[rows] = values
+    return out
 
 
 def _actuator_efforts(model, grid, qs, vs, acc) -> np.ndarray:
@@ -49,6 +63,14 @@ def _actuator_efforts(model, grid, qs, vs, acc) -> np.ndarray:
         cq = model.constraint_jacobian(qs[k], t)[joint_rows, :]
         mat = np.hstack([cq.T.toarray(), -model.input_matrix(qs[k], vs[k], t).toarray()])
         sol, *_ = np.linalg.lstsq(mat, rhs, rcond=None)
+        if has_reaction_friction(model):  # λ and the friction together
+            sol, normals, _ = solve_normals(
+                model, qs[k], vs[k], t, None,
+                lambda f, mat=mat, rhs=rhs: np.linalg.lstsq(mat, rhs + f, rcond=None)[0],
+                lambda x: _scatter(x[:len(joint_rows)], joint_rows, model.nc),
+                f"inverse dynamics at t = {t:g}")
+            rhs = rhs + model.sparse("friction_directions", qs[k], vs[k], t,
+                                     np.zeros(n_u), model.p) @ normals
         residual = np.max(np.abs(mat @ sol - rhs))
         if residual > 1e-8 * max(1.0, np.max(np.abs(rhs))):
             raise AnalysisError(
@@ -97,6 +119,7 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
     lam = np.zeros((n, model.nc))
     kin_e = np.zeros(n)
     pot_e = np.zeros(n)
+    friction, iterations = has_reaction_friction(model), 0
     for k, t in enumerate(grid):
         rhs = (model.applied_forces(qs[k], vs[k], t) + model.quadratic_velocity_forces(qs[k], vs[k])
                - model.mass_matrix(qs[k]) @ acc[k])
@@ -104,11 +127,17 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
             raise ModelError(f"inverse dynamics at t = {t:g}: " + "; ".join(
                 diagnose(model, t, qs[k], vs[k]) or ["the generalized forces are not finite"]))
         try:
-            lam[k] = spla.splu(model.constraint_jacobian(qs[k], t).T.tocsc()).solve(rhs)
+            lu = spla.splu(model.constraint_jacobian(qs[k], t).T.tocsc())
+            lam[k] = lu.solve(rhs)
         except RuntimeError as exc:  # SuperLU, or CasADi's Jacobian evaluation
             reraise_interrupt(exc)
             raise SingularConfigurationError(
                 f"inverse dynamics at t = {t:g}: the constraint Jacobian is singular") from None
+        if friction:  # C_qᵀ λ = Q_e(0) + G N(λ) + Q_v − M q̈ (module docstring)
+            lam[k], _, count = solve_normals(
+                model, qs[k], vs[k], t, None, lambda f, lu=lu, rhs=rhs: lu.solve(rhs + f),
+                lambda x: x, f"inverse dynamics at t = {t:g}")
+            iterations = max(iterations, count)
         kin_e[k] = model.kinetic_energy(qs[k], vs[k])
         pot_e[k] = model.potential_energy(qs[k], t)
     actuators = list(model.mechanism.actuators)
@@ -141,6 +170,8 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
     names["actuators"] = actuators
     stats = dict(kin.stats)
     stats.update(flags)
+    if friction:
+        stats["friction_iterations"] = iterations
     stats["solve_seconds"] += time.perf_counter() - t0
     return Result("inverse_dynamics", grid, arrays, names, stats,
                   getattr(model.mechanism, "scene_text", "") or "")

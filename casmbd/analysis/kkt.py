@@ -22,6 +22,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from casmbd.analysis.assembly import assemble
+from casmbd.analysis.joint_friction import has_reaction_friction, solve_normals
 
 #: relative singular-value cut of the minimum-norm KKT solve with redundant equations
 TRUNCATE_RTOL = 1e-10
@@ -64,6 +65,12 @@ def accelerations_and_multipliers(model, q, v, t: float, u=None, redundant: bool
     cq = model.constraint_jacobian(q, t)
     rhs = np.concatenate([force, model.acceleration_rhs(q, v, t)])
     sol = _solve_saddle(m_mat, cq, rhs, redundant)
+    if has_reaction_friction(model):  # Q_e(0) + G N(λ): both solved together
+        pad = np.zeros(model.nc)
+        sol, _, _ = solve_normals(
+            model, q, v, t, u,
+            lambda f: _solve_saddle(m_mat, cq, rhs + np.concatenate([f, pad]), redundant),
+            lambda x: x[model.nq:], f"the accelerations at t = {t:g}")
     return sol[:model.nq], sol[model.nq:]
 
 

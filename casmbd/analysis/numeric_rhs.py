@@ -16,6 +16,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from casmbd.analysis import integrators as integ
+from casmbd.analysis.joint_friction import has_reaction_friction
 
 
 class RhsError(Exception):
@@ -97,6 +98,8 @@ class Equations:
 
     def __init__(self, sim):
         model = sim.model
+        if has_reaction_friction(model):  # Q_e here has no λ: name the joints
+            model.system.refuse_reaction_friction("a numeric formulation")
         self.model = model
         nq, nc, n_p = model.nq, model.nc, len(model.p)
         self.nq, self.nc = nq, nc

@@ -13,6 +13,20 @@ slope F_c / v_s (no stiction: a joint under a load below F_c creeps at a small v
 force acts along the measure s = q_j(q) by virtual work, Q = −f (∂s/∂q)ᵀ (seed 000,
 "Generalized forces", eqs. 6.40–6.48); q̇_j = (∂q_j/∂q) v.  Its power −c q̇_j² − F_c q̇_j
 tanh(q̇_j / v_s) ≤ 0 is dissipated, so the element declares ``energy_exchange() = "damper"``.
+
+Reaction-proportional Coulomb level (Adams-style joint friction, ``mu`` > 0):
+
+    F_c = F_0 + μ r |R_⊥|   (an angle: revolute, cylindrical rotation),
+    F_c = F_0 + μ |R_⊥|     (a translation: prismatic, cylindrical translation),
+
+with F_0 the constant level (``friction``; the scene's ``coulomb`` or ``preload``), r the
+pin/bearing ``radius`` and R_⊥ the joint's constraint force transverse to its axis (the whole
+force of a planar revolute; the normal force of a slide).  R_⊥ follows from the multipliers
+λ, so the force enters the equations through a symbol N per element that the system replaces
+by |R_⊥(q, λ)| (:mod:`casmbd.system.forces`, ``friction_normals``): Q_e is affine in N,
+Q_e = Q_e|_{N=0} + G N.  Inverse dynamics and the consistent start solve λ and N together by
+a fixed point (:mod:`casmbd.analysis.joint_friction`); the DAE formulations (``index1``,
+``ggl``) use λ directly; the ODE formulations refuse such an element, naming its joint.
 """
 
 from __future__ import annotations
@@ -26,6 +40,11 @@ from casmbd.model.forces import ForceElement, _nonzero
 from casmbd.model.registry import register_force
 from casmbd.model.values import Value, check_value
 
+#: keys of a joint entry's ``friction = {...}`` table in a scene
+SCENE_FRICTION_KEYS = ("viscous", "coulomb", "regularization", "mu", "radius", "preload")
+#: joint kinds whose reaction transverse to the axis the Coulomb level may follow
+REACTION_KINDS = ("revolute", "prismatic", "cylindrical")
+
 #: default regularisation velocity v_s of the Coulomb term (rad/s or m/s)
 REGULARIZATION = 1e-3
 
@@ -37,8 +56,10 @@ class JointFriction(ForceElement):
 
     Generalized force Q_j = −c q̇_j − F_c tanh(q̇_j / v_s) (c ``damping``, F_c ``friction``,
     v_s ``regularization``, default 1e-3).  ``coordinate`` defaults to the joint's first
-    coordinate (the angle of a revolute joint, the translation of a prismatic one).  No
-    potential energy.
+    coordinate (the angle of a revolute joint, the translation of a prismatic one).  With
+    ``mu`` > 0 the Coulomb level is F_c = ``friction`` + μ r |R_⊥| (r ``radius``, required
+    for an angle and refused for a translation, where the arm is 1; see the module
+    docstring).  No potential energy.
     """
 
     name: str
@@ -47,15 +68,18 @@ class JointFriction(ForceElement):
     friction: Value = 0.0
     regularization: Value = REGULARIZATION
     coordinate: str | None = None
+    mu: Value = 0.0
+    radius: Value | None = None
 
     kind = "joint_friction"
-    scene_keys = frozenset({"joint", "coordinate", "damping", "friction", "regularization"})
+    scene_keys = frozenset({"joint", "coordinate", "damping", "friction", "regularization",
+                            "mu", "radius"})
 
     @classmethod
     def create(cls, mech, name, joint, damping=0.0, friction=0.0,
-               regularization=REGULARIZATION, coordinate=None):
+               regularization=REGULARIZATION, coordinate=None, mu=0.0, radius=None):
         mech._unique(mech.forces, "force", name)
-        mech._nonnegative(name, damping=damping, friction=friction)
+        mech._nonnegative(name, damping=damping, friction=friction, mu=mu)
         regularization = check_value(regularization, f"force '{name}' field 'regularization'")
         if isinstance(regularization, float) and regularization <= 0.0:
             raise ModelError(f"force '{name}' field 'regularization': must be > 0, got "
@@ -67,29 +91,103 @@ class JointFriction(ForceElement):
             raise ModelError(f"force '{name}' field 'coordinate': joint '{joint}' has no "
                              f"coordinate '{coordinate}' (known: "
                              f"{', '.join(joint_obj.coordinate_names)})")
-        return cls(name, joint, damping, friction, regularization, coordinate=coordinate)
+        _check_reaction(name, joint_obj, coordinate, mu, radius)
+        return cls(name, joint, damping, friction, regularization, coordinate=coordinate,
+                   mu=mu, radius=radius)
 
     @classmethod
     def from_scene(cls, mech, e):
         return mech.add("joint_friction", e.string("name"), e.string("joint"),
                         damping=e.nonnegative("damping"), friction=e.nonnegative("friction"),
                         regularization=e.value("regularization", REGULARIZATION),
-                        coordinate=e.string("coordinate", required=False))
+                        coordinate=e.string("coordinate", required=False),
+                        mu=e.nonnegative("mu"),
+                        radius=e.value("radius") if e.has("radius") else None)
+
+    def reaction_joint(self) -> str | None:
+        """The joint whose transverse reaction sets the Coulomb level (``mu`` > 0), else
+        None (read by :mod:`casmbd.system.forces`)."""
+        return self.joint if _nonzero(self.mu) else None
 
     def terms(self, kit, ctx):
         base, where = kit.ctx, f"force '{self.name}' field"
         joint = base.mechanism.joints[self.joint]
         rate = ca.jtimes(joint.coordinate(base, self.coordinate), base.q, base.v)
         resist = kit.value(self.damping, f"{where} 'damping'") * rate
-        if _nonzero(self.friction):
-            resist = resist + kit.value(self.friction, f"{where} 'friction'") * ca.tanh(
+        level = kit.value(self.friction, f"{where} 'friction'") if _nonzero(self.friction) \
+            else None
+        if _nonzero(self.mu):  # μ r N, N the symbol the system sets to |R_⊥(q, λ)|
+            arm = 1.0 if self.radius is None else kit.value(self.radius, f"{where} 'radius'")
+            slip = kit.value(self.mu, f"{where} 'mu'") * arm * kit.normal(self.name)
+            level = slip if level is None else level + slip
+        if level is not None:
+            resist = resist + level * ca.tanh(
                 rate / kit.value(self.regularization, f"{where} 'regularization'"))
         return [kit.term("measure", joint.coordinate(ctx, self.coordinate), -resist)]
 
     def __post_init__(self):
-        for key in ("damping", "friction", "regularization"):
+        for key in ("damping", "friction", "regularization", "mu") + (
+                () if self.radius is None else ("radius",)):
             setattr(self, key, check_value(getattr(self, key),
                                            f"force '{self.name}' field '{key}'"))
 
     def energy_exchange(self) -> str | None:
-        return "damper" if _nonzero(self.damping) or _nonzero(self.friction) else None
+        return "damper" if any(_nonzero(v) for v in (self.damping, self.friction, self.mu)) \
+            else None
+
+
+def _check_reaction(name: str, joint, coordinate: str, mu: Value, radius: Value | None) -> None:
+    """Where the Coulomb level follows the reaction: a revolute, prismatic or cylindrical
+    joint; a radius (> 0) for an angle, none for a translation."""
+    where = f"force '{name}'"
+    if not _nonzero(mu):
+        if radius is not None:
+            raise ModelError(f"{where} field 'radius': only used with 'mu' > 0")
+        return
+    if joint.kind not in REACTION_KINDS:
+        raise ModelError(f"{where} field 'mu': joint '{joint.name}' is a {joint.kind} joint; "
+                         f"reaction-proportional friction needs one of "
+                         f"{', '.join(REACTION_KINDS)}")
+    angle = coordinate == "angle"
+    if angle and radius is None:
+        raise ModelError(f"{where} field 'radius': the friction torque of the angle of joint "
+                         f"'{joint.name}' is μ r |R| and needs the pin/bearing radius r")
+    if not angle and radius is not None:
+        raise ModelError(f"{where} field 'radius': the translation of joint '{joint.name}' "
+                         "has the friction force μ |R| (no radius)")
+    if radius is not None:
+        radius = check_value(radius, f"{where} field 'radius'")
+        if isinstance(radius, float) and radius <= 0.0:
+            raise ModelError(f"{where} field 'radius': must be > 0, got {radius}")
+
+
+def joint_friction_from_scene(mech, e) -> JointFriction:
+    """The ``friction = {viscous, coulomb, regularization, mu, radius, preload}`` table of a
+    ``[[joints]]`` entry ``e`` as a ``joint_friction`` element named "<joint>.friction".
+
+    ``viscous`` is c, ``coulomb`` (or Adams' ``preload``, not both) is F_0, ``mu`` and
+    ``radius`` make the level F_0 + μ r |R_⊥| (see the module docstring).  Errors name the
+    entry and the key ``friction.<key>``.
+    """
+    raw = e.data["friction"]
+    if not isinstance(raw, dict):
+        raise e.error("friction", "expected a table such as { viscous = 0.1, coulomb = 0.5 } "
+                      f"(keys: {', '.join(SCENE_FRICTION_KEYS)}), got {raw!r}")
+    unknown = sorted(set(raw) - set(SCENE_FRICTION_KEYS))
+    if unknown:
+        raise e.error("friction", f"unknown key(s) {', '.join(unknown)} (allowed: "
+                      f"{', '.join(SCENE_FRICTION_KEYS)})")
+    if "coulomb" in raw and "preload" in raw:
+        raise e.error("friction", "give 'coulomb' or 'preload' (the same constant level), "
+                      "not both")
+    # a view of the sub-table whose keys read "friction.<key>" in error messages
+    sub = type(e)(e.table, e.index, {f"friction.{k}": v for k, v in raw.items()}, e.params)
+    sub.name = e.name
+    level = "friction.preload" if "preload" in raw else "friction.coulomb"
+    joint = e.string("name")
+    return mech.add("joint_friction", f"{joint}.friction", joint,
+                    damping=sub.nonnegative("friction.viscous"),
+                    friction=sub.nonnegative(level),
+                    regularization=sub.value("friction.regularization", REGULARIZATION),
+                    mu=sub.nonnegative("friction.mu"),
+                    radius=sub.value("friction.radius") if "radius" in raw else None)

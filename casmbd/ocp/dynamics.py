@@ -30,6 +30,7 @@ def implicit_residual(system) -> ca.Function:
     a = ca.SX.sym("a", system.nq)
     lam = ca.SX.sym("lam", system.nc)
     cq = system.constraint_jacobian
+    system.refuse_reaction_friction("the optimal-control transcription")
     forces = system.applied_forces + system.quadratic_velocity_forces
     dyn = ca.mtimes(system.mass_matrix, a) - forces
     if system.nc:
@@ -58,6 +59,7 @@ def explicit_accelerations(system) -> ca.Function:
     if system.coordinates == "joint" and supported(system) is None:
         acc = articulated_accelerations(system)
     else:
+        system.refuse_reaction_friction("the optimal-control transcription")
         forces = system.applied_forces + system.quadratic_velocity_forces
         if system.nc:
             cq = system.constraint_jacobian

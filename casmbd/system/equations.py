@@ -60,6 +60,8 @@ SIGNATURES: dict[str, tuple[tuple[str, ...], str]] = {
     "kinetic_energy": (("q", "v", "p"), "T"),
     "potential_energy": (("q", "t", "p"), "V"),
     "input_matrix": (("q", "v", "t", "u", "p"), "B"),
+    # reaction-proportional joint friction: Q_e = Q_e(N = 0) + G N (system/forces.py)
+    "friction_directions": (("q", "v", "t", "u", "p"), "G"),
 }
 
 
@@ -540,6 +542,12 @@ class System(AppliedForces, Outputs, Reactions):
             return self.outputs_function()
         if name == "joint_reactions":
             return self.reactions_function()
+        if name == "friction_normals":  # N = |R_⊥(q, λ)| of reaction-proportional friction
+            if name not in self._functions:
+                self._functions[name] = ca.Function(
+                    name, [self.q, self.t, self.p, self.lam], [self.friction_normals],
+                    ["q", "t", "p", "lambda"], ["N"])
+            return self._functions[name]
         if name == "mass_matrix" and not self.local and name not in self._functions:
             self._functions[name] = self._mapped_mass_matrix()
         if name not in SIGNATURES:

@@ -6,6 +6,15 @@ element kinds write their own terms (:class:`casmbd.model.forces.ForceElement`);
 collects them with gravity, user forces and actuators.  The reactions
 (:mod:`casmbd.system.reactions`) reuse the same terms written with a perturbed context.
 
+Reaction-proportional joint friction (:mod:`casmbd.model.joint_friction`, ``mu`` > 0) writes
+its Coulomb level with a symbol N_f per element (``kit.normal``).  Q_e is affine in N, so
+:attr:`AppliedForces.applied_forces` is Q_e at N = 0 and :attr:`AppliedForces.
+friction_directions` is G = ∂Q_e/∂N: Q_e(N) = Q_e(0) + G N.  :attr:`AppliedForces.
+friction_normals` is N = |R_⊥(q, λ)| per element, the joint's constraint force transverse to
+its axis, −(∂C_j/∂e)ᵀ λ_j on body2 (body1 when body2 is the ground) as in
+:meth:`~casmbd.system.reactions.Reactions.reactions_function`.  Analyses that do not solve for
+N call :meth:`AppliedForces.refuse_reaction_friction`.
+
 :class:`AppliedForces` is a mixin of :class:`~casmbd.system.equations.System`: it reads the
 system's symbols (``q``, ``v``, ``u``, ``ctx``, ``nq``, ``dimension``, ``mechanism``,
 ``body_names``) and its helpers ``_value`` and ``_mass_inertia``.
@@ -63,8 +72,91 @@ class AppliedForces:
 
         Each force contributes by virtual work, Q = (∂s/∂q)ᵀ w for a term acting with weight w
         along the measure s(q) (a point's position, a spring's length, a joint coordinate), and
-        Q = (∂ω/∂q̇)ᵀ T for a torque (seed 000, eqs. 6.40–6.48).
+        Q = (∂ω/∂q̇)ᵀ T for a torque (seed 000, eqs. 6.40–6.48).  Reaction-proportional
+        friction enters at N = 0; its part G N is :attr:`friction_directions` (module
+        docstring).
         """
+        normals = self.friction_normal_symbols
+        if not normals:
+            return self._applied_forces_n
+        return ca.substitute(self._applied_forces_n, ca.vertcat(*normals.values()),
+                             ca.DM.zeros(len(normals)))
+
+    # ------------------------------------------------------------ reaction-proportional friction
+    @cached_property
+    def friction_normal_symbols(self) -> dict[str, ca.SX]:
+        """Element name -> the symbol N of its transverse reaction magnitude, for the force
+        elements with a :meth:`reaction_joint` (joint friction with ``mu`` > 0)."""
+        out: dict[str, ca.SX] = {}
+        for force in self.mechanism.forces.values():
+            joint = getattr(force, "reaction_joint", lambda: None)()
+            if joint is None:
+                continue
+            if self.tree_joints:  # tree reactions come from Newton–Euler, not from λ
+                raise ModelError(
+                    f"force '{force.name}' field 'mu': the reaction of joint '{joint}' is not "
+                    f"given by the multipliers in {self.coordinates} coordinates; use "
+                    "coordinates = 'absolute' (or 'natural') for reaction-proportional friction")
+            out[force.name] = ca.SX.sym(f"N_{force.name}")
+        return out
+
+    @property
+    def reaction_friction_joints(self) -> dict[str, str]:
+        """Element name -> joint of every reaction-proportional friction element."""
+        return {name: self.mechanism.forces[name].reaction_joint()
+                for name in self.friction_normal_symbols}
+
+    def refuse_reaction_friction(self, what: str) -> None:
+        """Raise :class:`~casmbd.errors.ModelError` naming the joints when ``what`` (an
+        analysis or formulation) cannot solve the reaction-proportional friction."""
+        joints = self.reaction_friction_joints
+        if joints:
+            names = ", ".join(f"'{j}' (force '{f}')" for f, j in joints.items())
+            raise ModelError(
+                f"joint {names}: the Coulomb friction level mu·|reaction| depends on the joint "
+                f"reaction (the multipliers), which {what} does not solve for; use the "
+                "formulation 'index1' (or 'ggl'), or inverse dynamics")
+
+    @cached_property
+    def friction_directions(self) -> ca.SX:
+        """G = ∂Q_e/∂N (n_q × n_f): Q_e = Q_e(N = 0) + G N exactly (Q_e is affine in N)."""
+        normals = self.friction_normal_symbols
+        if not normals:
+            return ca.SX(self.nq, 0)
+        return ca.jacobian(self._applied_forces_n, ca.vertcat(*normals.values()))
+
+    @cached_property
+    def lam(self) -> ca.SX:
+        """Symbols of the multipliers λ (n_c), an input of :attr:`friction_normals`."""
+        return ca.SX.sym("lambda", self.nc)
+
+    @cached_property
+    def friction_normals(self) -> ca.SX:
+        """N(q, t, p, λ) = |R_⊥| per reaction-proportional friction element (module
+        docstring): in the plane the whole force of a revolute; otherwise the force minus
+        its component along the joint axis (global, from body1)."""
+        return self.friction_normals_of(self.lam)
+
+    def friction_normals_of(self, lam: ca.SX) -> ca.SX:
+        """:attr:`friction_normals` with the multipliers ``lam`` (a formulation's symbols)."""
+        out = []
+        ctx, dim = self.ctx, self.dimension
+        for joint_name in self.reaction_friction_joints.values():
+            joint = self.mechanism.joints[joint_name]
+            attach = joint.body2 if joint.body2 != GROUND else joint.body1
+            wrench = self._constraint_wrench(ctx.owner(attach), lam, self.joint_rows[joint_name])
+            force = wrench[:dim]
+            if getattr(joint, "axis", None) is not None:
+                axis = ctx.direction(joint.body1, ctx.local_direction(joint.body1, joint.axis))
+                force = force - ca.dot(force, axis) * axis
+            square = ca.dot(force, force)
+            # |R| with a zero (not NaN) derivative at R = 0
+            out.append(ca.if_else(square > 0, ca.sqrt(square), 0.0))
+        return ca.vertcat(*out) if out else ca.SX(0, 1)
+
+    @cached_property
+    def _applied_forces_n(self) -> ca.SX:
+        """Q_e with the symbols N of reaction-proportional friction (module docstring)."""
         total = ca.SX.zeros(self.nq)
         exprs, weights, omegas, torques = [], [], [], []
         for term in self._force_terms(self.ctx):
@@ -125,7 +217,8 @@ class AppliedForces:
         :class:`casmbd.model.forces.ForceElement`), handed in so the model layer does not
         import this one."""
         return SimpleNamespace(ctx=self.ctx, value=self._value, term=_Term,
-                               user_terms=self._user_terms)
+                               user_terms=self._user_terms,
+                               normal=lambda name: self.friction_normal_symbols[name])
 
     def _element_terms(self, force, ctx) -> list[_Term]:
         """The virtual-work terms of one force element, from its kind."""

@@ -155,9 +155,18 @@ def _baumgarte_gamma(system: System, alpha: float, beta: float) -> ca.SX:
     return gamma - 2.0 * alpha * cdot - beta**2 * system.constraints
 
 
-def _forces(system: System, inputs: ca.SX | None) -> ca.SX:
-    """Q_e + Q_v with the actuator inputs u replaced by their expressions of (t, p)."""
+def _forces(system: System, inputs: ca.SX | None, lam: ca.SX | None = None) -> ca.SX:
+    """Q_e + Q_v with the actuator inputs u replaced by their expressions of (t, p).
+
+    With reaction-proportional joint friction, Q_e = Q_e(N = 0) + G N(q, λ) needs the
+    multipliers ``lam`` (a DAE's algebraic variables); an ODE formulation (``lam`` None) is
+    refused naming the joints (:meth:`~casmbd.system.forces.AppliedForces.
+    refuse_reaction_friction`)."""
     forces = system.applied_forces + system.quadratic_velocity_forces
+    if system.friction_normal_symbols:
+        if lam is None:
+            system.refuse_reaction_friction("this ODE formulation")
+        forces = forces + ca.mtimes(system.friction_directions, system.friction_normals_of(lam))
     if system.u.numel() == 0:
         return forces
     u_expr = ca.SX.zeros(system.u.numel()) if inputs is None else inputs

@@ -3,6 +3,8 @@
 * ``index1`` — semi-explicit index-1 DAE: differential x = (q, v), algebraic z = (q̈, λ) from
   the sparse KKT rows; optional Baumgarte terms replace γ by γ − 2α(C_q v + C_t) − β² C
   (seed 000, eqs. 6.214–6.217).
+  Reaction-proportional joint friction uses λ directly: Q_e(q, v, λ) (IDAS's Newton solves
+  the algebraic equations with it).
 * ``ggl`` — Gear–Gupta–Leimkuhler stabilised index-2 DAE: q̇ = v − C_qᵀ μ, v̇ = q̈,
   M q̈ + C_qᵀ λ = Q, C = 0, C_q v + C_t = 0 (z = (q̈, λ, μ)).
 """
@@ -31,7 +33,7 @@ def index1(system: System, alpha: float = 0.0, beta: float = 0.0,
     lam = ca.SX.sym("lambda", system.nc)
     alg = ca.vertcat(
         ca.mtimes(system.mass_matrix, a) + ca.mtimes(system.constraint_jacobian.T, lam)
-        - _forces(system, inputs),
+        - _forces(system, inputs, lam),
         ca.mtimes(system.constraint_jacobian, a) - _baumgarte_gamma(system, alpha, beta))
     f = _dyn("dyn_index1", t, ca.vertcat(q, v), ca.vertcat(a, lam), pu, ca.vertcat(v, a), alg)
     return Formulation("index1", "dae", f, system.nq, system.nq + system.nc, [f.jacobian()],
@@ -46,7 +48,7 @@ def ggl(system: System, inputs: ca.SX | None = None) -> Formulation:
     mu = ca.SX.sym("mu", system.nc)
     cq = system.constraint_jacobian
     alg = ca.vertcat(
-        ca.mtimes(system.mass_matrix, a) + ca.mtimes(cq.T, lam) - _forces(system, inputs),
+        ca.mtimes(system.mass_matrix, a) + ca.mtimes(cq.T, lam) - _forces(system, inputs, lam),
         system.constraints,
         ca.mtimes(cq, v) + system.constraint_time_derivative)
     ode = ca.vertcat(v - ca.mtimes(cq.T, mu), a)

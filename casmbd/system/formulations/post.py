@@ -27,7 +27,11 @@ def post_processing(system: System, inputs: ca.SX | None = None,
     if dynamics is not None and system.nc == 0:
         return _post_from_dynamics(system, dynamics)
     t, q, v, p = _sym_inputs(system)
-    forces = _forces(system, inputs)
+    # reaction-proportional joint friction: Q_e at N = 0 here and a NaN residual, so that
+    # every output time is recomputed by the numeric fixed point of λ and N
+    # (casmbd.analysis.kkt.accelerations_and_multipliers)
+    friction = bool(system.friction_normal_symbols)
+    forces = _forces(system, inputs, ca.SX.zeros(system.nc) if friction else None)
     m_mat = system.mass_matrix
     cq = system.constraint_jacobian
     n, m = system.nq, system.nc
@@ -46,7 +50,7 @@ def post_processing(system: System, inputs: ca.SX | None = None,
                       (("q", q), ("v", v), ("t", t), ("p", p)))
     k_x, r_x, kin, pot, c_x, cd_x = parts(qm, vm, tm, pm)
     sol = ca.Linsol("post_qr", "qr", kkt.sparsity()).solve(k_x, r_x)
-    residual = ca.mmax(ca.fabs(ca.mtimes(k_x, sol) - r_x))
+    residual = ca.mmax(ca.fabs(ca.mtimes(k_x, sol) - r_x)) * (float("nan") if friction else 1.0)
     lam = sol[n:] if m else ca.MX(0, 1)
     return ca.Function("post", [qm, vm, tm, pm],
                        [sol[:n], lam, residual, kin, pot, c_x, cd_x],
