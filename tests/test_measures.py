@@ -246,3 +246,95 @@ def test_expression_force_arguments_are_checked() -> None:
                                              '\nvalue')
     with pytest.raises(SceneError, match=r"\('pd'\).*field 'point'"):
         casmbd.loads_scene(scene)
+
+
+def test_linearization_of_the_pd_pendulum_is_exact() -> None:
+    """The Jacobians of the expression force are exact (AD): the eigenvalues about the static
+    equilibrium are the roots of I_O s² + Kd s + (Kp − m g l sin θ*) with
+    Kp (θ* − θ_ref) = −m g l cos θ*, to 1e-9."""
+    mech = casmbd.loads_scene(PD.format(coords="absolute"))
+    lin = casmbd.linearize(mech, at="equilibrium")
+    m, length, g, kp, kd, th_ref, i_o = 2.0, 0.5, 9.81, 40.0, 3.0, 0.5, 0.6
+    lo, hi = -1.0, 1.0
+    for _ in range(200):  # bisection of the equilibrium condition (monotone on [-1, 1])
+        mid = 0.5 * (lo + hi)
+        if -m * g * length * math.cos(mid) - kp * (mid - th_ref) > 0:
+            lo = mid
+        else:
+            hi = mid
+    roots = np.roots([i_o, kd, kp - m * g * length * math.sin(lo)])
+    np.testing.assert_allclose(np.sort_complex(lin.eigenvalues), np.sort_complex(roots),
+                               rtol=0, atol=1e-9)
+
+
+def test_pd_pendulum_reaction_is_m_a_minus_m_g() -> None:
+    """The controller torque acts along the joint coordinate: the pin's reaction force on the
+    rod is m a_G − m g (its moment zero), equal in joint and absolute coordinates."""
+    for coords in ("joint", "absolute"):
+        res = casmbd.simulate(casmbd.loads_scene(PD.format(coords=coords)), 1.0, 10,
+                              rtol=RTOL, atol=ATOL)
+        expected = 2.0 * res.body("rod")["acceleration"] - 2.0 * np.array([0.0, -9.81])
+        np.testing.assert_allclose(res["joint_reactions"][:, 0, :2], expected, atol=1e-8)
+        np.testing.assert_allclose(res["joint_reactions"][:, 0, 2], 0.0, atol=1e-8)
+
+
+SPATIAL = """
+[scene]
+name = "spatial_measures"
+dimension = 3
+gravity = [0.0, 0.0, 0.0]
+
+[[bodies]]
+name = "slider"
+mass = 1.5
+inertia = [0.2, 0.2, 0.05]
+position = [0.0, 0.0, 0.0]
+velocity = [0.0, 0.0, 0.4]
+angular_velocity = [0.0, 0.0, 1.0]
+
+[[markers]]
+name = "c"
+body = "slider"
+point = [0.0, 0.0, 0.0]
+
+[[joints]]
+name = "J"
+type = "cylindrical"
+body1 = "ground"
+body2 = "slider"
+point = [0.0, 0.0, 0.0]
+axis = [0.0, 0.0, 1.0]
+
+[[forces]]
+name = "axial"
+type = "expression"
+body = "slider"
+value = [0.0, 0.0, '-8*z("c") - 0.5*vz("c")']
+
+[[forces]]
+name = "twist"
+type = "expression"
+joint = "J"
+coordinate = "angle"
+value = '-3*angle("J") - 0.1*rate("J.angle")'
+
+[[outputs]]
+name = "height"
+value = 'z("c") + 0*translation("J")'
+"""
+
+
+def test_spatial_body_force_and_joint_angle_coordinate() -> None:
+    """A cylindrical joint: an axial body force −8 z − 0.5 ż and a torque on the joint's
+    angle coordinate −3 φ − 0.1 φ̇, against their ODEs (1.5 z'' = …, 0.05 φ'' = …)."""
+    res = casmbd.simulate(casmbd.loads_scene(SPATIAL), 2.0, 20, rtol=RTOL, atol=ATOL)
+    ref_z = _reference(lambda t, y: [y[1], (-8 * y[0] - 0.5 * y[1]) / 1.5], [0.0, 0.4], res.t)
+    ref_a = _reference(lambda t, y: [y[1], (-3 * y[0] - 0.1 * y[1]) / 0.05], [0.0, 1.0],
+                       res.t)
+    joint = res.joint("J")
+    assert np.max(np.abs(joint["coordinate"] - ref_z[:, 0])) < 1e-8
+    assert np.max(np.abs(joint["angle"] - ref_a[:, 0])) < 1e-8
+    np.testing.assert_allclose(res.output("height"), joint["coordinate"], atol=1e-12)
+    assert res.names["force_outputs"] == ["axial.fx", "axial.fy", "axial.fz", "twist.value"]
+    np.testing.assert_allclose(res.force("twist")["value"],
+                               -3 * joint["angle"] - 0.1 * joint["angle_velocity"], atol=1e-12)
