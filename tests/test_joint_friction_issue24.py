@@ -380,3 +380,14 @@ def test_actuator_torque_equals_driver_torque_with_reaction_friction():
     mech.add_actuator("motor_torque", "O")
     mixed = inverse_dynamics(mech, 1.0, 20)["actuator_efforts"][:, 0]
     assert np.max(np.abs(mixed - driven)) <= 1e-10 * np.max(np.abs(driven))
+
+
+def test_crank_friction_example_is_the_tested_mechanism():
+    """examples/crank_friction.toml is the "reaction" case above: the same torque (1e-13)."""
+    from pathlib import Path
+
+    fa, fs = CASES["reaction"]
+    path = Path(__file__).resolve().parent.parent / "examples" / "crank_friction.toml"
+    example = inverse_dynamics(loads_scene(path.read_text()), 1.0, 10)["driver_efforts"]
+    tested = inverse_dynamics(loads_scene(_slider_crank(_table(fa), _table(fs))), 1.0, 10)
+    assert np.max(np.abs(example - tested["driver_efforts"])) <= 1e-13
