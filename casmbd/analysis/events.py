@@ -248,7 +248,8 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
     g0, _, _ = gaps(start.q, start.v, t_start, p)
     if n_gaps and np.min(g0) < -1e-9:
         k = int(np.argmin(g0))
-        raise AnalysisError(f"contact '{gaps.label(k)}': the initial pose penetrates by "
+        what = "contact" if gaps.rows[k][0].event_kind == "impact" else "joint limit"
+        raise AnalysisError(f"{what} '{gaps.label(k)}': the initial pose penetrates by "
                             f"{-g0[k]:.3g} (gap < 0 at t = {t_start:g}); start it open or "
                             "touching")
     closed: frozenset = frozenset()
@@ -283,6 +284,7 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
             # locate the first event in (t, t_b]
             x_a, z_a, t_a = x, z, t
             best = (t_b, None, None)
+            pressed: set[int] = set()
             for i in open_hit + pulls:
                 is_detach = i in closed
 
@@ -307,7 +309,12 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
                     # bounce shorter than the interval) — find an inside time where it is open
                     lo, f_lo = _inside(value, h)
                     if lo is None:
-                        continue  # it stays at the surface: no new event of this gap
+                        if not is_detach and t_a < best[0]:
+                            # an open gap pressed in from t_a on (a body put down touching
+                            # at the start): it closes at t_a (impact if it approaches)
+                            best = (t_a, i, False)
+                            pressed.add(i)
+                        continue  # a closed gap stays at its surface: no new event
                     hi, f_hi = 2.0 * lo, value(2.0 * lo) if 2.0 * lo < h else f_hi
                     hi = min(hi, h)
                 tau = _illinois(value, lo, hi, f_lo, f_hi, tol_t * (1 + abs(t_b)))
@@ -329,7 +336,13 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
             else:
                 hit = _impact(phase_of(closed).sim.model, gaps, closed, i_ev, q_ev, v_ev, t_ev,
                               p, v_rest)
-                if hit is None:  # grazing: the gap touches zero without closing in on it
+                if hit is None and i_ev in pressed:  # resting: closes with no impulse
+                    v_new = _project(phase_of(closed).sim.model, gaps, closed | {i_ev},
+                                     q_ev, v_ev, t_ev, p)
+                    closed = closed | {i_ev}
+                    events.append({"time": float(t_ev), "element": gaps.label(i_ev),
+                                   "kind": "contact"})
+                elif hit is None:  # grazing: the gap touches zero without closing in on it
                     v_new = v_ev
                 else:
                     v_new, closed, extra = hit
@@ -425,10 +438,24 @@ def _impact(model, gaps, closed, i_ev, q, v, t, p, v_rest):
             extra.append((gaps.label(i), "contact"))
             v_plus = v_plus  # the closed gap's rebound speed is below the rest threshold
     if new_closed != set(closed):  # project onto the closed gaps: G v = 0 exactly
-        rows = np.array([gq[i] for i in sorted(new_closed)])
-        a_mat, b_vec = _saddle(m_mat, cq, ct, rows, np.zeros(len(rows)), [], v_plus)
-        v_plus = np.linalg.lstsq(a_mat, b_vec, rcond=None)[0][:n]
+        v_plus = _project(model, gaps, new_closed, q, v_plus, t, p)
     return v_plus, frozenset(new_closed), extra
+
+
+def _project(model, gaps, closed, q, v, t, p):
+    """The velocity nearest to v in the M-norm with G_i v = 0 on the closed gaps and the
+    bilateral constraints (C_q v + C_t = 0)."""
+    _, gq, _ = gaps(q, v, t, p)
+    m_mat = model.mass_matrix(q)
+    m_mat = m_mat.toarray() if hasattr(m_mat, "toarray") else np.asarray(m_mat)
+    n = len(v)
+    cq = model.constraint_jacobian(q, t)
+    cq = cq.toarray() if hasattr(cq, "toarray") else np.asarray(cq).reshape(-1, n)
+    ct = np.asarray(model.constraint_time_derivative(q, t), float).ravel() if model.nc else \
+        np.zeros(0)
+    rows = np.array([gq[i] for i in sorted(closed)])
+    a_mat, b_vec = _saddle(m_mat, cq, ct, rows, np.zeros(len(rows)), [], v)
+    return np.linalg.lstsq(a_mat, b_vec, rcond=None)[0][:n]
 
 
 def _saddle(m_mat, cq, ct, directions, normal_rhs, stick_rows, v, normal_rows=None):
@@ -478,6 +505,12 @@ def _assemble_result(base, phase_of, gaps, grid, qs, vs, closed_sets, events, se
     result.arrays["contact_forces"] = forces
     result.names["contacts"] = [gaps.label(i) for i in range(n_gaps)]
     result.events = events
+    # what the CLI summary and a smooth run's stats carry (formulation, build time, mode)
+    result.stats.update({k: v for k, v in base.model.report_dict.items()
+                         if k != "build_seconds"})
+    result.stats.update({"coordinates": base.model.coordinates,
+                         "formulation": base.formulation_name,
+                         "build_seconds": base.build_seconds})
     result.stats.update({"integrator": name, "rtol": rtol, "atol": atol,
                          "events": len(events), "solve_seconds": seconds,
                          "event_driven": True})

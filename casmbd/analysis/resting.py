@@ -27,7 +27,8 @@ def resting_equilibrium(mechanism, t: float, method: str, tol: float, max_iter: 
     """Statics with unilateral elements of the impact model: an active set.  Gaps touching at
     the start (|g| ≤ 1e-9) are closed (bilateral constraints g = 0); after each solution the
     gaps that penetrate are closed and those whose normal force −λ pulls are opened, until
-    neither happens (at most 2 n_gaps + 2 rounds).  A body resting on a contact: the contact
+    neither happens (at most 2 n_gaps + 3 rounds; after a set without equilibrium — a ball in
+    the air falls — every gap is closed).  A body resting on a contact: the contact
     carries its weight.  The result's ``contacts`` give each gap's force (0 when open) and
     value.  ``solve`` is :func:`casmbd.analysis.statics.static_equilibrium` (handed in: that
     module calls this one)."""
@@ -37,7 +38,7 @@ def resting_equilibrium(mechanism, t: float, method: str, tol: float, max_iter: 
     q0 = System(mechanism).initial_coordinates()
     g0 = gaps(q0, np.zeros_like(q0), t, p)[0]
     closed = {i for i in range(len(g0)) if g0[i] <= 1e-9}
-    for _ in range(2 * len(g0) + 2):
+    for _ in range(2 * len(g0) + 3):
         variant = copy.copy(mechanism)
         variant.contacts = {}
         variant.joints = dict(mechanism.joints)
@@ -46,7 +47,15 @@ def resting_equilibrium(mechanism, t: float, method: str, tol: float, max_iter: 
             closure = _closure(mechanism, *gaps.rows[i])
             variant.joints[closure.name] = closure
             names[i] = f"joint '{closure.name}' equation 'gap'"
-        res = solve(variant, t, method, tol, max_iter, mode)
+        try:
+            res = solve(variant, t, method, tol, max_iter, mode)
+        except AnalysisError:
+            if closed == set(range(len(g0))):
+                raise
+            # no equilibrium with these gaps open (a ball in the air falls): put the bodies
+            # on all their contacts; the pulling ones open in the next rounds
+            closed = set(range(len(g0)))
+            continue
         labels = [str(lab) for lab in System(variant).constraint_labels]
         g = gaps(res.q, np.zeros_like(res.q), t, p)[0]
         force = {i: -float(res.lagrange_multipliers[labels.index(names[i])]) for i in closed}
