@@ -30,6 +30,7 @@ import numpy as np
 import pytest
 from conftest import private_cache
 from scipy.integrate import solve_ivp
+from scipy.optimize import brentq
 
 import casmbd
 from casmbd import cli, results
@@ -314,6 +315,39 @@ def test_compliant_drop_against_the_hand_written_ode():
     assert np.abs(pen - pen_ref).max() < 1e-8  # measured 7e-10 m of 0.013 m
     assert np.abs(y - ref.y[0]).max() < 1e-7  # measured 7e-9 m after the rebound
     assert not res.events  # no events in the compliant model
+
+
+def test_compliant_friction_block_decelerates_at_mu_g():
+    """A block on a compliant floor at its static penetration (k δ^1.5 = m g), pushed at
+    v0 = 1 m/s: regularised Coulomb friction (v_s = 1e-4 m/s) decelerates it at μ g to rest
+    at t_s = v0/(μ g), x = v0 t − μ g t²/2, then x = v0²/(2 μ g)."""
+    m, mu, k, v0 = 2.0, 0.4, 1e6, 1.0
+    depth = (m * G / k) ** (1 / 1.5)
+    mech = casmbd.Mechanism("slide", dimension=2, gravity=[0.0, -G])
+    mech.add_body("block", m, 0.01, [0.0, -depth], velocity=[v0, 0.0])
+    mech.add_contact("floor", "block", [0.0, -depth], model="compliant", friction=mu,
+                     stiffness=k, exponent=1.5, damping=2000.0, penetration=1e-4,
+                     friction_velocity=1e-4)
+    res = casmbd.simulate(mech, 0.4, 40, rtol=1e-10)
+    t = res.t
+    t_s = v0 / (mu * G)
+    exact = np.where(t < t_s, v0 * t - mu * G * t * t / 2, v0 * t_s / 2)
+    pos = res.body("block")["position"]
+    assert np.abs(pos[:, 0] - exact).max() < 1e-7  # measured 2.1e-9 m
+    assert np.abs(pos[:, 1] + depth).max() < 1e-10  # stays at k δ^1.5 = m g: 1.3e-13 m
+
+
+def test_compliant_stop_statics():
+    """A rod pinned at one end resting on a compliant stop (k = 1e4 N m/rad, exponent 1):
+    k δ = m g L/2 cos(θ_s − δ) at θ = θ_s − δ (brentq)."""
+    mech = casmbd.Mechanism("stop", dimension=2, gravity=[0.0, -G])
+    mech.add_body("rod", 1.0, 1 / 12, [0.5, 0.0])
+    mech.add_revolute("pin", "ground", "rod", [0.0, 0.0])
+    mech.add_joint_limit("pin", lower=-1.0, model="compliant", stiffness=1e4, exponent=1.0,
+                         damping=5.0, penetration=1e-3)
+    delta = brentq(lambda d: 1e4 * d - G * 0.5 * math.cos(-1.0 - d), 0.0, 0.1, xtol=1e-15)
+    eq = casmbd.static_equilibrium(mech)
+    assert eq.q[0] == pytest.approx(-1.0 - delta, abs=1e-12)  # θ = −1.000264909
 
 
 @pytest.mark.parametrize("m2", [1.0, 3.0])
