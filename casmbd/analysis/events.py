@@ -52,6 +52,7 @@ from casmbd.analysis.kkt import accelerations_and_multipliers, consistent_state
 from casmbd.errors import AnalysisError, IntegratorError
 from casmbd.model.bodies import GROUND
 from casmbd.model.contacts import GapClosure
+from casmbd.model.joint_friction import stick_slip_parameters
 from casmbd.results import Result
 from casmbd.system import System
 
@@ -64,8 +65,10 @@ REST_HEIGHT = 1e-9
 
 
 def has_events(mechanism) -> bool:
-    """True when the mechanism has unilateral elements of the impact model."""
-    return any(c.model == "impact" for c in getattr(mechanism, "contacts", {}).values())
+    """True when the mechanism has unilateral elements of the impact model or joint friction
+    with the exact (stick-slip) Coulomb law."""
+    return any(c.model == "impact" for c in getattr(mechanism, "contacts", {}).values()) or \
+        any(getattr(f, "stick_slip", False) for f in mechanism.forces.values())
 
 
 def _scaled(dyn: ca.Function) -> ca.Function:
@@ -82,34 +85,77 @@ def _scaled(dyn: ca.Function) -> ca.Function:
                        ca.dyn_in(), ca.dyn_out())
 
 
+class _StickRow:
+    """A joint-friction element with the exact Coulomb law seen as an event row: stuck, it is
+    closed by the constraint q_j − q_stuck = 0 (its multiplier −λ the friction force, which
+    must stay within F_c); sliding, its open value σ q̇_j must stay positive."""
+
+    event_kind = "stick"
+    restitution = 0.0
+    friction = 0.0
+    labels = ("stick",)
+
+    def __init__(self, element):
+        self.element, self.name = element, element.name
+        self.joint, self.coordinate = element.joint, element.coordinate
+        self.level = float(element.friction)
+        self.sign, self.stuck_at = stick_slip_parameters(element.name)
+
+    def gaps(self, ctx) -> ca.SX:
+        coord = ctx.mechanism.joints[self.joint].coordinate(ctx, self.coordinate)
+        return coord - ctx.p[self.stuck_at]
+
+    def rate(self, ctx) -> ca.SX:
+        coord = ctx.mechanism.joints[self.joint].coordinate(ctx, self.coordinate)
+        return ctx.p[self.sign] * ca.jtimes(coord, ctx.q, ctx.v)
+
+    def tangential_velocity(self, ctx, k: int):
+        return None
+
+
 class _Gaps:
-    """Numeric gap functions of the impact elements, from a System."""
+    """Numeric gap functions of the impact elements (and stick rows), from a System: the
+    open-state values (g, or σ q̇_j of a sliding joint), the Jacobians of the closure
+    equations and the contacts' tangential-velocity Jacobians."""
 
     def __init__(self, system, elements):
         ctx = system.ctx
         self.rows: list[tuple] = []
-        gaps, tangent_rows, tangent_of = [], [], []
+        gaps, positions, tangent_rows, tangent_of = [], [], [], []
         for element in elements:
             g = ca.vec(element.gaps(ctx))
             for k in range(g.numel()):
                 self.rows.append((element, k))
-                gaps.append(g[k])
+                positions.append(g[k])
+                gaps.append(element.rate(ctx) if isinstance(element, _StickRow) else g[k])
                 vt = element.tangential_velocity(ctx, k) if element.friction else None
                 tangent_of.append(len(tangent_rows) if vt is not None else None)
                 if vt is not None:
                     tangent_rows.append(ca.vec(vt))
         g = ca.vertcat(*gaps) if gaps else ca.SX(0, 1)
+        pos = ca.vertcat(*positions) if positions else ca.SX(0, 1)
         vt = ca.vertcat(*tangent_rows) if tangent_rows else ca.SX(0, 1)
         self.tangent_of = tangent_of
         self.tangent_size = 1 if system.dimension == 2 else 2
+        #: True for the rows of stick-slip friction elements (never an impact)
+        self.stick = [isinstance(e, _StickRow) for e, _ in self.rows]
         self.fun = ca.Function("gaps", [system.q, system.v, system.t, system.p],
-                               [g, ca.densify(ca.jacobian(g, system.q)),
-                                ca.densify(ca.jacobian(vt, system.v))])
+                               [g, ca.densify(ca.jacobian(pos, system.q)),
+                                ca.densify(ca.jacobian(vt, system.v)), pos])
 
     def __call__(self, q, v, t, p):
-        g, gq, tv = self.fun(q, v, t, p)
+        g, gq, tv, _ = self.fun(q, v, t, p)
         return (np.asarray(g, float).ravel(), np.asarray(gq, float),
                 np.asarray(tv, float))
+
+    def positions(self, q, v, t, p) -> np.ndarray:
+        """The closure equations' values (a stick row: q_j − q_stuck)."""
+        return np.asarray(self.fun(q, v, t, p)[3], float).ravel()
+
+    def closed_value(self, i: int, lam: float) -> float:
+        """What must stay ≥ 0 while row i is closed: the normal force −λ of a contact or stop,
+        F_c − |λ| of a stuck joint."""
+        return self.rows[i][0].level - abs(lam) if self.stick[i] else -lam
 
     def label(self, i: int) -> str:
         element, k = self.rows[i]
@@ -208,6 +254,8 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
     if not (isinstance(substeps, int) and substeps >= 1):
         raise AnalysisError(f"substeps must be an integer >= 1, got {substeps!r}")
     elements = [c for c in mechanism.contacts.values() if c.model == "impact"]
+    elements += [_StickRow(f) for f in mechanism.forces.values()
+                 if getattr(f, "stick_slip", False)]
     base = simulator_factory(mechanism)
     if base.formulation.kind not in ("ode", "dae"):
         raise AnalysisError(f"formulation '{base.formulation_name}': events need a compiled "
@@ -240,7 +288,16 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
                                     max_steps or 500_000)
         return phases[closed]
 
-    p = base.model.p
+    # the parameters of the phase (stick-slip: the sliding sign σ and the stuck position), set
+    # on every phase's model before it is used
+    p = np.array(base.model.p, dtype=float)
+    default_p = p.copy()
+    pnames = list(base.model.parameter_names)
+
+    def use(phase_: _Phase) -> _Phase:
+        phase_.sim.model.p[:] = p
+        return phase_
+
     grid = np.linspace(t_start, t_end, int(steps) + 1)
     start = consistent_state(base.model, base.model.initial_coordinates(),
                              base.model.initial_velocities(), t_start, base.inputs_at(t_start))
@@ -254,10 +311,39 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
                             f"{-g0[k]:.3g} (gap < 0 at t = {t_start:g}); start it open or "
                             "touching")
     closed: frozenset = frozenset()
-    phase = phase_of(closed)
-    z = phase.z0(start.q, start.v, t_start)
     events: list[dict] = []
-    samples = [(t_start, x.copy(), closed)]
+
+    def settle(i, q_s, v_s, t_s, closed_s):
+        """A sliding joint at zero speed (or at the start): stuck if the friction that holds
+        it stays within F_c, else sliding in the direction the other forces push."""
+        row = gaps.rows[i][0]
+        p[pnames.index(row.stuck_at)] = 0.0
+        p[pnames.index(row.stuck_at)] = float(gaps.positions(q_s, v_s, t_s, p)[i])
+        trial = closed_s | {i}
+        stuck = use(phase_of(trial))
+        v_p = project(stuck.sim.model, gaps, trial, q_s, v_s, t_s, p)
+        p[pnames.index(row.sign)] = 0.0
+        use(stuck)
+        lam = float(stuck.multipliers(q_s, v_p, t_s)[sorted(trial).index(i)])
+        if abs(lam) <= row.level:
+            events.append({"time": float(t_s), "element": row.name, "kind": "stick"})
+            return v_p, trial
+        p[pnames.index(row.sign)] = float(np.sign(lam))
+        events.append({"time": float(t_s), "element": row.name, "kind": "slip"})
+        return v_p, closed_s
+
+    for i in [i for i in range(n_gaps) if gaps.stick[i]]:  # the start of stick-slip joints
+        row = gaps.rows[i][0]
+        p[pnames.index(row.sign)] = 1.0
+        rate = float(gaps(x[:nq], x[nq:], t_start, p)[0][i])
+        if abs(rate) > 1e-12:
+            p[pnames.index(row.sign)] = float(np.sign(rate))
+        else:
+            v_s, closed = settle(i, x[:nq], x[nq:], t_start, closed)
+            x = np.concatenate([x[:nq], v_s])
+    phase = use(phase_of(closed))
+    z = phase.z0(x[:nq], x[nq:], t_start)
+    samples = [(t_start, x.copy(), closed, p.copy())]
     t = t_start
     tol_t = 1e-13
 
@@ -276,8 +362,10 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
             open_hit = [i for i in range(n_gaps) if i not in closed and g_b[i] < -1e-13]
             lam_b = phase.multipliers(q_b, v_b, t_b) if closed else np.zeros(0)
             order = sorted(closed)
-            # contact force along +∇g is −λ (Q_c = −C_qᵀ λ): detach when −λ < 0
-            pulls = [order[m] for m in range(len(order)) if -lam_b[m] < 0.0]
+            # contact force along +∇g is −λ (Q_c = −C_qᵀ λ): detach when −λ < 0; a stuck
+            # joint slips when |λ| > F_c
+            pulls = [order[m] for m in range(len(order))
+                     if gaps.closed_value(order[m], lam_b[m]) < 0.0]
             if not open_hit and not pulls:
                 x, z, t = x_b, z_b, t_b
                 j += 1
@@ -294,15 +382,16 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
                     xt, _ = phase.advance(x_a, z_a, t_a, tau)
                     if is_detach:
                         lam = phase.multipliers(xt[:nq], xt[nq:], t_a + tau)
-                        return float(-lam[order.index(i)])
+                        return gaps.closed_value(i, float(lam[order.index(i)]))
                     return float(gaps(xt[:nq], xt[nq:], t_a + tau, p)[0][i])
 
                 if is_detach:
                     lam_a = phase.multipliers(x_a[:nq], x_a[nq:], t_a)
-                    f_lo = max(float(-lam_a[order.index(i)]), 1e-300)
+                    f_lo = max(gaps.closed_value(i, float(lam_a[order.index(i)])), 1e-300)
                 else:
                     f_lo = float(gaps(x_a[:nq], x_a[nq:], t_a, p)[0][i])
-                f_hi = float(-lam_b[order.index(i)]) if is_detach else float(g_b[i])
+                f_hi = gaps.closed_value(i, float(lam_b[order.index(i)])) if is_detach \
+                    else float(g_b[i])
                 lo, hi = 0.0, h
                 if f_lo <= 1e-12 * (1.0 + abs(f_hi)):
                     # the sub-interval starts at the event surface (just after an impact or a
@@ -329,7 +418,15 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
             x_ev, _ = phase.advance(x_a, z_a, t_a, t_ev - t_a) if t_ev > t_a else (x_a, z_a)
             q_ev, v_ev = x_ev[:nq], x_ev[nq:]
             element = gaps.rows[i_ev][0]
-            if is_detach:
+            if is_detach and gaps.stick[i_ev]:  # the holding force reached F_c: it slips
+                lam_ev = float(phase.multipliers(q_ev, v_ev, t_ev)[order.index(i_ev)])
+                closed = closed - {i_ev}
+                p[pnames.index(element.sign)] = float(np.sign(lam_ev))
+                events.append({"time": float(t_ev), "element": element.name, "kind": "slip"})
+                v_new = v_ev
+            elif gaps.stick[i_ev]:  # a sliding joint stopped: stick, or slide back
+                v_new, closed = settle(i_ev, q_ev, v_ev, t_ev, closed)
+            elif is_detach:
                 closed = closed - {i_ev}
                 events.append({"time": float(t_ev), "element": gaps.label(i_ev),
                                "kind": "detach"})
@@ -355,45 +452,56 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
                 raise IntegratorError(f"more than {max_events} events by t = {t_ev:.6g} "
                                       "(raise max_events, or a rest_velocity)", t_ev,
                                       "MAX_EVENTS", None)
-            phase = phase_of(closed)
+            phase = use(phase_of(closed))
             x = np.concatenate([q_ev, v_new])
             z = phase.z0(q_ev, v_new, t_ev)
             t = t_ev
-        samples.append((t, x.copy(), closed))
+        samples.append((t, x.copy(), closed, p.copy()))
     qs = np.array([s[1][:nq] for s in samples])
     vs = np.array([s[1][nq:] for s in samples])
-    return _assemble_result(base, phase_of, gaps, grid, qs, vs, [s[2] for s in samples],
-                            events, time.perf_counter() - t_clock, name, rtol, atol, p)
+    return _assemble_result(base, phase_of, gaps, grid, qs, vs, samples, events,
+                            time.perf_counter() - t_clock, name, rtol, atol, default_p)
 
 
-def _assemble_result(base, phase_of, gaps, grid, qs, vs, closed_sets, events, seconds, name,
-                     rtol, atol, p) -> Result:
-    """Post-process each sample with the simulator of its phase; arrays of the base model's
-    shape (closure multipliers go to ``contact_forces``)."""
+def _assemble_result(base, phase_of, gaps, grid, qs, vs, samples, events, seconds, name,
+                     rtol, atol, default) -> Result:
+    """Post-process the samples of each phase (closed rows and parameters) with the simulator
+    of that phase; arrays of the base model's shape (the closed rows' multipliers go to
+    ``contact_forces``: normal forces of contacts and stops, friction forces of stick-slip
+    joints — −F_c σ while they slide)."""
+    base.model.p[:] = default
     result = base._post(grid, qs, vs, {})
     n_gaps = len(gaps.rows)
     forces = np.zeros((len(grid), n_gaps))
-    for k, closed in enumerate(closed_sets):
-        if not closed:
-            continue
+    base_labels = [str(lab) for lab in base.model.constraint_labels]
+    groups: dict[tuple, list[int]] = {}
+    for k, (_, _, closed, pk) in enumerate(samples):
+        for i in range(n_gaps):  # sliding stick-slip joints: −F_c σ
+            if gaps.stick[i] and i not in closed:
+                row = gaps.rows[i][0]
+                forces[k, i] = -row.level * pk[list(base.model.parameter_names).index(
+                    row.sign)]
+        if closed or not np.array_equal(pk, default):
+            groups.setdefault((closed, tuple(pk)), []).append(k)
+    for (closed, pk), idx in groups.items():
         phase = phase_of(closed)
-        sub = phase.sim._post(grid[k:k + 1], qs[k:k + 1], vs[k:k + 1], {})
+        phase.sim.model.p[:] = pk
+        sub = phase.sim._post(grid[idx], qs[idx], vs[idx], {})
         for key, arr in result.arrays.items():
             other = sub.arrays.get(key)
             if other is None or key in ("lambda", "joint_reactions"):
                 continue
             if other.shape[1:] == arr.shape[1:]:
-                arr[k] = other[0]
-        lam = sub.arrays["lambda"][0]
+                arr[idx] = other
         labels = [str(lab) for lab in phase.sim.model.constraint_labels]
-        base_labels = [str(lab) for lab in base.model.constraint_labels]
-        result.arrays["lambda"][k] = [lam[labels.index(lab)] for lab in base_labels]
+        lam = sub.arrays["lambda"]
+        result.arrays["lambda"][idx] = lam[:, [labels.index(lab) for lab in base_labels]]
         reac = sub.arrays.get("joint_reactions")
         if reac is not None and "joint_reactions" in result.arrays:
             width = result.arrays["joint_reactions"].shape[1]
-            result.arrays["joint_reactions"][k] = reac[0][:width]
+            result.arrays["joint_reactions"][idx] = reac[:, :width]
         for m, i in enumerate(sorted(closed)):
-            forces[k, i] = -lam[phase.closure_rows[m]]
+            forces[idx, i] = -lam[:, phase.closure_rows[m]]
     result.arrays["contact_forces"] = forces
     result.names["contacts"] = [gaps.label(i) for i in range(n_gaps)]
     result.events = events

@@ -34,8 +34,9 @@ def impact(model, gaps, closed, i_ev, q, v, t, p, v_rest):
     cq = cq.toarray() if hasattr(cq, "toarray") else np.asarray(cq).reshape(-1, n)
     ct = np.asarray(model.constraint_time_derivative(q, t), float).ravel() if model.nc else \
         np.zeros(0)
-    active = sorted({i_ev} | {i for i in range(len(g)) if i not in closed and
-                              abs(g[i]) < 1e-9 and gq[i] @ v < 0.0})
+    stick = getattr(gaps, "stick", [False] * len(g))  # stick-slip rows never impact
+    active = sorted({i_ev} | {i for i in range(len(g)) if i not in closed and not stick[i]
+                              and abs(g[i]) < 1e-9 and gq[i] @ v < 0.0})
     extra: list[tuple[str, str]] = []
     for _ in range(len(active) + 1):
         rows, rhs, kinds = [], [], []

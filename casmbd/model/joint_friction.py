@@ -31,6 +31,7 @@ a fixed point (:mod:`casmbd.analysis.joint_friction`); the DAE formulations (``i
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 import casadi as ca
@@ -41,7 +42,8 @@ from casmbd.model.registry import register_force
 from casmbd.model.values import Value, check_value
 
 #: keys of a joint entry's ``friction = {...}`` table in a scene
-SCENE_FRICTION_KEYS = ("viscous", "coulomb", "regularization", "mu", "radius", "preload")
+SCENE_FRICTION_KEYS = ("viscous", "coulomb", "regularization", "mu", "radius", "preload",
+                       "stick_slip")
 #: joint kinds whose reaction transverse to the axis the Coulomb level may follow
 REACTION_KINDS = ("revolute", "prismatic", "cylindrical")
 
@@ -70,14 +72,18 @@ class JointFriction(ForceElement):
     coordinate: str | None = None
     mu: Value = 0.0
     radius: Value | None = None
+    #: exact Coulomb law: stuck (the joint coordinate held, its multiplier the friction) or
+    #: sliding with the force −F_c sign(q̇) — switched at events (casmbd.analysis.stick_slip)
+    stick_slip: bool = False
 
     kind = "joint_friction"
     scene_keys = frozenset({"joint", "coordinate", "damping", "friction", "regularization",
-                            "mu", "radius"})
+                            "mu", "radius", "stick_slip"})
 
     @classmethod
     def create(cls, mech, name, joint, damping=0.0, friction=0.0,
-               regularization=REGULARIZATION, coordinate=None, mu=0.0, radius=None):
+               regularization=REGULARIZATION, coordinate=None, mu=0.0, radius=None,
+               stick_slip=False):
         mech._unique(mech.forces, "force", name)
         mech._nonnegative(name, damping=damping, friction=friction, mu=mu)
         regularization = check_value(regularization, f"force '{name}' field 'regularization'")
@@ -92,8 +98,17 @@ class JointFriction(ForceElement):
                              f"coordinate '{coordinate}' (known: "
                              f"{', '.join(joint_obj.coordinate_names)})")
         _check_reaction(name, joint_obj, coordinate, mu, radius)
+        if stick_slip:
+            if not isinstance(stick_slip, bool):
+                raise ModelError(f"force '{name}' field 'stick_slip': expected true or false")
+            level = check_value(friction, f"force '{name}' field 'friction'")
+            if not (isinstance(level, float) and level > 0.0) or _nonzero(mu):
+                raise ModelError(f"force '{name}' field 'stick_slip': the exact Coulomb law "
+                                 "needs a constant level 'friction' > 0 (no 'mu')")
+            for param in stick_slip_parameters(name):
+                mech.add_parameter(param, 0.0)
         return cls(name, joint, damping, friction, regularization, coordinate=coordinate,
-                   mu=mu, radius=radius)
+                   mu=mu, radius=radius, stick_slip=bool(stick_slip))
 
     @classmethod
     def from_scene(cls, mech, e):
@@ -102,7 +117,8 @@ class JointFriction(ForceElement):
                         regularization=e.value("regularization", REGULARIZATION),
                         coordinate=e.string("coordinate", required=False),
                         mu=e.nonnegative("mu"),
-                        radius=e.value("radius") if e.has("radius") else None)
+                        radius=e.value("radius") if e.has("radius") else None,
+                        stick_slip=bool(e.data.get("stick_slip", False)))
 
     def reaction_joint(self) -> str | None:
         """The joint whose transverse reaction sets the Coulomb level (``mu`` > 0), else
@@ -120,7 +136,10 @@ class JointFriction(ForceElement):
             arm = 1.0 if self.radius is None else kit.value(self.radius, f"{where} 'radius'")
             slip = kit.value(self.mu, f"{where} 'mu'") * arm * kit.normal(self.name)
             level = slip if level is None else level + slip
-        if level is not None:
+        if level is not None and self.stick_slip:  # −F_c σ, σ = ±1 sliding, 0 stuck
+            resist = resist + level * kit.value(stick_slip_parameters(self.name)[0],
+                                                f"{where} 'stick_slip'")
+        elif level is not None:
             resist = resist + level * ca.tanh(
                 rate / kit.value(self.regularization, f"{where} 'regularization'"))
         return [kit.term("measure", joint.coordinate(ctx, self.coordinate), -resist)]
@@ -134,6 +153,13 @@ class JointFriction(ForceElement):
     def energy_exchange(self) -> str | None:
         return "damper" if any(_nonzero(v) for v in (self.damping, self.friction, self.mu)) \
             else None
+
+
+def stick_slip_parameters(name: str) -> tuple[str, str]:
+    """The parameters of an exact stick-slip element: its sliding direction σ (±1 sliding,
+    0 stuck) and the joint coordinate at which it is stuck."""
+    ident = re.sub(r"\W", "_", name)
+    return f"{ident}_slip_sign", f"{ident}_stuck_at"
 
 
 def _check_reaction(name: str, joint, coordinate: str, mu: Value, radius: Value | None) -> None:
@@ -190,4 +216,5 @@ def joint_friction_from_scene(mech, e) -> JointFriction:
                     friction=sub.nonnegative(level),
                     regularization=sub.value("friction.regularization", REGULARIZATION),
                     mu=sub.nonnegative("friction.mu"),
-                    radius=sub.value("friction.radius") if "radius" in raw else None)
+                    radius=sub.value("friction.radius") if "radius" in raw else None,
+                    stick_slip=raw.get("stick_slip", False))
