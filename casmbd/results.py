@@ -265,16 +265,11 @@ class Result:
         return self.arrays["outputs"][:, self.names["outputs"].index(name)]
 
     def force(self, name: str) -> dict[str, np.ndarray]:
-        """What force element ``name`` reports (n_t,) by quantity: a spring's ``length``,
-        ``rate`` and ``force``, an expression force's ``value``, … (``force_outputs``)."""
-        out = {}
-        for k, label in enumerate(self.names.get("force_outputs", [])):
-            element, _, quantity = label.rpartition(".")
-            if element == name:
-                out[quantity] = self.arrays["force_outputs"][:, k]
-        if not out:
-            raise KeyError(f"force '{name}' reports nothing in this result")
-        return out
+        """What force element ``name`` reports (n_t,) by quantity (``force_outputs``: a spring's
+        ``length``, ``rate`` and ``force``, an expression force's ``value``, …; {}: nothing)."""
+        return {label.rpartition(".")[2]: self.arrays["force_outputs"][:, k]
+                for k, label in enumerate(self.names.get("force_outputs", []))
+                if label.rpartition(".")[0] == name}
 
     # ------------------------------------------------------------------ views
     def to_json(self) -> dict:
@@ -334,16 +329,12 @@ class Result:
         if "velocity_violation" in self.arrays:
             vv = self.arrays["velocity_violation"]
             out["velocity_violation"] = float(np.max(vv)) if vv.size else 0.0
-        if "outputs" in self.arrays:  # requests
-            out["outputs"] = {name: _list(self.arrays["outputs"][:, k])
-                              for k, name in enumerate(self.names.get("outputs", []))}
-        if "force_outputs" in self.arrays:  # force elements' own measures
-            forces: dict = {}
-            for k, label in enumerate(self.names.get("force_outputs", [])):
-                element, _, quantity = label.rpartition(".")
-                forces.setdefault(element, {})[quantity] = \
-                    _list(self.arrays["force_outputs"][:, k])
-            out["forces"] = forces
+        if "outputs" in self.arrays:  # requests, and the force elements' own measures
+            out["outputs"] = {n: _list(self.output(n)) for n in self.names.get("outputs", [])}
+        if "force_outputs" in self.arrays:
+            out["forces"] = {e: {k: _list(v) for k, v in self.force(e).items()} for e in
+                             dict.fromkeys(x.rpartition(".")[0] for x in
+                                           self.names.get("force_outputs", []))}
         if self.events or self.stats.get("event_driven"):
             out["events"] = [dict(e) for e in self.events]
         if "contact_forces" in self.arrays:
