@@ -20,7 +20,7 @@ import pytest
 import casmbd
 from casmbd.cli import main
 from casmbd.errors import SceneError
-from casmbd.viz.plots import available_kinds, plot_result
+from casmbd.viz.plots import available_kinds, element_names, plot_result
 
 SCENE = """
 [scene]
@@ -174,6 +174,10 @@ def test_json_csv_npz_and_plot(simulated, tmp_path) -> None:
     ylabels = [ax.get_ylabel() for ax in fig.axes]
     assert any(label.endswith("[m]") for label in ylabels)
     assert any(label.endswith("[N m]") for label in ylabels)
+    fig = plot_result(res, "outputs", elements=["spring", "tip_x"])  # by element name
+    assert sorted(line.get_label() for ax in fig.axes for line in ax.get_lines()) == [
+        "spring.force", "spring.length", "spring.rate", "tip_x"]
+    assert {"spring", "pd", "tip_x"} <= set(element_names(res))
 
 
 def test_kinematics_and_inverse_dynamics_report_requests(tmp_path) -> None:

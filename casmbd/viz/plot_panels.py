@@ -228,4 +228,4 @@ def outputs(result, elements=None, mechanism=None) -> list[Panel]:
                 columns.append((label, result.arrays[key][:, k], unit, colour(element), 0))
     return _by_unit(columns, {"m": "lengths", "m/s": "rates", "rad": "angles",
                               "rad/s": "angular rates", "N": "forces", "N m": "torques",
-                              "-": "requests"})
+                              "J": "energies", "-": "requests"})

@@ -134,10 +134,13 @@ def available_kinds(result) -> list[str]:
 
 
 def element_names(result) -> list[str]:
-    """Names a plot can be restricted to: bodies, joints, drivers and actuators."""
+    """Names a plot can be restricted to: bodies, joints, drivers, actuators, requests and
+    force elements with reports."""
     out: list[str] = []
-    for group in ("bodies", "all_joints", "drivers", "actuators"):
-        out += [n for n in result.names.get(group, []) if n not in out]
+    forces = [n.rpartition(".")[0] for n in result.names.get("force_outputs", [])]
+    for names in (*(result.names.get(g, []) for g in ("bodies", "all_joints", "drivers",
+                                                      "actuators", "outputs")), forces):
+        out += [n for n in names if n not in out]
     return out
 
 
