@@ -172,9 +172,14 @@ class _Phase:
         self.dae = sim.formulation.kind == "dae"
         self.integrator = integ.sundials(_scaled(sim.dyn), name, 0.0, [1.0], rtol, atol,
                                          max_steps)
+        #: integrator steps and right-hand sides over every call (root finding included)
+        self.steps = self.rhs_evaluations = 0
 
     def advance(self, x, z, t0, h):
         r = self.integrator(x0=x, z0=z, p=np.concatenate([self.sim.model.p, [t0, h]]))
+        st = self.integrator.stats()
+        self.steps += int(st.get("nsteps", 0))
+        self.rhs_evaluations += int(st.get("nfevals", 0))
         return np.asarray(r["xf"], float).ravel(), np.asarray(r["zf"], float).ravel()
 
     def multipliers(self, q, v, t):
@@ -257,6 +262,10 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
     elements += [_StickRow(f) for f in mechanism.forces.values()
                  if getattr(f, "stick_slip", False)]
     base = simulator_factory(mechanism)
+    if base.formulation_name == "ggl":
+        raise AnalysisError("formulation 'ggl': its index-2 start cannot be made consistent "
+                            "after an impact by IDAS; with contacts and stops use 'index1' "
+                            "(or the default)")
     if base.formulation.kind not in ("ode", "dae"):
         raise AnalysisError(f"formulation '{base.formulation_name}': events need a compiled "
                             "ODE or DAE formulation (not a numeric right-hand side)")
@@ -459,8 +468,12 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
         samples.append((t, x.copy(), closed, p.copy()))
     qs = np.array([s[1][:nq] for s in samples])
     vs = np.array([s[1][nq:] for s in samples])
-    return _assemble_result(base, phase_of, gaps, grid, qs, vs, samples, events,
-                            time.perf_counter() - t_clock, name, rtol, atol, default_p)
+    result = _assemble_result(base, phase_of, gaps, grid, qs, vs, samples, events,
+                              time.perf_counter() - t_clock, name, rtol, atol, default_p)
+    result.stats["steps"] = sum(ph.steps for ph in phases.values())
+    result.stats["rhs_evaluations"] = sum(ph.rhs_evaluations for ph in phases.values())
+    result.stats["phases"] = len(phases)
+    return result
 
 
 def _assemble_result(base, phase_of, gaps, grid, qs, vs, samples, events, seconds, name,

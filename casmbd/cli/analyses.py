@@ -62,6 +62,7 @@ def _cmd_simulate(args) -> tuple[dict, str]:
              f"  max constraint violation: position {data['constraint_violation']:.3g}, "
              f"velocity {data['velocity_violation']:.3g}",
              *([f"  WARNING: {s['drift_warning']}"] if s.get("drift_warning") else []),
+             *([_events_line(result)] if result.events else []),
              f"  steps {s.get('steps', 0)}, rhs evaluations {s.get('rhs_evaluations', 0)}",
              _timing(s, 4)]
     if s.get("start_position_change", 0) > 1e-12 or s.get("start_velocity_change", 0) > 1e-12:
@@ -83,12 +84,25 @@ def _cmd_simulate(args) -> tuple[dict, str]:
     return data, "\n".join(lines)
 
 
+def _events_line(result) -> str:
+    """How many events of each kind, and the first and last times."""
+    counts: dict[str, int] = {}
+    for event in result.events:
+        counts[event["kind"]] = counts.get(event["kind"], 0) + 1
+    times = [e["time"] for e in result.events]
+    return (f"  events: {', '.join(f'{n} {k}' for k, n in counts.items())} (t = "
+            f"{min(times):.6g} … {max(times):.6g} s; the list: --json 'events')")
+
+
 def _energy_change(result, mech) -> str:
     """total − total(0): "drift" for a conservative mechanism, else the work of the dampers,
     drivers, actuators and forces that change it (not a conservation error)."""
     energy = result["total_energy"]
     delta = f"{energy[-1] - energy[0]:+.3g} J"
     elements = energy_exchange(result, mech)
+    impacts = [e for e in result.events if e["kind"] in ("impact", "limit")]
+    if impacts and any(c.restitution < 1.0 for c in getattr(mech, "contacts", {}).values()):
+        elements = [*(elements or []), f"{len(impacts)} impacts (restitution < 1)"]
     if elements == []:
         return f"drift {delta}"
     if elements is None:
