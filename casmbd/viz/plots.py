@@ -129,6 +129,8 @@ def available_kinds(result) -> list[str]:
                 continue
             if kind == "joints" and not result.names.get("joints"):
                 continue
+            if kind == "reactions" and not result.names.get("all_joints"):
+                continue  # a free body, a ball on a contact: no joint to report
             out.append(kind)
     return out
 
@@ -161,9 +163,15 @@ def _panels(result, kind: str, elements, euler: str, mechanism) -> list:
     else:
         panels = KINDS[kind](result, elements, mechanism=mechanism)
     if not panels:
-        raise AnalysisError(f"plot kind '{kind}': nothing of {', '.join(elements)} to show in "
-                            f"the {what} (kinds it can show: {choices})")
+        shown = ", ".join(elements or ["the result"])
+        raise _EmptyKindError(f"plot kind '{kind}': nothing of {shown} to show in the {what} "
+                              f"(kinds it can show: {choices})")
     return panels
+
+
+class _EmptyKindError(AnalysisError):
+    """A kind with nothing to show for the selected elements (skipped when the kinds were
+    not asked for by name: the default is every kind the result can show)."""
 
 
 def plot_result(result, kinds: str | Sequence[str] | None = None,
@@ -209,6 +217,7 @@ def plot_result(result, kinds: str | Sequence[str] | None = None,
         efforts …), an unknown element or a selection leaving a kind empty — each naming the
         choices.
     """
+    chosen = kinds is not None
     if kinds is None:
         kinds = available_kinds(result)
     elif isinstance(kinds, str):
@@ -232,7 +241,16 @@ def plot_result(result, kinds: str | Sequence[str] | None = None,
             raise AnalysisError(f"unknown element(s) {', '.join(map(repr, bad))} (choices: "
                                 f"{', '.join(known) or 'none'})")
     mechanism = scene_mechanism(result, mechanism)
-    panels = [p for kind in kinds for p in _panels(result, kind, elements, euler, mechanism)]
+    panels = []
+    for kind in kinds:
+        try:
+            panels += _panels(result, kind, elements, euler, mechanism)
+        except _EmptyKindError:
+            if chosen:  # a kind asked for by name must show something
+                raise
+    if not panels:
+        raise AnalysisError(f"the {result.kind} result holds nothing to plot for "
+                            f"{', '.join(elements or []) or 'its elements'}")
     wide = any(len(p.lines) > 6 for p in panels)
     fig, axes = new_figure(len(panels), 1, figsize=(8.4 if wide else 6.4,
                                                     1.0 + 1.9 * len(panels)), sharex=True)
