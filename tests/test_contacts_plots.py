@@ -1,11 +1,15 @@
-"""Plots of results whose mechanism has no joints (a free ball, a ball on a contact): the
+"""Reports and plots of contacts.
+
+Plots of results whose mechanism has no joints (a free ball, a ball on a contact): the
 default kinds skip what has nothing to show instead of failing (H8's finding: `casmbd plot`
 raised TypeError on any such result)."""
 
 from __future__ import annotations
 
+import numpy as np
 from conftest import private_cache
 
+import casmbd
 from casmbd.cli import main
 
 _cache = private_cache(CASMBD_COMPILE="0")
@@ -39,3 +43,24 @@ def test_plot_of_a_mechanism_without_joints(tmp_path):
                      "--out", str(npz)]) == 0
         assert main(["plot", str(npz), "--out", str(png)]) == 0
         assert png.stat().st_size > 1000
+
+
+def test_compliant_contact_reports_gap_and_force():
+    """A compliant contact reports its gap and normal force on the result grid: F_n =
+    max(0, k δ^e + STEP(δ, 0, 0, d, c) δ̇), δ = −g, recomputed here from q and v."""
+    k, e, c, d = 1e5, 1.5, 20.0, 1e-3
+    text = BALL + FLOOR.replace("restitution = 0.5", f'model = "compliant"\nstiffness = {k}\n'
+                                f"exponent = {e}\ndamping = {c}\npenetration = {d}")
+    res = casmbd.simulate(casmbd.loads_scene(text), 1.0, 400, rtol=1e-10)
+    names = res.names["force_outputs"]
+    assert names == ["floor.force.gap", "floor.force.normal_force"]
+    gap = res.body("ball")["position"][:, 1] - 0.1
+    rate = -res.body("ball")["velocity"][:, 1]  # δ̇ = −ġ
+    delta = np.maximum(-gap, 0.0)
+    s = np.clip(delta / d, 0.0, 1.0)
+    expected = np.where(delta > 0, k * delta**e + c * s * s * (3 - 2 * s) * rate, 0.0)
+    expected = np.maximum(expected, 0.0)
+    out = res.arrays["force_outputs"]
+    assert np.max(np.abs(out[:, 0] - gap)) < 1e-12
+    assert np.max(np.abs(out[:, 1] - expected)) < 1e-9 * max(1.0, expected.max())
+    assert expected.max() > 50.0  # the ball did hit the floor

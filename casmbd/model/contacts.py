@@ -301,18 +301,37 @@ class CompliantContact(ForceElement):
         return cls(name, element, float(stiffness), float(exponent), float(damping),
                    float(penetration), float(friction_velocity))
 
+    def _normal(self, base, gap) -> ca.SX:
+        """F_n(δ, δ̇) ≥ 0 of one gap, δ = −g (module docstring)."""
+        delta = ca.fmax(-gap, 0.0)
+        rate = -ca.jtimes(gap, base.q, base.v)
+        damp = adams_step(delta, 0.0, 0.0, self.penetration, self.damping)
+        normal = ca.if_else(delta > 0.0, self.stiffness * delta ** self.exponent
+                            + damp * rate, 0.0)
+        return ca.fmax(normal, 0.0)  # a contact never pulls
+
+    def report_names(self, dimension):
+        """Per gap: its value and the normal force (a contact: "gap" [m], "normal_force"
+        [N]; a stop: "lower_gap", "lower_force" … in the joint coordinate's units)."""
+        if not hasattr(self.element, "joint"):
+            return (("gap", "m"), ("normal_force", "N"))
+        return tuple((f"{label}_{q}", "") for label in self.element.labels
+                     for q in ("gap", "force"))
+
+    def reports(self, kit):
+        gaps = ca.vec(self.element.gaps(kit.ctx))
+        out = []
+        for k in range(gaps.numel()):
+            out += [gaps[k], self._normal(kit.ctx, gaps[k])]
+        return out
+
     def terms(self, kit, ctx):
         base = kit.ctx
         gaps = ca.vec(self.element.gaps(ctx))
         gaps_now = ca.vec(self.element.gaps(base))
         terms = []
         for k in range(gaps.numel()):
-            delta = ca.fmax(-gaps_now[k], 0.0)
-            rate = -ca.jtimes(gaps_now[k], base.q, base.v)
-            damp = adams_step(delta, 0.0, 0.0, self.penetration, self.damping)
-            normal = ca.if_else(delta > 0.0, self.stiffness * delta ** self.exponent
-                                + damp * rate, 0.0)
-            normal = ca.fmax(normal, 0.0)  # a contact never pulls
+            normal = self._normal(base, gaps_now[k])
             terms.append(kit.term("measure", gaps[k], normal))
             vt = self.element.tangential_velocity(base, k)
             if vt is not None and self.element.friction:
