@@ -72,7 +72,8 @@ _CONTACT_KEYS = {"name", "type", "body", "point", "radius", "origin", "normal", 
                  "exponent", "damping", "penetration", "friction_velocity", "description"}
 _COMPLIANT_KEYS = ("stiffness", "exponent", "damping", "penetration", "friction_velocity")
 #: keys every [[joints]] entry may add: stops on its coordinate (issue 24)
-_LIMIT_KEYS = {"lower", "upper", "restitution", "limit_model"}
+_LIMIT_KEYS = {"lower", "upper", "restitution", "limit_model", "limit_stiffness",
+               "limit_exponent", "limit_damping", "limit_penetration"}
 _SCENE_KEYS = {"name", "dimension", "gravity", "format", "description", "coordinates",
                "tree", "urdf", "initial", "locked", "damping", "friction"}
 _COORDINATES = ("auto", "absolute", "natural", "joint")
@@ -378,8 +379,11 @@ def _build(data: dict, source: str) -> Mechanism:
                 e.string("name"), lower=e.number("lower", None, required=False),
                 upper=e.number("upper", None, required=False),
                 restitution=e.number("restitution", 0.0),
-                model=e.string("limit_model", default="impact")))
-        elif e.has("restitution") or e.has("limit_model"):
+                model=e.string("limit_model", default="impact"),
+                **{k.removeprefix("limit_"): e.number(k) for k in
+                   ("limit_stiffness", "limit_exponent", "limit_damping", "limit_penetration")
+                   if e.has(k)}))
+        elif any(e.has(k) for k in _LIMIT_KEYS):
             raise e.error("restitution", "applies to joint limits: give 'lower' or 'upper'")
 
     for e in entries("drivers"):
