@@ -7,7 +7,9 @@ raised TypeError on any such result)."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from conftest import private_cache
+from scipy.optimize import brentq
 
 import casmbd
 from casmbd.cli import main
@@ -64,3 +66,32 @@ def test_compliant_contact_reports_gap_and_force():
     assert np.max(np.abs(out[:, 0] - gap)) < 1e-12
     assert np.max(np.abs(out[:, 1] - expected)) < 1e-9 * max(1.0, expected.max())
     assert expected.max() > 50.0  # the ball did hit the floor
+
+
+def test_compliant_stop_from_a_scene():
+    """``limit_model = "compliant"`` with ``limit_stiffness`` …: a rod (m = 1, L = 1, pinned at
+    an end) hanging against a stop at −1 rad settles where k δ = m g (L/2) cos(−1 − δ)."""
+    scene = """
+[scene]
+name = "stop"
+gravity = [0.0, -9.81]
+[[bodies]]
+name = "rod"
+mass = 1.0
+inertia = 0.0833333333333333
+position = [0.5, 0.0]
+[[joints]]
+name = "pin"
+type = "revolute"
+body1 = "ground"
+body2 = "rod"
+point = [0.0, 0.0]
+lower = -1.0
+limit_model = "compliant"
+limit_stiffness = 200.0
+limit_exponent = 1.0
+limit_damping = 0.0
+"""
+    delta = brentq(lambda d: 200.0 * d - 9.81 * 0.5 * np.cos(-1.0 - d), 0.0, 1.0)
+    res = casmbd.static_equilibrium(casmbd.loads_scene(scene))
+    assert res.joint_coordinates[0] == pytest.approx(-1.0 - delta, abs=1e-10)
