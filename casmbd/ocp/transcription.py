@@ -24,6 +24,7 @@ from casmbd.analysis.kkt import consistent_state
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, OptimizationError
 from casmbd.ocp.dynamics import choose_dynamics, explicit_accelerations, node_constraints
+from casmbd.ocp.flexible import mesh_check, solver_defaults
 from casmbd.ocp.guess import initial_guess
 from casmbd.ocp.options import check_solver_options
 from casmbd.ocp.solution import OcpSolution
@@ -154,7 +155,18 @@ class Transcription:
             self._collocation()
         self._boundary()
         self._objective()
+        self.mesh = self._mesh_check()
         self.build_seconds = time.perf_counter() - t0
+
+    def _mesh_check(self) -> dict:
+        """Flexible bodies: the fastest mode against the collocation element
+        (:mod:`casmbd.ocp.flexible`; the threshold is measured for Radau, so multiple shooting
+        is not checked)."""
+        ocp = self.ocp
+        if ocp.transcription == "multiple_shooting":
+            return {}
+        horizon = ocp.horizon.guess if ocp.free_time else float(ocp.horizon)
+        return mesh_check(self.system, horizon / self.M, self.S)
 
     # ------------------------------------------------------------------ pieces
     def _functions(self) -> None:
@@ -472,6 +484,7 @@ class Transcription:
         t0 = time.perf_counter()
         w = ca.vertcat(*[ca.vec(x) for x in b.w])
         opts = dict(IPOPT_DEFAULTS) if ocp.solver == "ipopt" else {}
+        opts.update(solver_defaults(self.system, ocp.solver))  # flexible bodies: pivoting
         sundials = (ocp.transcription == "multiple_shooting"
                     and not integrator_kind(ocp.integrator).fixed_step)
         if ocp.solver == "ipopt" and sundials:
@@ -538,7 +551,7 @@ class Transcription:
                 "solver": ocp.solver, "derivatives": used,
                 "compiled": bool(report and report.mode == "compiled"),
                 "compile_seconds": report.compile_seconds if report else 0.0,
-                "cache_hit": bool(report and report.cache_hit)}
+                "cache_hit": bool(report and report.cache_hit), **self.mesh}
         sol = OcpSolution.from_transcription(self, x, info, np.asarray(out["lam_g"]).ravel(),
                                              gval)
         if not info["success"] and raise_on_failure:
