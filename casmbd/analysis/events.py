@@ -60,6 +60,8 @@ __all__ = ["has_events", "simulate_events"]
 
 #: default sub-intervals per output interval in which gaps are checked
 SUBSTEPS = 4
+#: sub-intervals integrated in one call (one solver history) between events
+WINDOW = 32
 #: rebound height below which a contact closes instead of bouncing again (m)
 REST_HEIGHT = 1e-9
 
@@ -170,10 +172,34 @@ class _Phase:
                  max_steps):
         self.sim, self.closed, self.closure_rows = sim, closed, closure_rows
         self.dae = sim.formulation.kind == "dae"
-        self.integrator = integ.sundials(_scaled(sim.dyn), name, 0.0, [1.0], rtol, atol,
+        self._scaled = _scaled(sim.dyn)
+        self.name, self.rtol, self.atol, self.max_steps = name, rtol, atol, max_steps
+        self._many: dict[tuple, object] = {}
+        self.integrator = integ.sundials(self._scaled, name, 0.0, [1.0], rtol, atol,
                                          max_steps)
         #: integrator steps and right-hand sides over every call (root finding included)
         self.steps = self.rhs_evaluations = 0
+
+    def advance_many(self, x, z, t0: float, times: np.ndarray):
+        """States at ``times`` (increasing, after t0) from (x, z) at t0 in one integrator call:
+        one solver history over the window (a restart per sub-interval lost accuracy on dense
+        output grids).  Integrators are cached by the relative output times."""
+        span = float(times[-1] - t0)
+        rel = tuple(np.round((np.asarray(times) - t0) / span, 12))
+        solver = self._many.get(rel)
+        if solver is None:
+            if len(self._many) > 64:
+                self._many.clear()
+            solver = self._many[rel] = integ.sundials(self._scaled, self.name, 0.0, list(rel),
+                                                      self.rtol, self.atol, self.max_steps)
+        r = solver(x0=x, z0=z, p=np.concatenate([self.sim.model.p, [t0, span]]))
+        st = solver.stats()
+        self.steps += int(st.get("nsteps", 0))
+        self.rhs_evaluations += int(st.get("nfevals", 0))
+        xs = np.asarray(r["xf"], float).reshape(len(x), -1)
+        zs = np.asarray(r["zf"], float).reshape(len(z), -1) if len(z) else \
+            np.zeros((0, xs.shape[1]))
+        return xs.T, zs.T
 
     def advance(self, x, z, t0, h):
         r = self.integrator(x0=x, z0=z, p=np.concatenate([self.sim.model.p, [t0, h]]))
@@ -356,6 +382,11 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
     t = t_start
     tol_t = 1e-13
 
+    # every sub-interval end of the run; states come in windows of WINDOW of them from one
+    # integrator call, restarted only after an event
+    sub_all = np.concatenate([np.linspace(grid[k], grid[k + 1], substeps + 1)[1:]
+                              for k in range(len(grid) - 1)])
+    window: dict[float, tuple] = {}
     for k_out in range(len(grid) - 1):
         sub = np.linspace(grid[k_out], grid[k_out + 1], substeps + 1)
         j = 0
@@ -365,7 +396,12 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
             if h <= tol_t * (1 + abs(t)):
                 j += 1
                 continue
-            x_b, z_b = phase.advance(x, z, t, h)
+            if t_b not in window:
+                first = int(np.searchsorted(sub_all, t_b - 0.5 * tol_t * (1 + abs(t_b))))
+                times = sub_all[first:first + WINDOW]
+                xs_w, zs_w = phase.advance_many(x, z, t, times)
+                window = {float(tk): (xs_w[m], zs_w[m]) for m, tk in enumerate(times)}
+            x_b, z_b = window[float(t_b)]
             q_b, v_b = x_b[:nq], x_b[nq:]
             g_b, _, _ = gaps(q_b, v_b, t_b, p)
             open_hit = [i for i in range(n_gaps) if i not in closed and g_b[i] < -1e-13]
@@ -465,6 +501,7 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
             x = np.concatenate([q_ev, v_new])
             z = phase.z0(q_ev, v_new, t_ev)
             t = t_ev
+            window = {}
         samples.append((t, x.copy(), closed, p.copy()))
     qs = np.array([s[1][:nq] for s in samples])
     vs = np.array([s[1][nq:] for s in samples])
