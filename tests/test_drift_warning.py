@@ -53,7 +53,8 @@ def test_diverging_run_is_flagged(tmp_path, capsys):
     assert "drift_warning" in res.stats
     path = tmp_path / "spin.toml"
     path.write_text(SCENE.format(stiff="false"))
-    main(["simulate", str(path), "--t-end", "12", "--steps", "60"])
+    with pytest.warns(RuntimeWarning, match="position constraints violated"):
+        main(["simulate", str(path), "--t-end", "12", "--steps", "60"])
     assert "WARNING: position constraints violated" in capsys.readouterr().out
 
 

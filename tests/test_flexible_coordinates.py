@@ -99,6 +99,7 @@ def test_free_fall_is_exact(name):
     rhs = FORMULATIONS[name].build(system).function
     n = system.nq
     x = np.concatenate([system.initial_coordinates(), np.zeros(n)])
-    acc = np.ravel(rhs(0.0, x, np.zeros(0), system.parameter_values, np.zeros(0))[0])[n:]
+    out = rhs(0.0, x, np.zeros(0), system.parameter_values, np.zeros(0))[0]
+    acc = np.asarray(out, dtype=float).ravel()[n:]
     assert abs(acc[1] + 9.81) < 1e-12 and abs(acc[0]) < 1e-12 and abs(acc[2]) < 1e-12
     assert np.max(np.abs(acc[3:])) < 1e-9
