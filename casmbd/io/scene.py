@@ -409,23 +409,17 @@ def _build(data: dict, source: str) -> Mechanism:
         if ctype not in ("plane", "sphere"):
             raise e.error("type", f"unknown contact type {ctype!r} (allowed: plane, sphere)")
         compliant = {k: e.number(k) for k in _COMPLIANT_KEYS if e.has(k)}
-        if ctype == "plane":
-            guarded(e, lambda e=e, compliant=compliant: mech.add_contact(
-                _name(e), e.string("body"), e.vector("point", dim),
-                radius=e.number("radius", 0.0),
-                origin=e.vector("origin", dim, default=[0.0] * dim),
-                normal=e.vector("normal", dim, required=False),
-                model=e.string("model", default="impact"),
-                restitution=e.number("restitution", 0.0), friction=e.number("friction", 0.0),
-                **compliant))
+        if ctype == "plane":  # against a ground plane, or (sphere) another body's sphere
+            other = {"origin": e.vector("origin", dim, default=[0.0] * dim),
+                     "normal": e.vector("normal", dim, required=False)}
         else:
-            guarded(e, lambda e=e, compliant=compliant: mech.add_contact(
-                _name(e), e.string("body"), e.vector("point", dim),
-                radius=e.number("radius", 0.0), body2=e.string("body2"),
-                point2=e.vector("point2", dim), radius2=e.number("radius2", 0.0),
-                model=e.string("model", default="impact"),
-                restitution=e.number("restitution", 0.0), friction=e.number("friction", 0.0),
-                **compliant))
+            other = {"body2": e.string("body2"), "point2": e.vector("point2", dim),
+                     "radius2": e.number("radius2", 0.0)}
+        guarded(e, lambda e=e, compliant=compliant, other=other: mech.add_contact(
+            _name(e), e.string("body"), e.vector("point", dim),
+            radius=e.number("radius", 0.0), model=e.string("model", default="impact"),
+            restitution=e.number("restitution", 0.0), friction=e.number("friction", 0.0),
+            **other, **compliant))
 
     for e in entries("actuators"):
         e.check_keys(_ACTUATOR_KEYS)

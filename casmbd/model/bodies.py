@@ -56,6 +56,16 @@ def vector2(value, where: str) -> np.ndarray:
     return vector(value, where, 2)
 
 
+def unit_quaternion(value, where: str) -> np.ndarray:
+    """A quaternion [w, x, y, z] of norm 1 ± 1e-3, normalised (ModelError naming ``where``)."""
+    quat = vector(value, where, 4)
+    norm = float(np.linalg.norm(quat))
+    if abs(norm - 1.0) > 1e-3:
+        raise ModelError(f"{where}: a unit quaternion [w, x, y, z] is expected, got norm "
+                         f"{norm:.6g}")
+    return quat / norm
+
+
 def scalar(value, where: str) -> float:
     """Validate a finite number."""
     if isinstance(value, bool):
@@ -409,12 +419,7 @@ class SpatialBody:
                              f"[Ixx, Iyy, Izz, Ixy, Ixz, Iyz], got {inertia!r}")
         self.inertia = tuple(check_value(v, f"{where} 'inertia'") for v in inertia)
         self.position = vector(self.position, f"{where} 'position'", 3)
-        quat = vector(self.orientation, f"{where} 'orientation'", 4)
-        norm = float(np.linalg.norm(quat))
-        if abs(norm - 1.0) > 1e-3:
-            raise ModelError(f"{where} 'orientation': a unit quaternion [w, x, y, z] is "
-                             f"expected, got norm {norm:.6g}")
-        self.orientation = quat / norm
+        self.orientation = unit_quaternion(self.orientation, f"{where} 'orientation'")
         self.velocity = vector(self.velocity, f"{where} 'velocity'", 3)
         self.angular_velocity = vector(self.angular_velocity, f"{where} 'angular_velocity'", 3)
         self.reference_point = vector(self.reference_point, f"{where} 'reference_point'", 3)

@@ -51,7 +51,7 @@ from typing import ClassVar
 import numpy as np
 
 from casmbd.errors import ModelError
-from casmbd.model.bodies import rotation, scalar, vector
+from casmbd.model.bodies import rotation, scalar, unit_quaternion, vector
 from casmbd.model.fe_beam import beam_model
 from casmbd.model.fe_import import load_fe_npz
 from casmbd.model.modal import FEModel, ModalData, cache_key
@@ -452,12 +452,7 @@ class SpatialFlexibleBody(_Flexible):
     def __post_init__(self):
         where = f"body '{self.name}' field"
         self.origin = vector(self.origin, f"{where} 'position'", 3)
-        quat = vector(self.orientation, f"{where} 'orientation'", 4)
-        norm = float(np.linalg.norm(quat))
-        if abs(norm - 1.0) > 1e-3:
-            raise ModelError(f"{where} 'orientation': a unit quaternion [w, x, y, z] is "
-                             f"expected, got norm {norm:.6g}")
-        self.orientation = quat / norm
+        self.orientation = unit_quaternion(self.orientation, f"{where} 'orientation'")
         self.velocity = vector(self.velocity, f"{where} 'velocity'", 3)
         self.angular_velocity = vector(self.angular_velocity, f"{where} 'angular_velocity'", 3)
         self._finish()
