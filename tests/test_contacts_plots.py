@@ -95,3 +95,16 @@ limit_damping = 0.0
     delta = brentq(lambda d: 200.0 * d - 9.81 * 0.5 * np.cos(-1.0 - d), 0.0, 1.0)
     res = casmbd.static_equilibrium(casmbd.loads_scene(scene))
     assert res.joint_coordinates[0] == pytest.approx(-1.0 - delta, abs=1e-10)
+
+
+def test_compliant_contact_events_on_the_grid():
+    """Compliant contacts list contact/detach where the reported gap changes sign (linear
+    interpolation on the output grid: within one output interval of the free-fall time
+    sqrt(2 h/g) for the first contact, and alternating afterwards)."""
+    text = BALL + FLOOR.replace("restitution = 0.5", 'model = "compliant"\nstiffness = 1e5\n'
+                                "damping = 20.0")
+    res = casmbd.simulate(casmbd.loads_scene(text), 2.0, 2000)
+    kinds = [e["kind"] for e in res.events]
+    assert kinds[:4] == ["contact", "detach", "contact", "detach"]
+    assert abs(res.events[0]["time"] - np.sqrt(2 * 1.0 / 9.81)) < 1e-3
+    assert "event_times" in res.stats and res.to_json()["events"] == res.events

@@ -56,7 +56,7 @@ from casmbd.model.joint_friction import stick_slip_parameters
 from casmbd.results import Result
 from casmbd.system import System
 
-__all__ = ["has_events", "simulate_events"]
+__all__ = ["compliant_events", "has_events", "simulate_events"]
 
 #: default sub-intervals per output interval in which gaps are checked
 SUBSTEPS = 4
@@ -71,6 +71,36 @@ def has_events(mechanism) -> bool:
     with the exact (stick-slip) Coulomb law."""
     return any(c.model == "impact" for c in getattr(mechanism, "contacts", {}).values()) or \
         any(getattr(f, "stick_slip", False) for f in mechanism.forces.values())
+
+
+def compliant_events(result: Result, mechanism) -> None:
+    """Contact and detach of compliant contacts and stops, read off the result grid: where a
+    reported gap (``force_outputs`` "<element>.force.gap", "….lower_gap" …) changes sign, at
+    the time of the linear interpolation between the two samples (the grid's resolution: the
+    compliant model has no event detection of its own).  Appended to ``result.events``."""
+    names = result.names.get("force_outputs", [])
+    out = result.arrays.get("force_outputs")
+    if out is None:
+        return
+    found = []
+    for c in getattr(mechanism, "contacts", {}).values():
+        if c.model != "compliant":
+            continue
+        prefix = f"{c.name}.force."
+        for k, col in enumerate(names):
+            if not (col.startswith(prefix) and col.endswith("gap")):
+                continue
+            g = out[:, k]
+            label = c.name if col == prefix + "gap" else \
+                f"{c.name}.{col[len(prefix):].removesuffix('_gap')}"
+            for m in np.flatnonzero((g[:-1] > 0.0) != (g[1:] > 0.0)):
+                frac = g[m] / (g[m] - g[m + 1]) if g[m] != g[m + 1] else 0.0
+                when = float(result.t[m] + frac * (result.t[m + 1] - result.t[m]))
+                found.append({"time": when, "element": label,
+                              "kind": "contact" if g[m] > 0.0 else "detach"})
+    if found:
+        result.events = sorted(result.events + found, key=lambda e: e["time"])
+        result.stats["event_times"] = "compliant contacts: interpolated on the output grid"
 
 
 def _scaled(dyn: ca.Function) -> ca.Function:

@@ -30,7 +30,7 @@ from casmbd.analysis.checks import (
     check_start,
     diagnose_failure,
 )
-from casmbd.analysis.events import has_events, simulate_events
+from casmbd.analysis.events import compliant_events, has_events, simulate_events
 from casmbd.analysis.kkt import consistent_state
 from casmbd.analysis.postprocess import PostProcessing
 from casmbd.analysis.redundancy import rank_report
@@ -513,5 +513,7 @@ def simulate(mechanism, t_end: float, steps: int, *, formulation: str | None = N
                 formulation_options=formulation_options, redundancy=redundancy))
     sim = Simulator(mechanism, formulation, inputs=inputs, mode=mode,
                     formulation_options=formulation_options, redundancy=redundancy)
-    return sim.run(t_end, steps, t_start=t_start, integrator=integrator, rtol=rtol, atol=atol,
-                   projection=projection, step=step, max_steps=max_steps)
+    result = sim.run(t_end, steps, t_start=t_start, integrator=integrator, rtol=rtol,
+                     atol=atol, projection=projection, step=step, max_steps=max_steps)
+    compliant_events(result, mechanism)
+    return result
