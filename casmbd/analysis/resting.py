@@ -15,7 +15,7 @@ import copy
 
 import numpy as np
 
-from casmbd.analysis.events import _closure, _Gaps
+from casmbd.analysis.event_rows import EventRows, closure
 from casmbd.errors import AnalysisError
 from casmbd.system import System
 
@@ -33,7 +33,7 @@ def resting_equilibrium(mechanism, t: float, method: str, tol: float, max_iter: 
     value.  ``solve`` is :func:`casmbd.analysis.statics.static_equilibrium` (handed in: that
     module calls this one)."""
     elements = [c for c in mechanism.contacts.values() if c.model == "impact"]
-    gaps = _Gaps(System(mechanism), elements)
+    gaps = EventRows(System(mechanism), elements)
     p = np.array(list(mechanism.parameters.values()), dtype=float)
     q0 = System(mechanism).initial_coordinates()
     g0 = gaps(q0, np.zeros_like(q0), t, p)[0]
@@ -44,9 +44,9 @@ def resting_equilibrium(mechanism, t: float, method: str, tol: float, max_iter: 
         variant.joints = dict(mechanism.joints)
         names = {}
         for i in sorted(closed):
-            closure = _closure(mechanism, *gaps.rows[i])
-            variant.joints[closure.name] = closure
-            names[i] = f"joint '{closure.name}' equation 'gap'"
+            joint = closure(mechanism, *gaps.rows[i])
+            variant.joints[joint.name] = joint
+            names[i] = f"joint '{joint.name}' equation 'gap'"
         try:
             res = solve(variant, t, method, tol, max_iter, mode)
         except AnalysisError:

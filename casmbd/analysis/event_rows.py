@@ -1,0 +1,108 @@
+"""The event rows of the event-driven integrator (:mod:`casmbd.analysis.events`).
+
+A *row* is one scalar that must keep its sign while the motion is smooth: the gap g_k(q) ≥ 0
+of a contact or joint stop (:mod:`casmbd.model.contacts`), or the sliding velocity σ q̇_j > 0
+of a joint with exact Coulomb friction (:class:`StickRow`).  A row is *open* (its value is
+watched) or *closed* (its closure equation is a bilateral constraint of the phase — g_k = 0,
+q_j − q_stuck = 0 — and its multiplier is watched instead).  :class:`EventRows` evaluates all
+rows numerically from a System; :func:`closure` makes the closure joint of a row.
+"""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from casmbd.model.bodies import GROUND
+from casmbd.model.contacts import GapClosure
+from casmbd.model.joint_friction import stick_slip_parameters
+
+__all__ = ["EventRows", "StickRow", "closure"]
+
+
+class StickRow:
+    """A joint-friction element with the exact Coulomb law seen as an event row: stuck, it is
+    closed by the constraint q_j − q_stuck = 0 (its multiplier −λ the friction force, which
+    must stay within F_c); sliding, its open value σ q̇_j must stay positive."""
+
+    event_kind = "stick"
+    restitution = 0.0
+    friction = 0.0
+    labels = ("stick",)
+
+    def __init__(self, element):
+        self.element, self.name = element, element.name
+        self.joint, self.coordinate = element.joint, element.coordinate
+        self.level = float(element.friction)
+        self.sign, self.stuck_at = stick_slip_parameters(element.name)
+
+    def gaps(self, ctx) -> ca.SX:
+        coord = ctx.mechanism.joints[self.joint].coordinate(ctx, self.coordinate)
+        return coord - ctx.p[self.stuck_at]
+
+    def rate(self, ctx) -> ca.SX:
+        coord = ctx.mechanism.joints[self.joint].coordinate(ctx, self.coordinate)
+        return ctx.p[self.sign] * ca.jtimes(coord, ctx.q, ctx.v)
+
+    def tangential_velocity(self, ctx, k: int):
+        return None
+
+
+class EventRows:
+    """Numeric gap functions of the impact elements (and stick rows), from a System: the
+    open-state values (g, or σ q̇_j of a sliding joint), the Jacobians of the closure
+    equations and the contacts' tangential-velocity Jacobians."""
+
+    def __init__(self, system, elements):
+        ctx = system.ctx
+        self.rows: list[tuple] = []
+        gaps, positions, tangent_rows, tangent_of = [], [], [], []
+        for element in elements:
+            g = ca.vec(element.gaps(ctx))
+            for k in range(g.numel()):
+                self.rows.append((element, k))
+                positions.append(g[k])
+                gaps.append(element.rate(ctx) if isinstance(element, StickRow) else g[k])
+                vt = element.tangential_velocity(ctx, k) if element.friction else None
+                tangent_of.append(len(tangent_rows) if vt is not None else None)
+                if vt is not None:
+                    tangent_rows.append(ca.vec(vt))
+        g = ca.vertcat(*gaps) if gaps else ca.SX(0, 1)
+        pos = ca.vertcat(*positions) if positions else ca.SX(0, 1)
+        vt = ca.vertcat(*tangent_rows) if tangent_rows else ca.SX(0, 1)
+        self.tangent_of = tangent_of
+        self.tangent_size = 1 if system.dimension == 2 else 2
+        #: True for the rows of stick-slip friction elements (never an impact)
+        self.stick = [isinstance(e, StickRow) for e, _ in self.rows]
+        self.fun = ca.Function("gaps", [system.q, system.v, system.t, system.p],
+                               [g, ca.densify(ca.jacobian(pos, system.q)),
+                                ca.densify(ca.jacobian(vt, system.v)), pos])
+
+    def __call__(self, q, v, t, p):
+        g, gq, tv, _ = self.fun(q, v, t, p)
+        return (np.asarray(g, float).ravel(), np.asarray(gq, float),
+                np.asarray(tv, float))
+
+    def positions(self, q, v, t, p) -> np.ndarray:
+        """The closure equations' values (a stick row: q_j − q_stuck)."""
+        return np.asarray(self.fun(q, v, t, p)[3], float).ravel()
+
+    def closed_value(self, i: int, lam: float) -> float:
+        """What must stay ≥ 0 while row i is closed: the normal force −λ of a contact or stop,
+        F_c − |λ| of a stuck joint."""
+        return self.rows[i][0].level - abs(lam) if self.stick[i] else -lam
+
+    def label(self, i: int) -> str:
+        element, k = self.rows[i]
+        return element.name if len(element.labels) == 1 else \
+            f"{element.name}.{element.labels[k]}"
+
+
+def closure(mechanism, element, k: int) -> GapClosure:
+    """The bilateral constraint g_k = 0 of a closed gap, between the bodies it touches (the
+    ground first for a contact with the ground plane; a limit's joint's bodies)."""
+    if hasattr(element, "joint"):
+        joint = mechanism.joints[element.joint]
+        return GapClosure(element, k, joint.body1, joint.body2)
+    bodies = tuple(element.bodies)
+    return GapClosure(element, k, *((GROUND, *bodies) if len(bodies) == 1 else bodies))
