@@ -14,10 +14,15 @@ import casadi as ca
 import numpy as np
 
 from casmbd.model.bodies import GROUND
-from casmbd.model.contacts import GapClosure
+from casmbd.model.contacts import (
+    GapClosure,
+    TangentClosure,
+    slide_parameters,
+    tangential_position,
+)
 from casmbd.model.joint_friction import stick_slip_parameters
 
-__all__ = ["EventRows", "StickRow", "closure"]
+__all__ = ["EventRows", "SlideRow", "StickRow", "closure"]
 
 
 class StickRow:
@@ -48,6 +53,36 @@ class StickRow:
         return None
 
 
+class SlideRow:
+    """The tangential row of a closed frictional plane contact (plane scenes): active while
+    the contact's gap row is closed.  Stuck, it is closed by s(q) − s_stuck = 0
+    (:class:`~casmbd.model.contacts.TangentClosure`; −λ the friction force, within μ N with N
+    the gap row's normal force); sliding, σ ṡ must stay positive (the force −μ N σ is the
+    contact's :class:`~casmbd.model.contacts.ContactSlide` element)."""
+
+    event_kind = "stick"
+    restitution = 0.0
+    friction = 0.0
+    labels = ("stick",)
+
+    def __init__(self, contact):
+        self.contact, self.name = contact, contact.name
+        self.mu = float(contact.friction)
+        self.sign, self.stuck_at = slide_parameters(contact.name)
+        #: index of the contact's gap row (set by :class:`EventRows`)
+        self.gap_row = -1
+
+    def gaps(self, ctx) -> ca.SX:
+        return tangential_position(self.contact, ctx) - ctx.p[self.stuck_at]
+
+    def rate(self, ctx) -> ca.SX:
+        return ctx.p[self.sign] * ca.jtimes(tangential_position(self.contact, ctx), ctx.q,
+                                            ctx.v)
+
+    def tangential_velocity(self, ctx, k: int):
+        return None
+
+
 class EventRows:
     """Numeric gap functions of the impact elements (and stick rows), from a System: the
     open-state values (g, or σ q̇_j of a sliding joint), the Jacobians of the closure
@@ -62,7 +97,7 @@ class EventRows:
             for k in range(g.numel()):
                 self.rows.append((element, k))
                 positions.append(g[k])
-                gaps.append(element.rate(ctx) if isinstance(element, StickRow) else g[k])
+                gaps.append(element.rate(ctx) if hasattr(element, "rate") else g[k])
                 vt = element.tangential_velocity(ctx, k) if element.friction else None
                 tangent_of.append(len(tangent_rows) if vt is not None else None)
                 if vt is not None:
@@ -72,8 +107,12 @@ class EventRows:
         vt = ca.vertcat(*tangent_rows) if tangent_rows else ca.SX(0, 1)
         self.tangent_of = tangent_of
         self.tangent_size = 1 if system.dimension == 2 else 2
-        #: True for the rows of stick-slip friction elements (never an impact)
-        self.stick = [isinstance(e, StickRow) for e, _ in self.rows]
+        #: True for the rows of stick-slip friction (joints, closed contacts): never an impact
+        self.stick = [isinstance(e, StickRow | SlideRow) for e, _ in self.rows]
+        for element, _ in self.rows:  # a slide row's companion: its contact's gap row
+            if isinstance(element, SlideRow):
+                element.gap_row = next(i for i, (e, _) in enumerate(self.rows)
+                                       if e is element.contact)
         self.fun = ca.Function("gaps", [system.q, system.v, system.t, system.p],
                                [g, ca.densify(ca.jacobian(pos, system.q)),
                                 ca.densify(ca.jacobian(vt, system.v)), pos])
@@ -87,10 +126,19 @@ class EventRows:
         """The closure equations' values (a stick row: q_j − q_stuck)."""
         return np.asarray(self.fun(q, v, t, p)[3], float).ravel()
 
-    def closed_value(self, i: int, lam: float) -> float:
-        """What must stay ≥ 0 while row i is closed: the normal force −λ of a contact or stop,
-        F_c − |λ| of a stuck joint."""
-        return self.rows[i][0].level - abs(lam) if self.stick[i] else -lam
+    def closed_value(self, i: int, lams: dict) -> float:
+        """What must stay ≥ 0 while row i is closed (``lams``: the multipliers of the closed
+        rows by row): the normal force −λ of a contact or stop, F_c − |λ| of a stuck joint,
+        μ N − |λ| of a stuck contact (N = −λ of its gap row)."""
+        element, lam = self.rows[i][0], lams[i]
+        if isinstance(element, SlideRow):
+            return element.mu * max(-lams.get(element.gap_row, 0.0), 0.0) - abs(lam)
+        return element.level - abs(lam) if self.stick[i] else -lam
+
+    def active(self, i: int, closed) -> bool:
+        """A slide row counts only while its contact is closed."""
+        element = self.rows[i][0]
+        return not isinstance(element, SlideRow) or element.gap_row in closed
 
     def label(self, i: int) -> str:
         element, k = self.rows[i]
@@ -98,9 +146,12 @@ class EventRows:
             f"{element.name}.{element.labels[k]}"
 
 
-def closure(mechanism, element, k: int) -> GapClosure:
+def closure(mechanism, element, k: int) -> GapClosure | TangentClosure:
     """The bilateral constraint g_k = 0 of a closed gap, between the bodies it touches (the
-    ground first for a contact with the ground plane; a limit's joint's bodies)."""
+    ground first for a contact with the ground plane; a limit's joint's bodies); a stuck
+    contact's tangential closure."""
+    if isinstance(element, SlideRow):
+        return TangentClosure(element.contact)
     if hasattr(element, "joint"):
         joint = mechanism.joints[element.joint]
         return GapClosure(element, k, joint.body1, joint.body2)

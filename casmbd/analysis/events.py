@@ -47,10 +47,11 @@ import casadi as ca
 import numpy as np
 
 from casmbd.analysis import integrators as integ
-from casmbd.analysis.event_rows import EventRows, StickRow, closure
+from casmbd.analysis.event_rows import EventRows, SlideRow, StickRow, closure
 from casmbd.analysis.impulses import impact, project
 from casmbd.analysis.kkt import accelerations_and_multipliers, consistent_state
 from casmbd.errors import AnalysisError, IntegratorError
+from casmbd.model.contacts import ContactSlide, slides
 from casmbd.results import Result
 from casmbd.system import System
 
@@ -227,6 +228,7 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
     elements = [c for c in mechanism.contacts.values() if c.model == "impact"]
     elements += [StickRow(f) for f in mechanism.forces.values()
                  if getattr(f, "stick_slip", False)]
+    elements += [SlideRow(c) for c in mechanism.contacts.values() if slides(c)]
     base = simulator_factory(mechanism)
     if base.formulation_name == "ggl":
         raise AnalysisError("formulation 'ggl': its index-2 start cannot be made consistent "
@@ -250,9 +252,17 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
             if closed:
                 variant = copy.copy(mechanism)
                 variant.joints = dict(mechanism.joints)
+                variant.forces = dict(mechanism.forces)
                 for i in sorted(closed):
                     joint = closure(mechanism, *gaps.rows[i])
                     variant.joints[joint.name] = joint
+                for i in range(n_gaps):  # closed, sliding frictional contacts: −μ N σ
+                    row = gaps.rows[i][0]
+                    if isinstance(row, SlideRow) and row.gap_row in closed and \
+                            i not in closed:
+                        slide = ContactSlide(f"{row.name}.slide", row.contact,
+                                             closure(mechanism, *gaps.rows[row.gap_row]).name)
+                        variant.forces[slide.name] = slide
                 sim = simulator_factory(variant)
                 labels = [str(lab) for lab in sim.model.constraint_labels]
                 rows = [labels.index(f"joint '{closure(mechanism, *gaps.rows[i]).name}' "
@@ -289,8 +299,9 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
     events: list[dict] = []
 
     def settle(i, q_s, v_s, t_s, closed_s):
-        """A sliding joint at zero speed (or at the start): stuck if the friction that holds
-        it stays within F_c, else sliding in the direction the other forces push."""
+        """A sliding joint or contact at zero speed (or at the start, or a contact just
+        closed): stuck if the friction that holds it stays within its level (F_c, or μ N),
+        else sliding in the direction the other forces push."""
         row = gaps.rows[i][0]
         p[pnames.index(row.stuck_at)] = 0.0
         p[pnames.index(row.stuck_at)] = float(gaps.positions(q_s, v_s, t_s, p)[i])
@@ -299,15 +310,37 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
         v_p = project(stuck.sim.model, gaps, trial, q_s, v_s, t_s, p)
         p[pnames.index(row.sign)] = 0.0
         use(stuck)
-        lam = float(stuck.multipliers(q_s, v_p, t_s)[sorted(trial).index(i)])
-        if abs(lam) <= row.level:
+        lams = dict(zip(sorted(trial), stuck.multipliers(q_s, v_p, t_s), strict=True))
+        lam = float(lams[i])
+        if gaps.closed_value(i, lams) >= 0.0:
             events.append({"time": float(t_s), "element": row.name, "kind": "stick"})
             return v_p, trial
         p[pnames.index(row.sign)] = float(np.sign(lam))
         events.append({"time": float(t_s), "element": row.name, "kind": "slip"})
         return v_p, closed_s
 
-    for i in [i for i in range(n_gaps) if gaps.stick[i]]:  # the start of stick-slip joints
+    def engage(q_s, v_s, t_s, closed_s):
+        """Slide rows of frictional contacts that just closed: stick or slide; of contacts
+        that opened: released (σ = 0)."""
+        for i in range(n_gaps):
+            row = gaps.rows[i][0]
+            if not isinstance(row, SlideRow):
+                continue
+            if row.gap_row not in closed_s:
+                closed_s = closed_s - {i}
+                p[pnames.index(row.sign)] = 0.0
+            elif i not in closed_s and p[pnames.index(row.sign)] == 0.0:
+                p[pnames.index(row.sign)] = 1.0
+                rate = float(gaps(q_s, v_s, t_s, p)[0][i])
+                if abs(rate) > 1e-12:
+                    p[pnames.index(row.sign)] = float(np.sign(rate))
+                    events.append({"time": float(t_s), "element": row.name, "kind": "slip"})
+                else:
+                    v_s, closed_s = settle(i, q_s, v_s, t_s, closed_s)
+        return v_s, closed_s
+
+    for i in [i for i in range(n_gaps) if gaps.stick[i] and
+              not isinstance(gaps.rows[i][0], SlideRow)]:  # the start of stick-slip joints
         row = gaps.rows[i][0]
         p[pnames.index(row.sign)] = 1.0
         rate = float(gaps(x[:nq], x[nq:], t_start, p)[0][i])
@@ -344,13 +377,14 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
             x_b, z_b = window[float(t_b)]
             q_b, v_b = x_b[:nq], x_b[nq:]
             g_b, _, _ = gaps(q_b, v_b, t_b, p)
-            open_hit = [i for i in range(n_gaps) if i not in closed and g_b[i] < -1e-13]
+            open_hit = [i for i in range(n_gaps) if i not in closed and
+                        gaps.active(i, closed) and g_b[i] < -1e-13]
             lam_b = phase.multipliers(q_b, v_b, t_b) if closed else np.zeros(0)
             order = sorted(closed)
+            lams_b = dict(zip(order, lam_b, strict=True))
             # contact force along +∇g is −λ (Q_c = −C_qᵀ λ): detach when −λ < 0; a stuck
-            # joint slips when |λ| > F_c
-            pulls = [order[m] for m in range(len(order))
-                     if gaps.closed_value(order[m], lam_b[m]) < 0.0]
+            # joint slips when |λ| > F_c, a stuck contact when |λ| > μ N
+            pulls = [i for i in order if gaps.closed_value(i, lams_b) < 0.0]
             if not open_hit and not pulls:
                 x, z, t = x_b, z_b, t_b
                 j += 1
@@ -367,15 +401,16 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
                     xt, _ = phase.advance(x_a, z_a, t_a, tau)
                     if is_detach:
                         lam = phase.multipliers(xt[:nq], xt[nq:], t_a + tau)
-                        return gaps.closed_value(i, float(lam[order.index(i)]))
+                        return gaps.closed_value(i, dict(zip(order, lam, strict=True)))
                     return float(gaps(xt[:nq], xt[nq:], t_a + tau, p)[0][i])
 
                 if is_detach:
                     lam_a = phase.multipliers(x_a[:nq], x_a[nq:], t_a)
-                    f_lo = max(gaps.closed_value(i, float(lam_a[order.index(i)])), 1e-300)
+                    f_lo = max(gaps.closed_value(i, dict(zip(order, lam_a, strict=True))),
+                               1e-300)
                 else:
                     f_lo = float(gaps(x_a[:nq], x_a[nq:], t_a, p)[0][i])
-                f_hi = gaps.closed_value(i, float(lam_b[order.index(i)])) if is_detach \
+                f_hi = gaps.closed_value(i, lams_b) if is_detach \
                     else float(g_b[i])
                 lo, hi = 0.0, h
                 if f_lo <= 1e-12 * (1.0 + abs(f_hi)):
@@ -437,6 +472,7 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
                 raise IntegratorError(f"more than {max_events} events by t = {t_ev:.6g} "
                                       "(raise max_events, or a rest_velocity)", t_ev,
                                       "MAX_EVENTS", None)
+            v_new, closed = engage(q_ev, v_new, t_ev, closed)
             phase = use(phase_of(closed))
             x = np.concatenate([q_ev, v_new])
             z = phase.z0(q_ev, v_new, t_ev)
@@ -465,12 +501,12 @@ def _assemble_result(base, phase_of, gaps, grid, qs, vs, samples, events, second
     forces = np.zeros((len(grid), n_gaps))
     base_labels = [str(lab) for lab in base.model.constraint_labels]
     groups: dict[tuple, list[int]] = {}
+    pnames = list(base.model.parameter_names)
     for k, (_, _, closed, pk) in enumerate(samples):
-        for i in range(n_gaps):  # sliding stick-slip joints: −F_c σ
-            if gaps.stick[i] and i not in closed:
-                row = gaps.rows[i][0]
-                forces[k, i] = -row.level * pk[list(base.model.parameter_names).index(
-                    row.sign)]
+        for i in range(n_gaps):  # sliding stick-slip joints: −F_c σ (contacts: below)
+            row = gaps.rows[i][0]
+            if gaps.stick[i] and i not in closed and not isinstance(row, SlideRow):
+                forces[k, i] = -row.level * pk[pnames.index(row.sign)]
         if closed or not np.array_equal(pk, default):
             groups.setdefault((closed, tuple(pk)), []).append(k)
     for (closed, pk), idx in groups.items():
@@ -492,6 +528,11 @@ def _assemble_result(base, phase_of, gaps, grid, qs, vs, samples, events, second
             result.arrays["joint_reactions"][idx] = reac[:, :width]
         for m, i in enumerate(sorted(closed)):
             forces[idx, i] = -lam[:, phase.closure_rows[m]]
+    for k, (_, _, closed, pk) in enumerate(samples):  # sliding contacts: −μ N σ
+        for i in range(n_gaps):
+            row = gaps.rows[i][0]
+            if isinstance(row, SlideRow) and i not in closed and row.gap_row in closed:
+                forces[k, i] = -row.mu * forces[k, row.gap_row] * pk[pnames.index(row.sign)]
     result.arrays["contact_forces"] = forces
     result.names["contacts"] = [gaps.label(i) for i in range(n_gaps)]
     result.events = events

@@ -39,6 +39,7 @@ from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, CasmbdError, IntegratorError, UnknownMethodError
 from casmbd.interrupts import reraise_interrupt
 from casmbd.limits import check_steps, output_values
+from casmbd.model.contacts import slides
 from casmbd.results import Result
 from casmbd.system.equations import System
 from casmbd.system.formulations import (
@@ -501,6 +502,8 @@ def simulate(mechanism, t_end: float, steps: int, *, formulation: str | None = N
     if isinstance(steps, (int, np.integer)) and steps >= 1:  # before anything is built
         check_steps("simulation", int(steps), output_values(mechanism))
     if has_events(mechanism):  # impacts, contact and detach: phase by phase
+        if formulation is None and any(slides(c) for c in mechanism.contacts.values()):
+            formulation = "index1"  # sliding contacts: friction μ N from the multipliers
         if projection or step is not None:
             raise AnalysisError("contacts and joint limits of the impact model run with the "
                                 "variable-step event-driven integrator: no 'projection' or "

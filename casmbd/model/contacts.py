@@ -28,6 +28,7 @@ the context and the analyses handle events (layers point one way).
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from typing import ClassVar
 
@@ -238,6 +239,90 @@ class JointLimit(Unilateral):
     @property
     def bodies(self) -> tuple[str, ...]:
         return ()
+
+
+def slide_parameters(name: str) -> tuple[str, str]:
+    """The parameters of a closed frictional plane contact (plane scenes): its sliding
+    direction σ (±1, 0 stuck) and the tangential position at which it sticks."""
+    ident = re.sub(r"\W", "_", name)
+    return f"{ident}_slide_sign", f"{ident}_stuck_at"
+
+
+def slides(element) -> bool:
+    """True for a plane contact with friction whose closed phases carry Coulomb friction:
+    sliding (−μ N σ) or stuck (its tangential position held) — planar scenes."""
+    return (isinstance(element, PlaneContact) and element.model == "impact"
+            and element.friction > 0.0 and element.dimension == 2)
+
+
+def tangential_position(element: PlaneContact, ctx) -> ca.SX:
+    """s(q) with ṡ the tangential velocity of the touching material point (plane):
+    s = t·r_c + r θ (t = tangents(n)[0]; a point contact: t·r_c)."""
+    t = ca.DM(tangents(element.normal)[0])
+    s = ca.dot(t, element.centre(ctx))
+    return s + element.radius * ctx.angle(element.body) if element.radius else s
+
+
+class TangentClosure(Joint):
+    """A stuck frictional plane contact: s(q) − s_stuck = 0 (:func:`tangential_position`,
+    s_stuck a parameter); its multiplier is the friction force that holds it.  Not a scene
+    kind: made by :mod:`casmbd.analysis.events` for the phases in which the contact sticks."""
+
+    def __init__(self, element: PlaneContact):
+        self.name = f"{element.name}.stick"
+        self.body1, self.body2 = GROUND, element.body
+        self.element = element
+        self.labels = ("gap",)
+        self.coordinate_names = ()
+
+    dimensions: ClassVar[tuple[int, ...]] = (2,)
+    drawing: ClassVar[str] = "none"
+
+    def equations(self, ctx) -> ca.SX:
+        return tangential_position(self.element, ctx) - ctx.p[slide_parameters(
+            self.element.name)[1]]
+
+    def reaction_point(self):
+        return None
+
+
+@register_force
+@dataclass
+class ContactSlide(ForceElement):
+    """Coulomb friction of a closed, sliding plane contact: −μ N σ along the tangential
+    velocity v_t of the touching point, N the contact's normal force — the multiplier of its
+    closure ``closure`` (reaction-proportional: the symbol N of :mod:`casmbd.system.forces`,
+    solved with λ by the DAE formulations) — and σ = ±1 the sliding direction (a parameter set
+    per phase by the event-driven integrator).  Not a scene kind."""
+
+    name: str
+    contact: PlaneContact = None
+    closure: str = ""
+
+    kind = "contact_slide"
+    scene_keys = None
+
+    @classmethod
+    def create(cls, mech, name, contact, closure):
+        return cls(name, contact, closure)
+
+    def reaction_joint(self) -> str:
+        return self.closure
+
+    def terms(self, kit, ctx):
+        base = kit.ctx
+        vt = ca.jtimes(tangential_position(self.contact, base), base.q, base.v)
+        sign = kit.value(slide_parameters(self.contact.name)[0],
+                         f"contact '{self.contact.name}' field 'friction'")
+        force = -self.contact.friction * kit.normal(self.name) * sign
+        return [kit.term("generalized", None, ca.jacobian(vt, base.v).T * force, None,
+                         self.name)]
+
+    def report_names(self, dimension):
+        return ()
+
+    def energy_exchange(self) -> str | None:
+        return "damper"
 
 
 class GapClosure(Joint):

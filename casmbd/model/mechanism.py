@@ -21,7 +21,14 @@ import numpy as np
 from casmbd.errors import ModelError
 from casmbd.limits import MAX_BODIES, MAX_ELEMENTS, check_count
 from casmbd.model.bodies import GROUND, Body, Marker, SpatialBody, check_inertia, vector
-from casmbd.model.contacts import JointLimit, PlaneContact, SphereContact, Unilateral
+from casmbd.model.contacts import (
+    JointLimit,
+    PlaneContact,
+    SphereContact,
+    Unilateral,
+    slide_parameters,
+    slides,
+)
 from casmbd.model.drivers import BODY_COORDINATES, Driver
 from casmbd.model.flexible_bodies import NodeFrame, is_flexible, node_attachment
 from casmbd.model.forces import (
@@ -470,6 +477,9 @@ class Mechanism:
         elif compliant:
             raise ModelError(f"contact '{element.name}': {', '.join(compliant)} apply to "
                              "model = 'compliant'")
+        if slides(element):  # its closed phases: sliding sign and stuck position
+            for param in slide_parameters(element.name):
+                self.add_parameter(param, 0.0)
         self.contacts[element.name] = element
         return element
 
