@@ -478,6 +478,8 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
             z = phase.z0(q_ev, v_new, t_ev)
             t = t_ev
             window = {}
+            if abs(t_ev - samples[-1][0]) <= tol_t * (1 + abs(t_ev)):  # at an output time:
+                samples[-1] = (samples[-1][0], x.copy(), closed, p.copy())  # the state after
         samples.append((t, x.copy(), closed, p.copy()))
     qs = np.array([s[1][:nq] for s in samples])
     vs = np.array([s[1][nq:] for s in samples])
