@@ -64,6 +64,12 @@ class Index1(FormulationKind):
     layout = "x = (q, v), z = (q̈, λ)"
     default_integrator = "idas"
 
+    def preferred_for(self, system: System) -> bool:
+        """The default where friction follows the joint reactions (Adams-style μ |R|): its
+        level is a function of λ, which the index-1 DAE has as algebraic variables (the ODE
+        formulations refuse it)."""
+        return bool(system.friction_normal_symbols)
+
     def equations(self, system: System, inputs: ca.SX | None = None,
                   **options) -> Formulation:
         return index1(system, inputs=inputs, **options)
