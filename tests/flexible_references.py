@@ -367,3 +367,52 @@ def corotational_cantilever(load: float, *, elements: int = 20, length: float = 
         else:
             raise RuntimeError(f"co-rotational cantilever: Newton did not converge at P={load}")
     return float(q[-2]), float(length - q[-3]), float(q[-1])
+
+
+def spinup_scene(omega: float = 2.0, *, elements: int = 6, modes: int = 3,
+                 stiffening: bool = False, gravity: float = 0.0, hub: bool = True) -> str:
+    """The spin-up beam of :data:`KANE_BEAM` as a casmbd scene (the system under test, for the
+    tests that run it): a flexible beam (Craig–Bampton, reference node ``root``) on a driven
+    hub revolute at its root with the hub angle of :func:`hub_angle`; ``hub=False`` leaves the
+    beam free (no joint, no driver)."""
+    b = KANE_BEAM
+    text = f"""
+[scene]
+name = "spinup"
+dimension = 2
+gravity = [0.0, {gravity}]
+[parameters]
+Omega = {omega}
+Ts = {b['Ts']}
+[[bodies]]
+name = "beam"
+type = "flexible"
+position = [0.0, 0.0]
+modes = {modes}
+reduction = "craig_bampton"
+interfaces = ["root"]
+stiffening = {str(stiffening).lower()}
+[bodies.beam]
+length = {b['length']}
+elements = {elements}
+EI = {b['EI']}
+EA = {b['EA']}
+rhoA = {b['rhoA']}
+nodes = {{ root = 0.0, tip = {b['length']} }}
+"""
+    if not hub:
+        return text
+    return text + """
+[[joints]]
+name = "hub"
+type = "revolute"
+body1 = "ground"
+body2 = "beam"
+node2 = "root"
+point = [0.0, 0.0]
+[[drivers]]
+name = "spin"
+joint = "hub"
+position = "(Omega/Ts)*(min(t,Ts)**2/2 + (Ts/(2*pi))**2*(cos(2*pi*min(t,Ts)/Ts) - 1))\
+ + Omega*max(t - Ts, 0)"
+"""

@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from conftest import private_cache
+from flexible_references import spinup_scene
 
 import casmbd
 from casmbd.system import System
@@ -22,48 +23,10 @@ from casmbd.system.formulations.base import FORMULATIONS
 
 _cache = private_cache(CASMBD_COMPILE="0")
 
-SPIN = """
-[scene]
-name = "spin"
-dimension = 2
-gravity = [0.0, {g}]
-[parameters]
-Omega = 2.0
-Ts = 15.0
-[[bodies]]
-name = "beam"
-type = "flexible"
-position = [0.0, 0.0]
-modes = 3
-reduction = "craig_bampton"
-interfaces = ["root"]
-[bodies.beam]
-length = 10.0
-elements = 6
-EI = 1.4e4
-EA = 2.8e7
-rhoA = 1.2
-nodes = {{ root = 0.0, tip = 10.0 }}
-"""
-HUB = """
-[[joints]]
-name = "hub"
-type = "revolute"
-body1 = "ground"
-body2 = "beam"
-node2 = "root"
-point = [0.0, 0.0]
-[[drivers]]
-name = "spin"
-joint = "hub"
-position = "(Omega/Ts)*(min(t,Ts)**2/2 + (Ts/(2*pi))**2*(cos(2*pi*min(t,Ts)/Ts) - 1))"
-"""
-
-
 def test_natural_coordinates_move_like_absolute():
     tips = {}
     for coords in ("absolute", "natural"):
-        mech = casmbd.loads_scene(SPIN.format(g=0.0) + HUB)
+        mech = casmbd.loads_scene(spinup_scene())
         mech.coordinates = coords
         res = casmbd.simulate(mech, 3.0, 30, rtol=1e-10, atol=1e-12)
         assert res.stats["coordinates"] == coords
@@ -73,7 +36,7 @@ def test_natural_coordinates_move_like_absolute():
 
 
 def test_velocity_is_the_frame_origins():
-    mech = casmbd.loads_scene(SPIN.format(g=0.0))
+    mech = casmbd.loads_scene(spinup_scene(hub=False))
     body = mech.bodies["beam"]
     body.velocity, body.angular_velocity = np.array([0.3, -0.2]), 0.7
     assert np.allclose(System(mech, "absolute").initial_velocities()[:4],
@@ -83,7 +46,7 @@ def test_velocity_is_the_frame_origins():
 
 
 def test_joint_coordinates_are_refused_by_name():
-    mech = casmbd.loads_scene(SPIN.format(g=0.0) + HUB)
+    mech = casmbd.loads_scene(spinup_scene())
     with pytest.raises(casmbd.ModelError, match=r"body 'beam' \(flexible\): joint coordinates"):
         System(mech, "joint")
     assert "flexible bodies (beam)" in System(mech).coordinate_reason
@@ -93,7 +56,7 @@ def test_joint_coordinates_are_refused_by_name():
 def test_free_fall_is_exact(name):
     """No constraint: the formulation solves M alone (augmented_lagrangian delegates to
     kkt_ode then); a tilted free beam falls at g without deforming."""
-    system = System(casmbd.loads_scene(SPIN.format(g=-9.81).replace(
+    system = System(casmbd.loads_scene(spinup_scene(gravity=-9.81, hub=False).replace(
         'position = [0.0, 0.0]', 'position = [0.0, 0.0]\nangle = 0.4')))
     assert system.nc == 0
     rhs = FORMULATIONS[name].build(system).function
