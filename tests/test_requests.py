@@ -16,6 +16,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy.optimize import brentq
 
 import casmbd
 from casmbd.cli import main
@@ -239,3 +240,43 @@ def test_python_api_requests() -> None:
     res = casmbd.simulate(mech, 0.2, 4)
     _, y, th = res["q"].T
     np.testing.assert_allclose(res.output("height"), y + 0.5 * np.sin(th), atol=1e-12)
+
+
+def test_statics_reports_requests_and_forces():
+    """Statics reports the requests and force reports at the equilibrium (JSON "outputs" and
+    "forces"): a rod (m = 1, L = 1) pinned at an end with a torsional spring k = 20 N m/rad
+    rests where k θ = −m g (L/2) cos θ."""
+    scene = """
+[scene]
+name = "rod_spring"
+gravity = [0.0, -9.81]
+[[bodies]]
+name = "rod"
+mass = 1.0
+inertia = 0.0833333333333333
+position = [0.5, 0.0]
+[[joints]]
+name = "pin"
+type = "revolute"
+body1 = "ground"
+body2 = "rod"
+point = [0.0, 0.0]
+[[forces]]
+name = "spring"
+type = "rotational_spring_damper"
+joint = "pin"
+stiffness = 20.0
+[[outputs]]
+name = "tip_height"
+value = 'y("tip")'
+[[markers]]
+name = "tip"
+body = "rod"
+point = [1.0, 0.0]
+"""
+    theta = brentq(lambda th: 20.0 * th + 9.81 * 0.5 * math.cos(th), -1.5, 0.0)
+    data = casmbd.static_equilibrium(casmbd.loads_scene(scene)).to_json()
+    assert data["outputs"]["tip_height"] == pytest.approx(math.sin(theta), abs=1e-10)
+    assert data["forces"]["spring"]["angle"] == pytest.approx(theta, abs=1e-10)
+    # the reported moment resists an increase of the angle: k θ
+    assert data["forces"]["spring"]["moment"] == pytest.approx(20.0 * theta, abs=1e-9)

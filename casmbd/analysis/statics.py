@@ -73,6 +73,7 @@ from casmbd.analysis.stability import STABILITY_RTOL, Stability, classify_stabil
 from casmbd.analysis.trust_region import RANK_RTOL, trust_region_step
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, AssemblyError
+from casmbd.model.measures import result_names
 from casmbd.system.descriptions import SpatialNatural, quaternions_from_matrices
 from casmbd.system.equations import System
 
@@ -140,6 +141,9 @@ class StaticsResult:
     body_quaternions: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
     joint_coordinates: np.ndarray = field(default_factory=lambda: np.zeros(0))
     marker_positions: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    #: requests and force-element reports at the equilibrium ("outputs": name -> value,
+    #: "forces": element -> quantity -> value), as in the JSON of the grid analyses
+    reports: dict = field(default_factory=dict)
     #: closed contacts and stops: name -> {"normal_force", "gap"}
     #: (:func:`casmbd.analysis.resting.resting_equilibrium`)
     contacts: dict = field(default_factory=dict)
@@ -177,7 +181,8 @@ class StaticsResult:
                 "eigenvalues": [float(x) for x in self.eigenvalues], "method": self.method,
                 "potential_energy": float(self.potential_energy), "stats": dict(self.stats),
                 "stability": self.stability.to_json() if self.stability else None,
-                **({"contacts": self.contacts} if self.contacts else {})}
+                **({"contacts": self.contacts} if self.contacts else {}),
+                **self.reports}
 
 
 def statics_functions(system) -> list[ca.Function]:
@@ -397,7 +402,27 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
         body_angles=np.array([_wrap(a) for a in np.ravel(out["angle_positions"][0])])
         if model.dimension == 2 else np.zeros(0), body_quaternions=quats,
         joint_coordinates=joint_coordinates, stats=stats, stability=stability,
-        marker_positions=np.reshape(out["marker_positions"][0], (-1, model.dimension)))
+        marker_positions=np.reshape(out["marker_positions"][0], (-1, model.dimension)),
+        reports=_reports(mech, out))
+
+
+def _reports(mech, out: dict) -> dict:
+    """Requests (``outputs``) and force reports (``forces``) at the equilibrium, from the
+    outputs Function's groups (:mod:`casmbd.system.requests`)."""
+    names = result_names(mech)
+    reports: dict = {}
+    if "outputs" in out:
+        values = np.ravel(out["outputs"][0])
+        reports["outputs"] = {n: float(v) for n, v in zip(names["outputs"], values,
+                                                            strict=True)}
+    if "force_outputs" in out:
+        forces: dict = {}
+        values = np.ravel(out["force_outputs"][0])
+        for label, v in zip(names["force_outputs"], values, strict=True):
+            element, _, quantity = label.rpartition(".")
+            forces.setdefault(element, {})[quantity] = float(v)
+        reports["forces"] = forces
+    return reports
 
 
 def _converged(prob: _Problem, f: np.ndarray, fscale: float, lscale: float) -> bool:
