@@ -49,6 +49,7 @@ import numpy as np
 from casmbd.analysis import integrators as integ
 from casmbd.analysis.event_rows import EventRows, SlideRow, StickRow, closure
 from casmbd.analysis.impulses import impact, project
+from casmbd.analysis.joint_friction import has_reaction_friction
 from casmbd.analysis.kkt import accelerations_and_multipliers, consistent_state
 from casmbd.errors import AnalysisError, IntegratorError
 from casmbd.model.contacts import ContactSlide, slides
@@ -126,6 +127,7 @@ class _Phase:
         self._scaled = _scaled(sim.dyn)
         self.name, self.rtol, self.atol, self.max_steps = name, rtol, atol, max_steps
         self._many: dict[tuple, object] = {}
+        self._mapped: bool | None = None  # the post-processing serves λ (no N-friction)
         self.integrator = integ.sundials(self._scaled, name, 0.0, [1.0], rtol, atol,
                                          max_steps)
         #: integrator steps and right-hand sides over every call (root finding included)
@@ -158,6 +160,35 @@ class _Phase:
         self.steps += int(st.get("nsteps", 0))
         self.rhs_evaluations += int(st.get("nfevals", 0))
         return np.asarray(r["xf"], float).ravel(), np.asarray(r["zf"], float).ravel()
+
+    def multipliers_many(self, qs: np.ndarray, vs: np.ndarray, ts: np.ndarray) -> np.ndarray:
+        """λ of the closure rows at many states (rows), by the formulation's compiled
+        post-processing mapped over them (one call per window); a state whose KKT residual
+        is not small (a singular pose) and a mechanism whose friction follows the reactions
+        take the exact per-state solve."""
+        n = len(ts)
+        if not self.closure_rows:
+            return np.zeros((n, 0))
+        model = self.sim.model
+        if self._mapped is None:
+            self._mapped = not has_reaction_friction(model)
+        if self._mapped:
+            p_all = np.tile(model.p[:, None], (1, n))
+            post = model.function("post").map(n)(qs.T, vs.T, ts[None, :], p_all)
+            acc = np.asarray(post[0], float).T
+            lam = np.asarray(post[1], float).T.reshape(n, -1)
+            residual = np.asarray(post[2], float).ravel()
+            scale = 1.0 + np.max(np.abs(np.concatenate([acc, lam], axis=1)), axis=1,
+                                 initial=0.0)
+            bad = ~np.isfinite(residual) | (residual > 1e-8 * scale) | \
+                ~np.all(np.isfinite(lam), axis=1)
+        else:
+            lam = np.zeros((n, model.nc))
+            bad = np.ones(n, dtype=bool)
+        for k in np.flatnonzero(bad):
+            lam[k] = accelerations_and_multipliers(model, qs[k], vs[k], ts[k],
+                                                   self.sim.inputs_at(ts[k]))[1]
+        return lam[:, self.closure_rows]
 
     def multipliers(self, q, v, t):
         """λ of the closure rows (the closed gaps' constraint multipliers)."""
@@ -373,13 +404,13 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
                 first = int(np.searchsorted(sub_all, t_b - 0.5 * tol_t * (1 + abs(t_b))))
                 times = sub_all[first:first + WINDOW]
                 xs_w, zs_w = phase.advance_many(x, z, t, times)
-                window = {float(tk): (xs_w[m], zs_w[m]) for m, tk in enumerate(times)}
-            x_b, z_b = window[float(t_b)]
-            q_b, v_b = x_b[:nq], x_b[nq:]
-            g_b, _, _ = gaps(q_b, v_b, t_b, p)
+                g_w = gaps.values_many(xs_w[:, :nq], xs_w[:, nq:], times, p)
+                lam_w = phase.multipliers_many(xs_w[:, :nq], xs_w[:, nq:], times)
+                window = {float(tk): (xs_w[m], zs_w[m], g_w[m], lam_w[m])
+                          for m, tk in enumerate(times)}
+            x_b, z_b, g_b, lam_b = window[float(t_b)]
             open_hit = [i for i in range(n_gaps) if i not in closed and
                         gaps.active(i, closed) and g_b[i] < -1e-13]
-            lam_b = phase.multipliers(q_b, v_b, t_b) if closed else np.zeros(0)
             order = sorted(closed)
             lams_b = dict(zip(order, lam_b, strict=True))
             # contact force along +∇g is −λ (Q_c = −C_qᵀ λ): detach when −λ < 0; a stuck
