@@ -24,12 +24,14 @@ from casmbd.results import Result
 from casmbd.system.formulations import FORMULATIONS, default_formulation
 
 
-def _model(mechanism_or_model, analysis: str, mode: str) -> NumericModel:
-    """The numeric model of a mechanism (its flexible bodies rigidified: kinematics prescribes
-    the rigid motion, :func:`casmbd.model.flexible_bodies.rigidified`) or the model given."""
+def _model(mechanism_or_model, analysis: str, mode: str, rigid: bool = True) -> NumericModel:
+    """The numeric model of a mechanism (with ``rigid``, its flexible bodies rigidified:
+    kinematics prescribes the rigid motion, :func:`casmbd.model.flexible_bodies.rigidified`)
+    or the model given."""
     if isinstance(mechanism_or_model, NumericModel):
         return mechanism_or_model
-    return NumericModel(rigidified(mechanism_or_model), analysis, mode=mode)
+    mech = rigidified(mechanism_or_model) if rigid else mechanism_or_model
+    return NumericModel(mech, analysis, mode=mode)
 
 
 def check_result_size(mechanism_or_model, steps: int, what: str) -> None:
@@ -81,7 +83,8 @@ def info(mechanism_or_model, mode: str = "auto") -> dict:
     ``mode="auto"`` runs C and C_q on CasADi's virtual machine: info evaluates them a handful
     of times, and compiling them costs far more (25 s for a 500-body chain) than it saves.
     """
-    model = _model(mechanism_or_model, "info", "vm" if mode == "auto" else mode)
+    # the mechanism as it moves: a flexible body's modes are degrees of freedom here
+    model = _model(mechanism_or_model, "info", "vm" if mode == "auto" else mode, rigid=False)
     mech = model.mechanism
     q = model.initial_coordinates()
     out: dict = {"name": mech.name, "dimension": mech.dimension}
