@@ -151,14 +151,18 @@ class _Drawing:
         clouds += list(self.traces.values())
         if self.geo.ground:
             clouds.append(np.array([p for _, p in self.geo.ground]))
+        clouds += [np.atleast_2d(point) for point, _ in self.geo.guides]  # a contact's plane
         allp = np.concatenate([c.reshape(-1, self.dim) for c in clouds])
         allp = allp[np.all(np.isfinite(allp), axis=1)]
         lo, hi = allp.min(axis=0), allp.max(axis=0)
         half = 0.5 * max(float(np.max(hi - lo)), 1e-3) * 1.08
         mid = 0.5 * (lo + hi)
         if self.dim == 2:  # keep the plane's own extents, equal aspect does the rest
-            pad = 0.08 * max(float(np.max(hi - lo)), 1e-3)
-            self.lo, self.hi = lo - pad, hi + pad
+            span = max(float(np.max(hi - lo)), 1e-3)
+            pad = 0.08 * span
+            # no sliver: each extent at least half the other (a ball bouncing straight up)
+            widen = np.maximum(0.5 * span - (hi - lo), 0.0) / 2
+            self.lo, self.hi = lo - pad - widen, hi + pad + widen
         else:
             self.lo, self.hi = mid - half, mid + half
         self._restore_limits()

@@ -39,6 +39,7 @@ import numpy as np
 from casmbd.errors import AnalysisError, CasmbdError
 from casmbd.io import scene as _scene  # noqa: F401  (registers the reader of Result.mechanism)
 from casmbd.model.bodies import GROUND
+from casmbd.model.contacts import PlaneContact, tangents
 from casmbd.model.flexible_bodies import is_flexible, node_attachment
 
 
@@ -193,6 +194,13 @@ class Geometry:
                                   local(b2, force.point2), "spring"))
                 attach(b1, f"force:{name}", force.point1)
                 attach(b2, f"force:{name}", force.point2)
+        for name, contact in getattr(mechanism, "contacts", {}).items():
+            # a plane contact: its sphere's centre on the body, the plane as a guide line
+            if isinstance(contact, PlaneContact):
+                attach(contact.body, f"contact:{name}", contact.point)
+                if geo.dimension == 2:
+                    geo.guides.append((np.asarray(contact.origin, float),
+                                       tangents(contact.normal)[0]))
         for body, pts in geo.points.items():
             geo.outline[body] = [] if body in geo.flexible else _outline([u for _, u in pts])
         return geo
