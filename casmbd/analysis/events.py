@@ -128,6 +128,7 @@ class _Phase:
         self.name, self.rtol, self.atol, self.max_steps = name, rtol, atol, max_steps
         self._many: dict[tuple, object] = {}
         self._mapped: bool | None = None  # the post-processing serves λ (no N-friction)
+        self._post_maps: dict[int, ca.Function] = {}
         self.integrator = integ.sundials(self._scaled, name, 0.0, [1.0], rtol, atol,
                                          max_steps)
         #: integrator steps and right-hand sides over every call (root finding included)
@@ -174,7 +175,9 @@ class _Phase:
             self._mapped = not has_reaction_friction(model)
         if self._mapped:
             p_all = np.tile(model.p[:, None], (1, n))
-            post = model.function("post").map(n)(qs.T, vs.T, ts[None, :], p_all)
+            if n not in self._post_maps:  # one mapped Function per window size, built once
+                self._post_maps[n] = model.function("post").map(n)
+            post = self._post_maps[n](qs.T, vs.T, ts[None, :], p_all)
             acc = np.asarray(post[0], float).T
             lam = np.asarray(post[1], float).T.reshape(n, -1)
             residual = np.asarray(post[2], float).ravel()
