@@ -26,6 +26,7 @@ import statistics
 import tempfile
 from pathlib import Path
 
+import casadi as ca
 import numpy as np
 
 import casmbd
@@ -130,7 +131,7 @@ def measure(repeat: int = 3) -> dict:
                          "events": len(res.events), "steps": res.stats.get("steps", 0),
                          "formulation": res.stats.get("formulation"),
                          "integrator": res.stats.get("integrator")})
-    return {"rows": rows, "repeat": repeat, "casadi": __import__("casadi").__version__}
+    return {"rows": rows, "repeat": repeat, "casadi": ca.__version__}
 
 
 def markdown(data: dict) -> str:
