@@ -86,6 +86,26 @@ class AnalysisError(CasmbdError):
     """An analysis cannot run on this mechanism (e.g. kinematics of an undriven mechanism)."""
 
 
+class CompositionError(AnalysisError):
+    """An element of the mechanism needs what the chosen analysis does not handle
+    (:func:`casmbd.model.needs.check`): raised before any work, naming the element, the
+    analysis, why, and what to use instead.
+
+    Attributes
+    ----------
+    analysis : str
+        The analysis as messages name it (``"inverse dynamics"``, ``"simulate with
+        formulation 'ggl'"``).
+    refused : list of (element, need)
+        Every element the analysis does not handle, with its need (:data:`NEEDS`).
+    """
+
+    def __init__(self, message: str, analysis: str = "", refused=()):
+        super().__init__(message)
+        self.analysis = analysis
+        self.refused = list(refused)
+
+
 class UnknownMethodError(AnalysisError):
     """A formulation or integrator name that is not registered; the message lists the
     registered names (``choices``), so that a typo is found without reading the source.

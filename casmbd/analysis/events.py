@@ -53,6 +53,7 @@ from casmbd.analysis.joint_friction import has_reaction_friction
 from casmbd.analysis.kkt import accelerations_and_multipliers, consistent_state
 from casmbd.errors import AnalysisError, IntegratorError
 from casmbd.model.contacts import ContactSlide, slides
+from casmbd.model.needs import EVENT_NEEDS, requirements
 from casmbd.results import Result
 from casmbd.system import System
 
@@ -69,8 +70,7 @@ REST_HEIGHT = 1e-9
 def has_events(mechanism) -> bool:
     """True when the mechanism has unilateral elements of the impact model or joint friction
     with the exact (stick-slip) Coulomb law."""
-    return any(c.model == "impact" for c in getattr(mechanism, "contacts", {}).values()) or \
-        any(getattr(f, "stick_slip", False) for f in mechanism.forces.values())
+    return any(r.need in EVENT_NEEDS for r in requirements(mechanism))
 
 
 def compliant_events(result: Result, mechanism) -> None:

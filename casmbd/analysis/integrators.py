@@ -37,6 +37,7 @@ from casmbd.compiled.codegen import compile_functions
 from casmbd.compiled.workspace import buffered
 from casmbd.errors import LimitError, ModelError, UnknownMethodError
 from casmbd.limits import MAX_FIXED_STEPS
+from casmbd.model.needs import ALL_NEEDS, EVENT_NEEDS
 
 
 def shifted(dyn: ca.Function) -> ca.Function:
@@ -367,6 +368,18 @@ class IntegratorKind:
         neither builds the symbolic formulation nor compiles again; none by default."""
         return []
 
+    @property
+    def handles(self) -> frozenset:
+        """The needs of elements (:mod:`casmbd.model.needs`) a run with this integrator
+        meets: all but the event-driven ones (root finding on gaps between impulses)."""
+        return ALL_NEEDS - EVENT_NEEDS
+
+    #: why it does not meet the event needs, and what to use instead
+    refuses = dict.fromkeys(EVENT_NEEDS, "the event-driven run uses a variable-step SUNDIALS "
+                            "integrator with root finding")
+    instead = dict.fromkeys(EVENT_NEEDS, "integrator 'idas', 'cvodes' or 'adams' (or the "
+                            "default)")
+
     def integrates(self, kind: str) -> bool:
         """Whether this integrator accepts a formulation of ``kind`` ("ode", "dae",
         "numeric": :attr:`casmbd.system.formulations.FormulationKind.kind`)."""
@@ -386,6 +399,11 @@ class SundialsKind(IntegratorKind):
 
     plugin: str = "cvodes"
     options: tuple = ()
+
+    @property
+    def handles(self) -> frozenset:
+        """Every need: SUNDIALS' root finding serves the event-driven run."""
+        return ALL_NEEDS
 
     def build(self, dyn: ca.Function, t0: float, tout, rtol: float, atol: float,
               max_steps: int, xdot0=None) -> ca.Function:

@@ -32,6 +32,7 @@ from casmbd.compiled.model import NEEDS, NumericModel
 from casmbd.errors import AnalysisError, ModelError, SingularConfigurationError
 from casmbd.interrupts import reraise_interrupt
 from casmbd.model.flexible_bodies import rigidified
+from casmbd.model.needs import ALL_NEEDS, EVENT_NEEDS, Handling, check
 from casmbd.results import Result
 
 
@@ -82,6 +83,23 @@ def _actuator_efforts(model, grid, qs, vs, acc) -> np.ndarray:
     return out, lam
 
 
+#: what inverse dynamics handles (casmbd.model.needs): no event-driven elements
+HANDLING = Handling(
+    "inverse dynamics", ALL_NEEDS - EVENT_NEEDS,
+    why={"events": "it prescribes the motion and does not solve for the impulses and "
+                   "forces of impact-model contacts and stops",
+         "contact_friction": "it prescribes the motion and does not solve for the forces of "
+                             "impact-model contacts",
+         "stick_slip": "the exact Coulomb law switches at events, which a prescribed motion "
+                       "does not have"},
+    instead={"events": "simulate with actuators, or model = 'compliant' (a force inverse "
+                       "dynamics includes)",
+             "contact_friction": "simulate, or model = 'compliant'",
+             "stick_slip": "the regularised law (stick_slip = false), or simulate"},
+    notes={"modal_coordinates": "flexible bodies move rigidly (η = 0)",
+           "reaction_forces": "λ and the friction levels by a fixed point at each time"})
+
+
 def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.0,
                      mode: str = "auto") -> Result:
     """Driver efforts and joint reactions along the motion prescribed by the drivers.
@@ -105,6 +123,7 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
     AnalysisError, RedundantConstraintError, AssemblyError, SingularConfigurationError
         As the kinematic analysis, and when C_qᵀ is singular at some time.
     """
+    check(mechanism_or_model, HANDLING)
     if isinstance(steps, (int, np.integer)) and steps >= 1:  # kinematics checks the rest
         check_result_size(mechanism_or_model, steps, "inverse dynamics")
     if isinstance(mechanism_or_model, NumericModel):

@@ -20,6 +20,7 @@ from casmbd.errors import AnalysisError, AssemblyError, CasmbdError, RedundantCo
 from casmbd.limits import check_steps, output_values
 from casmbd.model.flexible_bodies import rigidified
 from casmbd.model.measures import result_names
+from casmbd.model.needs import ALL_NEEDS, Handling, check
 from casmbd.results import Result
 from casmbd.system.formulations import FORMULATIONS, default_formulation
 
@@ -137,6 +138,19 @@ def default_path(system) -> dict:
             "default_integrator": kind.default_integrator, "integrator_reason": how}
 
 
+#: what the kinematic analysis handles (casmbd.model.needs): every need but impacts
+HANDLING = Handling(
+    "kinematics", ALL_NEEDS - {"events"},
+    why={"events": "it prescribes the motion by drivers and neither detects contact nor "
+                   "applies impacts"},
+    instead={"events": "simulate (the event-driven run), or model = 'compliant' (a force)"},
+    notes={"modal_coordinates": "flexible bodies move rigidly (η = 0)",
+           "reaction_forces": "forces do not enter the kinematic analysis",
+           "stick_slip": "forces do not enter the kinematic analysis",
+           "contact_friction": "forces do not enter the kinematic analysis",
+           "inputs": "forces do not enter the kinematic analysis"})
+
+
 def kinematics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.0,
                mode: str = "auto", tol: float = 1e-12) -> Result:
     """Positions, velocities and accelerations of a fully driven mechanism on a time grid.
@@ -167,6 +181,7 @@ def kinematics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.
         raise AnalysisError(f"steps must be an integer >= 1, got {steps!r}")
     if not (np.isfinite(t_end) and np.isfinite(t_start) and t_end > t_start):
         raise AnalysisError(f"t_end must be finite and > t_start = {t_start}, got {t_end!r}")
+    check(mechanism_or_model, HANDLING)
     check_result_size(mechanism_or_model, steps, "kinematics")
     model = _model(mechanism_or_model, "kinematics", mode)
     mech = model.mechanism

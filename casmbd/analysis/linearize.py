@@ -78,12 +78,15 @@ import scipy.linalg as sla
 
 from casmbd.analysis.assembly import assemble
 from casmbd.analysis.checks import check_start
+from casmbd.analysis.event_rows import EventRows
+from casmbd.analysis.events import has_events
 from casmbd.analysis.kkt import accelerations_and_multipliers, project_velocities
 from casmbd.analysis.redundancy import RANK_RTOL, null_space_basis
 from casmbd.analysis.stability import STABILITY_RTOL, Stability, classify_stability
 from casmbd.analysis.statics import STATICS_NEEDS, static_equilibrium, statics_functions
 from casmbd.compiled.model import NumericModel
-from casmbd.errors import AnalysisError, ModelError, SingularConfigurationError
+from casmbd.errors import AnalysisError, CompositionError, ModelError, SingularConfigurationError
+from casmbd.model.needs import ALL_NEEDS, Handling, check
 from casmbd.system.equations import System
 
 #: Functions the linearization needs besides its own Jacobians (assembly and the KKT system)
@@ -384,8 +387,49 @@ def _from_result(result, system: System, at_time, u):
                         "requested_time": float(at_time)}
 
 
+#: a gap at most this is closed [m or rad] (as statics' active set)
+CLOSED_GAP = 1e-9
+
+#: what linearization handles (casmbd.model.needs): no switching friction, no friction that
+#: follows the reactions; impact-model contacts and stops only where their gaps are open
+HANDLING = Handling(
+    "linearize", ALL_NEEDS - {"stick_slip", "contact_friction", "reaction_forces"},
+    why={"stick_slip": "the exact Coulomb law is not differentiable at the stick-slip switch",
+         "contact_friction": "Coulomb friction at a closed contact is not differentiable",
+         "reaction_forces": "it does not solve for the multipliers the friction level needs"},
+    instead={"stick_slip": "the regularised law (stick_slip = false)",
+             "contact_friction": "model = 'compliant' with friction",
+             "reaction_forces": "simulate with the formulation 'index1', or inverse dynamics"},
+    notes={"events": "gaps open at the operating point do not act on small motions; a gap "
+                     "closed there is refused by name",
+           "inputs": "B̄ maps the inputs"})
+
+
+def _closed_gaps(system: System, q: np.ndarray, v: np.ndarray, t: float, p) -> None:
+    """Refuse an operating point at which a gap of an impact-model element is closed (a
+    resting contact acts on small motions one-sidedly: no linear model exists)."""
+    elements = [c for c in system.mechanism.contacts.values() if c.model == "impact"]
+    if not elements:
+        return
+    rows = EventRows(system, elements)
+    gaps = rows(q, v, t, np.asarray(p, dtype=float))[0]
+    closed = [rows.label(k) for k in range(len(gaps)) if gaps[k] <= CLOSED_GAP]
+    if closed:
+        raise CompositionError(
+            f"linearize: {', '.join(closed)} closed at the operating point (gap <= "
+            f"{CLOSED_GAP:g}): a resting contact or stop acts one-sidedly, so no linear model "
+            "of the small motions exists; instead: model = 'compliant' (a force, linearized "
+            "with the rest), or an operating point with the gap open", "linearize",
+            [(label, "events") for label in closed])
+
+
 def _at_equilibrium(mechanism, system: System, t: float, mode: str):
     """(q, stats) of the static equilibrium found from the initial configuration."""
+    if has_events(system.mechanism):  # resting contacts: the active set of statics
+        eq = static_equilibrium(system.mechanism, t=t, mode=mode)
+        return eq.q, {"about": "equilibrium", "statics_iterations": int(eq.iterations),
+                      "statics_residual": float(eq.residual),
+                      "statics_verdict": eq.stability.verdict if eq.stability else None}
     statics = NumericModel(system, STATICS_NEEDS, mode=mode, extra=statics_functions(system))
     if isinstance(mechanism, NumericModel):
         statics.p[:] = mechanism.p
@@ -452,6 +496,7 @@ def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "au
     else:
         system = System(mechanism)
     t = float(t)
+    check(system.mechanism, HANDLING)
     about = {"about": "initial" if q is None and v is None else "state"}
     if at is not None:
         if q is not None or v is not None:
@@ -493,6 +538,7 @@ def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "au
         about["projection_dq"] = float(np.max(np.abs(q - q0), initial=0.0))
         about["projection_dv"] = float(np.max(np.abs(v - v0), initial=0.0))
     check_start(model, q, v, t, u, what="linearization")  # names a NaN's culprit
+    _closed_gaps(system, q, v, t, model.p)
     if model.nc:
         c = model.constraints(q, t)
         lengths = system.length_indices

@@ -41,6 +41,7 @@ from casmbd.analysis.simulate import Simulator, _input_expression
 from casmbd.errors import AnalysisError, IntegratorError
 from casmbd.interrupts import reraise_interrupt
 from casmbd.model.expressions import parse_expression
+from casmbd.model.needs import ALL_NEEDS, Handling, check
 from casmbd.system.quantities import identifier, quantities
 
 METHODS = ("forward", "adjoint")
@@ -135,6 +136,21 @@ def _split(spec: str) -> tuple[str, str]:
     return "final", text
 
 
+#: what sensitivities handle (casmbd.model.needs): impacts with the jump of the sensitivity
+#: at each event; no switching friction
+HANDLING = Handling(
+    "sensitivity", ALL_NEEDS - {"stick_slip", "contact_friction"},
+    why={"stick_slip": "the jump of the sensitivity at a stick-slip switch is not built",
+         "contact_friction": "the jump of the sensitivity at a slide-stick switch of a "
+                             "closed contact is not built"},
+    instead={"stick_slip": "finite differences of whole runs (casmbd sweep), or the "
+                           "regularised law (stick_slip = false)",
+             "contact_friction": "finite differences of whole runs (casmbd sweep), or "
+                                 "model = 'compliant'"},
+    notes={"events": "the sensitivity jumps at each impact (saltation matrix)",
+           "reaction_forces": "the index-1 DAE solves λ with the accelerations"})
+
+
 def sensitivity(mechanism, outputs: Sequence[str] | str, parameters: Sequence[str] | None = None,
                 t_end: float = 1.0, *, t_start: float = 0.0, method: str = "forward",
                 rtol: float = 1e-10, atol: float | None = None,
@@ -183,6 +199,7 @@ def sensitivity(mechanism, outputs: Sequence[str] | str, parameters: Sequence[st
     outputs = [outputs] if isinstance(outputs, str) else list(outputs)
     if not outputs:
         raise AnalysisError("sensitivity: no outputs given")
+    check(mechanism, HANDLING)
     t0 = time.perf_counter()
     sim = Simulator(mechanism, "index1", inputs=inputs)
     system, dsys = sim.system, sim._dyn_system

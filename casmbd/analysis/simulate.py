@@ -40,6 +40,7 @@ from casmbd.errors import AnalysisError, CasmbdError, IntegratorError, UnknownMe
 from casmbd.interrupts import reraise_interrupt
 from casmbd.limits import check_steps, output_values
 from casmbd.model.contacts import slides
+from casmbd.model.needs import ALL_NEEDS, EVENT_NEEDS, Handling, check
 from casmbd.results import Result
 from casmbd.system.equations import System
 from casmbd.system.formulations import (
@@ -463,6 +464,39 @@ def _check_drift(result: Result) -> None:
         warnings.warn(f"simulation: {text}", RuntimeWarning, stacklevel=3)
 
 
+#: what forward dynamics handles: every need, each formulation and integrator its own share
+#: (:func:`simulate_handling`)
+HANDLING = Handling("simulate", ALL_NEEDS)
+
+
+def simulate_handling(formulation: str | None = None, integrator: str | None = None,
+                      projection: bool = False, step: float | None = None) -> Handling:
+    """What a simulation with these options handles (:mod:`casmbd.model.needs`): the needs
+    that the named formulation (:attr:`FormulationKind.handles`) and integrator
+    (:attr:`IntegratorKind.handles`) both meet; projection and a fixed step leave out the
+    event-driven needs (the event-driven run is variable-step).  Unnamed choices are made
+    by the simulator among those that handle the mechanism."""
+    handling = HANDLING
+    if formulation is not None:
+        kind = formulation_kind(formulation)
+        handling = handling.restricted(f"simulate with formulation '{formulation}'",
+                                       kind.handles, kind.refuses, kind.instead)
+    if integrator is not None:
+        kind = integ.integrator_kind(integrator)
+        joined = " and" if formulation is not None else " with"
+        handling = handling.restricted(f"{handling.analysis}{joined} integrator '{integrator}'",
+                                       kind.handles, kind.refuses, kind.instead)
+    if projection or step is not None:
+        what = "projection" if projection else "a fixed 'step'"
+        handling = handling.restricted(
+            f"{handling.analysis} with {what}", ALL_NEEDS - EVENT_NEEDS,
+            dict.fromkeys(EVENT_NEEDS, "the event-driven run is variable-step and keeps the "
+                          "contact rows itself"),
+            dict.fromkeys(EVENT_NEEDS, "no 'projection' and no 'step' (or model = "
+                          "'compliant')"))
+    return handling
+
+
 def simulate(mechanism, t_end: float, steps: int, *, formulation: str | None = None,
              integrator: str | None = None, rtol: float = 1e-8, atol: float | None = None,
              t_start: float = 0.0, inputs: Mapping | None = None, projection: bool = False,
@@ -501,13 +535,10 @@ def simulate(mechanism, t_end: float, steps: int, *, formulation: str | None = N
     """
     if isinstance(steps, (int, np.integer)) and steps >= 1:  # before anything is built
         check_steps("simulation", int(steps), output_values(mechanism))
+    check(mechanism, simulate_handling(formulation, integrator, projection, step))
     if has_events(mechanism):  # impacts, contact and detach: phase by phase
         if formulation is None and any(slides(c) for c in mechanism.contacts.values()):
             formulation = "index1"  # sliding contacts: friction μ N from the multipliers
-        if projection or step is not None:
-            raise AnalysisError("contacts and joint limits of the impact model run with the "
-                                "variable-step event-driven integrator: no 'projection' or "
-                                "'step' (or use model = 'compliant')")
         return simulate_events(
             mechanism, t_end, steps, integrator=integrator, rtol=rtol, atol=atol,
             t_start=t_start, max_steps=max_steps,

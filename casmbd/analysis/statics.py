@@ -74,6 +74,7 @@ from casmbd.analysis.trust_region import RANK_RTOL, trust_region_step
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, AssemblyError
 from casmbd.model.measures import result_names
+from casmbd.model.needs import ALL_NEEDS, Handling, check
 from casmbd.system.descriptions import SpatialNatural, quaternions_from_matrices
 from casmbd.system.equations import System
 
@@ -295,6 +296,18 @@ def _null_space(cq: np.ndarray, nq: int) -> np.ndarray:
     return null_space_basis(cq)[0]
 
 
+#: what statics handles (casmbd.model.needs): every need; contacts and stops by an active set
+HANDLING = Handling(
+    "statics", ALL_NEEDS,
+    notes={"events": "closed gaps by an active set (no penetration, no pull)",
+           "stick_slip": "at rest the friction is not needed: the equilibrium found is "
+                         "frictionless, one of those the friction admits",
+           "contact_friction": "closed contacts carry no tangential friction: the "
+                               "equilibrium found is frictionless",
+           "reaction_forces": "at rest the velocity-dependent friction vanishes",
+           "inputs": "actuator inputs at their value at time t"})
+
+
 def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol: float = 1e-10,
                        max_iter: int = 100, mode: str = "auto") -> StaticsResult:
     """Static equilibrium configuration, multipliers, reactions and stability.
@@ -334,6 +347,7 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
     if not (np.isfinite(tol) and tol > 0) or max_iter < 1:
         raise AnalysisError(f"statics: need tol > 0 and max_iter >= 1 (got {tol}, {max_iter})")
     t = float(t)
+    check(mechanism, HANDLING)
     if not isinstance(mechanism, NumericModel) and has_events(mechanism):
         return resting_equilibrium(mechanism, t, method, tol, max_iter, mode,
                                    solve=static_equilibrium)

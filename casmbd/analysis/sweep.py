@@ -38,9 +38,12 @@ from pathlib import Path
 import numpy as np
 
 from casmbd import interrupts
+from casmbd.analysis.inverse import HANDLING as INVERSE
 from casmbd.analysis.inverse import inverse_dynamics
+from casmbd.analysis.kinematics import HANDLING as KINEMATICS
 from casmbd.analysis.kinematics import kinematics
-from casmbd.analysis.simulate import Simulator
+from casmbd.analysis.simulate import Simulator, simulate_handling
+from casmbd.analysis.statics import HANDLING as STATICS
 from casmbd.analysis.statics import STATICS_NEEDS, static_equilibrium, statics_functions
 from casmbd.analysis.sweep_result import SweepResult, _table, load_sweep
 from casmbd.analysis.sweep_values import (
@@ -60,6 +63,7 @@ from casmbd.errors import (
 )
 from casmbd.limits import check_steps, output_values
 from casmbd.model import Mechanism
+from casmbd.model.needs import Handling, check
 from casmbd.results import Result
 from casmbd.system.equations import System
 
@@ -345,6 +349,15 @@ def _run_dask(spec, tasks, executor, bar) -> list[dict]:
 
 
 # ====================================================================== entry point
+def handling(analysis: str, options: Mapping) -> Handling:
+    """What a sweep of ``analysis`` with ``options`` handles: that of the analysis each point
+    runs (:mod:`casmbd.model.needs`)."""
+    if analysis == "simulate":
+        return simulate_handling(options.get("formulation"), options.get("integrator"),
+                                 options.get("projection", False), options.get("step"))
+    return {"kinematics": KINEMATICS, "inverse": INVERSE, "statics": STATICS}[analysis]
+
+
 def sweep(mechanism, params: Mapping[str, Iterable[float]] | None = None, *,
           points: Sequence[Mapping[str, float]] | None = None, analysis: str = "simulate",
           t_end: float | None = None, steps: int | None = None,
@@ -407,6 +420,7 @@ def sweep(mechanism, params: Mapping[str, Iterable[float]] | None = None, *,
     t_wall = time.perf_counter()
     if analysis not in ANALYSES:
         raise AnalysisError(f"sweep: unknown analysis {analysis!r} (known: {', '.join(ANALYSES)})")
+    check(mechanism, handling(analysis, options))
     allowed = set(_BUILD_OPTIONS.get(analysis, ())) | set(_RUN_OPTIONS[analysis])
     unknown = sorted(set(options) - allowed)
     if unknown:

@@ -53,6 +53,7 @@ from casmbd.compiled.model import NumericModel
 from casmbd.compiled.workspace import buffered
 from casmbd.errors import ModelError
 from casmbd.model.bodies import GROUND
+from casmbd.model.needs import Handling, check
 from casmbd.system.articulated import _transport, supported
 from casmbd.system.equations import System
 
@@ -480,6 +481,22 @@ class CompiledModel:
         return self._batch("robot_id_batch", (Q, V, A))
 
 
+#: what the per-call API handles (casmbd.model.needs): the smooth equations at one state
+HANDLING = Handling(
+    "the per-call API (casmbd.compile)", frozenset({"modal_coordinates", "inputs"}),
+    why={"events": "its equations have no contact or stop rows and no impulses",
+         "contact_friction": "its equations have no contact rows",
+         "stick_slip": "the exact Coulomb law switches at events, which one call has not",
+         "reaction_forces": "the bias b = −Q_v − Q_e is evaluated without multipliers",
+         "drivers": "a call has no time: a prescribed motion is given as (q, v, a)"},
+    instead={"events": "simulate, or model = 'compliant' (a force in the bias)",
+             "contact_friction": "simulate",
+             "stick_slip": "the regularised law (stick_slip = false), or simulate",
+             "reaction_forces": "inverse dynamics (casmbd.inverse_dynamics)",
+             "drivers": "the mechanism without its drivers, with (q, v, a) of the motion"},
+    notes={"inputs": "τ are the efforts; actuator inputs u = 0 in the bias"})
+
+
 def compile(mechanism, coordinates: str | None = "joint", mode: str = "auto",
             actuated: Sequence[str] | None = None) -> CompiledModel:
     """Compiled robot model of ``mechanism`` for per-call numeric evaluation.
@@ -488,4 +505,5 @@ def compile(mechanism, coordinates: str | None = "joint", mode: str = "auto",
     ``inverse_dynamics``, ``mass_matrix``, ``bias_forces``, ``forward_kinematics``,
     ``jacobian`` and the ``*_batch`` versions (see :class:`CompiledModel`).
     """
+    check(mechanism, HANDLING)
     return CompiledModel(mechanism, coordinates=coordinates, mode=mode, actuated=actuated)

@@ -163,6 +163,8 @@ class Body:
     reference_point : array_like
         Body-frame offset s of the reference point R from the centre of mass.
     """
+    #: what it needs from an analysis (casmbd.model.needs): nothing special
+    needs: ClassVar[frozenset[str]] = frozenset()
 
     name: str
     mass: Value
@@ -329,6 +331,8 @@ class SpatialBody:
     reference_point : array_like, 3
         Body-frame offset s of the coordinates' reference point R from the centre of mass.
     """
+    #: what it needs from an analysis (casmbd.model.needs): nothing special
+    needs: ClassVar[frozenset[str]] = frozenset()
 
     name: str
     mass: Value

@@ -108,6 +108,15 @@ class Unilateral:
     def labels(self) -> tuple[str, ...]:
         return ("gap",)
 
+    @property
+    def needs(self) -> frozenset[str]:
+        """What it needs from an analysis (:mod:`casmbd.model.needs`): the impact model acts
+        at events (and, with friction at a closed contact, switches sliding and sticking);
+        the compliant model is a force element (``"<name>.force"``) and needs nothing."""
+        if self.model != "impact":
+            return frozenset()
+        return frozenset({"events", "contact_friction"} if slides(self) else {"events"})
+
     def gaps(self, ctx) -> ca.SX:
         raise NotImplementedError
 
@@ -267,6 +276,8 @@ class TangentClosure(Joint):
     """A stuck frictional plane contact: s(q) − s_stuck = 0 (:func:`tangential_position`,
     s_stuck a parameter); its multiplier is the friction force that holds it.  Not a scene
     kind: made by :mod:`casmbd.analysis.events` for the phases in which the contact sticks."""
+    #: what it needs from an analysis (casmbd.model.needs): nothing special
+    needs: ClassVar[frozenset[str]] = frozenset()
 
     def __init__(self, element: PlaneContact):
         self.name = f"{element.name}.stick"
@@ -300,6 +311,8 @@ class ContactSlide(ForceElement):
     closure: str = ""
 
     kind = "contact_slide"
+    #: friction −μ N σ from the closure's multiplier, σ switched at events
+    needs: ClassVar[frozenset[str]] = frozenset({"reaction_forces", "contact_friction"})
     scene_keys = None
 
     @classmethod
@@ -329,6 +342,8 @@ class GapClosure(Joint):
     """A closed unilateral gap as a bilateral constraint g_k(q) = 0 (the contact or stop is
     active); made by :func:`casmbd.analysis.events` for the phase in which the element stays
     in contact.  Not a scene kind."""
+    #: what it needs from an analysis (casmbd.model.needs): nothing special
+    needs: ClassVar[frozenset[str]] = frozenset()
 
     def __init__(self, element: Unilateral, k: int, body1: str = GROUND,
                  body2: str = GROUND):
@@ -359,6 +374,8 @@ class CompliantContact(ForceElement):
     F_n = k δ^e + STEP(δ, 0, 0, d_max, c) δ̇ for δ = −g > 0 (0 otherwise), acting by virtual
     work along g (Q = (∂g/∂q)ᵀ F_n), and friction −μ F_n tanh(v_t/v_s) along the tangential
     velocity of the contact point."""
+    #: what it needs from an analysis (casmbd.model.needs): nothing special
+    needs: ClassVar[frozenset[str]] = frozenset()
 
     name: str
     element: Unilateral = None

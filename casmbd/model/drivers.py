@@ -7,6 +7,7 @@ the effort (force or torque) needed to impose the motion (section "Inverse dynam
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 from casmbd.errors import ModelError
 from casmbd.model.values import Value, check_value
@@ -28,6 +29,9 @@ class Driver:
     position: Value
     joint: str | None = None
     body: str | None = None
+    #: what it needs from an analysis (casmbd.model.needs)
+    needs: ClassVar[frozenset[str]] = frozenset({"drivers"})
+
     coordinate: str | None = None
 
     def __post_init__(self):

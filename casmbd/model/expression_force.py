@@ -23,6 +23,7 @@ changes by the work the element does).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import casadi as ca
 import numpy as np
@@ -46,6 +47,8 @@ class ExpressionForce(ForceElement):
     (empty: torque only); ``torques`` the torque components (empty: none).  Each entry is a
     number or an expression string, kept as text and resolved when the equations are built.
     """
+    #: what it needs from an analysis (casmbd.model.needs): nothing special
+    needs: ClassVar[frozenset[str]] = frozenset()
 
     name: str
     joint: str | None = None

@@ -286,6 +286,8 @@ class _Flexible:
     drawing: ClassVar[str] = "nodes"
     #: the coordinate choices the kind supports: frame coordinates + modal coordinates
     coordinate_choices: ClassVar[tuple[str, ...]] = ("absolute", "natural")
+    #: what it needs from an analysis (casmbd.model.needs)
+    needs: ClassVar[frozenset[str]] = frozenset({"modal_coordinates"})
 
     def _finish(self) -> None:
         """Mass, inertia, centre of mass and reference point from the modal data."""

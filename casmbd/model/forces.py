@@ -143,6 +143,8 @@ def _point(value, where: str) -> np.ndarray:
 @dataclass
 class PointForce(ForceElement):
     """A force (2 or 3 values, global or body frame) applied at a body point."""
+    #: what it needs from an analysis (casmbd.model.needs): nothing special
+    needs: ClassVar[frozenset[str]] = frozenset()
 
     name: str
     body: str
@@ -211,6 +213,8 @@ class PointForce(ForceElement):
 class Torque(ForceElement):
     """A torque on a body: one value in the plane (counter-clockwise positive), three in space
     (global or body frame).  Its generalized force is (∂ω/∂q̇)ᵀ T (virtual rotation)."""
+    #: what it needs from an analysis (casmbd.model.needs): nothing special
+    needs: ClassVar[frozenset[str]] = frozenset()
 
     name: str
     body: str
@@ -274,6 +278,8 @@ class SpringDamper(ForceElement):
     Tension f = k (l − l0) + c l̇ + a(t) pulls the points together; potential ½ k (l − l0)²
     (seed 000 / 001, "Spring-damper-actuator elements").
     """
+    #: what it needs from an analysis (casmbd.model.needs): nothing special
+    needs: ClassVar[frozenset[str]] = frozenset()
 
     name: str
     body1: str
@@ -373,6 +379,8 @@ class RotationalSpringDamper(ForceElement):
     Moment T = k (φ − φ0) + c φ̇ + a(t) resisting an increase of φ; potential ½ k (φ − φ0)².
     ``free_angle`` defaults to 0.
     """
+    #: what it needs from an analysis (casmbd.model.needs): nothing special
+    needs: ClassVar[frozenset[str]] = frozenset()
 
     name: str
     joint: str
@@ -457,6 +465,8 @@ class UserForce(ForceElement):
     With ``body`` given it returns the force (2-vector, global) at ``point`` — or a pair
     (force, torque); without ``body`` it returns a generalized force vector of length n_q.
     """
+    #: what it needs from an analysis (casmbd.model.needs): nothing special
+    needs: ClassVar[frozenset[str]] = frozenset()
 
     name: str
     function: Callable
@@ -485,6 +495,9 @@ class UserForce(ForceElement):
 @dataclass
 class Actuator:
     """A generalized force input u along a joint coordinate (for inverse dynamics and control)."""
+
+    #: what it needs from an analysis (casmbd.model.needs)
+    needs: ClassVar[frozenset[str]] = frozenset({"inputs"})
 
     name: str
     joint: str

@@ -27,6 +27,7 @@ This module is the whole kind: it registers itself as scene type ``"gear"``
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import casadi as ca
 import numpy as np
@@ -45,6 +46,8 @@ class Gear(Joint):
     ``body1`` and ``body2`` are the moving bodies of the two joints (the second body of each
     unless it is the ground); :attr:`bodies` lists every body whose pose enters the equation.
     """
+    #: what it needs from an analysis (casmbd.model.needs): nothing special
+    needs: ClassVar[frozenset[str]] = frozenset()
 
     joint1: str = ""
     joint2: str = ""

@@ -77,6 +77,17 @@ class JointFriction(ForceElement):
     stick_slip: bool = False
 
     kind = "joint_friction"
+
+    @property
+    def needs(self) -> frozenset[str]:
+        """What it needs from an analysis (:mod:`casmbd.model.needs`): the exact law switches
+        at events; a level μ r |R⊥| depends on the joint reaction; else nothing special."""
+        found = set()
+        if self.stick_slip:
+            found.add("stick_slip")
+        if not (isinstance(self.mu, (int, float)) and self.mu == 0.0):
+            found.add("reaction_forces")
+        return frozenset(found)
     scene_keys = frozenset({"joint", "coordinate", "damping", "friction", "regularization",
                             "mu", "radius", "stick_slip"})
 

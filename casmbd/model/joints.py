@@ -228,6 +228,8 @@ def create_fixed(cls, mech, name: str, body: str, point=None) -> Joint:
 @dataclass
 class Revolute(Joint):
     """Pin joint at a global point; coordinate θ2 − θ1 (continuous)."""
+    #: what it needs from an analysis (casmbd.model.needs): nothing special
+    needs: ClassVar[frozenset[str]] = frozenset()
 
     point: np.ndarray = field(default_factory=lambda: np.zeros(2))
     labels: tuple[str, ...] = ("x", "y")
@@ -286,6 +288,8 @@ class Prismatic(Joint):
     vector from body1's joint point to body2's vanishes.  Coordinate: the component along the
     axis (zero at the initial pose).
     """
+    #: what it needs from an analysis (casmbd.model.needs): nothing special
+    needs: ClassVar[frozenset[str]] = frozenset()
 
     point: np.ndarray = field(default_factory=lambda: np.zeros(2))
     axis: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0]))
@@ -339,6 +343,8 @@ class Prismatic(Joint):
 @dataclass
 class Rigid(Joint):
     """Weld: body2 keeps its initial pose relative to body1 (three equations)."""
+    #: what it needs from an analysis (casmbd.model.needs): nothing special
+    needs: ClassVar[frozenset[str]] = frozenset()
 
     point: np.ndarray | None = None
     labels: tuple[str, ...] = ("x", "y", "angle")
@@ -386,6 +392,8 @@ class Distance(Joint):
 
     Equation (|d|² − L²)/(2L) = 0, scaled so that the residual is a length; coordinate |d|.
     """
+    #: what it needs from an analysis (casmbd.model.needs): nothing special
+    needs: ClassVar[frozenset[str]] = frozenset()
 
     point1: np.ndarray = field(default_factory=lambda: np.zeros(2))
     point2: np.ndarray = field(default_factory=lambda: np.zeros(2))

@@ -31,6 +31,7 @@ which body the vector is fixed.  The distance joint is shared with the plane
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import casadi as ca
 import numpy as np
@@ -97,6 +98,8 @@ def spherical(ctx, body1: str, body2: str, point) -> ca.SX:
 # ------------------------------------------------------------------------- joints
 @dataclass
 class _PointJoint(Joint):
+    #: what it needs from an analysis (casmbd.model.needs): nothing special
+    needs: ClassVar[frozenset[str]] = frozenset()
     point: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     dimensions = (3,)
@@ -377,6 +380,8 @@ class InLine(_AxisJoint):
 @dataclass
 class SpatialRigid(Joint):
     """Weld: body2 keeps its initial pose relative to body1 (6 equations)."""
+    #: what it needs from an analysis (casmbd.model.needs): nothing special
+    needs: ClassVar[frozenset[str]] = frozenset()
 
     point: np.ndarray | None = None
     labels: tuple[str, ...] = ("x", "y", "z", "x.y", "x.z", "y.z")

@@ -29,6 +29,7 @@ from casmbd.analysis.integrators import names as integrator_names
 from casmbd.errors import AnalysisError, ModelError
 from casmbd.limits import MAX_OCP_INTERVALS, MAX_OCP_UNKNOWNS, check_count
 from casmbd.model.expressions import parse_expression
+from casmbd.model.needs import ALL_NEEDS, EVENT_NEEDS, Handling, check
 from casmbd.ocp.options import check_solver_options
 from casmbd.ocp.transcription import Transcription
 from casmbd.system.equations import System
@@ -67,6 +68,23 @@ class _Term:
     weight: float = 1.0
     expression: str | Callable | None = None
     reference: str | Callable | None = None
+
+
+#: what trajectory optimisation handles (casmbd.model.needs): smooth dynamics only — the
+#: transcriptions differentiate the dynamics, which impacts and switching friction are not
+HANDLING = Handling(
+    "trajectory optimisation (ocp)", ALL_NEEDS - EVENT_NEEDS - {"reaction_forces"},
+    why=dict.fromkeys(EVENT_NEEDS, "its transcriptions need dynamics differentiable along the "
+                      "horizon; impacts and stick-slip switches are not (a complementarity "
+                      "formulation is not built)") | {
+        "reaction_forces": "its transcriptions do not solve for the multipliers the "
+                           "friction level needs"},
+    instead=dict.fromkeys(EVENT_NEEDS, "model = 'compliant' contacts and stops (forces the "
+                          "transcription handles), or the regularised friction law") | {
+        "reaction_forces": "a constant Coulomb level (mu = 0), or inverse dynamics along a "
+                           "given motion"},
+    notes={"modal_coordinates": "the mesh is checked against the fastest elastic mode",
+           "inputs": "the controls"})
 
 
 @dataclass
@@ -147,6 +165,8 @@ class Ocp:
     _initial_given: bool = field(default=False, init=False)
 
     def __post_init__(self):
+        check(self.mechanism.mechanism if isinstance(self.mechanism, System)
+              else self.mechanism, HANDLING)
         self.system = (self.mechanism if isinstance(self.mechanism, System)
                        else System(self.mechanism))
         if self.transcription not in TRANSCRIPTIONS:

@@ -3,6 +3,8 @@ recursion (:mod:`casmbd.system.articulated`), O(N) operations."""
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import casadi as ca
 
 from casmbd.system.articulated import articulated_accelerations, supported
@@ -33,6 +35,12 @@ class Articulated(FormulationKind):
     """
 
     name = "articulated"
+    handles = frozenset({"inputs"})
+    refuses: ClassVar[dict] = {
+        need: "it integrates an unconstrained tree in joint coordinates" for need in
+               ("events", "stick_slip", "contact_friction", "reaction_forces",
+                "modal_coordinates", "drivers")}
+    instead: ClassVar[dict] = {need: "the default formulation" for need in refuses}
     kind = "ode"
     default_integrator = "dopri5"
 

@@ -25,6 +25,7 @@ import casadi as ca
 import numpy as np
 
 from casmbd.errors import ModelError
+from casmbd.model.needs import ALL_NEEDS
 from casmbd.system.equations import System
 from casmbd.system.formulations.base import (
     Formulation,
@@ -278,6 +279,11 @@ class AugmentedLagrangian(FormulationKind):
     """Augmented-Lagrangian ODE; keeps redundant equations (minimum-norm multipliers)."""
 
     name = "augmented_lagrangian"
+    handles = ALL_NEEDS - {"reaction_forces", "contact_friction"}
+    refuses = dict.fromkeys(("reaction_forces", "contact_friction"), "an ODE formulation does "
+                            "not solve for the multipliers the friction level needs")
+    instead = dict.fromkeys(("reaction_forces", "contact_friction"),
+                            "formulation 'index1' (or 'ggl')")
     kind = "ode"
     default_integrator = "adams"
     keeps_redundant = True

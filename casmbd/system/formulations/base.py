@@ -13,6 +13,7 @@ listing the registered names.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 import casadi as ca
 import numpy as np
@@ -75,6 +76,15 @@ class FormulationKind:
     keeps_redundant: bool = False
     removes_redundant: bool = True
     kept_redundancy: str = "kept: independent coordinates chosen by rank"
+    #: the needs of elements it meets (casmbd.model.needs; by default no events and no
+    #: reaction-dependent forces); ``refuses``: need -> why not; ``instead``: need -> advice
+    handles: frozenset = frozenset({"modal_coordinates", "drivers", "inputs"})
+    refuses: ClassVar[dict] = {
+        "events": "no event-driven phases", "stick_slip": "no event-driven phases",
+        "contact_friction": "no event-driven phases",
+        "reaction_forces": "it does not solve for the multipliers"}
+    instead: ClassVar[dict] = {need: "formulation 'index1'" for need in
+                     ("events", "stick_slip", "contact_friction", "reaction_forces")}
 
     @property
     def numeric(self) -> bool:

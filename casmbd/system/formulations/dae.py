@@ -14,6 +14,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from casmbd.model.needs import ALL_NEEDS, EVENT_NEEDS
 from casmbd.system.equations import System
 from casmbd.system.formulations.base import (
     Formulation,
@@ -60,6 +61,7 @@ class Index1(FormulationKind):
     """Semi-explicit index-1 DAE (KKT rows as algebraic equations), integrated by IDAS."""
 
     name = "index1"
+    handles = ALL_NEEDS
     kind = "dae"
     layout = "x = (q, v), z = (q̈, λ)"
     default_integrator = "idas"
@@ -79,6 +81,10 @@ class Ggl(FormulationKind):
     """Gear–Gupta–Leimkuhler stabilised index-2 DAE, integrated by IDAS."""
 
     name = "ggl"
+    handles = ALL_NEEDS - EVENT_NEEDS
+    refuses = dict.fromkeys(EVENT_NEEDS, "its index-2 start cannot be made consistent after an "
+                            "impact by IDAS")
+    instead = dict.fromkeys(EVENT_NEEDS, "formulation 'index1' (or the default)")
     kind = "dae"
     layout = "x = (q, v), z = (q̈, λ, μ)"
     default_integrator = "idas"

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import casadi as ca
 
+from casmbd.model.needs import ALL_NEEDS
 from casmbd.system.equations import System
 from casmbd.system.formulations.base import (
     Formulation,
@@ -107,6 +108,11 @@ class KktOde(FormulationKind):
     """ODE on (q, v) with the multipliers eliminated through the Schur complement."""
 
     name = "kkt_ode"
+    handles = ALL_NEEDS - {"reaction_forces", "contact_friction"}
+    refuses = dict.fromkeys(("reaction_forces", "contact_friction"), "an ODE formulation does "
+                            "not solve for the multipliers the friction level needs")
+    instead = dict.fromkeys(("reaction_forces", "contact_friction"),
+                            "formulation 'index1' (or 'ggl')")
     kind = "ode"
     default_integrator = "adams"
 
