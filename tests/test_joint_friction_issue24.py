@@ -14,7 +14,7 @@ import pytest
 
 from casmbd import simulate
 from casmbd.analysis.inverse import inverse_dynamics
-from casmbd.errors import ModelError, SceneError
+from casmbd.errors import CompositionError, ModelError, SceneError
 from casmbd.io.scene import load_scene, loads_scene
 
 G = 9.81
@@ -375,7 +375,7 @@ def test_reaction_friction_refused_where_not_solved():
     error names the joint and the way out."""
     fa, fs = CASES["reaction"]
     mech = loads_scene(_slider_crank(_table(fa), _table(fs)))
-    with pytest.raises(ModelError, match=r"joint 'A'.*'index1'"):
+    with pytest.raises(CompositionError, match=r"force 'A.friction'.*'index1'"):
         simulate(mech, 0.1, 10, formulation="kkt_ode")
     with pytest.raises((ModelError, SceneError), match=r"coordinates = 'absolute'"):
         inverse_dynamics(loads_scene(_slider_crank(_table(fa), _table(fs), "joint")), 0.1, 2)

@@ -1,0 +1,200 @@
+"""The composition matrix (issue 30): every element kind × every analysis — it works, or it is
+refused by name before any work.
+
+Generated from the registries: every registered joint, force and body kind must have a
+canonical scene (``composition_scenes.KIND_VARIANTS``) and must declare its needs
+(:mod:`casmbd.model.needs`); every analysis declares what it handles (``HANDLING``).  Cells
+the declarations refuse must raise :class:`~casmbd.errors.CompositionError` from the real
+entry point, naming the element; cells they accept must run and reproduce an independent
+check:
+
+* ``simulate``: the same motion in every coordinate choice the scene takes (absolute,
+  natural, joint — three independent sets of equations), body positions to 1e-6 m;
+* ``kinematics`` / ``inverse`` (driven scenes): inverse dynamics ∘ forward = identity — the
+  driver efforts of inverse dynamics equal those the forward simulation needs to impose the
+  same motion, to 1e-6 relative;
+* ``sweep``: a swept point equals ``simulate`` of the same scene and value to rounding.
+
+Statics, linearization, sensitivities and the OCP of the accepted cells are checked against
+closed forms in their own test modules; here their refusals are.
+
+``docs/composition.md`` is generated from the same declarations (``python
+tests/composition_table.py`` rewrites it); the test below fails when it is stale.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from composition_scenes import KIND_VARIANTS, VARIANTS
+from composition_table import ANALYSES, table
+
+import casmbd
+from casmbd.analysis.integrators import INTEGRATORS
+from casmbd.analysis.simulate import simulate_handling
+from casmbd.errors import CasmbdError, CompositionError
+from casmbd.model.contacts import JointLimit, PlaneContact, SphereContact
+from casmbd.model.drivers import Driver
+from casmbd.model.forces import Actuator
+from casmbd.model.needs import NEEDS
+from casmbd.model.registry import BODY_KINDS, FORCE_KINDS, JOINT_KINDS
+from casmbd.system.formulations import FORMULATIONS
+
+CELLS = [(v, d) for v, (_, dims, _) in VARIANTS.items() for d in dims]
+
+
+def _declares(cls) -> bool:
+    """``needs`` declared by the class or a casmbd class between it and the generic base."""
+    return any("needs" in vars(k) for k in cls.__mro__ if k is not object)
+
+
+def _casmbd_kinds():
+    for table_ in (JOINT_KINDS, BODY_KINDS):
+        for name, per_dim in table_.items():
+            for cls in per_dim.values():
+                if cls.__module__.startswith("casmbd."):
+                    yield ("rigid_body" if table_ is BODY_KINDS and name == "rigid" else name,
+                           cls)
+    for name, cls in FORCE_KINDS.items():
+        if cls.__module__.startswith("casmbd."):
+            yield name, cls
+
+
+@pytest.mark.parametrize("kind,cls", list(_casmbd_kinds()), ids=lambda x: getattr(x, "__name__", x))
+def test_every_kind_declares_its_needs_and_has_a_canonical_scene(kind, cls):
+    assert _declares(cls), f"{cls.__name__} declares no 'needs' (casmbd.model.needs)"
+    assert kind in KIND_VARIANTS, f"kind '{kind}' has no canonical scene in the matrix"
+
+
+def test_every_element_class_and_method_declares():
+    for cls in (PlaneContact, SphereContact, JointLimit, Driver, Actuator):
+        assert _declares(cls), cls.__name__
+    for kind in FORMULATIONS.values():
+        assert kind.handles <= NEEDS.keys(), kind.name
+    for kind in INTEGRATORS.values():
+        assert kind.handles <= NEEDS.keys(), kind.name
+    for handling in ANALYSES.values():
+        assert handling.handles <= NEEDS.keys(), handling.analysis
+
+
+def test_docs_table_is_generated():
+    from pathlib import Path
+    path = Path(__file__).resolve().parents[1] / "docs" / "composition.md"
+    assert path.read_text() == table(), "docs/composition.md is stale: python " \
+        "tests/composition_table.py"
+
+
+# ----------------------------------------------------------------------------- refusals
+def _entry(analysis, mech):
+    """The real entry point of ``analysis`` on ``mech``, with a tiny problem."""
+    if analysis == "kinematics":
+        return casmbd.kinematics(mech, 0.1, 2, mode="vm")
+    if analysis == "inverse":
+        return casmbd.inverse_dynamics(mech, 0.1, 2, mode="vm")
+    if analysis == "linearize":
+        return casmbd.linearize(mech, mode="vm")
+    if analysis == "sensitivity":
+        return casmbd.sensitivity(mech, ["link.x"], t_end=0.1)
+    if analysis == "ocp":
+        from casmbd.ocp import Ocp
+        return Ocp(mech, horizon=0.5, intervals=2)
+    if analysis == "compile":
+        return casmbd.compile(mech, mode="vm")
+    raise AssertionError(analysis)
+
+
+def _scene(variant, dim, analysis):
+    build, _, driven = VARIANTS[variant]
+    return build(dim, driven=driven and analysis in ("kinematics", "inverse"))
+
+
+REFUSAL_CELLS = [(v, d, a) for v, d in CELLS for a in
+                 ("kinematics", "inverse", "linearize", "sensitivity", "ocp", "compile")
+                 if ANALYSES[a].refusals(_scene(v, d, a))]
+
+
+@pytest.mark.parametrize("variant,dim,analysis", REFUSAL_CELLS)
+def test_refused_cells_are_named_before_any_work(variant, dim, analysis):
+    mech = _scene(variant, dim, analysis)
+    refused = ANALYSES[analysis].refusals(mech)
+    with pytest.raises(CompositionError) as info:
+        _entry(analysis, mech)
+    for r in refused:
+        assert r.element in str(info.value)
+    assert info.value.refused == [(r.element, r.need) for r in refused]
+
+
+@pytest.mark.parametrize("variant,dim", CELLS)
+def test_simulate_options_refuse_by_name(variant, dim):
+    """Every formulation × integrator: a run the declarations refuse raises the named error
+    before anything is built; the others are accepted by the check."""
+    build, _, _ = VARIANTS[variant]
+    mech = build(dim)
+    for form in FORMULATIONS:
+        for integ in INTEGRATORS:
+            handling = simulate_handling(form, integ)
+            refused = handling.refusals(mech)
+            if not refused:
+                continue
+            with pytest.raises(CompositionError, match=f"formulation '{form}'"):
+                casmbd.simulate(mech, 0.05, 1, formulation=form, integrator=integ, mode="vm")
+
+
+# ----------------------------------------------------------------------------- numeric cells
+def _positions(res):
+    return np.asarray(res.arrays["body_positions"], dtype=float)
+
+
+@pytest.mark.parametrize("variant,dim", CELLS)
+def test_simulate_agrees_across_coordinate_choices(variant, dim):
+    build, _, _ = VARIANTS[variant]
+    runs = {}
+    for coords in ("absolute", "natural", "joint"):
+        try:
+            mech = build(dim, coordinates=coords)
+            runs[coords] = casmbd.simulate(mech, 0.2, 4, rtol=1e-10, mode="vm")
+        except CasmbdError as exc:  # a coordinate choice the scene cannot take: named
+            assert "coordinates" in str(exc) or "coordinate" in str(exc), exc
+    assert runs, "no coordinate choice ran"
+    ref = _positions(next(iter(runs.values())))
+    assert np.all(np.isfinite(ref))
+    for coords, res in runs.items():
+        assert np.max(np.abs(_positions(res) - ref)) <= 1e-6, coords
+
+
+DRIVEN = [(v, d) for v, d in CELLS if VARIANTS[v][2]
+          and not ANALYSES["inverse"].refusals(VARIANTS[v][0](d, driven=True))]
+
+
+@pytest.mark.parametrize("variant,dim", DRIVEN)
+def test_inverse_of_forward_is_identity(variant, dim):
+    build, _, _ = VARIANTS[variant]
+    mech = build(dim, driven=True)
+    kin = casmbd.kinematics(mech, 0.4, 4, mode="vm")
+    inv = casmbd.inverse_dynamics(mech, 0.4, 4, mode="vm")
+    sim = casmbd.simulate(mech, 0.4, 4, rtol=1e-11, atol=1e-11, formulation="index1",
+                          mode="vm")
+    assert np.max(np.abs(kin["q"] - inv["q"])) == 0.0
+    scale = max(1.0, float(np.max(np.abs(inv["driver_efforts"]))))
+    assert np.max(np.abs(sim["driver_efforts"] - inv["driver_efforts"])) <= 1e-6 * scale
+
+
+SWEPT = ["revolute", "stop_impact", "contact_impact", "joint_friction_stick_slip",
+         "contact_compliant"]
+
+
+@pytest.mark.parametrize("variant", SWEPT)
+def test_sweep_point_equals_simulate(variant):
+    build, _, _ = VARIANTS[variant]
+    mech = build(2)
+    mech.add_parameter("extra", 1.0)
+    res = casmbd.sweep(mech, {"extra": [1.0]}, t_end=0.6, steps=6, mode="vm")
+    point = res.result(0) if hasattr(res, "result") else res.results[0]
+    direct = casmbd.simulate(build(2), 0.6, 6, mode="vm")
+    assert np.max(np.abs(_positions(point) - _positions(direct))) <= 1e-12
+
+
+def test_needs_named_in_messages():
+    mech = VARIANTS["contact_impact"][0](2)
+    with pytest.raises(CompositionError, match=r"contact 'floor' needs impacts.*instead: "):
+        casmbd.inverse_dynamics(mech, 0.1, 2)
