@@ -221,6 +221,7 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
     mech = Mechanism(name or robot.name, gravity=gravity, dimension=3, coordinates=coordinates)
     values = {**locked, **{k: p for k, (p, _) in start.items()}}
     at_start = robot.frames(values)
+    moved = any(p != 0.0 for p, _ in start.values())  # else the start is the design pose
     twists = _twists(robot, values, {k: v for k, (_, v) in start.items()}, at_start)
 
     parts: dict[str, list] = {}
@@ -252,8 +253,7 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
                                         local[0, 2], local[1, 2]], com,
                            orientation=quaternion_from_matrix(rot), velocity=vel,
                            angular_velocity=omega))
-        if np.any(com_start != com) or np.any(at_start[body][0] != rot):
-            # absolute and natural coordinates start here (joint ones: tree_initial below)
+        if moved:  # absolute and natural coordinates start here (joint: tree_initial)
             made.set_start(com_start, quaternion_from_matrix(at_start[body][0]))
     for lname in robot.links:
         if group[lname] != lname:
