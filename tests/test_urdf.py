@@ -555,8 +555,9 @@ def test_mimic_offset_inverse_dynamics_match_newton_euler(tmp_path):
 
 def test_mimic_offset_locked_leader_and_absolute_coordinates(tmp_path):
     """A locked leader locks its follower at r v + δ (any coordinates; the frames equal the
-    Newton–Euler frames at θ_j2 = r v + δ to 1e-12 m); with absolute coordinates a free
-    leader's offset is refused naming the joint (the start would violate the coupling)."""
+    Newton–Euler frames at θ_j2 = r v + δ to 1e-12 m); in absolute and natural coordinates a
+    free leader's offset starts the follower at δ (the bodies' start pose; C = 0 there to
+    1e-14)."""
     path = tmp_path / "mimic.urdf"
     path.write_text(_MIMIC.format(r=MIMIC_R, d=MIMIC_D))
     for coordinates in ("joint", "absolute"):
@@ -565,9 +566,10 @@ def test_mimic_offset_locked_leader_and_absolute_coordinates(tmp_path):
         _, frames = rnea(path, {"j1": 0.5, "j2": MIMIC_R * 0.5 + MIMIC_D}, {}, {})
         assert np.max(np.abs(mech.markers["l2"].point - frames["l2"][1])) < 1e-12
         assert np.max(np.abs(mech.joints["j3"].point - frames["l3"][1])) < 1e-12
-    with pytest.raises(SceneError, match=r"joint 'j2' <mimic> attribute 'offset'.*"
-                                         r"coordinates = 'joint'"):
-        load(path, coordinates="absolute")
+    for coordinates in ("absolute", "natural"):
+        model = casmbd.NumericModel(load(path, coordinates=coordinates),
+                                    functions=["constraints"])
+        assert np.max(np.abs(model.constraints(model.initial_coordinates(), 0.0))) < 1e-14
     path.write_text(_MIMIC.format(r=MIMIC_R, d=0.0))
     assert load(path, coordinates="absolute").joints["j2_mimic"].offset == 0.0
 

@@ -19,12 +19,18 @@ centre of mass in those axes, is Rᵀ I Rᵀ with I the global tensor of the mer
 
 Mimic joints become gear couplings θ_follower = multiplier θ_leader + offset
 (:mod:`casmbd.model.gear`, c₂ − c₂⁰ = r (c₁ − c₁⁰) + δ) written relative to the URDF zero
-(c⁰ = 0 for both joints: the design pose stays the URDF zero).  In joint coordinates the
-follower starts at r θ_leader,0 + δ (its tree coordinate's initial value, rate r θ̇_leader,0),
-so the coupling holds at the initial state.  Absolute and natural coordinates start at the
-design pose, where θ_follower = 0 ≠ δ: a non-zero offset there is refused with a named error
-(assembling would move the leader away from its URDF zero as well).  A locked leader at value
-v locks its follower at r v + δ (any coordinates).
+(c⁰ = 0 for both joints: the design pose stays the URDF zero).  A follower's initial value is
+r θ_leader,0 + δ (rate r θ̇_leader,0), so the coupling holds at the initial state in every
+coordinate choice; a locked leader at value v locks its follower at r v + δ.  A follower may be
+named with its leader (both locked, or both initial) when the values agree
+(:data:`MIMIC_TOLERANCE`); otherwise, or named alone, it is refused naming both joints.
+
+``initial`` positions other than 0 start the robot away from its design pose: in joint
+coordinates as the tree joints' initial coordinates (``Joint.tree_initial``), in absolute and
+natural coordinates as every body's start pose, the link frames by forward kinematics of the
+tree at those values (:meth:`casmbd.model.bodies.SpatialBody.set_start`; the design pose,
+in which joints and markers are defined and joint coordinates measured, stays the URDF zero).
+The two agree: the same scene starts at the same body poses and velocities in every choice.
 
 Limits (``lower``, ``upper``, ``effort``, ``velocity``) and ``<dynamics damping friction>``
 are kept on the joint objects as the dicts ``urdf_limits`` and ``urdf_dynamics``; with
@@ -55,6 +61,9 @@ from casmbd.model.rotations import quaternion_from_matrix
 
 #: default gravity of a robot (URDF has none): −9.81 m/s² along global −z
 GRAVITY = (0.0, 0.0, -9.81)
+#: how closely a mimic follower given together with its leader (both locked, or both
+#: initial) must satisfy θ_f = r θ_l + δ: relative to max(1, |r θ_l + δ|), in rad or m
+MIMIC_TOLERANCE = 1e-9
 
 
 def _state(value, joint: str, what: str) -> tuple[float, float]:
@@ -112,6 +121,76 @@ def _twists(robot: Robot, values: dict, rates: dict, frames: dict) -> dict:
     return out
 
 
+def _mimic_order(robot: Robot, mimic_of: dict) -> list[str]:
+    """Followers with every leader's value settled before its followers' (a leader may itself
+    follow another joint); a cycle of <mimic> references is refused naming its joints."""
+    depth: dict[str, int] = {}
+    for follower in mimic_of:
+        chain, joint = [], follower
+        while joint in mimic_of and joint not in depth:
+            if joint in chain:
+                raise SceneError(f"URDF '{robot.name}': the <mimic> joints "
+                                 f"{' -> '.join([*chain[chain.index(joint):], joint])} "
+                                 "follow each other in a cycle")
+            chain.append(joint)
+            joint = mimic_of[joint][0]
+        base = depth.get(joint, -1) if joint in mimic_of else -1
+        for k, name in enumerate(reversed(chain)):
+            depth[name] = base + 1 + k
+    return sorted(mimic_of, key=depth.__getitem__)
+
+
+def _consistent(given: float, expected: float) -> bool:
+    return abs(given - expected) <= MIMIC_TOLERANCE * max(1.0, abs(expected))
+
+
+def _couple(robot: Robot, mimic_of: dict, locked: dict, start: dict) -> None:
+    """Locked and initial values of mimic followers from their leaders' (in place).
+
+    θ_f = r θ_l + δ, θ̇_f = r θ̇_l.  A follower not named takes its leader's (locked, or
+    initial when the leader has an initial value or δ ≠ 0).  A follower named together with
+    its leader (both locked, or both initial) must agree with it to ``MIMIC_TOLERANCE``
+    (relative to max(1, |r θ_l + δ|)); it then takes the exact value r θ_l + δ.  A follower named
+    alone, or a follower and leader named in different tables, is refused naming both joints.
+    """
+    given_locked, given_start = set(locked), set(start)
+    for follower in _mimic_order(robot, mimic_of):
+        leader, ratio, offset = mimic_of[follower]
+        law = (f"<mimic> couples '{follower}' = {ratio:g} * '{leader}' + {offset:g}")
+        if follower in given_locked or follower in given_start:
+            table = "locked" if follower in given_locked else "initial"
+            other = "initial" if table == "locked" else "locked"
+            if (leader in locked if table == "initial" else leader in start):
+                raise SceneError(f"{table} joint '{follower}': {law}, but its leader "
+                                 f"'{leader}' is {other}; give both in [{table}]")
+            values = locked if table == "locked" else start
+            if leader not in values:
+                raise SceneError(f"{table} joint '{follower}': {law}; give '{leader}' in "
+                                 f"[{table}] (the follower then follows it) or both with "
+                                 "consistent values")
+            lead = values[leader] if table == "locked" else values[leader][0]
+            mine = values[follower] if table == "locked" else values[follower][0]
+            expected = ratio * lead + offset
+            if not _consistent(mine, expected):
+                raise SceneError(f"{table} joints '{leader}' = {lead:.12g} and '{follower}' "
+                                 f"= {mine:.12g} are inconsistent: {law} gives "
+                                 f"'{follower}' = {expected:.12g}")
+            if table == "locked":
+                locked[follower] = expected
+                continue
+            rate, rate_lead = start[follower][1], start[leader][1]
+            if not _consistent(rate, ratio * rate_lead):
+                raise SceneError(f"initial joint velocities '{leader}' = {rate_lead:.12g} "
+                                 f"and '{follower}' = {rate:.12g} are inconsistent: {law} "
+                                 f"gives '{follower}' rate {ratio * rate_lead:.12g}")
+            start[follower] = (expected, ratio * rate_lead)
+        elif leader in locked:
+            locked[follower] = ratio * locked[leader] + offset
+        elif leader in start or offset != 0.0:
+            pos, vel = start.get(leader, (0.0, 0.0))
+            start[follower] = (ratio * pos + offset, ratio * vel)
+
+
 def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | None = None,
                     initial: Mapping | None = None, damping: bool = False,
                     gravity: Sequence[float] = GRAVITY, name: str | None = None,
@@ -125,9 +204,6 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
     start = {k: _state(v, k, "initial") for k, v in initial.items()}
     for key in set(start) & set(locked):
         raise SceneError(f"initial joint '{key}': the joint is also locked")
-    if any(p != 0.0 for p, _ in start.values()) and coordinates != "joint":
-        raise SceneError("initial: joint positions other than 0 need coordinates = 'joint' "
-                         "(the other coordinates measure the design pose, the URDF zero)")
     mimic_of = {j.name: j.mimic for j in robot.joints.values() if j.mimic is not None}
     moot = sorted(f for f, (lead, _, _) in mimic_of.items() if lead in robot.joints
                   and (robot.joints[f].type == "fixed" or robot.joints[lead].type == "fixed"))
@@ -135,28 +211,17 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
         warnings.warn(f"URDF '{robot.name}': <mimic> of a fixed joint ignored for "
                       f"{', '.join(moot)}", RuntimeWarning, stacklevel=3)
         mimic_of = {f: m for f, m in mimic_of.items() if f not in moot}
-    for follower, (leader, ratio, offset) in mimic_of.items():
-        if offset != 0.0 and coordinates != "joint" and leader not in locked:
-            raise SceneError(f"joint '{follower}' <mimic> attribute 'offset': a non-zero offset "
-                             f"needs coordinates = 'joint' ({coordinates} coordinates start at "
-                             "the URDF zero, where the follower's position 0 differs from "
-                             "multiplier * leader + offset)")
+    for follower, (leader, _, _) in mimic_of.items():
         if robot.joints[leader].type not in MOVING or robot.joints[follower].type not in MOVING:
             raise SceneError(f"joint '{follower}' <mimic>: both joints must be revolute, "
                              "continuous or prismatic")
-        if follower in start or follower in locked:
-            raise SceneError(f"joint '{follower}': a mimic joint follows '{leader}'; give "
-                             "'initial' or 'locked' for the leader")
-        if leader in locked:
-            locked[follower] = ratio * locked[leader] + offset
-        elif leader in start or offset != 0.0:
-            pos, vel = start.get(leader, (0.0, 0.0))
-            start[follower] = (ratio * pos + offset, ratio * vel)
+    _couple(robot, mimic_of, locked, start)
     group = _groups(robot, locked)
     design = robot.frames(locked)  # the design pose: URDF zero, locked joints at their value
     mech = Mechanism(name or robot.name, gravity=gravity, dimension=3, coordinates=coordinates)
     values = {**locked, **{k: p for k, (p, _) in start.items()}}
     at_start = robot.frames(values)
+    moved = any(p != 0.0 for p, _ in start.values())  # else the start is the design pose
     twists = _twists(robot, values, {k: v for k, (_, v) in start.items()}, at_start)
 
     parts: dict[str, list] = {}
@@ -182,12 +247,14 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
         omega, vel0 = twists[body]
         com_start = at_start[body][0] @ (rot.T @ (com - design[body][1])) + at_start[body][1]
         vel = vel0 + np.cross(omega, com_start - at_start[body][1])
-        guarded(f"link '{body}'", lambda body=body, mass=mass, com=com, local=local, rot=rot,
-                vel=vel, omega=omega: mech.add_body(
-                    body, mass, [local[0, 0], local[1, 1], local[2, 2], local[0, 1],
-                                 local[0, 2], local[1, 2]], com,
-                    orientation=quaternion_from_matrix(rot), velocity=vel,
-                    angular_velocity=omega))
+        made = guarded(f"link '{body}'", lambda body=body, mass=mass, com=com, local=local,
+                       rot=rot, vel=vel, omega=omega: mech.add_body(
+                           body, mass, [local[0, 0], local[1, 1], local[2, 2], local[0, 1],
+                                        local[0, 2], local[1, 2]], com,
+                           orientation=quaternion_from_matrix(rot), velocity=vel,
+                           angular_velocity=omega))
+        if moved:  # absolute and natural coordinates start here (joint: tree_initial)
+            made.set_start(com_start, quaternion_from_matrix(at_start[body][0]))
     for lname in robot.links:
         if group[lname] != lname:
             guarded(f"link '{lname}'", lambda lname=lname: mech.add_marker(
@@ -261,8 +328,9 @@ def load_urdf(path: str | os.PathLike, coordinates: str = "joint",
     locked : dict, optional
         Joint name → position: the joint is welded at that value (merged like a fixed joint).
     initial : dict, optional
-        Joint name → position or (position, velocity): the initial state.  Positions other
-        than 0 need joint coordinates; the coordinates stay zero at the URDF zero.
+        Joint name → position or (position, velocity): the initial state, in every coordinate
+        choice (the bodies start at the forward kinematics of the tree at these values; the
+        joint coordinates stay zero at the URDF zero).
     damping : bool
         Apply ``<dynamics damping>`` of revolute, continuous and prismatic joints as viscous
         joint forces −d q̇ (a ``joint_friction`` element per joint).
@@ -278,8 +346,9 @@ def load_urdf(path: str | os.PathLike, coordinates: str = "joint",
     ------
     SceneError
         Unreadable or malformed files, unknown or malformed content (naming link/joint and
-        attribute), unsupported features (a mimic offset with absolute or natural
-        coordinates; ``initial``/``locked`` values of planar or floating joints).
+        attribute), unsupported features (``initial``/``locked`` values of planar or floating
+        joints), a mimic follower given alone or inconsistent with its leader (naming both
+        joints and the values).
     """
     path = Path(path)
     text = read_text(path, "URDF")

@@ -330,6 +330,13 @@ class SpatialBody:
         Initial velocity of the centre of mass and angular velocity, global components.
     reference_point : array_like, 3
         Body-frame offset s of the coordinates' reference point R from the centre of mass.
+    start_position, start_orientation : array_like (3 and 4), optional
+        Where the body *starts* when that differs from the pose above, which stays the design
+        pose (the pose the joints, markers and joint coordinates are defined in): centre of
+        mass and unit quaternion, both or neither (:meth:`set_start`).  Absolute and natural
+        coordinates (and a floating root of joint coordinates) start there; a URDF robot given
+        non-zero initial joint positions is built this way (:mod:`casmbd.io.urdf`).  The
+        velocities are those at the start pose.
     """
     #: what it needs from an analysis (casmbd.model.needs): nothing special
     needs: ClassVar[frozenset[str]] = frozenset()
@@ -342,6 +349,8 @@ class SpatialBody:
     velocity: np.ndarray = field(default_factory=lambda: np.zeros(3))
     angular_velocity: np.ndarray = field(default_factory=lambda: np.zeros(3))
     reference_point: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    start_position: np.ndarray | None = None
+    start_orientation: np.ndarray | None = None
 
     dimension = 3
     kind: ClassVar[str] = "rigid"
@@ -427,6 +436,21 @@ class SpatialBody:
         self.velocity = vector(self.velocity, f"{where} 'velocity'", 3)
         self.angular_velocity = vector(self.angular_velocity, f"{where} 'angular_velocity'", 3)
         self.reference_point = vector(self.reference_point, f"{where} 'reference_point'", 3)
+        if self.start_position is not None or self.start_orientation is not None:
+            self.set_start(self.start_position, self.start_orientation)
+
+    def set_start(self, position, orientation) -> None:
+        """Start the body at centre of mass ``position`` and unit quaternion ``orientation``
+        instead of its design pose (both None: at the design pose)."""
+        where = f"body '{self.name}' field"
+        if position is None and orientation is None:
+            self.start_position = self.start_orientation = None
+            return
+        if position is None or orientation is None:
+            raise ModelError(f"{where} 'start_position': give the start position and "
+                             "orientation together")
+        self.start_position = vector(position, f"{where} 'start_position'", 3)
+        self.start_orientation = unit_quaternion(orientation, f"{where} 'start_orientation'")
 
     @property
     def is_centroidal(self) -> bool:
@@ -435,8 +459,15 @@ class SpatialBody:
 
     @property
     def initial_rotation(self) -> np.ndarray:
-        """A(p) at the initial pose."""
+        """A(p) at the initial (design) pose."""
         return rotation_matrix(self.orientation)
+
+    def start_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        """(r_G, p): centre of mass and unit quaternion where the body starts (the design
+        pose unless :meth:`set_start` moved the start)."""
+        if self.start_position is None:
+            return self.position, self.orientation
+        return self.start_position, self.start_orientation
 
     def local(self, point_global) -> np.ndarray:
         """Body-frame coordinates (about G) of a global point at the initial pose."""

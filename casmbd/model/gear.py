@@ -11,8 +11,9 @@ loop joint; it is never a tree joint itself).
 The offset δ (default 0; URDF ``<mimic offset>``, θ_follower = multiplier θ_leader + offset) is
 the value of c₂ − c₂⁰ when c₁ = c₁⁰.  With δ ≠ 0 the design pose violates the equation: a
 simulation or a static analysis assembles the start (Newton on C(q) = 0 from the design pose,
-both joints moving), unless the initial state already satisfies it (in joint coordinates, the
-tree joint's initial coordinate, as :func:`casmbd.io.urdf.load_urdf` sets it).
+both joints moving), unless the initial state already satisfies it (the tree joint's initial
+coordinate in joint coordinates, the bodies' start poses in absolute and natural ones, as
+:func:`casmbd.io.urdf.load_urdf` sets them).
 
 The multiplier λ of C = (c₂ − c₂⁰) − r (c₁ − c₁⁰) − δ enters the equations of motion as
 Q = −C_qᵀ λ: a generalized force −λ along c₂ and +r λ along c₁.  The reaction reported for the

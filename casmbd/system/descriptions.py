@@ -126,9 +126,20 @@ class Description:
         f = ca.Function("rates", [q, vg, om], [self.rates(q, vg, om)])
         return np.asarray(f(self.initial(), vel_g, omega), float).ravel()
 
-    def reference_from_com(self, rot: np.ndarray) -> np.ndarray:
-        """Initial reference point R = r_G + A s."""
-        return np.asarray(self.body.position, float) + rot @ self.offset
+    def reference_from_com(self, rot: np.ndarray, com=None) -> np.ndarray:
+        """Initial reference point R = r_G + A s (r_G: the body's position unless given)."""
+        com = self.body.position if com is None else com
+        return np.asarray(com, float) + rot @ self.offset
+
+    def start(self) -> tuple[np.ndarray, np.ndarray]:
+        """(R, p) where a spatial body starts: reference point and unit quaternion of its
+        start pose (:meth:`casmbd.model.bodies.SpatialBody.start_pose`; the design pose unless
+        the body was given another start; a body kind without ``start_pose`` starts at its
+        design pose)."""
+        start_pose = getattr(self.body, "start_pose", None)
+        com, quat = start_pose() if start_pose is not None else \
+            (self.body.position, self.body.orientation)
+        return self.reference_from_com(rotation_matrix(quat), com), np.asarray(quat, float)
 
     # -------------------------------------------------------------- velocities and energy
     def angular_velocity(self, q: ca.SX, v: ca.SX) -> ca.SX:
@@ -287,8 +298,7 @@ class SpatialAbsolute(Description):
         return q[0:3], rotation_matrix(q[3:7])
 
     def initial(self):
-        rot = self.body.initial_rotation
-        return np.concatenate([self.reference_from_com(rot), self.body.orientation])
+        return np.concatenate(self.start())
 
     def angular_velocity(self, q, v):
         return 2.0 * ca.mtimes(E_matrix(q[3:7]), v[3:7])
@@ -344,8 +354,8 @@ class SpatialNatural(Description):
         return q[0:3], ca.horzcat(q[3:6], q[6:9], q[9:12])
 
     def initial(self):
-        rot = self.body.initial_rotation
-        return np.concatenate([self.reference_from_com(rot), rot.T.ravel()])
+        ref, quat = self.start()
+        return np.concatenate([ref, rotation_matrix(quat).T.ravel()])
 
     @property
     def constant_mass(self):
