@@ -332,7 +332,7 @@ def test_node_marker_python_api_and_errors():
     assert marker.body == "beam@tip" and marker.point == pytest.approx([L, 0.0])
     marker = mech.add_marker("py_off", "beam", (L, 2.0), node="tip")
     assert marker.point == pytest.approx([L, 2.0])
-    with pytest.raises(ModelError, match="marker 'bad'.*no node 'nose'.*mid, root, tip"):
+    with pytest.raises(ModelError, match=r"marker 'bad'.*no node 'nose'.*mid, root, tip"):
         mech.add_marker("bad", "beam", node="nose")
     with pytest.raises(ModelError, match="marker 'bad2' field 'point': missing"):
         mech.add_marker("bad2", "beam")
