@@ -413,3 +413,20 @@ def test_rigid_scene_summaries_list_outputs(tmp_path, capsys):
     final = float(line.split("final")[1].split()[0])
     assert abs(final) <= 1e-6
     assert "node " not in text
+
+
+def test_statics_sweep_reports_nodes_and_markers(tmp_path, capsys):
+    """A statics sweep over the tip load: the node's deflection and the node marker's
+    position per point are −P L³/(3 EI) for P = 100 and 200 N (bound 1e-9 relative)."""
+    scene = _cantilever().replace("[scene]", "[parameters]\nPl = 100.0\n\n[scene]").replace(
+        f"value = [0.0, {-P}]", 'value = [0.0, "-Pl"]')
+    path = tmp_path / "cantilever.toml"
+    path.write_text(scene)
+    deflection, marker = "final:node_deflections[beam@tip.y]", "final:marker.m_tip.position.y"
+    assert main(["sweep", str(path), "--analysis", "statics", "--param", "Pl=100,200",
+                 "--output", deflection, "--output", marker, "--mode", "vm", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    for point in out["points"]:
+        exact = -point["parameters"]["Pl"] * L**3 / (3 * EI)
+        assert point["outputs"][deflection] == pytest.approx(exact, rel=1e-9)
+        assert point["outputs"][marker] == pytest.approx(exact, rel=1e-9)
