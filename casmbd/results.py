@@ -96,11 +96,13 @@ class Result:
         in the plane ``angle_positions`` (n_t, n_b), in space ``rotation_matrices``
         (n_t, 9 n_b, A row by row) and ``angular_velocities`` (n_t, 3 n_b, global),
         ``marker_positions``, ``joint_positions`` …, ``joint_reactions`` (n_t, n_joints, 3 in
-        the plane / 6 in space), ``constraint_violation`` (n_t,)).
+        the plane / 6 in space), ``constraint_violation`` (n_t,); with flexible bodies'
+        named nodes ``node_positions``, ``node_deflections``, ``node_rotations``).
     names : dict of str to list of str
         ``coordinates``, ``bodies``, ``markers``, ``joints`` (one entry per joint coordinate:
         the joint's name for its first, ``joint.angle`` for a cylindrical joint's second),
-        ``all_joints``; optionally ``dimension`` (else inferred, see :attr:`dimension`).
+        ``all_joints``, ``nodes`` (``"<body>@<node>"``, :meth:`node`); optionally
+        ``dimension`` (else inferred, see :attr:`dimension`).
     stats : dict
         Timings and counters (``solve_seconds``, ``build_seconds`` …).
     """
@@ -230,6 +232,25 @@ class Result:
             out["angle"] = self.arrays["marker_angles"][:, i]
         return out
 
+    def node(self, name: str) -> dict[str, np.ndarray]:
+        """A flexible body's named node ``"<body>@<node>"``: ``position`` (n_t, dim), global,
+        deformed; ``deflection`` (n_t, dim) Φ_i η and ``rotation`` ψ_i = Ψ_i η ((n_t,) in the
+        plane, (n_t, 3) in space), relative to the undeformed body frame in body axes
+        (:func:`casmbd.system.requests.node_expressions`)."""
+        nodes = self.names.get("nodes", [])
+        if name not in nodes:
+            raise KeyError(f"no node '{name}' in this result (nodes: "
+                           f"{', '.join(nodes) or 'none'})")
+        i, dim = nodes.index(name), self.dimension
+        rdim = 1 if dim == 2 else 3
+        out = {key: self.arrays[f"node_{src}"][:, dim * i:dim * i + dim]
+               for key, src in (("position", "positions"), ("deflection", "deflections"))
+               if f"node_{src}" in self.arrays}
+        if "node_rotations" in self.arrays:
+            rot = self.arrays["node_rotations"][:, rdim * i:rdim * i + rdim]
+            out["rotation"] = rot[:, 0] if dim == 2 else rot
+        return out
+
     def joint(self, name: str) -> dict[str, np.ndarray]:
         """Coordinate, its rate and acceleration (n_t,) of a joint with a coordinate.
 
@@ -309,9 +330,11 @@ class Result:
             for key in ("quaternion", "angle"):
                 if key in frame:
                     markers[name][key] = _list(frame[key])
+        nodes = {name: {k: _list(v) for k, v in self.node(name).items()}
+                 for name in self.names.get("nodes", []) if "node_positions" in self.arrays}
         cv = self.arrays.get("constraint_violation", np.zeros(len(self.t)))
         out = {"kind": self.kind, "t": _list(self.t), "bodies": bodies, "joints": joints,
-               "markers": markers,
+               "markers": markers, **({"nodes": nodes} if nodes else {}),
                "constraint_violation": float(np.max(cv)) if cv.size else 0.0,
                "stats": self.stats}
         if "driver_efforts" in self.arrays:
@@ -416,6 +439,11 @@ class Result:
             labels = per(names.get("markers", []), ("angle",))
         elif key.startswith("marker_"):
             labels = per(names.get("markers", []), _AXES[dim])
+        elif key == "node_rotations":
+            labels = per(names.get("nodes", []), ("angle",) if dim == 2 else
+                         ("rx", "ry", "rz"))
+        elif key.startswith("node_"):
+            labels = per(names.get("nodes", []), _AXES[dim])
         elif key.startswith("joint_") and key != "joint_reactions":
             joints = names.get("joints", [])
             labels = list(joints) if len(joints) == n else None

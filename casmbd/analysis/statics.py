@@ -394,7 +394,8 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
     nb = len(model.body_names)
     names = {"coordinates": model.coordinate_names, "bodies": list(model.body_names),
              "joints": list(model.joint_coordinate_names), "all_joints": all_joints,
-             "markers": list(mech.markers)}
+             "markers": list(mech.markers),
+             **{k: v for k, v in result_names(mech).items() if k == "nodes"}}
     stats = dict(model.report_dict)
     stats.update({"coordinates": model.coordinates, "coordinate_choice": model.coordinates,
                   "coordinate_reason": model.coordinate_reason,
@@ -421,8 +422,9 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
 
 
 def _reports(mech, out: dict) -> dict:
-    """Requests (``outputs``) and force reports (``forces``) at the equilibrium, from the
-    outputs Function's groups (:mod:`casmbd.system.requests`)."""
+    """Requests (``outputs``), force reports (``forces``) and flexible bodies' named nodes
+    (``nodes``: position, deflection and rotation relative to the undeformed body frame) at the
+    equilibrium, from the outputs Function's groups (:mod:`casmbd.system.requests`)."""
     names = result_names(mech)
     reports: dict = {}
     if "outputs" in out:
@@ -436,6 +438,17 @@ def _reports(mech, out: dict) -> dict:
             element, _, quantity = label.rpartition(".")
             forces.setdefault(element, {})[quantity] = float(v)
         reports["forces"] = forces
+    if "node_positions" in out:  # flexible bodies' named nodes (casmbd.system.requests)
+        dim = mech.dimension
+        rdim = 1 if dim == 2 else 3
+        pos, defl, rot = (np.ravel(out[f"node_{k}"][0])
+                          for k in ("positions", "deflections", "rotations"))
+        reports["nodes"] = {
+            name: {"position": [float(x) for x in pos[dim * i:dim * i + dim]],
+                   "deflection": [float(x) for x in defl[dim * i:dim * i + dim]],
+                   "rotation": float(rot[i]) if dim == 2 else
+                   [float(x) for x in rot[rdim * i:rdim * i + rdim]]}
+            for i, name in enumerate(names["nodes"])}
     return reports
 
 

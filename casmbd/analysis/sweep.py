@@ -146,7 +146,12 @@ def _statics_result(res) -> Result:
               "stiffness_eigenvalues": eig[None, :],
               # the bodies' poses, so that body.NAME.… outputs and the absolute-coordinate
               # names q[NAME.x] … read them whatever coordinates were chosen
-              "body_positions": np.asarray(res.body_positions, float).reshape(1, -1)}
+              "body_positions": np.asarray(res.body_positions, float).reshape(1, -1),
+              "marker_positions": np.asarray(res.marker_positions, float).reshape(1, -1)}
+    nodes = res.reports.get("nodes", {})  # flexible bodies' named nodes (statics._reports)
+    for key in ("position", "deflection", "rotation") if nodes else ():
+        arrays[f"node_{key}s"] = np.concatenate(
+            [np.ravel(node[key]) for node in nodes.values()]).reshape(1, -1)
     if len(res.body_quaternions):
         arrays["rotation_matrices"] = _rotation_rows(np.asarray(res.body_quaternions, float))
     else:

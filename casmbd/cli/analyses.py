@@ -158,6 +158,17 @@ def _cmd_statics(args) -> tuple[dict, str]:
         reaction = "  ".join(f"{label} {x + 0.0:+.6g} {'N' if label[0] == 'F' else 'N m'}"
                              for label, x in zip(labels, j["reaction"]))  # no "-0"
         lines.append(f"  joint {name:<13} {coords}reaction {reaction}")
+    for name, node in data.get("nodes", {}).items():
+        defl = "  ".join(f"d{axis} {x:+.6g} m" for axis, x in zip("xyz", node["deflection"]))
+        rot = node["rotation"]
+        rot = (f"rotation {rot:+.6g} rad" if isinstance(rot, float) else
+               "rotation [" + ", ".join(f"{x:+.6g}" for x in rot) + "] rad")
+        pos = "  ".join(f"{axis} {x:+.6g} m" for axis, x in zip("xyz", node["position"]))
+        lines.append(f"  node {name:<14} {pos}  deflection (body axes) {defl}  {rot}")
+    units = dict(zip(mech.outputs, (o.unit for o in mech.outputs.values())))
+    for name, value in data.get("outputs", {}).items():
+        unit = "" if units.get(name, "-") in ("", "-") else f" {units[name]}"
+        lines.append(f"  output {name:<12} {value:+.6g}{unit}")
     eig = ", ".join(f"{e:.4g}" for e in result.eigenvalues) or "none (no degrees of freedom)"
     lines.append(f"  stiffness eigenvalues: {eig}")
     s = result.stats

@@ -104,8 +104,9 @@ def _range(label: str, values: np.ndarray, unit: str = "") -> str:
 
 def _summary_table(result, mech=None) -> list[str]:
     """One line per body (coordinate ranges of the centre of mass in m, and the angle range
-    in rad in the plane or the final quaternion in space) and per joint coordinate (m or
-    rad, from the joint's kind)."""
+    in rad in the plane or the final quaternion in space), per joint coordinate (m or
+    rad, from the joint's kind), per named node of a flexible body (its deflection) and per
+    request (``[[outputs]]``)."""
     lines = []
     spatial = result.dimension == 3
     for name in result.names["bodies"]:
@@ -122,6 +123,39 @@ def _summary_table(result, mech=None) -> list[str]:
     for name, unit in zip(result.names["joints"], units):
         c = result["joint_positions"][:, result.names["joints"].index(name)]
         lines.append(f"  joint {name:<13} {_range('coordinate', c, unit)}")
+    return lines + _node_lines(result) + _output_lines(result)
+
+
+def _node_lines(result) -> list[str]:
+    """One line per named node of a flexible body: the ranges of its deflection and rotation
+    relative to the undeformed body frame (body axes) and its final deflection."""
+    if "node_deflections" not in result.arrays:
+        return []
+    lines = []
+    for name in result.names.get("nodes", []):
+        node = result.node(name)
+        defl, rot = node["deflection"], np.reshape(node["rotation"], (len(result.t), -1))
+        axes = "xyz"[:defl.shape[1]]
+        parts = [_range(f"d{a}", defl[:, k], "m") for k, a in enumerate(axes)]
+        parts += [_range("rotation" if rot.shape[1] == 1 else f"r{a}", rot[:, k], "rad")
+                  for k, a in enumerate("xyz"[:rot.shape[1]])]
+        final = ", ".join(f"{x:+.6g}" for x in defl[-1])
+        lines.append(f"  node {name:<14} deflection (body axes) " + "  ".join(parts)
+                     + f"; final [{final}] m")
+    return lines
+
+
+def _output_lines(result) -> list[str]:
+    """One line per request (``[[outputs]]``): its range and final value with its unit."""
+    if "outputs" not in result.arrays:
+        return []
+    units = result.names.get("output_units", [])
+    lines = []
+    for k, name in enumerate(result.names.get("outputs", [])):
+        values = result.output(name)
+        unit = units[k] if k < len(units) and units[k] not in ("", "-") else ""
+        lines.append(f"  output {name:<12} {_range('value', values, unit)}, final "
+                     f"{values[-1]:+.6g}{' ' + unit if unit else ''}")
     return lines
 
 

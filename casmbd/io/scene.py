@@ -18,7 +18,8 @@ Contract (SI units, angles in radians; vectors have ``dimension`` components)::
                   space:  inertia = [Ixx, Iyy, Izz(, Ixy, Ixz, Iyz)] (centre of mass, body axes),
                           orientation = [w, x, y, z] | euler_zxz = [phi, theta, psi],
                           angular_velocity = [wx, wy, wz] (global)
-    [[markers]]   name, body, point (, orientation | euler_zxz in space, angle in the plane)
+    [[markers]]   name, body, point (, orientation | euler_zxz in space, angle in the plane);
+                  or name, body, node (a flexible body's named node; point optional)
     [[joints]]    name, type, body1, body2, point, ...
                   plane: revolute|prismatic|rigid|distance|fixed|gear
                   space: also spherical|cylindrical|universal|inline; axis (revolute,
@@ -354,8 +355,8 @@ def _build(data: dict, source: str) -> Mechanism:
 
     for e in entries("markers"):
         e.check_keys(_MARKER_KEYS)
-        guarded(e, lambda e=e: mech.add_marker(
-            _name(e), e.string("body"), e.vector("point", dim),
+        guarded(e, lambda e=e: mech.add_marker(  # 'node': at a flexible body's node
+            _name(e), e.string("body"), e.vector("point", dim, required=not e.has("node")),
             orientation=e.vector("orientation", 4, required=False),
             euler_zxz=e.vector("euler_zxz", 3, required=False),
             angle=e.number("angle", None) if e.has("angle") else None))

@@ -60,8 +60,8 @@ from casmbd.model.registry import register_body
 from casmbd.model.rotations import euler_zxz_to_quaternion, rotation_matrix
 
 __all__ = ["FLEXIBLE_SCENE_KEYS", "NodeFrame", "PlanarFlexibleBody", "SpatialFlexibleBody",
-           "is_flexible", "modal_data", "node_attachment", "register_modal_store",
-           "rigidified"]
+           "is_flexible", "modal_data", "named_nodes", "node_attachment",
+           "register_modal_store", "rigidified"]
 
 #: separator of attachment names ``"<body>@<node>"``
 NODE_SEPARATOR = "@"
@@ -529,3 +529,11 @@ def rigidified(mechanism):
 def is_flexible(body) -> bool:
     """True for a flexible body (a kind with modal data)."""
     return isinstance(body, _Flexible)
+
+
+def named_nodes(mechanism) -> list[str]:
+    """The attachment names ``"<body>@<node>"`` of every named node of the mechanism's flexible
+    bodies, body by body in declaration order: the columns of the ``node_positions``,
+    ``node_deflections`` and ``node_rotations`` of a result (:mod:`casmbd.system.requests`)."""
+    return [f"{body.name}{NODE_SEPARATOR}{node}" for body in mechanism.bodies.values()
+            if is_flexible(body) for node in body.nodes]

@@ -42,6 +42,7 @@ from casmbd.errors import ModelError
 from casmbd.model.bodies import GROUND
 from casmbd.model.expression_rules import MEASURE_ARITY
 from casmbd.model.expressions import parse_expression
+from casmbd.model.flexible_bodies import named_nodes
 
 #: what each measure reads: a joint coordinate, a point, two points or a body frame
 _KINDS = {"angle": "joint", "translation": "joint", "coordinate": "joint", "rate": "joint",
@@ -208,7 +209,7 @@ def _frame_angle(ctx, target: str) -> ca.SX:
     kind, _, name = target.partition(":")
     if kind == "marker":
         marker = ctx.mechanism.markers[name]
-        return ctx.angle(marker.body) + marker.offset(ctx.mechanism.bodies.get(marker.body))
+        return ctx.angle(marker.body) + marker.offset(ctx.mechanism.attachment(marker.body))
     return ctx.angle(name)
 
 
@@ -263,9 +264,10 @@ def force_report_names(mech) -> list[tuple[str, str, str]]:
 
 
 def result_names(mech) -> dict[str, list[str]]:
-    """The ``names`` of a result's requests (``outputs``, ``output_units``) and force reports
-    (``force_outputs`` as ``"<element>.<quantity>"``, ``force_output_units``); only the
-    groups the mechanism has (:mod:`casmbd.system.requests` builds the arrays)."""
+    """The ``names`` of a result's requests (``outputs``, ``output_units``), force reports
+    (``force_outputs`` as ``"<element>.<quantity>"``, ``force_output_units``) and flexible
+    bodies' named nodes (``nodes``, ``"<body>@<node>"``); only the groups the mechanism has
+    (:mod:`casmbd.system.requests` builds the arrays)."""
     out: dict[str, list[str]] = {}
     outputs = getattr(mech, "outputs", {})
     if outputs:
@@ -275,4 +277,7 @@ def result_names(mech) -> dict[str, list[str]]:
     if reports:
         out["force_outputs"] = [f"{e}.{q}" for e, q, _ in reports]
         out["force_output_units"] = [u for _, _, u in reports]
+    nodes = named_nodes(mech)
+    if nodes:  # flexible bodies' named nodes: position, deflection, rotation
+        out["nodes"] = nodes
     return out

@@ -147,6 +147,14 @@ class Mechanism:
         self.nodes[name] = frame
         return frame
 
+    def attachment(self, name: str):
+        """The model object of an attachment name: a body, the :class:`NodeFrame` of
+        ``"<body>@<node>"``, or None for the ground (its initial pose: ``initial_rotation``,
+        ``angle``, ``position``)."""
+        if node_attachment(name) is not None:
+            return self.node_frame(name)
+        return self.bodies.get(name)
+
     def owner(self, name: str) -> str:
         """The body an attachment name belongs to (itself for a body or the ground)."""
         parts = node_attachment(name)
@@ -216,16 +224,35 @@ class Mechanism:
                         reference_point=reference_point, orientation=orientation,
                         euler_zxz=euler_zxz)
 
-    def add_marker(self, name: str, body: str, point: Sequence[float],
+    def add_marker(self, name: str, body: str, point: Sequence[float] | None = None,
                    orientation: Sequence[float] | None = None,
                    euler_zxz: Sequence[float] | None = None,
-                   angle: float | None = None) -> Marker:
+                   angle: float | None = None, node: str | None = None) -> Marker:
         """Add a named point on ``body`` at the global location ``point`` (initial pose), with
         an optional frame: its global orientation at the design pose as a unit quaternion
         ``orientation`` or Z-X-Z Euler angles ``euler_zxz`` (space), or ``angle`` (plane);
-        default the body's orientation (see :class:`~casmbd.model.bodies.Marker`)."""
+        default the body's orientation (see :class:`~casmbd.model.bodies.Marker`).
+
+        ``node`` attaches the marker to a named node of the flexible body ``body`` (the same
+        as ``body = "<body>@<node>"``): it moves and turns with the deformed node frame,
+        r_P = R + A (u_i0 + Φ_i η) + A_i(η) A_i0ᵀ (P − r_i0) with A_i the node frame's rotation
+        (seed 002, eq. 5–26); ``point`` defaults to the node's undeformed position.
+        """
+        if node is not None:
+            if not isinstance(node, str) or not node.strip() or "@" in node:
+                raise ModelError(f"marker '{name}' field 'node': expected a node name, got "
+                                 f"{node!r}")
+            if not isinstance(body, str) or node_attachment(body) is not None:
+                raise ModelError(f"marker '{name}' field 'body': expected a flexible body's "
+                                 f"name with 'node', got {body!r}")
+            body = f"{body}@{node}"
         self._unique(self.markers, "marker", name)
         self._body(body, f"marker '{name}' field 'body'")
+        if point is None:
+            if node_attachment(body) is None:
+                raise ModelError(f"marker '{name}' field 'point': missing (give the marker's "
+                                 "global point, or 'node' of a flexible body)")
+            point = self.node_frame(body).position
         given = [k for k, v in (("orientation", orientation), ("euler_zxz", euler_zxz),
                                 ("angle", angle)) if v is not None]
         if len(given) > 1:

@@ -128,6 +128,13 @@ class FlexibleDescription:
         return (self.flex.node_position(node, ref, rot, eta),
                 self.flex.node_rotation(node, rot, eta))
 
+    def node_deflection(self, ctx, name: str, node: int) -> tuple[ca.SX, ca.SX]:
+        """(Φ_i η, Ψ_i η): the node's elastic displacement and small rotation relative to the
+        undeformed body frame, in body axes (seed 002, eq. 5–26: u_i = u_i0 + Φ_i η)."""
+        eta = ctx.coordinates(name)[self.frame_size:]
+        return (ca.mtimes(ca.DM(np.atleast_2d(self.flex.inv.phi_t[node])), eta),
+                self.flex.node_rotation_vector(node, eta))
+
     def node_angle(self, ctx, name: str, node: int) -> ca.SX:
         """Plane: θ + Ψ_i η, the node frame's angle."""
         eta = ctx.coordinates(name)[self.frame_size:]

@@ -129,7 +129,7 @@ class Outputs:
         ctx, mech = self.ctx, self.mechanism
         out = []
         for m in mech.markers.values():
-            offset = m.offset(mech.bodies.get(m.body))
+            offset = m.offset(mech.attachment(m.body))
             if self.dimension == 2:
                 out.append(ctx.angle(m.body) + offset)
             else:

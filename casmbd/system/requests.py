@@ -1,6 +1,6 @@
 """Requests and force-element reports as outputs of a :class:`~casmbd.system.equations.System`.
 
-Two groups join the outputs Function (:meth:`casmbd.system.outputs.Outputs.outputs_function`),
+These groups join the outputs Function (:meth:`casmbd.system.outputs.Outputs.outputs_function`),
 so every analysis with a result grid (simulation, kinematics, inverse dynamics) reports them:
 
 * ``outputs`` (n_out): the mechanism's requests (``[[outputs]]``, :class:`casmbd.model.measures.
@@ -9,7 +9,10 @@ so every analysis with a result grid (simulation, kinematics, inverse dynamics) 
 * ``force_outputs``: the measures every force element reports by default
   (:meth:`casmbd.model.forces.ForceElement.reports`: a spring's length, rate and force, an
   expression force's value, joint friction's force), in the order of
-  :func:`casmbd.model.measures.force_report_names`.
+  :func:`casmbd.model.measures.force_report_names`;
+* ``node_positions``, ``node_deflections``, ``node_rotations``: the flexible bodies' named
+  nodes, deformed position and deflection relative to the undeformed body frame
+  (:func:`node_expressions`).
 
 Their names are the model layer's (:func:`casmbd.model.measures.result_names`), so a model
 loaded from the compiled cache, without a System, names its columns the same.  Accelerations
@@ -22,6 +25,7 @@ from __future__ import annotations
 import casadi as ca
 
 from casmbd.errors import ModelError
+from casmbd.model.flexible_bodies import named_nodes
 from casmbd.model.measures import expression, force_report_names
 
 
@@ -70,8 +74,30 @@ def force_report_expressions(system) -> ca.SX:
     return ca.vertcat(*exprs) if exprs else ca.SX(0, 1)
 
 
+def node_expressions(system) -> list[tuple[str, ca.SX]]:
+    """The named nodes of flexible bodies (:func:`~casmbd.model.flexible_bodies.named_nodes`):
+    ``node_positions`` r_i = R + A (u_i0 + Φ_i η) (global, dim per node), ``node_deflections``
+    Φ_i η and ``node_rotations`` ψ_i = Ψ_i η (relative to the undeformed body frame, in body
+    axes: dim and 1 (plane) or 3 (space) per node); empty without named nodes."""
+    mech, ctx = system.mechanism, system.ctx
+    positions, deflections, rotations = [], [], []
+    for name in named_nodes(mech):
+        frame = mech.node_frame(name)
+        positions.append(ctx.centre_of_mass(name))
+        displacement, rotation = ctx.descriptions[frame.body].node_deflection(
+            ctx, frame.body, frame.index)
+        deflections.append(displacement)
+        rotations.append(rotation)
+    if not positions:
+        return []
+    return [("node_positions", ca.vertcat(*positions)),
+            ("node_deflections", ca.vertcat(*deflections)),
+            ("node_rotations", ca.vertcat(*rotations))]
+
+
 def output_groups(system) -> list[tuple[str, ca.SX]]:
-    """(name, expression) of the non-empty groups: ``outputs``, ``force_outputs``."""
+    """(name, expression) of the non-empty groups: ``outputs``, ``force_outputs``, and the
+    ``node_*`` groups of :func:`node_expressions`."""
     out = []
     requests = request_expressions(system)
     if requests.numel():
@@ -79,4 +105,4 @@ def output_groups(system) -> list[tuple[str, ca.SX]]:
     reports = force_report_expressions(system)
     if reports.numel():
         out.append(("force_outputs", reports))
-    return out
+    return out + node_expressions(system)
