@@ -49,9 +49,9 @@ def prismatic(dim, driven=False, coordinates="auto"):
     m = casmbd.Mechanism("prismatic", gravity=G2 if dim == 2 else G3, coordinates=coordinates)
     z = (0.0,) * (dim - 2)
     m.add_body("slider", mass=1.0, inertia=0.1 if dim == 2 else [0.1, 0.1, 0.1],
-               position=(0.0, 0.0) + z)
-    m.add_prismatic("slide", "ground", "slider", point=(0.0, 0.0) + z,
-                    axis=(0.6, -0.8) + z)
+               position=(0.0, 0.0, *z))
+    m.add_prismatic("slide", "ground", "slider", point=(0.0, 0.0, *z),
+                    axis=(0.6, -0.8, *z))
     if driven:
         m.add_driver("push", joint="slide", position="0.1*t**2")
     return m
@@ -61,8 +61,8 @@ def _second_link(m, dim, joint):
     """A second body on ``link``, joined by ``joint(m, point)``."""
     z = (0.0,) * (dim - 2)
     m.add_body("tip", mass=0.5, inertia=0.02 if dim == 2 else [0.02, 0.02, 0.02],
-               position=(1.0, 0.0) + z)
-    joint(m, (1.0, 0.0) + z)
+               position=(1.0, 0.0, *z))
+    joint(m, (1.0, 0.0, *z))
 
 
 @_with
@@ -74,26 +74,26 @@ def rigid(m, dim):
 def fixed(m, dim):
     z = (0.0,) * (dim - 2)
     m.add_body("block", mass=0.5, inertia=0.02 if dim == 2 else [0.02, 0.02, 0.02],
-               position=(0.0, 1.0) + z)
-    m.add_fixed("anchor", "block", point=(0.0, 1.0) + z)
+               position=(0.0, 1.0, *z))
+    m.add_fixed("anchor", "block", point=(0.0, 1.0, *z))
 
 
 @_with
 def distance(m, dim):
     z = (0.0,) * (dim - 2)
     m.add_body("bob", mass=0.5, inertia=0.02 if dim == 2 else [0.02, 0.02, 0.02],
-               position=(1.0, -0.5) + z)
-    m.add_revolute("hinge", "link", "bob", point=(1.0, 0.0) + z,
+               position=(1.0, -0.5, *z))
+    m.add_revolute("hinge", "link", "bob", point=(1.0, 0.0, *z),
                    **({} if dim == 2 else {"axis": (0.0, 0.0, 1.0)}))
-    m.add_distance("rope", "ground", "bob", point1=(1.5, 0.0) + z, point2=(1.0, -0.5) + z)
+    m.add_distance("rope", "ground", "bob", point1=(1.5, 0.0, *z), point2=(1.0, -0.5, *z))
 
 
 @_with
 def gear(m, dim):
     z = (0.0,) * (dim - 2)
     m.add_body("wheel", mass=1.0, inertia=0.05 if dim == 2 else [0.05, 0.05, 0.05],
-               position=(0.0, 1.0) + z)
-    m.add_revolute("axle", "ground", "wheel", point=(0.0, 1.0) + z,
+               position=(0.0, 1.0, *z))
+    m.add_revolute("axle", "ground", "wheel", point=(0.0, 1.0, *z),
                    **({} if dim == 2 else {"axis": (0.0, 0.0, 1.0)}))
     m.add_gear("mesh", "pin", "axle", ratio=-2.0)
 
@@ -150,7 +150,7 @@ def torque(m, dim):
 @_with
 def spring_damper(m, dim):
     z = (0.0,) * (dim - 2)
-    m.add_spring_damper("spring", "ground", "link", (1.0, 0.5) + z, (1.0, 0.0) + z,
+    m.add_spring_damper("spring", "ground", "link", (1.0, 0.5, *z), (1.0, 0.0, *z),
                         stiffness=20.0, damping=0.5)
 
 
@@ -204,7 +204,7 @@ def _ball(dim, name, coordinates, **contact):
                position=(0.0, 0.3) if dim == 2 else (0.0, 0.0, 0.3))
     normal = (0.0, 1.0) if dim == 2 else (0.0, 0.0, 1.0)
     m.add_contact("floor", "ball", point=m.bodies["ball"].position if dim == 2 else
-                  (0.0, 0.0, 0.3), radius=0.1, origin=(0.0, 0.0) + z, normal=normal,
+                  (0.0, 0.0, 0.3), radius=0.1, origin=(0.0, 0.0, *z), normal=normal,
                   **contact)
     return m
 
@@ -237,7 +237,7 @@ gravity = {list(G2 if dim == 2 else G3)}
 [[bodies]]
 name = "beam"
 type = "flexible"
-position = {[0.0, 0.0] + z}
+position = {[0.0, 0.0, *z]}
 modes = 2
 reduction = "craig_bampton"
 interfaces = ["root"]
@@ -255,7 +255,7 @@ type = "revolute"
 body1 = "ground"
 body2 = "beam"
 node2 = "root"
-point = {[0.0, 0.0] + z}
+point = {[0.0, 0.0, *z]}
 {'axis = [0.0, 0.0, 1.0]' if dim == 3 else ''}
 """
     return casmbd.loads_scene(text)

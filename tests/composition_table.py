@@ -59,7 +59,7 @@ def table() -> str:
             needs = sorted({r.need for r in requirements(build(dims[0]))})
             lines.append(f"| `{kind}` ({variant}) | {', '.join(needs) or '—'} |")
     for variant in ("stop_impact", "contact_impact", "driver", "actuator"):
-        build, dims, driven = VARIANTS[variant]
+        build, dims, _driven = VARIANTS[variant]
         needs = sorted({r.need for r in requirements(build(dims[0]))})
         lines.append(f"| {variant.replace('_', ' ')} | {', '.join(needs) or '—'} |")
     lines += ["", "Needs:", ""]

@@ -184,12 +184,13 @@ SWEPT = ["revolute", "stop_impact", "contact_impact", "joint_friction_stick_slip
 
 
 @pytest.mark.parametrize("variant", SWEPT)
-def test_sweep_point_equals_simulate(variant):
+def test_sweep_point_equals_simulate(variant, tmp_path):
     build, _, _ = VARIANTS[variant]
     mech = build(2)
     mech.add_parameter("extra", 1.0)
-    res = casmbd.sweep(mech, {"extra": [1.0]}, t_end=0.6, steps=6, mode="vm")
-    point = res.result(0) if hasattr(res, "result") else res.results[0]
+    res = casmbd.sweep(mech, {"extra": [1.0]}, t_end=0.6, steps=6, mode="vm",
+                       out_dir=tmp_path)
+    point = res.result(0)
     direct = casmbd.simulate(build(2), 0.6, 6, mode="vm")
     assert np.max(np.abs(_positions(point) - _positions(direct))) <= 1e-12
 

@@ -483,18 +483,17 @@ class CompiledModel:
 
 #: what the per-call API handles (casmbd.model.needs): the smooth equations at one state
 HANDLING = Handling(
-    "the per-call API (casmbd.compile)", frozenset({"modal_coordinates", "inputs"}),
+    "the per-call API (casmbd.compile)", frozenset({"modal_coordinates", "inputs", "drivers"}),
     why={"events": "its equations have no contact or stop rows and no impulses",
          "contact_friction": "its equations have no contact rows",
          "stick_slip": "the exact Coulomb law switches at events, which one call has not",
-         "reaction_forces": "the bias b = −Q_v − Q_e is evaluated without multipliers",
-         "drivers": "a call has no time: a prescribed motion is given as (q, v, a)"},
+         "reaction_forces": "the bias b = −Q_v − Q_e is evaluated without multipliers"},
     instead={"events": "simulate, or model = 'compliant' (a force in the bias)",
              "contact_friction": "simulate",
              "stick_slip": "the regularised law (stick_slip = false), or simulate",
-             "reaction_forces": "inverse dynamics (casmbd.inverse_dynamics)",
-             "drivers": "the mechanism without its drivers, with (q, v, a) of the motion"},
-    notes={"inputs": "τ are the efforts; actuator inputs u = 0 in the bias"})
+             "reaction_forces": "inverse dynamics (casmbd.inverse_dynamics)"},
+    notes={"inputs": "τ are the efforts; actuator inputs u = 0 in the bias",
+           "drivers": "driver rows are constraint equations at t = 0 (a call has no time)"})
 
 
 def compile(mechanism, coordinates: str | None = "joint", mode: str = "auto",

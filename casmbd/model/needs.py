@@ -131,7 +131,10 @@ def check(mechanism, handling: Handling) -> None:
     CompositionError
         Naming every refused element and its need.
     """
-    mechanism = mechanism if hasattr(mechanism, "bodies") else mechanism.mechanism
+    mechanism = mechanism if hasattr(mechanism, "bodies") else \
+        getattr(mechanism, "mechanism", None)
+    if not hasattr(mechanism, "bodies"):  # not a mechanism: the caller's own check names it
+        return
     refused = handling.refusals(mechanism)
     if not refused:
         return

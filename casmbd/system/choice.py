@@ -68,6 +68,12 @@ def choose_coordinates(mechanism) -> CoordinateChoice:
         return CoordinateChoice("absolute", f"flexible bodies ({shown}) carry frame and modal "
                                 "coordinates (no joint coordinates through them): absolute "
                                 "coordinates")
+    follows = [name for name, force in mechanism.forces.items()
+               if "reaction_forces" in getattr(force, "needs", ())]
+    if follows:
+        return CoordinateChoice("absolute", f"friction that follows the joint reactions "
+                                f"({', '.join(follows[:3])}): absolute coordinates, whose "
+                                "multipliers give every joint's reaction")
     try:
         descriptions, absorbed = tree_descriptions(mechanism, getattr(mechanism, "tree", None))
     except ModelError as exc:
