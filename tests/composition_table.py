@@ -55,7 +55,7 @@ def table() -> str:
              "| --- | --- |"]
     for kind, variants in sorted(KIND_VARIANTS.items()):
         for variant in variants:
-            build, dims, driven = VARIANTS[variant]
+            build, dims, _ = VARIANTS[variant]
             needs = sorted({r.need for r in requirements(build(dims[0]))})
             lines.append(f"| `{kind}` ({variant}) | {', '.join(needs) or '—'} |")
     for variant in ("stop_impact", "contact_impact", "driver", "actuator"):
