@@ -199,3 +199,78 @@ def test_needs_named_in_messages():
     mech = VARIANTS["contact_impact"][0](2)
     with pytest.raises(CompositionError, match=r"contact 'floor' needs impacts.*instead: "):
         casmbd.inverse_dynamics(mech, 0.1, 2)
+
+
+def _coordinates(variant, dim):
+    """The coordinate choices the canonical scene takes (a refusal of one names it)."""
+    build = VARIANTS[variant][0]
+    taken = []
+    for coords in ("absolute", "natural", "joint"):
+        try:
+            casmbd.System(build(dim, coordinates=coords))
+            taken.append(coords)
+        except CasmbdError as exc:
+            assert "coordinate" in str(exc), exc
+    return taken
+
+
+LINEAR = [(v, d) for v, d in CELLS if not ANALYSES["linearize"].refusals(VARIANTS[v][0](d))
+          and v not in ("contact_impact", "contact_compliant", "prismatic", "cylindrical",
+                        "inline", "planar")]  # no equilibrium: falls, slides
+
+
+@pytest.mark.parametrize("variant,dim", LINEAR)
+def test_statics_and_linearize_agree_across_coordinate_choices(variant, dim):
+    """Statics' equilibrium is one for forward dynamics too (linearize's KKT accelerations
+    vanish there: another path through the equations), with the same verdict; and the
+    natural frequencies about it are the same in every coordinate choice (1e-6 relative)."""
+    build = VARIANTS[variant][0]
+    spectra = {}
+    for coords in _coordinates(variant, dim):
+        mech = build(dim, coordinates=coords)
+        eq = casmbd.static_equilibrium(mech, mode="vm")
+        closed = [name for name, c in (eq.contacts or {}).items() if c["normal_force"] > 0.0]
+        if closed:  # resting on a contact or stop: linearize refuses it by name
+            with pytest.raises(CompositionError, match=closed[0]):
+                casmbd.linearize(mech, q=eq.q, mode="vm")
+            continue
+        lin = casmbd.linearize(mech, q=eq.q, mode="vm")
+        assert lin.stats["equilibrium"], coords
+        if eq.stability is not None and lin.stability is not None:
+            assert eq.stability.verdict == lin.stability.verdict
+        spectra[coords] = np.sort(np.asarray(lin.natural_frequencies_hz, dtype=float))
+    ref = next(iter(spectra.values()), None)
+    for coords, freq in spectra.items():
+        assert freq.shape == ref.shape, coords
+        assert np.allclose(freq, ref, rtol=1e-6, atol=1e-9), (coords, freq, ref)
+
+
+COMPILED = [(v, d) for v, d in CELLS if not ANALYSES["compile"].refusals(VARIANTS[v][0](d))
+            and v not in ("user",)]  # a user force of t: the per-call bias is at t = 0
+
+
+@pytest.mark.parametrize("variant,dim", COMPILED)
+def test_compiled_forward_dynamics_equals_the_simulation_start(variant, dim):
+    """The per-call API's forward dynamics at the initial state = the accelerations the
+    simulation starts with (same coordinates, 1e-8)."""
+    build = VARIANTS[variant][0]
+    coords = _coordinates(variant, dim)[0]
+    mech = build(dim, coordinates=coords)
+    sim = casmbd.simulate(mech, 0.01, 1, formulation="index1", mode="vm")
+    model = casmbd.compile(build(dim, coordinates=coords), coordinates=coords, mode="vm")
+    acc = model.forward_dynamics(sim["q"][0], sim["v"][0], np.zeros(model.nq))
+    assert np.max(np.abs(acc - sim["a"][0])) <= 1e-8 * max(1.0, float(np.max(np.abs(acc))))
+
+
+@pytest.mark.parametrize("variant,dim", CELLS)
+def test_plot_and_animate_draw_every_element(variant, dim, tmp_path):
+    """plot and animate take every element kind: a picture file, and a frame of the
+    animation whose drawing holds every body."""
+    from casmbd.viz.animation import draw_frame
+    from casmbd.viz.plots import plot_result
+    build = VARIANTS[variant][0]
+    res = casmbd.simulate(build(dim), 0.2, 2, mode="vm")
+    plot_result(res, out=tmp_path / "p.png")
+    assert (tmp_path / "p.png").stat().st_size > 1000
+    fig = draw_frame(res, 1, mechanism=build(dim))
+    assert fig is not None
