@@ -274,3 +274,39 @@ def test_plot_and_animate_draw_every_element(variant, dim, tmp_path):
     assert (tmp_path / "p.png").stat().st_size > 1000
     fig = draw_frame(res, 1, mechanism=build(dim))
     assert fig is not None
+
+
+def _stop_pendulum(model: str, stop: bool = True):
+    m = casmbd.Mechanism("ocp_stop", gravity=(0.0, -9.81), coordinates="joint")
+    m.add_body("link", mass=1.0, inertia=1.0 / 12, position=(0.5, 0.0))
+    m.add_revolute("pin", "ground", "link", point=(0.0, 0.0))
+    m.add_actuator("motor", "pin")
+    if stop:
+        kw = {"stiffness": 1e3, "damping": 0.0} if model == "compliant" else {}
+        m.add_joint_limit("pin", upper=0.5, model=model, **kw)
+    return m
+
+
+def test_ocp_takes_compliant_stops_and_refuses_impact_stops():
+    """Trajectory optimisation handles a compliant stop (a force): the optimal motion ends
+    0.03 rad into it, and its controls replayed by ``simulate`` (which includes the stop)
+    reach the target (replay error < 1e-3 rad), while the same controls on the pendulum
+    without the stop miss it by more than ten times the replay error — the stop force was in the optimised dynamics.  The impact
+    model is refused by name, naming the compliant one."""
+    from casmbd.ocp import Ocp
+    ocp = Ocp(_stop_pendulum("compliant"), horizon=1.0, intervals=20)
+    ocp.control_bounds("motor", -20, 20)
+    ocp.initial(pin=0.0, pin_dot=0.0).final(pin=0.53, pin_dot=0.0)
+    ocp.minimize("effort")
+    sol = ocp.solve()
+    sol.replay()
+    assert sol.stats["replay_error"] < 1e-3
+    import casadi as ca
+    edges = np.asarray(sol.control_times, dtype=float)[1:-1]
+    held = sol.control("motor")
+    free = casmbd.simulate(_stop_pendulum("compliant", stop=False), 1.0, 20, rtol=1e-10,
+                           inputs={"motor": lambda t: ca.pw_const(t, ca.DM(edges),
+                                                                  ca.DM(held))})
+    assert abs(free["q"][-1, 0] - 0.53) > 10 * sol.stats["replay_error"]
+    with pytest.raises(CompositionError, match=r"joint limit 'pin.limit'.*compliant"):
+        Ocp(_stop_pendulum("impact"), horizon=1.0, intervals=20)
