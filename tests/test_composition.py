@@ -291,8 +291,8 @@ def test_ocp_takes_compliant_stops_and_refuses_impact_stops():
     """Trajectory optimisation handles a compliant stop (a force): the optimal motion ends
     0.03 rad into it, and its controls replayed by ``simulate`` (which includes the stop)
     reach the target (replay error < 1e-3 rad), while the same controls on the pendulum
-    without the stop miss it by more than ten times the replay error — the stop force was in the optimised dynamics.  The impact
-    model is refused by name, naming the compliant one."""
+    without the stop miss it by more than ten times the replay error — the stop force was in
+    the optimised dynamics.  The impact model is refused by name, naming the compliant one."""
     from casmbd.ocp import Ocp
     ocp = Ocp(_stop_pendulum("compliant"), horizon=1.0, intervals=20)
     ocp.control_bounds("motor", -20, 20)
