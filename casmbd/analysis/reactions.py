@@ -7,14 +7,17 @@ C_qᵀ (C_qᵀ N = 0), satisfies C_qᵀ λ = Q_e + Q_v − M q̈ equally.  The r
 R(λ) = R₀ + R_λ λ, so a component is determined exactly when its row of R_λ N vanishes; the
 others depend on how the self-stress of the loop is shared (seed 002, "joint forces that cannot
 be determined": a rigid model cannot say).  They are reported for the minimum-norm multipliers
-λ − N Nᵀ λ (seed 002's orthogonalisation), listed in ``undetermined_reactions`` and announced
-by ``reactions = "minimum_norm"`` — finite, never NaN, and never passed off as determined.
+λ − N Nᵀ λ (seed 002's orthogonalisation), listed in ``undetermined_reactions``, announced by
+``reactions = "minimum_norm"`` and a ``RuntimeWarning`` — finite, never NaN, and never passed
+off as determined.
 
 R_λ N is formed column by column from the compiled reaction function itself,
 R(λ + n_k) − R(λ), so no extra Function is compiled.
 """
 
 from __future__ import annotations
+
+import warnings
 
 import numpy as np
 
@@ -143,4 +146,8 @@ def flag_undetermined(model, qs, vs, acc, grid, us, lam, reactions: np.ndarray,
     if flagged:
         info["undetermined_reactions"] = {j: sorted(c) for j, c in flagged.items()}
         info["reactions"] = "minimum_norm"
+        detail = "; ".join(f"'{j}' components {sorted(c)}" for j, c in flagged.items())
+        warnings.warn(f"joint reactions cannot be determined (redundant constraint equations "
+                      f"or a singular pose; the minimum-norm distribution is reported): "
+                      f"{detail}", RuntimeWarning, stacklevel=3)
     return out, info
