@@ -232,3 +232,33 @@ def test_cli_json(verb):
     data = json.loads(out.stdout)
     assert data["stats"]["redundant_equations"] == REMOVED
     assert data["stats"]["redundancy"] == "removed"
+
+
+def _doubly_driven(rate2: str) -> casmbd.Mechanism:
+    """A pendulum on a pin with two drivers on its angle: ``t`` and ``rate2``."""
+    m = casmbd.Mechanism(f"two_drivers_{rate2.replace(' ', '')}", gravity=(0.0, -9.81))
+    m.add_body("rod", 1.0, 1.0 / 12.0, (0.5, 0.0))
+    m.add_revolute("pin", "ground", "rod", (0.0, 0.0))
+    m.add_driver("first", "t", joint="pin")
+    m.add_driver("second", rate2, joint="pin")
+    return m
+
+
+def test_consistent_duplicate_driver_is_removed_and_named():
+    """Two drivers that say the same thing: the second is redundant, removed and named; the
+    effort is shared in the least-norm way (half each: λ ⟂ (1, −1)) and sums to the one
+    driver's, m g (L/2) cos θ + J_O θ̈ = 4.905 cos t (θ̈ = 0)."""
+    res = casmbd.inverse_dynamics(_doubly_driven("t"), t_end=1.0, steps=4)
+    assert res.stats["redundant_equations"] == ["driver 'second' equation 'coordinate'"]
+    efforts = res["driver_efforts"]
+    expected = 9.81 * 0.5 * np.cos(res.t)
+    assert np.max(np.abs(efforts.sum(axis=1) - expected)) < 1e-12
+    assert np.max(np.abs(efforts[:, 0] - efforts[:, 1])) < 1e-12
+
+
+def test_contradicting_drivers_are_named_not_ignored():
+    """θ = t and θ = 2t agree at t = 0 only: the second, removed as redundant there, is violated
+    at the next time and named — the analysis does not return a motion that ignores it."""
+    with pytest.raises(casmbd.RedundantConstraintError, match=r"kinematics at t = 0\.25.*"
+                       r"driver 'second'"):
+        casmbd.kinematics(_doubly_driven("2 * t"), t_end=1.0, steps=4)

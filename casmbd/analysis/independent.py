@@ -36,10 +36,14 @@ import numpy as np
 
 from casmbd.analysis.reactions import multiplier_null_space
 from casmbd.analysis.redundancy import rank_report
-from casmbd.errors import AnalysisError
+from casmbd.errors import AnalysisError, RedundantConstraintError
 
 __all__ = ["REDUNDANCY_OPTIONS", "IndependentRows", "RowPlan", "check_option",
-           "find_redundant", "minimum_norm", "scatter"]
+           "check_removed", "find_redundant", "minimum_norm", "scatter"]
+
+#: a removed equation whose residual exceeds this, times max(1, the largest |length
+#: coordinate|), is not implied by the kept ones (the linearize check of a given q)
+REMOVED_RESIDUAL_RTOL = 1e-8
 
 REDUNDANCY_OPTIONS = ("auto", "remove", "minimum_norm")
 
@@ -158,3 +162,31 @@ def minimum_norm(jacobian, lam: np.ndarray) -> np.ndarray:
     null = multiplier_null_space(jacobian)
     lam = np.asarray(lam, dtype=float)
     return lam - null @ (null.T @ lam) if null.shape[1] else lam.copy()
+
+
+def check_removed(model, plan: RowPlan, q: np.ndarray, t: float, what: str) -> None:
+    """Raise :class:`~casmbd.errors.RedundantConstraintError` when a removed equation does not
+    hold at (q, t).
+
+    Rows that depend on others at the start pose are consequences of them only if the
+    dependence persists: two drivers on one coordinate, θ = t and θ = 2t, agree at t = 0 and
+    contradict afterwards.  The removed rows are therefore checked wherever the analysis
+    reports a configuration, and a violation is named — never a result that silently
+    ignores an equation.
+    """
+    if not plan.removes:
+        return
+    resid = np.abs(model.constraints(q, t)[plan.removed_rows])
+    lengths = getattr(model, "length_indices", [])
+    tol = REMOVED_RESIDUAL_RTOL * max(1.0, float(np.max(np.abs(q[lengths]), initial=0.0)))
+    bad = [k for k, r in enumerate(resid) if not r <= tol]
+    if bad:
+        labels = model.constraint_labels
+        rows = [plan.removed_rows[k] for k in bad]
+        text = ", ".join(f"{labels[i]} (residual {resid[k]:.3g})"
+                         for k, i in zip(bad, rows, strict=True))
+        raise RedundantConstraintError(
+            f"{what} at t = {t:g}: the equations removed as redundant at the start are "
+            f"violated: {text}; they are not consequences of the others (contradicting "
+            f"drivers or joints); make the mechanism consistent or remove them",
+            [(labels[i].element, labels[i].label) for i in rows])

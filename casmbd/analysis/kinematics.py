@@ -13,7 +13,12 @@ import time
 import numpy as np
 
 from casmbd.analysis.assembly import accelerations, assemble, velocities
-from casmbd.analysis.independent import IndependentRows, check_option, find_redundant
+from casmbd.analysis.independent import (
+    IndependentRows,
+    check_option,
+    check_removed,
+    find_redundant,
+)
 from casmbd.analysis.integrators import INTEGRATORS
 from casmbd.analysis.redundancy import rank_report
 from casmbd.compiled.model import NumericModel
@@ -168,8 +173,8 @@ def kinematics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.
     AnalysisError
         When the drivers leave degrees of freedom free.
     RedundantConstraintError
-        When the independent rows lose rank at the start (not expected: they were chosen
-        there).
+        When an equation removed as redundant at the start is violated later (it was not a
+        consequence of the others: e.g. two contradicting drivers that agree at the start).
     AssemblyError, SingularConfigurationError
         When a position cannot be found or C_q becomes singular (with the time).
     """
@@ -215,6 +220,7 @@ def kinematics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.
         a = accelerations(model, q, v, t)
         qs[k], vs[k], as_[k] = q, v, a
         violation[k] = float(np.max(np.abs(full.constraints(q, t)))) if full.nc else 0.0
+        check_removed(full, plan, q, float(t), "kinematics")
     solve_seconds = time.perf_counter() - t0
     outputs = model.outputs(qs, vs, as_, grid)
     names = {"coordinates": model.coordinate_names, "bodies": model.body_names,

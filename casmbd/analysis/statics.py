@@ -69,6 +69,7 @@ from casmbd.analysis.events import has_events
 from casmbd.analysis.independent import (
     IndependentRows,
     check_option,
+    check_removed,
     find_redundant,
     minimum_norm,
     scatter,
@@ -398,6 +399,7 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
         directions, labels = n, list(model.coordinate_names)
     stability = classify_stability(n.T @ (-jqq) @ n, directions, labels)
 
+    check_removed(model, plan, q, t, "statics")
     if plan.removes:  # the least-norm multipliers of the full set
         lam = minimum_norm(model.constraint_jacobian(q, t), scatter(lam, plan.kept_rows,
                                                                     model.nc))
