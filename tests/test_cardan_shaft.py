@@ -262,3 +262,20 @@ def test_contradicting_drivers_are_named_not_ignored():
     with pytest.raises(casmbd.RedundantConstraintError, match=r"kinematics at t = 0\.25.*"
                        r"driver 'second'"):
         casmbd.kinematics(_doubly_driven("2 * t"), t_end=1.0, steps=4)
+
+
+@pytest.mark.parametrize("method", ["dense", "sparse"])
+def test_rounding_noise_rows_are_no_equations(method):
+    """C_q of the joint-coordinate shaft at the start: the universal joint's point rows are 0,
+    0 and −2.8e-17 (its centre lies on both fixed axes).  Equilibrated to unit norm the noise
+    row looked independent and the driver's row was named redundant instead; rows at most
+    1e-12 of the largest count as zero, in both sweeps."""
+    from casmbd.analysis.redundancy import rank_report
+
+    cq = np.array([[0.0, 0.0], [0.0, 0.0], [0.0, -2.7755575615628914e-17],
+                   [1.0, -0.8660254037844386], [1.0, 0.0]])
+    rep = rank_report(cq, method=method)
+    assert rep.rank == 2 and rep.dependent_rows == [0, 1, 2]
+    # a small but genuine row (a mechanism in micrometres) is kept
+    rep = rank_report(np.array([[1e-9, 0.0], [0.0, 1.0]]), method=method)
+    assert rep.rank == 2 and rep.dependent_rows == []
