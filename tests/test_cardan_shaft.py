@@ -279,3 +279,18 @@ def test_rounding_noise_rows_are_no_equations(method):
     # a small but genuine row (a mechanism in micrometres) is kept
     rep = rank_report(np.array([[1e-9, 0.0], [0.0, 1.0]]), method=method)
     assert rep.rank == 2 and rep.dependent_rows == []
+
+
+def test_inverse_dynamics_with_an_actuator(inverse):
+    """The drivers describe the motion, a motor on the input bearing produces it (the least-
+    squares [C_qᵀ −B] solve with redundant rows): its torque is the driver's effort and the
+    reactions are those of the driven shaft (1e-12)."""
+    mech = cardan()
+    mech.name = "cardan_motor"
+    mech.add_actuator("motor", joint="in_bearing")
+    res = casmbd.inverse_dynamics(mech, t_end=2.0, steps=40)
+    assert res.stats["redundant_equations"] == REMOVED
+    assert np.max(np.abs(res["actuator_efforts"][:, 0] - inverse["driver_efforts"][:, 0])) \
+        < 1e-12
+    assert np.all(np.isfinite(res["joint_reactions"]))
+    assert np.max(np.abs(res["joint_reactions"] - inverse["joint_reactions"])) < 1e-12
