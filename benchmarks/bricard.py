@@ -295,7 +295,8 @@ def markdown(rows: list[dict], mot: dict, ranks: dict, crank: dict, command: str
         "Two closed spatial loops whose joints write more equations than they impose "
         "conditions (issue 7, item 4): the rank of C_q, not the count of equations, gives the "
         "mobility; the integrators run with the redundant rows removed or kept (minimum-norm "
-        "multipliers); reactions a self-stress of the loop can change are reported as NaN.", "",
+        "multipliers); reactions a self-stress of the loop can change are reported as the "
+        "minimum-norm distribution and flagged (issue 30; they were NaN before).", "",
         "### Bricard's mechanism", "",
         "**Problem.** IFToMM library of computational benchmark problems, *Bricard's mechanism* "
         "(www.iftomm-multibody.org/benchmark/problem/Bricard's_mechanism/), originally problem "
@@ -336,7 +337,8 @@ def markdown(rows: list[dict], mot: dict, ranks: dict, crank: dict, command: str
         f"joint angles, the loop joint's 5 equations) the rank is {j['rank']} of "
         f"{j['n_constraints']}, again {j['degrees_of_freedom']} degree of freedom, redundant: "
         f"{', '.join(j['redundant'])}. The single self-stress of the loop leaves nearly every "
-        "reaction component undetermined (NaN, `stats['undetermined_reactions']`: "
+        "reaction component undetermined (the minimum-norm distribution, "
+        "`stats['undetermined_reactions']`: "
         + "; ".join(f"{k} {v}" for k, v in mot["undetermined"].items())
         + "); only moments about axes that stay fixed, e.g. O's about y, are determined.", "",
         f"**Motion.** From rest the mechanism swings through its one-parameter family of poses "
@@ -541,8 +543,9 @@ def crank_markdown(crank: dict) -> list[str]:
         "says, but also of O, A and the slide: a self-stress (a z force with out-of-plane "
         "moments) can circulate around the whole loop without changing the motion, so those "
         "components are not determined in any joint of the loop. The seed's \"reported as "
-        "zero\" is one particular choice (the in-line model's); here they are NaN with a "
-        "warning.",
+        "zero\" is one particular choice (the in-line model's); here they are the "
+        "minimum-norm distribution (finite since issue 30; NaN before), listed in "
+        "`stats['undetermined_reactions']`, with a warning.",
         f"* The determined components (in-plane forces, moments about z) equal the in-line "
         f"model's to {_fmt(joint_ok)} in joint coordinates (reactions up to {scale:.0f}). In "
         f"absolute coordinates they are currently wrong (up to {abs_err:.1e}): the "

@@ -485,8 +485,8 @@ class Result:
         """Write one column per scalar series (:meth:`csv_columns`) with a one-line header, values
         with 17 significant digits (they read back exactly), atomically.
 
-        ``numpy.loadtxt(path, delimiter=",", skiprows=1)`` reads the numbers back; NaN (an
-        undetermined reaction component) is written as ``nan``.
+        ``numpy.loadtxt(path, delimiter=",", skiprows=1)`` reads the numbers back; NaN is
+        written as ``nan``.
         """
         columns = self.csv_columns()
         table = np.column_stack([c for _, c in columns]) if len(self.t) else \

@@ -10,7 +10,7 @@ impose (no motion along z), its two axis equations what they impose on the orien
 about z only).  The rank of C_q says so (``casmbd.info`` lists the three), the simulation runs
 with them removed or with minimum-norm multipliers, and the reactions along them — the z force
 and the x, y moments, in every joint of the loop, since a self-stress of that kind can circulate
-around it — are reported as undetermined (NaN).
+around it — are flagged as undetermined and reported as the minimum-norm distribution.
 
 Closures of the loop at P (``closure``):
 

@@ -5,8 +5,9 @@ Bricard's mechanism simulate correctly with their redundant equations present.
   equations of the P1/P2 joint; with those equations removed, and with all kept and minimum-norm
   multipliers, the motion follows non-redundant models of the same machine (an in-line joint at
   P; a spherical joint at the crank pin and a universal joint at P) to 1e-8; the reactions that
-  a self-stress of the loop can change (z force, x and y moments) are NaN and the others equal
-  the non-redundant model's.
+  a self-stress of the loop can change (z force, x and y moments) are flagged and reported for
+  the minimum-norm multipliers (finite, issue 30), and the others equal the non-redundant
+  model's.
 * Bricard (examples/bricard.toml): Grübler's count is 0, the rank gives mobility 1 with one
   redundant equation; over 1 s the motion of two descriptions and formulations (absolute
   coordinates with the default augmented Lagrangian keeping the redundant row, joint
@@ -136,13 +137,13 @@ def test_redundant_model_follows_the_non_redundant_one(redundant, inline, coordi
 def _check_reactions(res, caught, inline):
     joints = ["O", "A", "slide", "P"]
     assert res.stats["undetermined_reactions"] == {j: OUT_OF_PLANE for j in joints}
+    assert res.stats["reactions"] == "minimum_norm"
     assert any("cannot be determined" in m for m in caught)
     reac, ref = res["joint_reactions"], inline["joint_reactions"]
     undetermined = np.zeros(6, dtype=bool)
     undetermined[OUT_OF_PLANE] = True
-    assert np.all(np.isnan(reac[:, :, undetermined]))
+    assert np.all(np.isfinite(reac))
     determined = reac[:, :, ~undetermined]
-    assert np.all(np.isfinite(determined))
     # force x, y and moment z of every joint as in the in-line model (P: the in-plane force)
     scale = 1.0 + np.max(np.abs(ref))
     assert np.max(np.abs(determined - ref[:, :, ~undetermined])) < 1e-8 * scale
@@ -151,7 +152,8 @@ def _check_reactions(res, caught, inline):
 @pytest.mark.parametrize("option", ["remove", "minimum_norm"])
 def test_undetermined_reactions_joint_coordinates(redundant, inline, option):
     """P1/P2's z force and moments (and, by the loop's self-stress, those of O, A and slide)
-    are NaN and flagged; the in-plane components equal the non-redundant model's."""
+    are flagged (minimum-norm values); the in-plane components equal the non-redundant
+    model's."""
     _check_reactions(*redundant["joint", option], inline)
 
 
@@ -224,16 +226,24 @@ def test_bricard_energy_and_constraints(bricard_runs):
 
 
 def test_bricard_reactions_are_undetermined(bricard_runs):
-    """One self-stress of the loop: the reaction components it moves are listed, NaN at every
-    step after the start (at rest some are not moved yet), and the others are finite."""
+    """One self-stress of the loop: the reaction components it moves are listed and reported
+    for the minimum-norm multipliers (finite: issue 30); λ has no component along the
+    self-stress."""
     res = bricard_runs["absolute default", 1e-12]
     flagged = res.stats["undetermined_reactions"]
     assert set(flagged) == {"O", "A", "B", "C", "D", "E"}
-    mask = np.zeros(res["joint_reactions"].shape[1:], dtype=bool)
-    for j, comps in flagged.items():
-        mask[res.names["all_joints"].index(j), comps] = True
+    assert flagged["O"] == [0, 1, 2, 3, 5] and flagged["E"] == [0, 1, 2, 4, 5]
     reac = res["joint_reactions"][1:]
-    assert np.all(np.isnan(reac[:, mask])) and np.all(np.isfinite(reac[:, ~mask]))
+    assert res.stats["reactions"] == "minimum_norm" and np.all(np.isfinite(reac))
+    from casmbd.analysis.reactions import multiplier_null_space
+    from casmbd.compiled.model import NumericModel
+
+    model = NumericModel(bricard("absolute"), "info", mode="vm")
+    for k in (3, 11, 20):
+        null = multiplier_null_space(model.constraint_jacobian(res["q"][k], float(res.t[k])))
+        lam = res["lambda"][k]
+        assert null.shape[1] == 1
+        assert abs(float(null[:, 0] @ lam)) < 1e-8 * (1 + np.max(np.abs(lam)))
     # a revolute joint to the ground transmits no moment about its fixed axis, O (y) and E (x):
     # zero up to λ times the constraint violation (measured 2e-9 N m)
     assert np.max(np.abs(reac[:, 0, 4])) < 1e-7 and np.max(np.abs(reac[:, 5, 3])) < 1e-7

@@ -25,7 +25,6 @@ from conftest import private_cache
 from casmbd import (
     Mechanism,
     NumericModel,
-    RedundantConstraintError,
     System,
     assemble,
     info,
@@ -426,14 +425,21 @@ def test_parallelogram_redundant_link(coordinates, sizes):
     assert red["equation"] in ("x", "y")
 
 
-def test_kinematics_of_redundant_parallelogram_raises():
-    with pytest.raises(RedundantConstraintError, match="JE") as exc:
-        kinematics(parallelogram(extra_link=True, driver=True), t_end=0.1, steps=2)
-    assert len(exc.value.dependent) == 1
-    assert exc.value.dependent[0][0] == "JE"
-    # the same mechanism without the extra link runs (guards against a test that always raises)
+def test_kinematics_of_redundant_parallelogram_removes_and_names_the_equation():
+    """The redundant equation of the extra link (JE, later in declaration order) is removed
+    and named (issue 30, 4a); the motion is that of the parallelogram without the extra link
+    (1e-12) and every equation, the removed one included, holds."""
+    red = kinematics(parallelogram(extra_link=True, driver=True), t_end=0.1, steps=2)
+    assert red.stats["redundancy"] == "removed"
+    assert len(red.stats["redundant_equations"]) == 1
+    assert red.stats["redundant_equations"][0].startswith("joint 'JE'")
+    assert np.max(red["constraint_violation"]) < 1e-12
     res = kinematics(parallelogram(extra_link=False, driver=True), t_end=0.1, steps=2)
+    assert res.stats["redundant_equations"] == [] and res.stats["redundancy"] == "none"
     np.testing.assert_allclose(res.body("coupler")["angle"], 0.0, rtol=0, atol=1e-12)
+    for body in ("link1", "coupler", "link2"):
+        np.testing.assert_allclose(red.body(body)["angle"], res.body(body)["angle"], rtol=0,
+                                   atol=1e-12)
 
 
 # ---------------------------------------------------------------------------- results files

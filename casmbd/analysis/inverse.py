@@ -25,6 +25,7 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 from casmbd.analysis.checks import diagnose
+from casmbd.analysis.independent import find_redundant, minimum_norm, scatter
 from casmbd.analysis.joint_friction import has_reaction_friction, solve_normals
 from casmbd.analysis.kinematics import check_result_size, kinematics
 from casmbd.analysis.reactions import flag_undetermined
@@ -101,8 +102,14 @@ HANDLING = Handling(
 
 
 def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.0,
-                     mode: str = "auto") -> Result:
+                     mode: str = "auto", redundancy: str = "auto") -> Result:
     """Driver efforts and joint reactions along the motion prescribed by the drivers.
+
+    Redundant constraint equations are removed as in :func:`kinematics` (named in ``stats``):
+    C_q of the independent rows is square and regular, λ of the removed rows is zero, and the
+    multipliers of the full set are then made minimum-norm (λ − N Nᵀ λ, C_qᵀ N = 0): the
+    determined reaction components come out exactly, the others as the minimum-norm
+    distribution (``stats["reactions"] == "minimum_norm"``, ``undetermined_reactions``).
 
     Parameters
     ----------
@@ -110,6 +117,8 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
         A mechanism whose drivers fix every degree of freedom.
     t_end, steps, t_start : float, int, float
         ``steps + 1`` output times from ``t_start`` to ``t_end`` inclusive.
+    redundancy : {"auto", "remove"}
+        As :func:`kinematics`.
 
     Returns
     -------
@@ -131,10 +140,12 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
     else:
         # flexible bodies move rigidly: η = 0 (kinematics.py, _model)
         model = NumericModel(rigidified(mechanism_or_model), NEEDS["dynamics"], mode=mode)
-    kin = kinematics(model, t_end, steps, t_start=t_start)
+    kin = kinematics(model, t_end, steps, t_start=t_start, redundancy=redundancy)
     t0 = time.perf_counter()
     grid, qs, vs, acc = kin.t, kin["q"], kin["v"], kin["a"]
     n = len(grid)
+    plan = find_redundant(model, qs[0], float(grid[0]))  # kinematics' choice
+    keep = plan.kept_rows
     lam = np.zeros((n, model.nc))
     kin_e = np.zeros(n)
     pot_e = np.zeros(n)
@@ -146,8 +157,8 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
             raise ModelError(f"inverse dynamics at t = {t:g}: " + "; ".join(
                 diagnose(model, t, qs[k], vs[k]) or ["the generalized forces are not finite"]))
         try:
-            lu = spla.splu(model.constraint_jacobian(qs[k], t).T.tocsc())
-            lam[k] = lu.solve(rhs)
+            lu = spla.splu(model.constraint_jacobian(qs[k], t)[keep, :].T.tocsc())
+            lam[k] = scatter(lu.solve(rhs), keep, model.nc)
         except RuntimeError as exc:  # SuperLU, or CasADi's Jacobian evaluation
             reraise_interrupt(exc)
             raise SingularConfigurationError(
@@ -155,8 +166,10 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
         if friction:  # C_qᵀ λ = Q_e(0) + G N(λ) + Q_v − M q̈ (module docstring)
             lam[k], _, count = solve_normals(
                 model, qs[k], vs[k], t, None, lambda f, lu=lu, rhs=rhs: lu.solve(rhs + f),
-                lambda x: x, f"inverse dynamics at t = {t:g}")
+                lambda x: scatter(x, keep, model.nc), f"inverse dynamics at t = {t:g}")
             iterations = max(iterations, count)
+        if plan.removes:  # the least-norm λ of the full set (the drivers' rows included)
+            lam[k] = minimum_norm(model.constraint_jacobian(qs[k], t), lam[k])
         kin_e[k] = model.kinetic_energy(qs[k], vs[k])
         pot_e[k] = model.potential_energy(qs[k], t)
     actuators = list(model.mechanism.actuators)
@@ -175,9 +188,7 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
         reactions = np.zeros((n, 0, model.reaction_size))
     reactions, flags = flag_undetermined(model, qs, vs, acc, grid, u_eff, lam_reac, reactions)
     drivers = list(model.mechanism.drivers)
-    undetermined = set(flags["undetermined_rows"]) if lam_reac is lam else set()
-    efforts = (np.column_stack([np.full(n, np.nan) if model.driver_rows[d] in undetermined
-                                else -lam[:, model.driver_rows[d]] for d in drivers])
+    efforts = (np.column_stack([-lam[:, model.driver_rows[d]] for d in drivers])
                if drivers else np.zeros((n, 0)))
     arrays = dict(kin.arrays)
     arrays.update({"lambda": lam, "driver_efforts": efforts, "joint_reactions": reactions,

@@ -13,6 +13,12 @@ import time
 import numpy as np
 
 from casmbd.analysis.assembly import accelerations, assemble, velocities
+from casmbd.analysis.independent import (
+    IndependentRows,
+    check_option,
+    check_removed,
+    find_redundant,
+)
 from casmbd.analysis.integrators import INTEGRATORS
 from casmbd.analysis.redundancy import rank_report
 from casmbd.compiled.model import NumericModel
@@ -152,8 +158,14 @@ HANDLING = Handling(
 
 
 def kinematics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.0,
-               mode: str = "auto", tol: float = 1e-12) -> Result:
+               mode: str = "auto", tol: float = 1e-12, redundancy: str = "auto") -> Result:
     """Positions, velocities and accelerations of a fully driven mechanism on a time grid.
+
+    Redundant constraint equations (rows of C_q that depend on earlier ones at the assembled
+    start, in declaration order, as :func:`info` finds them) are removed and the analysis runs
+    on the independent rows (:mod:`casmbd.analysis.independent`); ``stats`` name them
+    (``redundant_equations``, ``redundancy``, ``constraint_rank``) and
+    ``constraint_violation`` is that of every equation.
 
     Parameters
     ----------
@@ -164,6 +176,8 @@ def kinematics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.
         Number of intervals (>= 1).
     mode : str
         Compilation mode of the equations ("auto", "compiled", "vm").
+    redundancy : {"auto", "remove"}
+        Both remove the redundant equations ("minimum_norm" is simulate's and is refused).
 
     Raises
     ------
@@ -173,7 +187,8 @@ def kinematics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.
     AnalysisError
         When the drivers leave degrees of freedom free.
     RedundantConstraintError
-        When C_q is rank deficient (names the dependent joints' equations).
+        When an equation removed as redundant at the start is violated later (it was not a
+        consequence of the others: e.g. two contradicting drivers that agree at the start).
     AssemblyError, SingularConfigurationError
         When a position cannot be found or C_q becomes singular (with the time).
     """
@@ -182,12 +197,15 @@ def kinematics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.
     if not (np.isfinite(t_end) and np.isfinite(t_start) and t_end > t_start):
         raise AnalysisError(f"t_end must be finite and > t_start = {t_start}, got {t_end!r}")
     check(mechanism_or_model, HANDLING)
+    check_option(redundancy, "kinematics")
     check_result_size(mechanism_or_model, steps, "kinematics")
-    model = _model(mechanism_or_model, "kinematics", mode)
-    mech = model.mechanism
+    full = _model(mechanism_or_model, "kinematics", mode)
+    mech = full.mechanism
     t0 = time.perf_counter()
     grid = np.linspace(t_start, t_end, int(steps) + 1)
-    q = assemble(model, model.initial_coordinates(), grid[0], tol=tol).q
+    q = assemble(full, full.initial_coordinates(), grid[0], tol=tol).q
+    plan = find_redundant(full, q, grid[0])
+    model = IndependentRows(full, plan.kept_rows) if plan.removes else full
     rep = check_rank(model, q, grid[0])
     if rep.degrees_of_freedom > 0:
         raise AnalysisError(
@@ -216,14 +234,15 @@ def kinematics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.
         v = velocities(model, q, t)
         a = accelerations(model, q, v, t)
         qs[k], vs[k], as_[k] = q, v, a
-        violation[k] = float(np.max(np.abs(model.constraints(q, t)))) if model.nc else 0.0
+        violation[k] = float(np.max(np.abs(full.constraints(q, t)))) if full.nc else 0.0
+        check_removed(full, plan, q, float(t), "kinematics")
     solve_seconds = time.perf_counter() - t0
     outputs = model.outputs(qs, vs, as_, grid)
     names = {"coordinates": model.coordinate_names, "bodies": model.body_names,
              "markers": list(mech.markers), "joints": model.joint_coordinate_names,
              "all_joints": list(mech.joints), **result_names(mech)}  # requests, forces
     stats = {"solve_seconds": solve_seconds, "newton_iterations": newton, "steps": int(steps),
-             **model.report_dict}
+             **plan.stats(), **model.report_dict}
     return Result("kinematics", grid, {"q": qs, "v": vs, "a": as_, **outputs,
                                        "constraint_violation": violation}, names, stats,
                   getattr(mech, "scene_text", "") or "")

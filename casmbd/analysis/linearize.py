@@ -80,6 +80,13 @@ from casmbd.analysis.assembly import assemble
 from casmbd.analysis.checks import check_start
 from casmbd.analysis.event_rows import EventRows
 from casmbd.analysis.events import has_events
+from casmbd.analysis.independent import (
+    IndependentRows,
+    check_option,
+    find_redundant,
+    minimum_norm,
+    scatter,
+)
 from casmbd.analysis.kkt import accelerations_and_multipliers, project_velocities
 from casmbd.analysis.redundancy import RANK_RTOL, null_space_basis
 from casmbd.analysis.stability import STABILITY_RTOL, Stability, classify_stability
@@ -440,8 +447,8 @@ def _at_equilibrium(mechanism, system: System, t: float, mode: str):
 
 
 def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "auto",
-              rtol: float = RANK_RTOL, *, at=None, at_time: float | None = None
-              ) -> LinearModel:
+              rtol: float = RANK_RTOL, *, at=None, at_time: float | None = None,
+              redundancy: str = "auto") -> LinearModel:
     """Linearize the constrained dynamics of ``mechanism`` about the state (q, v, t, u).
 
     Parameters
@@ -473,6 +480,12 @@ def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "au
         together with ``q`` or ``v``.
     at_time : float, optional
         The time wanted with ``at=<result>``.
+    redundancy : {"auto", "remove"}, keyword-only
+        Redundant constraint equations (dependent rows of C_q at q, named in
+        ``stats["redundant_equations"]``) are removed from the KKT solve for q̈ and λ, and λ of
+        the full set is the minimum-norm one (:mod:`casmbd.analysis.independent`).  N spans
+        ker C_q either way, and K̄ does not depend on which λ of the full set is used where the
+        redundancy persists around q: Nᵀ ∂(C_qᵀ z)/∂q N = −Nᵀ C_qᵀ ∂z/∂q = 0 for C_qᵀ z ≡ 0.
 
     Returns
     -------
@@ -489,6 +502,7 @@ def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "au
         Bad sizes or non-finite q, v, u; ``at`` together with q or v; unknown ``at``.
     """
     t0 = time.perf_counter()
+    check_option(redundancy, "linearize")
     if isinstance(mechanism, NumericModel):
         system = mechanism.system
     elif isinstance(mechanism, System):
@@ -549,7 +563,14 @@ def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "au
         basis, rank = null_space_basis(model.constraint_jacobian(q, t), rtol)
     else:
         basis, rank = np.eye(nq), 0
-    acc, lam = accelerations_and_multipliers(model, q, v, t, u)
+    plan = find_redundant(model, q, t)
+    if plan.removes:  # a regular KKT matrix on the independent rows; λ least-norm
+        acc, lam = accelerations_and_multipliers(IndependentRows(model, plan.kept_rows),
+                                                 q, v, t, u)
+        lam = minimum_norm(model.constraint_jacobian(q, t),
+                           scatter(lam, plan.kept_rows, model.nc))
+    else:
+        acc, lam = accelerations_and_multipliers(model, q, v, t, u)
     outs = model.function("linearization")(q, v, t, u, model.p, lam, acc)
     d_resid_dq, d_force_dv, d_force_du = (np.asarray(o.full(), dtype=float) for o in outs)
     m_full = model.mass_matrix(q).toarray()
@@ -579,7 +600,7 @@ def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "au
              "degrees_of_freedom": nz, "n_inputs": nu,
              "acceleration_norm": float(np.linalg.norm(acc)),
              "velocity_norm": v_norm, "residual": residual, "residual_tolerance": res_tol,
-             "equilibrium": equilibrium, **about,
+             "equilibrium": equilibrium, **about, **plan.stats(),
              "build_seconds": t_build, "solve_seconds": time.perf_counter() - t1,
              **{k: val for k, val in model.report_dict.items() if k != "build_seconds"}}
     return LinearModel(m_bar, c_bar, k_bar, b_bar, a_mat, b_ss, basis, eig, freq, zeta, fn,

@@ -126,10 +126,8 @@ class PostProcessing:
             [float(np.nanmin(cond))] + [c for _, c in passes]) if np.any(np.isfinite(cond))
             else None, "near_singular_times": [t for t, _ in passes]}
         drivers = list(system.mechanism.drivers)
-        undetermined = set(stats.get("undetermined_rows", ()))
-        efforts = np.column_stack([
-            np.full(n, np.nan) if system.driver_rows[d] in undetermined
-            else -lam[:, system.driver_rows[d]] for d in drivers]) \
+        # λ is minimum-norm (flag_undetermined): two drivers on one coordinate share the effort
+        efforts = np.column_stack([-lam[:, system.driver_rows[d]] for d in drivers]) \
             if drivers else np.zeros((n, 0))
         names = {"coordinates": system.coordinate_names, "bodies": system.body_names,
                  "markers": list(system.mechanism.markers),

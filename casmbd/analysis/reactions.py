@@ -5,8 +5,11 @@ conditions, seed 002 "Redundant constraint equations"; a singular pose, seed 000
 multipliers are not unique: every λ + N z, with the columns of N spanning the null space of
 C_qᵀ (C_qᵀ N = 0), satisfies C_qᵀ λ = Q_e + Q_v − M q̈ equally.  The reactions are linear in λ,
 R(λ) = R₀ + R_λ λ, so a component is determined exactly when its row of R_λ N vanishes; the
-others take any value and are reported as NaN, never as the zero or the minimum-norm value a
-solver happens to return (seed 002, "joint forces that cannot be determined").
+others depend on how the self-stress of the loop is shared (seed 002, "joint forces that cannot
+be determined": a rigid model cannot say).  They are reported for the minimum-norm multipliers
+λ − N Nᵀ λ (seed 002's orthogonalisation), listed in ``undetermined_reactions``, announced by
+``reactions = "minimum_norm"`` and a ``RuntimeWarning`` — finite, never NaN, and never passed
+off as determined.
 
 R_λ N is formed column by column from the compiled reaction function itself,
 R(λ + n_k) − R(λ), so no extra Function is compiled.
@@ -18,7 +21,7 @@ import warnings
 
 import numpy as np
 
-from casmbd.analysis.redundancy import RANK_RTOL
+from casmbd.analysis.redundancy import RANK_RTOL, zero_noise_rows
 
 #: a reaction component counts as undetermined when a unit null-space direction of the
 #: multipliers changes it by more than this times the largest such change
@@ -33,6 +36,7 @@ def multiplier_null_space(jacobian, rtol: float = RANK_RTOL) -> np.ndarray:
     rows (a vector z with C_qᵀ z = 0 stays one after row scaling by D: (D⁻¹ z)).
     """
     a = jacobian.toarray() if hasattr(jacobian, "toarray") else np.asarray(jacobian, dtype=float)
+    a = zero_noise_rows(a)  # rounding noise is no equation (redundancy.ZERO_ROW_RTOL)
     m = a.shape[0]
     if m == 0:
         return np.zeros((0, 0))
@@ -75,13 +79,16 @@ def undetermined_mask(reaction, lam: np.ndarray, null: np.ndarray) -> np.ndarray
 
 def flag_undetermined(model, qs, vs, acc, grid, us, lam, reactions: np.ndarray,
                       steps=None) -> tuple[np.ndarray, dict]:
-    """Set the undetermined reaction components to NaN, make λ minimum-norm, and say so.
+    """Make λ minimum-norm where C_q is rank deficient, recompute the reactions from it, and
+    name the components that are not determined.
 
     At every checked step with a rank-deficient C_q the multipliers ``lam`` are replaced in
     place by their minimum-norm representative λ − N Nᵀ λ (seed 002's orthogonalisation: the
-    component along the null space of C_qᵀ carries no force), and a multiplier row with a
-    component in that null space is marked undetermined (``info["undetermined_rows"]``, e.g.
-    two drivers on one coordinate).
+    component along the null space of C_qᵀ carries no force), the reactions of that step are
+    evaluated again with it (the determined components do not change; the others become the
+    minimum-norm distribution), and a multiplier row with a component in that null space is
+    marked undetermined (``info["undetermined_rows"]``, e.g. two drivers on one coordinate,
+    whose efforts are then shared in the least-norm way).
 
     Parameters
     ----------
@@ -97,13 +104,16 @@ def flag_undetermined(model, qs, vs, acc, grid, us, lam, reactions: np.ndarray,
     Returns
     -------
     reactions : ndarray
-        With NaN where undetermined.
+        Finite: the undetermined components those of the minimum-norm multipliers.
     info : dict
         ``"undetermined_reactions"``: {joint: [component indices]} (empty when all are
-        determined) and ``"redundant_steps"``: how many steps had a rank-deficient C_q.
+        determined), ``"reactions"``: ``"minimum_norm"`` when some are undetermined, else
+        ``"determined"``, and ``"redundant_steps"``: how many steps had a rank-deficient
+        C_q.
     """
     joints = list(model.mechanism.joints)
-    info: dict = {"undetermined_reactions": {}, "redundant_steps": 0, "undetermined_rows": []}
+    info: dict = {"undetermined_reactions": {}, "reactions": "determined", "redundant_steps": 0,
+                  "undetermined_rows": []}
     n = len(grid)
     if not joints or model.nc == 0 or n == 0:
         return reactions, info
@@ -129,13 +139,15 @@ def flag_undetermined(model, qs, vs, acc, grid, us, lam, reactions: np.ndarray,
                                    lam_k)).reshape(size, len(joints)).T
 
         mask = undetermined_mask(reaction, lam[k], null)
-        out[k][mask] = np.nan
+        if np.all(np.isfinite(lam[k])):
+            out[k] = reaction(lam[k])  # the minimum-norm distribution
         for j, comps in zip(*np.nonzero(mask), strict=True):
             flagged.setdefault(joints[j], set()).add(int(comps))
     if flagged:
         info["undetermined_reactions"] = {j: sorted(c) for j, c in flagged.items()}
+        info["reactions"] = "minimum_norm"
         detail = "; ".join(f"'{j}' components {sorted(c)}" for j, c in flagged.items())
         warnings.warn(f"joint reactions cannot be determined (redundant constraint equations "
-                      f"or a singular pose, set to NaN): {detail}", RuntimeWarning,
-                      stacklevel=3)
+                      f"or a singular pose; the minimum-norm distribution is reported): "
+                      f"{detail}", RuntimeWarning, stacklevel=3)
     return out, info

@@ -28,6 +28,11 @@ RANK_RTOL = 1e-8
 #: larger ones by the sparse Givens sweep of :func:`sparse_rank_report` (about 0.1 s at this
 #: size either way; the dense cost grows with the cube of the size, the sparse one linearly)
 DENSE_MAX_ENTRIES = 250_000
+#: a row of C_q whose norm is at most this times the largest row norm is rounding noise (an
+#: equation that no coordinate moves, e.g. the point of a universal joint on two fixed shaft
+#: axes: ~3e-17 where the other rows are ~1) and counts as zero: equilibrating it to unit norm
+#: would make noise an independent equation and hide a genuine one behind it
+ZERO_ROW_RTOL = 1e-12
 #: entries of the equilibrated factor below this are dropped in the sparse sweep (a backward
 #: error far below ``RANK_RTOL``; it keeps rounding noise from filling the rows)
 _DROP = 1e-15
@@ -54,6 +59,19 @@ def _dense(matrix) -> np.ndarray:
     return matrix.toarray() if sp.issparse(matrix) else np.asarray(matrix, dtype=float)
 
 
+def zero_noise_rows(a: np.ndarray) -> np.ndarray:
+    """``a`` (dense) with the rows of norm at most :data:`ZERO_ROW_RTOL` times the largest set
+    to zero (a copy when any is)."""
+    if a.shape[0] == 0:
+        return a
+    norms = np.linalg.norm(a, axis=1)
+    noise = (norms <= ZERO_ROW_RTOL * float(np.max(norms))) & (norms > 0.0)
+    if np.any(noise):
+        a = a.copy()
+        a[noise] = 0.0
+    return a
+
+
 def rank_report(jacobian, rtol: float = RANK_RTOL, method: str = "auto") -> RankReport:
     """Numerical rank of C_q and the rows that depend on earlier rows.
 
@@ -73,7 +91,7 @@ def rank_report(jacobian, rtol: float = RANK_RTOL, method: str = "auto") -> Rank
                          f"got {method!r}")
     if method == "sparse" or (method == "auto" and m * n > DENSE_MAX_ENTRIES):
         return sparse_rank_report(jacobian, rtol)
-    a = _dense(jacobian)
+    a = zero_noise_rows(_dense(jacobian))
     if m == 0:
         return RankReport(n, 0, 0, [], 0.0, 0.0)
     # Equilibrate rows and columns (rank-preserving) so that mixed units — lengths and angles,
@@ -108,6 +126,11 @@ def rank_report(jacobian, rtol: float = RANK_RTOL, method: str = "auto") -> Rank
 def _equilibrated_sparse(jacobian) -> sp.csr_matrix:
     """C_q with unit-norm rows, then unit-norm columns (as :func:`rank_report` does densely)."""
     a = sp.csr_matrix(jacobian, dtype=float)
+    rows = np.sqrt(np.asarray(a.multiply(a).sum(axis=1)).ravel())
+    if rows.size and np.any((rows > 0) & (rows <= ZERO_ROW_RTOL * float(np.max(rows)))):
+        keep = np.where(rows <= ZERO_ROW_RTOL * float(np.max(rows)), 0.0, 1.0)
+        a = sp.csr_matrix(sp.diags(keep) @ a)
+        a.eliminate_zeros()
     for axis in (1, 0):
         norms = np.sqrt(np.asarray(a.multiply(a).sum(axis=axis)).ravel())
         norms[norms == 0.0] = 1.0
@@ -206,7 +229,7 @@ def null_space_basis(jacobian, rtol: float = RANK_RTOL) -> tuple[np.ndarray, int
     Rows are normalised first (which does not change the null space) so that equations in
     different units weigh alike; a singular value counts as zero below ``rtol · σ_max``.
     """
-    a = jacobian.toarray() if hasattr(jacobian, "toarray") else np.asarray(jacobian, float)
+    a = zero_noise_rows(_dense(jacobian))
     m, n = a.shape
     if m == 0:
         return np.eye(n), 0

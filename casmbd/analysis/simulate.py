@@ -31,9 +31,9 @@ from casmbd.analysis.checks import (
     diagnose_failure,
 )
 from casmbd.analysis.events import compliant_events, has_events, simulate_events
+from casmbd.analysis.independent import find_redundant
 from casmbd.analysis.kkt import consistent_state
 from casmbd.analysis.postprocess import PostProcessing
-from casmbd.analysis.redundancy import rank_report
 from casmbd.analysis.stepping import Stepping
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, CasmbdError, IntegratorError, UnknownMethodError
@@ -117,12 +117,11 @@ def plan_redundancy(system: System, formulation: str, option: str = "auto") -> d
         q = assemble(probe, q, 0.0).q
     except CasmbdError:
         pass  # the run's own assembly reports the failure with its context
-    rep = rank_report(probe.constraint_jacobian(q, 0.0))
-    plan["constraint_rank"] = rep.rank
-    if not rep.dependent_rows:
+    rows = find_redundant(probe, q, 0.0)  # the rows every analysis removes (independent.py)
+    plan["constraint_rank"] = rows.constraint_rank
+    if not rows.removes:
         return plan
-    labels = system.constraint_labels
-    plan["redundant_equations"] = [str(labels[i]) for i in rep.dependent_rows]
+    plan["redundant_equations"] = list(rows.redundant_equations)
     kind = formulation if isinstance(formulation, FormulationKind) else \
         formulation_kind(formulation)
     if option == "minimum_norm" and not kind.keeps_redundant:
@@ -135,7 +134,7 @@ def plan_redundancy(system: System, formulation: str, option: str = "auto") -> d
         if not kind.removes_redundant:
             plan["redundancy"] = kind.kept_redundancy
             return plan
-        plan["kept_rows"] = [i for i in range(system.nc) if i not in set(rep.dependent_rows)]
+        plan["kept_rows"] = list(rows.kept_rows)
         plan["redundancy"] = "removed"
     else:
         plan["redundancy"] = kind.kept_redundancy

@@ -66,6 +66,14 @@ import scipy.sparse.linalg as spla
 from casmbd.analysis.assembly import assemble
 from casmbd.analysis.checks import check_start
 from casmbd.analysis.events import has_events
+from casmbd.analysis.independent import (
+    IndependentRows,
+    check_option,
+    check_removed,
+    find_redundant,
+    minimum_norm,
+    scatter,
+)
 from casmbd.analysis.reactions import flag_undetermined
 from casmbd.analysis.redundancy import null_space_basis
 from casmbd.analysis.resting import resting_equilibrium
@@ -212,6 +220,7 @@ class _Problem:
     def __init__(self, model: NumericModel, t: float):
         self.model, self.t = model, t
         self.nq, self.nc = model.nq, model.nc
+        self.keep: list[int] | None = None  # all rows, unless :meth:`restrict`ed
         names = model.coordinate_names
         self.labels = ([f"equilibrium of coordinate '{n}'" for n in names]
                        + [str(lab) for lab in model.constraint_labels])
@@ -234,14 +243,29 @@ class _Problem:
             if isinstance(desc, SpatialNatural):
                 self.frames.append((body, base + 3))
 
+    def restrict(self, keep: list[int]) -> None:
+        """Solve with the constraint rows ``keep`` only (the redundant ones removed,
+        :mod:`casmbd.analysis.independent`): λ has their size, the residual and the KKT
+        Jacobian their rows, so that the Newton matrix is regular."""
+        self.full = self.model
+        self.model = IndependentRows(self.model, keep)
+        self.keep, self.nc = list(keep), len(keep)
+        self._rows = np.concatenate([np.arange(self.nq), self.nq + np.asarray(keep, int)])
+        self.labels = [self.labels[i] for i in self._rows]
+
+    def _lam(self, lam) -> np.ndarray:
+        return lam if self.keep is None else scatter(lam, self.keep, self.full.nc)
+
     def forces(self, q) -> np.ndarray:
         return self.model.vector("statics_forces", q, self.t, self.model.p)
 
     def residual(self, q, lam) -> np.ndarray:
-        return self.model.vector("statics_residual", q, lam, self.t, self.model.p)
+        f = self.model.vector("statics_residual", q, self._lam(lam), self.t, self.model.p)
+        return f if self.keep is None else f[self._rows]
 
     def jacobian(self, q, lam) -> sp.csc_matrix:
-        return self.model.sparse("statics_jacobian", q, lam, self.t, self.model.p)
+        jac = self.model.sparse("statics_jacobian", q, self._lam(lam), self.t, self.model.p)
+        return jac if self.keep is None else jac[self._rows, :][:, self._rows]
 
     def cq(self, q) -> np.ndarray:
         if self.nc == 0:
@@ -309,7 +333,8 @@ HANDLING = Handling(
 
 
 def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol: float = 1e-10,
-                       max_iter: int = 100, mode: str = "auto") -> StaticsResult:
+                       max_iter: int = 100, mode: str = "auto",
+                       redundancy: str = "auto") -> StaticsResult:
     """Static equilibrium configuration, multipliers, reactions and stability.
 
     Parameters
@@ -328,6 +353,12 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
         Most trust-region iterations (rejected trial steps count).
     mode : {"auto", "compiled", "vm"}
         How the equations are evaluated (see :class:`NumericModel`).
+    redundancy : {"auto", "remove"}
+        Redundant constraint equations (dependent rows of C_q at the assembled start, named in
+        ``stats["redundant_equations"]``) are removed and Newton runs on the independent rows,
+        whose KKT matrix is regular; the multipliers of the full set are the minimum-norm
+        ones, and so are the reaction components they cannot determine
+        (``stats["reactions"]``, :mod:`casmbd.analysis.independent`).
 
     Example: a rod (mass m, length L) pinned at one end at the origin, with a torsional spring
     k at the pivot and gravity −g ŷ, angle θ counter-clockwise from +x: V = m g (L/2) sin θ +
@@ -344,6 +375,7 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
     """
     if method not in METHODS:
         raise AnalysisError(f"unknown statics method '{method}' (known: {', '.join(METHODS)})")
+    check_option(redundancy, "statics")
     if not (np.isfinite(tol) and tol > 0) or max_iter < 1:
         raise AnalysisError(f"statics: need tol > 0 and max_iter >= 1 (got {tol}, {max_iter})")
     t = float(t)
@@ -362,6 +394,9 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
     q0 = model.initial_coordinates()
     check_start(model, q0, None, t, what="statics", forces=prob.forces(q0))  # names NaNs
     q = assemble(model, model.initial_coordinates(), t).q
+    plan = find_redundant(model, q, t)
+    if plan.removes:
+        prob.restrict(plan.kept_rows)
     fscale = tol * max(1.0, float(np.max(np.abs(prob.forces(q)), initial=0.0)))
     lscale = tol * max(1.0, float(np.max(np.abs(q[prob.length_idx]), initial=0.0)))
     q, lam, it, history = _iterate(prob, q, method, fscale, lscale, max_iter)
@@ -378,15 +413,24 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
         directions, labels = n, list(model.coordinate_names)
     stability = classify_stability(n.T @ (-jqq) @ n, directions, labels)
 
+    check_removed(model, plan, q, t, "statics")
+    if plan.removes:  # the least-norm multipliers of the full set
+        lam = minimum_norm(model.constraint_jacobian(q, t), scatter(lam, plan.kept_rows,
+                                                                    model.nc))
     all_joints = list(mech.joints)
+    flags: dict = {}
     if all_joints:
         zero = np.zeros(prob.nq)
         u0 = np.zeros(len(mech.actuators))
         reactions = np.asarray(model.function("joint_reactions")(
             q, zero, zero, t, u0, model.p, lam)).T
-        reactions = flag_undetermined(model, q[None, :], zero[None, :], zero[None, :],
-                                      np.array([t]), u0[None, :], np.asarray(lam)[None, :],
-                                      reactions[None], steps=[0])[0][0]
+        lams = np.asarray(lam, dtype=float)[None, :].copy()
+        reactions, flags = flag_undetermined(model, q[None, :], zero[None, :], zero[None, :],
+                                             np.array([t]), u0[None, :], lams,
+                                             reactions[None], steps=[0])
+        reactions, lam = reactions[0], lams[0]
+        flags.pop("redundant_steps", None)
+        flags.pop("undetermined_rows", None)
     else:
         reactions = np.zeros((0, model.reaction_size))
     out = model.outputs(q[None, :], np.zeros((1, prob.nq)), np.zeros((1, prob.nq)),
@@ -400,7 +444,8 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
     stats.update({"coordinates": model.coordinates, "coordinate_choice": model.coordinates,
                   "coordinate_reason": model.coordinate_reason,
                   "solve_seconds": solve_seconds, "n_coordinates": prob.nq,
-                  "n_constraints": prob.nc, "degrees_of_freedom": int(n.shape[1])})
+                  "n_constraints": model.nc, "degrees_of_freedom": int(n.shape[1]),
+                  **plan.stats(), **flags})
     joint_coordinates = np.ravel(out["joint_positions"][0]).copy()
     for k in _periodic_joint_outputs(mech, model.joint_coordinate_names):
         joint_coordinates[k] = _wrap(joint_coordinates[k])

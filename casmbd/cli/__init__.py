@@ -94,16 +94,24 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("info", help="coordinates, constraints, degrees of freedom")
     common(p)
+    def redundancy(p):  # simulate's option; "minimum_norm" (keep every row) is simulate's
+        p.add_argument("--redundancy", choices=("auto", "remove"), default="auto",
+                       help="redundant constraint equations: removed and named (both choices; "
+                            "reactions they leave undetermined are the minimum-norm ones)")
+
     p = sub.add_parser("kinematics", help="kinematic analysis of a driven mechanism")
     common(p)
     grid(p)
+    redundancy(p)
 
     p = sub.add_parser("inverse", help="inverse dynamics: driver efforts and reactions")
     common(p)
     grid(p)
+    redundancy(p)
 
     p = sub.add_parser("statics", help="static equilibrium, reactions and stability")
     common(p)
+    redundancy(p)
     p.add_argument("--method", choices=("augmented", "reduced"), default="augmented",
                    help="Newton on (q, lambda) (default) or on the independent coordinates")
 
@@ -132,6 +140,7 @@ def build_parser() -> argparse.ArgumentParser:
                                          "stability about the initial configuration, the "
                                          "static equilibrium or a stored state")
     common(p)
+    redundancy(p)
     where = p.add_mutually_exclusive_group()
     where.add_argument("--at-equilibrium", action="store_true",
                        help="find the static equilibrium (as the statics verb) and linearize "

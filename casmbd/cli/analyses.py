@@ -15,9 +15,22 @@ from casmbd.results import load as load_result
 from casmbd.viz.quantities import effort_units, energy_exchange, joint_coordinate_unit
 
 
+def _redundancy_lines(s: dict) -> list[str]:
+    """The removed redundant equations and the reaction components they leave undetermined."""
+    lines = []
+    if s.get("redundant_equations"):
+        lines.append(f"  redundant equations ({s['redundancy']}): "
+                     + ", ".join(s["redundant_equations"]))
+    if s.get("undetermined_reactions"):
+        lines.append("  undetermined reaction components (minimum-norm distribution): "
+                     + ", ".join(f"{j} {c}" for j, c in s["undetermined_reactions"].items()))
+    return lines
+
+
 def _cmd_kinematics(args) -> tuple[dict, str]:
     mech = _load(args)
-    result = kinematics(mech, t_end=args.t_end, steps=args.steps, mode=args.mode)
+    result = kinematics(mech, t_end=args.t_end, steps=args.steps, mode=args.mode,
+                        redundancy=args.redundancy)
     result.scene = getattr(mech, "scene_text", "")
     if args.out:
         _save(result, args.out)
@@ -27,7 +40,7 @@ def _cmd_kinematics(args) -> tuple[dict, str]:
              f"{result.t[-1]:g} s",
              *_summary_table(result, mech),
              f"  max constraint violation {data['constraint_violation']:.3g}",
-             _timing(s)]
+             *_redundancy_lines(s), _timing(s)]
     if args.out:
         lines.append(f"  saved {args.out}")
     return data, "\n".join(lines)
@@ -68,12 +81,7 @@ def _cmd_simulate(args) -> tuple[dict, str]:
     if s.get("start_position_change", 0) > 1e-12 or s.get("start_velocity_change", 0) > 1e-12:
         lines.append(f"  consistent start changed q by {s['start_position_change']:.3g} and v by "
                      f"{s['start_velocity_change']:.3g}")
-    if s.get("redundant_equations"):
-        lines.append(f"  redundant equations ({s['redundancy']}): "
-                     + ", ".join(s["redundant_equations"]))
-    if s.get("undetermined_reactions"):
-        lines.append("  undetermined reaction components (NaN): " + ", ".join(
-            f"{j} {c}" for j, c in s["undetermined_reactions"].items()))
+    lines += _redundancy_lines(s)
     if s.get("near_singular_times"):
         times = s["near_singular_times"]
         lines.append(f"  passed {len(times)} near-singular poses (conditioning < 1e-4) at t ≈ "
@@ -112,7 +120,8 @@ def _energy_change(result, mech) -> str:
 
 def _cmd_inverse(args) -> tuple[dict, str]:
     mech = _load(args)
-    result = inverse_dynamics(mech, t_end=args.t_end, steps=args.steps, mode=args.mode)
+    result = inverse_dynamics(mech, t_end=args.t_end, steps=args.steps, mode=args.mode,
+                              redundancy=args.redundancy)
     result.scene = getattr(mech, "scene_text", "")
     if args.out:
         _save(result, args.out)
@@ -126,6 +135,7 @@ def _cmd_inverse(args) -> tuple[dict, str]:
             eff = result[key][:, k]
             lines.append(f"  {group[:-1]} {name:<{width}} {_range('effort', eff, units[k])}")
     s = result.stats
+    lines += _redundancy_lines(s)
     lines.append(_timing(s))
     if args.out:
         lines.append(f"  saved {args.out}")
@@ -134,7 +144,8 @@ def _cmd_inverse(args) -> tuple[dict, str]:
 
 def _cmd_statics(args) -> tuple[dict, str]:
     mech = _load(args)
-    result = static_equilibrium(mech, method=args.method, mode=args.mode)
+    result = static_equilibrium(mech, method=args.method, mode=args.mode,
+                                redundancy=args.redundancy)
     data = result.to_json()
     stable = {True: "stable", False: "unstable", None: "neutral"}[result.stable]
     if result.stability is not None and result.stability.null_directions:
@@ -172,6 +183,7 @@ def _cmd_statics(args) -> tuple[dict, str]:
     eig = ", ".join(f"{e:.4g}" for e in result.eigenvalues) or "none (no degrees of freedom)"
     lines.append(f"  stiffness eigenvalues: {eig}")
     s = result.stats
+    lines += _redundancy_lines(s)
     lines.append(_timing(s))
     return data, "\n".join(lines)
 
@@ -188,16 +200,17 @@ def _cmd_linearize(args) -> tuple[dict, str]:
         raise AnalysisError("linearize: --from RESULT.npz and --time T go together")
     mech = _load(args)
     if args.at_equilibrium:
-        lin = linearize(mech, mode=args.mode, at="equilibrium")
+        lin = linearize(mech, mode=args.mode, at="equilibrium", redundancy=args.redundancy)
         where = (f"the static equilibrium ({lin.stats['statics_iterations']} statics "
                  f"iterations, residual {lin.stats['statics_residual']:.3g})")
     elif args.from_result is not None:
         result = load_result(args.from_result)
-        lin = linearize(mech, mode=args.mode, at=result, at_time=args.time)
+        lin = linearize(mech, mode=args.mode, at=result, at_time=args.time,
+                        redundancy=args.redundancy)
         where = (f"the state of '{args.from_result}' at t = {lin.t:.6g} (output "
                  f"{lin.stats['state_index']}, nearest to {args.time:g})")
     else:
-        lin = linearize(mech, mode=args.mode)
+        lin = linearize(mech, mode=args.mode, redundancy=args.redundancy)
         where = "the initial configuration (v = 0)"
     data = lin.to_json()
     s = lin.stats
@@ -215,6 +228,7 @@ def _cmd_linearize(args) -> tuple[dict, str]:
         lines.append(f"  not an equilibrium ({lin.why_not_equilibrium()}): no stability "
                      "verdict, the modes describe perturbations about this state only; "
                      "--at-equilibrium linearizes at the static equilibrium")
+    lines += _redundancy_lines(s)
     lines.append(_timing(s))
     return data, "\n".join(lines)
 

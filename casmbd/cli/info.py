@@ -34,7 +34,9 @@ def _cmd_info(args) -> tuple[dict, str]:
         lines.append("  redundant equations: not analysed (not assembled)")
     elif data["redundant_equations"]:
         lines.append("  redundant equations: " + ", ".join(
-            f"{d['joint']}.{d['equation']}" for d in data["redundant_equations"]))
+            f"{d['joint']}.{d['equation']}" for d in data["redundant_equations"])
+            + " (every analysis removes them and names them; the reactions they leave "
+              "undetermined are the minimum-norm ones)")
     else:
         lines.append("  redundant equations: none")
     if not data["assembled"]:
