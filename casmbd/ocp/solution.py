@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import warnings
 from pathlib import Path
 
 import casadi as ca
@@ -16,6 +17,14 @@ from casmbd.results import atomic_write, read_npz
 #: Tolerance at which :meth:`OcpSolution.replay` repeats a replay whose integrator failed at a
 #: tighter one (near round-off, on fast elastic modes).
 REPLAY_FALLBACK_RTOL = 1e-10
+#: ``replay_error`` relative to the state scale max(1, |q|, |q̇|) above which a replay warns:
+#: the optimal controls do not reproduce the optimal trajectory (a mesh too coarse for the
+#: dynamics, or a problem so loosely posed that it rides a chaotic passive motion).  Sound
+#: solutions replay far below it: the double-pendulum swing-up (two elements per interval)
+#: to 4.4e-7 (scale 8.6), the flexible slew to 8.4e-4; the coarse flexible mesh replays to
+#: 16.9 (scale 5.1), a free-elbow swing-up to 8.55 (scale 24.3: elbow free at the start,
+#: one control unbounded).
+REPLAY_WARNING_RATIO = 1e-2
 
 
 class OcpSolution:
@@ -149,9 +158,11 @@ class OcpSolution:
         history: 5e-4 instead of 3e-5 on the double-pendulum swing-up).  Returns the simulation
         :class:`~casmbd.results.Result` and stores ``stats["replay_error"]``: the largest
         |q − q_ocp| and |q̇ − q̇_ocp| over the mesh nodes (a measure of the transcription's
-        discretisation error, amplified by the dynamics).  The default tolerance 1e-12 keeps
-        the integrator's own error out of that figure: at 1e-10 the double-pendulum swing-up
-        (two elements per interval) replayed to 1.5e-4, at 1e-12 to 6.4e-7.  Where the
+        discretisation error, amplified by the dynamics); above :data:`REPLAY_WARNING_RATIO`
+        × max(1, |q|, |q̇|) it warns (``RuntimeWarning``, ``stats["replay_warning"]``).
+        The default tolerance 1e-12 keeps the integrator's own error out of that figure: at
+        1e-10 the double-pendulum swing-up (two elements per interval) replayed to 1.5e-4, at
+        1e-12 to 6.4e-7.  Where the
         integrator fails at a tolerance below :data:`REPLAY_FALLBACK_RTOL` the replay is
         repeated at that tolerance and ``stats["replay_rtol"]`` says so: IDAS's corrector
         stops converging near round-off on fast elastic modes (the hub-driven flexible beam
@@ -176,6 +187,15 @@ class OcpSolution:
         err = max(float(np.max(np.abs(res["q"][idx] - self.q))),
                   float(np.max(np.abs(res["v"][idx] - self.v))))
         self.stats["replay_error"] = err
+        scale = max(1.0, float(np.max(np.abs(self.q), initial=0.0)),
+                    float(np.max(np.abs(self.v), initial=0.0)))
+        if not err <= REPLAY_WARNING_RATIO * scale:
+            text = (f"replay_error {err:.3g} exceeds {REPLAY_WARNING_RATIO:g} × the state scale "
+                    f"{scale:.3g}: the optimal controls do not reproduce the optimal "
+                    "trajectory (refine the mesh: more intervals or subintervals; or bound "
+                    "the problem better: every control bounded, the initial state given)")
+            self.stats["replay_warning"] = text
+            warnings.warn(f"ocp: {text}", RuntimeWarning, stacklevel=2)
         return res
 
     # ------------------------------------------------------------------ output
