@@ -70,7 +70,7 @@ from casmbd.analysis.reactions import flag_undetermined
 from casmbd.analysis.redundancy import null_space_basis
 from casmbd.analysis.resting import resting_equilibrium
 from casmbd.analysis.stability import STABILITY_RTOL, Stability, classify_stability
-from casmbd.analysis.trust_region import RANK_RTOL, trust_region_step
+from casmbd.analysis.trust_region import RANK_RTOL, least_squares_step, trust_region_step
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, AssemblyError
 from casmbd.model.measures import result_names
@@ -91,6 +91,13 @@ ACCEPT_RATIO = 0.1
 #: eigenvalues of the reduced stiffness below NOISE_FACTOR · ‖g‖ count as zero in the step
 #: (off an equilibrium they are known only to O(‖g‖); measured up to 2.4 ‖g‖ on the arms)
 NOISE_FACTOR = 10.0
+#: the residual search: a step predicting less than this fraction of ½‖F‖² (a stationary point
+#: of ‖F‖ that is not an equilibrium) is replaced by one descent step on the potential; a
+#: trust region below STALL_RADIUS hands the search over to the descent
+STALL_RTOL, STALL_RADIUS = 1e-12, 1e-10
+#: leaving an unstable equilibrium when a stable one is asked for: the step along the downhill
+#: eigenvector (scaled units) and the most such restarts
+ESCAPE_STEP, MAX_ESCAPES = 0.1, 5
 #: coordinate names that are angles (reduced to the principal range)
 _ANGLE_NAMES = ("angle", "angle1", "angle2")
 
@@ -117,6 +124,10 @@ class StaticsResult:
     stability : Stability
         The verdict, its eigenvalue tolerance and, when neutral, the named null directions
         (:func:`casmbd.analysis.stability.classify_stability`).
+    search : {"nearest", "stable"}
+        What was looked for: the equilibrium nearest the start (default) or a stable one.
+    notes : list of str
+        What the search did that matters for the answer (empty normally).
     body_angles, body_quaternions : ndarray
         Planar angles (n_bodies,) or spatial unit quaternions (n_bodies, 4).
     joint_reactions : ndarray (n_joints, 3 or 6)
@@ -149,6 +160,12 @@ class StaticsResult:
     contacts: dict = field(default_factory=dict)
     stats: dict = field(default_factory=dict)
     stability: Stability | None = None
+    #: "nearest" (the equilibrium nearest the start, stable or not: the default) or "stable"
+    #: (a stable one asked for: the search descends the potential energy)
+    search: str = "nearest"
+    #: what the search did that the caller should know (a stall handed over to the descent,
+    #: an unstable equilibrium left, a stable one asked for and not found)
+    notes: list = field(default_factory=list)
 
     def to_json(self) -> dict:
         """The JSON object of the ``casmbd statics`` command."""
@@ -179,6 +196,7 @@ class StaticsResult:
                 "residual": float(self.residual),
                 "residual_history": [float(x) for x in self.residual_history],
                 "eigenvalues": [float(x) for x in self.eigenvalues], "method": self.method,
+                "search": self.search, "notes": list(self.notes),
                 "potential_energy": float(self.potential_energy), "stats": dict(self.stats),
                 "stability": self.stability.to_json() if self.stability else None,
                 **({"contacts": self.contacts} if self.contacts else {}),
@@ -296,7 +314,8 @@ def _null_space(cq: np.ndarray, nq: int) -> np.ndarray:
 
 
 def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol: float = 1e-10,
-                       max_iter: int = 100, mode: str = "auto") -> StaticsResult:
+                       max_iter: int = 100, mode: str = "auto", *,
+                       stable: bool = False) -> StaticsResult:
     """Static equilibrium configuration, multipliers, reactions and stability.
 
     Parameters
@@ -315,6 +334,12 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
         Most trust-region iterations (rejected trial steps count).
     mode : {"auto", "compiled", "vm"}
         How the equations are evaluated (see :class:`NumericModel`).
+    stable : bool, keyword-only
+        False (default): the equilibrium nearest the start, stable or not (the search is
+        globalised on the residual ‖F‖); the result says which (``stability``).  True: a
+        stable one (the search descends the potential energy; an unstable equilibrium it
+        reaches is left along its downhill eigenvector and the descent continues); the
+        result's ``notes`` say so if it still ends at an unstable one.
 
     Example: a rod (mass m, length L) pinned at one end at the origin, with a torsional spring
     k at the pivot and gravity −g ŷ, angle θ counter-clockwise from +x: V = m g (L/2) sin θ +
@@ -334,9 +359,10 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
     if not (np.isfinite(tol) and tol > 0) or max_iter < 1:
         raise AnalysisError(f"statics: need tol > 0 and max_iter >= 1 (got {tol}, {max_iter})")
     t = float(t)
+    stable = bool(stable)
     if not isinstance(mechanism, NumericModel) and has_events(mechanism):
         return resting_equilibrium(mechanism, t, method, tol, max_iter, mode,
-                                   solve=static_equilibrium)
+                                   solve=static_equilibrium, stable=stable)
     if isinstance(mechanism, NumericModel):
         model = mechanism
     else:
@@ -350,19 +376,27 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
     q = assemble(model, model.initial_coordinates(), t).q
     fscale = tol * max(1.0, float(np.max(np.abs(prob.forces(q)), initial=0.0)))
     lscale = tol * max(1.0, float(np.max(np.abs(q[prob.length_idx]), initial=0.0)))
-    q, lam, it, history = _iterate(prob, q, method, fscale, lscale, max_iter)
+    q, lam, it, history, notes = _iterate(prob, q, method, fscale, lscale, max_iter, stable)
     q = _principal_range(prob, q, lam, fscale, lscale)
+    stability, n = _classify(prob, q, lam)
+    escapes = 0
+    while stable and stability.verdict == "unstable" and escapes < MAX_ESCAPES \
+            and it < max_iter:
+        escapes += 1
+        q = _leave(prob, q, lam, n)
+        q, lam, more, hist, more_notes = _iterate(prob, q, method, fscale, lscale,
+                                                  max_iter - it, stable)
+        it, history, notes = it + more, history + hist, notes + more_notes
+        q = _principal_range(prob, q, lam, fscale, lscale)
+        stability, n = _classify(prob, q, lam)
+    if escapes:
+        notes.append(f"left {escapes} unstable equilibri{'a' if escapes > 1 else 'um'} along "
+                     f"the downhill eigenvector of the reduced stiffness")
+    if stable and stability.verdict == "unstable":
+        notes.append("a stable equilibrium was asked for, but the search ended at an unstable "
+                     f"one (lowest stiffness eigenvalue {stability.eigenvalues[0]:.4g})")
     solve_seconds = time.perf_counter() - t0
-
     f = prob.residual(q, lam)
-    jqq = prob.jacobian(q, lam)[:prob.nq, :prob.nq].toarray()
-    n = _null_space(prob.cq(q), prob.nq)
-    if model.joint_coordinate_names:
-        directions = model.sparse("statics_joint_jacobian", q, t, model.p).toarray() @ n
-        labels = list(model.joint_coordinate_names)
-    else:
-        directions, labels = n, list(model.coordinate_names)
-    stability = classify_stability(n.T @ (-jqq) @ n, directions, labels)
 
     all_joints = list(mech.joints)
     if all_joints:
@@ -385,7 +419,8 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
     stats.update({"coordinates": model.coordinates, "coordinate_choice": model.coordinates,
                   "coordinate_reason": model.coordinate_reason,
                   "solve_seconds": solve_seconds, "n_coordinates": prob.nq,
-                  "n_constraints": prob.nc, "degrees_of_freedom": int(n.shape[1])})
+                  "n_constraints": prob.nc, "degrees_of_freedom": int(n.shape[1]),
+                  "search": "stable" if stable else "nearest"})
     joint_coordinates = np.ravel(out["joint_positions"][0]).copy()
     for k in _periodic_joint_outputs(mech, model.joint_coordinate_names):
         joint_coordinates[k] = _wrap(joint_coordinates[k])
@@ -403,7 +438,40 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
         if model.dimension == 2 else np.zeros(0), body_quaternions=quats,
         joint_coordinates=joint_coordinates, stats=stats, stability=stability,
         marker_positions=np.reshape(out["marker_positions"][0], (-1, model.dimension)),
-        reports=_reports(mech, out))
+        reports=_reports(mech, out), search="stable" if stable else "nearest", notes=notes)
+
+
+def _classify(prob: _Problem, q, lam) -> tuple[Stability, np.ndarray]:
+    """The stability verdict at (q, λ) and the orthonormal basis N of ker C_q it used."""
+    model = prob.model
+    jqq = prob.jacobian(q, lam)[:prob.nq, :prob.nq].toarray()
+    n = _null_space(prob.cq(q), prob.nq)
+    if model.joint_coordinate_names:
+        directions = model.sparse("statics_joint_jacobian", q, prob.t, model.p).toarray() @ n
+        labels = list(model.joint_coordinate_names)
+    else:
+        directions, labels = n, list(model.coordinate_names)
+    return classify_stability(n.T @ (-jqq) @ n, directions, labels), n
+
+
+def _leave(prob: _Problem, q, lam, n: np.ndarray) -> np.ndarray:
+    """A configuration off the unstable equilibrium q: a step of :data:`ESCAPE_STEP` (scaled
+    units) along the eigenvector of the lowest (negative) eigenvalue of K̄, assembled; the
+    potential energy falls along it (by ½ μ_min ‖δz‖² to second order)."""
+    jqq = prob.jacobian(q, lam)[:prob.nq, :prob.nq].toarray()
+    kbar = n.T @ (-jqq) @ n
+    _, vec = np.linalg.eigh(0.5 * (kbar + kbar.T))
+    dq = n @ vec[:, 0]
+    dq *= ESCAPE_STEP / max(float(np.linalg.norm(dq / prob.scale)), 1e-300)
+    dq *= 1.0 if dq[int(np.argmax(np.abs(dq)))] > 0.0 else -1.0  # a reproducible side
+    for trial in (q + dq, q - dq):
+        try:
+            q_new = assemble(prob.model, trial, prob.t).q
+        except AssemblyError:
+            continue
+        if prob.improper(q_new) is None:
+            return q_new
+    return q
 
 
 def _reports(mech, out: dict) -> dict:
@@ -492,12 +560,16 @@ class _State:
         self.norm = float(np.linalg.norm(self.f * w))
 
 
-def _iterate(prob: _Problem, q, method: str, fscale: float, lscale: float, max_iter: int):
-    """The trust-region iteration of both methods (module docstring)."""
-    nq = prob.nq
+def _iterate(prob: _Problem, q, method: str, fscale: float, lscale: float, max_iter: int,
+             stable: bool = False):
+    """The trust-region iteration of both methods (module docstring): globalised on the
+    residual (``stable`` False, the equilibrium nearest the start) or on the potential energy
+    (``stable`` True).  Returns (q, λ, iterations, residual history, notes)."""
     state = _State(prob, q, prob.multipliers(q), fscale, lscale)
     history = [float(np.max(np.abs(state.f), initial=0.0))]
     radius, it = INITIAL_RADIUS, 0
+    notes: list[str] = []
+    descend = stable  # the whole search descends the potential (a stable equilibrium)
     while True:
         f = state.f
         if not np.all(np.isfinite(f)):
@@ -511,33 +583,23 @@ def _iterate(prob: _Problem, q, method: str, fscale: float, lscale: float, max_i
         if it >= max_iter:
             _fail(prob, "not converged", it, f, method)
         it += 1
-        n, k, g, kbar = prob.tangent(state.q, state.lam)
-        dn = np.zeros(nq)
-        if method == "augmented" and prob.nc:  # minimum-norm normal step C_q dn = −C
-            dn_s, *_ = sla.lstsq(prob.cq(state.q) * prob.scale, -f[nq:], cond=RANK_RTOL,
-                                 lapack_driver="gelsd")
-            dn = prob.scale * dn_s
-            g = g - n.T @ k @ dn
-        step = trust_region_step(g, kbar, radius, noise=NOISE_FACTOR * np.linalg.norm(g))
-        if not step.newton and np.any(dn):  # globalise from the constraint manifold
-            try:
-                q_on = assemble(prob.model, state.q, prob.t).q
-            except AssemblyError:
-                _fail(prob, "the iterate left the constraint manifold", it, f, method)
-            state = _State(prob, q_on, prob.multipliers(q_on), fscale, lscale)
-            dn = np.zeros(nq)
-            n, k, g, kbar = prob.tangent(state.q, state.lam)
-            step = trust_region_step(g, kbar, radius, noise=NOISE_FACTOR * np.linalg.norm(g))
+        step, dn, n, k, kind, state = _step(prob, state, method, radius, descend, fscale, lscale,
+                                            it)
         kkt = method == "augmented" and step.newton
         trial = _trial(prob, state, dn + n @ step.dz, k, kkt, fscale, lscale)
         accepted, ratio = False, 0.0
         if trial is not None:
-            work = 0.5 * float((state.qe + trial.qe) @ (trial.q - state.q))
-            if step.predicted > 0.0:
-                ratio = work / step.predicted
-            else:
-                ratio = 1.0 if work >= 0.0 else -1.0
             newton_ok = step.newton and trial.norm < state.norm
+            if kind == "descent":  # the work of the applied forces against the model's
+                work = 0.5 * float((state.qe + trial.qe) @ (trial.q - state.q))
+                if step.predicted > 0.0:
+                    ratio = work / step.predicted
+                else:
+                    ratio = 1.0 if work >= 0.0 else -1.0
+            elif step.predicted > 0.0:  # the decrease of ½‖F‖² against the model's
+                ratio = 0.5 * (state.norm**2 - trial.norm**2) / step.predicted
+            else:
+                ratio = 1.0 if trial.norm < state.norm else -1.0
             accepted = newton_ok if kkt else (ratio >= ACCEPT_RATIO or newton_ok)
         size = float(np.linalg.norm(step.dz))
         if not accepted or (ratio < 0.25 and not step.newton):
@@ -546,10 +608,58 @@ def _iterate(prob: _Problem, q, method: str, fscale: float, lscale: float, max_i
             radius = min(2.0 * radius, MAX_RADIUS)
         if accepted:
             state = trial
+        elif radius < STALL_RADIUS and not descend:
+            # the residual has a local minimum that is not an equilibrium: descend instead
+            descend, radius = True, INITIAL_RADIUS
+            notes.append(f"the residual search stalled at iteration {it} (max |F| = "
+                         f"{np.max(np.abs(f), initial=0.0):.3g}); continued by descending the "
+                         f"potential energy")
         elif radius < 1e-12:
             _fail(prob, "no acceptable step (trust region collapsed)", it, f, method)
         history.append(float(np.max(np.abs(state.f), initial=0.0)))
-    return state.q, state.lam, it, history
+    return state.q, state.lam, it, history, notes
+
+
+def _step(prob: _Problem, state: _State, method: str, radius: float, descend: bool,
+          fscale: float, lscale: float, it: int):
+    """The step of one iteration: (step, normal step dn, N, K, kind, state), kind "residual"
+    (:func:`~casmbd.analysis.trust_region.least_squares_step` on the residual) or "descent"
+    (:func:`~casmbd.analysis.trust_region.trust_region_step` on the potential: the whole
+    search with ``descend``, else one step off a stationary point of the residual that is not
+    an equilibrium).  A step that is not Newton's is taken from the constraint manifold (the
+    state is assembled first when the normal step is not zero)."""
+    nq = prob.nq
+    for attempt in range(2):
+        n, k, g, kbar = prob.tangent(state.q, state.lam)
+        dn = np.zeros(nq)
+        if method == "augmented" and prob.nc and attempt == 0:  # normal step C_q dn = −C
+            dn_s, *_ = sla.lstsq(prob.cq(state.q) * prob.scale, -state.f[nq:], cond=RANK_RTOL,
+                                 lapack_driver="gelsd")
+            dn = prob.scale * dn_s
+            g = g - n.T @ k @ dn
+        noise = NOISE_FACTOR * np.linalg.norm(g)
+        kind = "descent" if descend else "residual"
+        if not descend:
+            # ‖Q_e − C_qᵀλ‖ = ‖R⁻ᵀ g‖ with N = Q R (λ the least-squares multipliers), in the
+            # units of the convergence test
+            r_inv_t = sla.solve_triangular(np.linalg.qr(n)[1], np.eye(n.shape[1]), trans="T") \
+                if n.shape[1] else np.zeros((0, 0))
+            step = least_squares_step(r_inv_t @ g / fscale,
+                                      r_inv_t @ kbar / fscale, radius,
+                                      noise=noise / fscale
+                                      * float(np.linalg.norm(r_inv_t, 2)))
+            if step.predicted <= STALL_RTOL * 0.5 * state.norm**2 and not step.newton:
+                kind = "descent"  # a stationary point of ‖F‖: leave it downhill
+        if kind == "descent":
+            step = trust_region_step(g, kbar, radius, noise=noise)
+        if step.newton or not np.any(dn):
+            return step, dn, n, k, kind, state
+        try:  # globalise from the constraint manifold
+            q_on = assemble(prob.model, state.q, prob.t).q
+        except AssemblyError:
+            _fail(prob, "the iterate left the constraint manifold", it, state.f, method)
+        state = _State(prob, q_on, prob.multipliers(q_on), fscale, lscale)
+    return step, np.zeros(nq), n, k, kind, state
 
 
 def _trial(prob: _Problem, state: _State, dq, k, kkt: bool, fscale, lscale) -> _State | None:

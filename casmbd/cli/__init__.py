@@ -106,6 +106,9 @@ def build_parser() -> argparse.ArgumentParser:
     common(p)
     p.add_argument("--method", choices=("augmented", "reduced"), default="augmented",
                    help="Newton on (q, lambda) (default) or on the independent coordinates")
+    p.add_argument("--stable", action="store_true",
+                   help="find a stable equilibrium (descend the potential energy) instead of "
+                        "the one nearest the initial configuration, stable or not")
 
     p = sub.add_parser("simulate", help="forward dynamics")
     common(p)
