@@ -158,6 +158,25 @@ def test_cli_at_equilibrium_equals_the_python_route(capsys):
     assert data["q"][2] == pytest.approx(float(mech.parameters["L"]), abs=1e-12)
 
 
+def test_at_a_stable_equilibrium(capsys):
+    """``stable=True`` / ``--stable`` with the equilibrium: about the hanging top that
+    ``static_equilibrium(m, stable=True)`` finds (matrices 1e-9), neutral about the vertical;
+    without ``at="equilibrium"`` (``--at-equilibrium``) it is refused by name."""
+    mech = casmbd.load_scene(TOP)
+    eq = static_equilibrium(mech, stable=True)
+    assert eq.body_positions[0, 2] == pytest.approx(-float(mech.parameters["L"]), abs=1e-12)
+    ref = linearize(mech, q=eq.q)
+    data, text = run(capsys, "linearize", TOP, "--at-equilibrium", "--stable")
+    assert "neutral (null directions: " in text.splitlines()[0]
+    assert_same_matrices(data, ref)
+    assert data["verdict"] == ref.verdict == "neutral"
+    assert_same_matrices(linearize(mech, at="equilibrium", stable=True).to_json(), ref)
+    with pytest.raises(ModelError, match="stable=True goes with at='equilibrium'"):
+        linearize(mech, stable=True)
+    assert cli.main(["linearize", TOP, "--stable"]) == 1
+    assert "--stable goes with --at-equilibrium" in capsys.readouterr().err
+
+
 def test_not_an_equilibrium_has_no_verdict(capsys):
     """Linearised where it was released (tilted, at rest) the top is no equilibrium: no
     verdict, the residual named; before issue 19 this printed a stability word."""

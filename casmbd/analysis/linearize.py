@@ -384,20 +384,21 @@ def _from_result(result, system: System, at_time, u):
                         "requested_time": float(at_time)}
 
 
-def _at_equilibrium(mechanism, system: System, t: float, mode: str):
-    """(q, stats) of the static equilibrium found from the initial configuration."""
+def _at_equilibrium(mechanism, system: System, t: float, mode: str, stable: bool = False):
+    """(q, stats) of the static equilibrium found from the initial configuration (the
+    nearest one, or a stable one with ``stable``)."""
     statics = NumericModel(system, STATICS_NEEDS, mode=mode, extra=statics_functions(system))
     if isinstance(mechanism, NumericModel):
         statics.p[:] = mechanism.p
-    eq = static_equilibrium(statics, t=t, mode=mode)
+    eq = static_equilibrium(statics, t=t, mode=mode, stable=stable)
     return eq.q, {"about": "equilibrium", "statics_iterations": int(eq.iterations),
                   "statics_residual": float(eq.residual),
                   "statics_verdict": eq.stability.verdict if eq.stability else None}
 
 
 def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "auto",
-              rtol: float = RANK_RTOL, *, at=None, at_time: float | None = None
-              ) -> LinearModel:
+              rtol: float = RANK_RTOL, *, at=None, at_time: float | None = None,
+              stable: bool = False) -> LinearModel:
     """Linearize the constrained dynamics of ``mechanism`` about the state (q, v, t, u).
 
     Parameters
@@ -429,6 +430,9 @@ def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "au
         together with ``q`` or ``v``.
     at_time : float, optional
         The time wanted with ``at=<result>``.
+    stable : bool, keyword-only
+        With ``at="equilibrium"``: about a stable equilibrium (``static_equilibrium(m,
+        stable=True)``) instead of the one nearest the initial configuration.
 
     Returns
     -------
@@ -460,13 +464,15 @@ def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "au
             if u is not None and np.any(np.asarray(u, dtype=float) != 0.0):
                 raise ModelError("linearize: at='equilibrium' is the equilibrium with zero "
                                  "inputs; u must be zero")
-            q, about = _at_equilibrium(mechanism, system, t, mode)
+            q, about = _at_equilibrium(mechanism, system, t, mode, stable)
         elif isinstance(at, str) or not hasattr(at, "t"):
             raise ModelError(f"linearize: at must be 'equilibrium' or a result, got {at!r}")
         else:
             q, v, t, u, about = _from_result(at, system, at_time, u)
     elif at_time is not None:
         raise ModelError("linearize: at_time needs at=<result>")
+    if stable and not (isinstance(at, str) and at == "equilibrium"):
+        raise ModelError("linearize: stable=True goes with at='equilibrium'")
     lin_fun = _linearization_function(system)
     model = NumericModel(system, NEEDED, mode=mode,
                          extra=[lin_fun, _joint_jacobian_function(system)])

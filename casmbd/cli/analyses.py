@@ -179,9 +179,12 @@ def _cmd_linearize(args) -> tuple[dict, str]:
     """
     if (args.time is None) != (args.from_result is None):
         raise AnalysisError("linearize: --from RESULT.npz and --time T go together")
+    if getattr(args, "stable", False) and not args.at_equilibrium:
+        raise AnalysisError("linearize: --stable goes with --at-equilibrium")
     mech = _load(args)
     if args.at_equilibrium:
-        lin = linearize(mech, mode=args.mode, at="equilibrium")
+        lin = linearize(mech, mode=args.mode, at="equilibrium",
+                        stable=getattr(args, "stable", False))
         where = (f"the static equilibrium ({lin.stats['statics_iterations']} statics "
                  f"iterations, residual {lin.stats['statics_residual']:.3g})")
     elif args.from_result is not None:
