@@ -69,6 +69,7 @@ def measure(mode: str = "vm") -> dict:
 def markdown(data: dict) -> str:
     out = [HEAD, "",
            "From the zero pose (UR5-like: stretched out horizontally; Panda-like: upright), "
+           "asking for a stable equilibrium (`stable=True`), "
            "gravity −z, `tol = 1e-10`; measured with `python -m benchmarks.statics_arms "
            f"--mode {data['mode']} --update-docs`. Force residual relative to max |Q_e(q₀)|; "
            "iterations include rejected trust-region trials. Before the trust region "

@@ -7,23 +7,44 @@ equations of motion reduce to
 
 (the quadratic-velocity forces vanish with v = 0, and so do damping forces).
 
+Which equilibrium.  By default the one nearest the start, stable or not: Newton on
+F(q, λ) = 0 converges to the equilibrium whose Newton basin holds the start (normally the
+nearest; not a guarantee in distance), and the globalisation
+measures progress by the residual ½‖F‖², not by the potential (an inverted pendulum started
+0.04 rad from upright stays upright, seed 003's five-hinged arch stays an arch); the result
+says which kind it is (``stability``).  ``stable=True`` asks for a stable one: the search
+descends the potential energy and ends at a local minimum; if it ends at an unstable
+equilibrium (a start that already is one) it leaves it along the downhill eigenvector of K̄
+(:data:`ESCAPE_STEP` in scaled units, at most :data:`MAX_ESCAPES` times) and descends again,
+and the result's ``notes`` say so.
+
 Globalisation (both methods).  Newton alone fails on real arms: released from a pose where a
 joint's gravity moment is largest the stiffness about it vanishes, the Newton step is
-unbounded (a minimum-norm step of 1e11 rad was seen), and a line search on ‖F‖ stalls at such
-poses, which are stationary points of ‖F‖.  Every iteration therefore takes a trust-region
-step (:func:`casmbd.analysis.trust_region.trust_region_step`) in the tangent space of the
-constraints, in scaled coordinates (lengths divided by the size of the mechanism, angles, Euler
-parameters and unit vectors as they are): it minimises the quadratic model of the potential
-energy −gᵀdz + ½ dzᵀ K̄ dz within ‖dz‖ ≤ Δ, g = Nᵀ Q_e the net force and K̄ = Nᵀ K N the
-stiffness (N a basis of ker C_q).  It is Newton's step when K̄ is positive (semi)definite and
-the step fits, with a rank cut-off (:data:`~casmbd.analysis.trust_region.RANK_RTOL` = 1e-10
-relative to the largest eigenvalue) in the least-squares fallback.  A step is accepted when
-the work done by the applied forces along it, ½ (Q_e(q) + Q_e(q⁺))·(q⁺ − q) (= −ΔV to third
-order for conservative forces; defined for any forces), is at least 0.1 of the model's
-prediction, or when it is the Newton step and reduces the scaled residual; Δ starts at 0.5,
-is at most 1 (radian or mechanism size) and shrinks by 4 on a poor step.  The iteration so
-descends the potential energy and ends at a local minimum (a stable equilibrium) unless the
-start already is an equilibrium (an inverted pendulum placed upright stays there).
+unbounded (a minimum-norm step of 1e11 rad was seen).  Every iteration therefore takes a
+trust-region step in the tangent space of the constraints, in scaled coordinates (lengths
+divided by the size of the mechanism, angles, Euler parameters and unit vectors as they are),
+with g = Nᵀ Q_e the net force and K̄ = Nᵀ K N the stiffness (N a basis of ker C_q); Δ starts at
+0.5, is at most 1 (radian or mechanism size) and shrinks by 4 on a poor step.
+
+* The nearest equilibrium (default): :func:`casmbd.analysis.trust_region.least_squares_step`,
+  the Levenberg–Marquardt step of the Gauss–Newton model ½‖b − A dz‖² of ½‖F‖² with
+  b = R⁻ᵀ g, A = R⁻ᵀ K̄ (N = QR; ‖R⁻ᵀ g‖ = ‖Q_e − C_qᵀλ‖ for the least-squares λ), both in the
+  units of the convergence test.  It is Newton's step dz = K̄⁻¹ g, of any definiteness, when it
+  fits.  A step is accepted when the decrease of ½‖F‖² (scaled) is at least 0.1 of the
+  model's, or when it is the Newton step and reduces the residual.  Where the model is flat
+  (Aᵀb = 0 with F ≠ 0: a pendulum released horizontally, a stationary point of ‖F‖ between
+  two equilibria) one descent step on the potential (below) leaves it downhill; if the trust
+  region still collapses (below :data:`STALL_RADIUS`, a local minimum of ‖F‖ that is no
+  equilibrium) the rest of the search descends the potential, and ``notes`` say so.
+* A stable equilibrium (``stable=True``, and the steps above):
+  :func:`casmbd.analysis.trust_region.trust_region_step` minimises the quadratic model of the
+  potential energy −gᵀdz + ½ dzᵀ K̄ dz within ‖dz‖ ≤ Δ.  It is Newton's step when K̄ is
+  positive (semi)definite and the step fits, with a rank cut-off
+  (:data:`~casmbd.analysis.trust_region.RANK_RTOL` = 1e-10 relative to the largest
+  eigenvalue) in the least-squares fallback.  A step is accepted when the work done by the
+  applied forces along it, ½ (Q_e(q) + Q_e(q⁺))·(q⁺ − q) (= −ΔV to third order for
+  conservative forces; defined for any forces), is at least 0.1 of the model's prediction, or
+  when it is the Newton step and reduces the scaled residual.
 
 ``"augmented"``
     Newton on F(q, λ) = [Q_e − C_qᵀλ; C] = 0 in the n_q + n_c unknowns with the constraints
