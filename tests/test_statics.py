@@ -39,7 +39,7 @@ def pendulum(k: float = 0.0, up: bool | None = None) -> casmbd.Mechanism:
 #: the metric of the unit tangent of the pendulum's constraint manifold: absolute coordinates
 #: (x, y, θ) have the tangent (−(L/2) sin θ, (L/2) cos θ, 1) / √(1 + (L/2)²); the automatic
 #: choice takes the joint angle θ alone (a tree), whose unit tangent is 1
-METRIC = {"absolute": 1 + 0.5 ** 2, "auto": 1.0}
+METRIC = {"absolute": 1 + 0.5 ** 2, "natural": 1 + 0.5 ** 2, "auto": 1.0}
 
 
 def coordinate_checks(r, coordinates: str, n_bodies: int = 1) -> None:
@@ -224,7 +224,7 @@ def tilted_pendulum(offset: float, coordinates: str) -> casmbd.Mechanism:
     return m
 
 
-@pytest.mark.parametrize("coordinates", ["absolute", "auto"])
+@pytest.mark.parametrize("coordinates", ["absolute", "natural", "auto"])
 @pytest.mark.parametrize("method", ["augmented", "reduced"])
 def test_inverted_pendulum_near_upright_stays_upright(method, coordinates):
     """Started 0.04 rad from upright the nearest equilibrium is upright (θ = π/2 to 1e-10),
@@ -281,7 +281,7 @@ def arch_variant(coordinates: str | None = None, rise: float | None = None):
     return mech
 
 
-@pytest.mark.parametrize("coordinates", ["absolute", "auto"])
+@pytest.mark.parametrize("coordinates", ["absolute", "natural", "auto"])
 @pytest.mark.parametrize("method", ["augmented", "reduced"])
 def test_seed003_arch_stays_an_arch(method, coordinates):
     """Seed 003 §5.3, started from the symmetric polygon rising at π/3 (0.08 rad off): the
@@ -357,6 +357,28 @@ def test_cli_statics_nearest_and_stable(capsys):
     assert main(["statics", ARCH, "--mode", "vm", "--stable"]) == 0
     first = capsys.readouterr().out.splitlines()[0]
     assert "a stable one asked for" in first and first.endswith("stable")
+
+
+@pytest.mark.parametrize("coordinates", ["absolute", "auto"])
+def test_residual_minimum_that_is_no_equilibrium_hands_over_to_descent(coordinates):
+    """Rod with a torsional spring k = 1 N m/rad (free angle 0) under gravity: the net moment
+    g(θ) = −k θ − m g (L/2) cos θ has a negative local maximum at θ₀ = 3π − asin(k/(m g L/2))
+    = 9.219 rad (g = −4.42 N m): a local minimum of ‖F‖ that is no equilibrium.  Started
+    there, the residual search cannot leave it; the search descends the potential instead
+    (said in ``notes``) to the equilibrium below, g(θ*) = 0 in (3.5, 4.5) (brentq, 1e-10),
+    stable.  No equilibrium lies between (cos θ = −kθ/(m g L/2) needs θ ≤ 4.905)."""
+    c = G * 0.5
+    start = 3 * np.pi - np.arcsin(1.0 / c)
+    m = casmbd.Mechanism(f"wound_rod_{coordinates}", gravity=(0, -G), coordinates=coordinates)
+    m.add_body("rod", 1.0, 1 / 12, (0.5 * np.cos(start), 0.5 * np.sin(start)), angle=start)
+    m.add_revolute("pivot", "ground", "rod", (0, 0))
+    m.add_rotational_spring_damper("spring", "pivot", stiffness=1.0)
+    ref = brentq(lambda th: -th - c * np.cos(th), 3.5, 4.5, xtol=1e-15,
+                 rtol=4 * np.finfo(float).eps)
+    r = static_equilibrium(m, mode="vm")
+    assert r.joint_coordinates[0] == pytest.approx(ref, abs=1e-10)
+    assert r.stability.verdict == "stable" and len(r.notes) == 1
+    assert "local minimum that is no equilibrium" in r.notes[0]
 
 
 def test_least_squares_step():

@@ -33,9 +33,10 @@ with g = Nᵀ Q_e the net force and K̄ = Nᵀ K N the stiffness (N a basis of k
   fits.  A step is accepted when the decrease of ½‖F‖² (scaled) is at least 0.1 of the
   model's, or when it is the Newton step and reduces the residual.  Where the model is flat
   (Aᵀb = 0 with F ≠ 0: a pendulum released horizontally, a stationary point of ‖F‖ between
-  two equilibria) one descent step on the potential (below) leaves it downhill; if the trust
-  region still collapses (below :data:`STALL_RADIUS`, a local minimum of ‖F‖ that is no
-  equilibrium) the rest of the search descends the potential, and ``notes`` say so.
+  two equilibria) one descent step on the potential (below) leaves it downhill.  If that step
+  raises ‖F‖ (a local minimum of ‖F‖ that is no equilibrium, to which the residual search
+  would return), or the trust region collapses (below :data:`STALL_RADIUS`), the rest of the
+  search descends the potential, and ``notes`` say so.
 * A stable equilibrium (``stable=True``, and the steps above):
   :func:`casmbd.analysis.trust_region.trust_region_step` minimises the quadratic model of the
   potential energy −gᵀdz + ½ dzᵀ K̄ dz within ‖dz‖ ≤ Δ.  It is Newton's step when K̄ is
@@ -627,6 +628,13 @@ def _iterate(prob: _Problem, q, method: str, fscale: float, lscale: float, max_i
             radius = 0.25 * min(radius, max(size, 1e-16))
         elif ratio > 0.75 and size >= 0.99 * radius:
             radius = min(2.0 * radius, MAX_RADIUS)
+        if accepted and kind == "descent" and not descend and trial.norm > state.norm:
+            # off a local minimum of ‖F‖ that is no equilibrium (the residual search would
+            # return to it): descend the potential from here on
+            descend = True
+            notes.append(f"the residual has a local minimum that is no equilibrium at "
+                         f"iteration {it} (max |F| = {np.max(np.abs(f), initial=0.0):.3g}); "
+                         f"continued by descending the potential energy")
         if accepted:
             state = trial
         elif radius < STALL_RADIUS and not descend:
