@@ -260,15 +260,17 @@ def test_stable_search_leaves_an_exactly_upright_start(method):
                        "reduced stiffness"]
 
 
-def arch_angles() -> tuple[float, float]:
-    """The arch of unit rods (1 kg each) between pivots ARCH_SPAN apart: with H the horizontal
-    thrust, moments about the apex hinge of the inner rod and about a ground pivot of the two
-    rods of one side give tan θ_i = m g / (2H), tan θ_o = 3 m g / (2H) (each rod's weight
-    shared by its hinges, no shear at the apex by symmetry), and the span closes with
-    cos θ_o + cos θ_i = span / 2.  Returns (θ_o, θ_i), the rise of the outer and inner rods."""
-    inner = brentq(lambda x: np.cos(np.arctan(3 * np.tan(x))) + np.cos(x) - ARCH_SPAN / 2,
+def arch_angles(mass_ratio: float = 1.0) -> tuple[float, float]:
+    """The arch of unit rods between pivots ARCH_SPAN apart, outer rods of mass m_o, inner
+    ones m_i = ``mass_ratio`` · m_o: with H the horizontal thrust, moments about the near
+    hinge of an inner rod (no shear at the apex, by symmetry) and about a ground pivot of the
+    two rods of one side give tan θ_i = m_i g / (2H) and tan θ_o = (m_o + 2 m_i) g / (2H), and
+    the span closes with cos θ_o + cos θ_i = span / 2.  Returns (θ_o, θ_i), the rise of the
+    outer and inner rods (tan θ_o = 3 tan θ_i for equal rods)."""
+    ratio = (1.0 + 2.0 * mass_ratio) / mass_ratio
+    inner = brentq(lambda x: np.cos(np.arctan(ratio * np.tan(x))) + np.cos(x) - ARCH_SPAN / 2,
                    1e-6, np.pi / 2 - 1e-6, xtol=1e-15, rtol=4 * np.finfo(float).eps)
-    return float(np.arctan(3 * np.tan(inner))), float(inner)
+    return float(np.arctan(ratio * np.tan(inner))), float(inner)
 
 
 def arch_variant(coordinates: str | None = None, rise: float | None = None):
@@ -335,6 +337,25 @@ def test_arch_from_farther_and_lopsided_starts(left, right):
         mech = lopsided_arch(left, right)
     r = static_equilibrium(mech, mode="vm")
     assert np.max(np.abs(r.body_angles - expected)) < 1e-10 and r.stable is False
+
+
+def test_statics_sweep_nearest_and_stable():
+    """A statics sweep over the inner rods' mass takes ``stable`` like
+    ``static_equilibrium``: the arches (closed form per mass ratio, 1e-10) by default, the
+    hanging chains (angles negated) with ``stable=True``."""
+    from casmbd.analysis.sweep import sweep
+
+    masses = [0.5, 1.0, 2.0]
+    expected = np.array([arch_angles(m) for m in masses])
+    for stable, sign in ((False, 1.0), (True, -1.0)):
+        res = sweep(casmbd.load_scene(ARCH), {"m_inner": masses}, analysis="statics",
+                    outputs=["final:body.rod0.angle", "final:body.rod1.angle"], mode="vm",
+                    stable=stable)
+        assert res.failed == [], res.errors
+        np.testing.assert_allclose(res["final:body.rod0.angle"], sign * expected[:, 0],
+                                   rtol=0, atol=1e-10)
+        np.testing.assert_allclose(res["final:body.rod1.angle"], sign * expected[:, 1],
+                                   rtol=0, atol=1e-10)
 
 
 def test_cli_statics_nearest_and_stable(capsys):
