@@ -402,6 +402,21 @@ def test_residual_minimum_that_is_no_equilibrium_hands_over_to_descent(coordinat
     assert "local minimum that is no equilibrium" in r.notes[0]
 
 
+def test_residual_search_that_fails_falls_back_to_the_stable_search():
+    """The flyball governor at rest (examples/flyball_governor.toml, stiff coupler springs
+    8e5 N/m): the arms' fall is a long, narrow, curved valley of ‖F‖ that the residual
+    search crawls along (100 iterations, residual still 35).  The result is then the stable
+    equilibrium of the potential descent from the same start — identical to
+    ``stable=True`` (q to 1e-12) — and the first note says so."""
+    mech = casmbd.load_scene("examples/flyball_governor.toml")
+    r = static_equilibrium(mech, mode="vm")
+    ref = static_equilibrium(mech, mode="vm", stable=True)
+    assert np.max(np.abs(r.q - ref.q)) <= 1e-12 and r.residual < 1e-9
+    assert r.notes and r.notes[0].startswith("the search for the nearest equilibrium failed")
+    assert "not converged after 100 iterations" in r.notes[0]
+    assert r.stability.verdict == ref.stability.verdict == "neutral"
+
+
 def test_least_squares_step():
     """The residual step: Newton's step for an indefinite stiffness (towards a saddle) when
     it fits; else on the trust-region boundary, decreasing the model; no step where the
@@ -417,3 +432,7 @@ def test_least_squares_step():
     assert 0.0 < step.predicted < 0.5 * 100 * b @ b
     step = least_squares_step(np.array([1.0]), np.zeros((1, 1)), radius=0.5)
     assert not np.any(step.dz) and step.predicted == 0.0
+    # a given shift: dz = (AᵀA + ν I)⁻¹ Aᵀ b
+    step = least_squares_step(b, a, radius=np.inf, shift=3.0)
+    assert np.allclose(step.dz, np.linalg.solve(a.T @ a + 3.0 * np.eye(2), a.T @ b),
+                       atol=1e-15)

@@ -36,7 +36,13 @@ with g = Nᵀ Q_e the net force and K̄ = Nᵀ K N the stiffness (N a basis of k
   two equilibria) one descent step on the potential (below) leaves it downhill.  If that step
   raises ‖F‖ (a local minimum of ‖F‖ that is no equilibrium, to which the residual search
   would return), or the trust region collapses (below :data:`STALL_RADIUS`), the rest of the
-  search descends the potential, and ``notes`` say so.
+  search descends the potential, and ``notes`` say so.  A boundary step is followed by a
+  second-order correction (the step of the same shift ν from the trial point, kept when it
+  lowers ‖F‖): it settles the directions stiffer than ν that a straight step across a curved
+  valley disturbs (110 instead of 157 iterations over the arm and arch tests).  If the
+  residual search still fails (``max_iter`` spent crawling along a long, narrow valley of
+  ‖F‖: the flyball governor's stiff couplers), the answer is the stable equilibrium of the
+  potential descent from the same start, and the first note says so.
 * A stable equilibrium (``stable=True``, and the steps above):
   :func:`casmbd.analysis.trust_region.trust_region_step` minimises the quadratic model of the
   potential energy −gᵀdz + ½ dzᵀ K̄ dz within ‖dz‖ ≤ Δ.  It is Newton's step when K̄ is
@@ -398,7 +404,16 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
     q = assemble(model, model.initial_coordinates(), t).q
     fscale = tol * max(1.0, float(np.max(np.abs(prob.forces(q)), initial=0.0)))
     lscale = tol * max(1.0, float(np.max(np.abs(q[prob.length_idx]), initial=0.0)))
-    q, lam, it, history, notes = _iterate(prob, q, method, fscale, lscale, max_iter, stable)
+    try:
+        q, lam, it, history, notes = _iterate(prob, q, method, fscale, lscale, max_iter, stable)
+    except AnalysisError as exc:
+        if stable:
+            raise
+        # the residual search failed (a long, narrow valley of ‖F‖ that it crawls along):
+        # a stable equilibrium from the same start, by the potential descent
+        q, lam, it, history, notes = _iterate(prob, q, method, fscale, lscale, max_iter, True)
+        notes.insert(0, f"the search for the nearest equilibrium failed ({exc}); this is the "
+                        f"stable equilibrium the potential descent found from the same start")
     q = _principal_range(prob, q, lam, fscale, lscale)
     stability, n = _classify(prob, q, lam)
     escapes = 0
@@ -609,6 +624,8 @@ def _iterate(prob: _Problem, q, method: str, fscale: float, lscale: float, max_i
                                             it)
         kkt = method == "augmented" and step.newton
         trial = _trial(prob, state, dn + n @ step.dz, k, kkt, fscale, lscale)
+        if trial is not None and kind == "residual" and not step.newton:
+            trial = _corrected(prob, trial, step.nu, fscale, lscale) or trial
         accepted, ratio = False, 0.0
         if trial is not None:
             newton_ok = step.newton and trial.norm < state.norm
@@ -669,14 +686,8 @@ def _step(prob: _Problem, state: _State, method: str, radius: float, descend: bo
         noise = NOISE_FACTOR * np.linalg.norm(g)
         kind = "descent" if descend else "residual"
         if not descend:
-            # ‖Q_e − C_qᵀλ‖ = ‖R⁻ᵀ g‖ with N = Q R (λ the least-squares multipliers), in the
-            # units of the convergence test
-            r_inv_t = sla.solve_triangular(np.linalg.qr(n)[1], np.eye(n.shape[1]), trans="T") \
-                if n.shape[1] else np.zeros((0, 0))
-            step = least_squares_step(r_inv_t @ g / fscale,
-                                      r_inv_t @ kbar / fscale, radius,
-                                      noise=noise / fscale
-                                      * float(np.linalg.norm(r_inv_t, 2)))
+            b, a, noise_b = _residual_model(n, g, kbar, noise, fscale)
+            step = least_squares_step(b, a, radius, noise=noise_b)
             if step.predicted <= STALL_RTOL * 0.5 * state.norm**2 and not step.newton:
                 kind = "descent"  # a stationary point of ‖F‖: leave it downhill
         if kind == "descent":
@@ -689,6 +700,28 @@ def _step(prob: _Problem, state: _State, method: str, radius: float, descend: bo
             _fail(prob, "the iterate left the constraint manifold", it, state.f, method)
         state = _State(prob, q_on, prob.multipliers(q_on), fscale, lscale)
     return step, np.zeros(nq), n, k, kind, state
+
+
+def _residual_model(n: np.ndarray, g: np.ndarray, kbar: np.ndarray, noise: float,
+                    fscale: float):
+    """(b, A, noise) of the Gauss–Newton model ½‖b − A dz‖² of ½‖F‖²: ‖Q_e − C_qᵀλ‖ = ‖R⁻ᵀ g‖
+    with N = Q R (λ the least-squares multipliers), in the units of the convergence test."""
+    r_inv_t = sla.solve_triangular(np.linalg.qr(n)[1], np.eye(n.shape[1]), trans="T") \
+        if n.shape[1] else np.zeros((0, 0))
+    return (r_inv_t @ g / fscale, r_inv_t @ kbar / fscale,
+            noise / fscale * float(np.linalg.norm(r_inv_t, 2)) if n.shape[1] else 0.0)
+
+
+def _corrected(prob: _Problem, trial: _State, nu: float, fscale, lscale) -> _State | None:
+    """The second-order correction of a Levenberg–Marquardt step with shift ν: from the trial
+    point, the step of the same ν on the model there (it settles the directions stiffer than
+    ν — a stiff spring stretched by a straight step across a curved valley — and hardly moves
+    the others), assembled; None if it does not lower the residual."""
+    n, k, g, kbar = prob.tangent(trial.q, trial.lam)
+    b, a, noise = _residual_model(n, g, kbar, NOISE_FACTOR * np.linalg.norm(g), fscale)
+    step = least_squares_step(b, a, np.inf, noise=noise, shift=nu)
+    corrected = _trial(prob, trial, n @ step.dz, k, False, fscale, lscale)
+    return corrected if corrected is not None and corrected.norm < trial.norm else None
 
 
 def _trial(prob: _Problem, state: _State, dq, k, kkt: bool, fscale, lscale) -> _State | None:

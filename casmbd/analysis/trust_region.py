@@ -110,7 +110,7 @@ def trust_region_step(g: np.ndarray, h: np.ndarray, radius: float, noise: float 
 
 
 def least_squares_step(b: np.ndarray, a: np.ndarray, radius: float, noise: float = 0.0,
-                       rtol: float = RANK_RTOL) -> Step:
+                       rtol: float = RANK_RTOL, shift: float | None = None) -> Step:
     """Minimise the Gauss–Newton model ½‖b − A dz‖² subject to ‖dz‖ ≤ ``radius``.
 
     The Levenberg–Marquardt trust-region step (Moré 1978, "The Levenberg–Marquardt algorithm:
@@ -127,7 +127,9 @@ def least_squares_step(b: np.ndarray, a: np.ndarray, radius: float, noise: float
     :func:`trust_region_step`.  ``predicted`` is the decrease ½‖b‖² − ½‖b − A dz‖² of the
     model; it is zero at a stationary point of ‖b − A dz‖ (Aᵀ b = 0, e.g. a pendulum released
     horizontally, where the stiffness vanishes and the force does not), which the caller must
-    leave by another step.
+    leave by another step.  ``shift``: the step dz(ν) for this ν, whatever its length (the
+    second-order correction of the statics iteration re-uses the shift of the step it
+    corrects).
     """
     b = np.asarray(b, float)
     a = np.atleast_2d(np.asarray(a, float))
@@ -147,6 +149,9 @@ def least_squares_step(b: np.ndarray, a: np.ndarray, radius: float, noise: float
 
     if s.size == 0:
         return Step(np.zeros(m), 0.0, 0.0, False)
+    if shift is not None:
+        dz = v @ (s * bt / (s**2 + shift))
+        return Step(dz, float(shift), predicted(dz), shift == 0.0)
     dz = v @ (bt / s)
     if np.linalg.norm(dz) <= radius:
         return Step(dz, 0.0, predicted(dz), True)
