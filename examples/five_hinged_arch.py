@@ -6,7 +6,9 @@ disturbance makes it collapse (seed 003, Fig. 3).  This script finds the hanging
 mirrors it into the arch, confirms it is an equilibrium, classifies both, reports the arch's
 unstable eigenvalue and simulates the collapse from an almost symmetric rest position.
 
-Run: ``python examples/five_hinged_arch.py``.
+Run: ``python examples/five_hinged_arch.py``.  The scene ``examples/five_hinged_arch.toml``
+starts near the arch instead: ``casmbd statics`` finds the arch (the equilibrium nearest the
+start, unstable), ``casmbd statics --stable`` the hanging chain.
 """
 
 from __future__ import annotations

@@ -100,12 +100,23 @@ def test_pendulum_verdicts_agree(capsys, tmp_path, inverted, verdict):
         assert (2 * math.pi * lin["frequencies_hz"][0]) ** 2 == pytest.approx(rate2, rel=1e-9)
 
 
-def test_spherical_pendulum_is_neutral_about_the_vertical(capsys):
+def hanging_top(tmp_path) -> str:
+    """The heavy top released 0.3 rad from hanging (th0 = π − 0.3): its nearest equilibrium,
+    which the statics search finds (issue 30), is the hanging one."""
+    text = open(TOP, encoding="utf-8").read()
+    assert "th0 = 0.3 " in text
+    path = tmp_path / "hanging_top.toml"
+    path.write_text(text.replace("th0 = 0.3 ", "th0 = 2.8415926535897931 ", 1), encoding="utf-8")
+    return str(path)
+
+
+def test_spherical_pendulum_is_neutral_about_the_vertical(capsys, tmp_path):
     """The top hanging from its ball joint: both verbs say neutral with ONE null direction,
     named alike, and that direction turns the body about the vertical (ω ∥ z to 1e-9, centre
     of mass still); the two swing modes have ω² = m g L / (I1 + m L²) (1e-9)."""
-    stat, stat_text = run(capsys, "statics", TOP)
-    lin, lin_text = run(capsys, "linearize", TOP, "--at-equilibrium")
+    top = hanging_top(tmp_path)
+    stat, stat_text = run(capsys, "statics", top)
+    lin, lin_text = run(capsys, "linearize", top, "--at-equilibrium")
     assert stat["stability"]["verdict"] == lin["verdict"] == "neutral"
     assert stat["stable"] is None and lin["stable"] is None
     assert len(lin["stability"]["null_directions"]) == 1
@@ -141,7 +152,29 @@ def test_cli_at_equilibrium_equals_the_python_route(capsys):
     assert "about the static equilibrium (" in text
     api = linearize(casmbd.load_scene(TOP), at="equilibrium")
     assert_same_matrices(api.to_json(), ref)
-    assert api.verdict == ref.verdict == "neutral"
+    # released 0.3 rad from upright, the nearest equilibrium is the upright top: unstable
+    # (issue 30: statics no longer slides into the hanging basin)
+    assert api.verdict == ref.verdict == "unstable"
+    assert data["q"][2] == pytest.approx(float(mech.parameters["L"]), abs=1e-12)
+
+
+def test_at_a_stable_equilibrium(capsys):
+    """``stable=True`` / ``--stable`` with the equilibrium: about the hanging top that
+    ``static_equilibrium(m, stable=True)`` finds (matrices 1e-9), neutral about the vertical;
+    without ``at="equilibrium"`` (``--at-equilibrium``) it is refused by name."""
+    mech = casmbd.load_scene(TOP)
+    eq = static_equilibrium(mech, stable=True)
+    assert eq.body_positions[0, 2] == pytest.approx(-float(mech.parameters["L"]), abs=1e-12)
+    ref = linearize(mech, q=eq.q)
+    data, text = run(capsys, "linearize", TOP, "--at-equilibrium", "--stable")
+    assert "neutral (null directions: " in text.splitlines()[0]
+    assert_same_matrices(data, ref)
+    assert data["verdict"] == ref.verdict == "neutral"
+    assert_same_matrices(linearize(mech, at="equilibrium", stable=True).to_json(), ref)
+    with pytest.raises(ModelError, match="stable=True goes with at='equilibrium'"):
+        linearize(mech, stable=True)
+    assert cli.main(["linearize", TOP, "--stable"]) == 1
+    assert "--stable goes with --at-equilibrium" in capsys.readouterr().err
 
 
 def test_not_an_equilibrium_has_no_verdict(capsys):

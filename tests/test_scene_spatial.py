@@ -401,7 +401,7 @@ def test_heavy_top_euler_angles_equal_quaternion():
 
 
 def test_heavy_top_statics_cli(capsys):
-    status, out, err = run_cli(capsys, "statics", TOP, "--json")
+    status, out, err = run_cli(capsys, "statics", TOP, "--json", "--stable")
     assert status == 0, err
     data = json.loads(out)
     mech = load_scene(TOP)
@@ -409,12 +409,24 @@ def test_heavy_top_statics_cli(capsys):
     np.testing.assert_allclose(data["joints"]["tip"]["reaction"], [0, 0, m * g, 0, 0, 0],
                                atol=1e-9)
     assert len(data["bodies"]["top"]["quaternion"]) == 4
-    # released tilted, the trust-region statics descends to the hanging top (centre of mass
-    # L = 0.1 m below the tip): a minimum, neutral only in the spin about the vertical
+    # released tilted, the statics asked for a stable equilibrium descends to the hanging top
+    # (centre of mass L = 0.1 m below the tip): a minimum, neutral only in the spin about the
+    # vertical
     np.testing.assert_allclose(data["bodies"]["top"]["position"], [0, 0, -0.1], atol=1e-12)
     assert data["stable"] is None and data["stability"]["verdict"] == "neutral"
+    assert data["search"] == "stable"
     assert len(data["stability"]["null_directions"]) == 1
     assert min(data["eigenvalues"]) >= -data["stability"]["tolerance"]
+    # by default the nearest equilibrium: released 0.3 rad from upright, the upright top
+    # (centre of mass L above the tip), unstable in both tilts
+    status, out, err = run_cli(capsys, "statics", TOP, "--json")
+    assert status == 0, err
+    data = json.loads(out)
+    np.testing.assert_allclose(data["bodies"]["top"]["position"], [0, 0, 0.1], atol=1e-12)
+    np.testing.assert_allclose(data["joints"]["tip"]["reaction"], [0, 0, m * g, 0, 0, 0],
+                               atol=1e-9)
+    assert data["search"] == "nearest" and data["stability"]["verdict"] == "unstable"
+    assert sum(e < -data["stability"]["tolerance"] for e in data["eigenvalues"]) == 2
     status, out, err = run_cli(capsys, "statics", TOP)
     assert status == 0, err
     assert "quaternion [" in out and "Mz" in out

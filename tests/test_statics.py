@@ -39,7 +39,7 @@ def pendulum(k: float = 0.0, up: bool | None = None) -> casmbd.Mechanism:
 #: the metric of the unit tangent of the pendulum's constraint manifold: absolute coordinates
 #: (x, y, θ) have the tangent (−(L/2) sin θ, (L/2) cos θ, 1) / √(1 + (L/2)²); the automatic
 #: choice takes the joint angle θ alone (a tree), whose unit tangent is 1
-METRIC = {"absolute": 1 + 0.5 ** 2, "auto": 1.0}
+METRIC = {"absolute": 1 + 0.5 ** 2, "natural": 1 + 0.5 ** 2, "auto": 1.0}
 
 
 def coordinate_checks(r, coordinates: str, n_bodies: int = 1) -> None:
@@ -207,3 +207,232 @@ def test_five_hinged_arch_is_the_unstable_mirror_of_the_hanging_chain():
     assert np.max(np.abs(out["arch_points"] - mirrored)) <= 1e-9
     growth = max(e.real for e in out["arch_linear"].eigenvalues)
     assert growth > 1.0
+
+
+# --- issue 30, item 4f: the equilibrium nearest the start, stable or not ------------------
+
+ARCH = "examples/five_hinged_arch.toml"
+ARCH_SPAN = 2.5
+
+
+def tilted_pendulum(offset: float, coordinates: str) -> casmbd.Mechanism:
+    """The rod of :func:`pendulum` at θ = π/2 + ``offset`` (``offset`` rad from upright)."""
+    th = np.pi / 2 + offset
+    m = casmbd.Mechanism(f"tilted_{coordinates}", gravity=(0, -G), coordinates=coordinates)
+    m.add_body("rod", 1.0, 1 / 12, (0.5 * np.cos(th), 0.5 * np.sin(th)), angle=th)
+    m.add_revolute("pivot", "ground", "rod", (0, 0))
+    return m
+
+
+@pytest.mark.parametrize("coordinates", ["absolute", "natural", "auto"])
+@pytest.mark.parametrize("method", ["augmented", "reduced"])
+def test_inverted_pendulum_near_upright_stays_upright(method, coordinates):
+    """Started 0.04 rad from upright the nearest equilibrium is upright (θ = π/2 to 1e-10),
+    classified unstable with K̄ = −m g (L/2) over the tangent metric (1e-9); before issue 30
+    the potential-descending search returned the hanging pose.  ``stable=True`` asks for a
+    stable one: hanging (θ = −π/2 to 1e-10), K̄ = +m g (L/2) / metric."""
+    mech = tilted_pendulum(0.04, coordinates)
+    up = static_equilibrium(mech, method=method, mode="vm")
+    assert abs(up.body_angles[0] - np.pi / 2) < 1e-10
+    assert np.allclose(up.body_positions[0], [0.0, 0.5], atol=1e-10)
+    assert up.search == "nearest" and up.notes == []
+    assert up.stability.verdict == "unstable" and up.stable is False
+    metric = METRIC[coordinates]
+    assert up.eigenvalues == pytest.approx([-G / 2 / metric], rel=1e-9)
+    assert np.allclose(up.joint_reactions[0], [0.0, G, 0.0], atol=1e-9)
+    assert up.residual < 1e-10 and up.iterations <= 6
+    down = static_equilibrium(mech, method=method, mode="vm", stable=True)
+    assert abs(down.body_angles[0] + np.pi / 2) < 1e-10
+    assert down.search == "stable" and down.stability.verdict == "stable"
+    assert down.eigenvalues == pytest.approx([G / 2 / metric], rel=1e-9)
+
+
+@pytest.mark.parametrize("method", ["augmented", "reduced"])
+def test_stable_search_leaves_an_exactly_upright_start(method):
+    """Placed exactly upright (an equilibrium) the default stays (unstable); ``stable=True``
+    leaves it along the downhill eigenvector and descends to the hanging pose (1e-10),
+    saying so in ``notes``."""
+    mech = pendulum(up=True)
+    assert static_equilibrium(mech, method=method, mode="vm").stability.verdict == "unstable"
+    r = static_equilibrium(mech, method=method, mode="vm", stable=True)
+    assert abs(r.body_angles[0] + np.pi / 2) < 1e-10 and r.stable is True
+    assert r.notes == ["left 1 unstable equilibrium along the downhill eigenvector of the "
+                       "reduced stiffness"]
+
+
+def arch_angles(mass_ratio: float = 1.0) -> tuple[float, float]:
+    """The arch of unit rods between pivots ARCH_SPAN apart, outer rods of mass m_o, inner
+    ones m_i = ``mass_ratio`` · m_o: with H the horizontal thrust, moments about the near
+    hinge of an inner rod (no shear at the apex, by symmetry) and about a ground pivot of the
+    two rods of one side give tan θ_i = m_i g / (2H) and tan θ_o = (m_o + 2 m_i) g / (2H), and
+    the span closes with cos θ_o + cos θ_i = span / 2.  Returns (θ_o, θ_i), the rise of the
+    outer and inner rods (tan θ_o = 3 tan θ_i for equal rods)."""
+    ratio = (1.0 + 2.0 * mass_ratio) / mass_ratio
+    inner = brentq(lambda x: np.cos(np.arctan(ratio * np.tan(x))) + np.cos(x) - ARCH_SPAN / 2,
+                   1e-6, np.pi / 2 - 1e-6, xtol=1e-15, rtol=4 * np.finfo(float).eps)
+    return float(np.arctan(ratio * np.tan(inner))), float(inner)
+
+
+def arch_variant(coordinates: str | None = None, rise: float | None = None):
+    text = open(ARCH, encoding="utf-8").read()
+    if rise is not None:
+        text = text.replace("alpha = 1.0471975511965976", f"alpha = {rise!r}", 1)
+    mech = casmbd.loads_scene(text)
+    if coordinates:
+        mech.coordinates = coordinates
+    return mech
+
+
+@pytest.mark.parametrize("coordinates", ["absolute", "natural", "auto"])
+@pytest.mark.parametrize("method", ["augmented", "reduced"])
+def test_seed003_arch_stays_an_arch(method, coordinates):
+    """Seed 003 §5.3, started from the symmetric polygon rising at π/3 (0.08 rad off): the
+    arch, rod angles (θ_o, θ_i, −θ_i, −θ_o) of :func:`arch_angles` to 1e-10, unstable in both
+    directions; the horizontal thrust at A is m g / (2 tan θ_i) (1e-9).  ``stable=True``
+    descends to the hanging chain, its mirror image (angles negated, 1e-10), whose stiffness
+    eigenvalues are the arch's negated (V changes sign under the mirror, 1e-9).  Before
+    issue 30 the default returned the hanging chain."""
+    outer, inner = arch_angles()
+    mech = arch_variant(coordinates)
+    arch = static_equilibrium(mech, method=method, mode="vm")
+    expected = np.array([outer, inner, -inner, -outer])
+    assert np.max(np.abs(arch.body_angles - expected)) < 1e-10
+    assert arch.stability.verdict == "unstable" and arch.search == "nearest"
+    assert np.all(arch.eigenvalues < -arch.stability.tolerance)
+    thrust = G / (2 * np.tan(inner))
+    assert arch.joint_reactions[0, :2] == pytest.approx([thrust, 2 * G], rel=1e-9)
+    hanging = static_equilibrium(mech, method=method, mode="vm", stable=True)
+    assert np.max(np.abs(hanging.body_angles + expected)) < 1e-10
+    assert hanging.stability.verdict == "stable"
+    assert np.sort(-hanging.eigenvalues) == pytest.approx(np.sort(arch.eigenvalues), rel=1e-9)
+
+
+def lopsided_arch(left: float, right: float) -> casmbd.Mechanism:
+    """The arch's four unit rods through a consistent asymmetric polygon: the outer rods rise
+    at ``left`` and ``right``, the apex hinge where the unit circles about their upper ends
+    meet (the upper intersection)."""
+    import sys
+
+    sys.path.insert(0, "examples")
+    from five_hinged_arch import chain
+
+    p1 = np.array([np.cos(left), np.sin(left)])
+    p3 = np.array([ARCH_SPAN - np.cos(right), np.sin(right)])
+    mid, d = 0.5 * (p1 + p3), p3 - p1
+    h = np.sqrt(1.0 - 0.25 * d @ d)
+    p2 = mid + h * np.array([-d[1], d[0]]) / np.linalg.norm(d)
+    return chain(np.array([[0.0, 0.0], p1, p2, p3, [ARCH_SPAN, 0.0]]), "lopsided_arch")
+
+
+@pytest.mark.parametrize("left,right", [(0.75, 0.75), (0.9, 0.9), (1.25, 1.25), (1.0, 1.2),
+                                        (0.8, 1.1)])
+def test_arch_from_farther_and_lopsided_starts(left, right):
+    """From symmetric starts up to 0.38 rad off and from lopsided ones (outer rods rising at
+    different angles) the default search finds the arch (1e-10), unstable."""
+    outer, inner = arch_angles()
+    expected = np.array([outer, inner, -inner, -outer])
+    if left == right:
+        mech = arch_variant(rise=left)
+    else:
+        mech = lopsided_arch(left, right)
+    r = static_equilibrium(mech, mode="vm")
+    assert np.max(np.abs(r.body_angles - expected)) < 1e-10 and r.stable is False
+
+
+def test_statics_sweep_nearest_and_stable():
+    """A statics sweep over the inner rods' mass takes ``stable`` like
+    ``static_equilibrium``: the arches (closed form per mass ratio, 1e-10) by default, the
+    hanging chains (angles negated) with ``stable=True``."""
+    from casmbd.analysis.sweep import sweep
+
+    masses = [0.5, 1.0, 2.0]
+    expected = np.array([arch_angles(m) for m in masses])
+    for stable, sign in ((False, 1.0), (True, -1.0)):
+        res = sweep(casmbd.load_scene(ARCH), {"m_inner": masses}, analysis="statics",
+                    outputs=["final:body.rod0.angle", "final:body.rod1.angle"], mode="vm",
+                    stable=stable)
+        assert res.failed == [], res.errors
+        np.testing.assert_allclose(res["final:body.rod0.angle"], sign * expected[:, 0],
+                                   rtol=0, atol=1e-10)
+        np.testing.assert_allclose(res["final:body.rod1.angle"], sign * expected[:, 1],
+                                   rtol=0, atol=1e-10)
+
+
+def test_cli_statics_nearest_and_stable(capsys):
+    """`casmbd statics` on the arch scene: the arch (nearest, unstable) in the JSON and the
+    text; `--stable`: the hanging chain (stable), the search named in both."""
+    outer, inner = arch_angles()
+    assert main(["statics", ARCH, "--json", "--mode", "vm"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["search"] == "nearest" and data["notes"] == []
+    assert data["stable"] is False and data["stability"]["verdict"] == "unstable"
+    assert data["bodies"]["rod0"]["angle"] == pytest.approx(outer, abs=1e-10)
+    assert data["bodies"]["rod2"]["angle"] == pytest.approx(-inner, abs=1e-10)
+    assert main(["statics", ARCH, "--json", "--mode", "vm", "--stable"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["search"] == "stable" and data["stable"] is True
+    assert data["bodies"]["rod0"]["angle"] == pytest.approx(-outer, abs=1e-10)
+    assert main(["statics", ARCH, "--mode", "vm"]) == 0
+    first = capsys.readouterr().out.splitlines()[0]
+    assert "the nearest to the initial configuration" in first and first.endswith("unstable")
+    assert main(["statics", ARCH, "--mode", "vm", "--stable"]) == 0
+    first = capsys.readouterr().out.splitlines()[0]
+    assert "a stable one asked for" in first and first.endswith("stable")
+
+
+@pytest.mark.parametrize("coordinates", ["absolute", "auto"])
+def test_residual_minimum_that_is_no_equilibrium_hands_over_to_descent(coordinates):
+    """Rod with a torsional spring k = 1 N m/rad (free angle 0) under gravity: the net moment
+    g(θ) = −k θ − m g (L/2) cos θ has a negative local maximum at θ₀ = 3π − asin(k/(m g L/2))
+    = 9.219 rad (g = −4.42 N m): a local minimum of ‖F‖ that is no equilibrium.  Started
+    there, the residual search cannot leave it; the search descends the potential instead
+    (said in ``notes``) to the equilibrium below, g(θ*) = 0 in (3.5, 4.5) (brentq, 1e-10),
+    stable.  No equilibrium lies between (cos θ = −kθ/(m g L/2) needs θ ≤ 4.905)."""
+    c = G * 0.5
+    start = 3 * np.pi - np.arcsin(1.0 / c)
+    m = casmbd.Mechanism(f"wound_rod_{coordinates}", gravity=(0, -G), coordinates=coordinates)
+    m.add_body("rod", 1.0, 1 / 12, (0.5 * np.cos(start), 0.5 * np.sin(start)), angle=start)
+    m.add_revolute("pivot", "ground", "rod", (0, 0))
+    m.add_rotational_spring_damper("spring", "pivot", stiffness=1.0)
+    ref = brentq(lambda th: -th - c * np.cos(th), 3.5, 4.5, xtol=1e-15,
+                 rtol=4 * np.finfo(float).eps)
+    r = static_equilibrium(m, mode="vm")
+    assert r.joint_coordinates[0] == pytest.approx(ref, abs=1e-10)
+    assert r.stability.verdict == "stable" and len(r.notes) == 1
+    assert "local minimum that is no equilibrium" in r.notes[0]
+
+
+def test_residual_search_that_fails_falls_back_to_the_stable_search():
+    """The flyball governor at rest (examples/flyball_governor.toml, stiff coupler springs
+    8e5 N/m): the arms' fall is a long, narrow, curved valley of ‖F‖ that the residual
+    search crawls along (100 iterations, residual still 35).  The result is then the stable
+    equilibrium of the potential descent from the same start — identical to
+    ``stable=True`` (q to 1e-12) — and the first note says so."""
+    mech = casmbd.load_scene("examples/flyball_governor.toml")
+    r = static_equilibrium(mech, mode="vm")
+    ref = static_equilibrium(mech, mode="vm", stable=True)
+    assert np.max(np.abs(r.q - ref.q)) <= 1e-12 and r.residual < 1e-9
+    assert r.notes and r.notes[0].startswith("the search for the nearest equilibrium failed")
+    assert "not converged after 100 iterations" in r.notes[0]
+    assert r.stability.verdict == ref.stability.verdict == "neutral"
+
+
+def test_least_squares_step():
+    """The residual step: Newton's step for an indefinite stiffness (towards a saddle) when
+    it fits; else on the trust-region boundary, decreasing the model; no step where the
+    model is flat (Aᵀb = 0), which the statics iteration leaves by a descent step."""
+    from casmbd.analysis.trust_region import least_squares_step
+
+    a, b = np.diag([-2.0, 1.0]), np.array([0.2, 0.1])
+    step = least_squares_step(b, a, radius=1.0)
+    assert step.newton and np.allclose(step.dz, [-0.1, 0.1], atol=1e-15)
+    assert step.predicted == pytest.approx(0.5 * b @ b, rel=1e-12)
+    step = least_squares_step(10 * b, a, radius=0.5)
+    assert not step.newton and np.linalg.norm(step.dz) == pytest.approx(0.5, rel=1e-10)
+    assert 0.0 < step.predicted < 0.5 * 100 * b @ b
+    step = least_squares_step(np.array([1.0]), np.zeros((1, 1)), radius=0.5)
+    assert not np.any(step.dz) and step.predicted == 0.0
+    # a given shift: dz = (AᵀA + ν I)⁻¹ Aᵀ b
+    step = least_squares_step(b, a, radius=np.inf, shift=3.0)
+    assert np.allclose(step.dz, np.linalg.solve(a.T @ a + 3.0 * np.eye(2), a.T @ b),
+                       atol=1e-15)

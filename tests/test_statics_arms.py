@@ -1,6 +1,10 @@
 """Statics on real robot arms (issue 18, item 5): a UR5-like 6-joint arm and a Panda-like 7-joint
 arm (tests/scenes/ur_like.toml, panda_like.toml), from the zero pose, in absolute, natural and
-joint coordinates, with both methods; plus the trust-region step and the stability verdict."""
+joint coordinates, with both methods; plus the trust-region step and the stability verdict.
+
+The hanging arm is a stable equilibrium: these runs ask for one (``stable=True``, ``--stable``:
+the search descends the potential energy).  The default search (the equilibrium nearest the
+zero pose, issue 30) is checked on the same arms at the end."""
 
 from __future__ import annotations
 
@@ -42,8 +46,8 @@ def model_of(scene: str, coordinates: str) -> NumericModel:
 
 
 @functools.cache
-def solve(scene: str, coordinates: str, method: str):
-    return static_equilibrium(model_of(scene, coordinates), method=method)
+def solve(scene: str, coordinates: str, method: str, stable: bool = True):
+    return static_equilibrium(model_of(scene, coordinates), method=method, stable=stable)
 
 
 CASES = [(s, c, m) for s in SCENES for c in COORDINATES for m in METHODS]
@@ -150,8 +154,10 @@ def test_cli_statics_arm(tmp_path, capsys, coordinates, method):
         "dimension = 3\n", f'dimension = 3\ncoordinates = "{coordinates}"\n', 1)
     scene = tmp_path / "ur.toml"
     scene.write_text(text, encoding="utf-8")
-    assert main(["statics", str(scene), "--json", "--method", method, "--mode", "vm"]) == 0
+    assert main(["statics", str(scene), "--json", "--method", method, "--mode", "vm",
+                 "--stable"]) == 0
     data = json.loads(capsys.readouterr().out)
+    assert data["search"] == "stable" and data["notes"] == []
     assert data["stable"] is None and data["stability"]["verdict"] == "neutral"
     assert {d["dominant"] for d in data["stability"]["null_directions"]} == \
         NULL_JOINTS["ur_like"]
@@ -182,3 +188,25 @@ def test_principal_range_only_where_equations_do_not_change(coordinates):
         assert wound.q[2] == pytest.approx(7.0, abs=1e-12)
         assert free.q[2] == pytest.approx(7.0 - 2 * np.pi, abs=1e-12)
     assert wound.stability.verdict == "stable" and free.stability.verdict == "neutral"
+
+
+@pytest.mark.parametrize("scene", list(SCENES))
+def test_nearest_equilibrium_of_the_arms(scene):
+    """The default search from the zero pose (joint coordinates, both methods): a verified
+    equilibrium (the residual re-evaluated as above), the same one by both methods (to 1e-8),
+    classified unstable (the stretched arms' nearest equilibria hold a link up), nearer the
+    zero pose in joint space than the hanging minimum that ``stable=True`` finds, and of
+    higher potential energy."""
+    model = model_of(scene, "joint")
+    q0 = assemble(model, model.initial_coordinates(), 0.0).q
+    qe0 = model.vector("statics_forces", q0, 0.0, model.p)
+    runs = [solve(scene, "joint", m, stable=False) for m in METHODS]
+    hanging = solve(scene, "joint", "reduced")
+    for r in runs:
+        f = model.vector("statics_residual", r.q, r.lagrange_multipliers, 0.0, model.p)
+        assert np.max(np.abs(f)) <= RTOL * max(1.0, np.max(np.abs(qe0)))
+        assert r.search == "nearest" and r.notes == []
+        assert r.stability.verdict == "unstable" and r.eigenvalues[0] < -r.stability.tolerance
+        assert np.linalg.norm(r.joint_coordinates) < np.linalg.norm(hanging.joint_coordinates)
+        assert r.potential_energy > hanging.potential_energy + 0.1
+    assert np.max(np.abs(runs[0].joint_coordinates - runs[1].joint_coordinates)) <= ANGLE_TOL

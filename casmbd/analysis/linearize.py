@@ -430,17 +430,18 @@ def _closed_gaps(system: System, q: np.ndarray, v: np.ndarray, t: float, p) -> N
             [(label, "events") for label in closed])
 
 
-def _at_equilibrium(mechanism, system: System, t: float, mode: str):
-    """(q, stats) of the static equilibrium found from the initial configuration."""
+def _at_equilibrium(mechanism, system: System, t: float, mode: str, stable: bool = False):
+    """(q, stats) of the static equilibrium found from the initial configuration (the
+    nearest one, or a stable one with ``stable``)."""
     if has_events(system.mechanism):  # resting contacts: the active set of statics
-        eq = static_equilibrium(system.mechanism, t=t, mode=mode)
+        eq = static_equilibrium(system.mechanism, t=t, mode=mode, stable=stable)
         return eq.q, {"about": "equilibrium", "statics_iterations": int(eq.iterations),
                       "statics_residual": float(eq.residual),
                       "statics_verdict": eq.stability.verdict if eq.stability else None}
     statics = NumericModel(system, STATICS_NEEDS, mode=mode, extra=statics_functions(system))
     if isinstance(mechanism, NumericModel):
         statics.p[:] = mechanism.p
-    eq = static_equilibrium(statics, t=t, mode=mode)
+    eq = static_equilibrium(statics, t=t, mode=mode, stable=stable)
     return eq.q, {"about": "equilibrium", "statics_iterations": int(eq.iterations),
                   "statics_residual": float(eq.residual),
                   "statics_verdict": eq.stability.verdict if eq.stability else None}
@@ -448,7 +449,7 @@ def _at_equilibrium(mechanism, system: System, t: float, mode: str):
 
 def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "auto",
               rtol: float = RANK_RTOL, *, at=None, at_time: float | None = None,
-              redundancy: str = "auto") -> LinearModel:
+              redundancy: str = "auto", stable: bool = False) -> LinearModel:
     """Linearize the constrained dynamics of ``mechanism`` about the state (q, v, t, u).
 
     Parameters
@@ -486,6 +487,9 @@ def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "au
         the full set is the minimum-norm one (:mod:`casmbd.analysis.independent`).  N spans
         ker C_q either way, and K̄ does not depend on which λ of the full set is used where the
         redundancy persists around q: Nᵀ ∂(C_qᵀ z)/∂q N = −Nᵀ C_qᵀ ∂z/∂q = 0 for C_qᵀ z ≡ 0.
+    stable : bool, keyword-only
+        With ``at="equilibrium"``: about a stable equilibrium (``static_equilibrium(m,
+        stable=True)``) instead of the one nearest the initial configuration.
 
     Returns
     -------
@@ -519,13 +523,15 @@ def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "au
             if u is not None and np.any(np.asarray(u, dtype=float) != 0.0):
                 raise ModelError("linearize: at='equilibrium' is the equilibrium with zero "
                                  "inputs; u must be zero")
-            q, about = _at_equilibrium(mechanism, system, t, mode)
+            q, about = _at_equilibrium(mechanism, system, t, mode, stable)
         elif isinstance(at, str) or not hasattr(at, "t"):
             raise ModelError(f"linearize: at must be 'equilibrium' or a result, got {at!r}")
         else:
             q, v, t, u, about = _from_result(at, system, at_time, u)
     elif at_time is not None:
         raise ModelError("linearize: at_time needs at=<result>")
+    if stable and not (isinstance(at, str) and at == "equilibrium"):
+        raise ModelError("linearize: stable=True goes with at='equilibrium'")
     lin_fun = _linearization_function(system)
     model = NumericModel(system, NEEDED, mode=mode,
                          extra=[lin_fun, _joint_jacobian_function(system)])

@@ -23,14 +23,15 @@ __all__ = ["resting_equilibrium"]
 
 
 def resting_equilibrium(mechanism, t: float, method: str, tol: float, max_iter: int,
-                        mode: str, solve):
+                        mode: str, solve, stable: bool = False):
     """Statics with unilateral elements of the impact model: an active set.  Gaps touching at
     the start (|g| ≤ 1e-9) are closed (bilateral constraints g = 0); after each solution the
     gaps that penetrate are closed and those whose normal force −λ pulls are opened, until
     neither happens (at most 2 n_gaps + 3 rounds; after a set without equilibrium — a ball in
     the air falls — every gap is closed).  A body resting on a contact: the contact
     carries its weight.  The result's ``contacts`` give each gap's force (0 when open) and
-    value.  ``solve`` is :func:`casmbd.analysis.statics.static_equilibrium` (handed in: that
+    value.  ``stable`` is handed to every solve (the equilibrium nearest the start, or a
+    stable one).  ``solve`` is :func:`casmbd.analysis.statics.static_equilibrium` (handed in: that
     module calls this one)."""
     elements = [c for c in mechanism.contacts.values() if c.model == "impact"]
     gaps = EventRows(System(mechanism), elements)
@@ -48,7 +49,7 @@ def resting_equilibrium(mechanism, t: float, method: str, tol: float, max_iter: 
             variant.joints[joint.name] = joint
             names[i] = f"joint '{joint.name}' equation 'gap'"
         try:
-            res = solve(variant, t, method, tol, max_iter, mode)
+            res = solve(variant, t, method, tol, max_iter, mode, stable=stable)
         except AnalysisError:
             if closed == set(range(len(g0))):
                 raise

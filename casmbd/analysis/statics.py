@@ -7,23 +7,51 @@ equations of motion reduce to
 
 (the quadratic-velocity forces vanish with v = 0, and so do damping forces).
 
+Which equilibrium.  By default the one nearest the start, stable or not: Newton on
+F(q, λ) = 0 converges to the equilibrium whose Newton basin holds the start (normally the
+nearest; not a guarantee in distance), and the globalisation
+measures progress by the residual ½‖F‖², not by the potential (an inverted pendulum started
+0.04 rad from upright stays upright, seed 003's five-hinged arch stays an arch); the result
+says which kind it is (``stability``).  ``stable=True`` asks for a stable one: the search
+descends the potential energy and ends at a local minimum; if it ends at an unstable
+equilibrium (a start that already is one) it leaves it along the downhill eigenvector of K̄
+(:data:`ESCAPE_STEP` in scaled units, at most :data:`MAX_ESCAPES` times) and descends again,
+and the result's ``notes`` say so.
+
 Globalisation (both methods).  Newton alone fails on real arms: released from a pose where a
 joint's gravity moment is largest the stiffness about it vanishes, the Newton step is
-unbounded (a minimum-norm step of 1e11 rad was seen), and a line search on ‖F‖ stalls at such
-poses, which are stationary points of ‖F‖.  Every iteration therefore takes a trust-region
-step (:func:`casmbd.analysis.trust_region.trust_region_step`) in the tangent space of the
-constraints, in scaled coordinates (lengths divided by the size of the mechanism, angles, Euler
-parameters and unit vectors as they are): it minimises the quadratic model of the potential
-energy −gᵀdz + ½ dzᵀ K̄ dz within ‖dz‖ ≤ Δ, g = Nᵀ Q_e the net force and K̄ = Nᵀ K N the
-stiffness (N a basis of ker C_q).  It is Newton's step when K̄ is positive (semi)definite and
-the step fits, with a rank cut-off (:data:`~casmbd.analysis.trust_region.RANK_RTOL` = 1e-10
-relative to the largest eigenvalue) in the least-squares fallback.  A step is accepted when
-the work done by the applied forces along it, ½ (Q_e(q) + Q_e(q⁺))·(q⁺ − q) (= −ΔV to third
-order for conservative forces; defined for any forces), is at least 0.1 of the model's
-prediction, or when it is the Newton step and reduces the scaled residual; Δ starts at 0.5,
-is at most 1 (radian or mechanism size) and shrinks by 4 on a poor step.  The iteration so
-descends the potential energy and ends at a local minimum (a stable equilibrium) unless the
-start already is an equilibrium (an inverted pendulum placed upright stays there).
+unbounded (a minimum-norm step of 1e11 rad was seen).  Every iteration therefore takes a
+trust-region step in the tangent space of the constraints, in scaled coordinates (lengths
+divided by the size of the mechanism, angles, Euler parameters and unit vectors as they are),
+with g = Nᵀ Q_e the net force and K̄ = Nᵀ K N the stiffness (N a basis of ker C_q); Δ starts at
+0.5, is at most 1 (radian or mechanism size) and shrinks by 4 on a poor step.
+
+* The nearest equilibrium (default): :func:`casmbd.analysis.trust_region.least_squares_step`,
+  the Levenberg–Marquardt step of the Gauss–Newton model ½‖b − A dz‖² of ½‖F‖² with
+  b = R⁻ᵀ g, A = R⁻ᵀ K̄ (N = QR; ‖R⁻ᵀ g‖ = ‖Q_e − C_qᵀλ‖ for the least-squares λ), both in the
+  units of the convergence test.  It is Newton's step dz = K̄⁻¹ g, of any definiteness, when it
+  fits.  A step is accepted when the decrease of ½‖F‖² (scaled) is at least 0.1 of the
+  model's, or when it is the Newton step and reduces the residual.  Where the model is flat
+  (Aᵀb = 0 with F ≠ 0: a pendulum released horizontally, a stationary point of ‖F‖ between
+  two equilibria) one descent step on the potential (below) leaves it downhill.  If that step
+  raises ‖F‖ (a local minimum of ‖F‖ that is no equilibrium, to which the residual search
+  would return), or the trust region collapses (below :data:`STALL_RADIUS`), the rest of the
+  search descends the potential, and ``notes`` say so.  A boundary step is followed by a
+  second-order correction (the step of the same shift ν from the trial point, kept when it
+  lowers ‖F‖): it settles the directions stiffer than ν that a straight step across a curved
+  valley disturbs (110 instead of 157 iterations over the arm and arch tests).  If the
+  residual search still fails (``max_iter`` spent crawling along a long, narrow valley of
+  ‖F‖: the flyball governor's stiff couplers), the answer is the stable equilibrium of the
+  potential descent from the same start, and the first note says so.
+* A stable equilibrium (``stable=True``, and the steps above):
+  :func:`casmbd.analysis.trust_region.trust_region_step` minimises the quadratic model of the
+  potential energy −gᵀdz + ½ dzᵀ K̄ dz within ‖dz‖ ≤ Δ.  It is Newton's step when K̄ is
+  positive (semi)definite and the step fits, with a rank cut-off
+  (:data:`~casmbd.analysis.trust_region.RANK_RTOL` = 1e-10 relative to the largest
+  eigenvalue) in the least-squares fallback.  A step is accepted when the work done by the
+  applied forces along it, ½ (Q_e(q) + Q_e(q⁺))·(q⁺ − q) (= −ΔV to third order for
+  conservative forces; defined for any forces), is at least 0.1 of the model's prediction, or
+  when it is the Newton step and reduces the scaled residual.
 
 ``"augmented"``
     Newton on F(q, λ) = [Q_e − C_qᵀλ; C] = 0 in the n_q + n_c unknowns with the constraints
@@ -78,7 +106,7 @@ from casmbd.analysis.reactions import flag_undetermined
 from casmbd.analysis.redundancy import null_space_basis
 from casmbd.analysis.resting import resting_equilibrium
 from casmbd.analysis.stability import STABILITY_RTOL, Stability, classify_stability
-from casmbd.analysis.trust_region import RANK_RTOL, trust_region_step
+from casmbd.analysis.trust_region import RANK_RTOL, least_squares_step, trust_region_step
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, AssemblyError
 from casmbd.model.measures import result_names
@@ -100,6 +128,13 @@ ACCEPT_RATIO = 0.1
 #: eigenvalues of the reduced stiffness below NOISE_FACTOR · ‖g‖ count as zero in the step
 #: (off an equilibrium they are known only to O(‖g‖); measured up to 2.4 ‖g‖ on the arms)
 NOISE_FACTOR = 10.0
+#: the residual search: a step predicting less than this fraction of ½‖F‖² (a stationary point
+#: of ‖F‖ that is not an equilibrium) is replaced by one descent step on the potential; a
+#: trust region below STALL_RADIUS hands the search over to the descent
+STALL_RTOL, STALL_RADIUS = 1e-12, 1e-10
+#: leaving an unstable equilibrium when a stable one is asked for: the step along the downhill
+#: eigenvector (scaled units) and the most such restarts
+ESCAPE_STEP, MAX_ESCAPES = 0.1, 5
 #: coordinate names that are angles (reduced to the principal range)
 _ANGLE_NAMES = ("angle", "angle1", "angle2")
 
@@ -126,6 +161,10 @@ class StaticsResult:
     stability : Stability
         The verdict, its eigenvalue tolerance and, when neutral, the named null directions
         (:func:`casmbd.analysis.stability.classify_stability`).
+    search : {"nearest", "stable"}
+        What was looked for: the equilibrium nearest the start (default) or a stable one.
+    notes : list of str
+        What the search did that matters for the answer (empty normally).
     body_angles, body_quaternions : ndarray
         Planar angles (n_bodies,) or spatial unit quaternions (n_bodies, 4).
     joint_reactions : ndarray (n_joints, 3 or 6)
@@ -158,6 +197,12 @@ class StaticsResult:
     contacts: dict = field(default_factory=dict)
     stats: dict = field(default_factory=dict)
     stability: Stability | None = None
+    #: "nearest" (the equilibrium nearest the start, stable or not: the default) or "stable"
+    #: (a stable one asked for: the search descends the potential energy)
+    search: str = "nearest"
+    #: what the search did that the caller should know (a stall handed over to the descent,
+    #: an unstable equilibrium left, a stable one asked for and not found)
+    notes: list = field(default_factory=list)
 
     def to_json(self) -> dict:
         """The JSON object of the ``casmbd statics`` command."""
@@ -188,6 +233,7 @@ class StaticsResult:
                 "residual": float(self.residual),
                 "residual_history": [float(x) for x in self.residual_history],
                 "eigenvalues": [float(x) for x in self.eigenvalues], "method": self.method,
+                "search": self.search, "notes": list(self.notes),
                 "potential_energy": float(self.potential_energy), "stats": dict(self.stats),
                 "stability": self.stability.to_json() if self.stability else None,
                 **({"contacts": self.contacts} if self.contacts else {}),
@@ -334,7 +380,7 @@ HANDLING = Handling(
 
 def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol: float = 1e-10,
                        max_iter: int = 100, mode: str = "auto",
-                       redundancy: str = "auto") -> StaticsResult:
+                       redundancy: str = "auto", *, stable: bool = False) -> StaticsResult:
     """Static equilibrium configuration, multipliers, reactions and stability.
 
     Parameters
@@ -359,6 +405,12 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
         whose KKT matrix is regular; the multipliers of the full set are the minimum-norm
         ones, and so are the reaction components they cannot determine
         (``stats["reactions"]``, :mod:`casmbd.analysis.independent`).
+    stable : bool, keyword-only
+        False (default): the equilibrium nearest the start, stable or not (the search is
+        globalised on the residual ‖F‖); the result says which (``stability``).  True: a
+        stable one (the search descends the potential energy; an unstable equilibrium it
+        reaches is left along its downhill eigenvector and the descent continues); the
+        result's ``notes`` say so if it still ends at an unstable one.
 
     Example: a rod (mass m, length L) pinned at one end at the origin, with a torsional spring
     k at the pivot and gravity −g ŷ, angle θ counter-clockwise from +x: V = m g (L/2) sin θ +
@@ -380,9 +432,10 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
         raise AnalysisError(f"statics: need tol > 0 and max_iter >= 1 (got {tol}, {max_iter})")
     t = float(t)
     check(mechanism, HANDLING)
+    stable = bool(stable)
     if not isinstance(mechanism, NumericModel) and has_events(mechanism):
         return resting_equilibrium(mechanism, t, method, tol, max_iter, mode,
-                                   solve=static_equilibrium)
+                                   solve=static_equilibrium, stable=stable)
     if isinstance(mechanism, NumericModel):
         model = mechanism
     else:
@@ -399,19 +452,36 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
         prob.restrict(plan.kept_rows)
     fscale = tol * max(1.0, float(np.max(np.abs(prob.forces(q)), initial=0.0)))
     lscale = tol * max(1.0, float(np.max(np.abs(q[prob.length_idx]), initial=0.0)))
-    q, lam, it, history = _iterate(prob, q, method, fscale, lscale, max_iter)
+    try:
+        q, lam, it, history, notes = _iterate(prob, q, method, fscale, lscale, max_iter, stable)
+    except AnalysisError as exc:
+        if stable:
+            raise
+        # the residual search failed (a long, narrow valley of ‖F‖ that it crawls along):
+        # a stable equilibrium from the same start, by the potential descent
+        q, lam, it, history, notes = _iterate(prob, q, method, fscale, lscale, max_iter, True)
+        notes.insert(0, f"the search for the nearest equilibrium failed ({exc}); this is the "
+                        f"stable equilibrium the potential descent found from the same start")
     q = _principal_range(prob, q, lam, fscale, lscale)
+    stability, n = _classify(prob, q, lam)
+    escapes = 0
+    while stable and stability.verdict == "unstable" and escapes < MAX_ESCAPES \
+            and it < max_iter:
+        escapes += 1
+        q = _leave(prob, q, lam, n)
+        q, lam, more, hist, more_notes = _iterate(prob, q, method, fscale, lscale,
+                                                  max_iter - it, stable)
+        it, history, notes = it + more, history + hist, notes + more_notes
+        q = _principal_range(prob, q, lam, fscale, lscale)
+        stability, n = _classify(prob, q, lam)
+    if escapes:
+        notes.append(f"left {escapes} unstable equilibri{'a' if escapes > 1 else 'um'} along "
+                     f"the downhill eigenvector of the reduced stiffness")
+    if stable and stability.verdict == "unstable":
+        notes.append("a stable equilibrium was asked for, but the search ended at an unstable "
+                     f"one (lowest stiffness eigenvalue {stability.eigenvalues[0]:.4g})")
     solve_seconds = time.perf_counter() - t0
-
     f = prob.residual(q, lam)
-    jqq = prob.jacobian(q, lam)[:prob.nq, :prob.nq].toarray()
-    n = _null_space(prob.cq(q), prob.nq)
-    if model.joint_coordinate_names:
-        directions = model.sparse("statics_joint_jacobian", q, t, model.p).toarray() @ n
-        labels = list(model.joint_coordinate_names)
-    else:
-        directions, labels = n, list(model.coordinate_names)
-    stability = classify_stability(n.T @ (-jqq) @ n, directions, labels)
 
     check_removed(model, plan, q, t, "statics")
     if plan.removes:  # the least-norm multipliers of the full set
@@ -445,7 +515,7 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
                   "coordinate_reason": model.coordinate_reason,
                   "solve_seconds": solve_seconds, "n_coordinates": prob.nq,
                   "n_constraints": model.nc, "degrees_of_freedom": int(n.shape[1]),
-                  **plan.stats(), **flags})
+                  "search": "stable" if stable else "nearest", **plan.stats(), **flags})
     joint_coordinates = np.ravel(out["joint_positions"][0]).copy()
     for k in _periodic_joint_outputs(mech, model.joint_coordinate_names):
         joint_coordinates[k] = _wrap(joint_coordinates[k])
@@ -463,7 +533,40 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
         if model.dimension == 2 else np.zeros(0), body_quaternions=quats,
         joint_coordinates=joint_coordinates, stats=stats, stability=stability,
         marker_positions=np.reshape(out["marker_positions"][0], (-1, model.dimension)),
-        reports=_reports(mech, out))
+        reports=_reports(mech, out), search="stable" if stable else "nearest", notes=notes)
+
+
+def _classify(prob: _Problem, q, lam) -> tuple[Stability, np.ndarray]:
+    """The stability verdict at (q, λ) and the orthonormal basis N of ker C_q it used."""
+    model = prob.model
+    jqq = prob.jacobian(q, lam)[:prob.nq, :prob.nq].toarray()
+    n = _null_space(prob.cq(q), prob.nq)
+    if model.joint_coordinate_names:
+        directions = model.sparse("statics_joint_jacobian", q, prob.t, model.p).toarray() @ n
+        labels = list(model.joint_coordinate_names)
+    else:
+        directions, labels = n, list(model.coordinate_names)
+    return classify_stability(n.T @ (-jqq) @ n, directions, labels), n
+
+
+def _leave(prob: _Problem, q, lam, n: np.ndarray) -> np.ndarray:
+    """A configuration off the unstable equilibrium q: a step of :data:`ESCAPE_STEP` (scaled
+    units) along the eigenvector of the lowest (negative) eigenvalue of K̄, assembled; the
+    potential energy falls along it (by ½ μ_min ‖δz‖² to second order)."""
+    jqq = prob.jacobian(q, lam)[:prob.nq, :prob.nq].toarray()
+    kbar = n.T @ (-jqq) @ n
+    _, vec = np.linalg.eigh(0.5 * (kbar + kbar.T))
+    dq = n @ vec[:, 0]
+    dq *= ESCAPE_STEP / max(float(np.linalg.norm(dq / prob.scale)), 1e-300)
+    dq *= 1.0 if dq[int(np.argmax(np.abs(dq)))] > 0.0 else -1.0  # a reproducible side
+    for trial in (q + dq, q - dq):
+        try:
+            q_new = assemble(prob.model, trial, prob.t).q
+        except AssemblyError:
+            continue
+        if prob.improper(q_new) is None:
+            return q_new
+    return q
 
 
 def _reports(mech, out: dict) -> dict:
@@ -564,12 +667,16 @@ class _State:
         self.norm = float(np.linalg.norm(self.f * w))
 
 
-def _iterate(prob: _Problem, q, method: str, fscale: float, lscale: float, max_iter: int):
-    """The trust-region iteration of both methods (module docstring)."""
-    nq = prob.nq
+def _iterate(prob: _Problem, q, method: str, fscale: float, lscale: float, max_iter: int,
+             stable: bool = False):
+    """The trust-region iteration of both methods (module docstring): globalised on the
+    residual (``stable`` False, the equilibrium nearest the start) or on the potential energy
+    (``stable`` True).  Returns (q, λ, iterations, residual history, notes)."""
     state = _State(prob, q, prob.multipliers(q), fscale, lscale)
     history = [float(np.max(np.abs(state.f), initial=0.0))]
     radius, it = INITIAL_RADIUS, 0
+    notes: list[str] = []
+    descend = stable  # the whole search descends the potential (a stable equilibrium)
     while True:
         f = state.f
         if not np.all(np.isfinite(f)):
@@ -583,45 +690,108 @@ def _iterate(prob: _Problem, q, method: str, fscale: float, lscale: float, max_i
         if it >= max_iter:
             _fail(prob, "not converged", it, f, method)
         it += 1
-        n, k, g, kbar = prob.tangent(state.q, state.lam)
-        dn = np.zeros(nq)
-        if method == "augmented" and prob.nc:  # minimum-norm normal step C_q dn = −C
-            dn_s, *_ = sla.lstsq(prob.cq(state.q) * prob.scale, -f[nq:], cond=RANK_RTOL,
-                                 lapack_driver="gelsd")
-            dn = prob.scale * dn_s
-            g = g - n.T @ k @ dn
-        step = trust_region_step(g, kbar, radius, noise=NOISE_FACTOR * np.linalg.norm(g))
-        if not step.newton and np.any(dn):  # globalise from the constraint manifold
-            try:
-                q_on = assemble(prob.model, state.q, prob.t).q
-            except AssemblyError:
-                _fail(prob, "the iterate left the constraint manifold", it, f, method)
-            state = _State(prob, q_on, prob.multipliers(q_on), fscale, lscale)
-            dn = np.zeros(nq)
-            n, k, g, kbar = prob.tangent(state.q, state.lam)
-            step = trust_region_step(g, kbar, radius, noise=NOISE_FACTOR * np.linalg.norm(g))
+        step, dn, n, k, kind, state = _step(prob, state, method, radius, descend, fscale, lscale,
+                                            it)
         kkt = method == "augmented" and step.newton
         trial = _trial(prob, state, dn + n @ step.dz, k, kkt, fscale, lscale)
+        if trial is not None and kind == "residual" and not step.newton:
+            trial = _corrected(prob, trial, step.nu, fscale, lscale) or trial
         accepted, ratio = False, 0.0
         if trial is not None:
-            work = 0.5 * float((state.qe + trial.qe) @ (trial.q - state.q))
-            if step.predicted > 0.0:
-                ratio = work / step.predicted
-            else:
-                ratio = 1.0 if work >= 0.0 else -1.0
             newton_ok = step.newton and trial.norm < state.norm
+            if kind == "descent":  # the work of the applied forces against the model's
+                work = 0.5 * float((state.qe + trial.qe) @ (trial.q - state.q))
+                if step.predicted > 0.0:
+                    ratio = work / step.predicted
+                else:
+                    ratio = 1.0 if work >= 0.0 else -1.0
+            elif step.predicted > 0.0:  # the decrease of ½‖F‖² against the model's
+                ratio = 0.5 * (state.norm**2 - trial.norm**2) / step.predicted
+            else:
+                ratio = 1.0 if trial.norm < state.norm else -1.0
             accepted = newton_ok if kkt else (ratio >= ACCEPT_RATIO or newton_ok)
         size = float(np.linalg.norm(step.dz))
         if not accepted or (ratio < 0.25 and not step.newton):
             radius = 0.25 * min(radius, max(size, 1e-16))
         elif ratio > 0.75 and size >= 0.99 * radius:
             radius = min(2.0 * radius, MAX_RADIUS)
+        if accepted and kind == "descent" and not descend and trial.norm > state.norm:
+            # off a local minimum of ‖F‖ that is no equilibrium (the residual search would
+            # return to it): descend the potential from here on
+            descend = True
+            notes.append(f"the residual has a local minimum that is no equilibrium at "
+                         f"iteration {it} (max |F| = {np.max(np.abs(f), initial=0.0):.3g}); "
+                         f"continued by descending the potential energy")
         if accepted:
             state = trial
+        elif radius < STALL_RADIUS and not descend:
+            # the residual has a local minimum that is not an equilibrium: descend instead
+            descend, radius = True, INITIAL_RADIUS
+            notes.append(f"the residual search stalled at iteration {it} (max |F| = "
+                         f"{np.max(np.abs(f), initial=0.0):.3g}); continued by descending the "
+                         f"potential energy")
         elif radius < 1e-12:
             _fail(prob, "no acceptable step (trust region collapsed)", it, f, method)
         history.append(float(np.max(np.abs(state.f), initial=0.0)))
-    return state.q, state.lam, it, history
+    return state.q, state.lam, it, history, notes
+
+
+def _step(prob: _Problem, state: _State, method: str, radius: float, descend: bool,
+          fscale: float, lscale: float, it: int):
+    """The step of one iteration: (step, normal step dn, N, K, kind, state), kind "residual"
+    (:func:`~casmbd.analysis.trust_region.least_squares_step` on the residual) or "descent"
+    (:func:`~casmbd.analysis.trust_region.trust_region_step` on the potential: the whole
+    search with ``descend``, else one step off a stationary point of the residual that is not
+    an equilibrium).  A step that is not Newton's is taken from the constraint manifold (the
+    state is assembled first when the normal step is not zero)."""
+    nq = prob.nq
+    for attempt in range(2):
+        n, k, g, kbar = prob.tangent(state.q, state.lam)
+        dn = np.zeros(nq)
+        if method == "augmented" and prob.nc and attempt == 0:  # normal step C_q dn = −C
+            dn_s, *_ = sla.lstsq(prob.cq(state.q) * prob.scale, -state.f[nq:], cond=RANK_RTOL,
+                                 lapack_driver="gelsd")
+            dn = prob.scale * dn_s
+            g = g - n.T @ k @ dn
+        noise = NOISE_FACTOR * np.linalg.norm(g)
+        kind = "descent" if descend else "residual"
+        if not descend:
+            b, a, noise_b = _residual_model(n, g, kbar, noise, fscale)
+            step = least_squares_step(b, a, radius, noise=noise_b)
+            if step.predicted <= STALL_RTOL * 0.5 * state.norm**2 and not step.newton:
+                kind = "descent"  # a stationary point of ‖F‖: leave it downhill
+        if kind == "descent":
+            step = trust_region_step(g, kbar, radius, noise=noise)
+        if step.newton or not np.any(dn):
+            return step, dn, n, k, kind, state
+        try:  # globalise from the constraint manifold
+            q_on = assemble(prob.model, state.q, prob.t).q
+        except AssemblyError:
+            _fail(prob, "the iterate left the constraint manifold", it, state.f, method)
+        state = _State(prob, q_on, prob.multipliers(q_on), fscale, lscale)
+    return step, np.zeros(nq), n, k, kind, state
+
+
+def _residual_model(n: np.ndarray, g: np.ndarray, kbar: np.ndarray, noise: float,
+                    fscale: float):
+    """(b, A, noise) of the Gauss–Newton model ½‖b − A dz‖² of ½‖F‖²: ‖Q_e − C_qᵀλ‖ = ‖R⁻ᵀ g‖
+    with N = Q R (λ the least-squares multipliers), in the units of the convergence test."""
+    r_inv_t = sla.solve_triangular(np.linalg.qr(n)[1], np.eye(n.shape[1]), trans="T") \
+        if n.shape[1] else np.zeros((0, 0))
+    return (r_inv_t @ g / fscale, r_inv_t @ kbar / fscale,
+            noise / fscale * float(np.linalg.norm(r_inv_t, 2)) if n.shape[1] else 0.0)
+
+
+def _corrected(prob: _Problem, trial: _State, nu: float, fscale, lscale) -> _State | None:
+    """The second-order correction of a Levenberg–Marquardt step with shift ν: from the trial
+    point, the step of the same ν on the model there (it settles the directions stiffer than
+    ν — a stiff spring stretched by a straight step across a curved valley — and hardly moves
+    the others), assembled; None if it does not lower the residual."""
+    n, k, g, kbar = prob.tangent(trial.q, trial.lam)
+    b, a, noise = _residual_model(n, g, kbar, NOISE_FACTOR * np.linalg.norm(g), fscale)
+    step = least_squares_step(b, a, np.inf, noise=noise, shift=nu)
+    corrected = _trial(prob, trial, n @ step.dz, k, False, fscale, lscale)
+    return corrected if corrected is not None and corrected.norm < trial.norm else None
 
 
 def _trial(prob: _Problem, state: _State, dq, k, kkt: bool, fscale, lscale) -> _State | None:

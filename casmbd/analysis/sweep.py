@@ -77,7 +77,7 @@ _BUILD_OPTIONS = {"simulate": ("formulation", "inputs", "formulation_options", "
 _RUN_OPTIONS = {"simulate": ("integrator", "rtol", "atol", "t_start", "projection", "step",
                              "max_steps"),
                 "kinematics": ("t_start",), "inverse": ("t_start",),
-                "statics": ("t", "method", "tol", "max_iter")}
+                "statics": ("t", "method", "tol", "max_iter", "stable")}
 
 
 # ====================================================================== the worker side
@@ -408,7 +408,7 @@ def sweep(mechanism, params: Mapping[str, Iterable[float]] | None = None, *,
         Options of the analysis: ``formulation``, ``integrator``, ``rtol``, ``atol``,
         ``inputs``, ``projection``, ``step``, ``max_steps``, ``redundancy``,
         ``formulation_options``, ``t_start`` (simulate); ``t_start`` (kinematics, inverse);
-        ``t``, ``method``, ``tol``, ``max_iter`` (statics).
+        ``t``, ``method``, ``tol``, ``max_iter``, ``stable`` (statics).
 
     Returns
     -------

@@ -17,6 +17,11 @@ are cut off (a least-squares, minimum-norm step) when the net force along them i
 (below 1e-3 ‖g‖) — otherwise (a pendulum released horizontally, where the stiffness vanishes but
 the force does not) the boundary step moves along the force.  Never a step longer than Δ:
 the minimum-norm Newton step of 1e11 rad at a singular stiffness cannot happen.
+
+:func:`least_squares_step` is the step of the residual globalisation (the default search of
+the statics analysis, which looks for the equilibrium nearest the start, stable or not): it
+minimises the Gauss–Newton model ½‖b − A dz‖² of ½‖F‖² instead of the potential, so an
+indefinite stiffness (an unstable equilibrium nearby) takes Newton's step towards it.
 """
 
 from __future__ import annotations
@@ -101,4 +106,62 @@ def trust_region_step(g: np.ndarray, h: np.ndarray, radius: float, noise: float 
 
     nu = brentq(lambda x: size(x) - radius, lo + eps, hi, xtol=1e-14 * hi, rtol=1e-12)
     dz = vec @ (gt / (mu + nu))
+    return Step(dz, float(nu), predicted(dz), False)
+
+
+def least_squares_step(b: np.ndarray, a: np.ndarray, radius: float, noise: float = 0.0,
+                       rtol: float = RANK_RTOL, shift: float | None = None) -> Step:
+    """Minimise the Gauss–Newton model ½‖b − A dz‖² subject to ‖dz‖ ≤ ``radius``.
+
+    The Levenberg–Marquardt trust-region step (Moré 1978, "The Levenberg–Marquardt algorithm:
+    implementation and theory"; Nocedal & Wright 2006, §10.3): with the singular value
+    decomposition A = U Σ Vᵀ and b̂ = Uᵀ b,
+
+        dz(ν) = Σ_i v_i σ_i b̂_i / (σ_i² + ν),
+
+    ν = 0 (the Gauss–Newton step, A⁻¹ b for a regular A of any definiteness) when it fits in
+    the trust region, else the ν > 0 with ‖dz(ν)‖ = ``radius`` (the function is decreasing in
+    ν).  Singular values σ_i ≤ max(``rtol`` · σ_max, ``noise``) along which the residual is
+    negligible (|b̂_i| ≤ :data:`DROPPED_FORCE_RTOL` ‖b‖) are left out of the step (a neutral
+    direction whose stiffness is known only to the noise level), as in
+    :func:`trust_region_step`.  ``predicted`` is the decrease ½‖b‖² − ½‖b − A dz‖² of the
+    model; it is zero at a stationary point of ‖b − A dz‖ (Aᵀ b = 0, e.g. a pendulum released
+    horizontally, where the stiffness vanishes and the force does not), which the caller must
+    leave by another step.  ``shift``: the step dz(ν) for this ν, whatever its length (the
+    second-order correction of the statics iteration re-uses the shift of the step it
+    corrects).
+    """
+    b = np.asarray(b, float)
+    a = np.atleast_2d(np.asarray(a, float))
+    m = a.shape[1] if a.size else b.size
+    bnorm = float(np.linalg.norm(b))
+    if m == 0 or bnorm == 0.0:
+        return Step(np.zeros(m), 0.0, 0.0, True)
+    u, s, vt = np.linalg.svd(a)
+    bt = (u.T @ b)[:s.size]
+    zero = s <= max(rtol * float(np.max(s)), noise)
+    keep = ~(zero & (np.abs(bt) <= DROPPED_FORCE_RTOL * bnorm)) & (s > 0.0)
+    s, bt, v = s[keep], bt[keep], vt[keep].T
+
+    def predicted(dz):
+        r = b - a @ dz
+        return float(0.5 * (b @ b - r @ r))
+
+    if s.size == 0:
+        return Step(np.zeros(m), 0.0, 0.0, False)
+    if shift is not None:
+        dz = v @ (s * bt / (s**2 + shift))
+        return Step(dz, float(shift), predicted(dz), shift == 0.0)
+    dz = v @ (bt / s)
+    if np.linalg.norm(dz) <= radius:
+        return Step(dz, 0.0, predicted(dz), True)
+
+    def size(nu):
+        return float(np.linalg.norm(s * bt / (s**2 + nu)))
+
+    hi = float(np.max(s * np.abs(bt))) * np.sqrt(s.size) / radius  # size(hi) <= radius
+    from scipy.optimize import brentq  # deferred: scipy.optimize costs ~0.2 s at start-up
+
+    nu = brentq(lambda x: size(x) - radius, 0.0, hi, xtol=1e-14 * hi, rtol=1e-12)
+    dz = v @ (s * bt / (s**2 + nu))
     return Step(dz, float(nu), predicted(dz), False)

@@ -114,6 +114,9 @@ def build_parser() -> argparse.ArgumentParser:
     redundancy(p)
     p.add_argument("--method", choices=("augmented", "reduced"), default="augmented",
                    help="Newton on (q, lambda) (default) or on the independent coordinates")
+    p.add_argument("--stable", action="store_true",
+                   help="find a stable equilibrium (descend the potential energy) instead of "
+                        "the one nearest the initial configuration, stable or not")
 
     p = sub.add_parser("simulate", help="forward dynamics")
     common(p)
@@ -150,6 +153,9 @@ def build_parser() -> argparse.ArgumentParser:
                             "scene) at the output time nearest --time")
     p.add_argument("--time", type=float, default=None,
                    help="with --from: the time of the stored state (nearest output time)")
+    p.add_argument("--stable", action="store_true",
+                   help="with --at-equilibrium: about a stable equilibrium (as statics "
+                        "--stable) instead of the one nearest the initial configuration")
     p = sub.add_parser("ocp", help="trajectory optimisation: the scene's [ocp] table")
     common(p)
     p.add_argument("--out", help="save the solution (t, q, v, u, statistics) to this .npz file")

@@ -145,13 +145,17 @@ def _cmd_inverse(args) -> tuple[dict, str]:
 def _cmd_statics(args) -> tuple[dict, str]:
     mech = _load(args)
     result = static_equilibrium(mech, method=args.method, mode=args.mode,
-                                redundancy=args.redundancy)
+                                redundancy=args.redundancy,
+                                stable=getattr(args, "stable", False))
     data = result.to_json()
     stable = {True: "stable", False: "unstable", None: "neutral"}[result.stable]
     if result.stability is not None and result.stability.null_directions:
         stable += f" (null directions: {', '.join(result.stability.null_coordinates())})"
-    lines = [f"static equilibrium of '{mech.name}' ({result.method} Newton, "
+    search = ("a stable one asked for" if result.search == "stable"
+              else "the nearest to the initial configuration")
+    lines = [f"static equilibrium of '{mech.name}' ({search}; {result.method} Newton, "
              f"{result.iterations} iterations, residual {result.residual:.3g}): {stable}"]
+    lines += [f"  note: {note}" for note in result.notes]
     for name, b in data["bodies"].items():
         pos = "  ".join(f"{axis} {x:+.6g} m" for axis, x in zip("xyz", b["position"]))
         if "quaternion" in b:
@@ -198,9 +202,12 @@ def _cmd_linearize(args) -> tuple[dict, str]:
     """
     if (args.time is None) != (args.from_result is None):
         raise AnalysisError("linearize: --from RESULT.npz and --time T go together")
+    if getattr(args, "stable", False) and not args.at_equilibrium:
+        raise AnalysisError("linearize: --stable goes with --at-equilibrium")
     mech = _load(args)
     if args.at_equilibrium:
-        lin = linearize(mech, mode=args.mode, at="equilibrium", redundancy=args.redundancy)
+        lin = linearize(mech, mode=args.mode, at="equilibrium", redundancy=args.redundancy,
+                        stable=getattr(args, "stable", False))
         where = (f"the static equilibrium ({lin.stats['statics_iterations']} statics "
                  f"iterations, residual {lin.stats['statics_residual']:.3g})")
     elif args.from_result is not None:
