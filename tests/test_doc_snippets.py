@@ -41,12 +41,6 @@ SKIPPED: dict[str, dict[str, str]] = {
             "a pattern with an elided body ('...'): its runnable form is "
             "examples/custom_joint.py (run by tests/test_custom_kind.py)",
     },
-    "docs/robots.md": {
-        'load_urdf("arm.urdf"':
-            "the URDF options example (locked/initial in absolute coordinates) is being "
-            "changed with issue 30 item 4e (URDF initial and locked in every coordinate "
-            "choice); its file name 'arm.urdf' is a placeholder",
-    },
 }
 #: shell commands not run: a prefix -> why
 SKIPPED_COMMANDS = {
