@@ -109,6 +109,7 @@ from casmbd.analysis.stability import STABILITY_RTOL, Stability, classify_stabil
 from casmbd.analysis.trust_region import RANK_RTOL, least_squares_step, trust_region_step
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, AssemblyError
+from casmbd.model.forces import ForceElement
 from casmbd.model.measures import result_names
 from casmbd.model.needs import ALL_NEEDS, Handling, check
 from casmbd.system.descriptions import SpatialNatural, quaternions_from_matrices
@@ -277,6 +278,14 @@ class _Problem:
         self.size = max(float(np.max(np.ptp(pos, axis=0))), float(np.max(np.abs(pos))), 1e-3)
         self.scale = np.ones(self.nq)
         self.scale[self.length_idx] = self.size
+        #: every applied force keeps its work in V, but for a damper part that vanishes at rest:
+        #: a descent step is then measured by the exact fall of V, not by the trapezoidal
+        #: work of the forces, which misjudges long steps across a stiff spring
+        mech = model.mechanism
+        self.conservative = not mech.actuators and all(
+            f.energy_exchange() is None
+            or (f.energy_exchange() == "damper" and type(f).potential is not ForceElement.potential)
+            for f in mech.forces.values())
         self.angles, self.quaternions, self.frames = [], [], []
         for body, desc in model.descriptions.items():
             base = model.coordinate_index[body]
@@ -288,6 +297,10 @@ class _Problem:
                     self.quaternions.append(base + k)
             if isinstance(desc, SpatialNatural):
                 self.frames.append((body, base + 3))
+
+    def potential(self, q: np.ndarray) -> float:
+        """V(q) at the problem's time."""
+        return float(self.model.potential_energy(q, self.t))
 
     def restrict(self, keep: list[int]) -> None:
         """Solve with the constraint rows ``keep`` only (the redundant ones removed,
@@ -699,8 +712,11 @@ def _iterate(prob: _Problem, q, method: str, fscale: float, lscale: float, max_i
         accepted, ratio = False, 0.0
         if trial is not None:
             newton_ok = step.newton and trial.norm < state.norm
-            if kind == "descent":  # the work of the applied forces against the model's
-                work = 0.5 * float((state.qe + trial.qe) @ (trial.q - state.q))
+            if kind == "descent":  # the fall of V (or the work of the applied forces)
+                if prob.conservative:  # against the model's
+                    work = prob.potential(state.q) - prob.potential(trial.q)
+                else:
+                    work = 0.5 * float((state.qe + trial.qe) @ (trial.q - state.q))
                 if step.predicted > 0.0:
                     ratio = work / step.predicted
                 else:
@@ -731,7 +747,21 @@ def _iterate(prob: _Problem, q, method: str, fscale: float, lscale: float, max_i
                          f"{np.max(np.abs(f), initial=0.0):.3g}); continued by descending the "
                          f"potential energy")
         elif radius < 1e-12:
-            _fail(prob, "no acceptable step (trust region collapsed)", it, f, method)
+            # at the rounding floor of the equations no step is accepted any more: pure
+            # Newton steps from here end it if they reach the tolerance
+            for _ in range(3):
+                polished = _polish(prob, state, method, fscale, lscale)
+                if polished is None:
+                    break
+                state = polished
+                if _converged(prob, state.f, fscale, lscale):
+                    break
+            if not _converged(prob, state.f, fscale, lscale):
+                _fail(prob, "no acceptable step (trust region collapsed)", it, state.f, method)
+            notes.append(f"the trust region collapsed at max |F| = "
+                         f"{np.max(np.abs(f), initial=0.0):.3g}; Newton steps converged")
+            history.append(float(np.max(np.abs(state.f), initial=0.0)))
+            break
         history.append(float(np.max(np.abs(state.f), initial=0.0)))
     return state.q, state.lam, it, history, notes
 
