@@ -21,7 +21,7 @@ import numpy as np
 
 from casmbd import progress
 from casmbd.analysis import integrators as integ
-from casmbd.analysis import nullspace, numeric_run, partitioning
+from casmbd.analysis import numeric_run
 from casmbd.analysis.assembly import assemble
 from casmbd.analysis.build_cache import INPUTS_FUNCTION, CachedBuild, input_expression
 from casmbd.analysis.checks import (
@@ -55,8 +55,6 @@ from casmbd.system.subset import ConstraintSubset
 # The formulations (name, state layout, default integrator, redundancy policy, initial
 # algebraic state) are objects in casmbd.system.formulations.FORMULATIONS and the integrators
 # in casmbd.analysis.integrators.INTEGRATORS: nothing here switches on their names.
-#: the analysis layer's formulations, registered on import
-NUMERIC_KINDS = (partitioning.Partitioning, nullspace.Nullspace)
 __all__ = ["DEFAULT_FORMULATION", "Simulator", "default_formulation", "plan_redundancy",
            "simulate"]
 
