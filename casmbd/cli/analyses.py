@@ -61,7 +61,6 @@ def _cmd_simulate(args) -> tuple[dict, str]:
              f"({_energy_change(result, mech)})",
              f"  max constraint violation: position {data['constraint_violation']:.3g}, "
              f"velocity {data['velocity_violation']:.3g}",
-             *([f"  WARNING: {s['drift_warning']}"] if s.get("drift_warning") else []),
              *([_events_line(result)] if result.events else []),
              f"  steps {s.get('steps', 0)}, rhs evaluations {s.get('rhs_evaluations', 0)}",
              _timing(s, 4)]
