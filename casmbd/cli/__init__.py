@@ -20,6 +20,8 @@ the top layer: it loads scene files (casmbd.io) and hands Mechanisms to the anal
 from __future__ import annotations
 
 import argparse
+import contextlib
+import ctypes
 import importlib
 import json
 import os
@@ -188,6 +190,45 @@ def _one_line_warning(message, category, filename, lineno, line=None) -> str:
     return f"warning: {message}\n"
 
 
+def _flush_c_stdio() -> None:
+    """Flush the C library's stdio buffers (``fflush(NULL)``): text that C code (IPOPT,
+    LAPACK's XERBLA, a compiler driver) wrote with ``printf`` sits there until flushed."""
+    with contextlib.suppress(Exception):  # no C library to call: nothing buffered there
+        ctypes.CDLL(None).fflush(None)
+
+
+@contextlib.contextmanager
+def _stdout_to_stderr():
+    """File descriptor 1 points at file descriptor 2 inside the block, and back after it.
+
+    With ``--json`` stdout carries exactly one JSON object: whatever the work prints —
+    Python's ``print``, C libraries writing to fd 1 (IPOPT's banner, LAPACK's "On entry to
+    DTRSV parameter number 6 had an illegal value", CasADi's messages) — goes to stderr, and
+    the JSON is written to the real stdout afterwards.  Where sys.stdout has no file
+    descriptor (a test's capture object) Python-level output is redirected only.
+    """
+    try:
+        fd = sys.stdout.fileno()
+    except (AttributeError, ValueError, OSError):
+        fd = None
+    if fd is None:
+        with contextlib.redirect_stdout(sys.stderr):
+            yield
+        return
+    sys.stdout.flush()
+    _flush_c_stdio()
+    saved = os.dup(fd)
+    try:
+        os.dup2(sys.stderr.fileno(), fd)
+        yield
+    finally:
+        with contextlib.suppress(Exception):
+            sys.stdout.flush()
+        _flush_c_stdio()  # C text buffered during the work goes to stderr, not the JSON
+        os.dup2(saved, fd)
+        os.close(saved)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``casmbd`` command; returns the exit status.
 
@@ -224,8 +265,10 @@ def _run(argv: list[str]) -> int:
     if getattr(args, "json", False):
         os.environ["CASMBD_PROGRESS"] = "0"  # one JSON object: no progress bars
     t0, started = time.perf_counter(), time.time()
+    quiet = _stdout_to_stderr() if getattr(args, "json", False) else contextlib.nullcontext()
     try:
-        data, text = VERBS[args.verb](args)
+        with quiet:
+            data, text = VERBS[args.verb](args)
     except KeyboardInterrupt:
         if debug:
             raise
