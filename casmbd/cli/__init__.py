@@ -278,6 +278,9 @@ def _run(argv: list[str]) -> int:
             raise
         if interrupts.seen():  # a failure that Ctrl-C caused is still an interrupt
             return _interrupted(args, started)
+        shown = getattr(exc, "cli_output", None)  # what the verb found before it failed
+        if shown is not None:
+            _print_output(args, *shown)
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_ERROR
     except Exception as exc:  # an unexpected failure still gets one clear line
@@ -288,6 +291,15 @@ def _run(argv: list[str]) -> int:
         return EXIT_ERROR
     if isinstance(data.get("stats"), dict):
         data["stats"]["total_seconds"] = time.perf_counter() - t0
+    _print_output(args, data, text)
+    return 0
+
+
+def _print_output(args, data: dict, text: str) -> None:
+    """The verb's one JSON object (``--json``) or its text summary on stdout (after the work:
+    with ``--json`` the real stdout again, see :func:`_stdout_to_stderr`).  A verb that
+    fails after finding something (``info`` of a mechanism that cannot be assembled) hands it
+    here as ``exc.cli_output = (data, text)``."""
     try:
         if args.json:
             data = json.loads(json.dumps(data, default=_json_default))  # numpy -> builtins
@@ -300,7 +312,6 @@ def _run(argv: list[str]) -> int:
         sys.stdout.flush()
     except BrokenPipeError:  # `casmbd … | head`: the reader left; not an error
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-    return 0
 
 
 def _verbose_stats(stats: dict) -> str:
