@@ -150,6 +150,22 @@ class IntegratorError(CasmbdError):
         self.partial = partial
 
 
+class ConstraintViolationError(IntegratorError):
+    """A simulation's position constraints are violated beyond the tolerance at an output time.
+
+    Raised as kinematics raises its assembly failure: the message names the time, the size
+    of the violation and its cause — the driver or joint the others contradict (``culprits``,
+    as for an :class:`AssemblyError`, when the constraints cannot be satisfied there), or the
+    equations left by a trajectory that drifted off satisfiable constraints.  ``partial``
+    holds the results at the output times before the violation.
+    """
+
+    def __init__(self, message: str, time: float, flag: str = "CONSTRAINT_VIOLATION",
+                 partial=None, culprits: list | None = None):
+        super().__init__(message, time, flag, partial)
+        self.culprits = list(culprits or [])
+
+
 class OptimizationError(AnalysisError):
     """The NLP solver of an optimal-control problem did not converge.
 

@@ -366,13 +366,21 @@ class Result:
         return out
 
     # ------------------------------------------------------------------ files
-    def save(self, path: str | os.PathLike) -> Path:
-        """Write every array, the names, stats and scene text to an npz file atomically."""
+    def payload(self, **meta) -> dict[str, np.ndarray]:
+        """The entries of the result's npz file (:meth:`save`): ``t``, ``array/NAME``, the JSON
+        ``meta`` (kind, names, stats, events, and the extra ``meta`` keys given) and ``scene``.
+        A file with further entries beside these (an OCP solution's ``u``) still loads as a
+        result."""
         payload = {"t": self.t, **{f"array/{k}": v for k, v in self.arrays.items()}}
         payload["meta"] = np.array(json.dumps({"kind": self.kind, "names": self.names,
-                                               "stats": self.stats, "events": self.events},
-                                              default=_json_default))
+                                               "stats": self.stats, "events": self.events,
+                                               **meta}, default=_json_default))
         payload["scene"] = np.array(self.scene)
+        return payload
+
+    def save(self, path: str | os.PathLike) -> Path:
+        """Write every array, the names, stats and scene text to an npz file atomically."""
+        payload = self.payload()
 
         def write(tmp: str) -> None:
             with open(tmp, "wb") as fh:

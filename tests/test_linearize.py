@@ -266,3 +266,74 @@ def test_rigid_body_pair_is_not_a_saddle():
     assert auto.natural_frequencies_hz[1] == pytest.approx(lin.natural_frequencies_hz[1],
                                                            rel=1e-9)
     assert auto.stable
+
+
+#: a mass on a linear spring-damper along a prismatic guide (issue 30, item 4j)
+OSCILLATOR = """
+[scene]
+name = "oscillator"
+dimension = 2
+gravity = [0.0, 0.0]
+
+[[bodies]]
+name = "block"
+mass = {m}
+inertia = 0.1
+position = [0.0, 0.0]
+
+[[joints]]
+name = "guide"
+type = "prismatic"
+body1 = "ground"
+body2 = "block"
+point = [0.0, 0.0]
+axis = [1.0, 0.0]
+
+[[forces]]
+name = "spring"
+type = "spring_damper"
+body1 = "ground"
+body2 = "block"
+point1 = [-1.0, 0.0]
+point2 = [0.0, 0.0]
+stiffness = {k}
+damping = {c}
+free_length = 1.0
+"""
+
+
+@pytest.mark.parametrize("c", [3.0, 0.0])
+def test_damped_oscillator_natural_and_damped_frequency_and_damping_ratio(tmp_path, capsys, c):
+    """m ẍ + c ẋ + k x = 0: ω_n = √(k/m), ζ = c / (2√(k m)), ω_d = ω_n √(1 − ζ²), to 1e-8
+    relative, through the Python API, ``--json`` (the older keys kept, the new ones added) and
+    the labelled text summary (issue 30, item 4j: the text showed ω_d labelled "frequency")."""
+    m, k = 2.0, 50.0
+    omega_n = math.sqrt(k / m)  # 5 rad/s
+    zeta = c / (2 * math.sqrt(k * m))  # 0.15
+    omega_d = omega_n * math.sqrt(1 - zeta**2)
+    fn, fd = omega_n / (2 * math.pi), omega_d / (2 * math.pi)
+    scene = tmp_path / "oscillator.toml"
+    scene.write_text(OSCILLATOR.format(m=m, k=k, c=c))
+    lin = linearize(casmbd.load_scene(str(scene)), mode="vm")
+    assert lin.n_dof == 1
+    assert lin.natural_frequencies_hz[0] == pytest.approx(fn, rel=1e-8)
+    assert lin.damped_frequencies_hz[0] == pytest.approx(fd, rel=1e-8)
+    assert lin.damping_ratios[0] == pytest.approx(zeta, rel=1e-8, abs=1e-12)
+
+    assert cli.main(["linearize", str(scene), "--mode", "vm", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["natural_frequencies_hz"][0] == pytest.approx(fn, rel=1e-8)
+    assert data["damped_frequencies_hz"][0] == pytest.approx(fd, rel=1e-8)
+    assert data["frequencies_hz"] == data["damped_frequencies_hz"]  # older key, same values
+    assert data["damping_ratios"][0] == pytest.approx(zeta, rel=1e-8, abs=1e-12)
+
+    assert cli.main(["linearize", str(scene), "--mode", "vm"]) == 0
+    line = next(s for s in capsys.readouterr().out.splitlines() if "mode 1" in s)
+    words = line.split()
+    value = {label: float(words[words.index(label) + 2 if label != "ratio" else
+                                words.index(label) + 1])
+             for label in ("natural", "damped", "ratio")}
+    assert "natural frequency" in line and "damped frequency" in line and "damping ratio" in line
+    assert value["natural"] == pytest.approx(fn, rel=1e-5)  # printed to 6 digits
+    assert value["damped"] == pytest.approx(fd, rel=1e-5)
+    assert value["ratio"] == pytest.approx(zeta, rel=1e-3, abs=1e-12)  # printed to 4 digits

@@ -8,7 +8,10 @@ registered from outside the package is selectable by name, in Python and on the 
 
 from __future__ import annotations
 
+import json
 import pathlib
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -200,3 +203,46 @@ def test_registering_something_else_is_refused():
         register_formulation("index1")
     with pytest.raises(ModelError, match="register_integrator: an IntegratorKind"):
         integ.register_integrator("rk4")
+
+
+#: every formulation casmbd ships (issue 30, item 4h)
+SHIPPED = ("index1", "ggl", "kkt_ode", "augmented_lagrangian", "articulated", "nullspace",
+           "partitioning")
+
+
+def test_formulation_registry_is_complete_on_import_in_a_fresh_process():
+    """Importing the registry's package alone registers every shipped formulation, loads no
+    analysis module, and the CLI's ``--formulation`` choices are exactly the registry
+    (issue 30, item 4h: nullspace and partitioning used to register by a side-effect import
+    of the analysis layer, so a fresh CLI refused them)."""
+    code = ("import sys, casmbd.system.formulations as f; "
+            "print(','.join(f.FORMULATIONS)); "
+            "print(any(m.startswith('casmbd.analysis') for m in sys.modules)); "
+            "from casmbd import cli; "
+            "sub = next(a for a in cli.build_parser()._actions if a.dest == 'verb'); "
+            "act = next(a for a in sub.choices['simulate']._actions "
+            "if a.dest == 'formulation'); "
+            "print(','.join(act.choices)); print(','.join(f.FORMULATIONS))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         cwd=ROOT, check=True).stdout.split()
+    assert out[0] == ",".join(SHIPPED)
+    assert out[1] == "False"
+    assert out[2] == out[3] == ",".join(SHIPPED)
+
+
+@pytest.mark.parametrize("name", ["nullspace", "partitioning"])
+def test_fresh_cli_runs_a_numeric_formulation(name, tmp_path):
+    """``python -m casmbd simulate … --formulation nullspace`` in a fresh process runs, and the
+    double pendulum's end state equals the default formulation's to 1e-6 (rtol = 1e-10)."""
+    def run(*extra):
+        out = tmp_path / f"{extra[-1] if extra else 'default'}.npz"
+        proc = subprocess.run([sys.executable, "-m", "casmbd", "simulate", DOUBLE_PENDULUM,
+                               "--t-end", "0.5", "--steps", "5", "--rtol", "1e-10", "--mode",
+                               "vm", "--json", "--out", str(out), *extra],
+                              capture_output=True, text=True, cwd=ROOT, timeout=600)
+        assert proc.returncode == 0, proc.stderr
+        return json.loads(proc.stdout), casmbd.Result.load(str(out))
+    info, res = run("--formulation", name)
+    assert info["stats"]["formulation"] == name
+    _, ref = run()
+    assert np.allclose(res["q"][-1], ref["q"][-1], rtol=0, atol=1e-6)

@@ -165,6 +165,8 @@ class LinearModel:
         ``eigenvalues`` is the complete answer.  n_z modes in all, sorted by frequency.
     natural_frequencies_hz : ndarray
         |s| / 2π of the same modes (the undamped natural frequency ω_n / 2π of a damped mode).
+        For one degree of freedom M̄ z̈ + C̄ ż + K̄ z = 0: ω_n = √(K̄/M̄), ζ = C̄ / (2√(K̄ M̄)) and
+        the damped frequency ω_d = ω_n √(1 − ζ²) = 2π f (:attr:`damped_frequencies_hz`).
     q, v, t, u : the state of the linearization.
     lam : multipliers λ of the KKT system at that state.
     coordinate_names : names of the absolute coordinates (rows of N).
@@ -198,6 +200,12 @@ class LinearModel:
     actuator_names: list[str]
     stats: dict = field(default_factory=dict)
     stability: Stability | None = None
+
+    @property
+    def damped_frequencies_hz(self) -> np.ndarray:
+        """The damped frequency ω_d / 2π = |Im s| / 2π of every mode (:attr:`frequencies_hz`,
+        named for what it is; equal to the natural frequency when undamped)."""
+        return self.frequencies_hz
 
     @property
     def n_dof(self) -> int:
@@ -247,6 +255,9 @@ class LinearModel:
         ``"stable"`` is the shared verdict in the statics analysis's form (true stable,
         false unstable, null neutral or not an equilibrium), ``"verdict"`` its word,
         ``"stability"`` the classification (or null), ``"spectrally_stable"`` :attr:`stable`.
+        Per mode: ``"natural_frequencies_hz"`` (undamped, ω_n / 2π),
+        ``"damped_frequencies_hz"`` (ω_d / 2π) and ``"damping_ratios"`` (ζ);
+        ``"frequencies_hz"`` is the damped frequency under its older name (kept).
         """
         return {
             "equilibrium": self.equilibrium,
@@ -260,6 +271,7 @@ class LinearModel:
             "frequencies_hz": self.frequencies_hz.tolist(),
             "damping_ratios": self.damping_ratios.tolist(),
             "natural_frequencies_hz": self.natural_frequencies_hz.tolist(),
+            "damped_frequencies_hz": self.damped_frequencies_hz.tolist(),
             "eigenvalues": [[float(s.real), float(s.imag)] for s in self.eigenvalues],
             "M": self.M.tolist(), "C": self.C.tolist(), "K": self.K.tolist(),
             "B": self.B.tolist(), "A": self.A.tolist(), "B_state": self.Bss.tolist(),

@@ -24,7 +24,6 @@ import numpy as np
 
 from casmbd.analysis.numeric_rhs import Equations, NumericOde, RhsError
 from casmbd.analysis.redundancy import RANK_RTOL
-from casmbd.system.formulations import NumericFormulation, register_formulation
 
 
 def nullspace_solve(m_mat: np.ndarray, cq: np.ndarray, force: np.ndarray, gamma: np.ndarray,
@@ -82,14 +81,7 @@ class _Nullspace(NumericOde):
         return {"constraint_rank": self.rank}
 
 
-class Nullspace(NumericFormulation):
-    """Null-space (embedding) formulation: ODE in x = (q, v), no multipliers."""
-
-    name = "nullspace"
-    layout = "x = (q, v), accelerations in the SVD null space of C_q"
-
-    def right_hand_side(self, sim, equations: Equations, x0, t0: float) -> _Nullspace:
-        return _Nullspace(sim, equations)
-
-
-register_formulation(Nullspace())
+def right_hand_side(sim, equations: Equations, x0, t0: float) -> _Nullspace:
+    """The numeric ODE of the ``nullspace`` kind
+    (:class:`casmbd.system.formulations.Nullspace`) for the simulator ``sim``."""
+    return _Nullspace(sim, equations)

@@ -6,8 +6,9 @@ intervals the right-hand side may re-parametrise (the coordinate partitioning re
 independent set: :meth:`~casmbd.analysis.numeric_rhs.NumericOde.check`) and, with
 ``projection=True``, q is assembled and v projected mass-orthogonally.  A failing interval is
 redone from its start after a re-selection, in two halves with a check in between (recursively,
-at most ``NumericOde.max_splits`` times).  The right-hand side comes from the simulator's
-formulation (:meth:`casmbd.system.formulations.NumericFormulation.right_hand_side`), so the
+at most ``NumericOde.max_splits`` times).  The right-hand side of a built-in numeric kind
+comes from :data:`RIGHT_HAND_SIDES` (keyed by the system layer's kind class), that of a user's
+kind from its :meth:`~casmbd.system.formulations.NumericFormulation.right_hand_side`, so the
 driver does not know which numeric formulation it runs.
 """
 
@@ -22,11 +23,18 @@ import weakref
 import casadi as ca
 import numpy as np
 
+from casmbd.analysis import nullspace, partitioning
 from casmbd.analysis.assembly import assemble
 from casmbd.analysis.kkt import project_velocities
 from casmbd.analysis.numeric_rhs import Equations, RhsCallback, RhsError, callback_integrator
 from casmbd.errors import AssemblyError, IntegratorError
 from casmbd.interrupts import reraise_interrupt
+from casmbd.system.formulations import Nullspace, Partitioning
+
+#: the numeric right-hand sides of the built-in numeric kinds (declared, and registered in
+#: FORMULATIONS, by the system layer), kind class -> builder ``(sim, equations, x0, t0)``
+RIGHT_HAND_SIDES = {Partitioning: partitioning.right_hand_side,
+                    Nullspace: nullspace.right_hand_side}
 
 _FAILED: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 _FLAG = re.compile(r'returned "([A-Z_]+)"')
@@ -39,7 +47,8 @@ class _Run:
         self.sim, self.model, self.nq = sim, sim.model, sim.model.nq
         self.name, self.rtol, self.atol, self.max_steps = name, rtol, atol, max_steps
         self.interval = float(grid[1] - grid[0])
-        self.ode = sim.kind.right_hand_side(sim, Equations(sim), x0, float(grid[0]))
+        build = RIGHT_HAND_SIDES.get(type(sim.kind), sim.kind.right_hand_side)
+        self.ode = build(sim, Equations(sim), x0, float(grid[0]))
         self.nx = self.ode.nx
         self.callback = RhsCallback("numeric_rhs_" + sim.formulation_name, self.nx,
                                     self.ode) if self.nx else None

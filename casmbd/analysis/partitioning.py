@@ -52,9 +52,7 @@ import numpy as np
 from casmbd.analysis.nullspace import nullspace_accelerations, nullspace_solve
 from casmbd.analysis.numeric_rhs import Equations, NumericOde, RhsError, kkt_accelerations
 from casmbd.analysis.numeric_rhs import solve_dense as _solve
-from casmbd.analysis.numeric_run import integrate, partial
 from casmbd.analysis.redundancy import rank_report
-from casmbd.system.formulations import NumericFormulation, register_formulation
 
 #: absolute limit on cond(C_q,d) before the independent set is re-selected
 COND_LIMIT = 1e6
@@ -259,18 +257,11 @@ class _Partitioned(NumericOde):
         return np.concatenate([v[part.independent], a[part.independent]])
 
 
-class Partitioning(NumericFormulation):
-    """Generalized coordinate partitioning: ODE in the independent coordinates."""
-
-    name = "partitioning"
-    layout = "y = (q_i, v_i), independent coordinates chosen by LU with full pivoting"
-
-    def right_hand_side(self, sim, equations: Equations, x0, t0: float) -> _Partitioned:
-        return _Partitioned(sim, equations, np.asarray(x0, float)[:sim.model.nq], t0)
+def right_hand_side(sim, equations: Equations, x0, t0: float) -> _Partitioned:
+    """The numeric ODE of the ``partitioning`` kind
+    (:class:`casmbd.system.formulations.Partitioning`) for the simulator ``sim``."""
+    return _Partitioned(sim, equations, np.asarray(x0, float)[:sim.model.nq], t0)
 
 
-register_formulation(Partitioning())
-
-
-__all__ = ["Partition", "Partitioning", "integrate", "kkt_accelerations",
-           "nullspace_accelerations", "nullspace_solve", "partial", "select_partition"]
+__all__ = ["Partition", "kkt_accelerations", "nullspace_accelerations", "nullspace_solve",
+           "right_hand_side", "select_partition"]

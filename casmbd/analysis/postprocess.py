@@ -5,12 +5,23 @@ sparse KKT system (a minimum-norm solve at singular points), joint reactions (se
 6.145–6.151), driver efforts (−λ of the driver row), energies, constraint violations and
 conditioning, collected in a :class:`~casmbd.results.Result`; and, where a run failed, the
 rank and conditioning of C_q (or the model value that is not finite) for the error message.
+
+A run whose position constraints are violated beyond the tolerance at an output time,
+max |C| > :data:`DRIFT_LIMIT` · size (size: the largest |coordinate| of a body's centre of mass
+so far, at least 1 m), stops with a :class:`~casmbd.errors.ConstraintViolationError` naming
+the first such time and the cause — as kinematics does: the assembly C(q, t) = 0 is tried at
+that time from the last good output, and when it fails its ranked culprits (the driver asking
+for a pose the joints forbid, the joint it contradicts) are named; when it succeeds the
+trajectory drifted off constraints that could be satisfied (a diverging model, tolerances far
+too loose) and the equations with the largest residuals are named.  The results before that
+time are kept (``exc.partial``).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from casmbd.analysis.assembly import assemble
 from casmbd.analysis.checks import diagnose_failure
 from casmbd.analysis.kkt import accelerations_and_multipliers
 from casmbd.analysis.reactions import flag_undetermined, multiplier_null_space
@@ -22,9 +33,43 @@ from casmbd.analysis.redundancy import (
     rank_report,
     reference_equilibration,
 )
+from casmbd.errors import AssemblyError, CasmbdError, ConstraintViolationError
 from casmbd.interrupts import reraise_interrupt
 from casmbd.model.measures import result_names
 from casmbd.results import Result
+
+#: position constraint violation, relative to the mechanism's size (the largest |coordinate| of
+#: a body's centre of mass so far, at least 1 m), above which a run stops: its trajectory no
+#: longer satisfies the joints
+DRIFT_LIMIT = 1e-3
+
+
+def first_violation(result: Result) -> tuple[int, float] | None:
+    """The first output index whose position constraint violation max |C| exceeds
+    :data:`DRIFT_LIMIT` · size (or is not finite), and that size; None when there is none."""
+    viol = result.arrays.get("constraint_violation")
+    if viol is None or not viol.size:
+        return None
+    positions = result.arrays.get("body_positions")
+    if positions is None or not positions.size:
+        reach = np.zeros(len(viol))
+    else:
+        reach = np.nanmax(np.abs(positions.reshape(len(viol), -1)), axis=1, initial=0.0)
+    size = np.maximum(1.0, np.fmax.accumulate(np.nan_to_num(reach, nan=0.0, posinf=0.0)))
+    bad = np.flatnonzero(~np.isfinite(viol) | (viol > DRIFT_LIMIT * size))
+    return (int(bad[0]), float(size[bad[0]])) if bad.size else None
+
+
+def truncated(result: Result, n: int) -> Result:
+    """``result`` at its first ``n`` output times (arrays along time sliced, events after the
+    last kept time dropped): the partial results of a run stopped after them."""
+    n_t = len(result.t)
+    arrays = {k: (a[:n] if getattr(a, "ndim", 0) >= 1 and a.shape[0] == n_t else a)
+              for k, a in result.arrays.items()}
+    t_last = float(result.t[n - 1])
+    return Result(result.kind, result.t[:n].copy(), arrays, dict(result.names),
+                  dict(result.stats), result.scene,
+                  [e for e in result.events if float(e.get("time", 0.0)) <= t_last])
 
 
 class PostProcessing:
@@ -58,6 +103,54 @@ class PostProcessing:
             text += (": a singular configuration" + (f" (dependent: {dep})" if dep else "")
                      + "; the augmented_lagrangian formulation passes singular poses")
         return text
+
+    def _check_violation(self, result: Result) -> None:
+        """Stop a run whose position constraints are violated beyond the tolerance
+        (:func:`first_violation`): a :class:`~casmbd.errors.ConstraintViolationError` naming
+        the time, the size and the driver or joint at fault, with the results before it."""
+        found = first_violation(result)
+        if found is None:
+            return
+        k, size = found
+        viol = float(result.arrays["constraint_violation"][k])
+        t = float(result.t[k])
+        n_kept = max(k, 1)
+        cause, culprits = self._violation_cause(result, k)
+        partial = truncated(result, n_kept)
+        partial.stats["failure_time"] = t
+        raise ConstraintViolationError(
+            f"simulation: position constraints violated by {viol:.3g} at t = {t:.6g} "
+            f"(> {DRIFT_LIMIT:g} × size {size:.3g}); results kept up to t = "
+            f"{result.t[n_kept - 1]:.6g} ({n_kept} of {len(result.t)} output times){cause}",
+            t, partial=partial, culprits=culprits)
+
+    def _violation_cause(self, result: Result, k: int) -> tuple[str, list]:
+        """Why the constraints are violated at output ``k``: the assembly at that time from
+        the last good output, extrapolated (q + h q̇ + ½ h² q̈, as kinematics guesses); its
+        failure names the culprits, its success means the trajectory drifted off."""
+        model = self.model
+        t = float(result.t[k])
+        j = max(k - 1, 0)
+        h = t - float(result.t[j])
+        q, v, a = (np.asarray(result[key][j], float) for key in ("q", "v", "a"))
+        guess = q + h * v + 0.5 * h * h * a
+        if not np.all(np.isfinite(guess)):
+            guess = q
+        try:
+            assemble(model, guess, t)
+        except AssemblyError as exc:
+            return f". The joints and drivers cannot be satisfied there: {exc}", exc.culprits
+        except CasmbdError as exc:
+            return f". {exc}", []
+        q_k = np.asarray(result["q"][k], float)
+        residual = np.asarray(model.constraints(q_k, t), float) if np.all(np.isfinite(q_k)) \
+            else np.full(model.nc, np.nan)
+        labels = model.constraint_labels
+        order = np.argsort(-np.nan_to_num(np.abs(residual), nan=np.inf))[:3]
+        worst = "; ".join(f"{labels[i]} residual {residual[i]:.3g}" for i in order)
+        return (f". The joints and drivers can be satisfied at t = {t:.6g}, but the trajectory "
+                f"left them (a diverging model, or tolerances too loose): largest residuals "
+                f"{worst}", [])
 
     def _post_by_parts(self, grid, qs, vs):
         """Energies and constraint residuals from the model's own Functions, q̈ and λ as NaN

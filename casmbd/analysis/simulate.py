@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import re
 import time
-import warnings
 from collections.abc import Mapping
 
 import casadi as ca
@@ -21,7 +20,7 @@ import numpy as np
 
 from casmbd import progress
 from casmbd.analysis import integrators as integ
-from casmbd.analysis import nullspace, numeric_run, partitioning
+from casmbd.analysis import numeric_run
 from casmbd.analysis.assembly import assemble
 from casmbd.analysis.build_cache import INPUTS_FUNCTION, CachedBuild, input_expression
 from casmbd.analysis.checks import (
@@ -56,8 +55,6 @@ from casmbd.system.subset import ConstraintSubset
 # The formulations (name, state layout, default integrator, redundancy policy, initial
 # algebraic state) are objects in casmbd.system.formulations.FORMULATIONS and the integrators
 # in casmbd.analysis.integrators.INTEGRATORS: nothing here switches on their names.
-#: the analysis layer's formulations, registered on import
-NUMERIC_KINDS = (partitioning.Partitioning, nullspace.Nullspace)
 __all__ = ["DEFAULT_FORMULATION", "Simulator", "default_formulation", "plan_redundancy",
            "simulate"]
 
@@ -362,7 +359,7 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
         stats.update({k: v for k, v in model.report_dict.items() if k != "build_seconds"})
         n_ok = xs.shape[0]
         result = self._post(grid[:n_ok], xs[:, :nq], xs[:, nq:], stats)
-        _check_drift(result)
+        self._check_violation(result)  # beyond the tolerance: stops naming the culprit
         if failure is not None:
             t_fail = float(solver_stats.get("failure_time", grid[n_ok - 1]))
             match = _FLAG.search(str(failure))
@@ -437,30 +434,6 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
         res = solver(x0=x0, z0=z0, p=self.model.p)
         xs = np.vstack([x0, np.asarray(res["xf"]).T])
         return xs, self._solver_stats(solver.stats())
-
-
-#: position constraint violation, relative to the mechanism's size (the largest |coordinate| of
-#: a body's centre of mass over the run, at least 1 m), above which a run is flagged: its
-#: trajectory no longer satisfies the joints
-DRIFT_LIMIT = 1e-3
-
-
-def _check_drift(result: Result) -> None:
-    """Flag a run whose constraints drifted away (a diverging model, a tolerance far too
-    loose): ``stats["drift_warning"]`` and a :class:`RuntimeWarning` naming the time and the
-    size, so that a broken run never reads as a good one."""
-    viol = result.arrays.get("constraint_violation")
-    if viol is None or not viol.size:
-        return
-    positions = result.arrays.get("body_positions", np.zeros((1, 1)))
-    size = max(1.0, float(np.nanmax(np.abs(positions), initial=0.0)))
-    worst = int(np.nanargmax(np.where(np.isfinite(viol), viol, np.inf)))
-    if not np.isfinite(viol[worst]) or viol[worst] > DRIFT_LIMIT * size:
-        text = (f"position constraints violated by {viol[worst]:.3g} at t = "
-                f"{result.t[worst]:.6g} (> {DRIFT_LIMIT:g} × size {size:.3g}): the trajectory "
-                "no longer satisfies the joints (a diverging model, or tolerances too loose)")
-        result.stats["drift_warning"] = text
-        warnings.warn(f"simulation: {text}", RuntimeWarning, stacklevel=3)
 
 
 #: what forward dynamics handles: every need, each formulation and integrator its own share

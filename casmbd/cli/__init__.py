@@ -20,6 +20,8 @@ the top layer: it loads scene files (casmbd.io) and hands Mechanisms to the anal
 from __future__ import annotations
 
 import argparse
+import contextlib
+import ctypes
 import importlib
 import json
 import os
@@ -203,6 +205,45 @@ def _one_line_warning(message, category, filename, lineno, line=None) -> str:
     return f"warning: {message}\n"
 
 
+def _flush_c_stdio() -> None:
+    """Flush the C library's stdio buffers (``fflush(NULL)``): text that C code (IPOPT,
+    LAPACK's XERBLA, a compiler driver) wrote with ``printf`` sits there until flushed."""
+    with contextlib.suppress(Exception):  # no C library to call: nothing buffered there
+        ctypes.CDLL(None).fflush(None)
+
+
+@contextlib.contextmanager
+def _stdout_to_stderr():
+    """File descriptor 1 points at file descriptor 2 inside the block, and back after it.
+
+    With ``--json`` stdout carries exactly one JSON object: whatever the work prints —
+    Python's ``print``, C libraries writing to fd 1 (IPOPT's banner, LAPACK's "On entry to
+    DTRSV parameter number 6 had an illegal value", CasADi's messages) — goes to stderr, and
+    the JSON is written to the real stdout afterwards.  Where sys.stdout has no file
+    descriptor (a test's capture object) Python-level output is redirected only.
+    """
+    try:
+        fd = sys.stdout.fileno()
+    except (AttributeError, ValueError, OSError):
+        fd = None
+    if fd is None:
+        with contextlib.redirect_stdout(sys.stderr):
+            yield
+        return
+    sys.stdout.flush()
+    _flush_c_stdio()
+    saved = os.dup(fd)
+    try:
+        os.dup2(sys.stderr.fileno(), fd)
+        yield
+    finally:
+        with contextlib.suppress(Exception):
+            sys.stdout.flush()
+        _flush_c_stdio()  # C text buffered during the work goes to stderr, not the JSON
+        os.dup2(saved, fd)
+        os.close(saved)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``casmbd`` command; returns the exit status.
 
@@ -239,8 +280,10 @@ def _run(argv: list[str]) -> int:
     if getattr(args, "json", False):
         os.environ["CASMBD_PROGRESS"] = "0"  # one JSON object: no progress bars
     t0, started = time.perf_counter(), time.time()
+    quiet = _stdout_to_stderr() if getattr(args, "json", False) else contextlib.nullcontext()
     try:
-        data, text = VERBS[args.verb](args)
+        with quiet:
+            data, text = VERBS[args.verb](args)
     except KeyboardInterrupt:
         if debug:
             raise
@@ -250,6 +293,9 @@ def _run(argv: list[str]) -> int:
             raise
         if interrupts.seen():  # a failure that Ctrl-C caused is still an interrupt
             return _interrupted(args, started)
+        shown = getattr(exc, "cli_output", None)  # what the verb found before it failed
+        if shown is not None:
+            _print_output(args, *shown)
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_ERROR
     except Exception as exc:  # an unexpected failure still gets one clear line
@@ -260,6 +306,15 @@ def _run(argv: list[str]) -> int:
         return EXIT_ERROR
     if isinstance(data.get("stats"), dict):
         data["stats"]["total_seconds"] = time.perf_counter() - t0
+    _print_output(args, data, text)
+    return 0
+
+
+def _print_output(args, data: dict, text: str) -> None:
+    """The verb's one JSON object (``--json``) or its text summary on stdout (after the work:
+    with ``--json`` the real stdout again, see :func:`_stdout_to_stderr`).  A verb that
+    fails after finding something (``info`` of a mechanism that cannot be assembled) hands it
+    here as ``exc.cli_output = (data, text)``."""
     try:
         if args.json:
             data = json.loads(json.dumps(data, default=_json_default))  # numpy -> builtins
@@ -272,7 +327,6 @@ def _run(argv: list[str]) -> int:
         sys.stdout.flush()
     except BrokenPipeError:  # `casmbd … | head`: the reader left; not an error
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-    return 0
 
 
 def _verbose_stats(stats: dict) -> str:

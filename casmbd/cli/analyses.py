@@ -74,7 +74,6 @@ def _cmd_simulate(args) -> tuple[dict, str]:
              f"({_energy_change(result, mech)})",
              f"  max constraint violation: position {data['constraint_violation']:.3g}, "
              f"velocity {data['velocity_violation']:.3g}",
-             *([f"  WARNING: {s['drift_warning']}"] if s.get("drift_warning") else []),
              *([_events_line(result)] if result.events else []),
              f"  steps {s.get('steps', 0)}, rhs evaluations {s.get('rhs_evaluations', 0)}",
              _timing(s, 4)]
@@ -226,8 +225,10 @@ def _cmd_linearize(args) -> tuple[dict, str]:
         verdict += f" (null directions: {', '.join(lin.stability.null_coordinates())})"
     lines = [f"linearization of '{mech.name}' about {where}: "
              f"{lin.n_dof} degree{'' if lin.n_dof == 1 else 's'} of freedom, {verdict}"]
-    for k, (f, z) in enumerate(zip(lin.frequencies_hz, lin.damping_ratios)):
-        lines.append(f"  mode {k + 1:<3} frequency {f:.6g} Hz  damping ratio {z:.4g}")
+    for k, (fn, fd, z) in enumerate(zip(lin.natural_frequencies_hz,
+                                        lin.damped_frequencies_hz, lin.damping_ratios)):
+        lines.append(f"  mode {k + 1:<3} natural frequency {fn:.6g} Hz  damped frequency "
+                     f"{fd:.6g} Hz  damping ratio {z:.4g}")
     if lin.stability is not None:
         eig = ", ".join(f"{e:.4g}" for e in lin.stability.eigenvalues)
         lines.append(f"  stiffness eigenvalues: {eig or 'none (no degrees of freedom)'}")

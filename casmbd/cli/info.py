@@ -4,13 +4,9 @@ module of its own so that ``casmbd info`` loads only what it needs).
 
 from __future__ import annotations
 
-import json
-import sys
-
 from casmbd.analysis.kinematics import info
-from casmbd.cli.common import _finite_json, _load
+from casmbd.cli.common import _load
 from casmbd.errors import AssemblyError
-from casmbd.results import _json_default
 
 
 def _cmd_info(args) -> tuple[dict, str]:
@@ -41,12 +37,8 @@ def _cmd_info(args) -> tuple[dict, str]:
         lines.append("  redundant equations: none")
     if not data["assembled"]:
         # the summary (or the one JSON object) on stdout, the culprit on stderr, exit 1
-        if args.json:
-            sys.stdout.write(json.dumps(_finite_json(json.loads(json.dumps(
-                data, default=_json_default))), allow_nan=False) + "\n")
-        else:
-            print("\n".join(lines))
-        sys.stdout.flush()
-        raise AssemblyError(f"mechanism '{data['name']}' cannot be assembled — "
+        exc = AssemblyError(f"mechanism '{data['name']}' cannot be assembled — "
                             f"{data['assembly_error']}", data.get("assembly_culprits"))
+        exc.cli_output = (data, "\n".join(lines))  # printed by casmbd.cli.main
+        raise exc
     return data, "\n".join(lines)

@@ -12,6 +12,7 @@ from pathlib import Path
 from casmbd.cli.common import _load
 from casmbd.errors import AnalysisError, OptimizationError, SceneError
 from casmbd.io.ocp_table import ocp_from_scene
+from casmbd.viz.plots import plot_result
 
 
 def _cmd_ocp(args) -> tuple[dict, str]:
@@ -36,8 +37,9 @@ def _cmd_ocp(args) -> tuple[dict, str]:
         sol.replay()
     if args.out:
         sol.save(args.out)
-    if args.plot:
-        sol.plot(args.plot)
+    if args.plot:  # the plot verb's panels: one unit each (positions [m], torques [N m] …)
+        plot_result(sol.to_result(), ["coordinates", "efforts"], out=args.plot,
+                    mechanism=mech)
     data = sol.to_json()
     s = sol.stats
     replay = s.get("replay_error")

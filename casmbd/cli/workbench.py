@@ -13,10 +13,12 @@ from casmbd.analysis.sensitivity import sensitivity
 from casmbd.analysis.simulate import simulate
 from casmbd.analysis.sweep import parse_values, sweep
 from casmbd.cli.common import _check_out, _load
-from casmbd.errors import AnalysisError
+from casmbd.errors import AnalysisError, ResultFileError
 from casmbd.io.scene import load_scene
 from casmbd.limits import MAX_FRAMES, check_count
-from casmbd.results import load
+from casmbd.ocp.solution import OcpSolution
+from casmbd.results import Result
+from casmbd.results import load as load_result
 from casmbd.viz.animation import (
     animate,
     check_animation_file,
@@ -25,6 +27,19 @@ from casmbd.viz.animation import (
     save_animation,
 )
 from casmbd.viz.plots import available_kinds, check_figure_size, plot_result
+
+
+def load(path: str) -> Result:
+    """A result file, or an OCP solution file written before OCP solutions were result files
+    (:meth:`~casmbd.ocp.solution.OcpSolution.to_result`: coordinates and controls); the
+    result file's error when it is neither."""
+    try:
+        return load_result(path)
+    except ResultFileError as exc:
+        try:
+            return OcpSolution.load(path).to_result()
+        except ResultFileError:
+            raise exc from None
 
 
 def _cmd_plot(args) -> tuple[dict, str]:

@@ -10,9 +10,13 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from casmbd.analysis.kkt import accelerations_and_multipliers
 from casmbd.analysis.simulate import Simulator
-from casmbd.errors import AnalysisError, IntegratorError, ResultFileError
-from casmbd.results import atomic_write, read_npz
+from casmbd.compiled.model import NumericModel
+from casmbd.errors import AnalysisError, CasmbdError, IntegratorError, ResultFileError
+from casmbd.interrupts import reraise_interrupt
+from casmbd.model.measures import result_names
+from casmbd.results import Result, atomic_write, read_npz
 
 #: Tolerance at which :meth:`OcpSolution.replay` repeats a replay whose integrator failed at a
 #: tighter one (near round-off, on fast elastic modes).
@@ -43,10 +47,14 @@ class OcpSolution:
         ``success``, ``return_status``, ``iterations``, ``constraint_violation``,
         ``solve_seconds`` (NLP solver wall time), ``setup_seconds``, sizes, and after
         :meth:`replay` ``replay_error``.
+    scene : str
+        The scene text of the problem's mechanism (empty when built in Python), saved with the
+        solution so that ``casmbd animate`` can draw it.
     """
 
     def __init__(self, t, q, v, u, stats, controls, coordinate_names, ocp=None, w=None,
-                 names=None):
+                 names=None, scene: str = "", arrays: dict | None = None,
+                 result_names: dict | None = None):
         self.t = np.asarray(t, dtype=float)
         self.q = np.asarray(q, dtype=float)
         self.v = np.asarray(v, dtype=float)
@@ -57,6 +65,11 @@ class OcpSolution:
         self.ocp = ocp
         self.w = w
         self.names = names
+        self.scene = scene or (getattr(ocp.system.mechanism, "scene_text", "") or ""
+                               if ocp is not None else "")
+        #: node arrays and their names read from a file (:meth:`to_result` without the problem)
+        self._arrays = dict(arrays or {})
+        self._result_names = dict(result_names or {})
 
     @classmethod
     def from_transcription(cls, tr, x: np.ndarray, info: dict, lam_g, g) -> OcpSolution:
@@ -212,29 +225,100 @@ class OcpSolution:
                 "coordinates": {n: self.q[:, i].tolist()
                                 for i, n in enumerate(self.coordinate_names)}}
 
+    def node_controls(self) -> np.ndarray:
+        """The controls (n_t, n_u) at the mesh nodes: node k takes the piecewise-constant
+        control of interval min(k // S, N − 1) (the last node that of the last interval)."""
+        k = np.minimum(np.arange(len(self.t)) // self.subintervals, len(self.u) - 1)
+        return self.u[k] if len(self.u) else np.zeros((len(self.t), len(self.controls)))
+
+    def to_result(self) -> Result:
+        """The solution as a :class:`~casmbd.results.Result` of kind ``"ocp"`` on the mesh
+        nodes, for :func:`casmbd.viz.plot_result`, :func:`casmbd.viz.animate` and the
+        ``plot``/``animate`` verbs.
+
+        With the problem at hand: q, q̇, q̈ and λ of the augmented equations
+        M q̈ + C_qᵀ λ = Q_e(u) + Q_v, C_q q̈ = γ at every node under its control
+        (:meth:`node_controls`), the body, marker and joint outputs, the requests, the
+        actuator inputs and max |C| (``constraint_violation``); for a solution loaded from a
+        file, the arrays the file holds (a file written before issue 30 holds q, q̇ and the
+        controls only).
+        """
+        u_nodes = self.node_controls()
+        stats = {k: v for k, v in self.stats.items() if _jsonable(v)}
+        if self.ocp is None:
+            arrays = dict(self._arrays) or {"q": self.q, "v": self.v}
+            arrays.setdefault("actuator_inputs", u_nodes)
+            names = dict(self._result_names) or {"coordinates": list(self.coordinate_names),
+                                                 "bodies": [], "markers": [], "joints": [],
+                                                 "all_joints": []}
+            names.setdefault("actuators", list(self.controls))
+            return Result("ocp", self.t.copy(), arrays, names, stats, self.scene)
+        system = self.ocp.system
+        mech = system.mechanism
+        model = NumericModel(system, "dynamics", mode="vm")
+        n = len(self.t)
+        acc, lam = np.zeros((n, model.nq)), np.zeros((n, model.nc))
+        violation = np.zeros(n)
+        for k in range(n):
+            try:
+                acc[k], lam[k] = accelerations_and_multipliers(model, self.q[k], self.v[k],
+                                                               float(self.t[k]), u_nodes[k])
+            except (CasmbdError, ArithmeticError, ValueError, RuntimeError,
+                    np.linalg.LinAlgError) as exc:  # a failed solve's last iterate: no q̈
+                reraise_interrupt(exc)
+                acc[k], lam[k] = np.nan, np.nan
+            if model.nc:
+                violation[k] = float(np.max(np.abs(model.constraints(self.q[k],
+                                                                       float(self.t[k])))))
+        outputs = model.outputs(self.q, self.v, acc, self.t)
+        names = {"coordinates": list(system.coordinate_names), "bodies": system.body_names,
+                 "markers": list(mech.markers), "joints": system.joint_coordinate_names,
+                 "all_joints": list(mech.joints), "actuators": list(self.controls),
+                 **result_names(mech)}
+        arrays = {"q": self.q, "v": self.v, "a": acc, **outputs, "actuator_inputs": u_nodes,
+                  "constraint_violation": violation}
+        return Result("ocp", self.t.copy(), arrays, names, stats, self.scene)
+
     def save(self, path: str | os.PathLike) -> Path:
-        """Every array and the statistics in one npz file, written atomically."""
+        """The solution in one npz file, written atomically: a result file of kind ``"ocp"``
+        (:meth:`to_result`, so ``casmbd plot`` and ``casmbd animate`` read it) plus the
+        controls per interval ``u`` and the problem's names in its ``meta``."""
         path = Path(path)
-        meta = {"stats": {k: v for k, v in self.stats.items() if _jsonable(v)},
-                "controls": self.controls, "coordinates": self.coordinate_names}
-        atomic_write(path, lambda tmp: np.savez(tmp, t=self.t, q=self.q, v=self.v, u=self.u,
-                                                meta=np.array(json.dumps(meta))))
+        payload = self.to_result().payload(controls=self.controls,
+                                           coordinates=self.coordinate_names)
+        payload["u"] = self.u
+
+        def write(tmp: str) -> None:
+            with open(tmp, "wb") as fh:
+                np.savez_compressed(fh, **payload)
+
+        atomic_write(path, write)
         return path
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> OcpSolution:
-        """A solution saved by :meth:`save` (without the problem: no expressions, no replay)."""
+        """A solution saved by :meth:`save` (without the problem: no expressions, no replay),
+        or by casmbd before issue 30 (top-level ``q`` and ``v``)."""
         data = read_npz(path, "OCP solution")  # ResultFileError on a bad file, naming it
         try:
             meta = json.loads(str(data["meta"]))
-            return cls(data["t"], data["q"], data["v"], data["u"], meta["stats"],
-                       meta["controls"], meta["coordinates"])
+            arrays = {k.split("/", 1)[1]: a for k, a in data.items() if k.startswith("array/")}
+            q = arrays["q"] if "q" in arrays else data["q"]
+            v = arrays["v"] if "v" in arrays else data["v"]
+            scene = data.get("scene", np.array(""))
+            return cls(data["t"], q, v, data["u"], meta["stats"], meta["controls"],
+                       meta["coordinates"], scene=str(scene), arrays=arrays,
+                       result_names=meta.get("names"))
         except (ValueError, KeyError, TypeError) as exc:
             raise ResultFileError(f"'{path}' is not a casmbd OCP solution file "
                                   f"({type(exc).__name__}: {exc})") from None
 
     def plot(self, path: str | os.PathLike | None = None):
-        """Coordinates and controls against time (matplotlib figure; saved when ``path``)."""
+        """Coordinates and controls against time (matplotlib figure; saved when ``path``).
+
+        A quick figure of the raw arrays; the figure with one unit per panel (positions [m],
+        angles [rad], forces [N], torques [N m]) is
+        ``casmbd.viz.plot_result(sol.to_result())``, which ``casmbd ocp --plot`` draws."""
         import matplotlib
 
         if path is not None:

@@ -16,12 +16,13 @@ Registered here, in this order (one module each):
 * ``augmented_lagrangian`` — ODE by the augmented-Lagrangian iteration, the default
   (:mod:`.augmented_lagrangian`);
 * ``articulated`` — the O(N) articulated-body recursion for trees in joint coordinates
-  (:mod:`.articulated`).
+  (:mod:`.articulated`);
+* ``nullspace``, ``partitioning`` — numeric formulations (:mod:`.numeric`:
+  :class:`NumericFormulation`, right-hand sides evaluated by numpy around the compiled
+  equations): declared here, so the registry is complete on import, and evaluated by the
+  analysis layer (:mod:`casmbd.analysis.nullspace`, :mod:`casmbd.analysis.partitioning`).
 
-The numeric formulations ``partitioning`` and ``nullspace`` (:class:`NumericFormulation`:
-right-hand sides evaluated by numpy around the compiled equations) are registered by the
-analysis layer that evaluates them (:mod:`casmbd.analysis.partitioning`,
-:mod:`casmbd.analysis.nullspace`).  How to add a formulation: docs/dynamics.md.
+How to add a formulation: docs/dynamics.md.
 """
 
 from __future__ import annotations
@@ -42,10 +43,11 @@ from casmbd.system.formulations.base import (
 )
 from casmbd.system.formulations.dae import Ggl, Index1, ggl, index1
 from casmbd.system.formulations.kkt_ode import KktOde, kkt_ode
-from casmbd.system.formulations.numeric import NumericFormulation
+from casmbd.system.formulations.numeric import Nullspace, NumericFormulation, Partitioning
 from casmbd.system.formulations.post import post_processing
 
-for _kind in (Index1(), Ggl(), KktOde(), AugmentedLagrangian(), Articulated()):
+for _kind in (Index1(), Ggl(), KktOde(), AugmentedLagrangian(), Articulated(), Nullspace(),
+              Partitioning()):
     register_formulation(_kind)
 
 
@@ -65,7 +67,8 @@ def default_formulation(system: System) -> str:
 
 
 __all__ = ["DEFAULT_FORMULATION", "FORMULATIONS", "Articulated", "AugmentedLagrangian",
-           "Formulation", "FormulationKind", "Ggl", "Index1", "KktOde", "NumericFormulation",
+           "Formulation", "FormulationKind", "Ggl", "Index1", "KktOde", "Nullspace",
+           "NumericFormulation", "Partitioning",
            "articulated", "augmented_lagrangian", "build", "default_formulation",
            "formulation_kind", "ggl", "index1", "kkt_ode", "post_processing",
            "register_formulation"]
