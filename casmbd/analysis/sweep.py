@@ -38,9 +38,10 @@ from pathlib import Path
 import numpy as np
 
 from casmbd import interrupts
+from casmbd.analysis.events import compliant_events, has_events
 from casmbd.analysis.inverse import inverse_dynamics
 from casmbd.analysis.kinematics import kinematics
-from casmbd.analysis.simulate import Simulator
+from casmbd.analysis.simulate import Simulator, Simulators, event_formulation, simulate
 from casmbd.analysis.statics import STATICS_NEEDS, static_equilibrium, statics_functions
 from casmbd.analysis.sweep_result import SweepResult, _table, load_sweep
 from casmbd.analysis.sweep_values import (
@@ -98,7 +99,18 @@ class _Runner:
         build = {k: opts[k] for k in _BUILD_OPTIONS.get(self.analysis, ()) if k in opts}
         self.run_options = {k: opts[k] for k in _RUN_OPTIONS[self.analysis] if k in opts}
         mode = spec["mode"]
-        if self.analysis == "simulate":
+        #: the event-driven run's simulators (impact contacts, stops, stick-slip), kept
+        #: across points; None: one Simulator run at every point
+        self.simulators = None
+        if self.analysis == "simulate" and has_events(mech):
+            # every point through simulate() itself: phase by phase with its events
+            self.simulators = Simulators(event_formulation(mech, build.get("formulation")),
+                                         build.get("inputs"), mode,
+                                         build.get("formulation_options"),
+                                         build.get("redundancy", "auto"))
+            self.engine = self.simulators(mech)  # the base phase, built here
+            self.model = self.engine.model
+        elif self.analysis == "simulate":
             self.engine = Simulator(mech, mode=mode, **build)
             self.model = self.engine.model
         elif self.analysis == "kinematics":
@@ -120,8 +132,13 @@ class _Runner:
         # (initial velocities in joint coordinates are evaluated at it too)
         self.model.p[:] = [p[n] for n in self.names]
         opts = self.run_options
+        if self.simulators is not None:  # the same entry as simulate(), at these values
+            self.mechanism.parameters = p
+            return simulate(self.mechanism, t_end, steps, simulators=self.simulators, **opts)
         if self.analysis == "simulate":
-            return self.engine.run(t_end, steps, **opts)
+            result = self.engine.run(t_end, steps, **opts)
+            compliant_events(result, self.mechanism)  # as simulate() does
+            return result
         if self.analysis == "kinematics":
             return kinematics(self.model, t_end=t_end, steps=steps, **opts)
         if self.analysis == "inverse":
