@@ -35,8 +35,10 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
+from casmbd.analysis.events import has_events
 from casmbd.analysis.integrators import CapturedOutput
 from casmbd.analysis.kkt import consistent_state
+from casmbd.analysis.sensitivity_events import check_event_elements, event_sensitivity
 from casmbd.analysis.simulate import Simulator, _input_expression
 from casmbd.errors import AnalysisError, IntegratorError
 from casmbd.interrupts import reraise_interrupt
@@ -127,6 +129,32 @@ def output_names(system, a: ca.SX, lam: ca.SX, u: ca.SX,
     return names
 
 
+def _check_runtime(mechanism, chosen: Sequence[str]) -> None:
+    """Refuse parameters that fix load-time numbers of the scene (positions, points, axes,
+    initial velocities, restitution coefficients, stops are evaluated when the scene is
+    read): the derivative would miss their effect.  Checked by reading the scene again with
+    the parameter moved (``mech.scene_points``, set by the scene reader; a mechanism built in
+    Python has none and is not checked)."""
+    scenes = getattr(mechanism, "scene_points", None)
+    if scenes is None:
+        return
+    fixed = []
+    for name in chosen:
+        value = float(mechanism.parameters[name])
+        try:
+            scenes.point_scenes([{name: value + 1e-3 * (1.0 + abs(value))}])
+        except AnalysisError:
+            fixed.append(name)
+    if fixed:
+        raise AnalysisError(
+            f"sensitivity: parameter(s) {', '.join(repr(n) for n in fixed)} fix load-time "
+            f"numbers of {scenes.source} (positions, points, axes, initial velocities, "
+            "restitution coefficients or stops are evaluated when the scene is read), so "
+            "their derivative would miss that effect; differentiate with respect to "
+            "parameters of masses, inertias, forces, springs and drivers, or use finite "
+            "differences of runs of scene files written with the moved value")
+
+
 def _split(spec: str) -> tuple[str, str]:
     text = str(spec).strip()
     for kind in ("integral", "final"):
@@ -183,6 +211,9 @@ def sensitivity(mechanism, outputs: Sequence[str] | str, parameters: Sequence[st
     outputs = [outputs] if isinstance(outputs, str) else list(outputs)
     if not outputs:
         raise AnalysisError("sensitivity: no outputs given")
+    events = has_events(mechanism)
+    if events:  # before any work: the event elements whose jump is not handled
+        check_event_elements(mechanism, method)
     t0 = time.perf_counter()
     sim = Simulator(mechanism, "index1", inputs=inputs)
     system, dsys = sim.system, sim._dyn_system
@@ -197,6 +228,7 @@ def sensitivity(mechanism, outputs: Sequence[str] | str, parameters: Sequence[st
                                 f"{', '.join(known)})")
     if not chosen:
         raise AnalysisError("sensitivity: no parameters given")
+    _check_runtime(mechanism, chosen)
     u_expr = _input_expression(system, inputs)
     kept = sim.redundancy.get("kept_rows")
 
@@ -259,6 +291,12 @@ def sensitivity(mechanism, outputs: Sequence[str] | str, parameters: Sequence[st
     p_all = ca.MX(ca.DM(p_nom))
     for k, i in enumerate(idx):
         p_all[i] = psel[k]
+    if events:  # impacts and stops: phase by phase, with the jump at each event
+        val, jac_v, extra = event_sensitivity(
+            mechanism, sim, system, dsys, finals, integrals, order, start_fun, p_nom, idx,
+            t_start, t_end, rtol, atol, inputs, max_steps, t, x, z, p)
+        return _result(outputs, chosen, val, jac_v, method, idx, p_nom, t_start, t_end, rtol,
+                       atol, time.perf_counter() - t0, 0.0, extra)
     res = integ(x0=start_fun(p_all), z0=np.concatenate([st.a, st.lam]), p=p_all)
     final_fun = ca.Function("finals", [t, x, z, p], [ca.vertcat(*finals)]) if finals else None
     fin = final_fun(float(t_end), res["xf"], res["zf"], p_all) if finals else ca.MX(0, 1)
@@ -288,12 +326,17 @@ def sensitivity(mechanism, outputs: Sequence[str] | str, parameters: Sequence[st
                               float("nan"), "IDA_FAILURE") from None
     val = np.asarray(val.full(), dtype=float).ravel()
     jac_v = np.asarray(jac_v.full(), dtype=float).reshape(len(values), len(idx))
+    return _result(outputs, chosen, val, jac_v, method, idx, p_nom, t_start, t_end, rtol, atol,
+                   build, time.perf_counter() - t1, {})
+
+
+def _result(outputs, chosen, val, jac_v, method, idx, p_nom, t_start, t_end, rtol, atol,
+            build, solve, extra) -> SensitivityResult:
     stats = {"rtol": rtol, "atol": atol, "t_start": float(t_start), "t_end": float(t_end),
-             "build_seconds": build, "solve_seconds": time.perf_counter() - t1,
+             "build_seconds": build, "solve_seconds": solve,
              "parameter_values": {n: float(p_nom[i]) for n, i in zip(chosen, idx)},
-             "formulation": "index1", "integrator": "idas"}
+             "formulation": "index1", "integrator": "idas", **extra}
     if not (np.all(np.isfinite(val)) and np.all(np.isfinite(jac_v))):
         raise IntegratorError("sensitivity: non-finite outputs or derivatives at t_end = "
                               f"{t_end:g}", float(t_end), "NON_FINITE")
-    return SensitivityResult(outputs, chosen, val, jac_v, method,
-                             stats)
+    return SensitivityResult(outputs, chosen, val, jac_v, method, stats)

@@ -1,0 +1,141 @@
+"""Sensitivities across impacts (issue 30, item 2): the jump of the sensitivity at an event.
+
+The forward sensitivity of an event-driven run is propagated phase by phase with the
+saltation jump at each impact (casmbd.analysis.sensitivity_events) and checked against
+
+* central finite differences of whole event-driven ``simulate`` runs (rtol 1e-12, step 1e-5:
+  truncation ~1e-10, noise ~1e-12/1e-5 = 1e-7 absolute) — agreement to 1e-6 relative;
+* the closed form of a ball pushed onto the floor by F under gravity: a = g + F/m,
+  t₁ = sqrt(2 h0 / a), y(t) = r + e a t₁ (t − t₁) − a (t − t₁)²/2 between the first two
+  impacts (its derivatives by central differences of the formula, 1e-7 relative);
+* ∫ v_y dt = y(t_end) − y(0): the integral of a velocity that jumps at the impact, whose
+  derivative needs the boundary term (h⁻ − h⁺) dt_e/dp (1e-7 relative).
+
+The cases the jump does not cover are refused by name: a gap that closes (the ball at rest),
+stick-slip friction, friction at an impact, the adjoint method, a load-time parameter.
+"""
+
+from __future__ import annotations
+
+import math
+import pathlib
+
+import pytest
+from conftest import private_cache
+
+from casmbd.analysis.sensitivity import sensitivity
+from casmbd.analysis.simulate import simulate
+from casmbd.errors import AnalysisError
+from casmbd.io.scene import loads_scene
+from casmbd.io.scene_points import scene_with
+
+REPO = pathlib.Path(__file__).resolve().parent.parent
+BALL = REPO / "examples" / "bouncing_ball.toml"
+STOPS = REPO / "examples" / "pendulum_stops.toml"
+
+cache = private_cache("casmbd_cache_sensitivity_events", scope="module", autouse=True,
+                      CASMBD_COMPILE=None)
+
+#: the ball pushed down by a parameter force F (F = 5 N: impacts at 0.367 s and 0.955 s)
+PUSHED_BALL = BALL.read_text().replace("[[contacts]]", """[[forces]]
+name = "push"
+type = "force"
+body = "ball"
+value = [0.0, "-F"]
+
+[[contacts]]""").replace("h0 = 1.0 ", "F = 5.0\nh0 = 1.0 ")
+#: the pendulum with a damper of rate c at its pin (one impact on the stop at 0.390 s)
+DAMPED_STOPS = (STOPS.read_text() + """
+[[forces]]
+name = "damper"
+type = "rotational_spring_damper"
+joint = "pin"
+damping = "c"
+""").replace("m = 1.0\n", "m = 1.0\nc = 0.2\n", 1)
+
+
+def _central(text: str, name: str, column: int, t_end: float, h: float = 1e-5) -> float:
+    """∂q_column(t_end)/∂name by central differences of whole event-driven runs."""
+    value = float(loads_scene(text).parameters[name])
+    ends = []
+    for sign in (1.0, -1.0):
+        mech = loads_scene(scene_with(text, {name: value + sign * h}, "fd.toml"))
+        ends.append(simulate(mech, t_end, 100, rtol=1e-12, atol=1e-12).arrays["q"][-1, column])
+    return (ends[0] - ends[1]) / (2.0 * h)
+
+
+def _pushed_y(m: float, f: float, t: float, h0: float = 1.0, r: float = 0.1,
+              e: float = 0.8) -> float:
+    a = 9.81 + f / m
+    t1 = math.sqrt(2.0 * h0 / a)
+    return r + e * a * t1 * (t - t1) - 0.5 * a * (t - t1) ** 2
+
+
+def test_ball_across_two_impacts_matches_finite_differences_of_whole_runs():
+    """∂y(1 s)/∂(m, F) across the two impacts at 0.367 s and 0.955 s: the derivatives
+    −0.4766 and 0.09532 agree with central differences of simulate to 1e-6 relative."""
+    mech = loads_scene(PUSHED_BALL)
+    res = sensitivity(mech, ["ball_y"], ["m", "F"], 1.0, rtol=1e-12)
+    assert [e["kind"] for e in res.stats["events"]] == ["impact", "impact"]
+    assert res.stats["event_driven"] is True
+    for j, name in enumerate(("m", "F")):
+        fd = _central(PUSHED_BALL, name, 1, 1.0)
+        assert abs(res.jacobian[0, j] - fd) <= 1e-6 * abs(fd), name
+    assert abs(res.jacobian[0, 0] + 0.4766) < 1e-4 and abs(res.jacobian[0, 1] - 0.09532) < 1e-5
+
+
+def test_ball_after_one_impact_matches_the_closed_form():
+    """y(0.9 s) after one impact: value 1e-9 m, ∂y/∂m and ∂y/∂F to 1e-7 relative of the
+    closed form; ∫ v_y dt over [0, 0.9] (v_y jumps at the impact) = y(0.9) − y(0) with the
+    same derivatives (1e-7 relative)."""
+    mech = loads_scene(PUSHED_BALL)
+    res = sensitivity(mech, ["ball_y", "integral: ball_vy"], ["m", "F"], 0.9, rtol=1e-12)
+    assert len(res.stats["events"]) == 1
+    assert abs(res.values[0] - _pushed_y(1.0, 5.0, 0.9)) < 1e-9
+    assert abs(res.values[1] - (_pushed_y(1.0, 5.0, 0.9) - 1.1)) < 1e-9
+    h = 1e-6
+    exact = [(_pushed_y(1.0 + h, 5.0, 0.9) - _pushed_y(1.0 - h, 5.0, 0.9)) / (2 * h),
+             (_pushed_y(1.0, 5.0 + h, 0.9) - _pushed_y(1.0, 5.0 - h, 0.9)) / (2 * h)]
+    for j in range(2):
+        assert abs(res.jacobian[0, j] - exact[j]) <= 1e-7 * abs(exact[j])
+        assert abs(res.jacobian[1, j] - exact[j]) <= 1e-7 * abs(exact[j])
+
+
+def test_pendulum_on_its_stop_matches_finite_differences_of_whole_runs():
+    """The damped pendulum hits its stop at −1 rad at 0.390 s and rebounds: ∂θ(0.7 s)/∂c and
+    ∂θ/∂m agree with central differences of simulate to 1e-6 relative, and the angle stays
+    within the stop."""
+    mech = loads_scene(DAMPED_STOPS)
+    res = sensitivity(mech, ["pin_angle"], ["c", "m"], 0.7, rtol=1e-12)
+    assert [e["kind"] for e in res.stats["events"]] == ["limit"]
+    assert res.values[0] > -1.0
+    for j, name in enumerate(("c", "m")):
+        fd = _central(DAMPED_STOPS, name, 0, 0.7)
+        assert abs(res.jacobian[0, j] - fd) <= 1e-6 * abs(fd), name
+
+
+def test_what_the_jump_does_not_cover_is_refused_by_name():
+    # the bounces accumulate at t₁ (1 + e)/(1 − e) = 3.307 s, where the ball comes to rest: a
+    # closed contact
+    with pytest.raises(AnalysisError, match=r"'floor' closes .* t = 3\.307.*finite "
+                                            r"differences"):
+        sensitivity(loads_scene(PUSHED_BALL), ["ball_y"], ["F"], 4.5, rtol=1e-10)
+    with pytest.raises(AnalysisError, match="method 'adjoint' across impacts \\(floor\\)"):
+        sensitivity(loads_scene(PUSHED_BALL), ["ball_y"], ["F"], 1.0, method="adjoint")
+    # load-time numbers: the drop height is the initial position, the radius a contact field
+    with pytest.raises(AnalysisError, match="'h0' fix load-time numbers"):
+        sensitivity(loads_scene(PUSHED_BALL), ["ball_y"], ["h0"], 1.0)
+    rough = PUSHED_BALL.replace("friction = 0.0", "friction = 0.3")
+    with pytest.raises(AnalysisError, match=r"contact 'floor' \(sliding contact, friction 0\.3"):
+        sensitivity(loads_scene(rough), ["ball_y"], ["F"], 1.0)
+    stick = DAMPED_STOPS + """
+[[forces]]
+name = "dry"
+type = "joint_friction"
+joint = "pin"
+friction = 0.1
+stick_slip = true
+"""
+    with pytest.raises(AnalysisError, match="force 'dry' \\(joint friction with the exact "
+                                            "stick-slip law\\)"):
+        sensitivity(loads_scene(stick), ["pin_angle"], ["c"], 0.5)
