@@ -7,7 +7,8 @@ saltation jump at each impact (casmbd.analysis.sensitivity_events) and checked a
   truncation ~1e-10, noise ~1e-12/1e-5 = 1e-7 absolute) — agreement to 1e-6 relative;
 * the closed form of a ball pushed onto the floor by F under gravity: a = g + F/m,
   t₁ = sqrt(2 h0 / a), y(t) = r + e a t₁ (t − t₁) − a (t − t₁)²/2 between the first two
-  impacts (its derivatives by central differences of the formula, 1e-7 relative);
+  impacts (its derivatives by central differences of the formula, 1e-7 relative;
+  ∂y/∂e = a t₁ (t − t₁) exactly, 1e-9 relative);
 * ∫ v_y dt = y(t_end) − y(0): the integral of a velocity that jumps at the impact, whose
   derivative needs the boundary term (h⁻ − h⁺) dt_e/dp (1e-7 relative).
 
@@ -52,6 +53,14 @@ type = "rotational_spring_damper"
 joint = "pin"
 damping = "c"
 """).replace("m = 1.0\n", "m = 1.0\nc = 0.2\n", 1)
+
+
+#: the restitution coefficients and the stop as parameters (evaluated at run time)
+BALL_E = PUSHED_BALL.replace("restitution = 0.8", 'restitution = "eps"').replace(
+    "F = 5.0\n", "F = 5.0\neps = 0.8\n")
+STOPS_E = DAMPED_STOPS.replace("lower = -1.0 ", 'lower = "stop"').replace(
+    "restitution = 0.5 ", 'restitution = "eps"').replace("c = 0.2\n",
+                                                         "c = 0.2\neps = 0.5\nstop = -1.0\n")
 
 
 def _central(text: str, name: str, column: int, t_end: float, h: float = 1e-5) -> float:
@@ -112,6 +121,30 @@ def test_pendulum_on_its_stop_matches_finite_differences_of_whole_runs():
     for j, name in enumerate(("c", "m")):
         fd = _central(DAMPED_STOPS, name, 0, 0.7)
         assert abs(res.jacobian[0, j] - fd) <= 1e-6 * abs(fd), name
+
+
+def test_restitution_of_the_floor_matches_the_closed_form_and_whole_runs():
+    """∂y(0.9 s)/∂e after one impact = a t₁ (0.9 − t₁) = 2.898183 (the restitution map's
+    derivative Δ_p): closed form to 1e-9 relative, central differences of simulate to 1e-6."""
+    res = sensitivity(loads_scene(BALL_E), ["ball_y"], ["eps", "F"], 0.9, rtol=1e-12)
+    a = 9.81 + 5.0
+    t1 = math.sqrt(2.0 / a)
+    exact = a * t1 * (0.9 - t1)
+    assert abs(res.jacobian[0, 0] - exact) <= 1e-9 * exact
+    fd = _central(BALL_E, "eps", 1, 0.9)
+    assert abs(res.jacobian[0, 0] - fd) <= 1e-6 * abs(fd)
+
+
+def test_stop_position_and_restitution_match_finite_differences_of_whole_runs():
+    """The pendulum's stop and restitution as parameters: ∂θ(0.7 s)/∂e = 1.0842,
+    ∂θ/∂stop = 0.19751 (the gap's ∂g/∂p in dt_e/dp) and ∂θ/∂c agree with central differences
+    of simulate to 1e-6 relative."""
+    names = ["eps", "stop", "c"]
+    res = sensitivity(loads_scene(STOPS_E), ["pin_angle"], names, 0.7, rtol=1e-12)
+    for j, name in enumerate(names):
+        fd = _central(STOPS_E, name, 0, 0.7)
+        assert abs(res.jacobian[0, j] - fd) <= 1e-6 * abs(fd), name
+    assert abs(res.jacobian[0, 0] - 1.0842) < 1e-4 and abs(res.jacobian[0, 1] - 0.19751) < 1e-5
 
 
 def test_what_the_jump_does_not_cover_is_refused_by_name():

@@ -134,3 +134,27 @@ def test_simulators_are_reused_across_points(cache):
     fresh = simulate(loads_scene(scene_with(DAMPED_STOPS, {"c": 0.5}, "d.toml")), T_END, STEPS)
     np.testing.assert_allclose(again.arrays["q"], fresh.arrays["q"], rtol=0, atol=1e-12)
     assert np.max(np.abs(again.arrays["q"] - first.arrays["q"])) > 1e-3
+
+
+def test_sweep_over_the_restitution_and_the_stop(cache):
+    """Restitution coefficients and stops given by parameters are evaluated at run time: a
+    sweep over them is no longer refused as load-time; each point = simulate (1e-12), the
+    ball's centre after one bounce at y(1) = r + e g t₁ (1 − t₁) − g (1 − t₁)²/2 (1e-7 m),
+    the pendulum never past its swept stop (1e-9 rad)."""
+    ball = BALL.read_text().replace("restitution = 0.8", 'restitution = "eps"').replace(
+        "m = 1.0 ", "eps = 0.8\nm = 1.0 ")
+    points = [{"eps": e} for e in (0.7, 0.8, 0.9)]  # the second impact after 1 s
+    res = sweep(loads_scene(ball, source="ball_e.toml"), points=points, t_end=T_END,
+                steps=STEPS)
+    _points_equal_simulate(ball, "ball_e.toml", points, res, saved=False)
+    t1 = math.sqrt(2.0 / 9.81)
+    for i, values in enumerate(points):
+        y_end = 0.1 + values["eps"] * 9.81 * t1 * (1.0 - t1) - 0.5 * 9.81 * (1.0 - t1) ** 2
+        assert abs(res["final:q[ball.y]"][i] - y_end) < 1e-7
+    stops = STOPS.read_text().replace("lower = -1.0 ", 'lower = "stop"').replace(
+        "m = 1.0\n", "m = 1.0\nstop = -1.0\n", 1)
+    points = [{"stop": s} for s in (-1.2, -0.8, -0.4)]
+    res = sweep(loads_scene(stops, source="stops.toml"), points=points, t_end=T_END,
+                steps=STEPS, outputs=["final:q[pin.angle]", "min:q[pin.angle]"])
+    _points_equal_simulate(stops, "stops.toml", points, res, saved=False)
+    assert np.all(res["min:q[pin.angle]"] >= np.array([-1.2, -0.8, -0.4]) - 1e-9)

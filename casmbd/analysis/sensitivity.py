@@ -131,8 +131,8 @@ def output_names(system, a: ca.SX, lam: ca.SX, u: ca.SX,
 
 def _check_runtime(mechanism, chosen: Sequence[str]) -> None:
     """Refuse parameters that fix load-time numbers of the scene (positions, points, axes,
-    initial velocities, restitution coefficients, stops are evaluated when the scene is
-    read): the derivative would miss their effect.  Checked by reading the scene again with
+    initial velocities, radii are evaluated when the scene is read): the derivative would
+    miss their effect.  Checked by reading the scene again with
     the parameter moved (``mech.scene_points``, set by the scene reader; a mechanism built in
     Python has none and is not checked)."""
     scenes = getattr(mechanism, "scene_points", None)
@@ -148,11 +148,11 @@ def _check_runtime(mechanism, chosen: Sequence[str]) -> None:
     if fixed:
         raise AnalysisError(
             f"sensitivity: parameter(s) {', '.join(repr(n) for n in fixed)} fix load-time "
-            f"numbers of {scenes.source} (positions, points, axes, initial velocities, "
-            "restitution coefficients or stops are evaluated when the scene is read), so "
-            "their derivative would miss that effect; differentiate with respect to "
-            "parameters of masses, inertias, forces, springs and drivers, or use finite "
-            "differences of runs of scene files written with the moved value")
+            f"numbers of {scenes.source} (positions, points, axes, initial velocities and "
+            "contact radii are evaluated when the scene is read), so their derivative would "
+            "miss that effect; differentiate with respect to parameters of masses, "
+            "inertias, forces, springs, drivers, restitution coefficients or stops, or use "
+            "finite differences of runs of scene files written with the moved value")
 
 
 def _split(spec: str) -> tuple[str, str]:
@@ -292,11 +292,13 @@ def sensitivity(mechanism, outputs: Sequence[str] | str, parameters: Sequence[st
     for k, i in enumerate(idx):
         p_all[i] = psel[k]
     if events:  # impacts and stops: phase by phase, with the jump at each event
+        build = time.perf_counter() - t0
+        t1 = time.perf_counter()
         val, jac_v, extra = event_sensitivity(
             mechanism, sim, system, dsys, finals, integrals, order, start_fun, p_nom, idx,
             t_start, t_end, rtol, atol, inputs, max_steps, t, x, z, p)
         return _result(outputs, chosen, val, jac_v, method, idx, p_nom, t_start, t_end, rtol,
-                       atol, time.perf_counter() - t0, 0.0, extra)
+                       atol, build, time.perf_counter() - t1, extra)
     res = integ(x0=start_fun(p_all), z0=np.concatenate([st.a, st.lam]), p=p_all)
     final_fun = ca.Function("finals", [t, x, z, p], [ca.vertcat(*finals)]) if finals else None
     fin = final_fun(float(t_end), res["xf"], res["zf"], p_all) if finals else ca.MX(0, 1)

@@ -106,8 +106,7 @@ def _impact_map(system, element, k: int, dsys) -> ca.Function:
     gq = ca.jacobian(g, q)
     m_mat = dsys.mass_matrix
     nq, nc = dsys.nq, dsys.nc
-    e = element.restitution
-    e = ca.SX(e) if isinstance(e, (int, float)) else e
+    e = element.restitution_at(system.ctx)  # a parameter expression: Δ_p includes ∂/∂e
     if nc:
         cq = dsys.constraint_jacobian
         lower = ca.vertcat(cq, gq)
