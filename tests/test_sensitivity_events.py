@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 import pathlib
 
+import numpy as np
 import pytest
 from conftest import private_cache
 
@@ -145,6 +146,23 @@ def test_stop_position_and_restitution_match_finite_differences_of_whole_runs():
         fd = _central(STOPS_E, name, 0, 0.7)
         assert abs(res.jacobian[0, j] - fd) <= 1e-6 * abs(fd), name
     assert abs(res.jacobian[0, 0] - 1.0842) < 1e-4 and abs(res.jacobian[0, 1] - 0.19751) < 1e-5
+
+
+@pytest.mark.parametrize("coordinates", ["absolute", "natural"])
+def test_constrained_coordinates_give_the_same_jump(coordinates):
+    """The same pendulum in absolute or natural coordinates (the pin as constraint equations:
+    an index-1 DAE, the impulse law with C_q): the angle and ∫ v_x dt and their derivatives
+    with respect to e, the stop and c equal those of joint coordinates (an ODE) to 1e-7
+    relative."""
+    names = ["eps", "stop", "c"]
+    joint = sensitivity(loads_scene(STOPS_E), ["pin_angle", "integral: rod_vx"], names, 0.7,
+                        rtol=1e-12)
+    text = STOPS_E.replace("dimension = 2\n", f'dimension = 2\ncoordinates = "{coordinates}"\n')
+    angle = "rod_angle" if coordinates == "absolute" else "pin"
+    other = sensitivity(loads_scene(text), [angle, "integral: rod_vx"], names, 0.7, rtol=1e-12)
+    assert other.stats["events"][0]["element"] == "pin.limit.lower"
+    np.testing.assert_allclose(other.values, joint.values, rtol=1e-7)
+    np.testing.assert_allclose(other.jacobian, joint.jacobian, rtol=1e-7)
 
 
 def test_what_the_jump_does_not_cover_is_refused_by_name():
