@@ -64,6 +64,13 @@ STOPS_E = DAMPED_STOPS.replace("lower = -1.0 ", 'lower = "stop"').replace(
                                                          "c = 0.2\neps = 0.5\nstop = -1.0\n")
 
 
+#: the ball resting on the floor at the start, lifted by an upward force k t: it leaves the
+#: floor at t_d = m g / k and rises, y(t) = r + k (t − t_d)³ / (6 m)
+LIFTED_BALL = PUSHED_BALL.replace('value = [0.0, "-F"]', 'value = [0.0, "k * t"]').replace(
+    "F = 5.0\n", "k = 20.0\n").replace('position = [0.0, "h0 + r"]', 'position = [0.0, "r"]'
+                                          ).replace('point = [0.0, "h0 + r"]', 'point = [0.0, "r"]')
+
+
 def _central(text: str, name: str, column: int, t_end: float, h: float = 1e-5) -> float:
     """∂q_column(t_end)/∂name by central differences of whole event-driven runs."""
     value = float(loads_scene(text).parameters[name])
@@ -163,6 +170,42 @@ def test_constrained_coordinates_give_the_same_jump(coordinates):
     assert other.stats["events"][0]["element"] == "pin.limit.lower"
     np.testing.assert_allclose(other.values, joint.values, rtol=1e-7)
     np.testing.assert_allclose(other.jacobian, joint.jacobian, rtol=1e-7)
+
+
+def test_a_plastic_stop_closes_and_holds():
+    """e = 0 at the stop: the impact closes the gap (a closed phase with the stop as a
+    constraint) — θ(0.7 s) = stop, ∂θ/∂stop = 1 and ∂θ/∂c = 0 (1e-9), ∫ θ dt gains
+    ∂/∂stop = t_end − t_e (the time spent on the stop; 1e-7), and the derivatives equal
+    central differences of whole runs (1e-6 relative)."""
+    plastic = scene_with(STOPS_E, {"eps": 0.0}, "plastic.toml")
+    res = sensitivity(loads_scene(plastic), ["pin_angle", "integral: pin_angle"],
+                      ["stop", "c"], 0.7, rtol=1e-12)
+    assert [e["kind"] for e in res.stats["events"]] == ["limit", "contact"]
+    assert res.stats["phases"] == 2
+    t_e = res.stats["events"][0]["time"]
+    assert abs(res.values[0] + 1.0) < 1e-9
+    assert abs(res.jacobian[0, 0] - 1.0) < 1e-9 and abs(res.jacobian[0, 1]) < 1e-9
+    assert abs(res.jacobian[1, 0] - (0.7 - t_e)) < 1e-7
+    fd = _central(plastic, "stop", 0, 0.7)
+    assert abs(res.jacobian[0, 0] - fd) < 1e-6
+
+
+def test_a_resting_ball_lifted_off_matches_the_closed_form():
+    """A ball resting on the floor (closed from the start) lifted by k t leaves it at
+    t_d = m g / k (a detach: the multiplier reaches zero, q̈ continuous, S continuous):
+    y(1 s) = r + k (1 − t_d)³/(6 m) (1e-9 m); ∂y/∂k = (1 − t_d)³/(6 m) + g (1 − t_d)²/(2 k)
+    and ∂y/∂m = −(1 − t_d)³ k/(6 m²) − g (1 − t_d)²/(2 m) (1e-7 relative), and central
+    differences of whole runs (1e-6 relative)."""
+    res = sensitivity(loads_scene(LIFTED_BALL), ["ball_y"], ["k", "m"], 1.0, rtol=1e-12)
+    assert [e["kind"] for e in res.stats["events"]] == ["contact", "detach"]
+    k, m, g = 20.0, 1.0, 9.81
+    d = 1.0 - m * g / k
+    assert abs(res.values[0] - (0.1 + k * d**3 / (6 * m))) < 1e-9
+    exact = [d**3 / (6 * m) + g * d**2 / (2 * k), -k * d**3 / (6 * m**2) - g * d**2 / (2 * m)]
+    for j, name in enumerate(("k", "m")):
+        assert abs(res.jacobian[0, j] - exact[j]) <= 1e-7 * abs(exact[j]), name
+        fd = _central(LIFTED_BALL, name, 1, 1.0)
+        assert abs(res.jacobian[0, j] - fd) <= 1e-6 * abs(fd), name
 
 
 def test_what_the_jump_does_not_cover_is_refused_by_name():
