@@ -233,3 +233,22 @@ stick_slip = true
     with pytest.raises(AnalysisError, match="force 'dry' \\(joint friction with the exact "
                                             "stick-slip law\\)"):
         sensitivity(loads_scene(stick), ["pin_angle"], ["c"], 0.5)
+
+
+def test_cli_sensitivity_across_the_stop_and_the_refusal(capsys):
+    """`casmbd sensitivity examples/pendulum_stops.toml --output pin_angle --param m` crosses
+    the stop (one JSON object naming the event; ∂θ/∂m = 0: m cancels, 1e-9); over 5 s the
+    ball's bounces accumulate and the refusal names the floor (exit 1, no traceback)."""
+    import json
+
+    from casmbd import cli
+
+    assert cli.main(["sensitivity", str(STOPS), "--output", "pin_angle", "--param", "m",
+                     "--t-end", "0.7", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert [e["element"] for e in data["stats"]["events"]] == ["pin.limit.lower"]
+    assert abs(data["outputs"]["pin_angle"]["derivatives"]["m"]) < 1e-9
+    assert cli.main(["sensitivity", str(BALL), "--output", "ball_y", "--param", "m",
+                     "--t-end", "5"]) == 1
+    err = capsys.readouterr().err
+    assert "'floor' closes" in err and "Traceback" not in err

@@ -158,3 +158,60 @@ def test_sweep_over_the_restitution_and_the_stop(cache):
                 steps=STEPS, outputs=["final:q[pin.angle]", "min:q[pin.angle]"])
     _points_equal_simulate(stops, "stops.toml", points, res, saved=False)
     assert np.all(res["min:q[pin.angle]"] >= np.array([-1.2, -0.8, -0.4]) - 1e-9)
+
+
+#: a block thrown up an incline, exact Coulomb friction F_c = 7 N at its slide (stick-slip
+#: events); its mass a parameter: it sticks when m g sin α < F_c (m < 2.41 kg), else slides back
+INCLINE = """
+[scene]
+name = "incline"
+gravity = [0.0, -9.81]
+[parameters]
+mb = 2.0
+[[bodies]]
+name = "block"
+mass = "mb"
+inertia = 0.1
+position = [0.0, 0.0]
+velocity = ["3*cos(0.3)", "3*sin(0.3)"]
+[[joints]]
+name = "slide"
+type = "prismatic"
+body1 = "ground"
+body2 = "block"
+point = [0.0, 0.0]
+axis = ["cos(0.3)", "sin(0.3)"]
+friction = { coulomb = 7.0, stick_slip = true }
+"""
+
+
+def test_stick_slip_sweep_equals_simulate(cache):
+    """Stick-slip joint friction is an event element too: each point (m = 1.5, 2, 3 kg; the
+    last slides back) = simulate (1e-12), the events as simulate names them."""
+    points = [{"mb": m} for m in (1.5, 2.0, 3.0)]
+    res = sweep(loads_scene(INCLINE, source="incline.toml"), points=points, t_end=1.5,
+                steps=15)
+    assert list(res.status) == ["ok"] * 3
+    kinds = []
+    for i, values in enumerate(points):
+        direct = simulate(loads_scene(scene_with(INCLINE, values, "incline.toml")), 1.5, 15)
+        kinds.append([e["kind"] for e in direct.events])
+        for k, name in enumerate(direct.names["coordinates"]):
+            assert abs(res[f"final:q[{name}]"][i] - direct.arrays["q"][-1, k]) <= 1e-12
+    assert kinds == [["stick"], ["stick"], ["slip"]]
+
+
+def test_cli_sweep_of_the_issue_keeps_the_ball_above_the_floor(cache, capsys):
+    """The issue's reproduction, `casmbd sweep examples/bouncing_ball.toml --param m=1,2
+    --t-end 1 --steps 10 --json`: y(1) = 0.568004 m at both points (was −3.805)."""
+    import json
+
+    from casmbd import cli
+
+    status = cli.main(["sweep", str(BALL), "--param", "m=1,2", "--t-end", "1", "--steps", "10",
+                       "--json"])
+    captured = capsys.readouterr()
+    assert status == 0, captured.err
+    data = json.loads(captured.out)
+    ys = [p["outputs"]["final:q[ball.y]"] for p in data["points"]]
+    assert ys == pytest.approx([0.568004, 0.568004], abs=1e-6)
