@@ -219,6 +219,10 @@ def test_what_the_jump_does_not_cover_is_refused_by_name():
     # load-time numbers: the drop height is the initial position, the radius a contact field
     with pytest.raises(AnalysisError, match="'h0' fix load-time numbers"):
         sensitivity(loads_scene(PUSHED_BALL), ["ball_y"], ["h0"], 1.0)
+    # by default (all parameters) they are left out, and said so
+    res = sensitivity(loads_scene(PUSHED_BALL), ["ball_y"], t_end=0.9)
+    assert res.parameters == ["m", "F"]
+    assert sorted(res.stats["skipped_parameters"]) == ["h0", "r"]
     rough = PUSHED_BALL.replace("friction = 0.0", "friction = 0.3")
     with pytest.raises(AnalysisError, match=r"contact 'floor' \(sliding contact, friction 0\.3"):
         sensitivity(loads_scene(rough), ["ball_y"], ["F"], 1.0)

@@ -129,15 +129,15 @@ def output_names(system, a: ca.SX, lam: ca.SX, u: ca.SX,
     return names
 
 
-def _check_runtime(mechanism, chosen: Sequence[str]) -> None:
-    """Refuse parameters that fix load-time numbers of the scene (positions, points, axes,
-    initial velocities, radii are evaluated when the scene is read): the derivative would
-    miss their effect.  Checked by reading the scene again with
-    the parameter moved (``mech.scene_points``, set by the scene reader; a mechanism built in
-    Python has none and is not checked)."""
+def _load_time(mechanism, chosen: Sequence[str]) -> list[str]:
+    """The parameters of ``chosen`` that fix load-time numbers of the scene (positions,
+    points, axes, initial velocities, radii are evaluated when the scene is read), whose
+    derivative would miss that effect.  Found by reading the scene again with the parameter
+    moved (``mech.scene_points``, set by the scene reader; a mechanism built in Python has
+    none and is not checked)."""
     scenes = getattr(mechanism, "scene_points", None)
     if scenes is None:
-        return
+        return []
     fixed = []
     for name in chosen:
         value = float(mechanism.parameters[name])
@@ -145,14 +145,20 @@ def _check_runtime(mechanism, chosen: Sequence[str]) -> None:
             scenes.point_scenes([{name: value + 1e-3 * (1.0 + abs(value))}])
         except AnalysisError:
             fixed.append(name)
+    return fixed
+
+
+def _check_runtime(mechanism, chosen: Sequence[str]) -> None:
+    """Refuse parameters that fix load-time numbers of the scene (:func:`_load_time`)."""
+    fixed = _load_time(mechanism, chosen)
     if fixed:
         raise AnalysisError(
             f"sensitivity: parameter(s) {', '.join(repr(n) for n in fixed)} fix load-time "
-            f"numbers of {scenes.source} (positions, points, axes, initial velocities and "
-            "contact radii are evaluated when the scene is read), so their derivative would "
-            "miss that effect; differentiate with respect to parameters of masses, "
-            "inertias, forces, springs, drivers, restitution coefficients or stops, or use "
-            "finite differences of runs of scene files written with the moved value")
+            f"numbers of {mechanism.scene_points.source} (positions, points, axes, initial "
+            "velocities and contact radii are evaluated when the scene is read), so their "
+            "derivative would miss that effect; differentiate with respect to parameters of "
+            "masses, inertias, forces, springs, drivers, restitution coefficients or stops, "
+            "or use finite differences of runs of scene files written with the moved value")
 
 
 def _split(spec: str) -> tuple[str, str]:
@@ -178,7 +184,9 @@ def sensitivity(mechanism, outputs: Sequence[str] | str, parameters: Sequence[st
         (optionally prefixed ``"final:"``), or ``"integral: EXPR"`` for ∫ EXPR dt over
         [t_start, t_end].
     parameters : sequence of str, optional
-        The parameters to differentiate with respect to (default: all).
+        The parameters to differentiate with respect to (default: all that enter at run
+        time; those that fix load-time numbers of a scene are left out and listed in
+        ``stats["skipped_parameters"]``).
     t_end, t_start : float
         The horizon.
     method : {"forward", "adjoint"}
@@ -222,6 +230,9 @@ def sensitivity(mechanism, outputs: Sequence[str] | str, parameters: Sequence[st
         raise AnalysisError(f"sensitivity: mechanism '{system.mechanism.name}' declares no "
                             "parameters")
     chosen = list(known if parameters is None else parameters)
+    skipped = _load_time(mechanism, chosen) if parameters is None else []
+    if skipped and len(skipped) < len(chosen):  # "all": those with a derivative
+        chosen = [n for n in chosen if n not in skipped]
     for name in chosen:
         if name not in known:
             raise AnalysisError(f"sensitivity: unknown parameter '{name}' (known: "
@@ -298,7 +309,7 @@ def sensitivity(mechanism, outputs: Sequence[str] | str, parameters: Sequence[st
             mechanism, sim, system, dsys, finals, integrals, order, start_fun, p_nom, idx,
             t_start, t_end, rtol, atol, inputs, max_steps, t, x, z, p)
         return _result(outputs, chosen, val, jac_v, method, idx, p_nom, t_start, t_end, rtol,
-                       atol, build, time.perf_counter() - t1, extra)
+                       atol, build, time.perf_counter() - t1, extra, skipped)
     res = integ(x0=start_fun(p_all), z0=np.concatenate([st.a, st.lam]), p=p_all)
     final_fun = ca.Function("finals", [t, x, z, p], [ca.vertcat(*finals)]) if finals else None
     fin = final_fun(float(t_end), res["xf"], res["zf"], p_all) if finals else ca.MX(0, 1)
@@ -329,15 +340,18 @@ def sensitivity(mechanism, outputs: Sequence[str] | str, parameters: Sequence[st
     val = np.asarray(val.full(), dtype=float).ravel()
     jac_v = np.asarray(jac_v.full(), dtype=float).reshape(len(values), len(idx))
     return _result(outputs, chosen, val, jac_v, method, idx, p_nom, t_start, t_end, rtol, atol,
-                   build, time.perf_counter() - t1, {})
+                   build, time.perf_counter() - t1, {}, skipped)
 
 
 def _result(outputs, chosen, val, jac_v, method, idx, p_nom, t_start, t_end, rtol, atol,
-            build, solve, extra) -> SensitivityResult:
+            build, solve, extra, skipped=()) -> SensitivityResult:
     stats = {"rtol": rtol, "atol": atol, "t_start": float(t_start), "t_end": float(t_end),
              "build_seconds": build, "solve_seconds": solve,
              "parameter_values": {n: float(p_nom[i]) for n, i in zip(chosen, idx)},
              "formulation": "index1", "integrator": "idas", **extra}
+    if skipped:
+        stats["skipped_parameters"] = {n: "fixes load-time numbers of the scene"
+                                       for n in skipped}
     if not (np.all(np.isfinite(val)) and np.all(np.isfinite(jac_v))):
         raise IntegratorError("sensitivity: non-finite outputs or derivatives at t_end = "
                               f"{t_end:g}", float(t_end), "NON_FINITE")
