@@ -215,3 +215,24 @@ def test_cli_sweep_of_the_issue_keeps_the_ball_above_the_floor(cache, capsys):
     data = json.loads(captured.out)
     ys = [p["outputs"]["final:q[ball.y]"] for p in data["points"]]
     assert ys == pytest.approx([0.568004, 0.568004], abs=1e-6)
+
+
+def test_compliant_sweep_reports_the_events_simulate_reports(cache, tmp_path):
+    """A compliant floor (Hunt-Crossley force, no event detection): the sweep runs one
+    Simulator with p set per point, and each saved point carries the contact/detach events
+    that simulate interpolates on its grid (same times to 1e-12) and its trajectory (1e-12)."""
+    text = PUSHED_BALL.replace('model = "impact"',
+                               'model = "compliant"\nstiffness = 1e5\ndamping = 200.0')
+    points = [{"F": 0.0}, {"F": 5.0}]
+    res = sweep(loads_scene(text, source="soft.toml"), points=points, t_end=T_END, steps=40,
+                out_dir=tmp_path)
+    from casmbd.results import load
+
+    for i, values in enumerate(points):
+        direct = simulate(loads_scene(scene_with(text, values, "soft.toml")), T_END, 40)
+        point = load(res.files[i])
+        assert [e["kind"] for e in point.events] == [e["kind"] for e in direct.events]
+        assert [e["kind"] for e in direct.events][:2] == ["contact", "detach"]
+        np.testing.assert_allclose([e["time"] for e in point.events],
+                                   [e["time"] for e in direct.events], rtol=0, atol=1e-12)
+        np.testing.assert_allclose(point.arrays["q"], direct.arrays["q"], rtol=0, atol=1e-12)
