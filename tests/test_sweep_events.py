@@ -236,3 +236,30 @@ def test_compliant_sweep_reports_the_events_simulate_reports(cache, tmp_path):
         np.testing.assert_allclose([e["time"] for e in point.events],
                                    [e["time"] for e in direct.events], rtol=0, atol=1e-12)
         np.testing.assert_allclose(point.arrays["q"], direct.arrays["q"], rtol=0, atol=1e-12)
+
+
+def test_statics_sweep_rests_on_the_floor_and_the_stop(cache):
+    """A statics sweep of a scene with impact contacts or stops goes through the statics entry
+    itself (the active set of closed gaps): the ball rests on the floor carrying m g, the
+    pendulum on its stop at −1 rad carrying m g (L/2) cos 1 = 2.650 N m per kg (1e-10), each
+    point = static_equilibrium of the scene at that value (1e-12).  Before, the pendulum's
+    points hung straight down through the stop (−1.5708 rad, "ok") and the ball's failed."""
+    from casmbd.analysis.statics import static_equilibrium
+
+    for path, coord, force in ((BALL, "ball.y", lambda m: m * 9.81),
+                               (STOPS, "pin.angle",
+                                lambda m: m * 9.81 * 0.5 * math.cos(1.0))):
+        text = path.read_text()
+        points = [{"m": 1.0}, {"m": 2.0}]
+        res = sweep(loads_scene(text, source=str(path)), points=points, analysis="statics",
+                    outputs=[f"final:q[{coord}]", "final:contact_forces[0]"], executor="processes",
+                    workers=2)
+        assert list(res.status) == ["ok", "ok"], res.errors
+        for i, values in enumerate(points):
+            direct = static_equilibrium(loads_scene(scene_with(text, values, str(path))))
+            k = direct.names["coordinates"].index(coord)
+            assert abs(res[f"final:q[{coord}]"][i] - direct.q[k]) <= 1e-12
+            first = next(iter(direct.contacts.values()))["normal_force"]
+            assert abs(res["final:contact_forces[0]"][i] - first) <= 1e-12
+            assert abs(first - force(values["m"])) <= 1e-10
+    assert np.all(res["final:q[pin.angle]"] >= -1.0 - 1e-12)

@@ -102,6 +102,10 @@ class _Runner:
         #: the event-driven run's simulators (impact contacts, stops, stick-slip), kept
         #: across points; None: one Simulator run at every point
         self.simulators = None
+        #: statics with impact contacts or stops: each point through static_equilibrium of
+        #: the mechanism itself (the active set of closed gaps, analysis.resting)
+        self.resting = self.analysis == "statics" and has_events(mech)
+        self.mode = mode
         if self.analysis == "simulate" and has_events(mech):
             # every point through simulate() itself: phase by phase with its events
             self.simulators = Simulators(event_formulation(mech, build.get("formulation")),
@@ -143,7 +147,9 @@ class _Runner:
             return kinematics(self.model, t_end=t_end, steps=steps, **opts)
         if self.analysis == "inverse":
             return inverse_dynamics(self.model, t_end=t_end, steps=steps, **opts)
-
+        if self.resting:  # the same entry as the statics verb, at these values
+            self.mechanism.parameters = p
+            return _statics_result(static_equilibrium(self.mechanism, mode=self.mode, **opts))
         return _statics_result(static_equilibrium(self.model, **opts))
 
 
@@ -160,6 +166,9 @@ def _statics_result(res) -> Result:
               # the bodies' poses, so that body.NAME.… outputs and the absolute-coordinate
               # names q[NAME.x] … read them whatever coordinates were chosen
               "body_positions": np.asarray(res.body_positions, float).reshape(1, -1)}
+    if res.contacts:  # closed contacts and stops: their normal forces (0 when open)
+        names["contacts"] = list(res.contacts)
+        arrays["contact_forces"] = np.array([[c["normal_force"] for c in res.contacts.values()]])
     if len(res.body_quaternions):
         arrays["rotation_matrices"] = _rotation_rows(np.asarray(res.body_quaternions, float))
     else:
