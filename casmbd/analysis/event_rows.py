@@ -118,8 +118,11 @@ class EventRows:
         # of a contact or stop is evaluated at run time; stick rows: 0)
         rest = [element.restitution_at(ctx) if hasattr(element, "restitution_at")
                 else ca.SX(element.restitution) for element, _ in self.rows]
-        self._restitution = ca.Function("restitution", [system.t, system.p],
-                                        [ca.vertcat(*rest) if rest else ca.SX(0, 1)])
+        rest = ca.vertcat(*rest) if rest else ca.SX(0, 1)
+        self._restitution = ca.Function("restitution", [system.t, system.p], [rest])
+        #: ∂e/∂p of every row (a restitution given by a parameter; sensitivities)
+        self.restitution_jacobian = ca.Function("restitution_jacobian", [system.t, system.p],
+                                                [ca.jacobian(rest, system.p)])
         self.fun = ca.Function("gaps", [system.q, system.v, system.t, system.p],
                                [g, ca.densify(ca.jacobian(pos, system.q)),
                                 ca.densify(ca.jacobian(vt, system.v)), pos])

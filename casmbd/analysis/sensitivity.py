@@ -38,7 +38,12 @@ import numpy as np
 from casmbd.analysis.events import has_events
 from casmbd.analysis.integrators import CapturedOutput
 from casmbd.analysis.kkt import consistent_state
-from casmbd.analysis.sensitivity_events import check_event_elements, event_sensitivity
+from casmbd.analysis.sensitivity_events import (
+    ADJOINT_OPTIONS,
+    check_event_elements,
+    event_sensitivity,
+    index1_ode,
+)
 from casmbd.analysis.simulate import Simulator, _input_expression
 from casmbd.errors import AnalysisError, IntegratorError
 from casmbd.interrupts import reraise_interrupt
@@ -221,7 +226,7 @@ def sensitivity(mechanism, outputs: Sequence[str] | str, parameters: Sequence[st
         raise AnalysisError("sensitivity: no outputs given")
     events = has_events(mechanism)
     if events:  # before any work: the event elements whose jump is not handled
-        check_event_elements(mechanism, method)
+        check_event_elements(mechanism)
     t0 = time.perf_counter()
     sim = Simulator(mechanism, "index1", inputs=inputs)
     system, dsys = sim.system, sim._dyn_system
@@ -275,10 +280,14 @@ def sensitivity(mechanism, outputs: Sequence[str] | str, parameters: Sequence[st
     # (q̈, λ) out of the error test (suppress_algebraic): in an index-1 DAE they follow from
     # (q, v), whose error and sensitivities are tested; with them in the test IDAS failed at
     # the onset of a compliant contact (IDA_TOO_MUCH_WORK at t = 0.3675 for a ball on a
-    # Hunt-Crossley floor, rtol 1e-8 … 1e-11), which now matches finite differences
+    # Hunt-Crossley floor, rtol 1e-8 … 1e-11), which now matches finite differences.  The
+    # quadratures (integral outputs) and their sensitivities in it (quad_err_con): without,
+    # they were integrated with the states' steps, huge where the motion is a polynomial —
+    # ∂(∫ y dt)/∂F of a pushed ball over 0.3 s came out −0.005122 instead of −T³/6 = −0.0045
     opts = {"reltol": rtol, "abstol": atol, "max_num_steps": max_steps, "calc_ic": True,
-            "fsens_err_con": True, "suppress_algebraic": True, "print_stats": False,
-            "show_eval_warnings": False, "disable_internal_warnings": False}
+            "fsens_err_con": True, "quad_err_con": True, "suppress_algebraic": True,
+            "print_stats": False, "show_eval_warnings": False,
+            "disable_internal_warnings": False}
     integ = ca.integrator("sensitivity_dae", "idas", dae, float(t_start), [float(t_end)], opts)
 
     # --- the consistent start as a function of p (exact first derivatives)
@@ -311,10 +320,23 @@ def sensitivity(mechanism, outputs: Sequence[str] | str, parameters: Sequence[st
         t1 = time.perf_counter()
         val, jac_v, extra = event_sensitivity(
             mechanism, sim, system, dsys, finals, integrals, order, start_fun, p_nom, idx,
-            t_start, t_end, rtol, atol, inputs, max_steps, t, x, z, p)
+            t_start, t_end, rtol, atol, inputs, max_steps, t, x, z, p, method, tuple(chosen))
         return _result(outputs, chosen, val, jac_v, method, idx, p_nom, t_start, t_end, rtol,
                        atol, build, time.perf_counter() - t1, extra, skipped)
-    res = integ(x0=start_fun(p_all), z0=np.concatenate([st.a, st.lam]), p=p_all)
+    if method == "forward":
+        res = integ(x0=start_fun(p_all), z0=np.concatenate([st.a, st.lam]), p=p_all)
+    else:  # the adjoint through CVODES on the ODE with (q̈, λ) eliminated (index1_ode)
+        build_ode = index1_ode(t, x, z, p, ode, alg, dae.get("quad", ca.SX(0, 1)))
+        tm, xm, pm = ca.MX.sym("t"), ca.MX.sym("x", x.numel()), ca.MX.sym("p", p.numel())
+        _, ode_m, quad_m = build_ode(tm, xm, pm)
+        ode_dae = {"t": tm, "x": xm, "p": pm, "ode": ode_m, **({"quad": quad_m} if integrals
+                                                               else {})}
+        ode_integ = ca.integrator("sensitivity_ode", "cvodes", ode_dae, float(t_start),
+                                  [float(t_end)], {"reltol": rtol, "abstol": atol,
+                                                   "max_num_steps": max_steps,
+                                                   **ADJOINT_OPTIONS})
+        res = dict(ode_integ(x0=start_fun(p_all), p=p_all))
+        res["zf"] = build_ode(ca.MX(float(t_end)), res["xf"], p_all)[0]
     final_fun = ca.Function("finals", [t, x, z, p], [ca.vertcat(*finals)]) if finals else None
     fin = final_fun(float(t_end), res["xf"], res["zf"], p_all) if finals else ca.MX(0, 1)
     values = []

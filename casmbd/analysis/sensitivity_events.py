@@ -67,7 +67,7 @@ _INSTEAD = ("use finite differences of whole runs (a sweep over the parameter), 
             "compliant model (model = 'compliant'), whose forces are smooth")
 
 
-def check_event_elements(mechanism, method: str) -> None:
+def check_event_elements(mechanism) -> None:
     """Refuse, before any work, the event elements whose sensitivity jump is not handled.
 
     Raises
@@ -93,12 +93,6 @@ def check_event_elements(mechanism, method: str) -> None:
         raise AnalysisError("sensitivity: joint friction that follows the reactions, with "
                             "impact contacts or stops, is not handled across impacts; "
                             + _INSTEAD)
-    if method != "forward":
-        names = [c.name for c in mechanism.contacts.values() if c.model == "impact"]
-        raise AnalysisError(
-            f"sensitivity: method '{method}' across impacts ({', '.join(names)}) is not "
-            "implemented: the jump of the adjoint at an event is not written; use "
-            "method='forward'")
 
 
 class _Probe:
@@ -130,6 +124,39 @@ def _impact_map(system, element, k: int, dsys) -> ca.Function:
     v_plus = ca.solve(saddle, rhs)[:nq]
     return ca.Function("impact_map", [q, v, t, p],
                        [v_plus, g, gq, ca.jacobian(g, t), ca.jacobian(g, p)])
+
+
+#: CVODES options of the adjoint: the parameter adjoints are backward quadratures, which
+#: must be in the error test — without it CasADi 3.8 integrates them with the steps of the
+#: backward states, huge where those are polynomials: ∂y(0.3)/∂p of ÿ = p − g came out 0.0801
+#: (CVODES) or 0.0543 (IDAS) instead of 0.045; with it, 0.045.
+ADJOINT_OPTIONS = {"quad_err_con": True, "print_stats": False, "show_eval_warnings": False}
+
+
+def index1_ode(t, x, z, p, ode, alg, quad):
+    """The index-1 DAE with its algebraic states eliminated, for the adjoint: z = (q̈, λ)
+    solves the linear equations alg = A(t, x, p) z − b(t, x, p) = 0, so ẋ = ode(t, x, z(t, x,
+    p), p) is an ODE integrated by CVODES, whose adjoint CasADi differentiates reliably.
+    (Through IDAS, CasADi 3.8's adjoint of a DAE is unreliable: its parameter adjoints, the
+    backward quadratures, fail IDAS's error test when put into it (IDA_TOO_MUCH_WORK) and are
+    wrong without it — 0.0551 for ∂y/∂F = T²/2 = 0.045 of a pushed ball at T = 0.3 s; see
+    :data:`ADJOINT_OPTIONS`; casadi/casadi#3104 for the backward initialisation.)  Returns
+    ``build(t, x, p) -> (z, ẋ, quadratures)`` in MX."""
+    a_mat = ca.jacobian(alg, z)
+    if ca.depends_on(a_mat, z):
+        raise AnalysisError("sensitivity: method 'adjoint' needs the index-1 equations linear "
+                            "in (q̈, λ) (friction that follows the reactions makes them "
+                            "nonlinear); use method='forward'")
+    b = -ca.substitute(alg, z, ca.SX.zeros(z.shape))
+    parts = ca.Function("index1_parts", [t, x, p], [a_mat, b])
+    rhs = ca.Function("index1_rhs", [t, x, z, p], [ode, quad])
+
+    def build(tm, xm, pm):
+        a_m, b_m = parts(tm, xm, pm)
+        zm = ca.solve(a_m, b_m)
+        ode_m, quad_m = rhs(tm, xm, zm, pm)
+        return zm, ode_m, quad_m
+    return build
 
 
 class _Phase:
@@ -169,6 +196,12 @@ class _Phase:
         outs = [res["xf"], res["zf"], res["qf"] if self.n_int else ca.MX(0, 1)]
         jacs = [ca.jacobian(o, a) for o in outs for a in (xm, pm)]
         self.flow = ca.Function("phase_flow", [xm, zm, pm, th], outs + jacs)
+        self._value = ca.Function("phase_value", [xm, zm, pm, th], outs)
+        self._io = (xm, zm, pm, th, outs)
+        self._ode = (index1_ode(t_x, x_sym, z, p_sym, ode, alg, integ_expr),
+                     {k: opts[k] for k in ("reltol", "abstol", "max_num_steps")})
+        self.nz = z.numel()
+        self._vjps: dict[int, ca.Function] = {}
         self.rhs = ca.Function("rhs", [t_x, x_sym, z, p_sym], [ode])
         self.h_fun = ca.Function("integrands", [t_x, x_sym, z, p_sym], [integ_expr])
         self.fin_fun = ca.Function("finals", [t_x, x_sym, z, p_sym],
@@ -190,6 +223,38 @@ class _Phase:
     def advance(self, x: np.ndarray, t: float, h: float) -> list[np.ndarray]:
         """x, z, quadratures at t + h and their Jacobians with respect to x(t) and p."""
         return [_dense(g) for g in self.flow(x, self.z_of(x, t), self.p_nom, [t, h])]
+
+    def value(self, x: np.ndarray, t: float, h: float):
+        """x, z and the quadratures at t + h (no derivatives)."""
+        xf, zf, qf = self._value(x, self.z_of(x, t), self.p_nom, [t, h])
+        return _dense(xf).ravel(), _dense(zf).ravel(), _dense(qf).ravel()
+
+    def vjp(self, x: np.ndarray, t: float, h: float, seed_x, seed_z, seed_q):
+        """Rows L_x = s_x ∂x_f/∂x₀ + s_z ∂z_f/∂x₀ + s_q ∂Q/∂x₀ and L_p (the same with
+        respect to p) for each row of the seeds: reverse mode through CVODES on the phase's
+        ODE (:func:`index1_ode`; the adjoint ODE integrated backwards with checkpointing,
+        one backward solve per row)."""
+        n_dir = seed_x.shape[0]
+        if n_dir not in self._vjps:
+            build, opts = self._ode
+            xm = ca.MX.sym("x", len(x))
+            pm, th, s = ca.MX.sym("p", len(self.p_nom)), ca.MX.sym("th", 2), ca.MX.sym("s")
+            _, ode_m, quad_m = build(th[0] + th[1] * s, xm, pm)
+            dae = {"t": s, "x": xm, "p": ca.vertcat(pm, th), "ode": th[1] * ode_m}
+            if self.n_int:
+                dae["quad"] = th[1] * quad_m
+            integ = ca.integrator("phase_ode", "cvodes", dae, 0.0, [1.0],
+                                  {**opts, **ADJOINT_OPTIONS})
+            res = integ(x0=xm, p=ca.vertcat(pm, th))
+            zf = build(th[0] + th[1], res["xf"], pm)[0]
+            outs = [res["xf"], zf, res["qf"] if self.n_int else ca.MX(0, 1)]
+            seeds = [ca.MX.sym(f"seed{k}", o.numel(), n_dir) for k, o in enumerate(outs)]
+            back = ca.jtimes(ca.vertcat(*outs), ca.vertcat(xm, pm), ca.vertcat(*seeds), True)
+            self._vjps[n_dir] = ca.Function("phase_vjp", [xm, pm, th, *seeds], [back])
+        back = _dense(self._vjps[n_dir](x, self.p_nom, [t, h], np.asarray(seed_x).T,
+                                        np.asarray(seed_z).T,
+                                        np.asarray(seed_q).T.reshape(self.n_int, n_dir))).T
+        return back[:, :len(x)], back[:, len(x):]
 
     def f(self, x: np.ndarray, z: np.ndarray, t: float) -> np.ndarray:
         return _dense(self.rhs(t, x, z, self.p_nom)).ravel()
@@ -242,9 +307,10 @@ def _steps(events: list[dict], rows: EventRows, p_nom: np.ndarray, t_start: floa
 def event_sensitivity(mechanism, sim, system, dsys, finals: list, integrals: list,
                       order: list, start_fun: ca.Function, p_nom: np.ndarray, idx: list[int],
                       t_start: float, t_end: float, rtol: float, atol: float, inputs,
-                      max_steps: int, t_x, x_sym, z_sym, p_sym):
-    """Values and forward sensitivities of the outputs of an event-driven run (module
-    docstring).  Returns (values, jacobian, stats)."""
+                      max_steps: int, t_x, x_sym, z_sym, p_sym, method: str = "forward",
+                      chosen_names: tuple = ()):
+    """Values and sensitivities (``method`` "forward" or "adjoint") of the outputs of an
+    event-driven run (module docstring).  Returns (values, jacobian, stats)."""
     t0 = time.perf_counter()
     if sim.redundancy.get("kept_rows") is not None:
         raise AnalysisError(
@@ -268,9 +334,10 @@ def event_sensitivity(mechanism, sim, system, dsys, finals: list, integrals: lis
     # resting body lifted by a growing force — fails the error test at every step size
     # (measured: "error test failed repeatedly" at t = 0, h = 3.8e-9); in an index-1 DAE they
     # follow from the differential states, whose error (and their sensitivities') is tested
+    # (quadratures in the error test as in sensitivity.py: quad_err_con)
     opts = {"reltol": rtol, "abstol": atol, "max_num_steps": max_steps, "calc_ic": True,
-            "fsens_err_con": True, "suppress_algebraic": True, "print_stats": False,
-            "show_eval_warnings": False}
+            "fsens_err_con": True, "quad_err_con": True, "suppress_algebraic": True,
+            "print_stats": False, "show_eval_warnings": False}
     nq = dsys.nq
     base_labels = [str(lab) for lab in sim.model.constraint_labels]
     syms = (t_x, x_sym, z_sym, p_sym)
@@ -297,13 +364,14 @@ def event_sensitivity(mechanism, sim, system, dsys, finals: list, integrals: lis
                                     opts, p_nom)
         return phases[closed]
 
-    # ---- phase by phase
+    # ---- the run, phase by phase: states, landing on the gaps, and the linear jumps
     sim.model.p[:] = p_nom
     x = _dense(start_fun(p_nom)).ravel()
-    s_mat = _start_jacobian(start_fun, p_nom)  # ∂x/∂p (every parameter; chosen at the end)
-    n_int = len(integrals)
+    s_start = _start_jacobian(start_fun, p_nom)  # ∂x₀/∂p (every parameter; chosen at the end)
+    n_int, n_x, n_p = len(integrals), len(x), len(p_nom)
     integral = np.zeros(n_int)
-    d_integral = np.zeros((n_int, len(p_nom)))
+    segments: list[tuple] = []  # (phase, x at its start, t, h, x⁻, z⁻)
+    jumps: list[tuple] = []  # (A, B, C_x, C_p): S⁺ = A S⁻ + B, ∫ gains C_x S⁻ + C_p
     t = float(t_start)
     closed: frozenset = frozenset()
     captured = CapturedOutput()
@@ -314,38 +382,30 @@ def event_sensitivity(mechanism, sim, system, dsys, finals: list, integrals: lis
                 t_next = float(t_end) if step is None else float(step[0])
                 h = t_next - t
                 if h > 0.0:
-                    got = phase.advance(x, t, h)
+                    xf, zf, qf = phase.value(x, t, h)
                     if step is not None and step[1] in ("impact", "close"):
                         # land on the gap: Newton on g(x(t + h)) = 0
                         imap = phase.impact_map(rows, step[2])
                         for _ in range(4):
-                            xf, zf = got[0].ravel(), got[1].ravel()
                             _, g, gq, g_t, _ = imap(xf[:nq], xf[nq:], t + h, p_nom)
                             rate = float(_dense(gq).ravel() @ phase.f(xf, zf, t + h)[:nq]) \
                                 + _scalar(g_t)
                             if abs(_scalar(g)) <= 1e-15 or rate == 0.0:
                                 break
                             h -= _scalar(g) / rate
-                            got = phase.advance(x, t, h)
-                    xf, zf, qf, jxx, jxp, jzx, jzp, jqx, jqp = got
-                    xf, zf = xf.ravel(), zf.ravel()
-                    s_minus = jxx @ s_mat + jxp
-                    dz = jzx @ s_mat + jzp
-                    if n_int:
-                        integral += qf.ravel()
-                        d_integral += jqx @ s_mat + jqp
+                            xf, zf, qf = phase.value(x, t, h)
+                    integral += qf
                 else:  # an event at the start
-                    xf, s_minus = x, s_mat
-                    zf = phase.z_of(x, t)
-                    dz = np.zeros((len(zf), len(p_nom)))
-                if step is None:  # t_end: the final values
-                    val, fx, fz, fp = (_dense(a) for a in phase.fin_fun(t_end, xf, zf, p_nom))
-                    d_fin = fx @ s_minus + fz @ dz + fp
+                    xf, zf = x, phase.z_of(x, t)
+                segments.append((phase, x, t, h, xf, zf))
+                if step is None:
                     break
                 t_e, kind, i = float(t + h), step[1], step[2]
                 label = rows.label(i)
                 if kind == "detach":  # q̈ continuous at −λ = 0: S continuous
-                    x, s_mat, t = xf, s_minus, t_e
+                    jumps.append((np.eye(n_x), np.zeros((n_x, n_p)), np.zeros((n_int, n_x)),
+                                  np.zeros((n_int, n_p))))
+                    x, t = xf, t_e
                     closed = closed - {i}
                     continue
                 # the jump at an impact (module docstring); a plastic impact closes the gap
@@ -353,15 +413,32 @@ def event_sensitivity(mechanism, sim, system, dsys, finals: list, integrals: lis
                 v_plus, g, gq, g_t, g_p = (_dense(a) for a in
                                            imap(xf[:nq], xf[nq:], t_e, p_nom))
                 g_x = np.concatenate([gq.ravel(), np.zeros(nq)])
+                g_p = g_p.ravel()
                 f_minus = phase.f(xf, zf, t_e)
+                x_plus = np.concatenate([xf[:nq], v_plus.ravel()])
+                d_x, d_t, d_p = _jump_jacobians(imap, xf, t_e, p_nom, nq)
+                if kind == "close":  # e = 0 here; for e > 0 the gap would not close
+                    de_dp = _dense(rows.restitution_jacobian(t_e, p_nom)).reshape(
+                        len(rows.rows), n_p)[i, idx]
+                    if np.any(de_dp != 0.0):
+                        names = [str(n) for n, d in zip(chosen_names, de_dp) if d != 0.0]
+                        raise AnalysisError(
+                            f"sensitivity: the restitution of '{label}' (e = 0: the impact "
+                            f"at t = {t_e:.6g} closes it) depends on {', '.join(names)}: for "
+                            "e > 0 the gap would bounce instead of closing, so the derivative "
+                            f"is one-sided; {_INSTEAD}")
+                if kind in ("close", "start"):
+                    closed = closed | {i}
+                after = phase_of(closed)
+                z_plus = after.z_of(x_plus, t_e)
                 if kind == "start":  # closed at the fixed start time: no event time to move
-                    moved = g_x @ s_minus + g_p.ravel()
+                    moved = g_x @ s_start + g_p
                     if np.max(np.abs(moved), initial=0.0) > 1e-12:
                         raise AnalysisError(
                             f"sensitivity: '{label}' touches at the start and its gap moves "
                             "with the parameters (it would open or penetrate): not "
                             f"differentiable; {_INSTEAD}")
-                    tau = np.zeros(len(p_nom))
+                    jumps.append((d_x, d_p, np.zeros((n_int, n_x)), np.zeros((n_int, n_p))))
                 else:
                     rate = float(g_x @ f_minus) + _scalar(g_t)
                     if rate > -1e-9 * (1.0 + np.linalg.norm(f_minus[:nq])):
@@ -369,21 +446,21 @@ def event_sensitivity(mechanism, sim, system, dsys, finals: list, integrals: lis
                             f"sensitivity: '{label}' is reached grazing at t = {t_e:.6g} "
                             f"(approach speed {rate:.3g}): the event time is not "
                             f"differentiable; {_INSTEAD}")
-                    tau = -(g_x @ s_minus + g_p.ravel()) / rate  # dt_e/dp
-                x_plus = np.concatenate([xf[:nq], v_plus.ravel()])
-                d_x, d_t, d_p = _jump_jacobians(imap, xf, t_e, p_nom, nq)
-                if kind in ("close", "start"):
-                    closed = closed | {i}
-                after = phase_of(closed)
-                z_plus = after.z_of(x_plus, t_e)
-                f_plus = after.f(x_plus, z_plus, t_e)
-                s_mat = (d_x @ (s_minus + np.outer(f_minus, tau)) + np.outer(d_t, tau) + d_p
-                         - np.outer(f_plus, tau))
-                if n_int:
-                    h_minus = _dense(phase.h_fun(t_e, xf, zf, p_nom)).ravel()
-                    h_plus = _dense(after.h_fun(t_e, x_plus, z_plus, p_nom)).ravel()
-                    d_integral += np.outer(h_minus - h_plus, tau)
+                    # τ = dt_e/dp = −(g_x S⁻ + g_p)/rate; S⁺ = Δ_x S⁻ + Δ_p + w τ
+                    w = d_x @ f_minus + d_t - after.f(x_plus, z_plus, t_e)
+                    jump_h = np.zeros(n_int)
+                    if n_int:
+                        jump_h = _dense(phase.h_fun(t_e, xf, zf, p_nom)).ravel() - \
+                            _dense(after.h_fun(t_e, x_plus, z_plus, p_nom)).ravel()
+                    jumps.append((d_x - np.outer(w, g_x) / rate, d_p - np.outer(w, g_p) / rate,
+                                  -np.outer(jump_h, g_x) / rate, -np.outer(jump_h, g_p) / rate))
                 x, t = x_plus, t_e
+            last, _, _, _, x_end, z_end = segments[-1]
+            val, fx, fz, fp = (_dense(a) for a in last.fin_fun(t_end, x_end, z_end, p_nom))
+            if method == "forward":
+                d_fin, d_integral = _forward(segments, jumps, s_start, fx, fz, fp, n_int)
+            else:
+                d_fin, d_integral = _adjoint(segments, jumps, s_start, fx, fz, fp, n_int)
     except RuntimeError as exc:
         reraise_interrupt(exc)
         msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else "failed"
@@ -399,9 +476,64 @@ def event_sensitivity(mechanism, sim, system, dsys, finals: list, integrals: lis
             values.append(val[k])
             jac.append(d_fin[k, idx])
     stats = {"events": [dict(e) for e in events], "event_driven": True,
-             "event_sensitivity": "saltation (jump of S at each impact)",
+             "event_sensitivity": f"saltation (jump of S at each event), {method}",
              "phases": len(phases), "event_seconds": time.perf_counter() - t0}
     return np.array(values, float), np.array(jac, float).reshape(len(values), len(idx)), stats
+
+
+def _forward(segments, jumps, s_start, fx, fz, fp, n_int):
+    """S = ∂x/∂p carried forward: through each phase by IDAS's forward sensitivities (the
+    flow's Jacobians), through each event by its jump."""
+    s_mat = s_start
+    n_p = s_start.shape[1]
+    d_integral = np.zeros((n_int, n_p))
+    for k, (phase, x0, t0, h, _, zf) in enumerate(segments):
+        if h > 0.0:
+            _, _, _, jxx, jxp, jzx, jzp, jqx, jqp = phase.advance(x0, t0, h)
+            s_minus = jxx @ s_mat + jxp
+            dz = jzx @ s_mat + jzp
+            if n_int:
+                d_integral += jqx @ s_mat + jqp
+        else:
+            s_minus, dz = s_mat, np.zeros((len(zf), n_p))
+        if k == len(segments) - 1:
+            return fx @ s_minus + fz @ dz + fp, d_integral
+        a_mat, b_mat, c_x, c_p = jumps[k]
+        d_integral += c_x @ s_minus + c_p
+        s_mat = a_mat @ s_minus + b_mat
+    raise AssertionError("no final segment")
+
+
+def _adjoint(segments, jumps, s_start, fx, fz, fp, n_int):
+    """The costate of every output carried backwards: through each phase by IDAS's adjoint
+    (vector-Jacobian products of the flow, one backward solve per output), through each event
+    by the transposed jump: L⁻ = L⁺ A + μ C_x, and ∂/∂p gains L⁺ B + μ C_p."""
+    n_f, n_x = fx.shape[0], s_start.shape[0]
+    n_out = n_f + n_int
+    mu = np.zeros((n_out, n_int))  # the quadrature seeds: one per integral output
+    mu[n_f:, :] = np.eye(n_int)
+    d_p = np.zeros((n_out, s_start.shape[1]))
+    d_p[:n_f] = fp
+    seed_x = np.zeros((n_out, n_x))
+    seed_x[:n_f] = fx
+    seed_z = np.zeros((n_out, fz.shape[1]))
+    seed_z[:n_f] = fz
+    costate = None
+    for k in range(len(segments) - 1, -1, -1):
+        phase, x0, t0, h, _, _ = segments[k]
+        if k < len(segments) - 1:  # the event after this phase, transposed
+            a_mat, b_mat, c_x, c_p = jumps[k]
+            d_p += costate @ b_mat + mu @ c_p
+            seed_x = costate @ a_mat + mu @ c_x
+            seed_z = np.zeros((n_out, phase.nz))
+        if h > 0.0:
+            l_x, l_p = phase.vjp(x0, t0, h, seed_x, seed_z, mu)
+            d_p += l_p
+            costate = l_x
+        else:
+            costate = seed_x
+    d_p += costate @ s_start
+    return d_p[:n_f], d_p[n_f:]
 
 
 def _dense(a) -> np.ndarray:
