@@ -29,13 +29,18 @@ DAE has the gap as a constraint (the closure joint of the event-driven run); a g
 the start (a body put down touching) changes nothing at the fixed start time; at a *detach*
 the multiplier is zero, so q̈ and with it S are continuous (f⁻ = f⁺: no jump).
 
+The jump is affine in S — S⁺ = A S⁻ + B, an integral gains C_x S⁻ + C_p — so the *forward*
+method carries S through it and the *adjoint* method carries each output's costate L back
+through its transpose: L⁻ = L⁺ A + μ C_x, ∂/∂p += L⁺ B + μ C_p (μ the integrals' seeds),
+through each phase by reverse mode on the phase's ODE (:func:`index1_ode`).
+
 Handled: impacts of frictionless contacts and joint stops (``impact`` model), one gap per
 event, rebounding or plastic; closed phases; detaching.  Refused by name
 (:class:`~casmbd.errors.AnalysisError`, with what to use instead): a gap that closes because
 its rebounds fell below the rest velocity (e > 0: Zeno's accumulation, cut at a threshold that
 has no derivative), a gap that closes at zero approach speed during the run, stick-slip joint
-friction, friction at an impact contact, simultaneous events, a grazing impact, the adjoint
-method.
+friction, friction at an impact contact, simultaneous events, a grazing impact, a derivative
+with respect to the restitution of a plastic impact that closes its gap (one-sided).
 """
 
 from __future__ import annotations
