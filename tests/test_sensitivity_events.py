@@ -304,6 +304,27 @@ def test_what_the_jump_does_not_cover_is_refused_by_name():
     res = sensitivity(loads_scene(PUSHED_BALL), ["ball_y"], t_end=0.9)
     assert res.parameters == ["m", "F"]
     assert sorted(res.stats["skipped_parameters"]) == ["h0", "r"]
+    # two balls dropped together: both gaps take an impulse at 0.4515 s (the run lists one
+    # event; the impact law's active set has both)
+    two = scene_with(PUSHED_BALL, {"F": 0.0}, "two.toml") + """
+[[bodies]]
+name = "ball2"
+mass = "m"
+inertia = "0.4 * m * r**2"
+position = [1.0, "h0 + r"]
+
+[[contacts]]
+name = "floor2"
+type = "plane"
+body = "ball2"
+point = [1.0, "h0 + r"]
+radius = "r"
+model = "impact"
+restitution = 0.8
+"""
+    with pytest.raises(AnalysisError, match=r"'floor' and 'floor2' impact together at "
+                                            r"t = 0\.451524"):
+        sensitivity(loads_scene(two), ["ball_y"], ["m"], 0.9)
     rough = PUSHED_BALL.replace("friction = 0.0", "friction = 0.3")
     with pytest.raises(AnalysisError, match=r"contact 'floor' \(sliding contact, friction 0\.3"):
         sensitivity(loads_scene(rough), ["ball_y"], ["F"], 1.0)

@@ -413,6 +413,17 @@ def event_sensitivity(mechanism, sim, system, dsys, finals: list, integrals: lis
                     x, t = xf, t_e
                     closed = closed - {i}
                     continue
+                # another open gap touching and approaching takes an impulse too (the impact
+                # law's active set): no single-gap jump
+                g_all, gq_all, _ = rows(xf[:nq], xf[nq:], t_e, p_nom)
+                also = [rows.label(j) for j in range(len(rows.rows)) if j != i and
+                        j not in closed and abs(g_all[j]) < 1e-9 and
+                        gq_all[j] @ xf[nq:] < 0.0]
+                if also:
+                    raise AnalysisError(
+                        f"sensitivity: '{label}' and {', '.join(repr(n) for n in also)} impact "
+                        f"together at t = {t_e:.6g}: simultaneous impacts have no unique "
+                        f"sensitivity jump; {_INSTEAD}")
                 # the jump at an impact (module docstring); a plastic impact closes the gap
                 imap = phase.impact_map(rows, i)
                 v_plus, g, gq, g_t, g_p = (_dense(a) for a in
