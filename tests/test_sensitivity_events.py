@@ -205,6 +205,22 @@ def test_a_plastic_stop_closes_and_holds():
     assert abs(res.jacobian[0, 0] - fd) < 1e-6
 
 
+@pytest.mark.parametrize("coordinates", ["absolute", "natural"])
+def test_plastic_stop_in_constrained_coordinates(coordinates):
+    """The plastic stop with the pin (and, closed, the stop) as constraint equations: the rod
+    rests at the stop, so ∫ v_x dt = x(T) − x(0) = (L/2)(cos 1 − 1) and its derivative with
+    respect to the stop is (L/2) sin 1 = 0.420735, with respect to c zero — exact to 1e-9 by
+    both methods."""
+    text = scene_with(STOPS_E, {"eps": 0.0}, "plastic.toml").replace(
+        "dimension = 2\n", f'dimension = 2\ncoordinates = "{coordinates}"\n')
+    for method in ("forward", "adjoint"):
+        res = sensitivity(loads_scene(text), ["integral: rod_vx"], ["stop", "c"], 0.7,
+                          rtol=1e-12, method=method)
+        assert abs(res.values[0] - 0.5 * (math.cos(1.0) - 1.0)) < 1e-9
+        assert abs(res.jacobian[0, 0] - 0.5 * math.sin(1.0)) < 1e-9, method
+        assert abs(res.jacobian[0, 1]) < 1e-9, method
+
+
 def test_a_resting_ball_lifted_off_matches_the_closed_form():
     """A ball resting on the floor (closed from the start) lifted by k t leaves it at
     t_d = m g / k (a detach: the multiplier reaches zero, q̈ continuous, S continuous):
