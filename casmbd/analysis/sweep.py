@@ -15,6 +15,12 @@ the same point function runs serially, on local processes (``concurrent.futures`
 the scene, the assembly or the integrator — is recorded with its message and the others are
 kept (and saved, ``out_dir/point_XXX.npz``).
 
+A scene with impact contacts, joint stops or stick-slip friction runs every point through
+:func:`~casmbd.analysis.simulate.simulate` itself (the event-driven run, its phase simulators
+kept per process in a :class:`~casmbd.analysis.simulate.Simulators`), and a statics sweep of
+such a scene through :func:`~casmbd.analysis.statics.static_equilibrium` of the mechanism (the
+active set of closed gaps): a point is what the verb gives at that value.
+
 Parameters that fix *load-time* numbers of the scene (positions, points, axes, initial
 velocities are evaluated when the scene is read, ``docs/scene-format.md``) cannot change at run
 time; a sweep over one of them is refused with an :class:`~casmbd.errors.AnalysisError` naming
