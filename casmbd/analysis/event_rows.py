@@ -114,6 +114,15 @@ class EventRows:
                 element.gap_row = next(i for i, (e, _) in enumerate(self.rows)
                                        if e is element.contact)
         self._maps: dict[int, ca.Function] = {}
+        # Newton's restitution of each row, at the run's parameters (an expression string
+        # of a contact or stop is evaluated at run time; stick rows: 0)
+        rest = [element.restitution_at(ctx) if hasattr(element, "restitution_at")
+                else ca.SX(element.restitution) for element, _ in self.rows]
+        rest = ca.vertcat(*rest) if rest else ca.SX(0, 1)
+        self._restitution = ca.Function("restitution", [system.t, system.p], [rest])
+        #: ∂e/∂p of every row (a restitution given by a parameter; sensitivities)
+        self.restitution_jacobian = ca.Function("restitution_jacobian", [system.t, system.p],
+                                                [ca.jacobian(rest, system.p)])
         self.fun = ca.Function("gaps", [system.q, system.v, system.t, system.p],
                                [g, ca.densify(ca.jacobian(pos, system.q)),
                                 ca.densify(ca.jacobian(vt, system.v)), pos])
@@ -131,6 +140,10 @@ class EventRows:
             self._maps[n] = self.fun.map(n)
         out = self._maps[n](qs.T, vs.T, np.asarray(ts)[None, :], np.tile(p[:, None], (1, n)))
         return np.asarray(out[0], float).reshape(-1, n).T
+
+    def restitution(self, i: int, t: float, p) -> float:
+        """Newton's restitution e of row i at the parameters ``p``."""
+        return float(np.asarray(self._restitution(t, p), float).ravel()[i])
 
     def positions(self, q, v, t, p) -> np.ndarray:
         """The closure equations' values (a stick row: q_j − q_stuck)."""

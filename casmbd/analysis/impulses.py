@@ -41,9 +41,8 @@ def impact(model, gaps, closed, i_ev, q, v, t, p, v_rest):
     for _ in range(len(active) + 1):
         rows, rhs, kinds = [], [], []
         for i in active:
-            element, _ = gaps.rows[i]
             rows.append(gq[i])
-            rhs.append(-element.restitution * (gq[i] @ v))
+            rhs.append(-gaps.restitution(i, t, p) * (gq[i] @ v))
             kinds.append(i)
         directions = np.array(rows)
         # friction: try sticking at frictional contacts

@@ -55,8 +55,8 @@ from casmbd.system.subset import ConstraintSubset
 # The formulations (name, state layout, default integrator, redundancy policy, initial
 # algebraic state) are objects in casmbd.system.formulations.FORMULATIONS and the integrators
 # in casmbd.analysis.integrators.INTEGRATORS: nothing here switches on their names.
-__all__ = ["DEFAULT_FORMULATION", "Simulator", "default_formulation", "plan_redundancy",
-           "simulate"]
+__all__ = ["DEFAULT_FORMULATION", "Simulator", "Simulators", "default_formulation",
+           "plan_redundancy", "simulate"]
 
 
 #: an ODE whose largest decay rate times the time span exceeds this is integrated with BDF
@@ -469,12 +469,70 @@ def simulate_handling(formulation: str | None = None, integrator: str | None = N
     return handling
 
 
+def event_formulation(mechanism, formulation: str | None) -> str | None:
+    """The formulation of an event-driven run: the one given, else ``index1`` when a closed
+    contact slides (its friction μ N follows the multipliers), else the default."""
+    if formulation is None and any(slides(c) for c in mechanism.contacts.values()):
+        return "index1"
+    return formulation
+
+
+class Simulators:
+    """The simulators of the event-driven run, kept across runs of one mechanism at other
+    parameter values (a parameter sweep: one per process).
+
+    The event-driven run asks for one :class:`Simulator` per set of closed gaps, each of a
+    variant of the mechanism with closure joints (and contact slide forces) added; a variant
+    is named by its joints and forces, whose load-time numbers a sweep keeps fixed.  A
+    simulator found again gets the parameter values of the mechanism it is asked for (its
+    ``model.p``), so that a run equals a fresh :func:`simulate`.  The augmented Lagrangian's
+    default penalty is computed from the parameter values at build time: such a simulator is
+    kept for these values only.
+    """
+
+    #: most simulators kept
+    MAX = 32
+
+    def __init__(self, formulation: str | None = None, inputs: Mapping | None = None,
+                 mode: str = "auto", formulation_options: Mapping | None = None,
+                 redundancy: str = "auto"):
+        self.options = (formulation, inputs, mode, formulation_options, redundancy)
+        self._found: dict[tuple, Simulator] = {}
+        #: simulators built, and found again
+        self.built = self.reused = 0
+
+    def _key(self, mech, by_values: bool) -> tuple:
+        values = tuple(float(v) if isinstance(v, (int, float)) else repr(v)
+                       for v in mech.parameters.values()) if by_values else ()
+        return (mech.name, tuple(mech.joints), tuple(mech.forces), values)
+
+    def __call__(self, mech) -> Simulator:
+        formulation, inputs, mode, formulation_options, redundancy = self.options
+        for by_values in (False, True):
+            sim = self._found.get(self._key(mech, by_values))
+            if sim is not None:
+                sim.model.set_parameters(**{n: v for n, v in mech.parameters.items()
+                                            if n in sim.model.parameter_names})
+                self.reused += 1
+                return sim
+        sim = Simulator(mech, formulation, inputs=inputs, mode=mode,
+                        formulation_options=formulation_options, redundancy=redundancy)
+        self.built += 1
+        by_values = sim.formulation_name == "augmented_lagrangian" and \
+            "penalty" not in dict(formulation_options or {})
+        while len(self._found) >= self.MAX:  # oldest first
+            self._found.pop(next(iter(self._found)))
+        self._found[self._key(mech, by_values)] = sim
+        return sim
+
+
 def simulate(mechanism, t_end: float, steps: int, *, formulation: str | None = None,
              integrator: str | None = None, rtol: float = 1e-8, atol: float | None = None,
              t_start: float = 0.0, inputs: Mapping | None = None, projection: bool = False,
              step: float | None = None, mode: str = "auto",
              formulation_options: Mapping | None = None,
-             max_steps: int | None = None, redundancy: str = "auto") -> Result:
+             max_steps: int | None = None, redundancy: str = "auto",
+             simulators: Simulators | None = None) -> Result:
     """Forward dynamics of a mechanism on a uniform output grid (one entry point).
 
     Parameters
@@ -498,6 +556,9 @@ def simulate(mechanism, t_end: float, steps: int, *, formulation: str | None = N
     redundancy : {"auto", "remove", "minimum_norm"}
         What to do with redundant constraint equations (:func:`plan_redundancy`); the
         result's ``stats`` give ``redundant_equations`` and ``redundancy``.
+    simulators : Simulators, optional
+        The event-driven run's simulators kept from earlier runs of this mechanism at other
+        parameter values (a sweep; built with the same options as this call).
 
     Returns
     -------
@@ -509,14 +570,12 @@ def simulate(mechanism, t_end: float, steps: int, *, formulation: str | None = N
         check_steps("simulation", int(steps), output_values(mechanism))
     check(mechanism, simulate_handling(formulation, integrator, projection, step))
     if has_events(mechanism):  # impacts, contact and detach: phase by phase
-        if formulation is None and any(slides(c) for c in mechanism.contacts.values()):
-            formulation = "index1"  # sliding contacts: friction μ N from the multipliers
+        formulation = event_formulation(mechanism, formulation)
+        if simulators is None:
+            simulators = Simulators(formulation, inputs, mode, formulation_options, redundancy)
         return simulate_events(
             mechanism, t_end, steps, integrator=integrator, rtol=rtol, atol=atol,
-            t_start=t_start, max_steps=max_steps,
-            simulator_factory=lambda mech: Simulator(
-                mech, formulation, inputs=inputs, mode=mode,
-                formulation_options=formulation_options, redundancy=redundancy))
+            t_start=t_start, max_steps=max_steps, simulator_factory=simulators)
     sim = Simulator(mechanism, formulation, inputs=inputs, mode=mode,
                     formulation_options=formulation_options, redundancy=redundancy)
     result = sim.run(t_end, steps, t_start=t_start, integrator=integrator, rtol=rtol,

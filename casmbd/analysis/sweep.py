@@ -15,6 +15,12 @@ the same point function runs serially, on local processes (``concurrent.futures`
 the scene, the assembly or the integrator — is recorded with its message and the others are
 kept (and saved, ``out_dir/point_XXX.npz``).
 
+A scene with impact contacts, joint stops or stick-slip friction runs every point through
+:func:`~casmbd.analysis.simulate.simulate` itself (the event-driven run, its phase simulators
+kept per process in a :class:`~casmbd.analysis.simulate.Simulators`), and a statics sweep of
+such a scene through :func:`~casmbd.analysis.statics.static_equilibrium` of the mechanism (the
+active set of closed gaps): a point is what the verb gives at that value.
+
 Parameters that fix *load-time* numbers of the scene (positions, points, axes, initial
 velocities are evaluated when the scene is read, ``docs/scene-format.md``) cannot change at run
 time; a sweep over one of them is refused with an :class:`~casmbd.errors.AnalysisError` naming
@@ -38,11 +44,18 @@ from pathlib import Path
 import numpy as np
 
 from casmbd import interrupts
+from casmbd.analysis.events import compliant_events, has_events
 from casmbd.analysis.inverse import HANDLING as INVERSE
 from casmbd.analysis.inverse import inverse_dynamics
 from casmbd.analysis.kinematics import HANDLING as KINEMATICS
 from casmbd.analysis.kinematics import kinematics
-from casmbd.analysis.simulate import Simulator, simulate_handling
+from casmbd.analysis.simulate import (
+    Simulator,
+    Simulators,
+    event_formulation,
+    simulate,
+    simulate_handling,
+)
 from casmbd.analysis.statics import HANDLING as STATICS
 from casmbd.analysis.statics import STATICS_NEEDS, static_equilibrium, statics_functions
 from casmbd.analysis.sweep_result import SweepResult, _table, load_sweep
@@ -102,7 +115,22 @@ class _Runner:
         build = {k: opts[k] for k in _BUILD_OPTIONS.get(self.analysis, ()) if k in opts}
         self.run_options = {k: opts[k] for k in _RUN_OPTIONS[self.analysis] if k in opts}
         mode = spec["mode"]
-        if self.analysis == "simulate":
+        #: the event-driven run's simulators (impact contacts, stops, stick-slip), kept
+        #: across points; None: one Simulator run at every point
+        self.simulators = None
+        #: statics with impact contacts or stops: each point through static_equilibrium of
+        #: the mechanism itself (the active set of closed gaps, analysis.resting)
+        self.resting = self.analysis == "statics" and has_events(mech)
+        self.mode = mode
+        if self.analysis == "simulate" and has_events(mech):
+            # every point through simulate() itself: phase by phase with its events
+            self.simulators = Simulators(event_formulation(mech, build.get("formulation")),
+                                         build.get("inputs"), mode,
+                                         build.get("formulation_options"),
+                                         build.get("redundancy", "auto"))
+            self.engine = self.simulators(mech)  # the base phase, built here
+            self.model = self.engine.model
+        elif self.analysis == "simulate":
             self.engine = Simulator(mech, mode=mode, **build)
             self.model = self.engine.model
         elif self.analysis == "kinematics":
@@ -124,13 +152,20 @@ class _Runner:
         # (initial velocities in joint coordinates are evaluated at it too)
         self.model.p[:] = [p[n] for n in self.names]
         opts = self.run_options
+        if self.simulators is not None:  # the same entry as simulate(), at these values
+            self.mechanism.parameters = p
+            return simulate(self.mechanism, t_end, steps, simulators=self.simulators, **opts)
         if self.analysis == "simulate":
-            return self.engine.run(t_end, steps, **opts)
+            result = self.engine.run(t_end, steps, **opts)
+            compliant_events(result, self.mechanism)  # as simulate() does
+            return result
         if self.analysis == "kinematics":
             return kinematics(self.model, t_end=t_end, steps=steps, **opts)
         if self.analysis == "inverse":
             return inverse_dynamics(self.model, t_end=t_end, steps=steps, **opts)
-
+        if self.resting:  # the same entry as the statics verb, at these values
+            self.mechanism.parameters = p
+            return _statics_result(static_equilibrium(self.mechanism, mode=self.mode, **opts))
         return _statics_result(static_equilibrium(self.model, **opts))
 
 
@@ -152,6 +187,9 @@ def _statics_result(res) -> Result:
     for key in ("position", "deflection", "rotation") if nodes else ():
         arrays[f"node_{key}s"] = np.concatenate(
             [np.ravel(node[key]) for node in nodes.values()]).reshape(1, -1)
+    if res.contacts:  # closed contacts and stops: their normal forces (0 when open)
+        names["contacts"] = list(res.contacts)
+        arrays["contact_forces"] = np.array([[c["normal_force"] for c in res.contacts.values()]])
     if len(res.body_quaternions):
         arrays["rotation_matrices"] = _rotation_rows(np.asarray(res.body_quaternions, float))
     else:

@@ -108,7 +108,8 @@ def _energy_change(result, mech) -> str:
     delta = f"{energy[-1] - energy[0]:+.3g} J"
     elements = energy_exchange(result, mech)
     impacts = [e for e in result.events if e["kind"] in ("impact", "limit")]
-    if impacts and any(c.restitution < 1.0 for c in getattr(mech, "contacts", {}).values()):
+    if impacts and any(c.restitution_value(mech.parameters) < 1.0
+                       for c in getattr(mech, "contacts", {}).values()):
         elements = [*(elements or []), f"{len(impacts)} impacts (restitution < 1)"]
     if elements == []:
         return f"drift {delta}"

@@ -171,5 +171,15 @@ def _cmd_sensitivity(args) -> tuple[dict, str]:
         lines.append(f"{o:<{width}}  {res.values[i]:>14.8g}  "
                      + "  ".join(f"{res.jacobian[i, j]:>14.8g}"
                                  for j in range(len(res.parameters))))
+    if res.stats.get("skipped_parameters"):
+        lines.append("  left out (they fix load-time numbers of the scene: positions, points, "
+                     f"radii): {', '.join(res.stats['skipped_parameters'])}")
+    if res.stats.get("event_driven"):  # across impacts: the jump of S at each event
+        events = res.stats["events"]
+        where = ", ".join(f"{e['element']} at {e['time']:.6g} s" for e in events[:4])
+        more = " …" if len(events) > 4 else ""
+        lines.append(f"  across {len(events)} impact(s)" + (f" ({where}{more})" if events
+                                                            else "")
+                     + ": the sensitivity jumps at each (saltation matrix)")
     return data, "\n".join(lines)
 

@@ -377,9 +377,9 @@ def _build(data: dict, source: str) -> Mechanism:
             guarded(e, lambda e=e: joint_friction_from_scene(mech, e))
         if e.has("lower") or e.has("upper"):  # stops on the joint's first coordinate
             guarded(e, lambda e=e: mech.add_joint_limit(
-                e.string("name"), lower=e.number("lower", None, required=False),
-                upper=e.number("upper", None, required=False),
-                restitution=e.number("restitution", 0.0),
+                e.string("name"), lower=e.value("lower", None, required=False),
+                upper=e.value("upper", None, required=False),
+                restitution=e.value("restitution", 0.0),
                 model=e.string("limit_model", default="impact"),
                 **{k.removeprefix("limit_"): e.number(k) for k in
                    ("limit_stiffness", "limit_exponent", "limit_damping", "limit_penetration")
@@ -419,7 +419,7 @@ def _build(data: dict, source: str) -> Mechanism:
         guarded(e, lambda e=e, compliant=compliant, other=other: mech.add_contact(
             _name(e), e.string("body"), e.vector("point", dim),
             radius=e.number("radius", 0.0), model=e.string("model", default="impact"),
-            restitution=e.number("restitution", 0.0), friction=e.number("friction", 0.0),
+            restitution=e.value("restitution", 0.0), friction=e.number("friction", 0.0),
             **other, **compliant))
 
     for e in entries("actuators"):

@@ -40,6 +40,7 @@ from casmbd.model.bodies import GROUND, scalar, vector
 from casmbd.model.forces import ForceElement
 from casmbd.model.joints import Joint
 from casmbd.model.registry import register_force
+from casmbd.model.values import Value, check_value, numeric, resolve
 
 __all__ = ["CONTACT_MODELS", "CompliantContact", "GapClosure", "JointLimit", "PlaneContact",
            "SphereContact", "Unilateral", "adams_step"]
@@ -83,18 +84,22 @@ class Unilateral:
     model.  Subclasses write ``gaps(ctx)`` (a column of g_k(q)) and their labels."""
 
     name: str
-    restitution: float = 0.0
+    restitution: Value = 0.0
     friction: float = 0.0
     model: str = "impact"
 
     #: the event name of a gap reaching zero ("impact" for contacts, "limit" for stops)
     event_kind: ClassVar[str] = "impact"
 
-    def _check(self) -> None:
-        where = f"contact '{self.name}'" if self.event_kind == "impact" else \
+    @property
+    def where(self) -> str:
+        return f"contact '{self.name}'" if self.event_kind == "impact" else \
             f"joint limit '{self.name}'"
-        self.restitution = scalar(self.restitution, f"{where} field 'restitution'")
-        if not 0.0 <= self.restitution <= 1.0:
+
+    def _check(self) -> None:
+        where = self.where
+        self.restitution = check_value(self.restitution, f"{where} field 'restitution'")
+        if isinstance(self.restitution, float) and not 0.0 <= self.restitution <= 1.0:
             raise ModelError(f"{where} field 'restitution': must be in [0, 1], got "
                              f"{self.restitution}")
         self.friction = scalar(self.friction, f"{where} field 'friction'")
@@ -119,6 +124,23 @@ class Unilateral:
 
     def gaps(self, ctx) -> ca.SX:
         raise NotImplementedError
+
+    def restitution_at(self, ctx) -> ca.SX:
+        """Newton's restitution e as an expression of the parameters (a number, or an
+        expression string evaluated at run time: a sweep or a sensitivity may vary it)."""
+        return resolve(self.restitution, ctx.t, ctx.p, f"{self.where} field 'restitution'")
+
+    def restitution_value(self, parameters) -> float:
+        """e at the parameter values ``parameters`` (name -> value)."""
+        return numeric(self.restitution, parameters, f"{self.where} field 'restitution'")
+
+    def check_values(self, parameters) -> None:
+        """Check the values given as expressions at the parameters' defaults (when the
+        element is added to a mechanism): e in [0, 1] (and a joint limit's lower < upper)."""
+        e = self.restitution_value(parameters)
+        if not 0.0 <= e <= 1.0:
+            raise ModelError(f"{self.where} field 'restitution': must be in [0, 1], got {e} "
+                             "at the parameters' values")
 
     def tangential_velocity(self, ctx, k: int) -> ca.SX | None:
         """Tangential velocity components of the contact point of gap ``k`` (None: no
@@ -214,8 +236,8 @@ class JointLimit(Unilateral):
 
     joint: str = ""
     coordinate: str | None = None
-    lower: float | None = None
-    upper: float | None = None
+    lower: Value | None = None
+    upper: Value | None = None
 
     event_kind: ClassVar[str] = "limit"
 
@@ -224,13 +246,29 @@ class JointLimit(Unilateral):
         where = f"joint '{self.joint}' field"
         for key in ("lower", "upper"):
             value = getattr(self, key)
-            if value is not None:
-                setattr(self, key, scalar(value, f"{where} '{key}'"))
+            if value is not None:  # a number, or an expression of the parameters
+                setattr(self, key, check_value(value, f"{where} '{key}'"))
         if self.lower is None and self.upper is None:
             raise ModelError(f"joint '{self.joint}': a limit needs 'lower' or 'upper'")
-        if self.lower is not None and self.upper is not None and self.lower >= self.upper:
+        if isinstance(self.lower, float) and isinstance(self.upper, float) and \
+                self.lower >= self.upper:
             raise ModelError(f"joint '{self.joint}' field 'upper': must be > lower "
                              f"({self.lower}), got {self.upper}")
+
+    def check_values(self, parameters) -> None:
+        super().check_values(parameters)
+        if self.lower is None or self.upper is None:
+            return
+        where = f"joint '{self.joint}' field"
+        lower = numeric(self.lower, parameters, f"{where} 'lower'")
+        upper = numeric(self.upper, parameters, f"{where} 'upper'")
+        if lower >= upper:
+            raise ModelError(f"{where} 'upper': must be > lower ({lower}), got {upper} at the "
+                             "parameters' values")
+
+    def bound(self, ctx, key: str) -> ca.SX:
+        """The stop ``key`` ("lower" or "upper") as an expression of the parameters."""
+        return resolve(getattr(self, key), ctx.t, ctx.p, f"joint '{self.joint}' field '{key}'")
 
     @property
     def labels(self) -> tuple[str, ...]:
@@ -240,9 +278,9 @@ class JointLimit(Unilateral):
         coord = ctx.mechanism.joints[self.joint].coordinate(ctx, self.coordinate)
         rows = []
         if self.lower is not None:
-            rows.append(coord - self.lower)
+            rows.append(coord - self.bound(ctx, "lower"))
         if self.upper is not None:
-            rows.append(self.upper - coord)
+            rows.append(self.bound(ctx, "upper") - coord)
         return ca.vertcat(*rows)
 
     @property

@@ -499,6 +499,7 @@ class Mechanism:
                                            lower, upper), compliant)
 
     def _unilateral(self, element: Unilateral, compliant: dict) -> Unilateral:
+        element.check_values(self.parameters)  # expressions at the parameters' defaults
         if element.model == "compliant":
             self.add("compliant_contact", f"{element.name}.force", element, **compliant)
         elif compliant:
