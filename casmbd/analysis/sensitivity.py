@@ -186,7 +186,9 @@ HANDLING = Handling(
                            "regularised law (stick_slip = false)",
              "contact_friction": "finite differences of whole runs (casmbd sweep), or "
                                  "model = 'compliant'"},
-    notes={"events": "the sensitivity jumps at each impact (saltation matrix)",
+    notes={"events": "the sensitivity jumps at each impact (saltation matrix); a gap that "
+                     "closes after accumulated bounces, simultaneous or grazing impacts and "
+                     "friction at impacts are refused by name",
            "reaction_forces": "the index-1 DAE solves λ with the accelerations"})
 
 
