@@ -73,20 +73,17 @@ _INSTEAD = ("use finite differences of whole runs (a sweep over the parameter), 
 
 
 def check_event_elements(mechanism) -> None:
-    """Refuse, before any work, the event elements whose sensitivity jump is not handled.
+    """Refuse, before any work, the event elements whose sensitivity jump is not handled
+    beyond what the composition check refuses (impact friction that does not slide in the
+    plane, friction that follows the reactions together with impacts).
 
     Raises
     ------
     AnalysisError
         Naming the element, the analysis, why, and what to use instead.
     """
-    for force in mechanism.forces.values():
-        if getattr(force, "stick_slip", False):
-            raise AnalysisError(
-                f"sensitivity: force '{force.name}' (joint friction with the exact stick-slip "
-                "law) is not handled: its stick and slip events change the set of equations "
-                "and their jump is not implemented; use finite differences of whole runs (a "
-                "sweep over the parameter), or the regularised law (stick_slip = false)")
+    # stick-slip joint friction and sliding contacts: refused by the composition check
+    # (casmbd.model.needs) before this is called
     for contact in getattr(mechanism, "contacts", {}).values():
         if contact.model == "impact" and contact.friction > 0.0:
             kind = "sliding contact" if slides(contact) else "contact with friction"
