@@ -105,3 +105,16 @@ def test_non_grashof_crank_stops_naming_the_driver(tmp_path, capsys, coordinates
                  .split(" to "))
     assert abs(low + LIMIT) < 1e-3 and abs(high - LIMIT) < 1e-3
     assert np.array_equal(exc.partial.t, saved.t)
+
+
+def test_event_driven_run_stops_naming_the_driver_too():
+    """The same crank with a stop on its rocker (never reached: ±3 rad) runs the event-driven
+    path; it stops the same way, naming 'crank_drive' at t = 0.1 with the results before."""
+    mech = casmbd.loads_scene(NON_GRASHOF)
+    mech.add_joint_limit("D", lower=-3.0, upper=3.0)
+    with pytest.raises(ConstraintViolationError) as info:
+        casmbd.simulate(mech, 1.0, 20)
+    exc = info.value
+    assert exc.time == pytest.approx(0.1)
+    assert exc.culprits[0].element == "crank_drive"
+    assert exc.partial.t[-1] == pytest.approx(0.05)

@@ -52,6 +52,7 @@ from casmbd.analysis.impulses import impact, project
 from casmbd.analysis.joint_friction import has_reaction_friction
 from casmbd.analysis.kkt import accelerations_and_multipliers, consistent_state
 from casmbd.errors import AnalysisError, IntegratorError
+from casmbd.interrupts import reraise_interrupt
 from casmbd.model.contacts import ContactSlide, slides
 from casmbd.model.needs import EVENT_NEEDS, requirements
 from casmbd.results import Result
@@ -177,7 +178,12 @@ class _Phase:
             p_all = np.tile(model.p[:, None], (1, n))
             if n not in self._post_maps:  # one mapped Function per window size, built once
                 self._post_maps[n] = model.function("post").map(n)
-            post = self._post_maps[n](qs.T, vs.T, ts[None, :], p_all)
+            try:
+                post = self._post_maps[n](qs.T, vs.T, ts[None, :], p_all)
+            except RuntimeError as exc:  # the virtual machine's QR refuses a singular KKT
+                reraise_interrupt(exc)   # matrix: every state by the exact solve below
+                post = None
+        if self._mapped and post is not None:
             acc = np.asarray(post[0], float).T
             lam = np.asarray(post[1], float).T.reshape(n, -1)
             residual = np.asarray(post[2], float).ravel()

@@ -573,9 +573,13 @@ def simulate(mechanism, t_end: float, steps: int, *, formulation: str | None = N
         formulation = event_formulation(mechanism, formulation)
         if simulators is None:
             simulators = Simulators(formulation, inputs, mode, formulation_options, redundancy)
-        return simulate_events(
+        result = simulate_events(
             mechanism, t_end, steps, integrator=integrator, rtol=rtol, atol=atol,
             t_start=t_start, max_steps=max_steps, simulator_factory=simulators)
+        # beyond the tolerance the run stops naming the culprit, as without events (the
+        # base simulator is the one of the open phases, kept by ``simulators``)
+        simulators(mechanism)._check_violation(result)
+        return result
     sim = Simulator(mechanism, formulation, inputs=inputs, mode=mode,
                     formulation_options=formulation_options, redundancy=redundancy)
     result = sim.run(t_end, steps, t_start=t_start, integrator=integrator, rtol=rtol,
