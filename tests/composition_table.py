@@ -62,6 +62,21 @@ def table() -> str:
         build, dims, _driven = VARIANTS[variant]
         needs = sorted({r.need for r in requirements(build(dims[0]))})
         lines.append(f"| {variant.replace('_', ' ')} | {', '.join(needs) or '—'} |")
+    lines += ["", "## What works where", "",
+              "Each canonical scene (`tests/composition_scenes.py`, plane / space) against each",
+              "analysis: **yes** — it runs, and `tests/test_composition.py` checks it against",
+              "an independent path (OCP cells: `test_ocp_*` and the compliant-stop cell);",
+              "**no** — refused by name before any work (why and what instead: below).", "",
+              "| element | " + " | ".join(ANALYSES) + " |",
+              "| --- |" + " --- |" * len(ANALYSES)]
+    for variant, (build, dims, _) in VARIANTS.items():
+        cells = []
+        for handling in ANALYSES.values():
+            marks = {"yes" if not handling.refusals(build(d)) else "no" for d in dims}
+            cells.append("/".join(sorted(marks, reverse=True)) if len(marks) > 1
+                         else marks.pop())
+        lines.append(f"| {variant.replace('_', ' ')} ({'/'.join(map(str, dims))}-D) | "
+                     + " | ".join(cells) + " |")
     lines += ["", "Needs:", ""]
     lines += [f"* `{need}` — {meaning}" for need, meaning in NEEDS.items()]
     lines += ["", "## Analyses", ""]

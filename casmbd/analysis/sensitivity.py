@@ -144,8 +144,9 @@ def _load_time(mechanism, chosen: Sequence[str]) -> list[str]:
     scenes = getattr(mechanism, "scene_points", None)
     if scenes is None:
         return []
+    declared = scenes.mechanism().parameters  # a parameter added in Python is not the text's
     fixed = []
-    for name in chosen:
+    for name in (n for n in chosen if n in declared):
         value = float(mechanism.parameters[name])
         try:
             scenes.point_scenes([{name: value + 1e-3 * (1.0 + abs(value))}])

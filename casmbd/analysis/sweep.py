@@ -487,6 +487,8 @@ def sweep(mechanism, params: Mapping[str, Iterable[float]] | None = None, *,
                             f"{mechanism!r}; read a scene file with casmbd.load_scene(path)")
     mech = mechanism
     scenes = getattr(mech, "scene_points", None)  # set by casmbd.io.scene for a scene's model
+    if scenes is not None and not scenes.describes(mech):  # changed in Python since it was
+        scenes = None                                      # read: the points run that object
     text = scenes.text if scenes is not None else None
     if analysis != "statics":  # one point's result must fit (LimitError before any build)
         check_steps(f"sweep ({analysis}) at each point", int(steps), output_values(mech))

@@ -102,6 +102,14 @@ class ScenePoints:
         return self.loads(self.text if scene is None else scene,
                           source=self.source if source is None else source)
 
+    def describes(self, mechanism) -> bool:
+        """Whether ``mechanism`` is still what the text builds: not changed in Python after
+        it was read (an element, a number or a parameter value added or changed).  Only
+        then may a sweep or a sensitivity read the text again at other parameter values."""
+        built = self.mechanism()
+        return (fingerprint(built) == fingerprint(mechanism)
+                and dict(built.parameters) == dict(mechanism.parameters))
+
     def point_scenes(self, points: Sequence[Mapping[str, float]]
                      ) -> tuple[list[str | None], dict[int, str]]:
         """Each point's scene text, and the points whose scene does not load (index ->
