@@ -366,7 +366,8 @@ def _probed(variant, dim, tau):
 
 @pytest.mark.parametrize("variant,dim", SENSITIVE)
 def test_sensitivity_equals_finite_differences_of_whole_runs(variant, dim):
-    """d q_n(0.6 s)/d tau (the last coordinate) by the sensitivity analysis (across impacts: the jump at each) =
+    """d q_n(0.6 s)/d tau (q_n the last coordinate) by the sensitivity analysis (across
+    impacts: the jump at each) =
     central differences of two whole ``simulate`` runs (h = 1e-4, rtol 1e-11): 1e-5
     relative to max(1, |dq/dtau|)."""
     from casmbd.system.quantities import identifier
