@@ -65,7 +65,7 @@ def table() -> str:
     lines += ["", "## What works where", "",
               "Each canonical scene (`tests/composition_scenes.py`, plane / space) against each",
               "analysis: **yes** — it runs, and `tests/test_composition.py` checks it against",
-              "an independent path (OCP cells: `test_ocp_*` and the compliant-stop cell);",
+              "an independent path (the check of each analysis: that module's docstring);",
               "**no** — refused by name before any work (why and what instead: below).", "",
               "| element | " + " | ".join(ANALYSES) + " |",
               "| --- |" + " --- |" * len(ANALYSES)]

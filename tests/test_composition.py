@@ -20,10 +20,10 @@ check:
 * ``sensitivity``: = central differences of whole ``simulate`` runs (1e-5);
 * ``compile``: the per-call forward dynamics = the simulation's first accelerations (1e-8);
 * ``plot``/``animate``: a picture and a frame of every element kind;
-* ``sweep``: a swept point equals ``simulate`` of the same scene and value to rounding.
-
-The OCP's accepted cells are checked in the ``test_ocp_*`` modules and here by the compliant
-stop; its refusals here.
+* ``sweep``: a swept point equals ``simulate`` of the same scene and value to rounding;
+* ``ocp``: the optimal controls replayed by ``simulate`` give the same motion (1e-3 rad), and
+  a compliant stop is in the optimised dynamics (the flexible beam's mesh:
+  ``tests/test_ocp_flexible.py``).
 
 ``docs/composition.md`` is generated from the same declarations (``python
 tests/composition_table.py`` rewrites it); the test below fails when it is stale.
@@ -404,3 +404,27 @@ def test_a_scene_changed_in_python_is_swept_as_changed(tmp_path):
     direct = casmbd.simulate(mech, 1.0, 10)
     assert np.max(np.abs(res.result(0)["q"] - direct["q"])) <= 1e-12
     assert abs(direct["q"][-1, 0] - res.result(0)["q"][-1, 0]) <= 1e-12
+
+
+OCP_CELLS = [(v, d) for v, d in CELLS if v != "flexible"  # its mesh: tests/test_ocp_flexible.py
+             and "pin" in VARIANTS[v][0](d).joints
+             and not ANALYSES["ocp"].refusals(VARIANTS[v][0](d))]
+
+
+@pytest.mark.parametrize("variant,dim", OCP_CELLS)
+def test_ocp_replays_through_simulate(variant, dim):
+    """Trajectory optimisation on every element kind it handles (a motor at the pin, least
+    effort to stop the swing at 0.5 s): its optimal controls replayed by ``simulate`` give the
+    same motion (replay error < 1e-3 rad; the transcription's dynamics are the simulator's)."""
+    from casmbd.ocp import Ocp
+    mech = VARIANTS[variant][0](dim)
+    if "motor" not in mech.actuators:
+        mech.add_actuator("motor", "pin")
+    ocp = Ocp(mech, horizon=0.5, intervals=10, compile=False)
+    ocp.control_bounds("motor", -50, 50)
+    if not mech.drivers:  # a driven pendulum has no motion left to choose
+        ocp.final(pin_dot=0.0)
+    ocp.minimize("effort")
+    sol = ocp.solve()
+    sol.replay()
+    assert sol.stats["replay_error"] < 1e-3
