@@ -52,7 +52,7 @@ from casmbd.analysis.impulses import impact, project
 from casmbd.analysis.joint_friction import has_reaction_friction
 from casmbd.analysis.kkt import accelerations_and_multipliers, consistent_state
 from casmbd.errors import AnalysisError, IntegratorError
-from casmbd.model.contacts import ContactSlide, slides
+from casmbd.model.contacts import ContactSlide, JointLimit, slides
 from casmbd.results import Result
 from casmbd.system import System
 
@@ -285,6 +285,9 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
         if closed not in phases:
             if closed:
                 variant = copy.copy(mechanism)
+                # the phase's states are the base's: its coordinates, never a new automatic
+                # choice (closures count as loop joints and could tip it to absolute)
+                variant.coordinates = base.model.coordinates
                 variant.joints = dict(mechanism.joints)
                 variant.forces = dict(mechanism.forces)
                 for i in sorted(closed):
@@ -353,11 +356,45 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
         events.append({"time": float(t_s), "element": row.name, "kind": "slip"})
         return v_p, closed_s
 
+    def held_by_stop(row, closed_s) -> bool:
+        """A stick-slip joint whose coordinate rests on a closed stop of the same joint: the
+        stop holds it (its multiplier carries the whole holding force; friction at rest is
+        indeterminate there), σ = 0 until the stop opens."""
+        def which(joint, coordinate):
+            return coordinate or next(iter(mechanism.joints[joint].coordinate_names), None)
+
+        return any(isinstance(gaps.rows[k][0], JointLimit) and
+                   gaps.rows[k][0].joint == row.joint and
+                   which(row.joint, gaps.rows[k][0].coordinate) ==
+                   which(row.joint, row.coordinate) for k in closed_s)
+
     def engage(q_s, v_s, t_s, closed_s):
-        """Slide rows of frictional contacts that just closed: stick or slide; of contacts
-        that opened: released (σ = 0)."""
+        """After an event.  Slide rows of frictional contacts that just closed: stick or
+        slide; of contacts that opened: released (σ = 0).  Sliding stick-slip joints whose
+        velocity an impact reversed: σ follows (``slip``); those on a closed stop of their
+        joint: held by it (σ = 0); released by their stop: stick or slide."""
         for i in range(n_gaps):
             row = gaps.rows[i][0]
+            if isinstance(row, StickRow) and i not in closed_s:
+                k_sign = pnames.index(row.sign)
+                if held_by_stop(row, closed_s):
+                    p[k_sign] = 0.0
+                    continue
+                sigma = p[k_sign]
+                p[k_sign] = 1.0
+                rate = float(gaps(q_s, v_s, t_s, p)[0][i])  # q̇_j
+                p[k_sign] = sigma
+                if sigma == 0.0:  # released by its stop
+                    if abs(rate) > 1e-12:
+                        p[k_sign] = float(np.sign(rate))
+                        events.append({"time": float(t_s), "element": row.name,
+                                       "kind": "slip"})
+                    else:
+                        v_s, closed_s = settle(i, q_s, v_s, t_s, closed_s)
+                elif sigma * rate < -1e-12:  # an impact reversed the sliding direction
+                    p[k_sign] = -sigma
+                    events.append({"time": float(t_s), "element": row.name, "kind": "slip"})
+                continue
             if not isinstance(row, SlideRow):
                 continue
             if row.gap_row not in closed_s:
