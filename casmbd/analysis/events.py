@@ -121,8 +121,11 @@ class _Phase:
     """A Simulator of the mechanism with a set of closed gaps, and its step integrators."""
 
     def __init__(self, sim, closed: frozenset, closure_rows: list[int], name, rtol, atol,
-                 max_steps):
+                 max_steps, pairs: dict[int, int] | None = None):
         self.sim, self.closed, self.closure_rows = sim, closed, closure_rows
+        #: closed rows (by position in ``closure_rows``) whose closure has a second row (a
+        #: contact stuck in space, two tangential rows): their value is |λ_t|
+        self.pairs = pairs or {}
         self.dae = sim.formulation.kind == "dae"
         self._scaled = _scaled(sim.dyn)
         self.name, self.rtol, self.atol, self.max_steps = name, rtol, atol, max_steps
@@ -191,13 +194,25 @@ class _Phase:
         for k in np.flatnonzero(bad):
             lam[k] = accelerations_and_multipliers(model, qs[k], vs[k], ts[k],
                                                    self.sim.inputs_at(ts[k]))[1]
-        return lam[:, self.closure_rows]
+        return self._closed(lam)
+
+    def _closed(self, lam: np.ndarray) -> np.ndarray:
+        """The closed rows' multipliers from all of λ (rows of states); a pair: |λ_t|."""
+        out = lam[..., self.closure_rows]
+        for m, second in self.pairs.items():
+            out[..., m] = np.hypot(lam[..., self.closure_rows[m]], lam[..., second])
+        return out
+
+    def tangent_multipliers(self, q, v, t, m: int) -> np.ndarray:
+        """λ_t (two components) of the closed row at position m, a contact stuck in space."""
+        lam = accelerations_and_multipliers(self.sim.model, q, v, t, self.sim.inputs_at(t))[1]
+        return np.array([lam[self.closure_rows[m]], lam[self.pairs[m]]])
 
     def multipliers(self, q, v, t):
         """λ of the closure rows (the closed gaps' constraint multipliers)."""
         model = self.sim.model
         _, lam = accelerations_and_multipliers(model, q, v, t, self.sim.inputs_at(t))
-        return lam[self.closure_rows] if self.closure_rows else np.zeros(0)
+        return self._closed(lam) if self.closure_rows else np.zeros(0)
 
     def z0(self, q, v, t):
         if not self.dae:
@@ -304,10 +319,14 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
                 labels = [str(lab) for lab in sim.model.constraint_labels]
                 rows = [labels.index(f"joint '{closure(mechanism, *gaps.rows[i]).name}' "
                                      "equation 'gap'") for i in sorted(closed)]
+                pairs = {m: labels.index(f"joint '{closure(mechanism, *gaps.rows[i]).name}' "
+                                         "equation 'gap_2'")
+                         for m, i in enumerate(sorted(closed))
+                         if len(closure(mechanism, *gaps.rows[i]).labels) == 2}
             else:
-                sim, rows = base, []
+                sim, rows, pairs = base, [], {}
             phases[closed] = _Phase(sim, closed, rows, name, rtol, atol,
-                                    max_steps or 500_000)
+                                    max_steps or 500_000, pairs)
         return phases[closed]
 
     # the parameters of the phase (stick-slip: the sliding sign σ and the stuck position), set
@@ -352,9 +371,37 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
         if gaps.closed_value(i, lams) >= 0.0:
             events.append({"time": float(t_s), "element": row.name, "kind": "stick"})
             return v_p, trial
+        if slides_in_space(row):  # it slips along λ_t (the friction force −λ_t is too big)
+            lam_t = stuck.tangent_multipliers(q_s, v_p, t_s, sorted(trial).index(i))
+            start_slide(row, lam_t)
+            events.append({"time": float(t_s), "element": row.name, "kind": "slip"})
+            return v_p, closed_s
         p[pnames.index(row.sign)] = float(np.sign(lam))
         events.append({"time": float(t_s), "element": row.name, "kind": "slip"})
         return v_p, closed_s
+
+    def slides_in_space(row) -> bool:
+        return isinstance(row, SlideRow) and row.dimension == 3
+
+    def start_slide(row, direction) -> None:
+        """A contact in space slides (σ = 1) along the unit ``direction`` (tangent basis)."""
+        p[pnames.index(row.sign)] = 1.0
+        d = np.asarray(direction, float)
+        d = d / max(float(np.linalg.norm(d)), 1e-300)
+        for par, value in zip(row.direction, d, strict=True):
+            p[pnames.index(par)] = float(value)
+
+    def reanchor(q_s, v_s, t_s) -> None:
+        """The reference ŝ of a sliding contact in space follows its slip once it has turned
+        by more than 60° (its row ŝ·v_t must not cross zero while the contact still slips)."""
+        for i in range(n_gaps):
+            row = gaps.rows[i][0]
+            if slides_in_space(row) and p[pnames.index(row.sign)] != 0.0:
+                vt = gaps.slip_velocity(i, q_s, v_s, t_s, p)
+                speed = float(np.linalg.norm(vt))
+                stored = np.array([p[pnames.index(par)] for par in row.direction])
+                if speed > 0.0 and float(stored @ vt) < 0.5 * speed:
+                    start_slide(row, vt)
 
     def held_by_stop(row, closed_s) -> bool:
         """A stick-slip joint whose coordinate rests on a closed stop of the same joint: the
@@ -400,6 +447,14 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
             if row.gap_row not in closed_s:
                 closed_s = closed_s - {i}
                 p[pnames.index(row.sign)] = 0.0
+            elif i not in closed_s and p[pnames.index(row.sign)] == 0.0 and \
+                    slides_in_space(row):
+                vt = gaps.slip_velocity(i, q_s, v_s, t_s, p)
+                if float(np.linalg.norm(vt)) > 1e-12:
+                    start_slide(row, vt)
+                    events.append({"time": float(t_s), "element": row.name, "kind": "slip"})
+                else:
+                    v_s, closed_s = settle(i, q_s, v_s, t_s, closed_s)
             elif i not in closed_s and p[pnames.index(row.sign)] == 0.0:
                 p[pnames.index(row.sign)] = 1.0
                 rate = float(gaps(q_s, v_s, t_s, p)[0][i])
@@ -441,6 +496,7 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
                 j += 1
                 continue
             if t_b not in window:
+                reanchor(x[:nq], x[nq:], t)
                 first = int(np.searchsorted(sub_all, t_b - 0.5 * tol_t * (1 + abs(t_b))))
                 times = sub_all[first:first + WINDOW]
                 xs_w, zs_w = phase.advance_many(x, z, t, times)
@@ -512,8 +568,17 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
             if is_detach and gaps.stick[i_ev]:  # the holding force reached F_c: it slips
                 lam_ev = float(phase.multipliers(q_ev, v_ev, t_ev)[order.index(i_ev)])
                 closed = closed - {i_ev}
-                p[pnames.index(element.sign)] = float(np.sign(lam_ev))
+                if slides_in_space(element):  # along λ_t
+                    start_slide(element, phase.tangent_multipliers(q_ev, v_ev, t_ev,
+                                                                   order.index(i_ev)))
+                else:
+                    p[pnames.index(element.sign)] = float(np.sign(lam_ev))
                 events.append({"time": float(t_ev), "element": element.name, "kind": "slip"})
+                v_new = v_ev
+            elif slides_in_space(element) and float(np.linalg.norm(gaps.slip_velocity(
+                    i_ev, q_ev, v_ev, t_ev, p))) > 1e-7:
+                # ŝ·v_t crossed zero but the contact still slips (its slip turned): follow it
+                start_slide(element, gaps.slip_velocity(i_ev, q_ev, v_ev, t_ev, p))
                 v_new = v_ev
             elif gaps.stick[i_ev]:  # a sliding joint stopped: stick, or slide back
                 v_new, closed = settle(i_ev, q_ev, v_ev, t_ev, closed)
@@ -600,12 +665,15 @@ def _assemble_result(base, phase_of, gaps, grid, qs, vs, samples, events, second
             width = result.arrays["joint_reactions"].shape[1]
             result.arrays["joint_reactions"][idx] = reac[:, :width]
         for m, i in enumerate(sorted(closed)):
-            forces[idx, i] = -lam[:, phase.closure_rows[m]]
+            forces[idx, i] = -lam[:, phase.closure_rows[m]] if m not in phase.pairs else \
+                np.hypot(lam[:, phase.closure_rows[m]], lam[:, phase.pairs[m]])
     for k, (_, _, closed, pk) in enumerate(samples):  # sliding contacts: −μ N σ
         for i in range(n_gaps):
             row = gaps.rows[i][0]
             if isinstance(row, SlideRow) and i not in closed and row.gap_row in closed:
-                forces[k, i] = -row.mu * forces[k, row.gap_row] * pk[pnames.index(row.sign)]
+                sigma = pk[pnames.index(row.sign)]
+                forces[k, i] = row.mu * forces[k, row.gap_row] * (
+                    abs(sigma) if row.dimension == 3 else -sigma)  # space: |F_t|
     result.arrays["contact_forces"] = forces
     result.names["contacts"] = [gaps.label(i) for i in range(n_gaps)]
     result.events = events

@@ -42,7 +42,7 @@ from casmbd.model.joints import Joint
 from casmbd.model.registry import register_force
 
 __all__ = ["CONTACT_MODELS", "CompliantContact", "GapClosure", "JointLimit", "PlaneContact",
-           "SphereContact", "Unilateral", "adams_step"]
+           "RollingClosure", "SphereContact", "Unilateral", "adams_step"]
 
 CONTACT_MODELS = ("impact", "compliant")
 #: default regularisation velocity of compliant friction (m/s)
@@ -248,11 +248,26 @@ def slide_parameters(name: str) -> tuple[str, str]:
     return f"{ident}_slide_sign", f"{ident}_stuck_at"
 
 
+def slide_direction_parameters(name: str) -> tuple[str, str]:
+    """The parameters of a closed frictional plane contact in space: the unit sliding
+    direction ŝ = (ŝ_1, ŝ_2) in the contact's tangent basis (:func:`tangents`) at the start of
+    the slide, the direction of the friction force while |v_t| < :data:`SLIP_VELOCITY` and the
+    reference of the event row ŝ·v_t."""
+    ident = re.sub(r"\W", "_", name)
+    return f"{ident}_slide_dir1", f"{ident}_slide_dir2"
+
+
+#: tangential speed (m/s) below which a sliding contact in space pushes along its stored
+#: direction ŝ instead of v_t/|v_t| (only at the instant a slide starts from rest)
+SLIP_VELOCITY = 1e-12
+
+
 def slides(element) -> bool:
     """True for a plane contact with friction whose closed phases carry Coulomb friction:
-    sliding (−μ N σ) or stuck (its tangential position held) — planar scenes."""
+    sliding (−μ N along the slip) or stuck (its tangential position held in the plane, the
+    touching point's velocity held at zero in space)."""
     return (isinstance(element, PlaneContact) and element.model == "impact"
-            and element.friction > 0.0 and element.dimension == 2)
+            and element.friction > 0.0)
 
 
 def tangential_position(element: PlaneContact, ctx) -> ca.SX:
@@ -286,6 +301,37 @@ class TangentClosure(Joint):
         return None
 
 
+class RollingClosure(Joint):
+    """A stuck frictional plane contact in space: the touching material point does not slide,
+    v_t = T (ṙ_c + ω × (−r n)) = 0 (two rows in the tangent basis T = :func:`tangents`) — for
+    a sphere, rolling without slipping, a non-holonomic constraint (Pfeiffer & Glocker 1996,
+    ch. 7: the sticking contact as a bilateral constraint on the relative velocity).  Its
+    position rows are zero and its velocity rows are :meth:`velocity_equations` (the system
+    takes C_q from ∂W/∂v); the multipliers are the friction force that holds it (−λ in the
+    tangent basis).  Not a scene kind: made by :mod:`casmbd.analysis.events` for the phases
+    in which the contact sticks."""
+
+    def __init__(self, element: PlaneContact):
+        self.name = f"{element.name}.stick"
+        self.body1, self.body2 = GROUND, element.body
+        self.element = element
+        self.labels = ("gap", "gap_2")
+        self.coordinate_names = ()
+
+    dimensions: ClassVar[tuple[int, ...]] = (3,)
+    drawing: ClassVar[str] = "none"
+
+    def equations(self, ctx) -> ca.SX:
+        return ca.SX.zeros(2)
+
+    def velocity_equations(self, ctx) -> ca.SX:
+        """W(q, v) = v_t, the rows C_q v + C_t of the non-holonomic constraint W = 0."""
+        return self.element.tangential_velocity(ctx)
+
+    def reaction_point(self):
+        return None
+
+
 @register_force
 @dataclass
 class ContactSlide(ForceElement):
@@ -310,13 +356,30 @@ class ContactSlide(ForceElement):
         return self.closure
 
     def terms(self, kit, ctx):
+        """Q = (∂v_t/∂v)ᵀ f_t: in the plane f_t = −μ N σ; in space f_t = −μ N σ v_t/|v_t|
+        along the 2-D tangential velocity of the touching point (ŝ, the stored direction,
+        while |v_t| < :data:`SLIP_VELOCITY` — the instant a slide starts from rest — and
+        where ŝ·v_t ≤ 0, past the instant it stops)."""
         base = kit.ctx
-        vt = ca.jtimes(tangential_position(self.contact, base), base.q, base.v)
-        sign = kit.value(slide_parameters(self.contact.name)[0],
-                         f"contact '{self.contact.name}' field 'friction'")
+        where = f"contact '{self.contact.name}' field 'friction'"
+        sign = kit.value(slide_parameters(self.contact.name)[0], where)
         force = -self.contact.friction * kit.normal(self.name) * sign
-        return [kit.term("generalized", None, ca.jacobian(vt, base.v).T * force, None,
-                         self.name)]
+        if self.contact.dimension == 2:
+            vt = ca.jtimes(tangential_position(self.contact, base), base.q, base.v)
+            return [kit.term("generalized", None, ca.jacobian(vt, base.v).T * force, None,
+                             self.name)]
+        vt = self.contact.tangential_velocity(base)
+        stored = ca.vertcat(*[kit.value(par, where) for par in
+                              slide_direction_parameters(self.contact.name)])
+        square = ca.dot(vt, vt)
+        # past the instant the slip stops (ŝ·v_t < 0, before the event is located) the force
+        # keeps the direction ŝ, as σ does in the plane: the integrator steps through the
+        # stop smoothly instead of chattering about v_t = 0
+        sliding = ca.logic_and(square > SLIP_VELOCITY**2, ca.dot(stored, vt) > 0.0)
+        direction = ca.if_else(sliding, vt / ca.sqrt(ca.fmax(square, SLIP_VELOCITY**2)),
+                               stored)
+        return [kit.term("generalized", None, ca.mtimes(ca.jacobian(vt, base.v).T,
+                                                        force * direction), None, self.name)]
 
     def report_names(self, dimension):
         return ()
