@@ -221,13 +221,20 @@ class _Phase:
         return self.sim._z0(q, a, lam)
 
 
+#: a value of an event row that counts as clearly inside (away from its surface) when the
+#: motion starts on the surface: above the rounding of a gap that starts at zero (a body put
+#: down touching a tilted plane starts at g ≈ 1e-17 m, not an impact 2 ns later)
+INSIDE = 1e-14
+
+
 def _inside(value, h: float) -> tuple[float | None, float]:
-    """The largest τ = h 2⁻ᵏ (k = 1 … 60) with value(τ) > 0, and that value (None: none)."""
+    """The largest τ = h 2⁻ᵏ (k = 1 … 60) with value(τ) > :data:`INSIDE`, and that value
+    (None: none)."""
     tau = h
     for _ in range(60):
         tau *= 0.5
         f = value(tau)
-        if f > 0.0:
+        if f > INSIDE:
             return tau, f
     return None, 0.0
 
@@ -676,7 +683,10 @@ def _assemble_result(base, phase_of, gaps, grid, qs, vs, samples, events, second
                     abs(sigma) if row.dimension == 3 else -sigma)  # space: |F_t|
     result.arrays["contact_forces"] = forces
     result.names["contacts"] = [gaps.label(i) for i in range(n_gaps)]
-    result.events = events
+    # one entry per (instant, element, kind): an impact's stick and the closed contact's
+    # stick at the same instant are one event
+    result.events = [dict(zip(("time", "element", "kind"), key, strict=True)) for key in
+                     dict.fromkeys((e["time"], e["element"], e["kind"]) for e in events)]
     # what the CLI summary and a smooth run's stats carry (formulation, build time, mode)
     result.stats.update({k: v for k, v in base.model.report_dict.items()
                          if k != "build_seconds"})
