@@ -606,11 +606,9 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
                 elif hit is None:  # grazing: the gap touches zero without closing in on it
                     v_new = v_ev
                 else:
-                    v_new, closed, extra = hit
-                    events.append({"time": float(t_ev), "element": gaps.label(i_ev),
-                                   "kind": element.event_kind})
+                    v_new, closed, struck = hit  # the gaps struck (i_ev among them), …
                     events += [{"time": float(t_ev), "element": lab, "kind": kind}
-                               for lab, kind in extra]
+                               for lab, kind in struck]
             if len(events) > max_events:
                 raise IntegratorError(f"more than {max_events} events by t = {t_ev:.6g} "
                                       "(raise max_events, or a rest_velocity)", t_ev,

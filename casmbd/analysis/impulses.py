@@ -23,8 +23,8 @@ __all__ = ["impact", "project"]
 
 def impact(model, gaps, closed, i_ev, q, v, t, p, v_rest):
     """v⁺ after an impact of gap ``i_ev`` (module docstring, step 3), the new set of closed
-    gaps, and extra events as (label, kind): the other gaps struck at the same instant
-    (``impact``/``limit``), then stick/slip and contact; None when the gap is not closing
+    gaps, and the events as (label, kind): every gap struck at this instant (``impact``/
+    ``limit``, in row order), then stick/slip and contact; None when the gap is not closing
     in."""
     g, gq, tv = gaps(q, v, t, p)
     if gq[i_ev] @ v >= 0.0:
@@ -91,8 +91,8 @@ def impact(model, gaps, closed, i_ev, q, v, t, p, v_rest):
             break
         active = [i for i in active if i not in negative]
     # every gap that takes part in the impact is named (two gaps of a Newton's cradle
-    # closing together: both), the located one first (by the caller)
-    extra = [(gaps.label(i), gaps.rows[i][0].event_kind) for i in active if i != i_ev] + extra
+    # closing together: both), in row order whichever was located first
+    extra = [(gaps.label(i), gaps.rows[i][0].event_kind) for i in active] + extra
     new_closed = set(closed)
     for i in active:
         if gq[i] @ v_plus < v_rest:
