@@ -22,16 +22,20 @@ slipping, a non-holonomic constraint — while the holding force stays within μ
 
 from __future__ import annotations
 
+import json
 import math
+import pathlib
 
 import numpy as np
 import pytest
 from conftest import private_cache
 
 import casmbd
+from casmbd import cli
 
 _cache = private_cache("casmbd_cache_friction_space", scope="module", CASMBD_COMPILE="0")
 
+REPO = pathlib.Path(__file__).resolve().parent.parent
 G = 9.81
 M, R = 2.0, 0.1
 INERTIA = 0.4 * M * R * R
@@ -158,3 +162,23 @@ def test_sphere_on_an_incline_rolls_or_slides(alpha, mu):
     acc = 5.0 / 7.0 * G * math.sin(alpha) if rolls else \
         G * (math.sin(alpha) - mu * math.cos(alpha))
     np.testing.assert_allclose(along, 0.5 * acc * res.t**2, atol=1e-9)
+
+
+def test_rolling_sphere_example_through_the_cli(capsys):
+    """examples/rolling_sphere.toml (the issue's sphere: 2 m/s, μ = 0.5) through ``simulate
+    --rtol 1e-10 --json``: stick at 2 v0/(7 μ g) (1e-9 s); ``contacts.floor`` gives the normal
+    force m g and the friction force μ m g while it slides, 0 while it rolls (1e-6 N)."""
+    code = cli.main(["simulate", str(REPO / "examples" / "rolling_sphere.toml"), "--t-end",
+                     "0.3", "--steps", "30", "--rtol", "1e-10", "--json"])
+    out = json.loads(capsys.readouterr().out)
+    assert code == 0
+    mu, v0 = 0.5, 2.0
+    t_star = 2.0 * v0 / (7.0 * mu * G)
+    assert [e["kind"] for e in out["events"]] == ["contact", "slip", "stick"]
+    assert out["events"][2]["time"] == pytest.approx(t_star, abs=1e-9)
+    floor = out["contacts"]["floor"]
+    t = np.linspace(0.0, 0.3, 31)
+    np.testing.assert_allclose(floor["normal_force"], M * G, rtol=1e-6)
+    np.testing.assert_allclose(np.array(floor["friction_force"])[t < t_star], mu * M * G,
+                               rtol=1e-6)
+    assert np.max(np.abs(np.array(floor["friction_force"])[t > t_star])) < 1e-6
