@@ -126,6 +126,11 @@ class _Phase:
         #: closed rows (by position in ``closure_rows``) whose closure has a second row (a
         #: contact stuck in space, two tangential rows): their value is |λ_t|
         self.pairs = pairs or {}
+        #: the phase integrates an independent subset of its rows (redundant closures):
+        #: multipliers are taken with the minimum norm (:func:`_minimum_norm`)
+        self.redundant = getattr(sim, "redundancy", {}).get("kept_rows") is not None
+        #: every row of the closures (a pair's second rows included)
+        self.all_rows = list(closure_rows) + list(self.pairs.values())
         self.dae = sim.formulation.kind == "dae"
         self._scaled = _scaled(sim.dyn)
         self.name, self.rtol, self.atol, self.max_steps = name, rtol, atol, max_steps
@@ -194,6 +199,8 @@ class _Phase:
         for k in np.flatnonzero(bad):
             lam[k] = accelerations_and_multipliers(model, qs[k], vs[k], ts[k],
                                                    self.sim.inputs_at(ts[k]))[1]
+        if self.redundant:
+            lam = _minimum_norm(model, qs, ts, lam, self.all_rows)
         return self._closed(lam)
 
     def _closed(self, lam: np.ndarray) -> np.ndarray:
@@ -205,14 +212,20 @@ class _Phase:
 
     def tangent_multipliers(self, q, v, t, m: int) -> np.ndarray:
         """λ_t (two components) of the closed row at position m, a contact stuck in space."""
-        lam = accelerations_and_multipliers(self.sim.model, q, v, t, self.sim.inputs_at(t))[1]
+        lam = self._all(q, v, t)
         return np.array([lam[self.closure_rows[m]], lam[self.pairs[m]]])
+
+    def _all(self, q, v, t) -> np.ndarray:
+        """λ of every row at one state (minimum norm when the phase is redundant)."""
+        lam = accelerations_and_multipliers(self.sim.model, q, v, t, self.sim.inputs_at(t))[1]
+        if self.redundant:
+            lam = _minimum_norm(self.sim.model, q[None, :], np.array([t]), lam[None, :],
+                                self.all_rows)[0]
+        return lam
 
     def multipliers(self, q, v, t):
         """λ of the closure rows (the closed gaps' constraint multipliers)."""
-        model = self.sim.model
-        _, lam = accelerations_and_multipliers(model, q, v, t, self.sim.inputs_at(t))
-        return self._closed(lam) if self.closure_rows else np.zeros(0)
+        return self._closed(self._all(q, v, t)) if self.closure_rows else np.zeros(0)
 
     def z0(self, q, v, t):
         if not self.dae:
@@ -225,6 +238,30 @@ class _Phase:
 #: motion starts on the surface: above the rounding of a gap that starts at zero (a body put
 #: down touching a tilted plane starts at g ≈ 1e-17 m, not an impact 2 ns later)
 INSIDE = 1e-14
+
+
+def _minimum_norm(model, qs: np.ndarray, ts: np.ndarray, lam: np.ndarray,
+                  rows: list[int]) -> np.ndarray:
+    """Multipliers (rows of states) with the constraint forces C_qᵀ λ of ``lam`` and the least
+    norm on the closure rows ``rows``: a phase whose closures are redundant (a box on four
+    corners) integrates an independent subset, whose multipliers are one admissible split
+    among many; the forces checked against μ N and reported are the least-norm split of the
+    contacts, as the reactions of redundant joints are.  λ = λ₀ + Z y over the null space Z of
+    C_qᵀ, y minimising |S λ|² (S the closure rows; the other rows — an Euler-parameter
+    normalisation, whose multiplier a self-equilibrated squeeze of the contacts would also
+    move — are not weighed)."""
+    out = np.array(lam, dtype=float, copy=True)
+    for k in range(len(ts)):
+        cq = model.constraint_jacobian(qs[k], ts[k])
+        cq = cq.toarray() if hasattr(cq, "toarray") else np.asarray(cq).reshape(model.nc, -1)
+        _, sing, vt = np.linalg.svd(cq.T)
+        rank = int(np.sum(sing > 1e-10 * max(sing[0] if sing.size else 0.0, 1e-300)))
+        null = vt[rank:].T  # columns: C_qᵀ z = 0
+        if null.shape[1] == 0:
+            continue
+        y = np.linalg.lstsq(null[rows], -out[k][rows], rcond=None)[0]
+        out[k] = out[k] + null @ y
+    return out
 
 
 def _inside(value, h: float) -> tuple[float | None, float]:
@@ -386,6 +423,43 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
         p[pnames.index(row.sign)] = float(np.sign(lam))
         events.append({"time": float(t_s), "element": row.name, "kind": "slip"})
         return v_p, closed_s
+
+    def stopped(i, q_s, v_s, t_s, closed_s) -> bool:
+        """A sliding friction row (joint or closed contact) whose slip is zero at t_s: it
+        stopped together with the one located (a box sliding on several contacts)."""
+        row = gaps.rows[i][0]
+        if not gaps.stick[i] or i in closed_s or not gaps.active(i, closed_s) or \
+                p[pnames.index(row.sign)] == 0.0:
+            return False
+        if slides_in_space(row):
+            return float(np.linalg.norm(gaps.slip_velocity(i, q_s, v_s, t_s, p))) <= 1e-8
+        return abs(float(gaps(q_s, v_s, t_s, p)[0][i])) <= 1e-8
+
+    def settle_group(group, q_s, v_s, t_s, closed_s):
+        """Rows that stopped at one instant: all stuck together if each holding force stays
+        within its level (a box on several contacts: the statically indeterminate holding
+        forces are the minimum-norm ones); else one by one, the others released (σ = 0) until
+        their turn."""
+        if len(group) == 1:
+            return settle(group[0], q_s, v_s, t_s, closed_s)
+        for i in group:
+            row = gaps.rows[i][0]
+            p[pnames.index(row.sign)] = 0.0
+            p[pnames.index(row.stuck_at)] = 0.0
+        positions = gaps.positions(q_s, v_s, t_s, p)
+        for i in group:
+            p[pnames.index(gaps.rows[i][0].stuck_at)] = float(positions[i])
+        trial = closed_s | set(group)
+        stuck = use(phase_of(trial))
+        v_p = project(stuck.sim.model, gaps, trial, q_s, v_s, t_s, p)
+        lams = dict(zip(sorted(trial), stuck.multipliers(q_s, v_p, t_s), strict=True))
+        if all(gaps.closed_value(i, lams) >= 0.0 for i in group):
+            events.extend({"time": float(t_s), "element": gaps.rows[i][0].name,
+                           "kind": "stick"} for i in group)
+            return v_p, trial
+        for i in group:
+            v_s, closed_s = settle(i, q_s, v_s, t_s, closed_s)
+        return v_s, closed_s
 
     def slides_in_space(row) -> bool:
         return isinstance(row, SlideRow) and row.dimension == 3
@@ -588,7 +662,10 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
                 start_slide(element, gaps.slip_velocity(i_ev, q_ev, v_ev, t_ev, p))
                 v_new = v_ev
             elif gaps.stick[i_ev]:  # a sliding joint stopped: stick, or slide back
-                v_new, closed = settle(i_ev, q_ev, v_ev, t_ev, closed)
+                v_new, closed = settle_group(
+                    [i_ev] + [k for k in range(n_gaps) if k != i_ev and
+                              stopped(k, q_ev, v_ev, t_ev, closed)],
+                    q_ev, v_ev, t_ev, closed)
             elif is_detach:
                 closed = closed - {i_ev}
                 events.append({"time": float(t_ev), "element": gaps.label(i_ev),
@@ -664,6 +741,8 @@ def _assemble_result(base, phase_of, gaps, grid, qs, vs, samples, events, second
                 arr[idx] = other
         labels = [str(lab) for lab in phase.sim.model.constraint_labels]
         lam = sub.arrays["lambda"]
+        if phase.redundant:
+            lam = _minimum_norm(phase.sim.model, qs[idx], grid[idx], lam, phase.all_rows)
         result.arrays["lambda"][idx] = lam[:, [labels.index(lab) for lab in base_labels]]
         reac = sub.arrays.get("joint_reactions")
         if reac is not None and "joint_reactions" in result.arrays:
