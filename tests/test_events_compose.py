@@ -146,6 +146,55 @@ def test_cradle_gaps_closing_together_are_both_named(steps):
         np.testing.assert_allclose(res.body(body)["velocity"][-1], [v, 0.0], atol=1e-12)
 
 
+def _box(dimension, corners, mu=0.3, drop=0.02, vx=1.0):
+    """A box (m = 1) with point contacts at ``corners`` (body points at 0.05 below its centre)
+    dropped flat from ``drop`` above the floor while moving at vx."""
+    if dimension == 2:
+        mech = casmbd.Mechanism("box", dimension=2, gravity=[0.0, -G])
+        mech.add_body("box", 1.0, 0.01, [0.0, 0.05 + drop], velocity=[vx, 0.0])
+        for k, x in enumerate(corners):
+            mech.add_contact(f"c{k}", "box", [x, drop], radius=0.0, restitution=0.0,
+                             friction=mu)
+    else:
+        mech = casmbd.Mechanism("box", dimension=3, gravity=[0.0, 0.0, -G])
+        mech.add_body("box", 1.0, [0.01] * 3, [0.0, 0.0, 0.05 + drop], velocity=[vx, 0.0, 0.0])
+        for k, (x, y) in enumerate(corners):
+            mech.add_contact(f"c{k}", "box", [x, y, drop], normal=[0.0, 0.0, 1.0], radius=0.0,
+                             restitution=0.0, friction=mu)
+    return mech
+
+
+CORNERS = [(0.1, 0.1), (0.1, -0.1), (-0.1, 0.1), (-0.1, -0.1)]
+
+
+@pytest.mark.parametrize("dimension, corners, drop", [
+    (2, [-0.1, 0.1], 0.02), (2, [-0.1, 0.0, 0.1], 0.02), (3, CORNERS, 0.02), (3, CORNERS, 0.0)])
+def test_box_lands_on_several_contacts_slides_and_stops(dimension, corners, drop):
+    """A box dropped flat (from 0.02 m, or put down touching) at vx = 1 m/s, μ = 0.3, e = 0, on
+    2 or 3 contacts in the plane, 4 corners in space (the last two statically indeterminate):
+    every contact is named at the impact t₁ = sqrt(2 drop/g) (``impact`` and ``contact``, or
+    ``contact`` alone when put down; 1e-8 s); the impulse leaves vx⁺ = 1 − μ g t₁ (Coulomb on
+    the impulse level), then the box slides at μ g and every contact sticks at
+    t₁ + vx⁺/(μ g) (1e-8 s) — all together, holding nothing at rest (1e-9 N), the normal forces
+    the minimum-norm split m g/n (1e-9 relative), at x = vx t₁ + vx⁺²/(2 μ g) (1e-9 m)."""
+    mu, n = 0.3, len(corners)
+    res = casmbd.simulate(_box(dimension, corners, mu, drop=drop), 0.5, 10, rtol=1e-10)
+    t1 = math.sqrt(2.0 * drop / G)
+    vx = 1.0 - mu * G * t1
+    t_stop = t1 + vx / (mu * G)
+    names = [f"c{k}" for k in range(n)]
+    kinds = (("impact", t1),) if drop else ()
+    for kind, when in (*kinds, ("contact", t1), ("stick", t_stop)):
+        hits = [e for e in res.events if e["kind"] == kind]
+        assert sorted(e["element"] for e in hits) == names, kind
+        np.testing.assert_allclose([e["time"] for e in hits], when, atol=1e-8)
+    forces = res.arrays["contact_forces"]  # n normal columns, then n friction columns
+    np.testing.assert_allclose(forces[-1, :n], G / n, rtol=1e-9)
+    assert np.max(np.abs(forces[-1, n:])) < 1e-9
+    assert res.body("box")["position"][-1][0] == \
+        pytest.approx(1.0 * t1 + vx**2 / (2.0 * mu * G), abs=1e-9)
+
+
 # ------------------------------------------------------------------ fuzz
 def _pendulum(rng):
     e, fc = rng.choice([0.0, 0.5, 1.0]), rng.choice([0.0, 0.3, 0.5, 6.0])
@@ -190,10 +239,18 @@ def _sphere(rng):
     return mech, lambda res: res.body("s")["position"][:, 2] - 0.1, 1.0
 
 
-SCENES = [_pendulum, _cradle_fuzz, _disc, _sphere]
+def _box_fuzz(rng):
+    dimension, mu = int(rng.choice([2, 3])), rng.choice([0.1, 0.3, 1.0])
+    corners = [-0.1, 0.0, 0.1] if dimension == 2 else \
+        CORNERS
+    mech = _box(dimension, corners, mu, drop=rng.choice([0.0, 0.02]), vx=rng.choice([0.5, 1.0]))
+    return mech, lambda res: res.body("box")["position"][:, dimension - 1] - 0.05, 0.6
 
 
-@pytest.mark.parametrize("seed", range(24))
+SCENES = [_pendulum, _cradle_fuzz, _disc, _sphere, _box_fuzz]
+
+
+@pytest.mark.parametrize("seed", range(30))
 def test_fuzz_grids_and_combinations(seed):
     """One seeded scene (kind by seed, its elements drawn) on four output grids of 2 … 120
     steps: the invariants of the module docstring."""

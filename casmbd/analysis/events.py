@@ -42,6 +42,7 @@ from __future__ import annotations
 import copy
 import math
 import time
+import warnings
 
 import casadi as ca
 import numpy as np
@@ -185,7 +186,11 @@ class _Phase:
             p_all = np.tile(model.p[:, None], (1, n))
             if n not in self._post_maps:  # one mapped Function per window size, built once
                 self._post_maps[n] = model.function("post").map(n)
-            post = self._post_maps[n](qs.T, vs.T, ts[None, :], p_all)
+            try:
+                post = self._post_maps[n](qs.T, vs.T, ts[None, :], p_all)
+            except RuntimeError:  # the virtual machine's solve of a singular (redundant) KKT
+                self._mapped = False
+                return self.multipliers_many(qs, vs, ts)
             acc = np.asarray(post[0], float).T
             lam = np.asarray(post[1], float).T.reshape(n, -1)
             residual = np.asarray(post[2], float).ravel()
@@ -627,11 +632,13 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
                     # bounce shorter than the interval) — find an inside time where it is open
                     lo, f_lo = _inside(value, h)
                     if lo is None:
-                        if not is_detach and t_a < best[0]:
+                        if not is_detach:
                             # an open gap pressed in from t_a on (a body put down touching
-                            # at the start): it closes at t_a (impact if it approaches)
-                            best = (t_a, i, False)
+                            # at the start): it closes at t_a (impact if it approaches), with
+                            # every other gap pressed in at t_a (a box put down on 4 corners)
                             pressed.add(i)
+                            if t_a < best[0]:
+                                best = (t_a, i, False)
                         continue  # a closed gap stays at its surface: no new event
                     hi, f_hi = 2.0 * lo, value(2.0 * lo) if 2.0 * lo < h else f_hi
                     hi = min(hi, h)
@@ -675,11 +682,11 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
                 hit = impact(phase_of(closed).sim.model, gaps, closed, i_ev, q_ev, v_ev, t_ev,
                               p, v_rest)
                 if hit is None and i_ev in pressed:  # resting: closes with no impulse
-                    v_new = project(phase_of(closed).sim.model, gaps, closed | {i_ev},
+                    v_new = project(phase_of(closed).sim.model, gaps, closed | pressed,
                                      q_ev, v_ev, t_ev, p)
-                    closed = closed | {i_ev}
-                    events.append({"time": float(t_ev), "element": gaps.label(i_ev),
-                                   "kind": "contact"})
+                    closed = closed | pressed
+                    events += [{"time": float(t_ev), "element": gaps.label(i),
+                                "kind": "contact"} for i in sorted(pressed)]
                 elif hit is None:  # grazing: the gap touches zero without closing in on it
                     v_new = v_ev
                 else:
@@ -732,7 +739,13 @@ def _assemble_result(base, phase_of, gaps, grid, qs, vs, samples, events, second
     for (closed, pk), idx in groups.items():
         phase = phase_of(closed)
         phase.sim.model.p[:] = pk
-        sub = phase.sim._post(grid[idx], qs[idx], vs[idx], {})
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", RuntimeWarning)
+            sub = phase.sim._post(grid[idx], qs[idx], vs[idx], {})
+        for w in caught:  # the closures' own reactions (undetermined when redundant) are not
+            # reported: only a warning naming a joint of the mechanism is passed on
+            if any(f"'{j}'" in str(w.message) for j in base.model.mechanism.joints):
+                warnings.warn(str(w.message), RuntimeWarning, stacklevel=3)
         for key, arr in result.arrays.items():
             other = sub.arrays.get(key)
             if other is None or key in ("lambda", "joint_reactions"):
