@@ -195,6 +195,54 @@ def test_box_lands_on_several_contacts_slides_and_stops(dimension, corners, drop
         pytest.approx(1.0 * t1 + vx**2 / (2.0 * mu * G), abs=1e-9)
 
 
+LIFTED = """
+[scene]
+name = "lifted"
+gravity = [0.0, -9.81]
+[[bodies]]
+name = "block"
+mass = 2.0
+inertia = 0.1
+position = [0.0, 0.05]
+[[forces]]
+name = "lift"
+type = "force"
+body = "block"
+value = [0.0, "4 * t"]
+[[contacts]]
+name = "left"
+body = "block"
+point = [-0.1, 0.0]
+[[contacts]]
+name = "right"
+body = "block"
+point = [0.1, 0.0]
+"""
+
+
+@pytest.mark.parametrize("steps", [7, 80])
+def test_block_lifted_off_two_contacts_detaches_from_both(steps):
+    """A block put down on two contacts and lifted at its centre by F = c t (c = 4 N/s): both
+    close at t = 0, carry (m g − c t)/2 each (1e-9 relative) and both detach at m g/c = 4.905 s
+    (1e-10 s; before, the second one, whose force starts at zero after the first opened, was
+    never released); then y = y0 + c (t³ − 3 t_d² t + 2 t_d³)/(6 m) − g (t − t_d)²/2 (1e-9)."""
+    m, c, y0 = 2.0, 4.0, 0.05
+    res = casmbd.simulate(casmbd.loads_scene(LIFTED), 8.0, steps, rtol=1e-12)
+    t_d = m * G / c
+    assert [(e["element"], e["kind"]) for e in res.events] == [
+        ("left", "contact"), ("right", "contact"), ("left", "detach"), ("right", "detach")]
+    np.testing.assert_allclose([e["time"] for e in res.events], [0, 0, t_d, t_d], atol=1e-10)
+    t = res.t
+    on = t < t_d
+    np.testing.assert_allclose(res.arrays["contact_forces"][on], np.column_stack(
+        [(m * G - c * t[on]) / 2] * 2), rtol=1e-9)
+    off = t > t_d
+    y = res.body("block")["position"][:, 1]
+    exact = y0 + c * (t**3 - 3 * t_d**2 * t + 2 * t_d**3) / (6 * m) - G * (t - t_d) ** 2 / 2
+    np.testing.assert_allclose(y[off], exact[off], rtol=1e-9, atol=1e-9)
+    assert np.all(res.arrays["contact_forces"][off] == 0.0)
+
+
 # ------------------------------------------------------------------ fuzz
 def _pendulum(rng):
     e, fc = rng.choice([0.0, 0.5, 1.0]), rng.choice([0.0, 0.3, 0.5, 6.0])

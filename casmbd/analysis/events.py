@@ -606,6 +606,7 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
             x_a, z_a, t_a = x, z, t
             best = (t_b, None, None)
             pressed: set[int] = set()
+            released: set[int] = set()
             for i in open_hit + pulls:
                 is_detach = i in closed
 
@@ -632,6 +633,13 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
                     # bounce shorter than the interval) — find an inside time where it is open
                     lo, f_lo = _inside(value, h)
                     if lo is None:
+                        if is_detach and not gaps.stick[i]:
+                            # a closed gap whose normal force falls through zero at t_a (a
+                            # box lifted evenly off two contacts: the second one, after the
+                            # first detached): it opens at t_a, with every other such gap
+                            released.add(i)
+                            if t_a < best[0]:
+                                best = (t_a, i, True)
                         if not is_detach:
                             # an open gap pressed in from t_a on (a body put down touching
                             # at the start): it closes at t_a (impact if it approaches), with
@@ -674,9 +682,10 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
                               stopped(k, q_ev, v_ev, t_ev, closed)],
                     q_ev, v_ev, t_ev, closed)
             elif is_detach:
-                closed = closed - {i_ev}
-                events.append({"time": float(t_ev), "element": gaps.label(i_ev),
-                               "kind": "detach"})
+                opened = sorted(released) if i_ev in released else [i_ev]
+                closed = closed - set(opened)
+                events += [{"time": float(t_ev), "element": gaps.label(i), "kind": "detach"}
+                           for i in opened]
                 v_new = v_ev
             else:
                 hit = impact(phase_of(closed).sim.model, gaps, closed, i_ev, q_ev, v_ev, t_ev,
