@@ -182,3 +182,52 @@ def test_rolling_sphere_example_through_the_cli(capsys):
     np.testing.assert_allclose(np.array(floor["friction_force"])[t < t_star], mu * M * G,
                                rtol=1e-6)
     assert np.max(np.abs(np.array(floor["friction_force"])[t > t_star])) < 1e-6
+
+
+PUSHED = """
+[scene]
+name = "pushed"
+dimension = 3
+gravity = [0.0, 0.0, -9.81]
+[[bodies]]
+name = "ball"
+mass = 2.0
+inertia = [0.008, 0.008, 0.008]
+position = [0.0, 0.0, 0.1]
+[[forces]]
+name = "push"
+type = "force"
+body = "ball"
+value = ["3 * t", "4 * t", 0.0]
+[[contacts]]
+name = "floor"
+body = "ball"
+point = [0.0, 0.0, 0.1]
+radius = 0.1
+normal = [0.0, 0.0, 1.0]
+friction = 0.2
+"""
+
+
+def test_rolling_sphere_pushed_harder_starts_to_slip():
+    """A sphere resting on the floor pushed at its centre by F = c t along u = (0.6, 0.8)
+    (c = 5 N/s), μ = 0.2: it rolls (a = F/(7/5 m), the friction 2/7 F holding the touching
+    point) until 2/7 c t = μ m g, t_s = 7 μ m g/(2 c) = 2.7468 s (event ``slip``, 1e-8 s; the
+    stick → slip transition of a contact in space, sliding along the friction it needed);
+    then the centre accelerates at (c t − μ m g)/m along u: the distance along u to 1e-8 m,
+    the path straight (1e-9 m across; rtol 1e-12: at 1e-10 the Euler parameters of the fast
+    spinning ball drift by 1e-7 in the index-1 DAE)."""
+    m, mu, c = 2.0, 0.2, 5.0
+    t_s = 7.0 * mu * m * G / (2.0 * c)
+    res = casmbd.simulate(casmbd.loads_scene(PUSHED), 3.0, 30, rtol=1e-12, atol=1e-12)
+    assert [e["kind"] for e in res.events] == ["contact", "stick", "slip"]
+    assert res.events[2]["time"] == pytest.approx(t_s, abs=1e-8)
+    t = res.t
+    d = np.maximum(t - t_s, 0.0)
+    rolled = c * np.minimum(t, t_s) ** 3 / (6.0 * 1.4 * m)
+    v_s = c * t_s**2 / (2.0 * 1.4 * m)
+    slid = v_s * d + (c * (t**3 - np.minimum(t, t_s) ** 3) / 6.0 - c * t_s**2 * d / 2.0) / m \
+        - mu * G * d**2 / 2.0
+    pos = res.body("ball")["position"][:, :2]
+    np.testing.assert_allclose(pos @ np.array([0.6, 0.8]), rolled + slid, atol=1e-8)
+    assert np.max(np.abs(pos @ np.array([-0.8, 0.6]))) < 1e-9

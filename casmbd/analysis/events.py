@@ -53,7 +53,7 @@ from casmbd.analysis.impulses import impact, project
 from casmbd.analysis.joint_friction import has_reaction_friction
 from casmbd.analysis.kkt import accelerations_and_multipliers, consistent_state
 from casmbd.errors import AnalysisError, IntegratorError
-from casmbd.model.contacts import ContactSlide, JointLimit, slides
+from casmbd.model.contacts import SLIP_VELOCITY, ContactSlide, JointLimit, slides
 from casmbd.results import Result
 from casmbd.system import System
 
@@ -478,15 +478,18 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
             p[pnames.index(par)] = float(value)
 
     def reanchor(q_s, v_s, t_s) -> None:
-        """The reference ŝ of a sliding contact in space follows its slip once it has turned
-        by more than 60° (its row ŝ·v_t must not cross zero while the contact still slips)."""
+        """The stored direction ŝ of a sliding contact in space follows its slip (each window
+        of sub-intervals; the friction's direction (v_t + δ ŝ)/|v_t + δ ŝ| is v_t/|v_t| to
+        δ sin∠(ŝ, v_t)/|v_t|, and the row ŝ·v_t must not cross zero while it still slips) —
+        once the slip is well above δ (a slide just started from rest keeps the ŝ of λ_t)."""
         for i in range(n_gaps):
             row = gaps.rows[i][0]
             if slides_in_space(row) and p[pnames.index(row.sign)] != 0.0:
                 vt = gaps.slip_velocity(i, q_s, v_s, t_s, p)
                 speed = float(np.linalg.norm(vt))
                 stored = np.array([p[pnames.index(par)] for par in row.direction])
-                if speed > 0.0 and float(stored @ vt) < 0.5 * speed:
+                if speed > 100.0 * SLIP_VELOCITY and \
+                        float(np.linalg.norm(vt / speed - stored)) > 1e-9:
                     start_slide(row, vt)
 
     def held_by_stop(row, closed_s) -> bool:
@@ -663,14 +666,16 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
             element = gaps.rows[i_ev][0]
             if is_detach and gaps.stick[i_ev]:  # the holding force reached F_c: it slips
                 lam_ev = float(phase.multipliers(q_ev, v_ev, t_ev)[order.index(i_ev)])
-                closed = closed - {i_ev}
-                if slides_in_space(element):  # along λ_t
+                v_new = v_ev
+                if slides_in_space(element):  # along λ_t, from v_t = 0 exactly (the index-1
+                    # drift of the stuck phase, ~1e-9 m/s, would set a direction of its own)
                     start_slide(element, phase.tangent_multipliers(q_ev, v_ev, t_ev,
                                                                    order.index(i_ev)))
+                    v_new = project(phase.sim.model, gaps, closed, q_ev, v_ev, t_ev, p)
                 else:
                     p[pnames.index(element.sign)] = float(np.sign(lam_ev))
+                closed = closed - {i_ev}
                 events.append({"time": float(t_ev), "element": element.name, "kind": "slip"})
-                v_new = v_ev
             elif slides_in_space(element) and float(np.linalg.norm(gaps.slip_velocity(
                     i_ev, q_ev, v_ev, t_ev, p))) > 1e-7:
                 # ŝ·v_t crossed zero but the contact still slips (its slip turned): follow it

@@ -257,9 +257,12 @@ def slide_direction_parameters(name: str) -> tuple[str, str]:
     return f"{ident}_slide_dir1", f"{ident}_slide_dir2"
 
 
-#: tangential speed (m/s) below which a sliding contact in space pushes along its stored
-#: direction ŝ instead of v_t/|v_t| (only at the instant a slide starts from rest)
-SLIP_VELOCITY = 1e-12
+#: the speed δ (m/s) of the direction of friction of a contact sliding in space,
+#: (v_t + δ ŝ)/|v_t + δ ŝ|: exactly v_t/|v_t| whenever the slip is along the stored direction
+#: ŝ (which the integrator re-anchors to the slip as it turns), and ŝ as a slide starts from
+#: rest — where v_t/|v_t| alone is singular (the direction of 1e-10 m/s of drift, a
+#: perpendicular stiffness μ g/|v_t| no integrator resolves)
+SLIP_VELOCITY = 1e-6
 
 
 def slides(element) -> bool:
@@ -356,10 +359,10 @@ class ContactSlide(ForceElement):
         return self.closure
 
     def terms(self, kit, ctx):
-        """Q = (∂v_t/∂v)ᵀ f_t: in the plane f_t = −μ N σ; in space f_t = −μ N σ v_t/|v_t|
-        along the 2-D tangential velocity of the touching point (ŝ, the stored direction,
-        while |v_t| < :data:`SLIP_VELOCITY` — the instant a slide starts from rest — and
-        where ŝ·v_t ≤ 0, past the instant it stops)."""
+        """Q = (∂v_t/∂v)ᵀ f_t: in the plane f_t = −μ N σ; in space f_t = −μ N σ d along the
+        2-D tangential velocity v_t of the touching point, d = (v_t + δ ŝ)/|v_t + δ ŝ|
+        (:data:`SLIP_VELOCITY`; = v_t/|v_t| for a slip along the stored direction ŝ, = ŝ as a
+        slide starts from rest), and d = ŝ where ŝ·v_t ≤ 0, past the instant it stops."""
         base = kit.ctx
         where = f"contact '{self.contact.name}' field 'friction'"
         sign = kit.value(slide_parameters(self.contact.name)[0], where)
@@ -371,13 +374,12 @@ class ContactSlide(ForceElement):
         vt = self.contact.tangential_velocity(base)
         stored = ca.vertcat(*[kit.value(par, where) for par in
                               slide_direction_parameters(self.contact.name)])
-        square = ca.dot(vt, vt)
         # past the instant the slip stops (ŝ·v_t < 0, before the event is located) the force
         # keeps the direction ŝ, as σ does in the plane: the integrator steps through the
         # stop smoothly instead of chattering about v_t = 0
-        sliding = ca.logic_and(square > SLIP_VELOCITY**2, ca.dot(stored, vt) > 0.0)
-        direction = ca.if_else(sliding, vt / ca.sqrt(ca.fmax(square, SLIP_VELOCITY**2)),
-                               stored)
+        blend = vt + SLIP_VELOCITY * stored
+        direction = ca.if_else(ca.dot(stored, vt) > 0.0,
+                               blend / ca.sqrt(ca.fmax(ca.dot(blend, blend), 1e-300)), stored)
         return [kit.term("generalized", None, ca.mtimes(ca.jacobian(vt, base.v).T,
                                                         force * direction), None, self.name)]
 
