@@ -295,10 +295,25 @@ def _box_fuzz(rng):
     return mech, lambda res: res.body("box")["position"][:, dimension - 1] - 0.05, 0.6
 
 
-SCENES = [_pendulum, _cradle_fuzz, _disc, _sphere, _box_fuzz]
+def _rod_on_floor(rng):
+    """A rod pinned at one end (stick-slip friction at the pin or none) whose tip (a 0.05 m
+    sphere) strikes a frictional floor 0.6 m below the pin: the pin and the floor lock the rod
+    once it rests (the friction rows held)."""
+    fc, mu, e = rng.choice([0.0, 0.3]), rng.choice([0.0, 0.5]), rng.choice([0.0, 0.5])
+    mech = casmbd.Mechanism("rod_floor", dimension=2, gravity=[0.0, -G])
+    mech.add_body("rod", 1.0, 1.0 / 12.0, [0.5, 0.0])
+    mech.add_revolute("pin", "ground", "rod", [0.0, 0.0])
+    if fc:
+        mech.add("joint_friction", "pin.friction", "pin", friction=fc, stick_slip=True)
+    mech.add_contact("floor", "rod", [1.0, 0.0], radius=0.05, origin=[0.0, -0.6],
+                     restitution=e, friction=mu)
+    return mech, lambda res: np.sin(res.joint("pin")["coordinate"]) + 0.55, 1.5
 
 
-@pytest.mark.parametrize("seed", range(30))
+SCENES = [_pendulum, _cradle_fuzz, _disc, _sphere, _box_fuzz, _rod_on_floor]
+
+
+@pytest.mark.parametrize("seed", range(36))
 def test_fuzz_grids_and_combinations(seed):
     """One seeded scene (kind by seed, its elements drawn) on four output grids of 2 … 120
     steps: the invariants of the module docstring."""

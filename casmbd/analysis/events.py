@@ -53,7 +53,7 @@ from casmbd.analysis.impulses import impact, project
 from casmbd.analysis.joint_friction import has_reaction_friction
 from casmbd.analysis.kkt import accelerations_and_multipliers, consistent_state
 from casmbd.errors import AnalysisError, IntegratorError
-from casmbd.model.contacts import SLIP_VELOCITY, ContactSlide, JointLimit, slides
+from casmbd.model.contacts import SLIP_VELOCITY, ContactSlide, slides
 from casmbd.results import Result
 from casmbd.system import System
 
@@ -447,6 +447,7 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
         their turn."""
         if len(group) == 1:
             return settle(group[0], q_s, v_s, t_s, closed_s)
+        group = sorted(group)  # row order, whichever was located first
         for i in group:
             row = gaps.rows[i][0]
             p[pnames.index(row.sign)] = 0.0
@@ -492,28 +493,40 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
                         float(np.linalg.norm(vt / speed - stored)) > 1e-9:
                     start_slide(row, vt)
 
-    def held_by_stop(row, closed_s) -> bool:
-        """A stick-slip joint whose coordinate rests on a closed stop of the same joint: the
-        stop holds it (its multiplier carries the whole holding force; friction at rest is
-        indeterminate there), σ = 0 until the stop opens."""
-        def which(joint, coordinate):
-            return coordinate or next(iter(mechanism.joints[joint].coordinate_names), None)
-
-        return any(isinstance(gaps.rows[k][0], JointLimit) and
-                   gaps.rows[k][0].joint == row.joint and
-                   which(row.joint, gaps.rows[k][0].coordinate) ==
-                   which(row.joint, row.coordinate) for k in closed_s)
+    def held(i, q_s, t_s, closed_s) -> bool:
+        """A friction row whose slip the closed rows already fix — a stick-slip joint on a
+        closed stop of its joint, the tip of a pinned rod resting on a frictional floor: its
+        slip direction lies in the row space of the phase's C_q.  Friction at rest there is
+        statically indeterminate; the closures carry the load and σ = 0 (no friction force)
+        until the set of closed rows changes."""
+        if not closed_s:
+            return False
+        row = gaps.rows[i][0]
+        _, gq, tv = gaps(q_s, np.zeros(nq), t_s, p)
+        if slides_in_space(row):
+            idx, ts = gaps.tangent_of[row.gap_row], gaps.tangent_size
+            dirs = tv[idx * ts:(idx + 1) * ts]
+        else:
+            dirs = gq[i:i + 1]
+        cq = use(phase_of(closed_s)).sim.model.constraint_jacobian(q_s, t_s)
+        cq = cq.toarray() if hasattr(cq, "toarray") else np.asarray(cq).reshape(-1, nq)
+        for d in dirs:
+            x_d = np.linalg.lstsq(cq.T, d, rcond=None)[0]
+            if np.linalg.norm(cq.T @ x_d - d) > 1e-8 * max(np.linalg.norm(d), 1e-300):
+                return False
+        return True
 
     def engage(q_s, v_s, t_s, closed_s):
         """After an event.  Slide rows of frictional contacts that just closed: stick or
         slide; of contacts that opened: released (σ = 0).  Sliding stick-slip joints whose
-        velocity an impact reversed: σ follows (``slip``); those on a closed stop of their
-        joint: held by it (σ = 0); released by their stop: stick or slide."""
+        velocity an impact reversed: σ follows (``slip``).  Friction rows whose slip the
+        closed rows fix (:func:`held`: a joint on its closed stop, a pinned rod's tip on the
+        floor): σ = 0; released: stick or slide."""
         for i in range(n_gaps):
             row = gaps.rows[i][0]
             if isinstance(row, StickRow) and i not in closed_s:
                 k_sign = pnames.index(row.sign)
-                if held_by_stop(row, closed_s):
+                if held(i, q_s, t_s, closed_s):
                     p[k_sign] = 0.0
                     continue
                 sigma = p[k_sign]
@@ -535,6 +548,8 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
                 continue
             if row.gap_row not in closed_s:
                 closed_s = closed_s - {i}
+                p[pnames.index(row.sign)] = 0.0
+            elif i not in closed_s and held(i, q_s, t_s, closed_s):
                 p[pnames.index(row.sign)] = 0.0
             elif i not in closed_s and p[pnames.index(row.sign)] == 0.0 and \
                     slides_in_space(row):

@@ -55,7 +55,11 @@ def impact(model, gaps, closed, i_ev, q, v, t, p, v_rest):
             idx = gaps.tangent_of[i]
             if idx is not None and element.friction > 0:
                 ts = gaps.tangent_size
-                tangential.append((i, tv[idx * ts:(idx + 1) * ts]))
+                t_mat = tv[idx * ts:(idx + 1) * ts]
+                if not _implied(np.vstack([cq.reshape(-1, n), directions]), t_mat):
+                    tangential.append((i, t_mat))
+                # else the joints and the normal rows already fix the contact point's slip
+                # (a pinned rod's tip striking the floor): no tangential impulse of its own
         stick_rows = [t_row for _, t_mat in tangential for t_row in t_mat]
         a_mat, b_vec = _saddle(m_mat, cq, ct, directions, np.array(rhs), stick_rows, v)
         sol = np.linalg.lstsq(a_mat, b_vec, rcond=None)[0]
@@ -118,6 +122,15 @@ def project(model, gaps, closed, q, v, t, p):
     rows = np.array([gq[i] for i in sorted(closed)])
     a_mat, b_vec = _saddle(m_mat, cq, ct, rows, np.zeros(len(rows)), [], v)
     return np.linalg.lstsq(a_mat, b_vec, rcond=None)[0][:n]
+
+
+def _implied(rows: np.ndarray, dirs: np.ndarray) -> bool:
+    """Whether every row of ``dirs`` is a combination of ``rows`` (relative 1e-8)."""
+    for d in dirs:
+        x = np.linalg.lstsq(rows.T, d, rcond=None)[0]
+        if np.linalg.norm(rows.T @ x - d) > 1e-8 * max(np.linalg.norm(d), 1e-300):
+            return False
+    return True
 
 
 def _saddle(m_mat, cq, ct, directions, normal_rhs, stick_rows, v, normal_rows=None):

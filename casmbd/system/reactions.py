@@ -243,7 +243,7 @@ class Reactions:
             joint = self.mechanism.joints[desc.joint.name]
             at_point = self._at_point(joint, name, wrench)
             if unknown:
-                at_point = at_point * ca.nan
+                at_point = at_point * float("nan")
             joint_wrench[name] = at_point
             out[joint.name] = at_point if joint.body2 == name else -at_point
         return out
