@@ -243,6 +243,39 @@ def test_block_lifted_off_two_contacts_detaches_from_both(steps):
     assert np.all(res.arrays["contact_forces"][off] == 0.0)
 
 
+@pytest.mark.parametrize("coordinates", ["joint", "absolute"])
+def test_pinned_rod_rests_on_a_frictional_floor(coordinates):
+    """A rod (1 m, 1 kg) pinned at one end falls from the horizontal onto a frictional floor
+    (μ = 0.5, e = 0) with a 0.05 m sphere at its tip, with exact stick-slip friction at the pin
+    (F_c = 0.3 N m): the pin and the floor lock it, the friction rows are held (no slip events
+    while it rests — before, one at every output time on some grids; in joint coordinates the
+    contact's friction was refused).  At rest (sin θ = −0.55) the floor carries m g/2 and the
+    pin the other half (1e-9), in joint and absolute coordinates; the first impact at the
+    time of a solve_ivp of I θ̈ = −m g L/2 cos θ + F_c (1e-9 s)."""
+    mech = casmbd.Mechanism("rod_floor", dimension=2, gravity=[0.0, -G], coordinates=coordinates)
+    mech.add_body("rod", 1.0, 1.0 / 12.0, [0.5, 0.0])
+    mech.add_revolute("pin", "ground", "rod", [0.0, 0.0])
+    mech.add("joint_friction", "pin.friction", "pin", friction=0.3, stick_slip=True)
+    mech.add_contact("floor", "rod", [1.0, 0.0], radius=0.05, origin=[0.0, -0.6],
+                     restitution=0.0, friction=0.5)
+    res = casmbd.simulate(mech, 1.0, 10, rtol=1e-12, atol=1e-12)
+    assert [(e["element"], e["kind"]) for e in res.events] == [
+        ("pin.friction", "slip"), ("floor", "impact"), ("floor", "contact")]
+
+    def hit(_, y):
+        return math.sin(y[0]) + 0.55
+
+    hit.terminal, hit.direction = True, -1
+    sol = solve_ivp(lambda _, y: [y[1], (-G * 0.5 * math.cos(y[0]) + 0.3) * 3.0], (0.0, 1.0),
+                    [0.0, 0.0], method="DOP853", rtol=1e-13, atol=1e-13, events=hit)
+    assert res.events[1]["time"] == pytest.approx(float(sol.t_events[0][0]), abs=1e-9)
+    # floor normal force, pin friction, floor friction
+    np.testing.assert_allclose(res.arrays["contact_forces"][-1], [G / 2, 0.0, 0.0], atol=1e-9)
+    pin = res.names["all_joints"].index("pin")
+    np.testing.assert_allclose(res.arrays["joint_reactions"][-1, pin, :2], [0.0, G / 2],
+                               atol=1e-9)
+
+
 # ------------------------------------------------------------------ fuzz
 def _pendulum(rng):
     e, fc = rng.choice([0.0, 0.5, 1.0]), rng.choice([0.0, 0.3, 0.5, 6.0])

@@ -359,29 +359,38 @@ class ContactSlide(ForceElement):
         return self.closure
 
     def terms(self, kit, ctx):
-        """Q = (∂v_t/∂v)ᵀ f_t: in the plane f_t = −μ N σ; in space f_t = −μ N σ d along the
-        2-D tangential velocity v_t of the touching point, d = (v_t + δ ŝ)/|v_t + δ ŝ|
-        (:data:`SLIP_VELOCITY`; = v_t/|v_t| for a slip along the stored direction ŝ, = ŝ as a
-        slide starts from rest), and d = ŝ where ŝ·v_t ≤ 0, past the instant it stops."""
-        base = kit.ctx
-        where = f"contact '{self.contact.name}' field 'friction'"
-        sign = kit.value(slide_parameters(self.contact.name)[0], where)
-        force = -self.contact.friction * kit.normal(self.name) * sign
-        if self.contact.dimension == 2:
-            vt = ca.jtimes(tangential_position(self.contact, base), base.q, base.v)
-            return [kit.term("generalized", None, ca.jacobian(vt, base.v).T * force, None,
-                             self.name)]
-        vt = self.contact.tangential_velocity(base)
-        stored = ca.vertcat(*[kit.value(par, where) for par in
-                              slide_direction_parameters(self.contact.name)])
-        # past the instant the slip stops (ŝ·v_t < 0, before the event is located) the force
-        # keeps the direction ŝ, as σ does in the plane: the integrator steps through the
-        # stop smoothly instead of chattering about v_t = 0
-        blend = vt + SLIP_VELOCITY * stored
-        direction = ca.if_else(ca.dot(stored, vt) > 0.0,
-                               blend / ca.sqrt(ca.fmax(ca.dot(blend, blend), 1e-300)), stored)
-        return [kit.term("generalized", None, ca.mtimes(ca.jacobian(vt, base.v).T,
-                                                        force * direction), None, self.name)]
+        """The friction force f_t at the touching point P = r_c − r n, as a force F at the
+        sphere's centre and the torque (−r n) × F on its body — virtual work
+        (∂ṙ_c/∂v)ᵀ F + (∂ω/∂v)ᵀ τ = (∂v_t/∂v)ᵀ f_t, which the joint reactions can read.  In the
+        plane F = −μ N σ t; in space F = −μ N σ Tᵀ d along the 2-D tangential velocity v_t of
+        P, d = (v_t + δ ŝ)/|v_t + δ ŝ| (:data:`SLIP_VELOCITY`; = v_t/|v_t| for a slip along the
+        stored direction ŝ, = ŝ as a slide starts from rest), and d = ŝ where ŝ·v_t ≤ 0, past
+        the instant it stops."""
+        base, contact = kit.ctx, self.contact
+        where = f"contact '{contact.name}' field 'friction'"
+        sign = kit.value(slide_parameters(contact.name)[0], where)
+        magnitude = -contact.friction * kit.normal(self.name) * sign
+        basis = tangents(contact.normal)
+        if contact.dimension == 2:
+            force = ca.DM(basis[0]) * magnitude
+            torque = contact.radius * magnitude  # (−r n) × t = r
+        else:
+            vt = contact.tangential_velocity(base)
+            stored = ca.vertcat(*[kit.value(par, where) for par in
+                                  slide_direction_parameters(contact.name)])
+            # past the instant the slip stops (ŝ·v_t < 0, before the event is located) the
+            # force keeps the direction ŝ, as σ does in the plane: the integrator steps
+            # through the stop smoothly instead of chattering about v_t = 0
+            blend = vt + SLIP_VELOCITY * stored
+            direction = ca.if_else(ca.dot(stored, vt) > 0.0,
+                                   blend / ca.sqrt(ca.fmax(ca.dot(blend, blend), 1e-300)),
+                                   stored)
+            force = ca.mtimes(ca.DM(basis.T), magnitude * direction)
+            torque = ca.cross(ca.DM(-contact.radius * contact.normal), force)
+        terms = [kit.term("measure", contact.centre(ctx), force)]
+        if contact.radius:
+            terms.append(kit.term("torque", None, torque, contact.body))
+        return terms
 
     def report_names(self, dimension):
         return ()
