@@ -122,6 +122,16 @@ def test_stick_slip_with_a_stop_rests_on_the_stop(tmp_path, capsys):
     assert out["contacts"]["pin.friction"]["normal_force"][-1] == 0.0
 
 
+def test_stick_slip_with_a_stop_statics_equals_the_rest():
+    """Statics of the same rod (before: a RecursionError, the variant without contacts still
+    had events): it rests on the stop, θ = −1, the stop carrying m g L/2 cos 1 — what the
+    simulation ends in (1e-9 relative)."""
+    eq = casmbd.static_equilibrium(casmbd.loads_scene(PENDULUM))
+    assert eq.q[0] == pytest.approx(-1.0, abs=1e-12)
+    assert eq.contacts["pin.limit"]["normal_force"] == \
+        pytest.approx(G * 0.5 * math.cos(1.0), rel=1e-9)
+
+
 def _cradle(e=1.0, v_c=1.5):
     mech = casmbd.Mechanism("cradle", dimension=2, gravity=[0.0, 0.0])
     mech.add_body("a", 1.0, 0.004, [0.0, 0.0], velocity=[1.5, 0.0])
