@@ -360,9 +360,12 @@ class Result:
                                            self.names.get("force_outputs", []))}
         if self.events or self.stats.get("event_driven"):
             out["events"] = [dict(e) for e in self.events]
-        if "contact_forces" in self.arrays:
-            out["contacts"] = {name: {"normal_force": _list(self.arrays["contact_forces"][:, k])}
-                               for k, name in enumerate(self.names.get("contacts", []))}
+        if "contact_forces" in self.arrays:  # a frictional contact's second column: friction
+            out["contacts"] = {}
+            for k, name in enumerate(self.names.get("contacts", [])):
+                key = "friction_force" if name in out["contacts"] else "normal_force"
+                out["contacts"].setdefault(name, {})[key] = \
+                    _list(self.arrays["contact_forces"][:, k])
         return out
 
     # ------------------------------------------------------------------ files

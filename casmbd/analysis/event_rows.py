@@ -16,7 +16,9 @@ import numpy as np
 from casmbd.model.bodies import GROUND
 from casmbd.model.contacts import (
     GapClosure,
+    RollingClosure,
     TangentClosure,
+    slide_direction_parameters,
     slide_parameters,
     tangential_position,
 )
@@ -54,11 +56,14 @@ class StickRow:
 
 
 class SlideRow:
-    """The tangential row of a closed frictional plane contact (plane scenes): active while
-    the contact's gap row is closed.  Stuck, it is closed by s(q) − s_stuck = 0
+    """The tangential row of a closed frictional plane contact: active while the contact's
+    gap row is closed.  In the plane: stuck, it is closed by s(q) − s_stuck = 0
     (:class:`~casmbd.model.contacts.TangentClosure`; −λ the friction force, within μ N with N
     the gap row's normal force); sliding, σ ṡ must stay positive (the force −μ N σ is the
-    contact's :class:`~casmbd.model.contacts.ContactSlide` element)."""
+    contact's :class:`~casmbd.model.contacts.ContactSlide` element).  In space: stuck, the
+    touching point's velocity v_t = 0 (two rows, :class:`~casmbd.model.contacts.
+    RollingClosure`; |λ_t| within μ N); sliding, the force −μ N v_t/|v_t| and the row
+    σ ŝ·v_t must stay positive (ŝ the slip direction)."""
 
     event_kind = "stick"
     restitution = 0.0
@@ -69,13 +74,25 @@ class SlideRow:
         self.contact, self.name = contact, contact.name
         self.mu = float(contact.friction)
         self.sign, self.stuck_at = slide_parameters(contact.name)
+        #: 2 (plane) or 3 (space: the slip is a 2-D velocity in the tangent plane)
+        self.dimension = contact.dimension
+        #: space: the parameters of the sliding direction ŝ (tangent basis)
+        self.direction = slide_direction_parameters(contact.name) \
+            if contact.dimension == 3 else ()
         #: index of the contact's gap row (set by :class:`EventRows`)
         self.gap_row = -1
 
     def gaps(self, ctx) -> ca.SX:
+        if self.dimension == 3:  # stuck in space: a velocity constraint, no position
+            return ca.SX.zeros(1)
         return tangential_position(self.contact, ctx) - ctx.p[self.stuck_at]
 
     def rate(self, ctx) -> ca.SX:
+        """σ ṡ in the plane; in space σ ŝ·v_t, the slip velocity along the direction ŝ the
+        slide started with (re-anchored by the integrator while the slip turns)."""
+        if self.dimension == 3:
+            stored = ca.vertcat(*[ctx.p[par] for par in self.direction])
+            return ctx.p[self.sign] * ca.dot(stored, self.contact.tangential_velocity(ctx))
         return ctx.p[self.sign] * ca.jtimes(tangential_position(self.contact, ctx), ctx.q,
                                             ctx.v)
 
@@ -163,18 +180,26 @@ class EventRows:
         element = self.rows[i][0]
         return not isinstance(element, SlideRow) or element.gap_row in closed
 
+    def slip_velocity(self, i: int, q, v, t, p) -> np.ndarray:
+        """v_t of slide row i's contact: the tangential velocity of its touching point in the
+        tangent basis (1 component in the plane, 2 in space)."""
+        idx = self.tangent_of[self.rows[i][0].gap_row]
+        ts = self.tangent_size
+        return self(q, v, t, p)[2][idx * ts:(idx + 1) * ts] @ np.asarray(v, float)
+
     def label(self, i: int) -> str:
         element, k = self.rows[i]
         return element.name if len(element.labels) == 1 else \
             f"{element.name}.{element.labels[k]}"
 
 
-def closure(mechanism, element, k: int) -> GapClosure | TangentClosure:
+def closure(mechanism, element, k: int) -> GapClosure | TangentClosure | RollingClosure:
     """The bilateral constraint g_k = 0 of a closed gap, between the bodies it touches (the
     ground first for a contact with the ground plane; a limit's joint's bodies); a stuck
     contact's tangential closure."""
     if isinstance(element, SlideRow):
-        return TangentClosure(element.contact)
+        return TangentClosure(element.contact) if element.dimension == 2 else \
+            RollingClosure(element.contact)
     if hasattr(element, "joint"):
         joint = mechanism.joints[element.joint]
         return GapClosure(element, k, joint.body1, joint.body2)

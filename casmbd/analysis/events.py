@@ -42,6 +42,7 @@ from __future__ import annotations
 import copy
 import math
 import time
+import warnings
 
 import casadi as ca
 import numpy as np
@@ -53,7 +54,7 @@ from casmbd.analysis.joint_friction import has_reaction_friction
 from casmbd.analysis.kkt import accelerations_and_multipliers, consistent_state
 from casmbd.errors import AnalysisError, IntegratorError
 from casmbd.interrupts import reraise_interrupt
-from casmbd.model.contacts import ContactSlide, slides
+from casmbd.model.contacts import SLIP_VELOCITY, ContactSlide, slides
 from casmbd.model.needs import EVENT_NEEDS, requirements
 from casmbd.results import Result
 from casmbd.system import System
@@ -122,8 +123,16 @@ class _Phase:
     """A Simulator of the mechanism with a set of closed gaps, and its step integrators."""
 
     def __init__(self, sim, closed: frozenset, closure_rows: list[int], name, rtol, atol,
-                 max_steps):
+                 max_steps, pairs: dict[int, int] | None = None):
         self.sim, self.closed, self.closure_rows = sim, closed, closure_rows
+        #: closed rows (by position in ``closure_rows``) whose closure has a second row (a
+        #: contact stuck in space, two tangential rows): their value is |λ_t|
+        self.pairs = pairs or {}
+        #: the phase integrates an independent subset of its rows (redundant closures):
+        #: multipliers are taken with the minimum norm (:func:`_minimum_norm`)
+        self.redundant = getattr(sim, "redundancy", {}).get("kept_rows") is not None
+        #: every row of the closures (a pair's second rows included)
+        self.all_rows = list(closure_rows) + list(self.pairs.values())
         self.dae = sim.formulation.kind == "dae"
         self._scaled = _scaled(sim.dyn)
         self.name, self.rtol, self.atol, self.max_steps = name, rtol, atol, max_steps
@@ -180,10 +189,10 @@ class _Phase:
                 self._post_maps[n] = model.function("post").map(n)
             try:
                 post = self._post_maps[n](qs.T, vs.T, ts[None, :], p_all)
-            except RuntimeError as exc:  # the virtual machine's QR refuses a singular KKT
-                reraise_interrupt(exc)   # matrix: every state by the exact solve below
-                post = None
-        if self._mapped and post is not None:
+            except RuntimeError as exc:  # the virtual machine's solve of a singular
+                reraise_interrupt(exc)   # (redundant) KKT: every state by the exact solve
+                self._mapped = False
+                return self.multipliers_many(qs, vs, ts)
             acc = np.asarray(post[0], float).T
             lam = np.asarray(post[1], float).T.reshape(n, -1)
             residual = np.asarray(post[2], float).ravel()
@@ -197,13 +206,33 @@ class _Phase:
         for k in np.flatnonzero(bad):
             lam[k] = accelerations_and_multipliers(model, qs[k], vs[k], ts[k],
                                                    self.sim.inputs_at(ts[k]))[1]
-        return lam[:, self.closure_rows]
+        if self.redundant:
+            lam = _minimum_norm(model, qs, ts, lam, self.all_rows)
+        return self._closed(lam)
+
+    def _closed(self, lam: np.ndarray) -> np.ndarray:
+        """The closed rows' multipliers from all of λ (rows of states); a pair: |λ_t|."""
+        out = lam[..., self.closure_rows]
+        for m, second in self.pairs.items():
+            out[..., m] = np.hypot(lam[..., self.closure_rows[m]], lam[..., second])
+        return out
+
+    def tangent_multipliers(self, q, v, t, m: int) -> np.ndarray:
+        """λ_t (two components) of the closed row at position m, a contact stuck in space."""
+        lam = self._all(q, v, t)
+        return np.array([lam[self.closure_rows[m]], lam[self.pairs[m]]])
+
+    def _all(self, q, v, t) -> np.ndarray:
+        """λ of every row at one state (minimum norm when the phase is redundant)."""
+        lam = accelerations_and_multipliers(self.sim.model, q, v, t, self.sim.inputs_at(t))[1]
+        if self.redundant:
+            lam = _minimum_norm(self.sim.model, q[None, :], np.array([t]), lam[None, :],
+                                self.all_rows)[0]
+        return lam
 
     def multipliers(self, q, v, t):
         """λ of the closure rows (the closed gaps' constraint multipliers)."""
-        model = self.sim.model
-        _, lam = accelerations_and_multipliers(model, q, v, t, self.sim.inputs_at(t))
-        return lam[self.closure_rows] if self.closure_rows else np.zeros(0)
+        return self._closed(self._all(q, v, t)) if self.closure_rows else np.zeros(0)
 
     def z0(self, q, v, t):
         if not self.dae:
@@ -212,13 +241,44 @@ class _Phase:
         return self.sim._z0(q, a, lam)
 
 
+#: a value of an event row that counts as clearly inside (away from its surface) when the
+#: motion starts on the surface: above the rounding of a gap that starts at zero (a body put
+#: down touching a tilted plane starts at g ≈ 1e-17 m, not an impact 2 ns later)
+INSIDE = 1e-14
+
+
+def _minimum_norm(model, qs: np.ndarray, ts: np.ndarray, lam: np.ndarray,
+                  rows: list[int]) -> np.ndarray:
+    """Multipliers (rows of states) with the constraint forces C_qᵀ λ of ``lam`` and the least
+    norm on the closure rows ``rows``: a phase whose closures are redundant (a box on four
+    corners) integrates an independent subset, whose multipliers are one admissible split
+    among many; the forces checked against μ N and reported are the least-norm split of the
+    contacts, as the reactions of redundant joints are.  λ = λ₀ + Z y over the null space Z of
+    C_qᵀ, y minimising |S λ|² (S the closure rows; the other rows — an Euler-parameter
+    normalisation, whose multiplier a self-equilibrated squeeze of the contacts would also
+    move — are not weighed)."""
+    out = np.array(lam, dtype=float, copy=True)
+    for k in range(len(ts)):
+        cq = model.constraint_jacobian(qs[k], ts[k])
+        cq = cq.toarray() if hasattr(cq, "toarray") else np.asarray(cq).reshape(model.nc, -1)
+        _, sing, vt = np.linalg.svd(cq.T)
+        rank = int(np.sum(sing > 1e-10 * max(sing[0] if sing.size else 0.0, 1e-300)))
+        null = vt[rank:].T  # columns: C_qᵀ z = 0
+        if null.shape[1] == 0:
+            continue
+        y = np.linalg.lstsq(null[rows], -out[k][rows], rcond=None)[0]
+        out[k] = out[k] + null @ y
+    return out
+
+
 def _inside(value, h: float) -> tuple[float | None, float]:
-    """The largest τ = h 2⁻ᵏ (k = 1 … 60) with value(τ) > 0, and that value (None: none)."""
+    """The largest τ = h 2⁻ᵏ (k = 1 … 60) with value(τ) > :data:`INSIDE`, and that value
+    (None: none)."""
     tau = h
     for _ in range(60):
         tau *= 0.5
         f = value(tau)
-        if f > 0.0:
+        if f > INSIDE:
             return tau, f
     return None, 0.0
 
@@ -291,6 +351,9 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
         if closed not in phases:
             if closed:
                 variant = copy.copy(mechanism)
+                # the phase's states are the base's: its coordinates, never a new automatic
+                # choice (closures count as loop joints and could tip it to absolute)
+                variant.coordinates = base.model.coordinates
                 variant.joints = dict(mechanism.joints)
                 variant.forces = dict(mechanism.forces)
                 for i in sorted(closed):
@@ -307,10 +370,14 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
                 labels = [str(lab) for lab in sim.model.constraint_labels]
                 rows = [labels.index(f"joint '{closure(mechanism, *gaps.rows[i]).name}' "
                                      "equation 'gap'") for i in sorted(closed)]
+                pairs = {m: labels.index(f"joint '{closure(mechanism, *gaps.rows[i]).name}' "
+                                         "equation 'gap_2'")
+                         for m, i in enumerate(sorted(closed))
+                         if len(closure(mechanism, *gaps.rows[i]).labels) == 2}
             else:
-                sim, rows = base, []
+                sim, rows, pairs = base, [], {}
             phases[closed] = _Phase(sim, closed, rows, name, rtol, atol,
-                                    max_steps or 500_000)
+                                    max_steps or 500_000, pairs)
         return phases[closed]
 
     # the parameters of the phase (stick-slip: the sliding sign σ and the stuck position), set
@@ -355,20 +422,145 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
         if gaps.closed_value(i, lams) >= 0.0:
             events.append({"time": float(t_s), "element": row.name, "kind": "stick"})
             return v_p, trial
+        if slides_in_space(row):  # it slips along λ_t (the friction force −λ_t is too big)
+            lam_t = stuck.tangent_multipliers(q_s, v_p, t_s, sorted(trial).index(i))
+            start_slide(row, lam_t)
+            events.append({"time": float(t_s), "element": row.name, "kind": "slip"})
+            return v_p, closed_s
         p[pnames.index(row.sign)] = float(np.sign(lam))
         events.append({"time": float(t_s), "element": row.name, "kind": "slip"})
         return v_p, closed_s
 
-    def engage(q_s, v_s, t_s, closed_s):
-        """Slide rows of frictional contacts that just closed: stick or slide; of contacts
-        that opened: released (σ = 0)."""
+    def stopped(i, q_s, v_s, t_s, closed_s) -> bool:
+        """A sliding friction row (joint or closed contact) whose slip is zero at t_s: it
+        stopped together with the one located (a box sliding on several contacts)."""
+        row = gaps.rows[i][0]
+        if not gaps.stick[i] or i in closed_s or not gaps.active(i, closed_s) or \
+                p[pnames.index(row.sign)] == 0.0:
+            return False
+        if slides_in_space(row):
+            return float(np.linalg.norm(gaps.slip_velocity(i, q_s, v_s, t_s, p))) <= 1e-8
+        return abs(float(gaps(q_s, v_s, t_s, p)[0][i])) <= 1e-8
+
+    def settle_group(group, q_s, v_s, t_s, closed_s):
+        """Rows that stopped at one instant: all stuck together if each holding force stays
+        within its level (a box on several contacts: the statically indeterminate holding
+        forces are the minimum-norm ones); else one by one, the others released (σ = 0) until
+        their turn."""
+        if len(group) == 1:
+            return settle(group[0], q_s, v_s, t_s, closed_s)
+        group = sorted(group)  # row order, whichever was located first
+        for i in group:
+            row = gaps.rows[i][0]
+            p[pnames.index(row.sign)] = 0.0
+            p[pnames.index(row.stuck_at)] = 0.0
+        positions = gaps.positions(q_s, v_s, t_s, p)
+        for i in group:
+            p[pnames.index(gaps.rows[i][0].stuck_at)] = float(positions[i])
+        trial = closed_s | set(group)
+        stuck = use(phase_of(trial))
+        v_p = project(stuck.sim.model, gaps, trial, q_s, v_s, t_s, p)
+        lams = dict(zip(sorted(trial), stuck.multipliers(q_s, v_p, t_s), strict=True))
+        if all(gaps.closed_value(i, lams) >= 0.0 for i in group):
+            events.extend({"time": float(t_s), "element": gaps.rows[i][0].name,
+                           "kind": "stick"} for i in group)
+            return v_p, trial
+        for i in group:
+            v_s, closed_s = settle(i, q_s, v_s, t_s, closed_s)
+        return v_s, closed_s
+
+    def slides_in_space(row) -> bool:
+        return isinstance(row, SlideRow) and row.dimension == 3
+
+    def start_slide(row, direction) -> None:
+        """A contact in space slides (σ = 1) along the unit ``direction`` (tangent basis)."""
+        p[pnames.index(row.sign)] = 1.0
+        d = np.asarray(direction, float)
+        d = d / max(float(np.linalg.norm(d)), 1e-300)
+        for par, value in zip(row.direction, d, strict=True):
+            p[pnames.index(par)] = float(value)
+
+    def reanchor(q_s, v_s, t_s) -> None:
+        """The stored direction ŝ of a sliding contact in space follows its slip (each window
+        of sub-intervals; the friction's direction (v_t + δ ŝ)/|v_t + δ ŝ| is v_t/|v_t| to
+        δ sin∠(ŝ, v_t)/|v_t|, and the row ŝ·v_t must not cross zero while it still slips) —
+        once the slip is well above δ (a slide just started from rest keeps the ŝ of λ_t)."""
         for i in range(n_gaps):
             row = gaps.rows[i][0]
+            if slides_in_space(row) and p[pnames.index(row.sign)] != 0.0:
+                vt = gaps.slip_velocity(i, q_s, v_s, t_s, p)
+                speed = float(np.linalg.norm(vt))
+                stored = np.array([p[pnames.index(par)] for par in row.direction])
+                if speed > 100.0 * SLIP_VELOCITY and \
+                        float(np.linalg.norm(vt / speed - stored)) > 1e-9:
+                    start_slide(row, vt)
+
+    def held(i, q_s, t_s, closed_s) -> bool:
+        """A friction row whose slip the closed rows already fix — a stick-slip joint on a
+        closed stop of its joint, the tip of a pinned rod resting on a frictional floor: its
+        slip direction lies in the row space of the phase's C_q.  Friction at rest there is
+        statically indeterminate; the closures carry the load and σ = 0 (no friction force)
+        until the set of closed rows changes."""
+        if not closed_s:
+            return False
+        row = gaps.rows[i][0]
+        _, gq, tv = gaps(q_s, np.zeros(nq), t_s, p)
+        if slides_in_space(row):
+            idx, ts = gaps.tangent_of[row.gap_row], gaps.tangent_size
+            dirs = tv[idx * ts:(idx + 1) * ts]
+        else:
+            dirs = gq[i:i + 1]
+        cq = use(phase_of(closed_s)).sim.model.constraint_jacobian(q_s, t_s)
+        cq = cq.toarray() if hasattr(cq, "toarray") else np.asarray(cq).reshape(-1, nq)
+        for d in dirs:
+            x_d = np.linalg.lstsq(cq.T, d, rcond=None)[0]
+            if np.linalg.norm(cq.T @ x_d - d) > 1e-8 * max(np.linalg.norm(d), 1e-300):
+                return False
+        return True
+
+    def engage(q_s, v_s, t_s, closed_s):
+        """After an event.  Slide rows of frictional contacts that just closed: stick or
+        slide; of contacts that opened: released (σ = 0).  Sliding stick-slip joints whose
+        velocity an impact reversed: σ follows (``slip``).  Friction rows whose slip the
+        closed rows fix (:func:`held`: a joint on its closed stop, a pinned rod's tip on the
+        floor): σ = 0; released: stick or slide."""
+        for i in range(n_gaps):
+            row = gaps.rows[i][0]
+            if isinstance(row, StickRow) and i not in closed_s:
+                k_sign = pnames.index(row.sign)
+                if held(i, q_s, t_s, closed_s):
+                    p[k_sign] = 0.0
+                    continue
+                sigma = p[k_sign]
+                p[k_sign] = 1.0
+                rate = float(gaps(q_s, v_s, t_s, p)[0][i])  # q̇_j
+                p[k_sign] = sigma
+                if sigma == 0.0:  # released by its stop
+                    if abs(rate) > 1e-12:
+                        p[k_sign] = float(np.sign(rate))
+                        events.append({"time": float(t_s), "element": row.name,
+                                       "kind": "slip"})
+                    else:
+                        v_s, closed_s = settle(i, q_s, v_s, t_s, closed_s)
+                elif sigma * rate < -1e-12:  # an impact reversed the sliding direction
+                    p[k_sign] = -sigma
+                    events.append({"time": float(t_s), "element": row.name, "kind": "slip"})
+                continue
             if not isinstance(row, SlideRow):
                 continue
             if row.gap_row not in closed_s:
                 closed_s = closed_s - {i}
                 p[pnames.index(row.sign)] = 0.0
+            elif i not in closed_s and held(i, q_s, t_s, closed_s):
+                p[pnames.index(row.sign)] = 0.0
+            elif i not in closed_s and p[pnames.index(row.sign)] == 0.0 and \
+                    slides_in_space(row):
+                vt = gaps.slip_velocity(i, q_s, v_s, t_s, p)
+                if float(np.linalg.norm(vt)) > 1e-12:
+                    start_slide(row, vt)
+                    events.append({"time": float(t_s), "element": row.name, "kind": "slip"})
+                else:
+                    v_s, closed_s = settle(i, q_s, v_s, t_s, closed_s)
             elif i not in closed_s and p[pnames.index(row.sign)] == 0.0:
                 p[pnames.index(row.sign)] = 1.0
                 rate = float(gaps(q_s, v_s, t_s, p)[0][i])
@@ -410,6 +602,7 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
                 j += 1
                 continue
             if t_b not in window:
+                reanchor(x[:nq], x[nq:], t)
                 first = int(np.searchsorted(sub_all, t_b - 0.5 * tol_t * (1 + abs(t_b))))
                 times = sub_all[first:first + WINDOW]
                 xs_w, zs_w = phase.advance_many(x, z, t, times)
@@ -433,6 +626,7 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
             x_a, z_a, t_a = x, z, t
             best = (t_b, None, None)
             pressed: set[int] = set()
+            released: set[int] = set()
             for i in open_hit + pulls:
                 is_detach = i in closed
 
@@ -459,11 +653,20 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
                     # bounce shorter than the interval) — find an inside time where it is open
                     lo, f_lo = _inside(value, h)
                     if lo is None:
-                        if not is_detach and t_a < best[0]:
+                        if is_detach and not gaps.stick[i]:
+                            # a closed gap whose normal force falls through zero at t_a (a
+                            # box lifted evenly off two contacts: the second one, after the
+                            # first detached): it opens at t_a, with every other such gap
+                            released.add(i)
+                            if t_a < best[0]:
+                                best = (t_a, i, True)
+                        if not is_detach:
                             # an open gap pressed in from t_a on (a body put down touching
-                            # at the start): it closes at t_a (impact if it approaches)
-                            best = (t_a, i, False)
+                            # at the start): it closes at t_a (impact if it approaches), with
+                            # every other gap pressed in at t_a (a box put down on 4 corners)
                             pressed.add(i)
+                            if t_a < best[0]:
+                                best = (t_a, i, False)
                         continue  # a closed gap stays at its surface: no new event
                     hi, f_hi = 2.0 * lo, value(2.0 * lo) if 2.0 * lo < h else f_hi
                     hi = min(hi, h)
@@ -480,34 +683,47 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
             element = gaps.rows[i_ev][0]
             if is_detach and gaps.stick[i_ev]:  # the holding force reached F_c: it slips
                 lam_ev = float(phase.multipliers(q_ev, v_ev, t_ev)[order.index(i_ev)])
+                v_new = v_ev
+                if slides_in_space(element):  # along λ_t, from v_t = 0 exactly (the index-1
+                    # drift of the stuck phase, ~1e-9 m/s, would set a direction of its own)
+                    start_slide(element, phase.tangent_multipliers(q_ev, v_ev, t_ev,
+                                                                   order.index(i_ev)))
+                    v_new = project(phase.sim.model, gaps, closed, q_ev, v_ev, t_ev, p)
+                else:
+                    p[pnames.index(element.sign)] = float(np.sign(lam_ev))
                 closed = closed - {i_ev}
-                p[pnames.index(element.sign)] = float(np.sign(lam_ev))
                 events.append({"time": float(t_ev), "element": element.name, "kind": "slip"})
+            elif slides_in_space(element) and float(np.linalg.norm(gaps.slip_velocity(
+                    i_ev, q_ev, v_ev, t_ev, p))) > 1e-7:
+                # ŝ·v_t crossed zero but the contact still slips (its slip turned): follow it
+                start_slide(element, gaps.slip_velocity(i_ev, q_ev, v_ev, t_ev, p))
                 v_new = v_ev
             elif gaps.stick[i_ev]:  # a sliding joint stopped: stick, or slide back
-                v_new, closed = settle(i_ev, q_ev, v_ev, t_ev, closed)
+                v_new, closed = settle_group(
+                    [i_ev] + [k for k in range(n_gaps) if k != i_ev and
+                              stopped(k, q_ev, v_ev, t_ev, closed)],
+                    q_ev, v_ev, t_ev, closed)
             elif is_detach:
-                closed = closed - {i_ev}
-                events.append({"time": float(t_ev), "element": gaps.label(i_ev),
-                               "kind": "detach"})
+                opened = sorted(released) if i_ev in released else [i_ev]
+                closed = closed - set(opened)
+                events += [{"time": float(t_ev), "element": gaps.label(i), "kind": "detach"}
+                           for i in opened]
                 v_new = v_ev
             else:
                 hit = impact(phase_of(closed).sim.model, gaps, closed, i_ev, q_ev, v_ev, t_ev,
                               p, v_rest)
                 if hit is None and i_ev in pressed:  # resting: closes with no impulse
-                    v_new = project(phase_of(closed).sim.model, gaps, closed | {i_ev},
+                    v_new = project(phase_of(closed).sim.model, gaps, closed | pressed,
                                      q_ev, v_ev, t_ev, p)
-                    closed = closed | {i_ev}
-                    events.append({"time": float(t_ev), "element": gaps.label(i_ev),
-                                   "kind": "contact"})
+                    closed = closed | pressed
+                    events += [{"time": float(t_ev), "element": gaps.label(i),
+                                "kind": "contact"} for i in sorted(pressed)]
                 elif hit is None:  # grazing: the gap touches zero without closing in on it
                     v_new = v_ev
                 else:
-                    v_new, closed, extra = hit
-                    events.append({"time": float(t_ev), "element": gaps.label(i_ev),
-                                   "kind": element.event_kind})
+                    v_new, closed, struck = hit  # the gaps struck (i_ev among them), …
                     events += [{"time": float(t_ev), "element": lab, "kind": kind}
-                               for lab, kind in extra]
+                               for lab, kind in struck]
             if len(events) > max_events:
                 raise IntegratorError(f"more than {max_events} events by t = {t_ev:.6g} "
                                       "(raise max_events, or a rest_velocity)", t_ev,
@@ -554,7 +770,13 @@ def _assemble_result(base, phase_of, gaps, grid, qs, vs, samples, events, second
     for (closed, pk), idx in groups.items():
         phase = phase_of(closed)
         phase.sim.model.p[:] = pk
-        sub = phase.sim._post(grid[idx], qs[idx], vs[idx], {})
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", RuntimeWarning)
+            sub = phase.sim._post(grid[idx], qs[idx], vs[idx], {})
+        for w in caught:  # the closures' own reactions (undetermined when redundant) are not
+            # reported: only a warning naming a joint of the mechanism is passed on
+            if any(f"'{j}'" in str(w.message) for j in base.model.mechanism.joints):
+                warnings.warn(str(w.message), RuntimeWarning, stacklevel=3)
         for key, arr in result.arrays.items():
             other = sub.arrays.get(key)
             if other is None or key in ("lambda", "joint_reactions"):
@@ -563,21 +785,29 @@ def _assemble_result(base, phase_of, gaps, grid, qs, vs, samples, events, second
                 arr[idx] = other
         labels = [str(lab) for lab in phase.sim.model.constraint_labels]
         lam = sub.arrays["lambda"]
+        if phase.redundant:
+            lam = _minimum_norm(phase.sim.model, qs[idx], grid[idx], lam, phase.all_rows)
         result.arrays["lambda"][idx] = lam[:, [labels.index(lab) for lab in base_labels]]
         reac = sub.arrays.get("joint_reactions")
         if reac is not None and "joint_reactions" in result.arrays:
             width = result.arrays["joint_reactions"].shape[1]
             result.arrays["joint_reactions"][idx] = reac[:, :width]
         for m, i in enumerate(sorted(closed)):
-            forces[idx, i] = -lam[:, phase.closure_rows[m]]
+            forces[idx, i] = -lam[:, phase.closure_rows[m]] if m not in phase.pairs else \
+                np.hypot(lam[:, phase.closure_rows[m]], lam[:, phase.pairs[m]])
     for k, (_, _, closed, pk) in enumerate(samples):  # sliding contacts: −μ N σ
         for i in range(n_gaps):
             row = gaps.rows[i][0]
             if isinstance(row, SlideRow) and i not in closed and row.gap_row in closed:
-                forces[k, i] = -row.mu * forces[k, row.gap_row] * pk[pnames.index(row.sign)]
+                sigma = pk[pnames.index(row.sign)]
+                forces[k, i] = row.mu * forces[k, row.gap_row] * (
+                    abs(sigma) if row.dimension == 3 else -sigma)  # space: |F_t|
     result.arrays["contact_forces"] = forces
     result.names["contacts"] = [gaps.label(i) for i in range(n_gaps)]
-    result.events = events
+    # one entry per (instant, element, kind): an impact's stick and the closed contact's
+    # stick at the same instant are one event
+    result.events = [dict(zip(("time", "element", "kind"), key, strict=True)) for key in
+                     dict.fromkeys((e["time"], e["element"], e["kind"]) for e in events)]
     # what the CLI summary and a smooth run's stats carry (formulation, build time, mode)
     result.stats.update({k: v for k, v in base.model.report_dict.items()
                          if k != "build_seconds"})

@@ -23,7 +23,9 @@ __all__ = ["impact", "project"]
 
 def impact(model, gaps, closed, i_ev, q, v, t, p, v_rest):
     """v⁺ after an impact of gap ``i_ev`` (module docstring, step 3), the new set of closed
-    gaps, and extra events (stick/slip, contact); None when the gap is not closing in."""
+    gaps, and the events as (label, kind): every gap struck at this instant (``impact``/
+    ``limit``, in row order), then stick/slip and contact; None when the gap is not closing
+    in."""
     g, gq, tv = gaps(q, v, t, p)
     if gq[i_ev] @ v >= 0.0:
         return None
@@ -52,7 +54,11 @@ def impact(model, gaps, closed, i_ev, q, v, t, p, v_rest):
             idx = gaps.tangent_of[i]
             if idx is not None and element.friction > 0:
                 ts = gaps.tangent_size
-                tangential.append((i, tv[idx * ts:(idx + 1) * ts]))
+                t_mat = tv[idx * ts:(idx + 1) * ts]
+                if not _implied(np.vstack([cq.reshape(-1, n), directions]), t_mat):
+                    tangential.append((i, t_mat))
+                # else the joints and the normal rows already fix the contact point's slip
+                # (a pinned rod's tip striking the floor): no tangential impulse of its own
         stick_rows = [t_row for _, t_mat in tangential for t_row in t_mat]
         a_mat, b_vec = _saddle(m_mat, cq, ct, directions, np.array(rhs), stick_rows, v)
         sol = np.linalg.lstsq(a_mat, b_vec, rcond=None)[0]
@@ -87,6 +93,9 @@ def impact(model, gaps, closed, i_ev, q, v, t, p, v_rest):
                 extra.append((gaps.label(i), "slip" if i in dict(slipping) else "stick"))
             break
         active = [i for i in active if i not in negative]
+    # every gap that takes part in the impact is named (two gaps of a Newton's cradle
+    # closing together: both), in row order whichever was located first
+    extra = [(gaps.label(i), gaps.rows[i][0].event_kind) for i in active] + extra
     new_closed = set(closed)
     for i in active:
         if gq[i] @ v_plus < v_rest:
@@ -112,6 +121,15 @@ def project(model, gaps, closed, q, v, t, p):
     rows = np.array([gq[i] for i in sorted(closed)])
     a_mat, b_vec = _saddle(m_mat, cq, ct, rows, np.zeros(len(rows)), [], v)
     return np.linalg.lstsq(a_mat, b_vec, rcond=None)[0][:n]
+
+
+def _implied(rows: np.ndarray, dirs: np.ndarray) -> bool:
+    """Whether every row of ``dirs`` is a combination of ``rows`` (relative 1e-8)."""
+    for d in dirs:
+        x = np.linalg.lstsq(rows.T, d, rcond=None)[0]
+        if np.linalg.norm(rows.T @ x - d) > 1e-8 * max(np.linalg.norm(d), 1e-300):
+            return False
+    return True
 
 
 def _saddle(m_mat, cq, ct, directions, normal_rhs, stick_rows, v, normal_rows=None):

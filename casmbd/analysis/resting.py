@@ -42,6 +42,11 @@ def resting_equilibrium(mechanism, t: float, method: str, tol: float, max_iter: 
     for _ in range(2 * len(g0) + 3):
         variant = copy.copy(mechanism)
         variant.contacts = {}
+        # exact stick-slip friction exerts nothing at rest (σ = 0): friction at rest is not
+        # needed for an equilibrium, and the variant must not come back here (it recursed
+        # without end on a joint with stick-slip friction)
+        variant.forces = {name: force for name, force in mechanism.forces.items()
+                          if not getattr(force, "stick_slip", False)}
         variant.joints = dict(mechanism.joints)
         names = {}
         for i in sorted(closed):

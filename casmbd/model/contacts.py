@@ -43,7 +43,7 @@ from casmbd.model.registry import register_force
 from casmbd.model.values import Value, check_value, numeric, resolve
 
 __all__ = ["CONTACT_MODELS", "CompliantContact", "GapClosure", "JointLimit", "PlaneContact",
-           "SphereContact", "Unilateral", "adams_step"]
+           "RollingClosure", "SphereContact", "Unilateral", "adams_step"]
 
 CONTACT_MODELS = ("impact", "compliant")
 #: default regularisation velocity of compliant friction (m/s)
@@ -295,11 +295,29 @@ def slide_parameters(name: str) -> tuple[str, str]:
     return f"{ident}_slide_sign", f"{ident}_stuck_at"
 
 
+def slide_direction_parameters(name: str) -> tuple[str, str]:
+    """The parameters of a closed frictional plane contact in space: the unit sliding
+    direction ŝ = (ŝ_1, ŝ_2) in the contact's tangent basis (:func:`tangents`) at the start of
+    the slide, the direction of the friction force while |v_t| < :data:`SLIP_VELOCITY` and the
+    reference of the event row ŝ·v_t."""
+    ident = re.sub(r"\W", "_", name)
+    return f"{ident}_slide_dir1", f"{ident}_slide_dir2"
+
+
+#: the speed δ (m/s) of the direction of friction of a contact sliding in space,
+#: (v_t + δ ŝ)/|v_t + δ ŝ|: exactly v_t/|v_t| whenever the slip is along the stored direction
+#: ŝ (which the integrator re-anchors to the slip as it turns), and ŝ as a slide starts from
+#: rest — where v_t/|v_t| alone is singular (the direction of 1e-10 m/s of drift, a
+#: perpendicular stiffness μ g/|v_t| no integrator resolves)
+SLIP_VELOCITY = 1e-6
+
+
 def slides(element) -> bool:
     """True for a plane contact with friction whose closed phases carry Coulomb friction:
-    sliding (−μ N σ) or stuck (its tangential position held) — planar scenes."""
+    sliding (−μ N along the slip) or stuck (its tangential position held in the plane, the
+    touching point's velocity held at zero in space)."""
     return (isinstance(element, PlaneContact) and element.model == "impact"
-            and element.friction > 0.0 and element.dimension == 2)
+            and element.friction > 0.0)
 
 
 def tangential_position(element: PlaneContact, ctx) -> ca.SX:
@@ -335,6 +353,37 @@ class TangentClosure(Joint):
         return None
 
 
+class RollingClosure(Joint):
+    """A stuck frictional plane contact in space: the touching material point does not slide,
+    v_t = T (ṙ_c + ω × (−r n)) = 0 (two rows in the tangent basis T = :func:`tangents`) — for
+    a sphere, rolling without slipping, a non-holonomic constraint (Pfeiffer & Glocker 1996,
+    ch. 7: the sticking contact as a bilateral constraint on the relative velocity).  Its
+    position rows are zero and its velocity rows are :meth:`velocity_equations` (the system
+    takes C_q from ∂W/∂v); the multipliers are the friction force that holds it (−λ in the
+    tangent basis).  Not a scene kind: made by :mod:`casmbd.analysis.events` for the phases
+    in which the contact sticks."""
+
+    def __init__(self, element: PlaneContact):
+        self.name = f"{element.name}.stick"
+        self.body1, self.body2 = GROUND, element.body
+        self.element = element
+        self.labels = ("gap", "gap_2")
+        self.coordinate_names = ()
+
+    dimensions: ClassVar[tuple[int, ...]] = (3,)
+    drawing: ClassVar[str] = "none"
+
+    def equations(self, ctx) -> ca.SX:
+        return ca.SX.zeros(2)
+
+    def velocity_equations(self, ctx) -> ca.SX:
+        """W(q, v) = v_t, the rows C_q v + C_t of the non-holonomic constraint W = 0."""
+        return self.element.tangential_velocity(ctx)
+
+    def reaction_point(self):
+        return None
+
+
 @register_force
 @dataclass
 class ContactSlide(ForceElement):
@@ -361,13 +410,38 @@ class ContactSlide(ForceElement):
         return self.closure
 
     def terms(self, kit, ctx):
-        base = kit.ctx
-        vt = ca.jtimes(tangential_position(self.contact, base), base.q, base.v)
-        sign = kit.value(slide_parameters(self.contact.name)[0],
-                         f"contact '{self.contact.name}' field 'friction'")
-        force = -self.contact.friction * kit.normal(self.name) * sign
-        return [kit.term("generalized", None, ca.jacobian(vt, base.v).T * force, None,
-                         self.name)]
+        """The friction force f_t at the touching point P = r_c − r n, as a force F at the
+        sphere's centre and the torque (−r n) × F on its body — virtual work
+        (∂ṙ_c/∂v)ᵀ F + (∂ω/∂v)ᵀ τ = (∂v_t/∂v)ᵀ f_t, which the joint reactions can read.  In the
+        plane F = −μ N σ t; in space F = −μ N σ Tᵀ d along the 2-D tangential velocity v_t of
+        P, d = (v_t + δ ŝ)/|v_t + δ ŝ| (:data:`SLIP_VELOCITY`; = v_t/|v_t| for a slip along the
+        stored direction ŝ, = ŝ as a slide starts from rest), and d = ŝ where ŝ·v_t ≤ 0, past
+        the instant it stops."""
+        base, contact = kit.ctx, self.contact
+        where = f"contact '{contact.name}' field 'friction'"
+        sign = kit.value(slide_parameters(contact.name)[0], where)
+        magnitude = -contact.friction * kit.normal(self.name) * sign
+        basis = tangents(contact.normal)
+        if contact.dimension == 2:
+            force = ca.DM(basis[0]) * magnitude
+            torque = contact.radius * magnitude  # (−r n) × t = r
+        else:
+            vt = contact.tangential_velocity(base)
+            stored = ca.vertcat(*[kit.value(par, where) for par in
+                                  slide_direction_parameters(contact.name)])
+            # past the instant the slip stops (ŝ·v_t < 0, before the event is located) the
+            # force keeps the direction ŝ, as σ does in the plane: the integrator steps
+            # through the stop smoothly instead of chattering about v_t = 0
+            blend = vt + SLIP_VELOCITY * stored
+            direction = ca.if_else(ca.dot(stored, vt) > 0.0,
+                                   blend / ca.sqrt(ca.fmax(ca.dot(blend, blend), 1e-300)),
+                                   stored)
+            force = ca.mtimes(ca.DM(basis.T), magnitude * direction)
+            torque = ca.cross(ca.DM(-contact.radius * contact.normal), force)
+        terms = [kit.term("measure", contact.centre(ctx), force)]
+        if contact.radius:
+            terms.append(kit.term("torque", None, torque, contact.body))
+        return terms
 
     def report_names(self, dimension):
         return ()

@@ -26,6 +26,7 @@ from casmbd.model.contacts import (
     PlaneContact,
     SphereContact,
     Unilateral,
+    slide_direction_parameters,
     slide_parameters,
     slides,
 )
@@ -508,6 +509,9 @@ class Mechanism:
         if slides(element):  # its closed phases: sliding sign and stuck position
             for param in slide_parameters(element.name):
                 self.add_parameter(param, 0.0)
+            if self.dimension == 3:  # and the sliding direction in the tangent plane
+                for param in slide_direction_parameters(element.name):
+                    self.add_parameter(param, 0.0)
         self.contacts[element.name] = element
         return element
 

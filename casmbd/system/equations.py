@@ -262,14 +262,38 @@ class System(AppliedForces, Outputs, Reactions):
         return self._constraint_parts[0]
 
     @cached_property
+    def _velocity_rows(self) -> ca.SX | None:
+        """W(q, v, t), affine in v: the rows C_q v + C_t of non-holonomic constraints (a
+        joint with ``velocity_equations``, whose position rows are 0: a contact sticking in
+        space, :class:`~casmbd.model.contacts.RollingClosure`), zero on the other rows; None
+        when there are none."""
+        joints = [j for j in self.mechanism.joints.values()
+                  if hasattr(j, "velocity_equations") and j.name not in self.tree_joints]
+        if not joints:
+            return None
+        w = ca.SX.zeros(self.nc)
+        for joint in joints:
+            rows = [i for i, lab in enumerate(self.constraint_labels)
+                    if lab.kind == "joint" and lab.element == joint.name]
+            values = ca.vec(joint.velocity_equations(self.ctx))
+            for k, i in enumerate(rows):
+                w[i] = values[k]
+        return w
+
+    @cached_property
     def constraint_jacobian(self) -> ca.SX:
-        """C_q = ∂C/∂q, sparse."""
-        return ca.jacobian(self.constraints, self.q)
+        """C_q = ∂C/∂q, sparse (the rows of a non-holonomic constraint W = 0: ∂W/∂v)."""
+        jac = ca.jacobian(self.constraints, self.q)
+        return jac if self._velocity_rows is None else \
+            jac + ca.jacobian(self._velocity_rows, self.v)
 
     @cached_property
     def constraint_time_derivative(self) -> ca.SX:
-        """C_t = ∂C/∂t (non-zero only on rheonomic rows)."""
-        return ca.jacobian(self.constraints, self.t)
+        """C_t = ∂C/∂t (non-zero only on rheonomic rows; a non-holonomic row: W at v = 0)."""
+        c_t = ca.jacobian(self.constraints, self.t)
+        if self._velocity_rows is None:
+            return c_t
+        return c_t + ca.substitute(self._velocity_rows, self.v, ca.DM.zeros(self.v.numel()))
 
     @cached_property
     def acceleration_rhs(self) -> ca.SX:

@@ -92,7 +92,9 @@ class AppliedForces:
             joint = getattr(force, "reaction_joint", lambda: None)()
             if joint is None:
                 continue
-            if self.tree_joints:  # tree reactions come from Newton–Euler, not from λ
+            if joint in self.tree_joints:  # tree reactions come from Newton–Euler, not λ
+                # (a loop joint's — a closed contact's — are its multipliers' in any
+                # coordinates)
                 raise ModelError(
                     f"force '{force.name}' field 'mu': the reaction of joint '{joint}' is not "
                     f"given by the multipliers in {self.coordinates} coordinates; use "

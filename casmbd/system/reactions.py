@@ -182,6 +182,10 @@ class Reactions:
             size = self.reaction_size
             out = ca.horzcat(*[cols[n] for n in mech.joints]) if mech.joints else \
                 ca.SX(size, 0)
+            normals = self.friction_normal_symbols
+            if normals:  # the friction of closed contacts (loop joints) from the multipliers
+                out = ca.substitute(out, ca.vertcat(*normals.values()),
+                                    self.friction_normals_of(lam))
             self._functions["joint_reactions"] = ca.Function(
                 "joint_reactions", [self.q, self.v, a, self.t, self.u, self.p, lam], [out],
                 ["q", "v", "a", "t", "u", "p", "lambda"], ["reactions"])
@@ -243,7 +247,7 @@ class Reactions:
             joint = self.mechanism.joints[desc.joint.name]
             at_point = self._at_point(joint, name, wrench)
             if unknown:
-                at_point = at_point * ca.nan
+                at_point = at_point * float("nan")
             joint_wrench[name] = at_point
             out[joint.name] = at_point if joint.body2 == name else -at_point
         return out

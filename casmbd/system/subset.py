@@ -76,3 +76,35 @@ class ConstraintSubset:
     @cached_property
     def acceleration_rhs(self) -> ca.SX:
         return self._system.acceleration_rhs[self.keep]
+
+    def minimum_norm_multipliers(self, lam: ca.SX) -> ca.SX:
+        """The multipliers of every row (n_c of the full system) with the constraint force of
+        the kept rows' ``lam`` and the least norm.  With C_q = [C_k; C_d] and the removed rows
+        dependent, C_d = E C_k with E = (C_d C_kᵀ)(C_k C_kᵀ)⁻¹, C_qᵀ λ = C_kᵀ (λ_k + Eᵀ λ_d) is
+        the force C_kᵀ lam when λ_k = lam − Eᵀ λ_d; the least |λ|² gives
+        λ_d = (I + E Eᵀ)⁻¹ E lam (the distribution the post-processing reports, e.g. the four
+        corners of a box on the floor carrying a quarter of its weight each)."""
+        full = [ca.SX(0.0)] * self._system.nc
+        if not self.removed:
+            for k, row in enumerate(self.keep):
+                full[row] = lam[k]
+            return ca.vertcat(*full) if full else ca.SX(0, 1)
+        jac = self._system.constraint_jacobian
+        c_k, c_d = jac[self.keep, :], jac[self.removed, :]
+        e_mat = ca.solve(ca.mtimes(c_k, c_k.T), ca.mtimes(c_k, c_d.T)).T
+        lam_d = ca.solve(ca.SX.eye(len(self.removed)) + ca.mtimes(e_mat, e_mat.T),
+                         ca.mtimes(e_mat, lam))
+        lam_k = lam - ca.mtimes(e_mat.T, lam_d)
+        for k, row in enumerate(self.keep):
+            full[row] = lam_k[k]
+        for k, row in enumerate(self.removed):
+            full[row] = lam_d[k]
+        return ca.vertcat(*full)
+
+    def friction_normals_of(self, lam: ca.SX) -> ca.SX:
+        """N of reaction-proportional friction from the kept rows' multipliers ``lam``, with
+        the minimum-norm distribution over every row (:meth:`minimum_norm_multipliers`): a
+        statically indeterminate set of closed contacts shares its load as the reported
+        reactions do, not as the independent subset would (which made one corner of a sliding
+        box pull and its friction too large)."""
+        return self._system.friction_normals_of(self.minimum_norm_multipliers(lam))
