@@ -320,8 +320,7 @@ def test_what_the_jump_does_not_cover_is_refused_by_name():
     res = sensitivity(loads_scene(PUSHED_BALL), ["ball_y"], t_end=0.9)
     assert res.parameters == ["m", "F"]
     assert sorted(res.stats["skipped_parameters"]) == ["h0", "r"]
-    # two balls dropped together: both gaps take an impulse at 0.4515 s (the run lists one
-    # event; the impact law's active set has both)
+    # two balls dropped together: both gaps take an impulse at 0.4515 s (the run lists both)
     two = scene_with(PUSHED_BALL, {"F": 0.0}, "two.toml") + """
 [[bodies]]
 name = "ball2"
@@ -338,7 +337,7 @@ radius = "r"
 model = "impact"
 restitution = 0.8
 """
-    with pytest.raises(AnalysisError, match=r"'floor' and 'floor2' impact together at "
+    with pytest.raises(AnalysisError, match=r"'floor', 'floor2' act together at "
                                             r"t = 0\.451524"):
         sensitivity(loads_scene(two), ["ball_y"], ["m"], 0.9)
     rough = PUSHED_BALL.replace("friction = 0.0", "friction = 0.3")
