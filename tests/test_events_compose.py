@@ -353,10 +353,21 @@ def _rod_on_floor(rng):
     return mech, lambda res: np.sin(res.joint("pin")["coordinate"]) + 0.55, 1.5
 
 
-SCENES = [_pendulum, _cradle_fuzz, _disc, _sphere, _box_fuzz, _rod_on_floor]
+def _box_hit(rng):
+    """A box sliding on two frictional floor contacts (μ drawn) hit head-on by a heavy ball
+    (e drawn): the impact reverses the slip of both contacts."""
+    mu, e = rng.choice([0.1, 0.3]), rng.choice([0.5, 1.0])
+    mech = _box(2, [-0.1, 0.1], mu, drop=0.0)
+    mech.add_body("ball", 3.0, 0.003, [0.2, 0.05], velocity=[-3.0, 0.0])
+    mech.add_contact("hit", "box", [0.0, 0.05], radius=0.05, body2="ball",
+                     point2=[0.2, 0.05], radius2=0.05, restitution=e)
+    return mech, lambda res: res.body("box")["position"][:, 1] - 0.05, 0.5
 
 
-@pytest.mark.parametrize("seed", range(36))
+SCENES = [_pendulum, _cradle_fuzz, _disc, _sphere, _box_fuzz, _rod_on_floor, _box_hit]
+
+
+@pytest.mark.parametrize("seed", range(42))
 def test_fuzz_grids_and_combinations(seed):
     """One seeded scene (kind by seed, its elements drawn) on four output grids of 2 … 120
     steps: the invariants of the module docstring."""
