@@ -553,6 +553,23 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
                 p[pnames.index(row.sign)] = 0.0
             elif i not in closed_s and held(i, q_s, t_s, closed_s):
                 p[pnames.index(row.sign)] = 0.0
+            elif i not in closed_s and p[pnames.index(row.sign)] != 0.0:
+                # sliding: an impact elsewhere may have reversed (turned) the slip — the force
+                # follows it (``slip``), never the stuck trial of a stop
+                if slides_in_space(row):
+                    vt = gaps.slip_velocity(i, q_s, v_s, t_s, p)
+                    stored = np.array([p[pnames.index(par)] for par in row.direction])
+                    if float(np.linalg.norm(vt)) > 1e-12 and float(stored @ vt) <= 0.0:
+                        start_slide(row, vt)
+                        events.append({"time": float(t_s), "element": row.name,
+                                       "kind": "slip"})
+                else:
+                    sigma = p[pnames.index(row.sign)]
+                    rate = float(gaps(q_s, v_s, t_s, p)[0][i])  # σ ṡ
+                    if rate < -1e-12:
+                        p[pnames.index(row.sign)] = -sigma
+                        events.append({"time": float(t_s), "element": row.name,
+                                       "kind": "slip"})
             elif i not in closed_s and p[pnames.index(row.sign)] == 0.0 and \
                     slides_in_space(row):
                 vt = gaps.slip_velocity(i, q_s, v_s, t_s, p)
