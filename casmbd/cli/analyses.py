@@ -229,7 +229,7 @@ def _cmd_linearize(args) -> tuple[dict, str]:
     for k, (fn, fd, z) in enumerate(zip(lin.natural_frequencies_hz,
                                         lin.damped_frequencies_hz, lin.damping_ratios)):
         lines.append(f"  mode {k + 1:<3} natural frequency {fn:.6g} Hz  damped frequency "
-                     f"{fd:.6g} Hz  damping ratio {z:.4g}")
+                     f"{fd:.6g} Hz  damping ratio {z + 0.0:.4g}")  # no "-0"
     if lin.stability is not None:
         eig = ", ".join(f"{e:.4g}" for e in lin.stability.eigenvalues)
         lines.append(f"  stiffness eigenvalues: {eig or 'none (no degrees of freedom)'}")
