@@ -116,7 +116,7 @@ def newton_euler(system: System, a: ca.SX) -> ca.SX:
     acc, force, xform = {}, {}, {}
     for name in order:
         parent = desc[name].parent
-        step = tk.bias[name] + ca.mtimes(tk.motion[name], a[system.body_slice(name)])
+        step = tk.bias[name] + ca.mtimes(tk.motion[name], system.body_part(a, name))
         if parent == GROUND:
             acc[name] = step
         else:

@@ -130,6 +130,12 @@ class System(AppliedForces, Outputs, Reactions):
         """Slice of q owned by ``body``."""
         return self.ctx.block(body)
 
+    def body_part(self, vec: ca.SX, body: str) -> ca.SX:
+        """The entries of a column ``vec`` (q, v, q̈ …) owned by ``body``, as a column — also
+        for a body with none (welded to its parent in joint coordinates), where CasADi's
+        empty slice is 1 × 0."""
+        return ca.reshape(vec[self.body_slice(body)], -1, 1)
+
     @property
     def reaction_size(self) -> int:
         """Components of a joint reaction: (F_x, F_y, M) in the plane, force and moment (6) in

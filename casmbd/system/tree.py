@@ -419,8 +419,7 @@ class TreeKinematics:
         out: dict[str, ca.SX] = {}
         for name in self.order:
             desc = self.system.descriptions[name]
-            own = ca.reshape(a[self.system.body_slice(name)], -1, 1)  # (0 × 1) for a weld
-            acc = self.bias[name] + ca.mtimes(self.motion[name], own)
+            acc = self.bias[name] + ca.mtimes(self.motion[name], self.system.body_part(a, name))
             if desc.parent != GROUND:
                 extra = out[desc.parent] - self.bias[desc.parent]
                 d = ctx.centre_of_mass(name) - ctx.centre_of_mass(desc.parent)
