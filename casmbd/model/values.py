@@ -134,6 +134,11 @@ def resolve(value: Value, t: ca.SX, params: Mapping[str, ca.SX], where: str) -> 
 
 def numeric(value: Value, params: Mapping[str, float], where: str) -> float:
     """Evaluate a time-independent value with the parameters' default values."""
+    if isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool):
+        out = float(value)  # a plain number: no symbols to build (a 5000-body robot: 70 000)
+        if not math.isfinite(out):
+            raise ModelError(f"{where}: evaluates to {out}")
+        return out
     t = ca.SX.sym("t")
     psyms = {name: ca.SX.sym(name) for name in params}
     expr = resolve(value, t, psyms, where)

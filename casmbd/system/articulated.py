@@ -41,7 +41,9 @@ def supported(system) -> str | None:
             return f"body '{name}' floats (no tree joint)"
         if desc.joint.euler_parameters:
             return f"ball joint '{desc.joint.name}' (Euler parameters)"
-    if any(term.kind == "generalized" for term in system._force_terms(system.ctx)):
+    # gravity and actuators give measure terms: only the force elements can be generalized
+    if any(term.kind == "generalized" for force in system.mechanism.forces.values()
+           for term in system._element_terms(force, system.ctx)):
         return "a user generalized force cannot be split into body wrenches"
     return None
 

@@ -23,6 +23,7 @@ and Euler parameters in space).
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass
 
 import casadi as ca
@@ -52,6 +53,17 @@ class TreeEdge:
     child: str
     parent: str
     joint: str | None
+
+
+def _incidence(joints, names) -> dict[str, list[str]]:
+    """body -> the joints of ``names`` that touch it, in the order of ``names`` (the graph
+    walks below visit them in that order, as a scan of ``names`` would, in O(1) per joint)."""
+    touching: dict[str, list[str]] = {}
+    for name in names:
+        joint = joints[name]
+        for body in dict.fromkeys((joint.body1, joint.body2)):
+            touching.setdefault(body, []).append(name)
+    return touching
 
 
 def spanning_tree(mechanism, tree=None) -> tuple[list[TreeEdge], list[str]]:
@@ -102,13 +114,12 @@ def spanning_tree(mechanism, tree=None) -> tuple[list[TreeEdge], list[str]]:
         root[a] = b
         chosen.append(name)
     others = [n for n, j in joints.items() if n not in named and is_tree_joint(j)]
-    frontier, seen = [GROUND], {GROUND}
+    frontier, seen = deque([GROUND]), {GROUND}
+    touching = _incidence(joints, others)
     while frontier:
-        node = frontier.pop(0)
-        for name in others:
+        node = frontier.popleft()
+        for name in touching.get(node, ()):
             joint = joints[name]
-            if node not in (joint.body1, joint.body2):
-                continue
             other = joint.body2 if joint.body1 == node else joint.body1
             a, b = find(joint.body1), find(joint.body2)
             if a != b:
@@ -127,14 +138,14 @@ def spanning_tree(mechanism, tree=None) -> tuple[list[TreeEdge], list[str]]:
     order: list[str] = []
     reached = {GROUND}
 
+    carrying = _incidence(joints, chosen)
+
     def grow(start: str) -> None:
-        queue = [start]
+        queue = deque([start])
         while queue:
-            node = queue.pop(0)
-            for name in chosen:
+            node = queue.popleft()
+            for name in carrying.get(node, ()):
                 joint = joints[name]
-                if node not in (joint.body1, joint.body2):
-                    continue
                 other = joint.body2 if joint.body1 == node else joint.body1
                 if other in reached:
                     continue
