@@ -252,3 +252,73 @@ def test_old_temporaries_of_another_host_are_removed_by_age(tmp_path):
     atomic_write(tmp_path / "r.csv", lambda tmp: pathlib.Path(tmp).write_text("t\n0\n"))
     assert not other.exists() and young.exists()
     assert (tmp_path / "r.csv").read_text() == "t\n0\n"
+
+
+SLIDER_OCP = """
+[scene]
+name = "slider"
+gravity = [0.0, 0.0]
+coordinates = "joint"
+
+[[bodies]]
+name = "block"
+mass = 1.0
+inertia = 0.1
+position = [0.0, 0.0]
+
+[[joints]]
+name = "slide"
+type = "prismatic"
+body1 = "ground"
+body2 = "block"
+point = [0.0, 0.0]
+axis = [1.0, 0.0]
+
+[[actuators]]
+name = "push"
+joint = "slide"
+
+[ocp]
+horizon = 1.0
+intervals = 2
+degree = 2
+objective = "effort"
+
+[ocp.initial]
+slide = 0.0
+slide_dot = 0.0
+
+[ocp.final]
+slide = 1.0
+slide_dot = 0.0
+"""
+
+
+def test_ocp_out_csv_and_plot_onto_the_scene(tmp_path, capsys):
+    """``ocp --out sol.csv`` writes the solution's result on the mesh nodes as CSV (it starts
+    at rest at 0 and ends at rest at 1 m, to IPOPT's tolerance, pushed by ±4 N: the closed
+    form of the 2-interval problem); ``--plot`` onto the scene and
+    ``--out`` = ``--plot`` are refused before the solve, nothing written."""
+    scene = tmp_path / "slider.toml"
+    scene.write_text(SLIDER_OCP)
+    before = snapshot(tmp_path)
+    for extra in (["--plot", scene], ["--out", tmp_path / "a.npz", "--plot", tmp_path / "a.npz"]):
+        code, stdout, err = run(capsys, "ocp", scene, "--mode", "vm", "--no-replay", "--json",
+                                *extra)
+        assert code == 1 and stdout == ""
+        line = one_error(err)
+        assert ("is the scene file" in line or "name the same file" in line), line
+    assert snapshot(tmp_path) == before
+    code, _, err = run(capsys, "ocp", scene, "--mode", "vm", "--no-replay",
+                       "--out", tmp_path / "sol.csv")
+    assert code == 0, err
+    header = (tmp_path / "sol.csv").read_text().splitlines()[0].split(",")
+    table = np.loadtxt(tmp_path / "sol.csv", delimiter=",", skiprows=1, ndmin=2)
+    x = table[:, header.index("joint_positions[slide]")]
+    v = table[:, header.index("joint_velocities[slide]")]
+    u = table[:, header.index("actuator_inputs[push.input]")]
+    assert table[0, 0] == 0.0 and table[-1, 0] == pytest.approx(1.0, abs=1e-12)
+    assert abs(x[0]) < 1e-9 and abs(v[0]) < 1e-9
+    assert x[-1] == pytest.approx(1.0, abs=1e-6) and abs(v[-1]) < 1e-6
+    # the closed form: a constant push u1 on [0, 0.5] s, u2 = -u1 after; x(1) = u1/4 = 1 m
+    assert np.abs(u).max() == pytest.approx(4.0, rel=1e-6)
