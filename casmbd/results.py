@@ -581,7 +581,17 @@ class Result:
 
         ``numpy.loadtxt(path, delimiter=",", skiprows=1)`` reads the numbers back; NaN is
         written as ``nan``.
+
+        Raises
+        ------
+        ResultFileError
+            ``path`` does not end in ``.csv`` (:meth:`save` writes ``.npz``).
         """
+        suffix = Path(path).suffix
+        if suffix.lower() != ".csv":
+            given = repr(suffix) if suffix else "a name without suffix"
+            raise ResultFileError(f"'{path}': to_csv writes a .csv file (save writes .npz), not "
+                                  f"{given}")
         columns = self.csv_columns()
         table = np.column_stack([c for _, c in columns]) if len(self.t) else \
             np.empty((0, len(columns)))

@@ -178,7 +178,7 @@ def test_other_suffixes_are_refused_by_name(tmp_path, scene, capsys, name):
     assert snapshot(tmp_path) == before
 
 
-def test_result_save_refuses_a_name_that_is_not_npz(tmp_path):
+def test_result_save_and_to_csv_refuse_the_other_suffix(tmp_path):
     from casmbd.analysis.kinematics import kinematics
 
     mech = load_scene(ROOT / "examples" / "slider_crank.toml")
@@ -187,6 +187,9 @@ def test_result_save_refuses_a_name_that_is_not_npz(tmp_path):
         with pytest.raises(ResultFileError, match=rf"'{tmp_path / name}': a result file is "
                                                   r"written as \.npz"):
             res.save(tmp_path / name)
+    with pytest.raises(ResultFileError, match=rf"'{tmp_path / 'run.npz'}': to_csv writes a "
+                                              r"\.csv file"):
+        res.to_csv(tmp_path / "run.npz")
     assert list(tmp_path.iterdir()) == []
     res.to_csv(tmp_path / "run.csv")                      # the CSV has its own method
     assert (tmp_path / "run.csv").read_text().startswith("t,")
