@@ -92,7 +92,8 @@ def build_parser() -> argparse.ArgumentParser:
         p.add_argument("--t-end", type=_positive_float, required=True, help="final time [s]")
         p.add_argument("--steps", type=_positive_int, required=True,
                        help="number of output intervals (N + 1 output times from 0 to T)")
-        p.add_argument("--out", help="save every array to this .npz file")
+        p.add_argument("--out", help="save every array to this .npz file, or one column per "
+                                     "scalar series to this .csv file (the suffix decides)")
 
     p = sub.add_parser("info", help="coordinates, constraints, degrees of freedom")
     common(p)
@@ -160,7 +161,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "--stable) instead of the one nearest the initial configuration")
     p = sub.add_parser("ocp", help="trajectory optimisation: the scene's [ocp] table")
     common(p)
-    p.add_argument("--out", help="save the solution (t, q, v, u, statistics) to this .npz file")
+    p.add_argument("--out", help="save the solution (t, q, v, u, statistics) to this .npz "
+                                 "file, or its result on the mesh nodes to this .csv file")
     p.add_argument("--intervals", type=_positive_int, default=None,
                    help="number of control intervals (overrides the table)")
     p.add_argument("--transcription", choices=("radau", "legendre", "multiple_shooting"),

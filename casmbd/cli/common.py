@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -65,8 +66,48 @@ def _add_dpi(p: argparse.ArgumentParser, default: float) -> None:
                    help=f"resolution (default {default:g})")
 
 
+#: ``--out`` suffix -> format of the verbs that save results (``Result.save``/``to_csv``)
+OUT_FORMATS = {".npz": "npz", ".csv": "csv"}
+_RESULT_VERBS = ("kinematics", "simulate", "inverse", "ocp")
+
+
+def _same_file(a, b) -> bool:
+    """Whether the paths ``a`` and ``b`` name one file (symbolic and hard links, ``..``, a
+    relative and an absolute spelling): ``os.path.samefile`` when both exist, else the
+    resolved paths."""
+    try:
+        if os.path.exists(a) and os.path.exists(b):
+            return os.path.samefile(a, b)
+        return Path(a).resolve() == Path(b).resolve()
+    except (OSError, RuntimeError, ValueError):
+        return False
+
+
+def _outputs(args) -> list[tuple[str, str]]:
+    """The files the verb will write: ``(option, path)`` for ``--out`` and ``ocp --plot``."""
+    return [(opt, val) for opt, val in (("--out", getattr(args, "out", None)),
+                                        ("--plot", getattr(args, "plot", None))) if val]
+
+
+def _check_not_input(args, inputs) -> None:
+    """Refuse an output file that is one of the ``inputs`` ``(what, path)`` (the scene, its URDF
+    or FE files, a result read) or the other output: it would be replaced."""
+    outs = _outputs(args)
+    for opt, out in outs:
+        for what, path in inputs:
+            if path and _same_file(out, path):
+                raise AnalysisError(f"{opt} '{out}' is the {what} '{path}' this command "
+                                    "reads; give another file name (nothing written)")
+    if len(outs) == 2 and _same_file(outs[0][1], outs[1][1]):
+        raise AnalysisError(f"--out and --plot name the same file '{outs[0][1]}'")
+
+
 def _check_out(args) -> None:
-    """Fail before the analysis when ``--out`` cannot be written."""
+    """Fail before the analysis when ``--out`` cannot be written, would replace a file given
+    on the command line, or has a suffix the verb cannot write (``.npz`` or ``.csv``)."""
+    _check_not_input(args, [(what, getattr(args, key, None)) for key, what in
+                            (("scene", "scene file"), ("result", "result file"),
+                             ("source", "input file"), ("from_result", "result file"))])
     out = getattr(args, "out", None)
     if not out:
         return
@@ -76,18 +117,45 @@ def _check_out(args) -> None:
     parent = path.parent if str(path.parent) else Path(".")
     if not parent.is_dir():
         raise AnalysisError(f"--out '{out}': folder '{parent}' does not exist")
+    if getattr(args, "verb", None) in _RESULT_VERBS and path.suffix.lower() not in OUT_FORMATS:
+        raise AnalysisError(f"--out '{out}': unknown suffix '{path.suffix}' (the suffix decides "
+                            "the format: .npz for every array, .csv for one column per scalar "
+                            "series)")
+
+
+def scene_files(mech, scene: str) -> list[tuple[str, str]]:
+    """The files a loaded scene read besides itself: ``[scene] urdf`` and every flexible
+    body's ``[bodies.fe] file`` (relative to the scene file, as the loader resolves them)."""
+    data = getattr(mech, "scene_data", None) or {}
+    base = Path(scene).parent
+    files = []
+    urdf = (data.get("scene") or {}).get("urdf") if isinstance(data.get("scene"), dict) else None
+    if isinstance(urdf, str) and urdf:
+        files.append(("URDF file", str(base / urdf)))
+    for body in data.get("bodies") or []:
+        fe = body.get("fe") if isinstance(body, dict) else None
+        if isinstance(fe, dict) and isinstance(fe.get("file"), str):
+            files.append((f"FE model of body '{body.get('name')}'", str(base / fe["file"])))
+    return files
 
 
 def _save(result, out: str) -> None:
+    """Write ``result`` to ``--out``: ``.csv`` by ``to_csv``, else the npz file."""
     try:
-        result.save(out)
+        if Path(out).suffix.lower() == ".csv":
+            result.to_csv(out)
+        else:
+            result.save(out)
     except OSError as exc:
         raise AnalysisError(f"cannot write --out '{out}': {exc.strerror or exc}") from None
 
 
 def _load(args):
     _check_out(args)
-    return load_scene(args.scene)
+    mech = load_scene(args.scene)
+    if _outputs(args):
+        _check_not_input(args, scene_files(mech, args.scene))
+    return mech
 
 
 def _timing(stats: dict, digits: int = 3) -> str:

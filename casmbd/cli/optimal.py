@@ -9,7 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from casmbd.cli.common import _load
+from casmbd.cli.common import _load, _save
 from casmbd.errors import AnalysisError, OptimizationError, SceneError
 from casmbd.io.ocp_table import ocp_from_scene
 from casmbd.viz.plots import plot_result
@@ -31,12 +31,12 @@ def _cmd_ocp(args) -> tuple[dict, str]:
         sol = ocp.solve()
     except OptimizationError as exc:
         if args.out and exc.solution is not None:
-            exc.solution.save(args.out)
+            _save_solution(exc.solution, args.out)
         raise
     if not args.no_replay:
         sol.replay()
     if args.out:
-        sol.save(args.out)
+        _save_solution(sol, args.out)
     if args.plot:  # the plot verb's panels: one unit each (positions [m], torques [N m] …)
         plot_result(sol.to_result(), ["coordinates", "efforts"], out=args.plot,
                     mechanism=mech)
@@ -59,6 +59,18 @@ def _cmd_ocp(args) -> tuple[dict, str]:
         lines.append(f"  control {name:12s} [{u.min():+.4g}, {u.max():+.4g}]")
     lines += [f"  saved {f}" for f in (args.out, args.plot) if f]
     return data, "\n".join(lines)
+
+
+def _save_solution(sol, out: str) -> None:
+    """``--out``: the solution file (``.npz``, with the controls per interval) or the CSV of its
+    result on the mesh nodes (``.csv``, :meth:`~casmbd.results.Result.to_csv`)."""
+    if Path(out).suffix.lower() == ".csv":
+        _save(sol.to_result(), out)
+    else:
+        try:
+            sol.save(out)
+        except OSError as exc:
+            raise AnalysisError(f"cannot write --out '{out}': {exc.strerror or exc}") from None
 
 
 def _cmd_bench(args) -> tuple[dict, str]:

@@ -10,6 +10,13 @@ those: :attr:`Ocp.solver_options <casmbd.ocp.problem.Ocp.solver_options>` (which
 and a range for every option, and ``solver`` must be one of :data:`SOLVERS`.  Everything else is
 refused with an error naming the key and listing what is allowed.
 
+The ranges check meaning, not only type: IPOPT's ``obj_scaling_factor`` must be > 0 (a
+negative one makes IPOPT maximise and still report ``Solve_Succeeded``), ``print_level`` is at
+most 5 (higher levels print every iterate: megabytes per iteration), the derivative tests
+(``derivative_test``) are refused (finite differences over every variable: minutes), and the
+termination tolerances and ``bound_relax_factor`` have upper bounds so that "succeeded" still
+means a feasible, optimal point (:data:`WHY` gives the reason appended to each refusal).
+
 The allow-list applies to every ``Ocp`` — built from a scene or in Python — and is checked
 again when the problem is solved (the attribute may have been changed).  Trusted Python code
 that needs another option passes it to ``Ocp.solve(options={...})``, which is not checked: a
@@ -26,7 +33,8 @@ import casadi as ca
 
 from casmbd.errors import AnalysisError
 
-__all__ = ["LINEAR_SOLVERS", "SOLVERS", "SOLVER_OPTIONS", "check_solver", "check_solver_options"]
+__all__ = ["LINEAR_SOLVERS", "SOLVERS", "SOLVER_OPTIONS", "WHY", "check_solver",
+           "check_solver_options"]
 
 #: NLP solvers an ``Ocp`` may use (and that this CasADi build must provide).
 SOLVERS = ("ipopt", "sqpmethod")
@@ -56,32 +64,32 @@ _YESNO = _choice("yes", "no")
 _BOOL = ("bool",)
 
 _IPOPT = {
-    "ipopt.max_iter": _int(0, 1_000_000),
+    "ipopt.max_iter": _int(0, 100_000),
     "ipopt.acceptable_iter": _int(0, 1_000_000),
-    "ipopt.print_level": _int(0, 12),
+    "ipopt.print_level": _int(0, 5),
     "ipopt.print_frequency_iter": _int(1, 1_000_000),
-    "ipopt.limited_memory_max_history": _int(0, 1000),
+    "ipopt.limited_memory_max_history": _int(0, 100),
     "ipopt.max_soc": _int(0, 1000),
-    "ipopt.tol": _POS,
-    "ipopt.acceptable_tol": _POS,
-    "ipopt.constr_viol_tol": _POS,
-    "ipopt.dual_inf_tol": _POS,
-    "ipopt.compl_inf_tol": _POS,
-    "ipopt.acceptable_constr_viol_tol": _POS,
-    "ipopt.acceptable_dual_inf_tol": _POS,
-    "ipopt.acceptable_compl_inf_tol": _POS,
+    "ipopt.tol": _real(0.0, 1e-2),                       # IPOPT: 1e-8
+    "ipopt.acceptable_tol": _real(0.0, 1.0),             # 1e-6
+    "ipopt.constr_viol_tol": _real(0.0, 1e-2),           # 1e-4
+    "ipopt.dual_inf_tol": _real(0.0, 1e2),               # 1
+    "ipopt.compl_inf_tol": _real(0.0, 1e-2),             # 1e-4
+    "ipopt.acceptable_constr_viol_tol": _real(0.0, 1.0),  # 1e-2
+    "ipopt.acceptable_dual_inf_tol": _POS,               # 1e10
+    "ipopt.acceptable_compl_inf_tol": _real(0.0, 1.0),   # 1e-2
     "ipopt.acceptable_obj_change_tol": _NONNEG,
     "ipopt.mu_init": _POS,
     "ipopt.mu_min": _POS,
     "ipopt.mu_max": _POS,
     "ipopt.bound_push": _POS,
     "ipopt.bound_frac": _real(0.0, 0.5),
-    "ipopt.bound_relax_factor": _NONNEG,
+    "ipopt.bound_relax_factor": _real(0.0, 1e-4, open_lo=False),  # 1e-8
     "ipopt.warm_start_bound_push": _POS,
     "ipopt.warm_start_bound_frac": _real(0.0, 0.5),
     "ipopt.warm_start_mult_bound_push": _POS,
     "ipopt.nlp_scaling_max_gradient": _POS,
-    "ipopt.obj_scaling_factor": _real(-_BIG, _BIG),
+    "ipopt.obj_scaling_factor": _real(1e-8, 1e8, open_lo=False),
     "ipopt.max_cpu_time": _POS,
     "ipopt.max_wall_time": _POS,
     "ipopt.mu_strategy": _choice("monotone", "adaptive"),
@@ -91,8 +99,7 @@ _IPOPT = {
     "ipopt.nlp_scaling_method": _choice("none", "gradient-based"),
     "ipopt.fixed_variable_treatment": _choice("make_parameter", "make_parameter_nodual",
                                               "make_constraint", "relax_bounds"),
-    "ipopt.derivative_test": _choice("none", "first-order", "second-order",
-                                     "only-second-order"),
+    "ipopt.derivative_test": _choice("none"),
     "ipopt.linear_solver": ("linear_solver",),
     "ipopt.warm_start_init_point": _YESNO,
     "ipopt.sb": _YESNO,
@@ -108,11 +115,11 @@ _IPOPT = {
 }
 
 _SQPMETHOD = {
-    "max_iter": _int(0, 1_000_000),
+    "max_iter": _int(0, 100_000),
     "max_iter_ls": _int(0, 1000),
-    "tol_pr": _POS,
-    "tol_du": _POS,
-    "min_step_size": _POS,
+    "tol_pr": _real(0.0, 1e-2),     # CasADi: 1e-6
+    "tol_du": _real(0.0, 1e-2),     # 1e-6
+    "min_step_size": _real(0.0, 1e-2),  # 1e-10
     "hessian_approximation": _choice("exact", "limited-memory"),
     "qpsol": _choice("qpoases", "qrqp"),
     "print_header": _BOOL,
@@ -123,6 +130,36 @@ _SQPMETHOD = {
 
 #: Allowed options of each solver: name -> (kind, limits...).
 SOLVER_OPTIONS = {"ipopt": _IPOPT, "sqpmethod": _SQPMETHOD}
+
+#: Why a range is narrower than the solver's own (appended to the refusal).
+WHY = {
+    "ipopt.obj_scaling_factor": "a factor <= 0 turns the minimisation into a maximisation "
+                                "(IPOPT minimises factor * objective) or drops the objective",
+    "ipopt.print_level": "levels above 5 print every vector and matrix (megabytes per "
+                         "iteration)",
+    "ipopt.derivative_test": "IPOPT's finite-difference derivative tests take minutes on "
+                             "an optimal-control problem; casmbd's derivatives are CasADi's "
+                             "exact ones",
+    "ipopt.tol": "a looser tolerance reports Solve_Succeeded far from an optimum",
+    "ipopt.constr_viol_tol": "a looser tolerance accepts a trajectory that violates the "
+                             "dynamics and the constraints",
+    "ipopt.compl_inf_tol": "a looser tolerance accepts points that are not optimal",
+    "ipopt.dual_inf_tol": "a looser tolerance accepts points that are not optimal",
+    "ipopt.acceptable_tol": "a looser tolerance reports an acceptable point far from an "
+                            "optimum",
+    "ipopt.acceptable_constr_viol_tol": "a looser tolerance accepts a trajectory that "
+                                        "violates the dynamics",
+    "ipopt.acceptable_compl_inf_tol": "a looser tolerance accepts points that are not optimal",
+    "ipopt.bound_relax_factor": "IPOPT relaxes every bound by this relative amount; larger "
+                                "values let the solution leave its bounds",
+    "ipopt.limited_memory_max_history": "each stored pair costs two vectors of every NLP "
+                                        "variable",
+    "ipopt.max_iter": "a bound on the run time; max_cpu_time or max_wall_time stop earlier",
+    "max_iter": "a bound on the run time",
+    "tol_pr": "a looser tolerance accepts a trajectory that violates the dynamics",
+    "tol_du": "a looser tolerance accepts points that are not optimal",
+    "min_step_size": "a larger minimum step stops the line search at the start",
+}
 
 
 def check_solver(solver, where: str = "ocp", error: type[Exception] = AnalysisError) -> str:
@@ -214,5 +251,10 @@ def check_solver_options(solver: str, options, where: str = "ocp",
         if spec is None:
             raise error(f"{where}: solver option {key!r} is not allowed for {solver} "
                         f"(allowed: {', '.join(sorted(allowed))})")
-        out[key] = _check_value(key, value, spec, where, error)
+        try:
+            out[key] = _check_value(key, value, spec, where, error)
+        except error as exc:
+            if key not in WHY:
+                raise
+            raise error(f"{exc} ({WHY[key]})") from None
     return out

@@ -16,7 +16,7 @@ from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, CasmbdError, IntegratorError, ResultFileError
 from casmbd.interrupts import reraise_interrupt
 from casmbd.model.measures import result_names
-from casmbd.results import Result, atomic_write, read_npz
+from casmbd.results import Result, atomic_write, check_npz_name, read_npz
 
 #: Tolerance at which :meth:`OcpSolution.replay` repeats a replay whose integrator failed at a
 #: tighter one (near round-off, on fast elastic modes).
@@ -284,6 +284,7 @@ class OcpSolution:
         (:meth:`to_result`, so ``casmbd plot`` and ``casmbd animate`` read it) plus the
         controls per interval ``u`` and the problem's names in its ``meta``."""
         path = Path(path)
+        check_npz_name(path)
         payload = self.to_result().payload(controls=self.controls,
                                            coordinates=self.coordinate_names)
         payload["u"] = self.u
