@@ -1,0 +1,157 @@
+"""Bad input, reads (issue 31, item 1): every file casmbd reads is a regular file under a
+stated size limit, checked before it is opened or read; ``.npz`` members' ``.npy`` headers
+are checked against the budget before any array is allocated and unused members are never
+loaded; beam element, FE node/DOF and mode counts are checked before building.
+
+Each case asserts the casmbd error class and that the message names the file (or key) and
+the limit; the CLI cases also assert exit status 1 and no traceback.  A FIFO must not block:
+the reads run in a child process with a timeout.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import zipfile
+
+import numpy as np
+import pytest
+from numpy.lib import format as npy_format
+
+from casmbd.cli import main
+from casmbd.errors import LimitError, ModelError, SceneError
+from casmbd.io.scene import loads_scene
+from casmbd.limits import MAX_SCENE_BYTES, check_regular_file, read_bounded
+
+URDF_SCENE = """
+[scene]
+name = "robot"
+urdf = "{urdf}"
+"""
+
+
+def test_dev_zero_as_urdf_is_refused_before_reading():
+    with pytest.raises(SceneError, match=r"URDF file '/dev/zero' is a device.*regular files"):
+        loads_scene(URDF_SCENE.format(urdf="/dev/zero"))
+
+
+def test_dev_zero_as_scene_through_the_cli(capsys):
+    assert main(["info", "/dev/zero"]) == 1
+    err = capsys.readouterr().err
+    assert "'/dev/zero' is a device" in err and "Traceback" not in err
+
+
+def test_directory_as_urdf(tmp_path):
+    with pytest.raises(SceneError, match="is a directory"):
+        loads_scene(URDF_SCENE.format(urdf=tmp_path))
+
+
+def test_oversized_urdf_names_file_and_limit(tmp_path):
+    big = tmp_path / "big.urdf"
+    with open(big, "wb") as fh:  # sparse: no disk used
+        fh.truncate(MAX_SCENE_BYTES + 1)
+    with pytest.raises(LimitError, match=r"big\.urdf.*64\.0 MB.*limit"):
+        loads_scene(URDF_SCENE.format(urdf=big))
+
+
+def test_read_bounded_reads_at_most_limit_plus_one(tmp_path):
+    f = tmp_path / "x.txt"
+    f.write_bytes(b"a" * 100)
+    assert read_bounded(f, "text", 100) == b"a" * 100
+    with pytest.raises(LimitError, match=r"text file .*x\.txt.*100 B"):
+        check_regular_file(f, "text", 99)
+
+
+_FIFO_CHILD = """
+import os, sys
+from casmbd.errors import CasmbdError
+from casmbd.io.scene import loads_scene
+from casmbd.model.fe_import import load_fe_npz
+fifo = sys.argv[1]
+for call in (lambda: loads_scene('[scene]\\nname = "r"\\nurdf = "%s"\\n' % fifo),
+             lambda: load_fe_npz(fifo)):
+    try:
+        call()
+    except CasmbdError as exc:
+        print(type(exc).__name__, exc)
+"""
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no FIFOs on this system")
+def test_fifo_as_urdf_or_fe_file_is_refused_without_blocking(tmp_path):
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    proc = subprocess.run([sys.executable, "-c", _FIFO_CHILD, str(fifo)], cwd=root,
+                          capture_output=True, text=True, timeout=60)
+    lines = proc.stdout.splitlines()
+    assert len(lines) == 2, proc.stdout + proc.stderr
+    assert lines[0].startswith("SceneError") and "is a FIFO" in lines[0]
+    assert lines[1].startswith("ModelError") and "is a FIFO" in lines[1]
+    assert str(fifo) in lines[0] and str(fifo) in lines[1]
+
+
+def _beam_fe(path, extra=None):
+    from casmbd.model.fe_beam import beam_model
+    from casmbd.model.fe_import import save_fe_npz
+    fe = beam_model(1.0, 4, EA=1e6, rhoA=1.0, EI=1e3)
+    save_fe_npz(path, fe.mass_matrix, fe.stiffness_matrix, fe.positions, fe.dofs_per_node)
+    if extra:
+        with np.load(path) as z:
+            data = dict(z)
+        data.update(extra)
+        np.savez_compressed(path, **data)
+
+
+def test_fe_npz_unused_huge_member_is_never_loaded(tmp_path, monkeypatch):
+    """A 6000 × 6000 zero member (288 MB in memory, about 1.2 MB deflated; the issue's file
+    had 20000 × 20000) that load_fe_npz does not use: the model loads, the same as without
+    it, and no array larger than 1 MB is ever read."""
+    from casmbd.model.fe_import import load_fe_npz
+    path = tmp_path / "fe.npz"
+    _beam_fe(path)
+    ref = load_fe_npz(path)
+    with (zipfile.ZipFile(path, "a", compression=zipfile.ZIP_DEFLATED, compresslevel=1) as zf,
+          zf.open("junk.npy", "w", force_zip64=True) as fh):
+        npy_format.write_array_header_1_0(fh, {"descr": "<f8", "fortran_order": False,
+                                               "shape": (6000, 6000)})
+        chunk = bytes(2**24)
+        for _ in range(8 * 6000 * 6000 // len(chunk)):
+            fh.write(chunk)
+        fh.write(bytes(8 * 6000 * 6000 % len(chunk)))
+    assert path.stat().st_size < 2**21
+    sizes = []
+    real = np.lib.format.read_array
+
+    def spy(fp, *args, **kwargs):
+        out = real(fp, *args, **kwargs)
+        sizes.append(out.nbytes)
+        return out
+    monkeypatch.setattr(np.lib.format, "read_array", spy)
+    fe = load_fe_npz(path)
+    assert max(sizes) < 2**20
+    np.testing.assert_array_equal(fe.mass_matrix.toarray(), ref.mass_matrix.toarray())
+    assert "junk" not in fe.inputs
+
+
+def test_fe_npz_member_header_over_budget(tmp_path):
+    """A used member (``mass``) whose header declares (1e6, 1e6) floats: refused from the
+    header, naming the member and the limit, before any allocation."""
+    from casmbd.model.fe_import import load_fe_npz
+    path = tmp_path / "fe.npz"
+    _beam_fe(path)
+    with zipfile.ZipFile(path) as zf:
+        members = {i.filename: zf.read(i) for i in zf.infolist()}
+    with zipfile.ZipFile(path, "w") as zf:
+        for k, v in members.items():
+            if k.startswith("mass_"):
+                continue
+            zf.writestr(k, v)
+        with zf.open("mass.npy", "w") as fh:
+            npy_format.write_array_header_1_0(fh, {"descr": "<f8", "fortran_order": False,
+                                                   "shape": (10**6, 10**6)})
+            fh.write(bytes(800))
+    with pytest.raises(ModelError, match=r"fe\.npz.*member 'mass' declares shape "
+                                         r"\(1000000, 1000000\).*forged or truncated"):
+        load_fe_npz(path)
