@@ -341,8 +341,8 @@ def check_npz(zf: zipfile.ZipFile, where: str, keys: Iterable[str] | None = None
                         f"({exc or type(exc).__name__})") from None
         dtype = np.dtype(dtype)
         if dtype.hasobject:
-            raise error(f"{where}: member {key!r} holds Python objects, which are refused "
-                        "(they could run code when read)")
+            raise error(f"{where}: member {key!r} holds Python objects (object arrays are "
+                        "refused: they could run code when read)")
         nbytes = prod(int(s) for s in shape) * dtype.itemsize
         if nbytes > max(info.file_size - header, 0):
             raise error(f"{where}: member {key!r} declares shape {tuple(shape)} of {dtype} "

@@ -17,12 +17,36 @@ import zipfile
 
 import numpy as np
 import pytest
+from conftest import private_cache
 from numpy.lib import format as npy_format
 
+from casmbd.analysis.simulate import simulate
 from casmbd.cli import main
-from casmbd.errors import LimitError, ModelError, SceneError
+from casmbd.errors import LimitError, ModelError, ResultFileError, SceneError
 from casmbd.io.scene import loads_scene
 from casmbd.limits import MAX_SCENE_BYTES, check_regular_file, read_bounded
+from casmbd.results import load
+
+_vm = private_cache("cache_reads", CASMBD_COMPILE="0")
+
+PENDULUM = """
+[scene]
+name = "pendulum"
+gravity = [0.0, -9.81]
+
+[[bodies]]
+name = "rod"
+mass = 1.0
+inertia = 0.1
+position = [0.5, 0.0]
+
+[[joints]]
+name = "pivot"
+type = "revolute"
+body1 = "ground"
+body2 = "rod"
+point = [0.0, 0.0]
+"""
 
 URDF_SCENE = """
 [scene]
@@ -67,6 +91,7 @@ _FIFO_CHILD = """
 import os, sys
 from casmbd.errors import CasmbdError
 from casmbd.io.scene import loads_scene
+from casmbd.results import load
 from casmbd.model.fe_import import load_fe_npz
 fifo = sys.argv[1]
 for call in (lambda: loads_scene('[scene]\\nname = "r"\\nurdf = "%s"\\n' % fifo),
@@ -155,3 +180,84 @@ def test_fe_npz_member_header_over_budget(tmp_path):
     with pytest.raises(ModelError, match=r"fe\.npz.*member 'mass' declares shape "
                                          r"\(1000000, 1000000\).*forged or truncated"):
         load_fe_npz(path)
+
+
+@pytest.fixture(scope="module")
+def good_result(tmp_path_factory):
+    """The arrays of a valid simulation result file (5 output times)."""
+    path = tmp_path_factory.mktemp("good") / "good.npz"
+    mech = loads_scene(PENDULUM)
+    res = simulate(mech, t_end=0.2, steps=4, mode="vm")
+    res.attach_scene(mech)
+    res.save(path)
+    with np.load(path) as data:
+        return {k: data[k] for k in data.files}
+
+
+def _forge(path, arrays: dict, key: str, shape) -> None:
+    """``arrays`` as an npz file, with member ``key`` replaced by a bare ``.npy`` header that
+    declares ``shape`` float64 over 800 bytes of zeros."""
+    with zipfile.ZipFile(path, "w") as zf:
+        for k, v in arrays.items():
+            if k != key:
+                with zf.open(k + ".npy", "w") as fh:
+                    npy_format.write_array(fh, np.asanyarray(v), allow_pickle=False)
+        with zf.open(key + ".npy", "w") as fh:
+            npy_format.write_array_header_1_0(fh, {"descr": "<f8", "fortran_order": False,
+                                                   "shape": tuple(shape)})
+            fh.write(bytes(800))
+
+
+def test_result_header_declaring_1e6_by_1e6_is_refused_before_allocation(good_result,
+                                                                          tmp_path, capsys):
+    """The header of member 'array/q' declares (1e6, 1e6) floats (8 TB) in a file of a few
+    kB: refused from the header (it passed the old 4 GiB check of the zip sizes and ended
+    in an internal MemoryError)."""
+    path = tmp_path / "forged.npz"
+    _forge(path, good_result, "array/q", (10**6, 10**6))
+    assert path.stat().st_size < 2**16
+    with pytest.raises(ResultFileError, match=r"forged\.npz.*member 'array/q' declares "
+                                              r"shape \(1000000, 1000000\).*forged"):
+        load(path)
+    out = tmp_path / "plot.png"
+    assert main(["plot", str(path), "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "member 'array/q'" in err and "Traceback" not in err and not out.exists()
+
+
+def test_result_arrays_over_the_budget_name_the_member_and_limit(good_result, tmp_path,
+                                                                 monkeypatch):
+    """Honest headers (a deflated file of a few kB) whose arrays together exceed
+    MAX_NPZ_BYTES (lowered to 64 KB here; a member of 5 × 20000 floats takes 781 KB):
+    LimitError naming the member that crosses it and the limit."""
+    import casmbd.results as results
+    monkeypatch.setattr(results, "MAX_NPZ_BYTES", 64 * 1024)
+    path = tmp_path / "big.npz"
+    arrays = dict(good_result)
+    arrays["array/q"] = np.zeros((5, 20000))
+    np.savez_compressed(path, **arrays)
+    assert path.stat().st_size < 64 * 1024
+    with pytest.raises(LimitError, match=r"big\.npz.*member 'array/q' \(shape \(5, 20000\), "
+                                         r"float64\).*over the limit of 64\.0 KB"):
+        load(path)
+
+
+def test_animate_of_a_result_whose_scene_names_dev_zero(good_result, tmp_path, capsys):
+    """The scene stored in a result file names ``urdf = "/dev/zero"``: ``animate`` refuses it
+    naming the file (it used to read /dev/zero until MemoryError)."""
+    arrays = dict(good_result)
+    arrays["scene"] = np.array(URDF_SCENE.format(urdf="/dev/zero"))
+    path = tmp_path / "res.npz"
+    np.savez(path, **arrays)
+    out = tmp_path / "a.gif"
+    assert main(["animate", str(path), "--out", str(out)]) == 1
+    err = capsys.readouterr().err
+    assert "'/dev/zero' is a device" in err and "Traceback" not in err
+    assert not out.exists()
+
+
+def test_fifo_as_result_file_is_refused(tmp_path):
+    fifo = tmp_path / "res.npz"
+    os.mkfifo(fifo)
+    with pytest.raises(ResultFileError, match=r"res\.npz' is a FIFO"):
+        load(fifo)
