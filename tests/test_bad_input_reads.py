@@ -261,3 +261,39 @@ def test_fifo_as_result_file_is_refused(tmp_path):
     os.mkfifo(fifo)
     with pytest.raises(ResultFileError, match=r"res\.npz' is a FIFO"):
         load(fifo)
+
+
+BEAM = """
+[scene]
+name = "cantilever"
+gravity = [0.0, -9.81]
+
+[[bodies]]
+name = "rod"
+type = "flexible"
+modes = {modes}
+reduction = "free"
+[bodies.beam]
+length = 1.0
+elements = {elements}
+EI = 71.68
+EA = 1.344e7
+rhoA = 0.5024
+"""
+
+
+def test_ten_million_beam_elements_refused_before_building(monkeypatch):
+    """``elements = 10000000`` used to grow past 3.4 GB; now refused from the count, before
+    any element matrix is built."""
+    from casmbd.limits import MAX_BEAM_ELEMENTS
+    with pytest.raises((LimitError, SceneError),
+                       match=rf"rod.*elements: 10,000,000 exceeds the limit of "
+                             rf"{MAX_BEAM_ELEMENTS:,}"):
+        loads_scene(BEAM.format(modes=4, elements=10_000_000))
+
+
+def test_too_many_modes_refused_before_reduction():
+    from casmbd.limits import MAX_MODES
+    with pytest.raises((LimitError, SceneError),
+                       match=rf"modes: 5,000 exceeds the limit of {MAX_MODES:,}"):
+        loads_scene(BEAM.format(modes=5000, elements=4))
