@@ -297,3 +297,42 @@ def test_too_many_modes_refused_before_reduction():
     with pytest.raises((LimitError, SceneError),
                        match=rf"modes: 5,000 exceeds the limit of {MAX_MODES:,}"):
         loads_scene(BEAM.format(modes=5000, elements=4))
+
+
+_CACHE_CHILD = """
+import json, os, pathlib, sys
+from casmbd.compiled import cache, modelkey
+from casmbd.limits import MAX_RECORD_BYTES
+d = pathlib.Path(sys.argv[1])
+lib = d / "lib.so"
+lib.write_bytes(b"x")
+rec = cache.record_path(lib)
+os.mkfifo(rec)                                   # the record is a FIFO
+print("fifo record:", cache.check_entry(lib, "k", None))
+print("fifo model record:", modelkey._read(rec, "k")[1])
+os.remove(rec)
+with open(rec, "wb") as fh:                      # a sparse record over the limit
+    fh.truncate(MAX_RECORD_BYTES + 1)
+print("big record:", cache.check_entry(lib, "k", None))
+os.remove(rec)
+rec.write_text(json.dumps({"format": cache.RECORD_FORMAT, "key": "k", "size": 1,
+                           "sha256": cache.file_sha256(lib)}))
+os.remove(lib)
+os.mkfifo(lib)                                   # the library is a FIFO
+print("fifo library:", cache.check_entry(lib, "k", None))
+"""
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no FIFOs on this system")
+def test_cache_records_and_libraries_that_are_fifos_or_too_large(tmp_path):
+    """Damaged cache entries are refused without blocking or reading them whole: the entry is
+    rebuilt (check_entry gives the reason), as for any other damage."""
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    proc = subprocess.run([sys.executable, "-c", _CACHE_CHILD, str(tmp_path)], cwd=root,
+                          capture_output=True, text=True, timeout=120)
+    out = dict(line.split(": ", 1) for line in proc.stdout.splitlines())
+    assert len(out) == 4, proc.stdout + proc.stderr
+    assert "cannot be read" in out["fifo record"] and "is a FIFO" in out["fifo record"]
+    assert "cannot be read" in out["fifo model record"] and "FIFO" in out["fifo model record"]
+    assert "16.0 MB" in out["big record"] and "limit" in out["big record"]
+    assert out["fifo library"] == "it is not a regular file"
