@@ -85,6 +85,11 @@ def test_read_bounded_reads_at_most_limit_plus_one(tmp_path):
     assert read_bounded(f, "text", 100) == b"a" * 100
     with pytest.raises(LimitError, match=r"text file .*x\.txt.*100 B"):
         check_regular_file(f, "text", 99)
+    from casmbd.viz.plots import read_rows
+    rows = tmp_path / "rows.csv"
+    rows.write_text("method,error\nrk4,1e-6\nbdf,2e-5\n", encoding="utf-8")
+    assert read_rows(rows) == [{"method": "rk4", "error": "1e-6"},
+                               {"method": "bdf", "error": "2e-5"}]
 
 
 _FIFO_CHILD = """
@@ -93,9 +98,11 @@ from casmbd.errors import CasmbdError
 from casmbd.io.scene import loads_scene
 from casmbd.results import load
 from casmbd.model.fe_import import load_fe_npz
+from casmbd.results import load
+from casmbd.viz.plots import read_rows
 fifo = sys.argv[1]
 for call in (lambda: loads_scene('[scene]\\nname = "r"\\nurdf = "%s"\\n' % fifo),
-             lambda: load_fe_npz(fifo)):
+             lambda: load_fe_npz(fifo), lambda: load(fifo), lambda: read_rows(fifo)):
     try:
         call()
     except CasmbdError as exc:
@@ -104,17 +111,17 @@ for call in (lambda: loads_scene('[scene]\\nname = "r"\\nurdf = "%s"\\n' % fifo)
 
 
 @pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no FIFOs on this system")
-def test_fifo_as_urdf_or_fe_file_is_refused_without_blocking(tmp_path):
+def test_fifo_as_urdf_fe_result_or_csv_file_is_refused_without_blocking(tmp_path):
     fifo = tmp_path / "pipe"
     os.mkfifo(fifo)
     root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     proc = subprocess.run([sys.executable, "-c", _FIFO_CHILD, str(fifo)], cwd=root,
                           capture_output=True, text=True, timeout=60)
     lines = proc.stdout.splitlines()
-    assert len(lines) == 2, proc.stdout + proc.stderr
-    assert lines[0].startswith("SceneError") and "is a FIFO" in lines[0]
-    assert lines[1].startswith("ModelError") and "is a FIFO" in lines[1]
-    assert str(fifo) in lines[0] and str(fifo) in lines[1]
+    assert len(lines) == 4, proc.stdout + proc.stderr
+    for line, kind in zip(lines, ("SceneError", "ModelError", "ResultFileError",
+                                  "AnalysisError")):
+        assert line.startswith(kind) and "is a FIFO" in line and str(fifo) in line, line
 
 
 def _beam_fe(path, extra=None):
@@ -254,13 +261,6 @@ def test_animate_of_a_result_whose_scene_names_dev_zero(good_result, tmp_path, c
     err = capsys.readouterr().err
     assert "'/dev/zero' is a device" in err and "Traceback" not in err
     assert not out.exists()
-
-
-def test_fifo_as_result_file_is_refused(tmp_path):
-    fifo = tmp_path / "res.npz"
-    os.mkfifo(fifo)
-    with pytest.raises(ResultFileError, match=r"res\.npz' is a FIFO"):
-        load(fifo)
 
 
 BEAM = """
