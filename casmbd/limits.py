@@ -302,7 +302,8 @@ def check_npz(zf: zipfile.ZipFile, where: str, keys: Iterable[str] | None = None
     ``read_array_header_1_0/2_0``, a few hundred bytes); the declared size
     ``prod(shape) × itemsize`` must not exceed the member's uncompressed size (a header that
     declares more data than the member holds is a forged or truncated file) and the declared
-    sizes together must not exceed ``limit`` (default :data:`MAX_NPZ_BYTES`).  Object arrays
+    sizes together must not exceed ``limit`` (default: the smaller of :data:`MAX_NPZ_BYTES`
+    and :func:`memory_budget`).  Object arrays
     are refused (unpickling them could run code).
 
     Returns
@@ -318,7 +319,13 @@ def check_npz(zf: zipfile.ZipFile, where: str, keys: Iterable[str] | None = None
     LimitError
         The declared sizes exceed ``limit`` (naming the member that crosses it and the limit).
     """
-    limit = MAX_NPZ_BYTES if limit is None else int(limit)
+    if limit is None:
+        budget, source = memory_budget()
+        limit = min(MAX_NPZ_BYTES, budget)
+        source = ("casmbd.limits.MAX_NPZ_BYTES" if limit == MAX_NPZ_BYTES
+                  else f"the memory budget, {source}")
+    else:
+        limit, source = int(limit), "casmbd.limits.MAX_NPZ_BYTES"
     infos = {info.filename: info for info in zf.infolist()}
     names = (list(infos) if keys is None
              else [k + ".npy" for k in keys if k + ".npy" in infos])
@@ -353,6 +360,6 @@ def check_npz(zf: zipfile.ZipFile, where: str, keys: Iterable[str] | None = None
         if total > limit:
             raise LimitError(f"{where}: member {key!r} (shape {tuple(shape)}, {dtype}) brings "
                              f"the arrays to {format_bytes(total)}, over the limit of "
-                             f"{format_bytes(limit)} (casmbd.limits.MAX_NPZ_BYTES)")
+                             f"{format_bytes(limit)} ({source})")
         out[key] = (tuple(int(s) for s in shape), dtype.str)
     return out

@@ -536,14 +536,16 @@ def read_npz(path: str | os.PathLike, what: str = "result") -> dict[str, np.ndar
     such), encrypted members are refused, and every member's ``.npy`` header is read and
     checked before any array is allocated (:func:`casmbd.limits.check_npz`): the declared
     shape × item size must fit in what the member holds (a header declaring (1e6, 1e6) over a
-    small member is refused as forged) and in :data:`MAX_NPZ_BYTES` together, and object
+    small member is refused as forged) and in :data:`MAX_NPZ_BYTES` and the memory budget
+    (:func:`casmbd.limits.memory_budget`) together, and object
     arrays, which would run code on unpickling, are refused.  ``np.load`` then runs with
     ``allow_pickle=False``.
 
     Raises
     ------
     LimitError
-        The file, or the arrays its headers declare, exceed :data:`MAX_NPZ_BYTES`.
+        The file exceeds :data:`MAX_NPZ_BYTES`, or the arrays its headers declare exceed that
+        or the memory budget.
     ResultFileError
         Naming the file and what is wrong with it.
     """
@@ -564,7 +566,9 @@ def read_npz(path: str | os.PathLike, what: str = "result") -> dict[str, np.ndar
             if not infos or not_npy:
                 raise ResultFileError(f"cannot read {where}: a zip archive but not an npz "
                                       f"file (members {', '.join(not_npy[:3]) or 'none'})")
-            limits.check_npz(zf, where, None, MAX_NPZ_BYTES, ResultFileError)  # before np.load
+            # every .npy header, before np.load allocates: at most MAX_NPZ_BYTES and the
+            # memory budget together, and no more than each member holds
+            limits.check_npz(zf, where, None, None, ResultFileError)
             bad = zf.testzip()  # reads every member: CRC of each
         if bad is not None:
             raise ResultFileError(f"cannot read {where}: member '{bad}' is corrupted "

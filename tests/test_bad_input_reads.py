@@ -234,18 +234,18 @@ def test_result_header_declaring_1e6_by_1e6_is_refused_before_allocation(good_re
 
 def test_result_arrays_over_the_budget_name_the_member_and_limit(good_result, tmp_path,
                                                                  monkeypatch):
-    """Honest headers (a deflated file of a few kB) whose arrays together exceed
-    MAX_NPZ_BYTES (lowered to 64 KB here; a member of 5 × 20000 floats takes 781 KB):
-    LimitError naming the member that crosses it and the limit."""
-    import casmbd.results as results
-    monkeypatch.setattr(results, "MAX_NPZ_BYTES", 64 * 1024)
+    """Honest headers (a deflated file of a few kB) whose arrays together exceed the budget
+    (CASMBD_MEMORY_BUDGET=64K here; a member of 5 × 20000 floats takes 781 KB): LimitError
+    naming the member that crosses it, the limit and its source."""
+    monkeypatch.setenv("CASMBD_MEMORY_BUDGET", "64K")
     path = tmp_path / "big.npz"
     arrays = dict(good_result)
     arrays["array/q"] = np.zeros((5, 20000))
     np.savez_compressed(path, **arrays)
     assert path.stat().st_size < 64 * 1024
     with pytest.raises(LimitError, match=r"big\.npz.*member 'array/q' \(shape \(5, 20000\), "
-                                         r"float64\).*over the limit of 64\.0 KB"):
+                                         r"float64\).*over the limit of 64\.0 KB "
+                                         r"\(the memory budget, \$CASMBD_MEMORY_BUDGET\)"):
         load(path)
 
 

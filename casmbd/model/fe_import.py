@@ -3,7 +3,7 @@
 The file is read with ``numpy.load(allow_pickle=False)``: data never becomes code.  It must be
 a regular file (a FIFO or device is refused before it is opened); the ``.npy`` headers of the
 members below are checked before any array is read (declared sizes at most what each member
-holds and :data:`~casmbd.limits.MAX_NPZ_BYTES` together; nodes at most
+holds and :data:`~casmbd.limits.MAX_NPZ_BYTES` and the memory budget together; nodes at most
 :data:`~casmbd.limits.MAX_FE_NODES`, DOFs at most :data:`~casmbd.limits.MAX_FE_DOFS`), and
 members with other names are never loaded.  Keys:
 
@@ -203,7 +203,7 @@ def load_fe_npz(path: str | os.PathLike, *, name: str | None = None) -> FEModel:
     check_regular_file(path, "fe", MAX_NPZ_BYTES, ModelError)
     try:
         with zipfile.ZipFile(path) as zf:
-            headers = check_npz(zf, where, _USED_KEYS, MAX_NPZ_BYTES, ModelError)
+            headers = check_npz(zf, where, _USED_KEYS, None, ModelError)
         _check_counts(headers, where)
         with np.load(path, allow_pickle=False) as z:
             data = {k: z[k] for k in z.files if k in headers}  # unused members stay unread
