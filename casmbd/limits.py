@@ -13,7 +13,12 @@ stored per time (:func:`output_values`, a lower bound from the mechanism's eleme
 times 8 bytes, and compared with :func:`memory_budget`: ``$CASMBD_MEMORY_BUDGET`` (bytes,
 or with a suffix ``K``, ``M``, ``G``, ``T``: ``"16G"``) or half the physical memory.
 
-This module sits below everything else (it imports only :mod:`casmbd.errors`).
+Files (issue 31): every file casmbd reads goes through :func:`check_regular_file` (``os.stat``
+before any open: a FIFO or a device such as ``/dev/zero`` is refused, never opened) and, for
+text, :func:`read_bounded` (at most the limit plus one byte is read); the arrays of an ``.npz``
+file are checked from their ``.npy`` headers by :func:`check_npz` before any is allocated.
+
+This module sits below everything else (of casmbd it imports only :mod:`casmbd.errors`).
 """
 
 from __future__ import annotations
