@@ -29,6 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
+from casmbd import limits
 from casmbd.errors import AnalysisError, ResultFileError
 from casmbd.model import rotations
 from casmbd.system.descriptions import quaternions_from_matrices
@@ -614,24 +615,36 @@ def _json_default(obj):
     raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
 
 
-#: largest total uncompressed size of a result file's arrays that :func:`read_npz` reads
-MAX_NPZ_BYTES = 4 * 2**30
+#: largest total size of a result file's arrays that :func:`read_npz` reads (the sizes the
+#: members' ``.npy`` headers declare; :data:`casmbd.limits.MAX_NPZ_BYTES`)
+MAX_NPZ_BYTES = limits.MAX_NPZ_BYTES
 
 
 def read_npz(path: str | os.PathLike, what: str = "result") -> dict[str, np.ndarray]:
     """Every array of an npz file, read eagerly, without pickle.
 
-    The file is checked as a zip archive first (a text file, a truncated or corrupted file
-    and a zip of something else are named as such), encrypted members and members over
-    :data:`MAX_NPZ_BYTES` in total are refused before reading, and ``np.load`` runs with
-    ``allow_pickle=False``: object arrays, which would run code on unpickling, are refused.
+    The file must be a regular file of at most :data:`MAX_NPZ_BYTES` (``os.stat`` before it
+    is opened: a FIFO or a device is refused, never read).  It is checked as a zip archive
+    (a text file, a truncated or corrupted file and a zip of something else are named as
+    such), encrypted members are refused, and every member's ``.npy`` header is read and
+    checked before any array is allocated (:func:`casmbd.limits.check_npz`): the declared
+    shape × item size must fit in what the member holds (a header declaring (1e6, 1e6) over a
+    small member is refused as forged) and in :data:`MAX_NPZ_BYTES` and the memory budget
+    (:func:`casmbd.limits.memory_budget`) together, and object
+    arrays, which would run code on unpickling, are refused.  ``np.load`` then runs with
+    ``allow_pickle=False``.
 
     Raises
     ------
+    LimitError
+        The file exceeds :data:`MAX_NPZ_BYTES`, or the arrays its headers declare exceed that
+        or the memory budget.
     ResultFileError
         Naming the file and what is wrong with it.
     """
     where = f"{what} file '{path}'"
+    if os.path.lexists(path):
+        limits.check_regular_file(path, what, MAX_NPZ_BYTES, ResultFileError)
     try:
         with open(path, "rb") as fh:
             head = fh.read(4)
@@ -642,14 +655,13 @@ def read_npz(path: str | os.PathLike, what: str = "result") -> dict[str, np.ndar
             infos = zf.infolist()
             if any(info.flag_bits & 0x1 for info in infos):
                 raise ResultFileError(f"cannot read {where}: it has encrypted members")
-            total = sum(info.file_size for info in infos)
-            if total > MAX_NPZ_BYTES:
-                raise ResultFileError(f"cannot read {where}: its arrays would take "
-                                      f"{total:.3g} bytes (limit {MAX_NPZ_BYTES:.3g})")
             not_npy = [info.filename for info in infos if not info.filename.endswith(".npy")]
             if not infos or not_npy:
                 raise ResultFileError(f"cannot read {where}: a zip archive but not an npz "
                                       f"file (members {', '.join(not_npy[:3]) or 'none'})")
+            # every .npy header, before np.load allocates: at most MAX_NPZ_BYTES and the
+            # memory budget together, and no more than each member holds
+            limits.check_npz(zf, where, None, None, ResultFileError)
             bad = zf.testzip()  # reads every member: CRC of each
         if bad is not None:
             raise ResultFileError(f"cannot read {where}: member '{bad}' is corrupted "

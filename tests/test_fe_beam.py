@@ -326,10 +326,13 @@ def test_bad_npz_input(tmp_path):
           mass_format=np.asarray("csr"), mass_shape=np.asarray([12, 12]),
           mass_data=np.ones(2), mass_indices=np.asarray([0, 40]),
           mass_indptr=np.asarray([0] + [2] * 12))
-    # objects would need pickle: refused, data never becomes code
-    np.savez(f, **good, extra=np.asarray([{"a": 1}], dtype=object))
-    with pytest.raises(ModelError, match=r"bad\.npz.*without Python objects"):
+    # objects would need pickle: refused from the member's header, data never becomes code
+    np.savez(f, **{**good, "masses": np.asarray([{"a": 1}], dtype=object)})
+    with pytest.raises(ModelError, match=r"bad\.npz.*member 'masses' holds Python objects"):
         load_fe_npz(f)
+    # ... and a member load_fe_npz does not use is never read, objects or not (issue 31)
+    np.savez(f, **good, extra=np.asarray([{"a": 1}], dtype=object))
+    assert "extra" not in load_fe_npz(f).inputs
     f.write_bytes(b"not a zip file")
     with pytest.raises(ModelError, match=r"bad\.npz.*not a readable"):
         load_fe_npz(f)

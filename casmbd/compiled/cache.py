@@ -29,19 +29,23 @@ import json
 import os
 import pathlib
 import shutil
+import stat
 import tempfile
 import warnings
 from collections.abc import Iterable, Iterator
 
 import casadi
 
+from casmbd import limits
+from casmbd.errors import CasmbdError
+
 try:  # POSIX only; without it writers are not serialised (the checks still hold)
     import fcntl
 except ImportError:  # pragma: no cover - Windows
     fcntl = None
 
-__all__ = ["cache_dir", "check_entry", "entry_lock", "file_sha256", "record_path",
-           "signature", "signatures", "write_atomic", "write_record"]
+__all__ = ["cache_dir", "check_entry", "entry_lock", "file_sha256", "read_record_text",
+           "record_path", "signature", "signatures", "write_atomic", "write_record"]
 
 #: Version of the record format; a record of another version is not trusted.
 RECORD_FORMAT = 1
@@ -106,6 +110,23 @@ def cache_dir() -> pathlib.Path:
                       "for this process (set CASMBD_CACHE_DIR to a writable directory)",
                       RuntimeWarning, stacklevel=3)
     return fallback
+
+
+def read_record_text(path: str | os.PathLike) -> str:
+    """The text of a cache record (JSON), read as a bounded regular file.
+
+    :func:`casmbd.limits.read_bounded` with :data:`casmbd.limits.MAX_RECORD_BYTES`: a record
+    that is a FIFO, a device or a directory is never opened, one larger than the limit is not
+    read.  Such damage is reported as ``OSError`` (``FileNotFoundError`` when missing), the
+    way callers already treat an unreadable record: the entry is rebuilt.
+    """
+    try:
+        data = limits.read_bounded(path, "cache record", limits.MAX_RECORD_BYTES)
+    except CasmbdError as exc:
+        if not os.path.lexists(path):
+            raise FileNotFoundError(2, "No such file or directory", str(path)) from None
+        raise OSError(str(exc)) from None
+    return data.decode("utf-8")
 
 
 def file_sha256(path: str | os.PathLike) -> str:
@@ -192,7 +213,7 @@ def check_entry(library: pathlib.Path, key: str, expected: dict[str, dict] | Non
     """
     rec_path = record_path(library)
     try:
-        record = json.loads(rec_path.read_text(encoding="utf-8"))
+        record = json.loads(read_record_text(rec_path))
     except FileNotFoundError:
         return f"no hash record {rec_path.name} beside it"
     except (OSError, ValueError) as exc:
@@ -202,6 +223,8 @@ def check_entry(library: pathlib.Path, key: str, expected: dict[str, dict] | Non
     if record.get("key") != key:
         return f"its hash record is for another build (key {str(record.get('key'))[:16]})"
     try:
+        if not stat.S_ISREG(os.stat(library).st_mode):  # a FIFO would block file_sha256
+            return "it is not a regular file"
         size = os.path.getsize(library)
         if size != record.get("size"):
             return f"it is {size} bytes, its record says {record.get('size')} (truncated?)"
@@ -218,4 +241,4 @@ def check_entry(library: pathlib.Path, key: str, expected: dict[str, dict] | Non
 
 def read_record(library: pathlib.Path) -> dict:
     """The record of ``library`` (after :func:`check_entry` accepted it)."""
-    return json.loads(record_path(library).read_text(encoding="utf-8"))
+    return json.loads(read_record_text(record_path(library)))

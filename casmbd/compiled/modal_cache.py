@@ -22,6 +22,8 @@ import zipfile
 import numpy as np
 
 from casmbd.compiled.cache import cache_dir
+from casmbd.errors import CasmbdError
+from casmbd.limits import check_npz
 from casmbd.model.flexible_bodies import register_modal_store
 from casmbd.model.modal import ModalData
 
@@ -65,6 +67,8 @@ def load_modes(key: str) -> ModalData | None:
     if not path.is_file():
         return None
     try:
+        with zipfile.ZipFile(path) as zf:  # headers within the budget before any array
+            check_npz(zf, f"modal cache file '{path}'")
         with np.load(path, allow_pickle=False) as z:
             if str(z["key"]) != key:
                 return None
@@ -74,7 +78,7 @@ def load_modes(key: str) -> ModalData | None:
             index = [int(i) for i in z["node_index"]]
             reference = int(z["reference"])
             extra = {k: str(z[k]) for k in ("reduction", "source", "modal_key")}
-    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, CasmbdError):
         return None
     n_nodes = arrays["positions"].shape[0]
     n_modes = arrays["frequencies"].shape[0]

@@ -168,7 +168,7 @@ def store(name: str, key: str, report: BuildReport, meta: dict) -> None:
 
 def _read(path: pathlib.Path, key: str) -> tuple[dict | None, str | None]:
     try:
-        record = json.loads(path.read_text(encoding="utf-8"))
+        record = json.loads(cache.read_record_text(path))
     except FileNotFoundError:
         return None, None
     except (OSError, ValueError) as exc:

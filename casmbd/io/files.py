@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from casmbd.errors import LimitError, SceneError
-from casmbd.limits import MAX_SCENE_BYTES, format_bytes
+from casmbd.errors import SceneError
+from casmbd.limits import MAX_SCENE_BYTES, read_bounded
 
 __all__ = ["read_text"]
 
@@ -13,20 +13,21 @@ __all__ = ["read_text"]
 def read_text(path: Path, what: str) -> str:
     """The text of ``path`` (UTF-8, a BOM ignored), refused above :data:`MAX_SCENE_BYTES`.
 
+    The file must be a regular file (checked with ``os.stat`` before it is opened: a FIFO or
+    a device such as ``/dev/zero`` is refused, never read) and at most
+    :data:`MAX_SCENE_BYTES` long; at most that many bytes plus one are read
+    (:func:`casmbd.limits.read_bounded`).
+
     Raises
     ------
     LimitError
         The file is larger than the limit (checked before reading).
     SceneError
-        The file is missing or unreadable; the message names ``what`` file and the path.
+        The file is missing, not a regular file or unreadable; the message names ``what``
+        file and the path.
     """
+    data = read_bounded(path, what, MAX_SCENE_BYTES, SceneError)
     try:
-        size = path.stat().st_size if path.is_file() else 0
-        if size > MAX_SCENE_BYTES:
-            raise LimitError(f"{what} file '{path}': {format_bytes(size)} exceeds the limit of "
-                             f"{format_bytes(MAX_SCENE_BYTES)} (casmbd.limits.MAX_SCENE_BYTES)")
-        return path.read_text(encoding="utf-8-sig")
-    except FileNotFoundError:
-        raise SceneError(f"{what} file '{path}' not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
         raise SceneError(f"{what} file '{path}' cannot be read: {exc}") from None

@@ -44,6 +44,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from casmbd.errors import ModelError
+from casmbd.limits import MAX_BEAM_ELEMENTS, check_count
 from casmbd.model.modal import FEModel
 
 __all__ = ["beam_model", "planar_element_matrices", "spatial_element_matrices"]
@@ -218,6 +219,8 @@ def beam_model(length: float, elements: int, *, EA, rhoA, EI=None, EIy=None, EIz
     if isinstance(elements, bool) or not isinstance(elements, int | np.integer) or elements < 1:
         raise ModelError(f"{src}: elements must be a positive integer, got {elements!r}")
     n = int(elements)
+    check_count(f"{src}: elements", n, MAX_BEAM_ELEMENTS,
+                "use fewer elements (a modal reduction converges with tens)")
     if dimension not in (2, 3):
         raise ModelError(f"{src}: dimension must be 2 (plane) or 3 (space), got {dimension!r}")
     if mass not in ("consistent", "lumped"):

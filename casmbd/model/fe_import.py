@@ -1,6 +1,11 @@
 """Import of a finite-element model (mass, stiffness, nodes) from an ``.npz`` file.
 
-The file is read with ``numpy.load(allow_pickle=False)``: data never becomes code.  Keys:
+The file is read with ``numpy.load(allow_pickle=False)``: data never becomes code.  It must be
+a regular file (a FIFO or device is refused before it is opened); the ``.npy`` headers of the
+members below are checked before any array is read (declared sizes at most what each member
+holds and :data:`~casmbd.limits.MAX_NPZ_BYTES` and the memory budget together; nodes at most
+:data:`~casmbd.limits.MAX_FE_NODES`, DOFs at most :data:`~casmbd.limits.MAX_FE_DOFS`), and
+members with other names are never loaded.  Keys:
 
 ``nodes``
     Node coordinates in the body frame, shape ``(n, 2)`` (plane) or ``(n, 3)`` (space) [m].
@@ -38,6 +43,14 @@ import numpy as np
 import scipy.sparse as sp
 
 from casmbd.errors import ModelError
+from casmbd.limits import (
+    MAX_FE_DOFS,
+    MAX_FE_NODES,
+    MAX_NPZ_BYTES,
+    check_count,
+    check_npz,
+    check_regular_file,
+)
 from casmbd.model.modal import FEModel, _check_layout, rotational_dofs
 
 __all__ = ["load_fe_npz", "save_fe_npz"]
@@ -151,6 +164,24 @@ def _array(data: Mapping, key: str, where: str, kinds: str = "fiu") -> np.ndarra
     return a
 
 
+#: The members :func:`load_fe_npz` reads; any other member of the file is never loaded.
+_USED_KEYS = ("nodes", "dofs_per_node", "node_names", "node_ids", "masses", "inertias",
+              *(f"{m}{suffix}" for m in ("mass", "stiffness")
+                for suffix in ("", "_format", "_shape", "_data", "_indices", "_indptr", "_row",
+                               "_col")))
+
+
+def _check_counts(headers: Mapping[str, tuple], where: str) -> None:
+    """The node count from the ``nodes`` member's ``.npy`` header against
+    :data:`~casmbd.limits.MAX_FE_NODES`, before any array is read (the DOF count, nodes ×
+    ``dofs_per_node``, is checked against :data:`~casmbd.limits.MAX_FE_DOFS` once
+    ``dofs_per_node`` is read; dense matrices are bounded by the header budget)."""
+    shape = headers.get("nodes", ((),))[0]
+    if shape:
+        check_count(f"{where}: field 'nodes': nodes", int(shape[0]), MAX_FE_NODES,
+                    "use a coarser mesh or reduce the model before import")
+
+
 def load_fe_npz(path: str | os.PathLike, *, name: str | None = None) -> FEModel:
     """Read and validate an FE model from an ``.npz`` file (layout in the module docstring).
 
@@ -167,9 +198,15 @@ def load_fe_npz(path: str | os.PathLike, *, name: str | None = None) -> FEModel:
         With the file's arrays as cache-key inputs (content, not the path).
     """
     where = f"fe file {os.fspath(path)!r}" + (f" of body {name!r}" if name else "")
+    if not os.path.lexists(path):
+        raise ModelError(f"{where}: no such file")
+    check_regular_file(path, "fe", MAX_NPZ_BYTES, ModelError)
     try:
+        with zipfile.ZipFile(path) as zf:
+            headers = check_npz(zf, where, _USED_KEYS, None, ModelError)
+        _check_counts(headers, where)
         with np.load(path, allow_pickle=False) as z:
-            data = {k: z[k] for k in z.files}
+            data = {k: z[k] for k in z.files if k in headers}  # unused members stay unread
     except FileNotFoundError as exc:
         raise ModelError(f"{where}: no such file") from exc
     except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
@@ -187,6 +224,8 @@ def load_fe_npz(path: str | os.PathLike, *, name: str | None = None) -> FEModel:
     dim = nodes.shape[1]
     _check_layout(dim, d, where)
     n = nodes.shape[0]
+    check_count(f"{where}: degrees of freedom (nodes × dofs_per_node)", n * d, MAX_FE_DOFS,
+                "use a coarser mesh or reduce the model before import")
     M = _matrix(data, "mass", n * d, where)
     K = _matrix(data, "stiffness", n * d, where)
     names: dict[str, int] = {}

@@ -45,6 +45,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spl
 
 from casmbd.errors import ModelError
+from casmbd.limits import MAX_MODES, check_count
 from casmbd.model.modal import (
     FEModel,
     ModalData,
@@ -357,7 +358,10 @@ def free_modes(model: FEModel, modes: int, *, rigid_tolerance: float = 1e-8) -> 
 def reduce(model: FEModel, reduction: str, modes: int,
            interfaces: Sequence[str | int] = ()) -> ModalData:
     """Dispatch on the scene key ``reduction``: ``"craig_bampton"`` (interfaces required) or
-    ``"free"`` (interfaces ignored: joints attach at any node)."""
+    ``"free"`` (interfaces ignored: joints attach at any node).  ``modes`` is checked
+    against :data:`~casmbd.limits.MAX_MODES` first."""
+    check_count(f"{model.source}: modes", int(modes), MAX_MODES,
+                "a modal reduction needs few modes (tens)")
     if reduction == "craig_bampton":
         return craig_bampton(model, modes, interfaces)
     if reduction == "free":

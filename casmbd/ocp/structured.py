@@ -285,7 +285,7 @@ def _load_indexed(name: str, key: str, names: list[str]) -> dict | None:
     anything is missing or does not match (then they are built again)."""
     path = _index_path(name, key)
     try:
-        index = json.loads(path.read_text(encoding="utf-8"))
+        index = json.loads(cache.read_record_text(path))
     except (OSError, ValueError):
         return None
     if not isinstance(index, dict) or index.get("key") != key:

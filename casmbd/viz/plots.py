@@ -16,6 +16,7 @@ unit each, built by :mod:`casmbd.viz.plot_panels`.
 from __future__ import annotations
 
 import csv
+import io
 import math
 import os
 from collections.abc import Callable, Iterable, Sequence
@@ -24,7 +25,14 @@ from pathlib import Path
 import numpy as np
 
 from casmbd.errors import AnalysisError, LimitError
-from casmbd.limits import MAX_DPI, MAX_FIGURE_INCHES, MAX_PIXELS, check_count
+from casmbd.limits import (
+    MAX_DPI,
+    MAX_FIGURE_INCHES,
+    MAX_PIXELS,
+    MAX_SCENE_BYTES,
+    check_count,
+    read_bounded,
+)
 from casmbd.results import atomic_write
 from casmbd.viz import plot_panels
 from casmbd.viz.geometry import scene_name
@@ -289,12 +297,14 @@ plot_drift = _one("drift")
 
 # ---------------------------------------------------------------------- work-precision
 def read_rows(path: str | os.PathLike) -> list[dict]:
-    """Rows of a CSV file with a header line (values as strings)."""
+    """Rows of a CSV file with a header line (values as strings); the file must be a regular
+    file of at most :data:`~casmbd.limits.MAX_SCENE_BYTES` (:func:`~casmbd.limits.read_bounded`).
+    """
+    data = read_bounded(path, "CSV", MAX_SCENE_BYTES, AnalysisError)
     try:
-        with open(path, newline="", encoding="utf-8") as fh:
-            return list(csv.DictReader(fh))
-    except OSError as exc:
-        raise AnalysisError(f"cannot read '{path}': {exc.strerror or exc}") from None
+        return list(csv.DictReader(io.StringIO(data.decode("utf-8"), newline="")))
+    except (UnicodeDecodeError, csv.Error) as exc:
+        raise AnalysisError(f"cannot read '{path}': {exc}") from None
 
 
 def plot_work_precision(rows: Iterable[dict] | str | os.PathLike,
