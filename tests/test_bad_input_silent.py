@@ -1,0 +1,138 @@
+"""Bad input that used to give a silently wrong number (issue 31, item 5).
+
+- names that shadow time or the measure and node syntax (``time``, ``rod@tip``, ``J.angle``)
+  and markers named like a body are refused where they are declared, naming the element;
+  names casmbd makes itself (``"<joint>.limit"``, ``"<contact>.force"``,
+  ``"<joint>.friction"``) still work.
+
+Every case asserts the error class and that the message names the culprit; through the CLI,
+exit 1 with one ``error:`` line.  Small planar scenes on CasADi's virtual machine
+(``CASMBD_COMPILE=0``), so the file runs in seconds.
+"""
+
+from __future__ import annotations
+
+import pytest
+from conftest import private_cache
+from test_bad_input import HEAD, PENDULUM, body, entry, joint
+
+from casmbd.cli import main
+from casmbd.errors import CasmbdError, ModelError, SceneError
+from casmbd.io.scene import loads_scene
+from casmbd.model.mechanism import Mechanism
+
+_vm = private_cache("cache_silent", CASMBD_COMPILE="0")
+
+
+def refused(text: str, *fragments: str) -> str:
+    """Load ``text``; assert a casmbd model or scene error naming every fragment."""
+    with pytest.raises((ModelError, SceneError)) as info:
+        loads_scene(text)
+    message = str(info.value)
+    assert isinstance(info.value, CasmbdError)
+    for fragment in fragments:
+        assert fragment in message, f"{fragment!r} not in {message!r}"
+    return message
+
+
+def cli_refuses(tmp_path, capsys, text: str, *fragments: str) -> None:
+    """``casmbd info`` on ``text``: exit 1, one ``error:`` line naming every fragment."""
+    scene = tmp_path / "bad.toml"
+    scene.write_text(text)
+    code = main(["info", str(scene)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 1 and len(err) == 1 and err[0].startswith("error: "), err
+    for fragment in fragments:
+        assert fragment in err[0], f"{fragment!r} not in {err[0]!r}"
+
+
+# ---------------------------------------------------------------------- names of time
+@pytest.mark.parametrize("name", ["time", "t", "pi", "e"])
+def test_parameter_named_like_time_or_a_constant_refused(name):
+    refused(PENDULUM + f"\n[parameters]\n{name} = 2.0\n", f"parameter '{name}'", "reserved")
+
+
+def test_parameter_time_refused_cli(tmp_path, capsys):
+    cli_refuses(tmp_path, capsys, HEAD + "\n[parameters]\ntime = 2.0\n" + body("rod")
+                + joint("pivot", "revolute", point="[0.0, 0.0]"), "parameter 'time'",
+                "the time")
+
+
+# ---------------------------------------------------------------------- '@' and '.'
+SLIDER = HEAD + body("slider") + joint("slide", "prismatic", body2="slider",
+                                       point="[0.5, 0.0]", axis="[1.0, 0.0]")
+
+
+@pytest.mark.parametrize("char", ["@", "."])
+@pytest.mark.parametrize("kind, text", [
+    ("body", lambda n: HEAD + body(n) + joint("pivot", "revolute", body2=n,
+                                             point="[0.0, 0.0]")),
+    ("joint", lambda n: HEAD + body("rod") + joint(n, "revolute", point="[0.0, 0.0]")),
+    ("marker", lambda n: PENDULUM + entry("markers", name=f'"{n}"', body='"rod"',
+                                          point="[1.0, 0.0]")),
+    ("force", lambda n: PENDULUM + entry("forces", name=f'"{n}"', type='"force"',
+                                         body='"rod"', value="[1.0, 0.0]")),
+    ("driver", lambda n: PENDULUM + entry("drivers", name=f'"{n}"', joint='"pivot"',
+                                          position='"t"')),
+    ("output", lambda n: PENDULUM + entry("outputs", name=f'"{n}"',
+                                          value='"angle(\\"pivot\\")"')),
+])
+def test_reserved_character_in_a_declared_name_refused(kind, text, char):
+    name = f"rod{char}tip" if char == "@" else "J.angle"
+    refused(text(name), f"{kind} name '{name}'", f"must not contain '{char}'")
+
+
+def test_parameter_with_a_dot_refused():
+    refused(PENDULUM + '\n[parameters]\n"k.stiff" = 2.0\n', "parameter name 'k.stiff'")
+
+
+def test_reserved_character_refused_cli(tmp_path, capsys):
+    cli_refuses(tmp_path, capsys, HEAD + body("rod") + joint("J.angle", "revolute",
+                                                             point="[0.0, 0.0]"),
+                "joint name 'J.angle'", "'.'")
+
+
+def test_reserved_character_refused_api():
+    mech = Mechanism(gravity=(0.0, -9.81))
+    with pytest.raises(ModelError, match="body name 'rod@tip': must not contain '@'"):
+        mech.add_body("rod@tip", 1.0, 0.1, (0.5, 0.0))
+    mech.add_body("rod", 1.0, 0.1, (0.5, 0.0))
+    with pytest.raises(ModelError, match=r"joint name 'J\.angle': must not contain '\.'"):
+        mech.add_revolute("J.angle", "ground", "rod", (0.0, 0.0))
+
+
+def test_generated_dotted_names_still_work():
+    """The names casmbd makes itself: a joint's limit, its compliant force and its friction."""
+    mech = loads_scene(PENDULUM.replace('point = [0.0, 0.0]\n', 'point = [0.0, 0.0]\n'
+                                        'lower = -1.0\nupper = 1.0\n'
+                                        'friction = { viscous = 0.1 }\n'))
+    assert "pivot.limit" in mech.contacts and "pivot.friction" in mech.forces
+    mech = Mechanism(gravity=(0.0, -9.81))
+    mech.add_body("rod", 1.0, 0.1, (0.5, 0.0))
+    mech.add_revolute("J", "ground", "rod", (0.0, 0.0))
+    mech.add_joint_limit("J", lower=-1.0, upper=1.0, model="compliant")
+    assert list(mech.contacts) == ["J.limit"] and list(mech.forces) == ["J.limit.force"]
+
+
+# ---------------------------------------------------------------------- marker/body clash
+def test_marker_named_like_a_body_refused():
+    refused(SLIDER + entry("markers", name='"slider"', body='"slider"', point="[0.7, 0.1]"),
+            "marker name 'slider'", "a body has this name", 'y("slider")')
+
+
+def test_marker_named_ground_refused():
+    refused(PENDULUM + entry("markers", name='"ground"', body='"rod"', point="[1.0, 0.0]"),
+            "marker name 'ground'", "the ground")
+
+
+def test_body_named_like_a_marker_refused_api():
+    mech = Mechanism(gravity=(0.0, -9.81))
+    mech.add_body("rod", 1.0, 0.1, (0.5, 0.0))
+    mech.add_marker("tip", "rod", (1.0, 0.0))
+    with pytest.raises(ModelError, match="body name 'tip': a marker has this name"):
+        mech.add_body("tip", 1.0, 0.1, (1.5, 0.0))
+
+
+def test_marker_clash_refused_cli(tmp_path, capsys):
+    cli_refuses(tmp_path, capsys, SLIDER + entry("markers", name='"slider"', body='"slider"',
+                                                 point="[0.7, 0.1]"), "marker name 'slider'")
