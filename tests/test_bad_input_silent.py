@@ -114,6 +114,17 @@ def test_generated_dotted_names_still_work():
     assert list(mech.contacts) == ["J.limit"] and list(mech.forces) == ["J.limit.force"]
 
 
+def test_conventional_dotted_names_in_code():
+    """Code may name a joint's friction "<joint>.friction" as the scene reader does; the same
+    form for something that is not a joint is refused."""
+    mech = Mechanism(gravity=(0.0, -9.81))
+    mech.add_body("rod", 1.0, 0.1, (0.5, 0.0))
+    mech.add_revolute("pin", "ground", "rod", (0.0, 0.0))
+    mech.add("joint_friction", "pin.friction", "pin", friction=0.1)
+    with pytest.raises(ModelError, match="force name 'rod.friction': must not contain"):
+        mech.add("joint_friction", "rod.friction", "pin", friction=0.1)
+
+
 # ---------------------------------------------------------------------- marker/body clash
 def test_marker_named_like_a_body_refused():
     refused(SLIDER + entry("markers", name='"slider"', body='"slider"', point="[0.7, 0.1]"),

@@ -117,12 +117,24 @@ class Mechanism:
         self._generated.add(name)
         return name
 
+    def _conventional(self, kind: str, name: str) -> bool:
+        """Whether ``name`` is the name casmbd itself gives such an element: a joint's
+        friction ``"<joint>.friction"`` (a force), its stops ``"<joint>.limit"`` (a contact)
+        or the compliant force ``"<contact>.force"`` of a contact, for an existing joint or
+        contact (code may name them so, as the scene reader does)."""
+        owner, _, part = name.rpartition(".")
+        if "@" in name or not owner:
+            return False
+        if (kind == "force" and part == "friction") or (kind == "contact" and part == "limit"):
+            return owner in self.joints
+        return kind == "force" and part == "force" and owner in self.contacts
+
     def _unique(self, table: dict, kind: str, name: str) -> str:
         if not isinstance(name, str) or not name:
             raise ModelError(f"{kind} name must be a non-empty string, got {name!r}")
         if kind == "body" and name == GROUND:
             raise ModelError(f"body name '{GROUND}' is reserved for the ground")
-        if name not in self._generated:
+        if name not in self._generated and not self._conventional(kind, name):
             for char, meaning in RESERVED_CHARACTERS.items():
                 if char in name:
                     raise ModelError(f"{kind} name '{name}': must not contain '{char}' "
