@@ -1,5 +1,7 @@
 """Bad input that used to give a silently wrong number (issue 31, item 5).
 
+- a run whose results hold a value that is not finite stops with an ``IntegratorError`` (flag
+  ``NON_FINITE``) naming the quantity and the first time, keeping the results before it;
 - names that shadow time or the measure and node syntax (``time``, ``rod@tip``, ``J.angle``)
   and markers named like a body are refused where they are declared, naming the element;
   names casmbd makes itself (``"<joint>.limit"``, ``"<contact>.force"``,
@@ -12,14 +14,18 @@ exit 1 with one ``error:`` line.  Small planar scenes on CasADi's virtual machin
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 from conftest import private_cache
 from test_bad_input import HEAD, PENDULUM, body, entry, joint
 
+from casmbd.analysis.postprocess import first_non_finite
+from casmbd.analysis.simulate import simulate
 from casmbd.cli import main
-from casmbd.errors import CasmbdError, ModelError, SceneError
+from casmbd.errors import CasmbdError, IntegratorError, ModelError, SceneError
 from casmbd.io.scene import loads_scene
 from casmbd.model.mechanism import Mechanism
+from casmbd.results import Result
 
 _vm = private_cache("cache_silent", CASMBD_COMPILE="0")
 
@@ -121,7 +127,7 @@ def test_conventional_dotted_names_in_code():
     mech.add_body("rod", 1.0, 0.1, (0.5, 0.0))
     mech.add_revolute("pin", "ground", "rod", (0.0, 0.0))
     mech.add("joint_friction", "pin.friction", "pin", friction=0.1)
-    with pytest.raises(ModelError, match="force name 'rod.friction': must not contain"):
+    with pytest.raises(ModelError, match=r"force name 'rod\.friction': must not contain"):
         mech.add("joint_friction", "rod.friction", "pin", friction=0.1)
 
 
@@ -147,3 +153,61 @@ def test_body_named_like_a_marker_refused_api():
 def test_marker_clash_refused_cli(tmp_path, capsys):
     cli_refuses(tmp_path, capsys, SLIDER + entry("markers", name='"slider"', body='"slider"',
                                                  point="[0.7, 0.1]"), "marker name 'slider'")
+
+
+# ---------------------------------------------------------------------- non-finite results
+ROOT_OUTPUT = PENDULUM + entry("outputs", name='"root"', value='"sqrt(x(\\"rod\\"))"')
+
+
+def test_non_finite_output_stops_the_run_naming_it():
+    """sqrt(x) of the pendulum's centre: x = 0.5 cos θ turns negative near t = 0.5 s (the rod
+    falls from the horizontal); the run used to end with exit 0 and null in the JSON."""
+    mech = loads_scene(ROOT_OUTPUT)
+    with pytest.raises(IntegratorError) as info:
+        simulate(mech, t_end=2.0, steps=10, mode="vm")
+    exc = info.value
+    assert exc.flag == "NON_FINITE" and "outputs 'root' is nan" in str(exc)
+    # the first output time at which x < 0, from the same run without the output
+    free = simulate(loads_scene(PENDULUM), t_end=2.0, steps=10, mode="vm")
+    k = int(np.flatnonzero(free.body("rod")["position"][:, 0] < 0.0)[0])
+    assert exc.time == pytest.approx(free.t[k], abs=1e-12) and f"at t = {exc.time:.6g}" in str(exc)
+    partial = exc.partial
+    assert len(partial.t) >= 1 and partial.t[-1] < exc.time
+    assert np.all(np.isfinite(partial.arrays["outputs"]))
+    assert np.all(partial.body("rod")["position"][:, 0] >= 0.0)
+
+
+def test_non_finite_output_cli(tmp_path, capsys):
+    scene = tmp_path / "root.toml"
+    scene.write_text(ROOT_OUTPUT)
+    code = main(["simulate", str(scene), "--t-end", "2", "--steps", "10", "--mode", "vm",
+                 "--json"])
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert code == 1 and len(err) == 1 and err[0].startswith("error: ")
+    assert "outputs 'root'" in err[0] and "Traceback" not in captured.err
+
+
+def _result(**arrays) -> Result:
+    n = len(next(iter(arrays.values())))
+    return Result("simulation", np.linspace(0.0, 1.0, n), arrays,
+                  {"coordinates": ["slide.translation", "pin.angle"]}, {}, "")
+
+
+def test_first_non_finite_names_the_first_time_and_quantity():
+    q = np.zeros((5, 2))
+    v = np.zeros((5, 2))
+    energy = np.zeros(5)
+    v[3, 1] = np.inf
+    energy[2] = np.nan
+    assert first_non_finite(_result(q=q, v=v, total_energy=energy)) == (
+        2, "total_energy", pytest.approx(np.nan, nan_ok=True))
+    energy[2] = 0.0
+    q[3, 0] = np.nan  # at a tie the positions come first
+    k, what, value = first_non_finite(_result(q=q, v=v, total_energy=energy))
+    assert (k, what) == (3, "q 'slide.translation'") and np.isnan(value)
+    q[3, 0] = 0.0
+    assert first_non_finite(_result(q=q, v=v, total_energy=energy))[:2] == (3, "v 'pin.angle'")
+    v[3, 1] = 0.0
+    conditioning = np.full(5, np.nan)  # not evaluated: NaN by design
+    assert first_non_finite(_result(q=q, v=v, constraint_conditioning=conditioning)) is None

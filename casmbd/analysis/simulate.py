@@ -359,6 +359,8 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
         stats.update({k: v for k, v in model.report_dict.items() if k != "build_seconds"})
         n_ok = xs.shape[0]
         result = self._post(grid[:n_ok], xs[:, :nq], xs[:, nq:], stats)
+        if failure is None:  # a value that is not finite: stops naming it and the time
+            self._check_finite(result)
         self._check_violation(result)  # beyond the tolerance: stops naming the culprit
         if failure is not None:
             t_fail = float(solver_stats.get("failure_time", grid[n_ok - 1]))
@@ -578,6 +580,7 @@ def simulate(mechanism, t_end: float, steps: int, *, formulation: str | None = N
             t_start=t_start, max_steps=max_steps, simulator_factory=simulators)
         # beyond the tolerance the run stops naming the culprit, as without events (the
         # base simulator is the one of the open phases, kept by ``simulators``)
+        simulators(mechanism)._check_finite(result)
         simulators(mechanism)._check_violation(result)
         return result
     sim = Simulator(mechanism, formulation, inputs=inputs, mode=mode,
