@@ -31,8 +31,9 @@ from casmbd.analysis.checks import (
 )
 from casmbd.analysis.events import compliant_events, has_events, simulate_events
 from casmbd.analysis.independent import find_redundant
+from casmbd.analysis.invariants import check_energy
 from casmbd.analysis.kkt import consistent_state
-from casmbd.analysis.postprocess import PostProcessing
+from casmbd.analysis.postprocess import PostProcessing, truncated
 from casmbd.analysis.stepping import Stepping
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, CasmbdError, IntegratorError, UnknownMethodError
@@ -361,6 +362,12 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
         result = self._post(grid[:n_ok], xs[:, :nq], xs[:, nq:], stats)
         if failure is None:  # a value that is not finite: stops naming it and the time
             self._check_finite(result)
+            if integ.INTEGRATORS[name].fixed_step:  # no error control: watch the energy
+                mech = model.mechanism
+                params = dict(zip(mech.parameters, np.ravel(model.p), strict=False)) \
+                    if len(np.ravel(model.p)) == len(mech.parameters) else None
+                check_energy(result, mech, f"fixed-step {name} (h = "
+                             f"{stats.get('step_size', step):.3g})", truncated, params)
         self._check_violation(result)  # beyond the tolerance: stops naming the culprit
         if failure is not None:
             t_fail = float(solver_stats.get("failure_time", grid[n_ok - 1]))
