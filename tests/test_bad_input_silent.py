@@ -4,6 +4,8 @@
   ``NON_FINITE``) naming the quantity and the first time, keeping the results before it;
 - a fixed-step run of a conservative mechanism whose total energy drifts by more than half
   the largest kinetic energy so far stops (flag ``ENERGY_GROWTH``), naming the energies;
+- FE models are checked before every reduction: M positive definite (Cholesky, or the
+  inertia of a sparse LU above DENSE_LIMIT dofs), nodes distinct;
 - names that shadow time or the measure and node syntax (``time``, ``rod@tip``, ``J.angle``)
   and markers named like a body are refused where they are declared, naming the element;
   names casmbd makes itself (``"<joint>.limit"``, ``"<contact>.force"``,
@@ -16,6 +18,7 @@ exit 1 with one ``error:`` line.  Small planar scenes on CasADi's virtual machin
 
 from __future__ import annotations
 
+import dataclasses
 import pathlib
 
 import numpy as np
@@ -29,6 +32,9 @@ from casmbd.analysis.simulate import simulate
 from casmbd.cli import main
 from casmbd.errors import CasmbdError, IntegratorError, ModelError, SceneError
 from casmbd.io.scene import loads_scene
+from casmbd.model import modal_reduction
+from casmbd.model.fe_beam import beam_model
+from casmbd.model.fe_import import load_fe_npz, save_fe_npz
 from casmbd.model.mechanism import Mechanism
 from casmbd.results import Result
 
@@ -275,3 +281,81 @@ def test_damped_or_driven_scenes_are_not_energy_checked():
     result = simulate(loads_scene(spring(100.0)), t_end=0.1, steps=2, mode="vm")
     assert energy_exchange(loads_scene(spring(100.0)), result) == []
     assert energy_exchange(loads_scene(spring(100.0, c=1.0)), result) == ["damper 'spring'"]
+
+
+# ---------------------------------------------------------------------- FE models
+def _beam(n: int = 6):
+    """The planar spin-up beam of issue 23 (L = 10 m, 3 dofs per node), named root and tip."""
+    return beam_model(10.0, n, EA=2.8e7, rhoA=1.2, EI=1.4e4)
+
+
+def _saved(tmp_path, mass, model, positions=None) -> pathlib.Path:
+    path = tmp_path / "part.npz"
+    save_fe_npz(path, mass, model.stiffness_matrix.toarray(),
+                model.positions if positions is None else positions, model.dofs_per_node,
+                node_names=model.node_names)
+    return path
+
+
+def _indefinite(model, dof_a: int, dof_b: int) -> np.ndarray:
+    """M with a coupling of two translational dofs 10× their diagonal: symmetric, positive
+    diagonal (passes the import checks), indefinite (a 2×2 minor m_a m_b − c² < 0)."""
+    M = model.mass_matrix.toarray()
+    c = 10.0 * max(M[dof_a, dof_a], M[dof_b, dof_b])
+    M[dof_a, dof_b] = M[dof_b, dof_a] = c
+    assert np.linalg.eigvalsh(M).min() < 0.0 and np.all(np.diag(M) > 0.0)
+    return M
+
+
+@pytest.mark.parametrize("reduction", ["craig_bampton", "free"])
+def test_indefinite_fe_mass_matrix_refused_before_reduction(tmp_path, reduction):
+    model = _beam()
+    fe = load_fe_npz(_saved(tmp_path, _indefinite(model, 3, 9), model))  # x of nodes 1 and 3
+    with pytest.raises(ModelError) as info:
+        modal_reduction.reduce(fe, reduction, 2, ["root", "tip"])
+    message = str(info.value)
+    assert "part.npz" in message and "mass matrix is not positive definite" in message
+    assert "dof 9, node 3" in message  # the leading minor that includes dof 9 fails first
+
+
+def test_indefinite_fe_mass_matrix_sparse_path():
+    """Above DENSE_LIMIT dofs: the inertia by a sparse LU (600 elements, 1803 dofs)."""
+    model = _beam(600)
+    assert model.mass_matrix.shape[0] > modal_reduction.DENSE_LIMIT
+    modal_reduction.check_fe_model(model)  # the sound model passes
+    M = model.mass_matrix.tolil()
+    c = 10.0 * M[3, 3]
+    M[3, 6] = M[6, 3] = c
+    bad = dataclasses.replace(model, mass_matrix=M.tocsr())
+    with pytest.raises(ModelError, match="mass matrix is not positive definite"):
+        modal_reduction.check_fe_model(bad)
+
+
+def test_fe_nodes_all_at_one_point_refused(tmp_path):
+    model = _beam()
+    fe = load_fe_npz(_saved(tmp_path, model.mass_matrix.toarray(), model,
+                            np.zeros_like(model.positions)))
+    with pytest.raises(ModelError, match=r"all 7 nodes are at one point"):
+        modal_reduction.craig_bampton(fe, 2, ["root", "tip"])
+
+
+def test_fe_coincident_nodes_refused_naming_them(tmp_path):
+    model = _beam()
+    positions = model.positions.copy()
+    positions[4] = positions[3]
+    fe = load_fe_npz(_saved(tmp_path, model.mass_matrix.toarray(), model, positions))
+    with pytest.raises(ModelError, match=r"node 3 and node 4 are at one position"):
+        modal_reduction.free_modes(fe, 2)
+
+
+def test_indefinite_fe_mass_matrix_cli(tmp_path, capsys):
+    model = _beam()
+    _saved(tmp_path, _indefinite(model, 3, 9), model)
+    scene = tmp_path / "fe.toml"
+    scene.write_text(HEAD + '\n[[bodies]]\nname = "beam"\ntype = "flexible"\n'
+                     'position = [0.0, 0.0]\nmodes = 2\nreduction = "craig_bampton"\n'
+                     'interfaces = ["root"]\n[bodies.fe]\nfile = "part.npz"\n')
+    code = main(["info", str(scene)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 1 and len(err) == 1 and err[0].startswith("error: "), err
+    assert "beam" in err[0] and "mass matrix is not positive definite" in err[0]
