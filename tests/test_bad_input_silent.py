@@ -3,7 +3,8 @@
 - a run whose results hold a value that is not finite stops with an ``IntegratorError`` (flag
   ``NON_FINITE``) naming the quantity and the first time, keeping the results before it;
 - a fixed-step run of a conservative mechanism whose total energy drifts by more than half
-  the largest kinetic energy so far stops (flag ``ENERGY_GROWTH``), naming the energies;
+  the largest kinetic energy so far stops (flag ``ENERGY_GROWTH``), naming the energies; any
+  fixed-step run whose state norm blows up stops (flag ``STATE_GROWTH``);
 - FE models are checked before every reduction: M positive definite (Cholesky, or the
   inertia of a sparse LU above DENSE_LIMIT dofs), nodes distinct;
 - names that shadow time or the measure and node syntax (``time``, ``rod@tip``, ``J.angle``)
@@ -271,16 +272,39 @@ def test_sound_fixed_step_run_passes_the_energy_check(integrator):
     assert np.max(np.abs(energy - 50.0)) < 0.05  # E = ½ k 0.1² = 50 J
 
 
-def test_damped_or_driven_scenes_are_not_energy_checked():
-    """With damping c = 1 N s/m the energy may change physically: not checked (the run ends
-    on the non-finite state check instead); c = 0 through a parameter counts as no damper."""
+def test_damped_scene_is_not_energy_checked_but_its_blow_up_is_named():
+    """With damping c = 1 N s/m the energy may change physically: not energy-checked, but the
+    state norm that grows ~1e10-fold in the first step stops the run (flag STATE_GROWTH, exit 0
+    with x ~ 1e40 m before); c = 0 through a parameter counts as no damper."""
     mech = loads_scene(spring(1e9, c=1.0))
     with pytest.raises(IntegratorError) as info:
-        simulate(mech, t_end=1.0, steps=100, integrator="rk4", step=0.01, mode="vm")
-    assert info.value.flag == "NON_FINITE"
+        simulate(mech, t_end=0.05, steps=5, integrator="rk4", step=0.01, mode="vm")
+    assert info.value.flag == "STATE_GROWTH" and info.value.time == pytest.approx(0.01)
+    assert "state norm" in str(info.value) and len(info.value.partial.t) == 1
     result = simulate(loads_scene(spring(100.0)), t_end=0.1, steps=2, mode="vm")
     assert energy_exchange(loads_scene(spring(100.0)), result) == []
     assert energy_exchange(loads_scene(spring(100.0, c=1.0)), result) == ["damper 'spring'"]
+
+
+def test_sound_damped_fixed_step_run_passes():
+    """k = 1e4 N/m, c = 1 N s/m (ζ = 0.005), h = 1e-3 s: matches the damped oscillation
+    x = 1 + 0.1 e^(−ζωt) (cos ω_d t + ζ/√(1−ζ²) sin ω_d t) within 5e-5 m."""
+    result = simulate(loads_scene(spring(1e4, c=1.0)), t_end=0.5, steps=50, integrator="rk4",
+                      step=1e-3, mode="vm")
+    omega, zeta = 100.0, 0.005
+    wd, t = omega * np.sqrt(1 - zeta**2), result.t
+    exact = 1.0 + 0.1 * np.exp(-zeta * omega * t) * (np.cos(wd * t) + zeta / np.sqrt(
+        1 - zeta**2) * np.sin(wd * t))
+    assert np.max(np.abs(result.body("block")["position"][:, 0] - exact)) < 5e-5
+
+
+def test_long_free_fall_is_no_blow_up():
+    """A free fall over 1000 s reaches 4.9e6 m (a state 1e7 times its start) with a steady
+    growth: not stopped, and exact (RK4 integrates a quadratic exactly; 1e-9 relative)."""
+    mech = loads_scene(HEAD + body("ball", x=0.0, y=0.5))
+    result = simulate(mech, t_end=1000.0, steps=10, integrator="rk4", step=1.0, mode="vm")
+    y = result.body("ball")["position"][:, 1]
+    assert y == pytest.approx(0.5 - 0.5 * 9.81 * result.t**2, rel=1e-9)
 
 
 # ---------------------------------------------------------------------- FE models

@@ -16,6 +16,12 @@ the drift larger than half the largest kinetic energy reached so far (datum-free
 depend on where V is zero).  A sound run keeps the ratio near the method's local error
 (1e-6 and below for RK4 at a tenth of the stability limit); a diverging one has it near 1 or
 far above.  The floor 1e-9 · (T + |V|) keeps round-off of a mechanism at rest from counting.
+
+Where something does work the energy says nothing; there the state norm is watched: the run
+stops at the first output k with ‖x_k‖ > :data:`STATE_GROWTH` · max(‖x_0‖, 1) and
+‖x_k‖ > :data:`STEP_GROWTH` · ‖x_{k−1}‖ (x = (q, v) in SI units): a state a million times its
+start that grew a thousandfold within one output interval — the geometric growth of an
+unstable step, not a motion (a free fall needs 1e5 s of one output interval to do that).
 """
 
 from __future__ import annotations
@@ -31,6 +37,10 @@ from casmbd.results import Result
 #: drift of the total energy, as a fraction of the largest kinetic energy so far, above which
 #: a fixed-step run of a conservative mechanism stops
 ENERGY_DRIFT = 0.5
+#: size of the state, relative to the start (at least 1), above which a fast growth stops a run
+STATE_GROWTH = 1e6
+#: growth of the state norm within one output interval that counts as a blow-up
+STEP_GROWTH = 1e3
 _TIME = re.compile(r"\b(t|time)\b")
 
 
@@ -94,29 +104,56 @@ def first_energy_growth(result: Result) -> tuple[int, float] | None:
     return (int(bad[0]), float(bound[bad[0]])) if bad.size else None
 
 
-def check_energy(result: Result, mechanism, what: str, truncate,
-                 params: dict | None = None) -> None:
-    """Stop a fixed-step run of a conservative mechanism whose total energy grows
-    (:func:`first_energy_growth`): an :class:`~casmbd.errors.IntegratorError` with flag
-    ``ENERGY_GROWTH`` naming the energies, the time and the step, with the results before it
-    (``truncate(result, n)``).  Nothing is checked when something does work."""
-    if energy_exchange(mechanism, result, params):
-        return
-    found = first_energy_growth(result)
-    if found is None:
-        return
-    k, bound = found
-    total = result.arrays["kinetic_energy"] + result.arrays["potential_energy"]
+def first_state_growth(result: Result) -> int | None:
+    """The first output index whose state norm blows up (module docstring); None if none."""
+    q, v = result.arrays.get("q"), result.arrays.get("v")
+    if q is None or v is None or len(q) < 2:
+        return None
+    norm = np.linalg.norm(np.hstack([q.reshape(len(q), -1), v.reshape(len(v), -1)]), axis=1)
+    big = norm > STATE_GROWTH * max(float(norm[0]), 1.0)
+    fast = np.r_[False, norm[1:] > STEP_GROWTH * norm[:-1]]
+    bad = np.flatnonzero(big & fast)
+    return int(bad[0]) if bad.size else None
+
+
+def _stop(result: Result, k: int, truncate, message: str, flag: str):
     t = float(result.t[k])
     n_kept = max(k, 1)
     partial = truncate(result, n_kept)
     partial.stats["failure_time"] = t
-    raise IntegratorError(
-        f"{what}: the total energy of this conservative mechanism went from {total[0]:.6g} J "
-        f"at t = {result.t[0]:.6g} to {total[k]:.6g} J at t = {t:.6g} (drift "
-        f"{abs(total[k] - total[0]):.3g} J > {bound:.3g} J, {ENERGY_DRIFT:g} × the largest "
-        f"kinetic energy so far); results kept up to t = {result.t[n_kept - 1]:.6g} "
-        f"({n_kept} of {len(result.t)} output times): the step is too large for the "
-        "stiffest element (RK4 beyond |h ω| < 2.8 grows the energy, near it damps it; take "
-        "a smaller --step, or a variable-step integrator)",
-        t, "ENERGY_GROWTH", partial=partial)
+    return IntegratorError(
+        f"{message}; results kept up to t = {result.t[n_kept - 1]:.6g} ({n_kept} of "
+        f"{len(result.t)} output times): the step is too large for the stiffest element (RK4 "
+        "beyond |h ω| < 2.8 grows the energy, near it damps it; take a smaller --step, or a "
+        "variable-step integrator)", t, flag, partial=partial)
+
+
+def check_energy(result: Result, mechanism, what: str, truncate,
+                 params: dict | None = None) -> None:
+    """Stop a fixed-step run of a conservative mechanism whose total energy grows
+    (:func:`first_energy_growth`, flag ``ENERGY_GROWTH``, the energies named), and any
+    fixed-step run whose state norm blows up (:func:`first_state_growth`, flag
+    ``STATE_GROWTH``): an :class:`~casmbd.errors.IntegratorError` naming the time and the step,
+    with the results before it (``truncate(result, n)``).  The energy is not checked when
+    something does work (:func:`energy_exchange`)."""
+    exchange = energy_exchange(mechanism, result, params)
+    found = None if exchange else first_energy_growth(result)
+    if found is not None:
+        k, bound = found
+        total = result.arrays["kinetic_energy"] + result.arrays["potential_energy"]
+        raise _stop(result, k, truncate,
+                    f"{what}: the total energy of this conservative mechanism went from "
+                    f"{total[0]:.6g} J at t = {result.t[0]:.6g} to {total[k]:.6g} J at t = "
+                    f"{result.t[k]:.6g} (drift {abs(total[k] - total[0]):.3g} J > {bound:.3g} "
+                    f"J, {ENERGY_DRIFT:g} × the largest kinetic energy so far)",
+                    "ENERGY_GROWTH")
+    k = first_state_growth(result)
+    if k is not None:
+        norm = [float(np.linalg.norm(np.r_[result.arrays["q"][j], result.arrays["v"][j]]))
+                for j in (0, k - 1, k)]
+        raise _stop(result, k, truncate,
+                    f"{what}: the state norm ‖(q, v)‖ blew up from {norm[0]:.3g} at t = "
+                    f"{result.t[0]:.6g} to {norm[2]:.3g} at t = {result.t[k]:.6g} ("
+                    + (f"{norm[2] / norm[1]:.3g}× within one output interval)" if norm[1] > 0
+                       else f"from {norm[1]:.3g} within one output interval)"),
+                    "STATE_GROWTH")
