@@ -226,7 +226,8 @@ def test_first_non_finite_names_the_first_time_and_quantity():
 
 
 # ---------------------------------------------------------------------- fixed-step energy
-SPRING = (pathlib.Path(__file__).parent / "scenes" / "spring_mass.toml").read_text()
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+SPRING = (ROOT / "tests" / "scenes" / "spring_mass.toml").read_text()
 
 
 def spring(k: float, c: float = 0.0) -> str:
@@ -383,3 +384,17 @@ def test_indefinite_fe_mass_matrix_cli(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 1 and len(err) == 1 and err[0].startswith("error: "), err
     assert "beam" in err[0] and "mass matrix is not positive definite" in err[0]
+
+
+def test_non_finite_output_with_events_is_named():
+    """The same check on the event path: the bouncing ball (drop from 1.1 m, centre) with an
+    output sqrt(y − 0.6) that is NaN once the centre is below 0.6 m, before the first impact
+    (t = √(2 · 1 m / g) = 0.452 s)."""
+    text = (ROOT / "examples" / "bouncing_ball.toml").read_text() + entry(
+        "outputs", name='"above"', value='"sqrt(y(\\"ball\\") - 0.6)"')
+    with pytest.raises(IntegratorError) as info:
+        simulate(loads_scene(text), t_end=1.0, steps=20, mode="vm")
+    exc = info.value
+    assert exc.flag == "NON_FINITE" and "outputs 'above' is nan" in str(exc)
+    # y = 1.1 − g t²/2 < 0.6 first at t = 0.35 on the 0.05 s grid (0.319 s exactly)
+    assert exc.time == pytest.approx(0.35, abs=1e-9)
