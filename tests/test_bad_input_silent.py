@@ -94,6 +94,9 @@ SLIDER = HEAD + body("slider") + joint("slide", "prismatic", body2="slider",
                                           position='"t"')),
     ("output", lambda n: PENDULUM + entry("outputs", name=f'"{n}"',
                                           value='"angle(\\"pivot\\")"')),
+    ("actuator", lambda n: PENDULUM + entry("actuators", name=f'"{n}"', joint='"pivot"')),
+    ("contact", lambda n: PENDULUM + entry("contacts", name=f'"{n}"', body='"rod"',
+                                           point="[1.0, 0.0]")),
 ])
 def test_reserved_character_in_a_declared_name_refused(kind, text, char):
     name = f"rod{char}tip" if char == "@" else "J.angle"
