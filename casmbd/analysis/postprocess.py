@@ -33,7 +33,12 @@ from casmbd.analysis.redundancy import (
     rank_report,
     reference_equilibration,
 )
-from casmbd.errors import AssemblyError, CasmbdError, ConstraintViolationError
+from casmbd.errors import (
+    AssemblyError,
+    CasmbdError,
+    ConstraintViolationError,
+    IntegratorError,
+)
 from casmbd.interrupts import reraise_interrupt
 from casmbd.model.measures import result_names
 from casmbd.results import Result
@@ -58,6 +63,53 @@ def first_violation(result: Result) -> tuple[int, float] | None:
     size = np.maximum(1.0, np.fmax.accumulate(np.nan_to_num(reach, nan=0.0, posinf=0.0)))
     bad = np.flatnonzero(~np.isfinite(viol) | (viol > DRIFT_LIMIT * size))
     return (int(bad[0]), float(size[bad[0]])) if bad.size else None
+
+
+#: the names (in ``Result.names``) of the columns of result arrays, by array name or prefix
+_COLUMNS = {"q": "coordinates", "v": "coordinates", "a": "coordinates",
+            "lambda": "constraints", "body": "bodies", "angle": "bodies", "marker": "markers",
+            "joint": "joints", "node": "nodes"}
+#: arrays that hold NaN by design (not evaluated there)
+_NAN_BY_DESIGN = frozenset({"constraint_conditioning"})
+#: arrays of the user's own expressions (a value that is not finite is the expression's)
+USER_ARRAYS = frozenset({"outputs", "force_outputs"})
+
+
+def _column_name(result: Result, key: str, col: int, n_cols: int) -> str:
+    """``key`` and the name of its column ``col``: ``"v 'slide.translation'"``,
+    ``"body_positions 'block' [1]"``, ``"outputs 'root'"``; the bare key for one column."""
+    labels = result.names.get(key) or result.names.get(_COLUMNS.get(key, "")) \
+        or result.names.get(_COLUMNS.get(key.split("_")[0], ""), [])
+    labels = [str(x) for x in labels] if isinstance(labels, (list, tuple)) else []
+    if labels and n_cols == len(labels):
+        return f"{key} '{labels[col]}'"
+    if labels and n_cols % len(labels) == 0:  # several components per named item
+        per = n_cols // len(labels)
+        return f"{key} '{labels[col // per]}' [{col % per}]"
+    return key if n_cols == 1 else f"{key} [{col}]"
+
+
+def first_non_finite(result: Result) -> tuple[int, str, float] | None:
+    """The first output index at which a result array holds a value that is not finite, the
+    quantity (array and column, e.g. ``"v 'slide.translation'"``) and the value; None when
+    every value is finite.  At a tie the states q, v come first, then q̈, λ and the arrays
+    derived from them."""
+    n_t = len(result.t)
+    first = None
+    order = ["q", "v", "a", "lambda"] + [k for k in result.arrays
+                                         if k not in ("q", "v", "a", "lambda")]
+    for key in order:
+        arr = result.arrays.get(key)
+        if key in _NAN_BY_DESIGN or not isinstance(arr, np.ndarray) or arr.ndim < 1 \
+                or arr.shape[0] != n_t or not arr.size or arr.dtype.kind != "f":
+            continue
+        flat = arr.reshape(n_t, -1)
+        bad_rows = np.flatnonzero(~np.all(np.isfinite(flat), axis=1))
+        if bad_rows.size and (first is None or bad_rows[0] < first[0]):
+            k = int(bad_rows[0])
+            col = int(np.flatnonzero(~np.isfinite(flat[k]))[0])
+            first = (k, _column_name(result, key, col, flat.shape[1]), float(flat[k, col]))
+    return first
 
 
 def truncated(result: Result, n: int) -> Result:
@@ -123,6 +175,26 @@ class PostProcessing:
             f"(> {DRIFT_LIMIT:g} × size {size:.3g}); results kept up to t = "
             f"{result.t[n_kept - 1]:.6g} ({n_kept} of {len(result.t)} output times){cause}",
             t, partial=partial, culprits=culprits)
+
+    def _check_finite(self, result: Result) -> None:
+        """Stop a run whose results hold a value that is not finite (:func:`first_non_finite`):
+        an :class:`~casmbd.errors.IntegratorError` (flag ``NON_FINITE``) naming the quantity
+        and the first such output time, with the results before it; never a silent NaN."""
+        found = first_non_finite(result)
+        if found is None:
+            return
+        k, what, value = found
+        t = float(result.t[k])
+        n_kept = max(k, 1)
+        partial = truncated(result, n_kept)
+        partial.stats["failure_time"] = t
+        hint = ("its expression is not finite there" if what.split(" ")[0] in USER_ARRAYS
+                else "a stiff model under a loose tolerance (tighten --rtol, raise "
+                "--max-steps) or a diverging model")
+        raise IntegratorError(
+            f"simulation: {what} is {value} at t = {t:.6g}, the first value that is not "
+            f"finite; results kept up to t = {result.t[n_kept - 1]:.6g} ({n_kept} of "
+            f"{len(result.t)} output times): {hint}", t, "NON_FINITE", partial=partial)
 
     def _violation_cause(self, result: Result, k: int) -> tuple[str, list]:
         """Why the constraints are violated at output ``k``: the assembly at that time from

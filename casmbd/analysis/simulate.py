@@ -31,8 +31,9 @@ from casmbd.analysis.checks import (
 )
 from casmbd.analysis.events import compliant_events, has_events, simulate_events
 from casmbd.analysis.independent import find_redundant
+from casmbd.analysis.invariants import check_energy
 from casmbd.analysis.kkt import consistent_state
-from casmbd.analysis.postprocess import PostProcessing
+from casmbd.analysis.postprocess import PostProcessing, truncated
 from casmbd.analysis.stepping import Stepping
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, CasmbdError, IntegratorError, UnknownMethodError
@@ -359,6 +360,14 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
         stats.update({k: v for k, v in model.report_dict.items() if k != "build_seconds"})
         n_ok = xs.shape[0]
         result = self._post(grid[:n_ok], xs[:, :nq], xs[:, nq:], stats)
+        if failure is None:  # a value that is not finite: stops naming it and the time
+            self._check_finite(result)
+            if integ.INTEGRATORS[name].fixed_step:  # no error control: watch the energy
+                mech = model.mechanism
+                params = dict(zip(mech.parameters, np.ravel(model.p), strict=False)) \
+                    if len(np.ravel(model.p)) == len(mech.parameters) else None
+                check_energy(result, mech, f"fixed-step {name} (h = "
+                             f"{stats.get('step_size', step):.3g})", truncated, params)
         self._check_violation(result)  # beyond the tolerance: stops naming the culprit
         if failure is not None:
             t_fail = float(solver_stats.get("failure_time", grid[n_ok - 1]))
@@ -578,6 +587,7 @@ def simulate(mechanism, t_end: float, steps: int, *, formulation: str | None = N
             t_start=t_start, max_steps=max_steps, simulator_factory=simulators)
         # beyond the tolerance the run stops naming the culprit, as without events (the
         # base simulator is the one of the open phases, kept by ``simulators``)
+        simulators(mechanism)._check_finite(result)
         simulators(mechanism)._check_violation(result)
         return result
     sim = Simulator(mechanism, formulation, inputs=inputs, mode=mode,

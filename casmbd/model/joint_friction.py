@@ -222,7 +222,7 @@ def joint_friction_from_scene(mech, e) -> JointFriction:
     sub.name = e.name
     level = "friction.preload" if "preload" in raw else "friction.coulomb"
     joint = e.string("name")
-    return mech.add("joint_friction", f"{joint}.friction", joint,
+    return mech.add("joint_friction", mech._generate(f"{joint}.friction"), joint,
                     damping=sub.nonnegative("friction.viscous"),
                     friction=sub.nonnegative(level),
                     regularization=sub.value("friction.regularization", REGULARIZATION),

@@ -47,6 +47,16 @@ from casmbd.model.registry import BODY_KINDS, FORCE_KINDS, JOINT_KINDS, body_kin
 from casmbd.model.rotations import euler_zxz_to_quaternion
 from casmbd.model.values import Value, check_value, numeric
 
+#: characters that never appear in a declared name, and what they mean in the scene syntax
+RESERVED_CHARACTERS = {
+    "@": "it attaches to a node of a flexible body, '<body>@<node>'",
+    ".": "it separates an element from a generated part, as in '<joint>.limit', "
+         "'<contact>.force', '<body>.eta1'",
+}
+#: names an expression already gives a meaning (time and the constants)
+RESERVED_PARAMETERS = {"t": "the time", "time": "the time", "pi": "the constant π",
+                       "e": "the constant e"}
+
 
 class Mechanism:
     """A planar or spatial mechanism: bodies, joints, drivers, forces, actuators.
@@ -95,13 +105,43 @@ class Mechanism:
         self.actuators: dict[str, Actuator] = {}
         #: requests: named expressions of measures reported on result grids (``[[outputs]]``)
         self.outputs: dict[str, Output] = {}
+        #: names the mechanism makes itself ("<joint>.limit", "<contact>.force",
+        #: "<joint>.friction"), the only ones that may hold a reserved character
+        self._generated: set[str] = set()
 
     # ------------------------------------------------------------------ helpers
+    def _generate(self, name: str) -> str:
+        """Mark ``name`` as made by casmbd itself (``"<joint>.limit"``, ``"<contact>.force"``,
+        ``"<joint>.friction"``): the reserved characters of :data:`RESERVED_CHARACTERS` are
+        allowed in it, never in a name the user declares."""
+        self._generated.add(name)
+        return name
+
+    def _conventional(self, kind: str, name: str) -> bool:
+        """Whether ``name`` is the name casmbd itself gives such an element: a joint's
+        friction ``"<joint>.friction"`` (a force), its stops ``"<joint>.limit"`` (a contact)
+        or the compliant force ``"<contact>.force"`` of a contact, for an existing joint or
+        contact (code may name them so, as the scene reader does)."""
+        owner, _, part = name.rpartition(".")
+        if "@" in name or not owner:
+            return False
+        if (kind == "force" and part == "friction") or (kind == "contact" and part == "limit"):
+            return owner in self.joints
+        return kind == "force" and part == "force" and owner in self.contacts
+
     def _unique(self, table: dict, kind: str, name: str) -> str:
         if not isinstance(name, str) or not name:
             raise ModelError(f"{kind} name must be a non-empty string, got {name!r}")
         if kind == "body" and name == GROUND:
             raise ModelError(f"body name '{GROUND}' is reserved for the ground")
+        if name not in self._generated and not self._conventional(kind, name):
+            for char, meaning in RESERVED_CHARACTERS.items():
+                if char in name:
+                    raise ModelError(f"{kind} name '{name}': must not contain '{char}' "
+                                     f"({meaning})")
+        if kind == "body" and name in self.markers:
+            raise ModelError(f"body name '{name}': a marker has this name (measures such as "
+                             f"y(\"{name}\") would be ambiguous)")
         if name in table:
             raise ModelError(f"duplicate {kind} name '{name}'")
         check_count(f"mechanism '{self.name}': {kind} '{name}' would be number {len(table) + 1}",
@@ -193,7 +233,10 @@ class Mechanism:
     def add_parameter(self, name: str, value: float) -> str:
         """Declare a named symbolic parameter p with a default value."""
         self._unique(self.parameters, "parameter", name)
-        if not name.isidentifier() or name.startswith("_") or name in ("t", "pi", "e"):
+        if name in RESERVED_PARAMETERS:
+            raise ModelError(f"parameter '{name}': the name is reserved "
+                             f"({RESERVED_PARAMETERS[name]} in expressions)")
+        if not name.isidentifier() or name.startswith("_"):
             raise ModelError(f"parameter '{name}': not a valid parameter name")
         try:
             val = float(value)
@@ -248,6 +291,11 @@ class Mechanism:
                                  f"name with 'node', got {body!r}")
             body = f"{body}@{node}"
         self._unique(self.markers, "marker", name)
+        if name == GROUND or name in self.bodies:
+            raise ModelError(f"marker name '{name}': "
+                             + ("the ground" if name == GROUND else "a body") + " has this "
+                             f"name (measures such as "
+                             f"y(\"{name}\") would be ambiguous)")
         self._body(body, f"marker '{name}' field 'body'")
         if point is None:
             if node_attachment(body) is None:
@@ -311,7 +359,8 @@ class Mechanism:
                 for node in body.nodes:
                     frame = self.node_frame(f"{body.name}@{node}", f"body '{body.name}'")
                     if frame.name not in self.markers:
-                        self.add_marker(frame.name, frame.name, frame.position)
+                        self.add_marker(self._generate(frame.name), frame.name,
+                                        frame.position)
             return body
         if not isinstance(kind, str) or (kind not in JOINT_KINDS and kind not in FORCE_KINDS):
             raise ModelError(f"element '{name}': unknown kind {kind!r} (joints: "
@@ -495,14 +544,15 @@ class Mechanism:
         joint_obj = self._joint(joint, f"joint '{joint}' field 'lower'")
         if coordinate is not None:
             joint_obj._which(coordinate)
-        name = self._unique(self.contacts, "contact", f"{joint}.limit")
+        name = self._unique(self.contacts, "contact", self._generate(f"{joint}.limit"))
         return self._unilateral(JointLimit(name, restitution, 0.0, model, joint, coordinate,
                                            lower, upper), compliant)
 
     def _unilateral(self, element: Unilateral, compliant: dict) -> Unilateral:
         element.check_values(self.parameters)  # expressions at the parameters' defaults
         if element.model == "compliant":
-            self.add("compliant_contact", f"{element.name}.force", element, **compliant)
+            self.add("compliant_contact", self._generate(f"{element.name}.force"), element,
+                     **compliant)
         elif compliant:
             raise ModelError(f"contact '{element.name}': {', '.join(compliant)} apply to "
                              "model = 'compliant'")

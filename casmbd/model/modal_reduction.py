@@ -37,6 +37,7 @@ about ``1e-16 · λ_max/λ_1`` whatever the solver (cantilever of the tests, mod
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 
 import numpy as np
@@ -53,7 +54,8 @@ from casmbd.model.modal import (
     rotational_dofs,
 )
 
-__all__ = ["DENSE_LIMIT", "craig_bampton", "free_modes", "reduce", "rigid_body_modes"]
+__all__ = ["DENSE_LIMIT", "check_fe_model", "craig_bampton", "free_modes", "reduce",
+           "rigid_body_modes"]
 
 #: Largest eigenproblem (dofs) solved densely; above it shift-invert Lanczos.
 DENSE_LIMIT = 1500
@@ -196,6 +198,71 @@ def _model_key(model: FEModel):
             "names": dict(model.node_names)}
 
 
+def _node_label(model: FEModel, i: int) -> str:
+    names = [n for n, k in model.node_names.items() if k == i]
+    return f"node {i} ('{names[0]}')" if names else f"node {i}"
+
+
+def check_fe_model(model: FEModel) -> None:
+    """Checks of an FE model before any reduction (every reduction runs them).
+
+    - The nodes are distinct: two nodes at one position (within 1e-9 of the model's extent),
+      or all nodes at one point, are refused naming them — the rigid-body modes and the
+      interface frames need a model of non-zero size.
+    - The mass matrix M is positive definite: a Cholesky factorisation M = L Lᵀ up to
+      :data:`DENSE_LIMIT` dofs (its failure names the first dof whose leading minor is not
+      positive, and its node); above, the inertia of M by a sparse LU with a symmetric
+      permutation and no pivoting (Sylvester's law of inertia: the signs of U's diagonal are
+      those of M's eigenvalues), a non-positive pivot refused.  The eigenproblems
+      (K − ω² M) φ = 0 are only defined for M > 0 (Craig & Kurdila, §10.1).
+
+    Raises
+    ------
+    ModelError
+        Naming the model's source and the nodes or dof at fault.
+    """
+    src = model.source
+    pos = np.asarray(model.positions, dtype=float)
+    extent = float(np.ptp(pos, axis=0).max()) if pos.size else 0.0
+    if len(pos) > 1 and extent == 0.0:
+        raise ModelError(f"{src}: all {len(pos)} nodes are at one point {pos[0].tolist()}: "
+                         "a model needs nodes of distinct positions")
+    if len(pos) > 1:
+        order = np.lexsort(pos.T[::-1])
+        gaps = np.abs(np.diff(pos[order], axis=0)).max(axis=1)
+        same = np.flatnonzero(gaps <= 1e-9 * extent)
+        if same.size:
+            i, j = sorted((int(order[same[0]]), int(order[same[0] + 1])))
+            raise ModelError(f"{src}: {_node_label(model, i)} and {_node_label(model, j)} are "
+                             f"at one position {pos[i].tolist()}: nodes must be distinct")
+    M = model.mass_matrix
+    n = M.shape[0]
+    d = model.dofs_per_node
+    if n <= DENSE_LIMIT:
+        try:
+            sl.cholesky(_as_dense(M), lower=True, check_finite=False)
+            return
+        except (np.linalg.LinAlgError, sl.LinAlgError) as exc:
+            found = re.search(r"(\d+)-th leading minor", str(exc))
+            dof = int(found.group(1)) - 1 if found else None
+    else:
+        try:
+            lu = spl.splu(sp.csc_matrix(M), permc_spec="MMD_AT_PLUS_A", diag_pivot_thresh=0.0,
+                          options={"SymmetricMode": True})
+            pivots = lu.U.diagonal()
+            bad = np.flatnonzero(~(pivots > 0.0))
+            if not bad.size:
+                return
+            dof = int(lu.perm_c[bad[0]])
+        except RuntimeError:  # an exactly singular matrix
+            dof = None
+    where = f" (first at dof {dof}, {_node_label(model, dof // d)})" if dof is not None \
+        and 0 <= dof < n else ""
+    raise ModelError(f"{src}: the mass matrix is not positive definite{where}: every motion "
+                     "of the model must have mass (a negative or missing mass, a sign error "
+                     "or a wrong unit)")
+
+
 def _node_index(model: FEModel, node: str | int, what: str) -> int:
     if isinstance(node, str):
         return model.node(node)
@@ -232,6 +299,7 @@ def craig_bampton(model: FEModel, modes: int, interfaces: Sequence[str | int], *
     src = model.source
     if isinstance(modes, bool) or not isinstance(modes, int | np.integer) or modes < 0:
         raise ModelError(f"{src}: modes must be a non-negative integer, got {modes!r}")
+    check_fe_model(model)
     if isinstance(interfaces, str):
         interfaces = [interfaces]
     nodes = [_node_index(model, v, "interface") for v in interfaces]
@@ -320,6 +388,7 @@ def free_modes(model: FEModel, modes: int, *, rigid_tolerance: float = 1e-8) -> 
     src = model.source
     if isinstance(modes, bool) or not isinstance(modes, int | np.integer) or modes < 1:
         raise ModelError(f"{src}: modes must be a positive integer, got {modes!r}")
+    check_fe_model(model)
     K = sp.csr_matrix(model.stiffness_matrix)
     M = sp.csr_matrix(model.mass_matrix)
     R = rigid_body_modes(model)
