@@ -19,8 +19,9 @@ from conftest import private_cache
 
 from casmbd.analysis.simulate import simulate
 from casmbd.cli import main
-from casmbd.errors import IntegratorError, ModelError
+from casmbd.errors import CasmbdError, IntegratorError, ModelError
 from casmbd.io.scene import loads_scene
+from casmbd.model.contacts import PlaneContact
 from casmbd.results import load
 
 _vm = private_cache("cache_bad_events", CASMBD_COMPILE="0")
@@ -119,3 +120,34 @@ def test_huge_gravity_named_with_advice_and_start_saved(tmp_path, capsys):
     assert "floating-point limit" in err and "partial results saved" in err
     res = load(out)
     assert res.t.tolist() == [0.0] and res["q"][0, 1] == pytest.approx(1.1, abs=1e-12)
+
+
+# ---------------------------------------------------------------------- contact normals
+def test_huge_normal_is_normalised():
+    """normal = [0, 1e300] is the direction [0, 1] (|n|² overflowed to inf and the normal to
+    zero: "the initial pose penetrates by 0.1"); the first impact comes at sqrt(2 h0 / g)."""
+    mech = loads_scene(ball(("normal = [0.0, 1.0]", "normal = [0.0, 1e300]")))
+    assert mech.contacts["floor"].normal.tolist() == [0.0, 1.0]
+    mech = loads_scene(ball(("normal = [0.0, 1.0]", "normal = [1e-300, 1e-300]")))
+    np.testing.assert_allclose(mech.contacts["floor"].normal, [0.5 ** 0.5] * 2, rtol=1e-15)
+    mech = loads_scene(ball(("normal = [0.0, 1.0]", "normal = [0.0, 1e300]")))
+    res = simulate(mech, t_end=0.5, steps=5, mode="vm")
+    impacts = [e["time"] for e in res.events if e["kind"] == "impact"]
+    assert impacts == [pytest.approx(math.sqrt(2 * 1.0 / G), abs=1e-7)]
+
+
+@pytest.mark.parametrize("normal, said", [("[0.0, 0.0]", "must be a non-zero vector"),
+                                          ("[0.0, nan]", "must be a finite number"),
+                                          ("[inf, 1.0]", "must be a finite number")])
+def test_zero_or_nonfinite_normal_refused(normal, said):
+    with pytest.raises(CasmbdError) as exc:
+        loads_scene(ball(("normal = [0.0, 1.0]", f"normal = {normal}")))
+    message = str(exc.value)
+    assert "'floor'" in message and "normal" in message and said in message
+
+
+def test_nonfinite_normal_refused_by_the_api():
+    with pytest.raises(ModelError) as exc:
+        PlaneContact(name="floor", body="ball", point=[0.0, 1.1], radius=0.1,
+                     normal=[0.0, float("nan")])
+    assert "contact 'floor' field 'normal': must be finite" in str(exc.value)
