@@ -10,6 +10,7 @@ dropped from 1 m onto a floor (``examples/bouncing_ball.toml``) on CasADi's virt
 
 from __future__ import annotations
 
+import json
 import math
 import pathlib
 
@@ -19,7 +20,7 @@ from conftest import private_cache
 
 from casmbd.analysis.simulate import simulate
 from casmbd.cli import main
-from casmbd.errors import CasmbdError, IntegratorError, ModelError
+from casmbd.errors import CasmbdError, IntegratorError, ModelError, SceneError
 from casmbd.io.scene import loads_scene
 from casmbd.model.contacts import PlaneContact
 from casmbd.results import load
@@ -151,3 +152,97 @@ def test_nonfinite_normal_refused_by_the_api():
         PlaneContact(name="floor", body="ball", point=[0.0, 1.1], radius=0.1,
                      normal=[0.0, float("nan")])
     assert "contact 'floor' field 'normal': must be finite" in str(exc.value)
+
+
+# ---------------------------------------------------------------------- max_events, rest
+T1 = math.sqrt(2 * 1.0 / G)  # the first impact of the ball dropped from h0 = 1 m
+ELASTIC = ("restitution = 0.8", "restitution = 1.0")
+
+
+def test_max_events_on_the_cli_keeps_the_results(tmp_path, capsys):
+    """e = 1, t_end = 1e6 (the output grid is far coarser than the bounces): the run stops
+    after --max-events 50 (was 10000 events in 163 s, then nothing kept) with the results up
+    to the last event: 50 impacts at t_k = (2k − 1) t₁ (1e-6 relative) and the energy m g h0
+    of the last state (1e-5 relative: the event location's error over 50 impacts)."""
+    code, err, out = cli(tmp_path, capsys, ball(ELASTIC), "--t-end", "1e6", "--steps", "10",
+                         "--max-events", "50")
+    assert code == 1
+    for fragment in ("more than 50 events", "--max-events", "--rest-velocity",
+                     "results kept up to t = 44.70", "partial results saved"):
+        assert fragment in err, (fragment, err)
+    res = load(out)
+    impacts = [e["time"] for e in res.events if e["kind"] == "impact"]
+    # the period drifts by 1.6e-7 relative (rtol 1e-8 per flight, 50 flights)
+    np.testing.assert_allclose(impacts, (2 * np.arange(1, 51) - 1) * T1, rtol=1e-6)
+    assert res.t[-1] == pytest.approx(99 * T1, rel=1e-6)
+    energy = 0.5 * res["v"][-1, 1] ** 2 + G * (res["q"][-1, 1] - 0.1)
+    assert energy == pytest.approx(G * 1.0, rel=1e-5)
+
+
+def test_max_events_from_the_scene():
+    mech = loads_scene(ball(ELASTIC, extra="\n[simulation]\nmax_events = 20\n"))
+    with pytest.raises(IntegratorError) as exc:
+        simulate(mech, t_end=100.0, steps=4, mode="vm")
+    assert exc.value.flag == "MAX_EVENTS" and "more than 20 events" in str(exc.value)
+    assert exc.value.time == pytest.approx(41 * T1, rel=1e-6)  # the 21st impact
+    partial = exc.value.partial
+    assert len([e for e in partial.events if e["kind"] == "impact"]) == 20
+    assert partial.t[-1] == pytest.approx(39 * T1, rel=1e-6)
+    # the argument wins over the scene
+    res = simulate(mech, t_end=10.0, steps=4, mode="vm", max_events=100)
+    assert len(res.events) == 11  # impacts at (2k − 1) t₁ < 10 s: k = 1 … 11
+
+
+def rest_impacts(events) -> tuple[list[float], list[float]]:
+    return ([e["time"] for e in events if e["kind"] == "impact"],
+            [e["time"] for e in events if e["kind"] == "contact"])
+
+
+# impact k at t₁ (1 + 2 (e + … + e^(k-1))); rebound speeds e^k sqrt(2 g h0) fall below 1 m/s
+# at k = 7 (0.8^7 · 4.429 = 0.93): the contact closes there
+REST_TIMES = T1 * np.array([1 + 2 * sum(0.8 ** j for j in range(1, k)) for k in range(1, 8)])
+
+
+def test_rest_velocity_on_the_cli(tmp_path, capsys):
+    scene = tmp_path / "ball.toml"
+    scene.write_text(BALL)
+    code = main(["simulate", str(scene), "--mode", "vm", "--t-end", "5", "--steps", "10",
+                 "--rest-velocity", "1", "--json"])
+    assert code == 0
+    impacts, contacts = rest_impacts(json.loads(capsys.readouterr().out)["events"])
+    np.testing.assert_allclose(impacts, REST_TIMES, atol=1e-6)
+    assert contacts == [impacts[-1]]  # the 7th impact closes it
+
+
+def test_rest_velocity_from_the_scene():
+    mech = loads_scene(ball(extra="\n[simulation]\nrest_velocity = 1.0\n"))
+    impacts, contacts = rest_impacts(simulate(mech, t_end=5.0, steps=10, mode="vm").events)
+    np.testing.assert_allclose(impacts, REST_TIMES, atol=1e-6)
+    assert len(contacts) == 1
+
+
+@pytest.mark.parametrize("table, key, said", [
+    ("max_events = 0", "max_events", "expected an integer in [1, 10000000]"),
+    ("max_events = 1.5", "max_events", "expected an integer"),
+    ("max_events = true", "max_events", "expected an integer"),
+    ("max_events = 100000000", "max_events", "expected an integer in [1, 10000000]"),
+    ("rest_velocity = -1.0", "rest_velocity", "expected a finite number >= 0"),
+    ("rest_velocity = nan", "rest_velocity", "expected a finite number >= 0"),
+    ('rest_velocity = "fast"', "rest_velocity", "expected a finite number >= 0"),
+    ("max_event = 5", "max_event", "unknown key")])
+def test_bad_simulation_table(table, key, said):
+    with pytest.raises(SceneError) as exc:
+        loads_scene(ball(extra=f"\n[simulation]\n{table}\n"))
+    message = str(exc.value)
+    assert f"[simulation] key '{key}'" in message and said in message
+
+
+@pytest.mark.parametrize("flag, value", [("--max-events", "0"), ("--max-events", "x"),
+                                         ("--rest-velocity", "-1"),
+                                         ("--rest-velocity", "inf")])
+def test_bad_event_flags(tmp_path, capsys, flag, value):
+    scene = tmp_path / "ball.toml"
+    scene.write_text(BALL)
+    code = main(["simulate", str(scene), "--t-end", "1", "--steps", "2", flag, value])
+    err = capsys.readouterr().err
+    assert code == 2 and flag in err and "Traceback" not in err

@@ -63,7 +63,8 @@ from casmbd.model.needs import EVENT_NEEDS, requirements
 from casmbd.results import Result
 from casmbd.system import System
 
-__all__ = ["compliant_events", "has_events", "simulate_events"]
+__all__ = ["MAX_EVENTS", "MAX_EVENTS_LIMIT", "SIMULATION_KEYS", "compliant_events", "has_events",
+           "simulate_events"]
 
 #: default sub-intervals per output interval in which gaps are checked
 SUBSTEPS = 4
@@ -73,6 +74,10 @@ WINDOW = 32
 REST_HEIGHT = 1e-9
 #: default bound on the number of events of one run
 MAX_EVENTS = 10_000
+#: the largest ``max_events`` accepted (scene, CLI, API)
+MAX_EVENTS_LIMIT = 10_000_000
+#: keys of a scene's ``[simulation]`` table (options of the event-driven run)
+SIMULATION_KEYS = ("max_events", "rest_velocity")
 #: the SUNDIALS flag in a CasADi error message
 _FLAG = re.compile(r'returned "([A-Z_]+)"')
 #: advice per SUNDIALS flag of a failure inside the event loop
@@ -400,8 +405,9 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
         state reached: the output times passed and that state.
     """
     if not (isinstance(max_events, (int, np.integer)) and not isinstance(max_events, bool)
-            and max_events >= 1):
-        raise AnalysisError(f"max_events must be an integer >= 1, got {max_events!r}")
+            and 1 <= max_events <= MAX_EVENTS_LIMIT):
+        raise AnalysisError(f"max_events must be an integer in [1, {MAX_EVENTS_LIMIT}], got "
+                            f"{max_events!r}")
     if rest_velocity is not None and not (isinstance(rest_velocity, (int, float, np.floating))
                                           and math.isfinite(rest_velocity)
                                           and rest_velocity >= 0.0):
