@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 from conftest import private_cache
 
+from casmbd.analysis.events import zeno_guard
 from casmbd.analysis.simulate import simulate
 from casmbd.cli import main
 from casmbd.errors import CasmbdError, IntegratorError, ModelError, SceneError
@@ -246,3 +247,48 @@ def test_bad_event_flags(tmp_path, capsys, flag, value):
     code = main(["simulate", str(scene), "--t-end", "1", "--steps", "2", flag, value])
     err = capsys.readouterr().err
     assert code == 2 and flag in err and "Traceback" not in err
+
+
+# ---------------------------------------------------------------------- Zeno guard
+def bounce_times(e: float, count: int, t1: float = T1) -> list[float]:
+    """Impact k at t₁ (1 + 2 (e + … + e^(k−1))): the bouncing ball of restitution e."""
+    return [t1 * (1 + 2 * sum(e ** j for j in range(1, k))) for k in range(1, count + 1)]
+
+
+def test_zeno_guard_finds_the_accumulation_point():
+    """On the ball's impact times (e = 0.5) the guard waits until the intervals are below the
+    given one, then predicts t* = t₁ (1 + e) / (1 − e) to 1e-12 s."""
+    times: list[float] = []
+    found = [zeno_guard(times, t, interval=1e-4) for t in bounce_times(0.5, 20)]
+    first = next(k for k, f in enumerate(found) if f)
+    assert 2 * T1 * 0.5 ** first < 1e-4 <= 2 * T1 * 0.5 ** (first - 1)  # its interval
+    assert found[first][0] == pytest.approx(T1 * 1.5 / 0.5, abs=1e-12)
+    assert "ratio 0.5" in found[first][1]
+
+
+@pytest.mark.parametrize("times", [bounce_times(1.0, 30),  # e = 1: no accumulation
+                                   bounce_times(0.8, 11),  # too few impacts
+                                   list(np.cumsum(0.5 ** np.arange(20) * (1 + 0.3 * (
+                                       np.arange(20) % 2)))),  # ratios 0.65, 0.38: not one
+                                   ])
+def test_zeno_guard_quiet(times):
+    record: list[float] = []
+    assert not any(zeno_guard(record, t, interval=1e9) for t in times)
+
+
+def test_zeno_stop_keeps_the_results(tmp_path, capsys):
+    """With the rest velocity 0 the ball's impacts accumulate (exactly at t₁ (1 + e)/(1 − e) =
+    4.06371 s; the located impacts drift to 4.0632 as their intervals reach 1e-7 s): the run
+    stops naming the contact and the accumulation point (1e-3 s), and keeps its results: the
+    output times before it and the impacts at their closed-form times (first 20 to 1e-5 s)."""
+    code, err, out = cli(tmp_path, capsys, BALL, "--t-end", "5", "--steps", "10",
+                         "--rest-velocity", "0")
+    assert code == 1 and "Zeno behaviour: the impacts of 'floor' accumulate at t ≈ 4.06" in err
+    assert "--rest-velocity" in err and "partial results saved" in err
+    t_star = float(err.split("accumulate at t ≈ ")[1].split()[0])
+    assert t_star == pytest.approx(T1 * 1.8 / 0.2, abs=1e-3)
+    res = load(out)
+    assert np.allclose(res.t[:9], np.arange(9) * 0.5) and 4.06 < res.t[-1] < t_star
+    impacts = [e["time"] for e in res.events if e["kind"] == "impact"]
+    # the event location's error accumulates: 7e-6 s at the 20th impact
+    np.testing.assert_allclose(impacts[:20], bounce_times(0.8, 20), atol=1e-5)

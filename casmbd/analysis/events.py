@@ -74,6 +74,14 @@ WINDOW = 32
 REST_HEIGHT = 1e-9
 #: default bound on the number of events of one run
 MAX_EVENTS = 10_000
+#: Zeno guard (:func:`zeno_guard`): impact intervals of one gap that shrink geometrically
+ZENO_IMPACTS = 10
+#: … with their mean ratio at most this (1: the equal intervals of e = 1 bounces)
+ZENO_RATIO = 0.999
+#: … and every ratio within this fraction of their mean
+ZENO_SPREAD = 0.1
+#: … and the last interval below this fraction of a rebound's at the default rest velocity
+ZENO_FRACTION = 0.01
 #: the largest ``max_events`` accepted (scene, CLI, API)
 MAX_EVENTS_LIMIT = 10_000_000
 #: keys of a scene's ``[simulation]`` table (options of the event-driven run)
@@ -98,6 +106,34 @@ _ADVICE = {
     "IDA_ILL_INPUT": "values too large for the integrator (a mass, force or gravity near the "
                      "floating-point limit?): give the model in sensible units",
 }
+
+
+def zeno_guard(times: list[float], t: float, interval: float) -> tuple[float, str] | None:
+    """Record an impact of one gap at ``t`` in ``times``; the accumulation point and a
+    description when its impacts accumulate (Zeno behaviour), else None.
+
+    Impacts accumulate when the last :data:`ZENO_IMPACTS` + 1 intervals Δ_k = t_k − t_(k−1)
+    shrink geometrically, Δ_(k+1) = r Δ_k, every ratio within :data:`ZENO_SPREAD` of their
+    mean r ≤ :data:`ZENO_RATIO` < 1 (a ball of restitution e under constant gravity: r = e),
+    and the last interval is below ``interval``.  The impacts then end at the limit of the
+    geometric series, t* = t + Δ r / (1 − r) (the bouncing ball's Zeno time t₁ (1 + e)/(1 − e)
+    from its first impact); without a rest velocity an event-driven run would locate ever
+    closer impacts there, until the event bound or the limits of the event location.
+    """
+    times.append(float(t))
+    del times[:-(ZENO_IMPACTS + 2)]
+    if len(times) < ZENO_IMPACTS + 2:
+        return None
+    gaps = np.diff(times)
+    if gaps[-1] >= interval or np.any(gaps <= 0.0):
+        return None
+    ratios = gaps[1:] / gaps[:-1]
+    r = float(np.mean(ratios))
+    if not (0.0 < r <= ZENO_RATIO) or np.max(np.abs(ratios / r - 1.0)) > ZENO_SPREAD:
+        return None
+    t_star = float(t) + float(gaps[-1]) * r / (1.0 - r)
+    return t_star, (f"the last {ZENO_IMPACTS + 1} intervals shrink by the ratio {r:.3g}, the "
+                    f"last {gaps[-1]:.3g} s")
 
 
 class _StepError(RuntimeError):
@@ -592,6 +628,10 @@ def _march(mechanism, t_end: float, steps: int, *, simulator_factory, integrator
                             "touching")
     closed: frozenset = frozenset()
     events: list[dict] = []
+    impact_times: dict[str, list[float]] = {}  # per gap, for the Zeno guard
+    # the impact interval of a rebound at the default rest velocity under the gravity, 2 v / g:
+    # accumulating impacts far below it are beyond what the event location resolves
+    zeno_interval = ZENO_FRACTION * 2.0 * math.sqrt(2 * g_acc * REST_HEIGHT) / g_acc
 
     def settle(i, q_s, v_s, t_s, closed_s):
         """A sliding joint or contact at zero speed (or at the start, or a contact just
@@ -933,6 +973,18 @@ def _march(mechanism, t_end: float, steps: int, *, simulator_factory, integrator
                     v_new, closed, struck = hit  # the gaps struck (i_ev among them), …
                     events += [{"time": float(t_ev), "element": lab, "kind": kind}
                                for lab, kind in struck]
+                    for lab, kind in struck:
+                        if kind == "impact":
+                            zeno = zeno_guard(impact_times.setdefault(lab, []), t_ev,
+                                              zeno_interval)
+                            if zeno:
+                                raise IntegratorError(
+                                    f"Zeno behaviour: the impacts of '{lab}' accumulate at t ≈ "
+                                    f"{zeno[0]:.9g} ({zeno[1]}); stopped at the impact at t = "
+                                    f"{t_ev:.9g} after {len(events)} events. A rest velocity "
+                                    f"closes the contact before (now {v_rest:.3g} m/s: "
+                                    "--rest-velocity, or rest_velocity in the scene's "
+                                    "[simulation])", t_ev, "ZENO", None)
             if len(events) > max_events:
                 raise IntegratorError(
                     f"more than {max_events} events by t = {t_ev:.6g} (raise max_events, or "
