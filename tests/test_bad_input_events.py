@@ -47,14 +47,16 @@ PUSH = '\n[[forces]]\nname = "push"\ntype = "force"\nbody = "ball"\n' \
 
 
 def cli(tmp_path, capsys, text: str, *args: str) -> tuple[int, str, pathlib.Path]:
-    """Run ``simulate`` on the scene ``text`` with --out; (exit code, the one error line,
-    the --out path)."""
+    """Run ``simulate`` on the scene ``text`` with --out; (exit code, the error line (the last
+    on stderr, after warnings only), the --out path)."""
     scene = tmp_path / "scene.toml"
     scene.write_text(text)
     out = tmp_path / "run.npz"
     code = main(["simulate", str(scene), "--mode", "vm", "--out", str(out), *args])
     err = capsys.readouterr().err.strip().splitlines()
     assert err and err[-1].startswith("error: ") and "Traceback" not in "".join(err)
+    # no SUNDIALS lines ("At t = …", "The above warning has been issued mxhnil times")
+    assert all(line.startswith("warning: ") for line in err[:-1]), err
     return code, err[-1], out
 
 

@@ -86,6 +86,8 @@ ZENO_FRACTION = 0.01
 MAX_EVENTS_LIMIT = 10_000_000
 #: keys of a scene's ``[simulation]`` table (options of the event-driven run)
 SIMULATION_KEYS = ("max_events", "rest_velocity")
+#: a line of a Python warning, as printed by ``warnings`` or the CLI
+_WARNING_LINE = re.compile(r"^warning: |\b[A-Z]\w*Warning: ")
 #: the SUNDIALS flag in a CasADi error message
 _FLAG = re.compile(r'returned "([A-Z_]+)"')
 #: advice per SUNDIALS flag of a failure inside the event loop
@@ -475,9 +477,10 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
 
 def _pass_on(text: str, warnings_only: bool) -> None:
     """Write captured output to ``sys.stderr`` (only the warnings' lines after a failure)."""
-    if warnings_only:
+    if warnings_only:  # Python's warnings ("…: RuntimeWarning: …", the CLI's "warning: …"),
+        # not SUNDIALS' ("The above warning has been issued mxhnil times …")
         text = "".join(line for line in text.splitlines(keepends=True)
-                       if "warning" in line.lower())
+                       if _WARNING_LINE.search(line))
     if text:
         sys.stderr.write(text)
 
