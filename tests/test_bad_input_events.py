@@ -294,3 +294,31 @@ def test_zeno_stop_keeps_the_results(tmp_path, capsys):
     impacts = [e["time"] for e in res.events if e["kind"] == "impact"]
     # the event location's error accumulates: 7e-6 s at the 20th impact
     np.testing.assert_allclose(impacts[:20], bounce_times(0.8, 20), atol=1e-5)
+
+
+def test_rest_velocity_per_contact_wins_over_the_run():
+    """A [[contacts]] entry's rest_velocity = 1 m/s closes the floor at the 7th impact, also
+    when the run's rest velocity is 0."""
+    mech = loads_scene(ball(("friction = 0.0", "friction = 0.0\nrest_velocity = 1.0")))
+    assert mech.contacts["floor"].rest_velocity == 1.0
+    impacts, contacts = rest_impacts(simulate(mech, t_end=5.0, steps=10, mode="vm",
+                                              rest_velocity=0.0).events)
+    np.testing.assert_allclose(impacts, REST_TIMES, atol=1e-6)
+    assert contacts == [impacts[-1]]
+
+
+@pytest.mark.parametrize("value, said", [("-1.0", "must be >= 0"),
+                                         ("nan", "must be a finite number")])
+def test_bad_rest_velocity_per_contact(value, said):
+    with pytest.raises(SceneError) as exc:
+        loads_scene(ball(("friction = 0.0", f"friction = 0.0\nrest_velocity = {value}")))
+    assert "'floor'" in str(exc.value) and "rest_velocity" in str(exc.value)
+    assert said in str(exc.value)
+
+
+def test_rest_velocity_refused_on_a_compliant_contact():
+    text = ball(('model = "impact"', 'model = "compliant"\nstiffness = 1e5'),
+                ("friction = 0.0", "friction = 0.0\nrest_velocity = 1.0"))
+    with pytest.raises(SceneError) as exc:
+        loads_scene(text)
+    assert "contact 'floor' field 'rest_velocity': applies to model = 'impact'" in str(exc.value)

@@ -566,6 +566,9 @@ def _march(mechanism, t_end: float, steps: int, *, simulator_factory, integrator
     n_gaps = len(gaps.rows)
     g_acc = math.hypot(*map(float, mechanism.gravity)) or 9.81  # no overflow of |g|²
     v_rest = rest_velocity if rest_velocity is not None else math.sqrt(2 * g_acc * REST_HEIGHT)
+    # per gap: a contact's own rest velocity (its [[contacts]] key) wins over the run's
+    v_rests = np.array([v_rest if getattr(gaps.rows[i][0], "rest_velocity", None) is None
+                        else gaps.rows[i][0].rest_velocity for i in range(n_gaps)])
     phases: dict[frozenset, _Phase] = {}
 
     def phase_of(closed: frozenset) -> _Phase:
@@ -963,7 +966,7 @@ def _march(mechanism, t_end: float, steps: int, *, simulator_factory, integrator
                 v_new = v_ev
             else:
                 hit = impact(phase_of(closed).sim.model, gaps, closed, i_ev, q_ev, v_ev, t_ev,
-                              p, v_rest)
+                              p, v_rests)
                 if hit is None and i_ev in pressed:  # resting: closes with no impulse
                     v_new = project(phase_of(closed).sim.model, gaps, closed | pressed,
                                      q_ev, v_ev, t_ev, p)

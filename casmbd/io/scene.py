@@ -71,7 +71,8 @@ _TABLES = {"scene", "parameters", "bodies", "markers", "joints", "drivers", "for
 #: keys of a [[contacts]] entry (casmbd/model/contacts.py)
 _CONTACT_KEYS = {"name", "type", "body", "point", "radius", "origin", "normal", "model",
                  "restitution", "friction", "body2", "point2", "radius2", "stiffness",
-                 "exponent", "damping", "penetration", "friction_velocity", "description"}
+                 "exponent", "damping", "penetration", "friction_velocity", "description",
+                 "rest_velocity"}
 _COMPLIANT_KEYS = ("stiffness", "exponent", "damping", "penetration", "friction_velocity")
 #: keys every [[joints]] entry may add: stops on its coordinate (issue 24)
 _LIMIT_KEYS = {"lower", "upper", "restitution", "limit_model", "limit_stiffness",
@@ -410,7 +411,8 @@ def _build(data: dict, source: str) -> Mechanism:
         ctype = e.string("type", default="plane")
         if ctype not in ("plane", "sphere"):
             raise e.error("type", f"unknown contact type {ctype!r} (allowed: plane, sphere)")
-        compliant = {k: e.number(k) for k in _COMPLIANT_KEYS if e.has(k)}
+        compliant = {k: e.number(k) for k in (*_COMPLIANT_KEYS, "rest_velocity")
+                     if e.has(k)}
         if ctype == "plane":  # against a ground plane, or (sphere) another body's sphere
             other = {"origin": e.vector("origin", dim, default=[0.0] * dim),
                      "normal": e.vector("normal", dim, required=False)}

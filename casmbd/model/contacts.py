@@ -93,6 +93,9 @@ class Unilateral:
 
     #: the event name of a gap reaching zero ("impact" for contacts, "limit" for stops)
     event_kind: ClassVar[str] = "impact"
+    #: the rebound speed below which this element's gaps close instead of bouncing (m/s);
+    #: None: the run's (``simulate(rest_velocity=)``); set by ``Mechanism.add_contact``
+    rest_velocity: ClassVar[float | None] = None
 
     @property
     def where(self) -> str:
