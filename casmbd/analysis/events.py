@@ -41,6 +41,8 @@ from __future__ import annotations
 
 import copy
 import math
+import re
+import sys
 import time
 import warnings
 
@@ -48,18 +50,21 @@ import casadi as ca
 import numpy as np
 
 from casmbd.analysis import integrators as integ
+from casmbd.analysis.assembly import assemble
+from casmbd.analysis.checks import check_mass_matrix, check_start, diagnose_failure
 from casmbd.analysis.event_rows import EventRows, SlideRow, StickRow, closure
 from casmbd.analysis.impulses import impact, project
 from casmbd.analysis.joint_friction import has_reaction_friction
 from casmbd.analysis.kkt import accelerations_and_multipliers, consistent_state
-from casmbd.errors import AnalysisError, IntegratorError
+from casmbd.errors import AnalysisError, CasmbdError, IntegratorError
 from casmbd.interrupts import reraise_interrupt
 from casmbd.model.contacts import SLIP_VELOCITY, ContactSlide, slides
 from casmbd.model.needs import EVENT_NEEDS, requirements
 from casmbd.results import Result
 from casmbd.system import System
 
-__all__ = ["compliant_events", "has_events", "simulate_events"]
+__all__ = ["MAX_EVENTS", "MAX_EVENTS_LIMIT", "SIMULATION_KEYS", "compliant_events", "has_events",
+           "simulate_events"]
 
 #: default sub-intervals per output interval in which gaps are checked
 SUBSTEPS = 4
@@ -67,6 +72,79 @@ SUBSTEPS = 4
 WINDOW = 32
 #: rebound height below which a contact closes instead of bouncing again (m)
 REST_HEIGHT = 1e-9
+#: default bound on the number of events of one run
+MAX_EVENTS = 10_000
+#: Zeno guard (:func:`zeno_guard`): impact intervals of one gap that shrink geometrically
+ZENO_IMPACTS = 10
+#: … with their mean ratio at most this (1: the equal intervals of e = 1 bounces)
+ZENO_RATIO = 0.999
+#: … and every ratio within this fraction of their mean
+ZENO_SPREAD = 0.1
+#: … and the last interval below this fraction of a rebound's at the default rest velocity
+ZENO_FRACTION = 0.01
+#: the largest ``max_events`` accepted (scene, CLI, API)
+MAX_EVENTS_LIMIT = 10_000_000
+#: keys of a scene's ``[simulation]`` table (options of the event-driven run)
+SIMULATION_KEYS = ("max_events", "rest_velocity")
+#: a line of a Python warning, as printed by ``warnings`` or the CLI
+_WARNING_LINE = re.compile(r"^warning: |\b[A-Z]\w*Warning: ")
+#: the SUNDIALS flag in a CasADi error message
+_FLAG = re.compile(r'returned "([A-Z_]+)"')
+#: advice per SUNDIALS flag of a failure inside the event loop
+_ADVICE = {
+    "CV_TOO_MUCH_WORK": "a force or driver that grows without bound there (a singularity "
+                        "in time or state), or raise --max-steps",
+    "IDA_TOO_MUCH_WORK": "a force or driver that grows without bound there (a singularity "
+                         "in time or state), or raise --max-steps",
+    "CV_FIRST_RHSFUNC_ERR": "the equations of motion are not finite at the start of the "
+                            "step: check masses, inertias, forces and gravity",
+    "CV_RHSFUNC_FAIL": "the equations of motion are not finite: check masses, inertias, "
+                       "forces and gravity",
+    "CV_ILL_INPUT": "values too large for the integrator (a mass, force or gravity near the "
+                    "floating-point limit?): give the model in sensible units",
+    "NO_PROGRESS": "the step size fell to zero: values too large for the integrator (a mass, "
+                   "force or gravity near the floating-point limit?): give the model in "
+                   "sensible units",
+    "IDA_ILL_INPUT": "values too large for the integrator (a mass, force or gravity near the "
+                     "floating-point limit?): give the model in sensible units",
+}
+
+
+def zeno_guard(times: list[float], t: float, interval: float) -> tuple[float, str] | None:
+    """Record an impact of one gap at ``t`` in ``times``; the accumulation point and a
+    description when its impacts accumulate (Zeno behaviour), else None.
+
+    Impacts accumulate when the last :data:`ZENO_IMPACTS` + 1 intervals Δ_k = t_k − t_(k−1)
+    shrink geometrically, Δ_(k+1) = r Δ_k, every ratio within :data:`ZENO_SPREAD` of their
+    mean r ≤ :data:`ZENO_RATIO` < 1 (a ball of restitution e under constant gravity: r = e),
+    and the last interval is below ``interval``.  The impacts then end at the limit of the
+    geometric series, t* = t + Δ r / (1 − r) (the bouncing ball's Zeno time t₁ (1 + e)/(1 − e)
+    from its first impact); without a rest velocity an event-driven run would locate ever
+    closer impacts there, until the event bound or the limits of the event location.
+    """
+    times.append(float(t))
+    del times[:-(ZENO_IMPACTS + 2)]
+    if len(times) < ZENO_IMPACTS + 2:
+        return None
+    gaps = np.diff(times)
+    if gaps[-1] >= interval or np.any(gaps <= 0.0):
+        return None
+    ratios = gaps[1:] / gaps[:-1]
+    r = float(np.mean(ratios))
+    if not (0.0 < r <= ZENO_RATIO) or np.max(np.abs(ratios / r - 1.0)) > ZENO_SPREAD:
+        return None
+    t_star = float(t) + float(gaps[-1]) * r / (1.0 - r)
+    return t_star, (f"the last {ZENO_IMPACTS + 1} intervals shrink by the ratio {r:.3g}, the "
+                    f"last {gaps[-1]:.3g} s")
+
+
+class _StepError(RuntimeError):
+    """An integrator call of the event loop failed between ``t_lo`` (state ``x_lo``, the
+    last one reached) and ``t_hi``."""
+
+    def __init__(self, message: str, t_lo: float, t_hi: float, x_lo: np.ndarray):
+        super().__init__(message)
+        self.t_lo, self.t_hi, self.x_lo = float(t_lo), float(t_hi), np.array(x_lo, float)
 
 
 def has_events(mechanism) -> bool:
@@ -119,6 +197,18 @@ def _scaled(dyn: ca.Function) -> ca.Function:
                        ca.dyn_in(), ca.dyn_out())
 
 
+def _progress(stats: dict, t0: float, h: float, x) -> None:
+    """Raise :class:`_StepError` when a SUNDIALS call returned without reaching the end of
+    its interval (scaled time 1): with a step size of zero (values near the floating-point
+    limit, e.g. gravity 1e308) CVODES warns "t + h = t on the next step" and returns the start
+    state unchanged instead of failing."""
+    reached = stats.get("tcur", 1.0)
+    if isinstance(reached, float) and math.isfinite(reached) and reached < 1.0 - 1e-9:
+        raise _StepError(f'the integrator returned "NO_PROGRESS": step size '
+                         f'{stats.get("hcur", 0.0):.3g} at t = {t0 + reached * h:.6g}',
+                         t0, t0 + h, x)
+
+
 class _Phase:
     """A Simulator of the mechanism with a set of closed gaps, and its step integrators."""
 
@@ -156,8 +246,27 @@ class _Phase:
                 self._many.clear()
             solver = self._many[rel] = integ.sundials(self._scaled, self.name, 0.0, list(rel),
                                                       self.rtol, self.atol, self.max_steps)
-        r = solver(x0=x, z0=z, p=np.concatenate([self.sim.model.p, [t0, span]]))
+        try:
+            r = solver(x0=x, z0=z, p=np.concatenate([self.sim.model.p, [t0, span]]))
+        except RuntimeError as exc:
+            reraise_interrupt(exc)
+            # the states before the failure, sub-interval by sub-interval: the event loop
+            # checks them as usual, and its next call from the last one raises _StepError
+            # naming the failing sub-interval
+            kept_x, kept_z, t_prev = [], [], t0
+            try:
+                for tk in times:
+                    x, z = self.advance(x, z, t_prev, float(tk) - t_prev)
+                    kept_x.append(x)
+                    kept_z.append(z)
+                    t_prev = float(tk)
+            except _StepError as sub:
+                if not kept_x:  # the first sub-interval fails: the window's flag, its times
+                    message = str(exc) if _FLAG.search(str(exc)) else str(sub)
+                    raise _StepError(message, sub.t_lo, sub.t_hi, sub.x_lo) from None
+            return np.array(kept_x), np.array(kept_z).reshape(len(kept_x), len(z))
         st = solver.stats()
+        _progress(st, t0, span, x)
         self.steps += int(st.get("nsteps", 0))
         self.rhs_evaluations += int(st.get("nfevals", 0))
         xs = np.asarray(r["xf"], float).reshape(len(x), -1)
@@ -166,8 +275,13 @@ class _Phase:
         return xs.T, zs.T
 
     def advance(self, x, z, t0, h):
-        r = self.integrator(x0=x, z0=z, p=np.concatenate([self.sim.model.p, [t0, h]]))
+        try:
+            r = self.integrator(x0=x, z0=z, p=np.concatenate([self.sim.model.p, [t0, h]]))
+        except RuntimeError as exc:
+            reraise_interrupt(exc)
+            raise _StepError(str(exc), t0, t0 + h, x) from None
         st = self.integrator.stats()
+        _progress(st, t0, h, x)
         self.steps += int(st.get("nsteps", 0))
         self.rhs_evaluations += int(st.get("nfevals", 0))
         return np.asarray(r["xf"], float).ravel(), np.asarray(r["zf"], float).ravel()
@@ -310,7 +424,7 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
                     integrator: str | None = None, rtol: float = 1e-8,
                     atol: float | None = None, t_start: float = 0.0,
                     substeps: int = SUBSTEPS, rest_velocity: float | None = None,
-                    max_events: int = 10_000, max_steps: int | None = None) -> Result:
+                    max_events: int = MAX_EVENTS, max_steps: int | None = None) -> Result:
     """Forward dynamics with impacts, contact and detach (module docstring).
 
     Parameters are those of :func:`casmbd.analysis.simulate.simulate`
@@ -318,9 +432,116 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
     with the caller's formulation and options); ``substeps`` the
     sub-intervals of an output interval in which gaps are checked (an event shorter than one
     can be missed), ``rest_velocity`` the rebound speed below which a gap closes, and
-    ``max_events`` a bound on the number of events (a run that would exceed it stops with an
-    :class:`~casmbd.errors.IntegratorError` carrying the results so far).
+    ``max_events`` a bound on the number of events.
+
+    Raises
+    ------
+    IntegratorError
+        When an integrator call inside the event loop fails (flag ``CV_…``/``IDA_…``, the
+        time, the culprit when a model value is not finite there, advice) or the run exceeds
+        ``max_events`` (flag ``MAX_EVENTS``); ``partial`` holds the results up to the last
+        state reached: the output times passed and that state.
     """
+    if not (isinstance(max_events, (int, np.integer)) and not isinstance(max_events, bool)
+            and 1 <= max_events <= MAX_EVENTS_LIMIT):
+        raise AnalysisError(f"max_events must be an integer in [1, {MAX_EVENTS_LIMIT}], got "
+                            f"{max_events!r}")
+    if rest_velocity is not None and not (isinstance(rest_velocity, (int, float, np.floating))
+                                          and math.isfinite(rest_velocity)
+                                          and rest_velocity >= 0.0):
+        raise AnalysisError(f"rest_velocity must be a finite number >= 0 (m/s), got "
+                            f"{rest_velocity!r}")
+    record: dict = {}
+    # SUNDIALS' own lines ("At t = …, mxstep steps taken") are part of the error, not stray
+    # lines on the terminal: captured, and passed on (all of it after a good run, the
+    # warnings after a failure)
+    captured = integ.CapturedOutput()
+    try:
+        with captured:
+            result = _march(mechanism, t_end, steps, simulator_factory=simulator_factory,
+                            integrator=integrator, rtol=rtol, atol=atol, t_start=t_start,
+                            substeps=substeps, rest_velocity=rest_velocity,
+                            max_events=max_events, max_steps=max_steps, record=record)
+    except (RuntimeError, IntegratorError) as exc:
+        _pass_on(captured.text, warnings_only=True)
+        reraise_interrupt(exc)
+        if not record or (isinstance(exc, IntegratorError) and exc.partial is not None):
+            raise
+        raise _failure(exc, record, rtol) from None
+    except BaseException:
+        _pass_on(captured.text, warnings_only=True)
+        raise
+    _pass_on(captured.text, warnings_only=False)
+    return result
+
+
+def _pass_on(text: str, warnings_only: bool) -> None:
+    """Write captured output to ``sys.stderr`` (only the warnings' lines after a failure)."""
+    if warnings_only:  # Python's warnings ("…: RuntimeWarning: …", the CLI's "warning: …"),
+        # not SUNDIALS' ("The above warning has been issued mxhnil times …")
+        text = "".join(line for line in text.splitlines(keepends=True)
+                       if _WARNING_LINE.search(line))
+    if text:
+        sys.stderr.write(text)
+
+
+def _failure(exc: Exception, rec: dict, rtol: float) -> IntegratorError:
+    """The IntegratorError of a run stopped inside the event loop, with the results up to the
+    last state reached (the output times passed, then that state)."""
+    t_now, x_now, closed_now, p_now = rec["now"]()
+    samples, grid, base = list(rec["samples"]), rec["grid"], rec["base"]
+    if isinstance(exc, _StepError) and exc.t_lo > t_now:
+        t_now, x_now = exc.t_lo, exc.x_lo
+    tol = 1e-12 * (1.0 + abs(t_now))
+    if t_now > samples[-1][0] + tol and np.all(np.isfinite(x_now)):
+        samples.append((t_now, np.array(x_now, float), closed_now, np.array(p_now, float)))
+    nq = base.model.nq
+    times = np.array([s_[0] for s_ in samples])
+    events = [e for e in rec["events"] if e["time"] <= times[-1] + tol]
+    partial = None
+    try:
+        partial = _assemble_result(
+            base, rec["phase_of"], rec["gaps"], times,
+            np.array([s_[1][:nq] for s_ in samples]), np.array([s_[1][nq:] for s_ in samples]),
+            samples, events, time.perf_counter() - rec["clock"], rec["name"], rtol,
+            rec["atol"], rec["default_p"])
+        partial.stats["failure_time"] = float(times[-1])
+    except (RuntimeError, CasmbdError, ValueError, FloatingPointError):
+        partial = None  # the post-processing itself fails at the states: nothing to keep
+    n_out = int(np.sum(times[:, None] == grid[None, :])) if len(times) else 0
+    kept = (f"results kept up to t = {times[-1]:.6g} ({n_out} of {len(grid)} output times"
+            + (f" and the state at t = {times[-1]:.6g})" if n_out < len(times) else ")"))
+    if not partial:
+        kept = "no results kept (the post-processing fails at the states reached)"
+    if isinstance(exc, IntegratorError):  # the event bound (or a Zeno stop)
+        return IntegratorError(f"{exc}; {kept}", exc.time, exc.flag, partial)
+    match = _FLAG.search(str(exc))
+    flag = match.group(1) if match else type(exc).__name__
+    if isinstance(exc, _StepError):
+        t_lo, t_hi = exc.t_lo, exc.t_hi
+    else:
+        t_lo = t_hi = t_now
+    model = base.model
+    culprits = diagnose_failure(model, t_hi) or diagnose_failure(model, t_lo)
+    where = f"at t = {t_lo:.6g}" if t_hi <= t_lo else \
+        f"between t = {t_lo:.6g} and t = {t_hi:.6g}"
+    text = (f"integrator '{rec['name']}' ({base.formulation_name}, event-driven) failed {where} "
+            f"with {flag}; {kept}")
+    if culprits:
+        text += "; " + "; ".join(culprits[:3])
+    elif flag in _ADVICE:
+        text += f"; {_ADVICE[flag]}"
+    elif not match:
+        lines = str(exc).strip().splitlines()
+        text += f" ({lines[-1] if lines else flag})"
+    text += base.kind.failure_hint(flag, rtol)
+    return IntegratorError(text, t_lo, flag, partial)
+
+
+def _march(mechanism, t_end: float, steps: int, *, simulator_factory, integrator, rtol, atol,
+           t_start, substeps, rest_velocity, max_events, max_steps, record: dict) -> Result:
+    """The event loop of :func:`simulate_events`; ``record`` receives what a failure inside
+    the loop needs to keep the results so far (:func:`_failure`)."""
     t_clock = time.perf_counter()
     atol = rtol if atol is None else atol
     if not (isinstance(substeps, int) and substeps >= 1):
@@ -343,8 +564,11 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
                             "SUNDIALS integrator (cvodes, adams, idas)")
     gaps = EventRows(System(mechanism), elements)
     n_gaps = len(gaps.rows)
-    g_acc = float(np.linalg.norm(mechanism.gravity)) or 9.81
+    g_acc = math.hypot(*map(float, mechanism.gravity)) or 9.81  # no overflow of |g|²
     v_rest = rest_velocity if rest_velocity is not None else math.sqrt(2 * g_acc * REST_HEIGHT)
+    # per gap: a contact's own rest velocity (its [[contacts]] key) wins over the run's
+    v_rests = np.array([v_rest if getattr(gaps.rows[i][0], "rest_velocity", None) is None
+                        else gaps.rows[i][0].rest_velocity for i in range(n_gaps)])
     phases: dict[frozenset, _Phase] = {}
 
     def phase_of(closed: frozenset) -> _Phase:
@@ -391,8 +615,14 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
         return phase_
 
     grid = np.linspace(t_start, t_end, int(steps) + 1)
-    start = consistent_state(base.model, base.model.initial_coordinates(),
-                             base.model.initial_velocities(), t_start, base.inputs_at(t_start))
+    q0, v0 = base.model.initial_coordinates(), base.model.initial_velocities()
+    u0 = base.inputs_at(t_start)
+    # the pre-run checks of a smooth run: a NaN's culprit, the bodies without mass
+    ode_acc = base._ode_accelerations(t_start)  # a model without compiled forces: its ODE
+    check_start(base.model, q0, v0, t_start, u0, what="simulation",
+                every=ode_acc is not None and not np.all(np.isfinite(ode_acc(q0, v0))))
+    check_mass_matrix(base.model, assemble(base.model, q0, t_start).q, t_start)
+    start = consistent_state(base.model, q0, v0, t_start, u0)
     nq = base.model.nq
     x = np.concatenate([start.q, start.v])
     g0, _, _ = gaps(start.q, start.v, t_start, p)
@@ -404,6 +634,10 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
                             "touching")
     closed: frozenset = frozenset()
     events: list[dict] = []
+    impact_times: dict[str, list[float]] = {}  # per gap, for the Zeno guard
+    # the impact interval of a rebound at the default rest velocity under the gravity, 2 v / g:
+    # accumulating impacts far below it are beyond what the event location resolves
+    zeno_interval = ZENO_FRACTION * 2.0 * math.sqrt(2 * g_acc * REST_HEIGHT) / g_acc
 
     def settle(i, q_s, v_s, t_s, closed_s):
         """A sliding joint or contact at zero speed (or at the start, or a contact just
@@ -602,6 +836,9 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
     z = phase.z0(x[:nq], x[nq:], t_start)
     samples = [(t_start, x.copy(), closed, p.copy())]
     t = t_start
+    record.update(base=base, phase_of=phase_of, gaps=gaps, grid=grid, samples=samples,
+                  events=events, name=name, atol=atol, default_p=default_p, clock=t_clock,
+                  now=lambda: (t, x, closed, p.copy()))
     tol_t = 1e-13
 
     # every sub-interval end of the run; states come in windows of WINDOW of them from one
@@ -623,6 +860,7 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
                 first = int(np.searchsorted(sub_all, t_b - 0.5 * tol_t * (1 + abs(t_b))))
                 times = sub_all[first:first + WINDOW]
                 xs_w, zs_w = phase.advance_many(x, z, t, times)
+                times = times[:len(xs_w)]  # up to a failure (advance_many)
                 g_w = gaps.values_many(xs_w[:, :nq], xs_w[:, nq:], times, p)
                 lam_w = phase.multipliers_many(xs_w[:, :nq], xs_w[:, nq:], times)
                 window = {float(tk): (xs_w[m], zs_w[m], g_w[m], lam_w[m])
@@ -728,7 +966,7 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
                 v_new = v_ev
             else:
                 hit = impact(phase_of(closed).sim.model, gaps, closed, i_ev, q_ev, v_ev, t_ev,
-                              p, v_rest)
+                              p, v_rests)
                 if hit is None and i_ev in pressed:  # resting: closes with no impulse
                     v_new = project(phase_of(closed).sim.model, gaps, closed | pressed,
                                      q_ev, v_ev, t_ev, p)
@@ -741,10 +979,24 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
                     v_new, closed, struck = hit  # the gaps struck (i_ev among them), …
                     events += [{"time": float(t_ev), "element": lab, "kind": kind}
                                for lab, kind in struck]
+                    for lab, kind in struck:
+                        if kind == "impact":
+                            zeno = zeno_guard(impact_times.setdefault(lab, []), t_ev,
+                                              zeno_interval)
+                            if zeno:
+                                raise IntegratorError(
+                                    f"Zeno behaviour: the impacts of '{lab}' accumulate at t ≈ "
+                                    f"{zeno[0]:.9g} ({zeno[1]}); stopped at the impact at t = "
+                                    f"{t_ev:.9g} after {len(events)} events. A rest velocity "
+                                    f"closes the contact before (now {v_rest:.3g} m/s: "
+                                    "--rest-velocity, or rest_velocity in the scene's "
+                                    "[simulation])", t_ev, "ZENO", None)
             if len(events) > max_events:
-                raise IntegratorError(f"more than {max_events} events by t = {t_ev:.6g} "
-                                      "(raise max_events, or a rest_velocity)", t_ev,
-                                      "MAX_EVENTS", None)
+                raise IntegratorError(
+                    f"more than {max_events} events by t = {t_ev:.6g} (raise max_events, or "
+                    f"the rest velocity {v_rest:.3g} m/s: [simulation] max_events / "
+                    "rest_velocity in the scene, --max-events / --rest-velocity)", t_ev,
+                    "MAX_EVENTS", None)
             v_new, closed = engage(q_ev, v_new, t_ev, closed)
             phase = use(phase_of(closed))
             x = np.concatenate([q_ev, v_new])

@@ -22,10 +22,10 @@ __all__ = ["impact", "project"]
 
 
 def impact(model, gaps, closed, i_ev, q, v, t, p, v_rest):
-    """v⁺ after an impact of gap ``i_ev`` (module docstring, step 3), the new set of closed
-    gaps, and the events as (label, kind): every gap struck at this instant (``impact``/
-    ``limit``, in row order), then stick/slip and contact; None when the gap is not closing
-    in."""
+    """v⁺ after an impact of gap ``i_ev`` (module docstring, step 3; ``v_rest`` the rest
+    velocity, one number or one per gap), the new set of closed gaps, and the events as
+    (label, kind): every gap struck at this instant (``impact``/``limit``, in row order), then
+    stick/slip and contact; None when the gap is not closing in."""
     g, gq, tv = gaps(q, v, t, p)
     if gq[i_ev] @ v >= 0.0:
         return None
@@ -98,7 +98,7 @@ def impact(model, gaps, closed, i_ev, q, v, t, p, v_rest):
     extra = [(gaps.label(i), gaps.rows[i][0].event_kind) for i in active] + extra
     new_closed = set(closed)
     for i in active:
-        if gq[i] @ v_plus < v_rest:
+        if gq[i] @ v_plus < (v_rest[i] if np.ndim(v_rest) else v_rest):  # per gap, or one
             new_closed.add(i)
             extra.append((gaps.label(i), "contact"))
             v_plus = v_plus  # the closed gap's rebound speed is below the rest threshold

@@ -29,7 +29,7 @@ from casmbd.analysis.checks import (
     check_start,
     diagnose_failure,
 )
-from casmbd.analysis.events import compliant_events, has_events, simulate_events
+from casmbd.analysis.events import MAX_EVENTS, compliant_events, has_events, simulate_events
 from casmbd.analysis.independent import find_redundant
 from casmbd.analysis.invariants import check_energy
 from casmbd.analysis.kkt import consistent_state
@@ -541,7 +541,8 @@ def simulate(mechanism, t_end: float, steps: int, *, formulation: str | None = N
              step: float | None = None, mode: str = "auto",
              formulation_options: Mapping | None = None,
              max_steps: int | None = None, redundancy: str = "auto",
-             simulators: Simulators | None = None) -> Result:
+             simulators: Simulators | None = None, max_events: int | None = None,
+             rest_velocity: float | None = None) -> Result:
     """Forward dynamics of a mechanism on a uniform output grid (one entry point).
 
     Parameters
@@ -565,6 +566,11 @@ def simulate(mechanism, t_end: float, steps: int, *, formulation: str | None = N
     redundancy : {"auto", "remove", "minimum_norm"}
         What to do with redundant constraint equations (:func:`plan_redundancy`); the
         result's ``stats`` give ``redundant_equations`` and ``redundancy``.
+    max_events, rest_velocity : int, float, optional
+        The event-driven run's bound on the number of events (default
+        :data:`~casmbd.analysis.events.MAX_EVENTS`) and the rebound speed below which a
+        contact closes instead of bouncing (default sqrt(2 g · 1 nm)); default: the scene's
+        ``[simulation]`` table.  No effect without impacts or stick-slip friction.
     simulators : Simulators, optional
         The event-driven run's simulators kept from earlier runs of this mechanism at other
         parameter values (a sweep; built with the same options as this call).
@@ -582,9 +588,16 @@ def simulate(mechanism, t_end: float, steps: int, *, formulation: str | None = N
         formulation = event_formulation(mechanism, formulation)
         if simulators is None:
             simulators = Simulators(formulation, inputs, mode, formulation_options, redundancy)
+        table = getattr(mechanism, "scene_data", None)
+        table = table.get("simulation") if isinstance(table, dict) else None
+        table = table if isinstance(table, dict) else {}  # checked by the scene reader
         result = simulate_events(
             mechanism, t_end, steps, integrator=integrator, rtol=rtol, atol=atol,
-            t_start=t_start, max_steps=max_steps, simulator_factory=simulators)
+            t_start=t_start, max_steps=max_steps, simulator_factory=simulators,
+            max_events=table.get("max_events", MAX_EVENTS) if max_events is None
+            else max_events,
+            rest_velocity=table.get("rest_velocity") if rest_velocity is None
+            else rest_velocity)
         # beyond the tolerance the run stops naming the culprit, as without events (the
         # base simulator is the one of the open phases, kept by ``simulators``)
         simulators(mechanism)._check_finite(result)

@@ -36,6 +36,7 @@ from casmbd.cli.common import (
     _add_mode,
     _add_output_flags,
     _finite_json,
+    _nonnegative_float,
     _Parser,
     _positive_float,
     _positive_int,
@@ -142,6 +143,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-steps", type=_positive_int, default=None,
                    help="most steps per output interval of the variable-step integrators "
                         "(default 500000; 20000 for partitioning/nullspace)")
+    p.add_argument("--max-events", type=_positive_int, default=None,
+                   help="with impacts: stop (keeping the results) after this many events "
+                        "(default: the scene's [simulation] max_events, else 10000)")
+    p.add_argument("--rest-velocity", type=_nonnegative_float, default=None, metavar="M/S",
+                   help="with impacts: a rebound slower than this closes the contact "
+                        "(default: [simulation] rest_velocity, else sqrt(2 g 1e-9 m))")
     p = sub.add_parser("linearize", help="natural frequencies, linearized equations and "
                                          "stability about the initial configuration, the "
                                          "static equilibrium or a stored state")

@@ -52,7 +52,8 @@ def _cmd_simulate(args) -> tuple[dict, str]:
         result = simulate(mech, t_end=args.t_end, steps=args.steps, formulation=args.formulation,
                           integrator=args.integrator, rtol=args.rtol, atol=args.atol,
                           projection=args.projection, step=args.step, mode=args.mode,
-                          max_steps=args.max_steps, redundancy=args.redundancy)
+                          max_steps=args.max_steps, redundancy=args.redundancy,
+                          max_events=args.max_events, rest_velocity=args.rest_velocity)
     except IntegratorError as exc:
         if args.out and exc.partial is not None:
             exc.partial.scene = getattr(mech, "scene_text", "")

@@ -48,6 +48,16 @@ def _positive_float(text: str) -> float:
     return val
 
 
+def _nonnegative_float(text: str) -> float:
+    try:
+        val = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(val) or val < 0:
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text}")
+    return val
+
+
 def _add_output_flags(p: argparse.ArgumentParser) -> None:
     """``--json`` and ``--debug``, which every verb takes."""
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")

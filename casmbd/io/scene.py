@@ -45,6 +45,7 @@ from pathlib import Path
 from typing import Any
 
 from casmbd import results
+from casmbd.analysis.events import MAX_EVENTS_LIMIT, SIMULATION_KEYS
 from casmbd.compiled import modal_cache  # noqa: F401 (registers the on-disk store of modes)
 from casmbd.errors import CasmbdError, ExpressionError, SceneError
 from casmbd.io.files import read_text
@@ -70,7 +71,8 @@ _TABLES = {"scene", "parameters", "bodies", "markers", "joints", "drivers", "for
 #: keys of a [[contacts]] entry (casmbd/model/contacts.py)
 _CONTACT_KEYS = {"name", "type", "body", "point", "radius", "origin", "normal", "model",
                  "restitution", "friction", "body2", "point2", "radius2", "stiffness",
-                 "exponent", "damping", "penetration", "friction_velocity", "description"}
+                 "exponent", "damping", "penetration", "friction_velocity", "description",
+                 "rest_velocity"}
 _COMPLIANT_KEYS = ("stiffness", "exponent", "damping", "penetration", "friction_velocity")
 #: keys every [[joints]] entry may add: stops on its coordinate (issue 24)
 _LIMIT_KEYS = {"lower", "upper", "restitution", "limit_model", "limit_stiffness",
@@ -409,7 +411,8 @@ def _build(data: dict, source: str) -> Mechanism:
         ctype = e.string("type", default="plane")
         if ctype not in ("plane", "sphere"):
             raise e.error("type", f"unknown contact type {ctype!r} (allowed: plane, sphere)")
-        compliant = {k: e.number(k) for k in _COMPLIANT_KEYS if e.has(k)}
+        compliant = {k: e.number(k) for k in (*_COMPLIANT_KEYS, "rest_velocity")
+                     if e.has(k)}
         if ctype == "plane":  # against a ground plane, or (sphere) another body's sphere
             other = {"origin": e.vector("origin", dim, default=[0.0] * dim),
                      "normal": e.vector("normal", dim, required=False)}
@@ -426,6 +429,20 @@ def _build(data: dict, source: str) -> Mechanism:
         e.check_keys(_ACTUATOR_KEYS)
         guarded(e, lambda e=e: mech.add_actuator(
             _name(e), e.string("joint"), coordinate=e.string("coordinate", required=False)))
+
+    if "simulation" in data:  # options of the event-driven run (docs/contact.md)
+        table = _Entry("simulation", None, data["simulation"], params)
+        table.check_keys(set(SIMULATION_KEYS))
+        count = table.data.get("max_events", 1)
+        if isinstance(count, bool) or not isinstance(count, int) or \
+                not 1 <= count <= MAX_EVENTS_LIMIT:
+            raise table.error("max_events", f"expected an integer in [1, {MAX_EVENTS_LIMIT}], "
+                                            f"got {count!r}")
+        speed = table.data.get("rest_velocity", 0.0)
+        if isinstance(speed, bool) or not isinstance(speed, (int, float)) or \
+                not math.isfinite(speed) or speed < 0.0:
+            raise table.error("rest_velocity", f"expected a finite number >= 0 (m/s), got "
+                                               f"{speed!r}")
 
     for e in entries("outputs"):  # requests: expressions of measures (casmbd.model.measures)
         e.check_keys(_OUTPUT_KEYS)

@@ -58,11 +58,14 @@ def adams_step(x, x0: float, h0: float, x1: float, h1: float):
 
 
 def _unit(value, where: str, dim: int) -> np.ndarray:
-    vec = vector(value, where, dim)
-    norm = float(np.linalg.norm(vec))
-    if norm < 1e-12:
+    """The direction of a finite non-zero vector, n / |n| (scaled by its largest entry first:
+    |[0, 1e300]|² overflows, and n / inf would be the zero vector)."""
+    vec = vector(value, where, dim)  # finite, or a ModelError naming ``where``
+    scale = float(np.max(np.abs(vec)))
+    if scale == 0.0:
         raise ModelError(f"{where}: must be a non-zero vector, got {value!r}")
-    return vec / norm
+    vec = vec / scale
+    return vec / float(np.linalg.norm(vec))
 
 
 def tangents(normal: np.ndarray) -> np.ndarray:
@@ -90,6 +93,9 @@ class Unilateral:
 
     #: the event name of a gap reaching zero ("impact" for contacts, "limit" for stops)
     event_kind: ClassVar[str] = "impact"
+    #: the rebound speed below which this element's gaps close instead of bouncing (m/s);
+    #: None: the run's (``simulate(rest_velocity=)``); set by ``Mechanism.add_contact``
+    rest_velocity: ClassVar[float | None] = None
 
     @property
     def where(self) -> str:

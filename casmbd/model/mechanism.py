@@ -20,7 +20,7 @@ import numpy as np
 
 from casmbd.errors import ModelError
 from casmbd.limits import MAX_BODIES, MAX_ELEMENTS, check_count
-from casmbd.model.bodies import GROUND, Body, Marker, SpatialBody, check_inertia, vector
+from casmbd.model.bodies import GROUND, Body, Marker, SpatialBody, check_inertia, scalar, vector
 from casmbd.model.contacts import (
     JointLimit,
     PlaneContact,
@@ -550,6 +550,14 @@ class Mechanism:
 
     def _unilateral(self, element: Unilateral, compliant: dict) -> Unilateral:
         element.check_values(self.parameters)  # expressions at the parameters' defaults
+        rest = compliant.pop("rest_velocity", None)
+        if rest is not None:  # the element's own rest velocity (events; m/s)
+            where = f"contact '{element.name}' field 'rest_velocity'"
+            rest = scalar(rest, where)
+            if rest < 0.0 or element.model != "impact":
+                raise ModelError(f"{where}: must be >= 0, got {rest}" if rest < 0.0 else
+                                 f"{where}: applies to model = 'impact'")
+            element.rest_velocity = rest
         if element.model == "compliant":
             self.add("compliant_contact", self._generate(f"{element.name}.force"), element,
                      **compliant)
