@@ -106,15 +106,16 @@ class Mechanism:
         #: requests: named expressions of measures reported on result grids (``[[outputs]]``)
         self.outputs: dict[str, Output] = {}
         #: names the mechanism makes itself ("<joint>.limit", "<contact>.force",
-        #: "<joint>.friction"), the only ones that may hold a reserved character
-        self._generated: set[str] = set()
+        #: "<joint>.friction"), the only ones that may hold a reserved character (a dict, in
+        #: order: the model key canonicalises the mechanism and takes no sets)
+        self._generated: dict[str, None] = {}
 
     # ------------------------------------------------------------------ helpers
     def _generate(self, name: str) -> str:
         """Mark ``name`` as made by casmbd itself (``"<joint>.limit"``, ``"<contact>.force"``,
         ``"<joint>.friction"``): the reserved characters of :data:`RESERVED_CHARACTERS` are
         allowed in it, never in a name the user declares."""
-        self._generated.add(name)
+        self._generated[name] = None
         return name
 
     def _conventional(self, kind: str, name: str) -> bool:
