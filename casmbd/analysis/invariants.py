@@ -26,8 +26,6 @@ unstable step, not a motion (a free fall needs 1e5 s of one output interval to d
 
 from __future__ import annotations
 
-import re
-
 import numpy as np
 
 from casmbd.errors import CasmbdError, IntegratorError
@@ -41,11 +39,18 @@ ENERGY_DRIFT = 0.5
 STATE_GROWTH = 1e6
 #: growth of the state norm within one output interval that counts as a blow-up
 STEP_GROWTH = 1e3
-_TIME = re.compile(r"\b(t|time)\b")
 
 
-def _time_dependent(value) -> bool:
-    return isinstance(value, str) and bool(_TIME.search(value))
+def _time_dependent(value, params: dict) -> bool:
+    """Whether a value depends on time: the expression parser says so (an expression of
+    ``t``, a callable of t), not a search of its text."""
+    if value is None or (isinstance(value, (int, float)) and not isinstance(value, bool)):
+        return False
+    try:
+        numeric(value, params, "energy check")  # refuses a value of time
+    except (CasmbdError, TypeError, ValueError):
+        return True
+    return False
 
 
 def _zero_at(value, params: dict) -> bool:
@@ -80,7 +85,7 @@ def energy_exchange(mechanism, result: Result, params: dict | None = None) -> li
             exchange = None  # a spring whose damper and actuator are 0 at these parameters
         if exchange is not None:
             out.append(f"{exchange} '{name}'")
-        elif any(_time_dependent(getattr(force, key, None))
+        elif any(_time_dependent(getattr(force, key, None), params)
                  for key in ("stiffness", "free_length", "free_angle")):
             out.append(f"time-dependent spring '{name}'")
     for name, body in mechanism.bodies.items():

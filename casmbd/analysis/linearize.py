@@ -114,7 +114,7 @@ def _linearization_function(system: System) -> ca.Function:
     lam = ca.SX.sym("lambda", system.nc)
     acc = ca.SX.sym("a", system.nq)
     q, v, u = system.q, system.v, system.u
-    system.refuse_reaction_friction("linearization")
+    # friction that follows the reactions: refused by the composition check (HANDLING)
     force = system.applied_forces + system.quadratic_velocity_forces
     # residual of M a + C_qᵀ λ = Q_e + Q_v, written as a generalized force
     resid = force - ca.mtimes(system.mass_matrix, acc)

@@ -140,8 +140,8 @@ def check(mechanism, handling: Handling) -> None:
         return
     lines = []
     for need in dict.fromkeys(r.need for r in refused):
-        elements = ", ".join(r.element for r in refused if r.need == need)
-        line = f"{elements} need{'s' if ',' not in elements else ''} {NEEDS[need]}"
+        named = [r.element for r in refused if r.need == need]
+        line = f"{', '.join(named)} need{'s' if len(named) == 1 else ''} {NEEDS[need]}"
         why = handling.why.get(need)
         line += f", which {handling.analysis} does not handle" + (f" ({why})" if why else "")
         if need in handling.instead:
