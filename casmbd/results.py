@@ -661,7 +661,7 @@ def read_npz(path: str | os.PathLike, what: str = "result") -> dict[str, np.ndar
                                       f"file (members {', '.join(not_npy[:3]) or 'none'})")
             # every .npy header, before np.load allocates: at most MAX_NPZ_BYTES and the
             # memory budget together, and no more than each member holds
-            limits.check_npz(zf, where, None, None, ResultFileError)
+            limits.check_npz(zf, f"cannot read {where}", None, None, ResultFileError)
             bad = zf.testzip()  # reads every member: CRC of each
         if bad is not None:
             raise ResultFileError(f"cannot read {where}: member '{bad}' is corrupted "
