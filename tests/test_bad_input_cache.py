@@ -7,7 +7,10 @@ those of the CasADi virtual machine (CASMBD_COMPILE=0) to 1e-12.  A truncated li
 loaded in a child process to prove it no longer crashes it (SIGBUS).  A read-only cache
 directory, or a cache path that is a file, falls back to a private temporary cache with one
 warning.  Two processes compiling the same model at once both succeed with identical numbers.
-The OCP's compiled NLP library is checked the same way.
+The OCP's compiled NLP library is checked the same way.  A model record (``*.model.json``) and
+a modal data file (``modes_*.npz``) are verified as a whole by their content hash: one changed
+number and the entry is not used (a warning for the model record, a rebuild), never
+half-trusted (issue 31 item 5: a tampered record was used, its results off by 226).
 
 The first build of each case runs in a child process, so that the library this process opens
 later is the rebuilt file (a process that has a library open keeps using its copy).
@@ -29,8 +32,12 @@ import numpy as np
 import pytest
 from conftest import private_cache
 
-from casmbd.compiled import cache, codegen
+from casmbd.analysis.simulate import Simulator
+from casmbd.compiled import cache, codegen, modal_cache, modelkey
 from casmbd.errors import CompileError
+from casmbd.io.scene import load_scene
+from casmbd.model import flexible_bodies
+from casmbd.model.fe_beam import beam_model
 
 TESTS = pathlib.Path(__file__).resolve().parent
 ROOT = TESTS.parent
@@ -368,3 +375,77 @@ def test_a_compiled_mode_store_failure_is_a_compile_error(tmp_path, monkeypatch)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
             codegen.compile_functions(tiny_functions(0), NAME, mode="compiled")
+
+
+# ----------------------------------------------------------------- records verified as a whole
+def spring_run(expect_warning: str | None = None):
+    """``spring_mass.toml`` simulated in compiled mode: (result, simulator, warnings)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        sim = Simulator(load_scene(SCENE), mode="compiled")
+        res = sim.run(1.0, 20, rtol=1e-10, atol=1e-12)
+    messages = [str(w.message) for w in caught if w.category is RuntimeWarning]
+    return res, sim, messages
+
+
+@pytest.mark.parametrize("field", ["q0", "p"])
+def test_a_tampered_model_record_is_rebuilt_not_used(_env, field):
+    """One number of the record's metadata changed (the start position, the parameter
+    defaults), the file otherwise valid JSON of the right format and key: before, the record
+    was a hit and the run started from the tampered value.  Now its content hash differs, it
+    is reported and rebuilt, and the run equals the untampered one to 1e-12."""
+    first, sim, messages = spring_run()
+    assert messages == [] and not sim.model.report.cache_hit
+    record_file = next(_env.glob("*.model.json"))
+    good = json.loads(record_file.read_text())
+    assert good["digest"] == modelkey.record_digest(good)
+    tampered = json.loads(record_file.read_text())
+    values_ = tampered["meta"]["model"][field]
+    tampered["meta"]["model"][field] = [v * 1.5 + 0.25 for v in values_]
+    record_file.write_text(json.dumps(tampered, sort_keys=True))
+    res, sim, messages = spring_run()
+    assert len(messages) == 1, messages
+    assert str(record_file) in messages[0] and "is not used" in messages[0]
+    assert "content hash differs" in messages[0] and "building the model again" in messages[0]
+    assert "system" in sim.model.__dict__                     # built, not read from it
+    for name, arr in first.arrays.items():
+        np.testing.assert_allclose(res[name], arr, rtol=0, atol=1e-12, err_msg=name)
+    assert json.loads(record_file.read_text()) == good        # the entry was rebuilt
+    again, sim, messages = spring_run()                        # and is a clean hit again
+    assert messages == [] and sim.model.report.cache_hit and "system" not in sim.model.__dict__
+    np.testing.assert_allclose(again["q"], first["q"], rtol=0, atol=1e-12)
+
+
+def test_a_model_record_naming_another_library_hash_is_not_used(_env):
+    """The library entry's SHA-256 (covered by the digest) must be the library's own; a record
+    whose digest was recomputed after the edit is still refused by that check."""
+    first, _, _ = spring_run()
+    record_file = next(_env.glob("*.model.json"))
+    record = json.loads(record_file.read_text())
+    record["libraries"][0]["sha256"] = "0" * 64
+    record["digest"] = modelkey.record_digest(record)
+    record_file.write_text(json.dumps(record, sort_keys=True))
+    res, _, messages = spring_run()
+    assert len(messages) == 1 and "SHA-256 differs from the model record's" in messages[0]
+    np.testing.assert_allclose(res["q"], first["q"], rtol=0, atol=1e-12)
+
+
+def test_a_tampered_modal_file_is_recomputed_not_used(_env):
+    """A modal data file with one stiffness entry changed (finite, right shape, right key):
+    its content hash differs, it is a miss, and the modes computed again equal the first ones
+    bit for bit; the file is replaced by a good one."""
+    beam = beam_model(2.0, 6, EA=1e6, EI=50.0, rhoA=1.5, nodes={"root": 0.0, "tip": 2.0})
+    flexible_bodies._MODES.clear()
+    first = flexible_bodies.modal_data(beam, "craig_bampton", 3, ["root", "tip"])
+    path = next(_env.glob("modes_*.npz"))
+    data = dict(np.load(path, allow_pickle=False))
+    data["stiffness"] = data["stiffness"].copy()
+    data["stiffness"][0, 0] *= 226.0
+    np.savez(path, **data)
+    key = str(data["key"])
+    assert modal_cache.load_modes(key) is None
+    flexible_bodies._MODES.clear()
+    second = flexible_bodies.modal_data(beam, "craig_bampton", 3, ["root", "tip"])
+    for name in ("positions", "masses", "phi_t", "phi_r", "mass", "stiffness", "frequencies"):
+        assert np.array_equal(getattr(first, name), getattr(second, name)), name
+    assert np.array_equal(modal_cache.load_modes(key).stiffness, first.stiffness)

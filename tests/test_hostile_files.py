@@ -22,8 +22,11 @@ import scipy.sparse as sp
 from conftest import private_cache
 
 from casmbd import cli
+from casmbd.compiled import modal_cache
 from casmbd.errors import ResultFileError
 from casmbd.io.scene import load_scene
+from casmbd.model import modal_reduction
+from casmbd.model.fe_beam import beam_model
 from casmbd.model.fe_import import save_fe_npz
 from casmbd.results import (
     STALE_TEMP_SECONDS,
@@ -128,6 +131,22 @@ def test_out_never_replaces_the_fe_model_the_scene_reads(tmp_path, capsys):
     assert code == 1
     line = one_error(err)
     assert f"--out '{tmp_path / 'bar.npz'}' is the FE model of body 'bar'" in line, line
+    assert snapshot(tmp_path) == before
+
+
+def test_animate_never_replaces_the_urdf_the_scene_reads(tmp_path, capsys):
+    """``animate arm.toml --out robot.png`` with ``urdf = "robot.png"``: before, the still frame
+    replaced the URDF (exit 0); now one error line names the URDF file, nothing is written."""
+    shutil.copy(URDF, tmp_path / "robot.png")
+    scene = tmp_path / "arm.toml"
+    scene.write_text('[scene]\nname = "arm"\ncoordinates = "joint"\nurdf = "robot.png"\n')
+    before = snapshot(tmp_path)
+    code, stdout, err = run(capsys, "animate", scene, "--t-end", "0.01", "--steps", "2",
+                            "--mode", "vm", "--out", tmp_path / "robot.png")
+    assert code == 1 and stdout == ""
+    line = one_error(err)
+    assert f"--out '{tmp_path / 'robot.png'}' is the URDF file" in line, line
+    assert "nothing written" in line
     assert snapshot(tmp_path) == before
 
 
@@ -255,6 +274,55 @@ def test_old_temporaries_of_another_host_are_removed_by_age(tmp_path):
     atomic_write(tmp_path / "r.csv", lambda tmp: pathlib.Path(tmp).write_text("t\n0\n"))
     assert not other.exists() and young.exists()
     assert (tmp_path / "r.csv").read_text() == "t\n0\n"
+
+
+def test_temporaries_of_older_versions_are_removed_by_age_only(tmp_path):
+    """Older versions named their temporaries ``.tmp_`` + 8 characters + the target's suffix
+    (``tempfile.mkstemp(prefix=".tmp_")``), with no host or process in the name: such a file
+    older than 24 h is removed by the next save; a young one, and every name that is not
+    exactly that pattern (6 characters, another suffix, a directory), are kept."""
+    old = time.time() - STALE_TEMP_SECONDS - 60
+    stale = [tmp_path / ".tmp_k3x9_a2b.npz", tmp_path / ".tmp_0abcdefg.csv",
+             tmp_path / ".tmp_zz_zz_zz"]
+    young = tmp_path / ".tmp_q1w2e3r4.npz"
+    kept = [tmp_path / ".tmp_abc123.npz", tmp_path / ".tmp_k3x9_a2b.toml",
+            tmp_path / ".tmp_K3X9_A2B.npz", tmp_path / ".tmp_k3x9_a2bc.npz",
+            tmp_path / "tmp_k3x9_a2b.npz"]
+    for path in (*stale, young, *kept):
+        path.write_bytes(b"partial")
+    folder = tmp_path / ".tmp_abcdefgh.npz"
+    folder.mkdir()
+    for path in (*stale, *kept, folder):
+        os.utime(path, (old, old))
+    atomic_write(tmp_path / "r.npz", lambda tmp: pathlib.Path(tmp).write_bytes(b"done"))
+    assert not any(p.exists() for p in stale)
+    assert young.exists() and folder.is_dir() and all(p.exists() for p in kept)
+
+
+def test_modal_cache_writes_are_atomic_and_swept(tmp_path, monkeypatch):
+    """The modal data files of the compiled cache are written by the same ``atomic_write``:
+    a save interrupted inside the write (Ctrl-C) leaves no file behind, and a save removes the
+    temporaries a killed writer left in the cache directory."""
+    cache = tmp_path / "modalcache"
+    cache.mkdir()
+    monkeypatch.setenv("CASMBD_CACHE_DIR", str(cache))
+    modal = modal_reduction.free_modes(beam_model(2.0, 4, EA=1e6, EI=50.0, rhoA=1.5), 2)
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    with monkeypatch.context() as mp:
+        mp.setattr(modal_cache.np, "savez", interrupted)
+        with pytest.raises(KeyboardInterrupt):
+            modal_cache.save_modes("c" * 64, modal)
+    assert list(cache.iterdir()) == []
+    killed, stale = start_save(cache / "modes_x.npz")
+    killed.send_signal(signal.SIGKILL)
+    killed.wait(timeout=60)
+    assert stale.exists()
+    modal_cache.save_modes("c" * 64, modal)
+    assert [p.name for p in cache.iterdir()] == [f"modes_{'c' * 32}.npz"]
+    np.testing.assert_array_equal(modal_cache.load_modes("c" * 64).stiffness, modal.stiffness)
 
 
 SLIDER_OCP = """

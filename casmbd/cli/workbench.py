@@ -12,7 +12,7 @@ from pathlib import Path
 from casmbd.analysis.sensitivity import sensitivity
 from casmbd.analysis.simulate import simulate
 from casmbd.analysis.sweep import parse_values, sweep
-from casmbd.cli.common import _check_out, _load
+from casmbd.cli.common import _check_not_input, _check_out, _load, scene_files
 from casmbd.errors import AnalysisError, ResultFileError
 from casmbd.io.scene import load_scene
 from casmbd.limits import MAX_FRAMES, check_count
@@ -79,6 +79,7 @@ def _cmd_animate(args) -> tuple[dict, str]:
         source = f"result {args.source}"
     else:
         mech = load_scene(args.source)
+        _check_not_input(args, scene_files(mech, args.source))  # its URDF, its FE files
         result = simulate(mech, t_end=args.t_end, steps=args.steps, mode=args.mode)
         result.attach_scene(mech)
         source = f"simulation of '{mech.name}'"

@@ -37,6 +37,7 @@ from collections.abc import Iterable, Iterator
 import casadi
 
 from casmbd import limits
+from casmbd.atomic import atomic_write
 from casmbd.errors import CasmbdError
 
 try:  # POSIX only; without it writers are not serialised (the checks still hold)
@@ -169,16 +170,13 @@ def record_path(library: pathlib.Path) -> pathlib.Path:
 
 
 def write_atomic(path: pathlib.Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file and :func:`os.replace`."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as handle:
+    """Write ``text`` to ``path`` through :func:`casmbd.atomic.atomic_write` (a temporary file
+    renamed into place; the stale temporaries of killed writers in the folder are removed)."""
+    def write(tmp: str) -> None:
+        with open(tmp, "w", encoding="utf-8") as handle:
             handle.write(text)
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
+
+    atomic_write(path, write)
 
 
 def write_record(library: pathlib.Path, built: pathlib.Path, record: dict) -> None:

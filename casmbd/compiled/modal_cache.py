@@ -4,10 +4,13 @@ The eigenproblem of a flexible body (:mod:`casmbd.model.modal_reduction`) depend
 finite-element data, the reduction, the number of modes and the interfaces; its result is kept
 beside the compiled libraries as ``modes_<key>.npz`` in :func:`casmbd.compiled.cache.cache_dir`,
 ``key`` the SHA-256 of those inputs (:func:`casmbd.model.modal.cache_key`).  A file is written
-atomically (a temporary file renamed into place), read with ``allow_pickle=False`` (data, never
-objects) and used only when it holds the same key, the expected fields with consistent shapes
-and finite numbers; anything else is a miss (the modes are computed again and the file
-replaced).  The model layer cannot import this one: it calls the store through the hook
+by :func:`casmbd.atomic.atomic_write` (a temporary file renamed into place; the temporaries of
+killed writers are swept), read with ``allow_pickle=False`` (data, never objects) and used only
+when it holds the same key, a content hash (``digest``: SHA-256 of every other member's name,
+dtype, shape and bytes) equal to that of what was read — one changed number and the file is
+not used, never half-trusted —, the expected fields with consistent shapes and finite numbers;
+anything else is a miss (the modes are computed again and the file replaced).  The model
+layer cannot import this one: it calls the store through the hook
 :func:`casmbd.model.flexible_bodies.register_modal_store`, set when this module is imported
 (by :mod:`casmbd.compiled`).
 """
@@ -15,12 +18,12 @@ replaced).  The model layer cannot import this one: it calls the store through t
 from __future__ import annotations
 
 import contextlib
-import os
-import tempfile
+import hashlib
 import zipfile
 
 import numpy as np
 
+from casmbd.atomic import atomic_write
 from casmbd.compiled.cache import cache_dir
 from casmbd.errors import CasmbdError
 from casmbd.limits import check_npz
@@ -37,6 +40,17 @@ def _path(key: str):
     return cache_dir() / f"modes_{key[:32]}.npz"
 
 
+def _digest(members) -> str:
+    """SHA-256 of every member but ``digest`` (names, dtypes, shapes and bytes, in name order):
+    the content hash that makes a file trusted as a whole, never field by field."""
+    digest = hashlib.sha256()
+    for name in sorted(set(members) - {"digest"}):
+        arr = np.ascontiguousarray(members[name])
+        digest.update(f"{name}\x00{arr.dtype.str}\x00{arr.shape}\x00".encode())
+        digest.update(arr.tobytes())
+    return digest.hexdigest()
+
+
 def save_modes(key: str, modal: ModalData) -> None:
     """Write ``modal`` under ``key`` atomically (an unwritable cache is silently skipped:
     the modes are recomputed next time)."""
@@ -48,16 +62,14 @@ def save_modes(key: str, modal: ModalData) -> None:
                 reduction=np.array(modal.reduction),
                 reference=np.array(-1 if modal.reference is None else modal.reference),
                 source=np.array(modal.source), modal_key=np.array(modal.key))
+    data["digest"] = np.array(_digest(data))
+
+    def write(tmp: str) -> None:
+        with open(tmp, "wb") as handle:
+            np.savez(handle, **data)
+
     with contextlib.suppress(OSError):
-        path = _path(key)
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".modes-", suffix=".npz")
-        try:
-            with os.fdopen(fd, "wb") as handle:
-                np.savez(handle, **data)
-            os.replace(tmp, path)
-        finally:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
+        atomic_write(_path(key), write)
 
 
 def load_modes(key: str) -> ModalData | None:
@@ -70,8 +82,9 @@ def load_modes(key: str) -> ModalData | None:
         with zipfile.ZipFile(path) as zf:  # headers within the budget before any array
             check_npz(zf, f"modal cache file '{path}'")
         with np.load(path, allow_pickle=False) as z:
-            if str(z["key"]) != key:
-                return None
+            if str(z["key"]) != key or str(z["digest"]) != _digest(
+                    {name: z[name] for name in z.files}):
+                return None  # another key, or a field changed since it was written
             arrays = {name: np.array(z[name], float) for name in _ARRAYS}
             dim = int(z["dimension"])
             names = [str(n) for n in z["node_names"]]

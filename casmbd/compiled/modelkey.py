@@ -23,6 +23,12 @@ symbolic exists:
   and the metadata the numeric model needs without a :class:`~casmbd.system.System` (sizes,
   names, labels, initial state — whatever :class:`~casmbd.compiled.model.NumericModel` and the
   simulator read);
+* every record carries a content hash ``digest`` (:func:`record_digest`: SHA-256 of its
+  canonical JSON without that field, which includes each library's SHA-256); a record whose
+  fields do not give its digest — one tampered number of the metadata — is not used at all,
+  never half-trusted: a :class:`RuntimeWarning` and a rebuild, as for any damaged entry.  (A
+  hash, not a signature: it detects damage and edits, not someone who rewrites the digest too;
+  the cache directory is the user's own);
 * :func:`load` reads it back and opens each library only after the checks of
   :func:`casmbd.compiled.cache.check_entry` (record, build key, size, SHA-256, signatures
   equal to those of the model record) and, after loading, of the loaded signatures; any
@@ -51,8 +57,9 @@ from casmbd.model.values import Samples
 __all__ = ["MODEL_RECORD_FORMAT", "UnkeyableError", "canonical", "load", "model_key",
            "record_path", "source_digest", "store"]
 
-#: version of the model record; a record of another version is a miss
-MODEL_RECORD_FORMAT = 1
+#: version of the model record; a record of another version is a miss (2: content hash
+#: ``digest`` and each library's SHA-256)
+MODEL_RECORD_FORMAT = 2
 MODEL_SUFFIX = ".model.json"
 #: attributes of a mechanism that do not change what is built (the scene's text and parsed
 #: tables, whose analysis settings — t_end, steps, tolerances — are the caller's, and a
@@ -145,6 +152,15 @@ def record_path(name: str, key: str) -> pathlib.Path:
     return cache.cache_dir() / f"{name}_{key[:16]}{MODEL_SUFFIX}"
 
 
+def record_digest(record: Mapping) -> str:
+    """The content hash of a model record: SHA-256 of its canonical JSON (sorted keys, no
+    spaces) without the ``digest`` field itself.  It covers the metadata and each library's
+    build key, signatures and SHA-256, so that no field can change unseen."""
+    body = {k: v for k, v in record.items() if k != "digest"}
+    text = json.dumps(body, sort_keys=True, separators=(",", ":"), allow_nan=True)
+    return hashlib.sha256(text.encode()).hexdigest()
+
+
 def store(name: str, key: str, report: BuildReport, meta: dict) -> None:
     """Write the model record of ``key``: the libraries of ``report`` (their build keys and
     signatures, read from their own records) and ``meta`` (JSON-ready)."""
@@ -154,9 +170,10 @@ def store(name: str, key: str, report: BuildReport, meta: dict) -> None:
     for library in report.libraries:
         record = cache.read_record(pathlib.Path(library))
         libraries.append({"file": pathlib.Path(library).name, "key": record["key"],
-                          "functions": record["functions"]})
-    text = json.dumps({"format": MODEL_RECORD_FORMAT, "key": key, "libraries": libraries,
-                       "meta": meta}, sort_keys=True)
+                          "functions": record["functions"], "sha256": record["sha256"]})
+    content = {"format": MODEL_RECORD_FORMAT, "key": key, "libraries": libraries, "meta": meta}
+    content = json.loads(json.dumps(content))  # the digest of what a reader will parse
+    text = json.dumps({**content, "digest": record_digest(content)}, sort_keys=True)
     path = record_path(name, key)
     try:
         with cache.entry_lock(path.parent):
@@ -178,6 +195,8 @@ def _read(path: pathlib.Path, key: str) -> tuple[dict | None, str | None]:
     if record.get("key") != key or not isinstance(record.get("libraries"), list) \
             or not record["libraries"] or not isinstance(record.get("meta"), dict):
         return None, "it is for another model or incomplete"
+    if record.get("digest") != record_digest(record):
+        return None, "its content hash differs from its fields: the record was changed"
     return record, None
 
 
@@ -194,12 +213,15 @@ def load(name: str, key: str, stacklevel: int = 2
         try:
             library = path.parent / str(entry["file"])
             lib_key, expected = str(entry["key"]), dict(entry["functions"])
+            lib_sha = str(entry["sha256"])
         except (KeyError, TypeError, ValueError):
             reason = "a library entry is malformed"
             break
         # record, key, size, SHA-256 and signatures BEFORE dlopen (see cache.check_entry)
         reason = cache.check_entry(library, lib_key, expected) if library.exists() else \
             f"its library {library.name} is missing"
+        if reason is None and cache.read_record(library).get("sha256") != lib_sha:
+            reason = "its SHA-256 differs from the model record's (another build's library)"
         if reason is None:
             loaded, reason = codegen._load_verified(list(expected), library, expected)
         if reason is not None:
