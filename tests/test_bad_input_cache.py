@@ -18,6 +18,7 @@ later is the rebuilt file (a process that has a library open keeps using its cop
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import pathlib
@@ -32,7 +33,8 @@ import numpy as np
 import pytest
 from conftest import private_cache
 
-from casmbd.analysis.simulate import Simulator
+from casmbd import cli
+from casmbd.analysis.simulate import Simulator, simulate
 from casmbd.compiled import cache, codegen, modal_cache, modelkey
 from casmbd.errors import CompileError
 from casmbd.io.scene import load_scene
@@ -449,3 +451,51 @@ def test_a_tampered_modal_file_is_recomputed_not_used(_env):
     for name in ("positions", "masses", "phi_t", "phi_r", "mass", "stiffness", "frequencies"):
         assert np.array_equal(getattr(first, name), getattr(second, name)), name
     assert np.array_equal(modal_cache.load_modes(key).stiffness, first.stiffness)
+
+
+# ----------------------------------------------------------------- a full file system
+def full_disk(monkeypatch, directory: pathlib.Path) -> None:
+    """Every text write below ``directory`` fails with ENOSPC (a 300 KiB file system that the
+    probe file of ``cache_dir`` still fits on: an empty file needs no block)."""
+    write_text = pathlib.Path.write_text
+
+    def full(self, *args, **kwargs):
+        if pathlib.Path(self).resolve().is_relative_to(directory.resolve()):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(self))
+        return write_text(self, *args, **kwargs)
+
+    monkeypatch.setattr(pathlib.Path, "write_text", full)
+
+
+def test_a_full_cache_file_system_falls_back_to_the_vm(_env, monkeypatch):
+    """ENOSPC while writing the C sources into the cache ("internal error (OSError): [Errno 28]"
+    before): mode "auto" runs on the CasADi virtual machine with one warning naming the
+    directory and the cause, numbers equal to the VM's to 1e-12; mode "compiled" is a
+    CompileError naming them; nothing is left in the cache directory."""
+    full_disk(monkeypatch, _env)
+    funs, rep, messages = build_here(mode="auto")
+    assert rep.mode == "vm" and len(messages) == 1, messages
+    assert "using the CasADi virtual machine instead" in messages[0]
+    assert f"cannot write in the cache directory {_env}: No space left on device" in messages[0]
+    np.testing.assert_allclose(values(funs), vm_values(0), rtol=0, atol=1e-12)
+    with pytest.raises(CompileError, match="No space left on device"):
+        codegen.compile_functions(tiny_functions(0), NAME, mode="compiled")
+    assert sorted(p.name for p in _env.iterdir()) == []
+
+
+def test_a_full_cache_file_system_cli(_env, monkeypatch, capsys):
+    """``casmbd simulate`` with the cache on a full file system: exit 0, one warning line, the
+    result equal to the VM run's to 1e-12."""
+    full_disk(monkeypatch, _env)
+    with warnings.catch_warnings(record=True) as caught:  # the CLI prints each as one line
+        warnings.simplefilter("always")
+        code = cli.main(["simulate", str(SCENE), "--t-end", "0.5", "--steps", "5", "--json"])
+    captured = capsys.readouterr()
+    assert code == 0 and "Traceback" not in captured.err and "error" not in captured.err
+    messages = [str(w.message) for w in caught]
+    assert len(messages) == 1 and "Errno" not in messages[0], messages
+    assert "No space left on device" in messages[0] and "virtual machine" in messages[0]
+    out = json.loads(captured.out)
+    vm = simulate(load_scene(SCENE), t_end=0.5, steps=5, mode="vm")
+    np.testing.assert_allclose(np.array(out["bodies"]["block"]["position"]),
+                               vm.body("block")["position"], rtol=0, atol=1e-12)

@@ -5,8 +5,13 @@
 - a fixed-step run of a conservative mechanism whose total energy drifts by more than half
   the largest kinetic energy so far stops (flag ``ENERGY_GROWTH``), naming the energies; any
   fixed-step run whose state norm blows up stops (flag ``STATE_GROWTH``);
+- an adaptive run of a conservative mechanism whose energy blows up under a loose tolerance
+  (``--rtol 0.1`` on a stiff spring: 5000 J -> 4e31 J, exit 0 before) stops (flag
+  ``ENERGY_GROWTH``), naming the energies and the tolerance;
 - FE models are checked before every reduction: M positive definite (Cholesky, or the
-  inertia of a sparse LU above DENSE_LIMIT dofs), nodes distinct;
+  inertia of a sparse LU above DENSE_LIMIT dofs), nodes distinct, units plausible (finite,
+  total mass, K_ii/M_ii); a built-in beam's length and properties within plausible ranges;
+  more modes than the model can give apart are refused naming the field ``modes``;
 - names that shadow time or the measure and node syntax (``time``, ``rod@tip``, ``J.angle``)
   and markers named like a body are refused where they are declared, naming the element;
   names casmbd makes itself (``"<joint>.limit"``, ``"<contact>.force"``,
@@ -262,6 +267,54 @@ def test_energy_growth_cli(tmp_path, capsys):
     assert "fixed-step abm" in err[0] and "total energy" in err[0]
 
 
+def test_rk4_step_cli_one_error_line(tmp_path, capsys):
+    """``--integrator rk4 --step 0.01`` on the 1e9 N/m spring (exit 0 with 8e7 -> 1.4e15 J
+    in the issue): exit 1, one error line naming the method, step and energies."""
+    scene = tmp_path / "stiff.toml"
+    scene.write_text(spring(1e9))
+    code = main(["simulate", str(scene), "--t-end", "0.05", "--steps", "5", "--integrator",
+                 "rk4", "--step", "0.01", "--mode", "vm", "--json"])
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert code == 1 and captured.out == "" and "Traceback" not in captured.err
+    assert len(err) == 1 and err[0].startswith("error: "), err
+    assert "fixed-step rk4 (h = 0.01)" in err[0] and "from 5e+06 J at t = 0" in err[0]
+
+
+def test_loose_rtol_on_a_stiff_spring_stops_naming_the_energy():
+    """k = 1e6 N/m, m = 1 kg (ω = 1000 rad/s), DOPRI5 at rtol 0.1, max_steps 200: the error
+    control lets the oscillation grow (x reached 7e12 m at t = 1 s, E 5000 J -> 4e31 J, exit
+    0 before).  Now the run stops at the first output whose energy drift exceeds 1000 × the
+    initial 5000 J and half the largest kinetic energy (flag ENERGY_GROWTH)."""
+    with pytest.raises(IntegratorError) as info:
+        simulate(loads_scene(spring(1e6)), t_end=1.0, steps=10, rtol=0.1, max_steps=200,
+                 mode="vm")
+    exc = info.value
+    assert exc.flag == "ENERGY_GROWTH" and "rtol = 0.1" in str(exc)
+    assert "from 5000 J at t = 0" in str(exc) and "tighten --rtol" in str(exc)
+    energy = exc.partial["kinetic_energy"] + exc.partial["potential_energy"]
+    assert np.all(np.abs(energy - 5000.0) < 5000.0 * 1e3)   # the kept part is below the bound
+    # a loose tolerance on a soft spring is no blow-up: runs, E = 0.5 J kept within 1e-3 J
+    # (measured 5.8e-5 J at t = 5 s)
+    soft = simulate(loads_scene(spring(100.0)), t_end=5.0, steps=50, rtol=0.1, mode="vm")
+    assert np.max(np.abs(soft["kinetic_energy"] + soft["potential_energy"] - 0.5)) < 1e-3
+
+
+@pytest.mark.parametrize("k", [1e6, 1e9])
+def test_loose_rtol_on_a_stiff_spring_cli(tmp_path, capsys, k):
+    """The issue's command, ``--rtol 0.1 --max-steps 200`` on a stiff spring: exit 1 with one
+    error line (the energy blow-up at 1e6 N/m, too much work at 1e9 N/m), never exit 0."""
+    scene = tmp_path / "stiff.toml"
+    scene.write_text(spring(k))
+    code = main(["simulate", str(scene), "--t-end", "1", "--steps", "10", "--rtol", "0.1",
+                 "--max-steps", "200", "--mode", "vm", "--json"])
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert code == 1 and captured.out == "" and "Traceback" not in captured.err
+    assert len(err) == 1 and err[0].startswith("error: "), err
+    assert ("total energy" if k == 1e6 else "TOO_MUCH_WORK") in err[0], err[0]
+
+
 @pytest.mark.parametrize("integrator", ["rk4", "abm"])
 def test_sound_fixed_step_run_passes_the_energy_check(integrator):
     """k = 1e4 N/m at h = 1e-3 s (h ω = 0.1): runs, and matches x = 1 + 0.1 cos(100 t)
@@ -387,6 +440,118 @@ def test_indefinite_fe_mass_matrix_cli(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 1 and len(err) == 1 and err[0].startswith("error: "), err
     assert "beam" in err[0] and "mass matrix is not positive definite" in err[0]
+
+
+# ------------------------------------------------------------- implausible units and counts
+TRUSS_NODES = np.array([[0, 0], [1, 0], [2, 0], [0, 1], [1, 1], [2, 1]], float)
+
+
+def truss(tmp_path, mass_scale: float = 1.0, stiffness_scale: float = 1.0) -> pathlib.Path:
+    """A plane truss (two square bays with diagonals, EA = 1e6 N, 2 kg/m, 6 nodes) saved as
+    ``truss.npz`` with M and K scaled."""
+    K, M = np.zeros((12, 12)), np.zeros((12, 12))
+    for a, b in [(0, 1), (1, 2), (3, 4), (4, 5), (0, 3), (1, 4), (2, 5), (0, 4), (1, 5)]:
+        d = TRUSS_NODES[b] - TRUSS_NODES[a]
+        h = np.linalg.norm(d)
+        c = np.r_[-d, d] / h
+        idx = [2 * a, 2 * a + 1, 2 * b, 2 * b + 1]
+        K[np.ix_(idx, idx)] += 1e6 / h * np.outer(c, c)
+        M[np.ix_(idx, idx)] += 2.0 * h / 6 * np.kron([[2.0, 1.0], [1.0, 2.0]], np.eye(2))
+    path = tmp_path / "truss.npz"
+    save_fe_npz(path, M * mass_scale, K * stiffness_scale, TRUSS_NODES, 2,
+                node_names={"left": 0, "right": 5})
+    return path
+
+
+def truss_scene(tmp_path, **scales) -> pathlib.Path:
+    truss(tmp_path, **scales)
+    scene = tmp_path / "flex.toml"
+    scene.write_text(HEAD + '\n[[bodies]]\nname = "bar"\ntype = "flexible"\n'
+                     'position = [0.0, 0.0]\nmodes = 2\ninterfaces = ["left", "right"]\n'
+                     '[bodies.fe]\nfile = "truss.npz"\n')
+    return scene
+
+
+def cli_file_refuses(capsys, scene: pathlib.Path, *fragments: str) -> str:
+    """``casmbd simulate`` on ``scene``: exit 1, one error line naming every fragment, no
+    traceback, no file written beside the scene."""
+    before = sorted(p.name for p in scene.parent.iterdir())
+    code = main(["simulate", str(scene), "--t-end", "0.01", "--steps", "2", "--mode", "vm",
+                 "--out", str(scene.parent / "run.npz")])
+    captured = capsys.readouterr()
+    err = captured.err.strip().splitlines()
+    assert code == 1 and "Traceback" not in captured.err, captured.err
+    assert len(err) == 1 and err[0].startswith("error: "), err
+    for fragment in fragments:
+        assert fragment in err[0], f"{fragment!r} not in {err[0]!r}"
+    assert sorted(p.name for p in scene.parent.iterdir()) == before
+    return err[0]
+
+
+def test_fe_model_of_implausible_units_refused(tmp_path, capsys):
+    """K × 1e300 ("internal error (IndexError)" in the issue; a CVODES failure at t = 0 on
+    main) and M × 1e-300 (ran, with 2e-299 kg): the FE file and the matrix are named."""
+    sound = truss_scene(tmp_path)
+    assert main(["info", str(sound)]) == 0
+    capsys.readouterr()
+    cli_file_refuses(capsys, truss_scene(tmp_path, stiffness_scale=1e300), "key 'fe'",
+                     "truss.npz", "body 'bar'", "stiffness matrix K", "plausible 1e+15 rad/s")
+    cli_file_refuses(capsys, truss_scene(tmp_path, mass_scale=1e-300), "key 'fe'",
+                     "truss.npz", "total mass of", "kg, outside the plausible range")
+    fe = load_fe_npz(truss(tmp_path, stiffness_scale=1e300))
+    with pytest.raises(ModelError, match="stiffness matrix K over the mass matrix M"):
+        modal_reduction.check_fe_model(fe)   # every reduction runs it
+    # the sound truss's highest K_ii/M_ii: ω ≈ 1.7e3 rad/s, twelve decades inside the range
+    fe = load_fe_npz(truss(tmp_path))
+    ratio = fe.stiffness_matrix.diagonal() / fe.mass_matrix.diagonal()
+    assert 1e5 < ratio.max() < 1e8
+
+
+def beam_scene(length="10.0", EI="1.4e4", elements=10, modes=4) -> str:
+    return (HEAD + '\n[[bodies]]\nname = "beam"\ntype = "flexible"\nposition = [0.0, 0.0]\n'
+            f'modes = {modes}\nreduction = "craig_bampton"\ninterfaces = ["root"]\n'
+            f'[bodies.beam]\nlength = {length}\nelements = {elements}\nEI = {EI}\n'
+            f'EA = 2.8e7\nrhoA = 1.2\nnodes = {{ root = 0.0, tip = {length} }}\n')
+
+
+@pytest.mark.parametrize("field, text, shown", [
+    ("length", beam_scene(length="1e-300"), "field 'length' = 1e-300 m is outside the "
+                                            "plausible range [1e-09, 1e+06] m"),
+    ("EI", beam_scene(EI="1e308"), "field 'EI' = 1e+308 N·m² is outside the plausible "
+                                   "range [1e-30, 1e+20] N·m²")])
+def test_beam_of_implausible_length_or_stiffness_refused(tmp_path, capsys, field, text, shown):
+    """Length 1e-300 m or EI 1e308 ("is the mass matrix positive definite?" before): the
+    body, the field and the range are named."""
+    refused(text, "beam 'beam'", shown)
+    scene = tmp_path / "beam.toml"
+    scene.write_text(text)
+    cli_file_refuses(capsys, scene, "('beam') key 'beam'", shown)
+
+
+def test_beam_element_frequency_beyond_the_plausible_refused():
+    """Each property in range, the combination not: 1e4 elements of 1e-5 m with EI = 1e20 and
+    rhoA = 1e-20 give 8400 EI/(rhoA h⁴) = 8.4e63 rad²/s², ω ≈ 1e32 rad/s."""
+    with pytest.raises(ModelError, match=r"field 'EI' = 1e\+20 with rhoA = 1e-20 .* ω ≈ 1e32"):
+        beam_model(0.1, 10_000, EA=1e-20, rhoA=1e-20, EI=1e20)
+    beam_model(10.0, 10, EA=2.8e7, rhoA=1.2, EI=1.4e4)  # the spin-up beam passes
+
+
+def test_more_modes_than_the_beam_can_give_refused_naming_modes(tmp_path, capsys):
+    """500 Craig–Bampton modes of a 200-element beam ("zero-energy modes … (a mechanism)"
+    before): the fixed-interface eigenvalues span 14.4 to 1.4e12, the lowest then fall under
+    the zero-energy threshold; the message names the field ``modes`` and a count that works.
+    700 modes exceed the 600 interior dofs."""
+    message = refused(beam_scene(elements=200, modes=500), "key 'modes'", "500 fixed-interface "
+                      "modes asked for, more than the model can give apart", "use at most")
+    usable = int(message.rsplit("use at most ", 1)[1].split()[0])
+    assert 100 < usable < 500
+    mech = loads_scene(beam_scene(elements=200, modes=usable))   # the advice holds
+    assert mech.bodies["beam"].n_modes == usable
+    refused(beam_scene(elements=200, modes=700), "key 'modes'",
+            "700 modes asked for but the problem has only 600 dofs")
+    scene = tmp_path / "beam.toml"
+    scene.write_text(beam_scene(elements=200, modes=500))
+    cli_file_refuses(capsys, scene, "key 'modes'", "use at most")
 
 
 def test_non_finite_output_with_events_is_named():

@@ -31,7 +31,7 @@ from casmbd.analysis.checks import (
 )
 from casmbd.analysis.events import MAX_EVENTS, compliant_events, has_events, simulate_events
 from casmbd.analysis.independent import find_redundant
-from casmbd.analysis.invariants import check_energy
+from casmbd.analysis.invariants import check_energy, check_energy_blowup
 from casmbd.analysis.kkt import consistent_state
 from casmbd.analysis.postprocess import PostProcessing, truncated
 from casmbd.analysis.stepping import Stepping
@@ -368,6 +368,12 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
                     if len(np.ravel(model.p)) == len(mech.parameters) else None
                 check_energy(result, mech, f"fixed-step {name} (h = "
                              f"{stats.get('step_size', step):.3g})", truncated, params)
+            else:  # error control, but a loose tolerance may still let the energy explode
+                mech = model.mechanism
+                params = dict(zip(mech.parameters, np.ravel(model.p), strict=False)) \
+                    if len(np.ravel(model.p)) == len(mech.parameters) else None
+                check_energy_blowup(result, mech, f"{name} (rtol = {rtol:g})", truncated,
+                                    params)
         self._check_violation(result)  # beyond the tolerance: stops naming the culprit
         if failure is not None:
             t_fail = float(solver_stats.get("failure_time", grid[n_ok - 1]))

@@ -358,20 +358,24 @@ def _build(
     record = {"key": key, "functions": expected}
     # the translation units and objects beside the library: an interrupted build leaves
     # nothing behind, and the compiler's files are where the cache is
-    with tempfile.TemporaryDirectory(dir=library.parent, prefix=f".{library.stem}.units.") \
-            as tmpdir:
-        paths = [pathlib.Path(tmpdir) / f"{stem}_u{i}.c" for i in range(len(plan))]
-        for path, text in zip(paths, sources, strict=True):
-            path.write_text(text, encoding="utf-8")
-        if len(plan) == 1:
-            compile_seconds = _run_compiler([*compiler, *plan[0][2], *SHARED_FLAGS], paths[0],
-                                            library, record)
-        else:  # objects on every core, then one link
-            commands, objects = units.object_commands(compiler, plan, paths)
-            compile_seconds = units.compile_objects(
-                commands, [o.with_suffix(".log") for o in objects], COMPILE_TIMEOUT)
-            compile_seconds += _run_compiler([*compiler, *SHARED_FLAGS], objects, library,
-                                             record)
+    try:
+        with tempfile.TemporaryDirectory(dir=library.parent,
+                                         prefix=f".{library.stem}.units.") as tmpdir:
+            paths = [pathlib.Path(tmpdir) / f"{stem}_u{i}.c" for i in range(len(plan))]
+            for path, text in zip(paths, sources, strict=True):
+                path.write_text(text, encoding="utf-8")
+            if len(plan) == 1:
+                compile_seconds = _run_compiler([*compiler, *plan[0][2], *SHARED_FLAGS],
+                                                paths[0], library, record)
+            else:  # objects on every core, then one link
+                commands, objects = units.object_commands(compiler, plan, paths)
+                compile_seconds = units.compile_objects(
+                    commands, [o.with_suffix(".log") for o in objects], COMPILE_TIMEOUT)
+                compile_seconds += _run_compiler([*compiler, *SHARED_FLAGS], objects, library,
+                                                 record)
+    except OSError as exc:  # a full disk (ENOSPC), a quota: as a failed compile ("auto": VM)
+        raise CompileError(f"cannot write in the cache directory {library.parent}: "
+                           f"{exc.strerror or exc}") from exc
     with contextlib.suppress(OSError):
         cache.write_atomic(kept_source, "\n".join(sources))
 

@@ -169,6 +169,56 @@ def _named_nodes(nodes: Mapping[str, float] | None, x: np.ndarray, length: float
     return out
 
 
+#: Plausible ranges of a beam's properties, SI units (low, high, unit).  Outside them the
+#: element matrices overflow or underflow (EI·12/h³ with h = 1e-301 m is infinite) or give
+#: frequencies no integrator can step: almost always a unit or exponent error (mm for m, MPa
+#: for Pa, 1e308 for 1e8).  Wide on purpose: a MEMS cantilever (EI ~ 1e-14 N·m², L ~ 1e-6 m)
+#: and a bridge girder (EI ~ 1e12 N·m², L ~ 1e3 m) are well inside.
+PLAUSIBLE_BEAM = {"length": (1e-9, 1e6, "m"), "element_lengths": (1e-12, 1e6, "m"),
+                  "EA": (1e-30, 1e20, "N"), "EI": (1e-30, 1e20, "N·m²"),
+                  "EIy": (1e-30, 1e20, "N·m²"), "EIz": (1e-30, 1e20, "N·m²"),
+                  "GJ": (1e-30, 1e20, "N·m²"), "rhoA": (1e-20, 1e10, "kg/m"),
+                  "rhoIp": (1e-30, 1e10, "kg·m")}
+#: Highest plausible angular frequency of an element [rad/s] (ω² ≤ 1e30): a femtosecond
+#: period, beyond any structure and any time step.
+PLAUSIBLE_OMEGA = 1e15
+
+
+def _check_plausible(src: str, field: str, values: np.ndarray) -> None:
+    """Refuse a property outside :data:`PLAUSIBLE_BEAM`, naming the field and the range."""
+    low, high, unit = PLAUSIBLE_BEAM[field]
+    bad = np.flatnonzero((values < low) | (values > high))
+    if bad.size:
+        at = "" if field == "length" or np.all(values == values[0]) else \
+            f" (element {int(bad[0])})"
+        raise ModelError(f"{src}: field '{field}' = {float(values[bad[0]]):.6g} {unit}{at} is "
+                         f"outside the plausible range [{low:g}, {high:g}] {unit}: check its "
+                         "unit and exponent")
+
+
+def _check_frequencies(src: str, le: np.ndarray, rho: np.ndarray,
+                       stiff: dict[str, np.ndarray]) -> None:
+    """Refuse elements whose highest frequency exceeds :data:`PLAUSIBLE_OMEGA`.
+
+    Per element of length h: axial and torsional ω² = 12 S/(ρ h²) (S = EA with ρ = rhoA, GJ
+    with ρ = rhoIp), bending ω² = 8400 EI/(ρA h⁴) — the largest eigenvalues of the free
+    consistent rod and Hermite-cubic element pairs (K, M) of :func:`planar_element_matrices`
+    (the rod: mode [1, −1], λ = (2 EA/h)/(ρA h/6)) — in logarithms so that nothing
+    overflows.
+    """
+    for field, (values, rho_e, power, factor) in stiff.items():
+        log_w2 = np.log10(factor * values) - np.log10(rho_e) - power * np.log10(le)
+        worst = int(np.argmax(log_w2))
+        if log_w2[worst] > 2 * np.log10(PLAUSIBLE_OMEGA):
+            density = "rhoIp" if field == "GJ" else "rhoA"
+            raise ModelError(
+                f"{src}: field '{field}' = {float(values[worst]):.6g} with {density} = "
+                f"{float(rho_e[worst]):.6g} and element length {float(le[worst]):.6g} m gives "
+                f"frequencies up to ω ≈ 1e{log_w2[worst] / 2:.0f} rad/s, beyond the plausible "
+                f"{PLAUSIBLE_OMEGA:g} rad/s: check the units of the stiffness, the mass per "
+                "length and the length")
+
+
 def beam_model(length: float, elements: int, *, EA, rhoA, EI=None, EIy=None, EIz=None,
                GJ=None, rhoIp=None, dimension: int = 2,
                nodes: Mapping[str, float] | None = None, element_lengths=None,
@@ -231,6 +281,8 @@ def beam_model(length: float, elements: int, *, EA, rhoA, EI=None, EIy=None, EIz
         le = _per_element("element_lengths", element_lengths, n, src)
         if abs(le.sum() - L) > 1e-9 * L:
             raise ModelError(f"{src}: element_lengths sum to {le.sum():g}, not the length {L:g}")
+    _check_plausible(src, "length", np.array([L]))
+    _check_plausible(src, "element_lengths", le)
     x = np.concatenate([[0.0], np.cumsum(le)])
     x[-1] = L
     ea = _per_element("EA", EA, n, src)
@@ -248,6 +300,18 @@ def beam_model(length: float, elements: int, *, EA, rhoA, EI=None, EIy=None, EIz
         gj = _per_element("GJ", GJ, n, src)
         rip = _per_element("rhoIp", rhoIp, n, src)
         d = 6
+    props = {"EA": ea, "rhoA": rho}
+    if dimension == 2:
+        props["EI"] = ei
+    else:
+        props.update(EIy=eiy, EIz=eiz, GJ=gj, rhoIp=rip)
+    for field, values in props.items():
+        _check_plausible(src, field, values)
+    stiff = {"EA": (ea, rho, 2, 12.0)}
+    stiff.update({k: (props[k], rho, 4, 8400.0) for k in ("EI", "EIy", "EIz") if k in props})
+    if dimension == 3:
+        stiff["GJ"] = (gj, rip, 2, 12.0)
+    _check_frequencies(src, le, rho, stiff)
     names = _named_nodes(nodes, x, L, src)
     rows, cols, kv, mv = [], [], [], []
     masses = np.zeros(n + 1)
@@ -287,11 +351,6 @@ def beam_model(length: float, elements: int, *, EA, rhoA, EI=None, EIy=None, EIz
         M = sp.csr_matrix((np.concatenate(mv), (rows_a, cols_a)), shape=(ndof, ndof))
     else:
         M = sp.diags(diag).tocsr()
-    props = {"EA": ea, "rhoA": rho}
-    if dimension == 2:
-        props["EI"] = ei
-    else:
-        props.update(EIy=eiy, EIz=eiz, GJ=gj, rhoIp=rip)
     inputs = {"kind": "beam", "dimension": dimension, "element_lengths": le, "mass": mass,
               "nodes": dict(names), **props}
     return FEModel(mass_matrix=M, stiffness_matrix=K, positions=positions, dofs_per_node=d,

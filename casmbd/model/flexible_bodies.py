@@ -55,7 +55,7 @@ from casmbd.model.bodies import rotation, scalar, unit_quaternion, vector
 from casmbd.model.fe_beam import beam_model
 from casmbd.model.fe_import import load_fe_npz
 from casmbd.model.modal import FEModel, ModalData, cache_key
-from casmbd.model.modal_reduction import _model_key, reduce
+from casmbd.model.modal_reduction import ModesError, _model_key, check_units, reduce
 from casmbd.model.registry import register_body
 from casmbd.model.rotations import euler_zxz_to_quaternion, rotation_matrix
 
@@ -99,6 +99,7 @@ def modal_data(model: FEModel, reduction: str, modes: int,
     computed once for the same FE data, reduction, modes and interfaces: kept for the process
     and, when the compiled layer is loaded, on disk beside the compiled code
     (:mod:`casmbd.compiled.modal_cache`)."""
+    check_units(model)  # cheap; also on a hit (a file cached by an older version)
     key = cache_key(_model_key(model), reduction, int(modes), list(interfaces))
     if key not in _MODES:
         stored = _STORE[0](key) if _STORE is not None else None
@@ -245,8 +246,10 @@ def _modal_from_scene(e, dim: int) -> tuple[ModalData, dict]:
         raise e.error("interfaces", f"expected a list of node names, got {interfaces!r}")
     try:
         modal = modal_data(model, reduction, modes, interfaces)
+    except ModesError as exc:
+        raise e.error("modes", str(exc)) from None
     except ModelError as exc:
-        raise e.error("reduction", str(exc)) from None
+        raise e.error("fe" if e.has("fe") else "reduction", str(exc)) from None
     ratio = e.data.get("damping_ratio", 0.0)
     ratio = [_evaluate(e, x, "damping_ratio", "damping_ratio") for x in ratio] \
         if isinstance(ratio, list) else e.number("damping_ratio", 0.0)

@@ -59,6 +59,16 @@ __all__ = ["DENSE_LIMIT", "check_fe_model", "craig_bampton", "free_modes", "redu
 
 #: Largest eigenproblem (dofs) solved densely; above it shift-invert Lanczos.
 DENSE_LIMIT = 1500
+#: Plausible total mass of an FE model [kg] (a MEMS part ~ 1e-12 kg, a ship ~ 1e8 kg): outside
+#: it the mass matrix is in the wrong unit (or scaled by a typo of the exponent).
+PLAUSIBLE_MASS = (1e-20, 1e12)
+#: Highest plausible angular frequency [rad/s]: ω² = K_ii/M_ii above 1e30 (a period under a
+#: femtosecond) is no structure any time step resolves — K or M in the wrong unit.
+PLAUSIBLE_OMEGA = 1e15
+
+
+class ModesError(ModelError):
+    """More modes asked for than the model can give (the scene names the field ``modes``)."""
 
 
 def rigid_body_modes(model: FEModel) -> np.ndarray:
@@ -140,7 +150,8 @@ def _lowest(K, M, k: int, *, where: str,
     if k < 1:
         raise ModelError(f"{where}: at least one mode is needed, got {k}")
     if k > n:
-        raise ModelError(f"{where}: {k} modes asked for but the problem has only {n} dofs")
+        raise ModesError(f"{where}: {k} modes asked for but the problem has only {n} dofs: "
+                         f"at most {n} modes")
     try:
         if n <= DENSE_LIMIT or k >= n - 1:
             lam, V = sl.eigh(_as_dense(K), _as_dense(M), subset_by_index=[0, k - 1])
@@ -203,9 +214,40 @@ def _node_label(model: FEModel, i: int) -> str:
     return f"node {i} ('{names[0]}')" if names else f"node {i}"
 
 
+def check_units(model: FEModel) -> None:
+    """Finite M and K, a total mass within :data:`PLAUSIBLE_MASS` and diagonal ratios
+    K_ii/M_ii — Rayleigh quotients of unit vectors, so lower bounds of the largest eigenvalue
+    ω²_max — within :data:`PLAUSIBLE_OMEGA`²; each refusal names the matrix and the dof."""
+    src, d = model.source, model.dofs_per_node
+    for field, matrix in (("mass matrix M", model.mass_matrix),
+                          ("stiffness matrix K", model.stiffness_matrix)):
+        values = matrix.data if sp.issparse(matrix) else np.asarray(matrix, float)
+        if not np.all(np.isfinite(values)):
+            raise ModelError(f"{src}: the {field} has non-finite entries (inf or NaN)")
+    total = float(np.sum(model.masses))
+    low, high = PLAUSIBLE_MASS
+    if model.n_nodes and not low <= total <= high:
+        raise ModelError(f"{src}: the mass matrix M gives a total mass of {total:.3g} kg, "
+                         f"outside the plausible range [{low:g}, {high:g}] kg: check the unit "
+                         "of M (its scale)")
+    Md = np.asarray(sp.csr_matrix(model.mass_matrix).diagonal(), float)
+    Kd = np.asarray(sp.csr_matrix(model.stiffness_matrix).diagonal(), float)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        ratio = np.where(Md > 0.0, Kd / Md, 0.0)
+    if ratio.size and ratio.max() > PLAUSIBLE_OMEGA ** 2:
+        dof = int(np.argmax(ratio))
+        raise ModelError(f"{src}: the stiffness matrix K over the mass matrix M gives "
+                         f"frequencies of at least ω = {np.sqrt(ratio[dof]):.3g} rad/s "
+                         f"(K_ii/M_ii at dof {dof}, {_node_label(model, dof // d)}), beyond "
+                         f"the plausible {PLAUSIBLE_OMEGA:g} rad/s: check the units of K "
+                         "and M (their scales)")
+
+
 def check_fe_model(model: FEModel) -> None:
     """Checks of an FE model before any reduction (every reduction runs them).
 
+    - The units are plausible (:func:`check_units`): M and K finite, the total mass within
+      :data:`PLAUSIBLE_MASS`, no diagonal ratio K_ii/M_ii above :data:`PLAUSIBLE_OMEGA`².
     - The nodes are distinct: two nodes at one position (within 1e-9 of the model's extent),
       or all nodes at one point, are refused naming them — the rigid-body modes and the
       interface frames need a model of non-zero size.
@@ -235,6 +277,7 @@ def check_fe_model(model: FEModel) -> None:
             i, j = sorted((int(order[same[0]]), int(order[same[0] + 1])))
             raise ModelError(f"{src}: {_node_label(model, i)} and {_node_label(model, j)} are "
                              f"at one position {pos[i].tolist()}: nodes must be distinct")
+    check_units(model)
     M = model.mass_matrix
     n = M.shape[0]
     d = model.dofs_per_node
@@ -271,6 +314,27 @@ def _node_index(model: FEModel, node: str | int, what: str) -> int:
         raise ModelError(f"{model.source}: {what} {node!r} is neither a node name nor a node "
                          f"index in [0, {model.n_nodes})")
     return int(node)
+
+
+#: Largest ratio of the highest to the lowest eigenvalue of a modal basis for which the
+#: zero-energy tests (eigenvalue ≤ 1e-9 × the largest) can tell a rigid or mechanism mode
+#: from a true elastic one.
+EIGENVALUE_SPAN = 1e9
+
+
+def _too_many_modes(src: str, lam: np.ndarray | None, kind: str) -> None:
+    """Raise :class:`ModesError` when the ``lam`` (ascending, positive) of the requested
+    modes span more than :data:`EIGENVALUE_SPAN`: the lowest elastic modes then fall under the
+    zero-energy threshold and look like a mechanism — the model was asked for modes it cannot
+    give apart (the highest ones are mesh modes, ω ratio above 3e4)."""
+    if lam is None or lam.size < 2 or not lam[0] > 0.0 \
+            or lam[-1] <= EIGENVALUE_SPAN * lam[0]:
+        return
+    usable = int(np.count_nonzero(lam <= EIGENVALUE_SPAN * lam[0]))
+    raise ModesError(f"{src}: {lam.size} {kind} modes asked for, more than the model can give "
+                     f"apart: their eigenvalues span {lam[0]:.3g} to {lam[-1]:.3g} (ratio "
+                     f"{lam[-1] / lam[0]:.2g} > {EIGENVALUE_SPAN:g}), the lowest then cannot "
+                     f"be told from zero-energy modes; use at most {usable} modes")
 
 
 def craig_bampton(model: FEModel, modes: int, interfaces: Sequence[str | int], *,
@@ -323,12 +387,14 @@ def craig_bampton(model: FEModel, modes: int, interfaces: Sequence[str | int], *
     Kii = K[interior][:, interior]
     Mii = M[interior][:, interior]
     cols = []
+    lam_fixed = None
     if modes:
         lam, V = _lowest(Kii, Mii, int(modes),
                          where=f"{src}: fixed-interface normal modes")
         if lam[0] <= 0.0:
             raise ModelError(f"{src}: the structure clamped at its interfaces still moves "
                              f"freely (eigenvalue {lam[0]:.3g}); add interface nodes")
+        lam_fixed = lam
         F = np.zeros((model.n_dof, modes))
         F[interior] = V
         cols.append(F)
@@ -366,6 +432,7 @@ def craig_bampton(model: FEModel, modes: int, interfaces: Sequence[str | int], *
         R = rigid_body_modes(model)
         fit = R @ np.linalg.lstsq(R, Z, rcond=None)[0]
         if np.abs(Z - fit).max() > 1e-6 * np.abs(Z).max() or zero.all():
+            _too_many_modes(src, lam_fixed, "fixed-interface")
             raise ModelError(f"{src}: the Craig–Bampton basis has {int(zero.sum())} "
                              "zero-energy modes that are not rigid-body motions (a mechanism)")
         Q = Q[:, ~zero]
@@ -412,6 +479,8 @@ def free_modes(model: FEModel, modes: int, *, rigid_tolerance: float = 1e-8) -> 
         raise ModelError(f"{src}: expected {nr} rigid-body modes with zero frequency, got "
                          f"eigenvalues {lam[:nr].tolist()}")
     if lam[nr_found] <= 1e-8 * scale:
+        if lam[nr_found] > 0.0:
+            _too_many_modes(src, lam[nr_found:], "free-interface")
         raise ModelError(f"{src}: the free structure has more zero-energy modes than its {nr} "
                          f"rigid-body modes (eigenvalue {lam[nr_found]:.3g}): a mechanism or a "
                          "disconnected part")
