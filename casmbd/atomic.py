@@ -31,8 +31,9 @@ STALE_TEMP_SECONDS = 24 * 3600.0
 #: The name older versions gave their temporary files (``tempfile.mkstemp(prefix=".tmp_",
 #: suffix=<target's suffix>)``: ``.tmp_`` + 8 characters of :mod:`tempfile`'s alphabet + the
 #: suffix of a file casmbd writes).  They carry no host or process, so only their age
-#: (> :data:`STALE_TEMP_SECONDS`) makes them stale; any other name is not casmbd's.
-OLD_TEMP_PATTERN = re.compile(r"\.tmp_[a-z0-9_]{8}(\.(npz|csv|png|pdf|svg|gif|mp4|html))?")
+#: (> :data:`STALE_TEMP_SECONDS`) makes them stale; any other name — a suffix-less
+#: ``.tmp_XXXXXXXX`` too, as other programs use it — is not touched.
+OLD_TEMP_PATTERN = re.compile(r"\.tmp_[a-z0-9_]{8}\.(npz|csv|png|pdf|svg|gif|mp4)")
 
 
 def _host_tag() -> str:

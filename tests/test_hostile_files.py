@@ -280,14 +280,15 @@ def test_temporaries_of_older_versions_are_removed_by_age_only(tmp_path):
     """Older versions named their temporaries ``.tmp_`` + 8 characters + the target's suffix
     (``tempfile.mkstemp(prefix=".tmp_")``), with no host or process in the name: such a file
     older than 24 h is removed by the next save; a young one, and every name that is not
-    exactly that pattern (6 characters, another suffix, a directory), are kept."""
+    exactly that pattern (6 characters, upper case, another or no suffix, a directory), are
+    kept."""
     old = time.time() - STALE_TEMP_SECONDS - 60
     stale = [tmp_path / ".tmp_k3x9_a2b.npz", tmp_path / ".tmp_0abcdefg.csv",
-             tmp_path / ".tmp_zz_zz_zz"]
+             tmp_path / ".tmp_zz_zz_zz.png"]
     young = tmp_path / ".tmp_q1w2e3r4.npz"
     kept = [tmp_path / ".tmp_abc123.npz", tmp_path / ".tmp_k3x9_a2b.toml",
             tmp_path / ".tmp_K3X9_A2B.npz", tmp_path / ".tmp_k3x9_a2bc.npz",
-            tmp_path / "tmp_k3x9_a2b.npz"]
+            tmp_path / "tmp_k3x9_a2b.npz", tmp_path / ".tmp_zz_zz_zz"]
     for path in (*stale, young, *kept):
         path.write_bytes(b"partial")
     folder = tmp_path / ".tmp_abcdefgh.npz"
