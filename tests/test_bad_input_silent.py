@@ -552,6 +552,12 @@ def test_more_modes_than_the_beam_can_give_refused_naming_modes(tmp_path, capsys
     scene = tmp_path / "beam.toml"
     scene.write_text(beam_scene(elements=200, modes=500))
     cli_file_refuses(capsys, scene, "key 'modes'", "use at most")
+    # free modes: the dofs less the rigid-body modes (15 dofs of a free 4-element beam, 3)
+    free = beam_model(2.0, 4, EA=1e6, EI=50.0, rhoA=1.5)
+    with pytest.raises(modal_reduction.ModesError, match="15 dofs less its 3 rigid-body "
+                       "modes give at most 12 modes"):
+        modal_reduction.free_modes(free, 15)
+    assert modal_reduction.free_modes(free, 12).n_modes == 12
 
 
 def test_non_finite_output_with_events_is_named():

@@ -470,6 +470,10 @@ def free_modes(model: FEModel, modes: int, *, rigid_tolerance: float = 1e-8) -> 
         lam, V = _lowest(K, M, int(modes), where=where, rigid=R)
         nr_found = 0
     else:
+        if int(modes) + nr > K.shape[0]:
+            raise ModesError(f"{where}: {int(modes)} modes asked for but the model's "
+                             f"{K.shape[0]} dofs less its {nr} rigid-body modes give at most "
+                             f"{K.shape[0] - nr} modes")
         lam, V = _lowest(K, M, int(modes) + nr, where=where)
         nr_found = nr
     scale = max(abs(lam[-1]), 1e-300)
