@@ -22,7 +22,7 @@ temporary directory with a timeout, and classified:
     input file changed (for any exit code), or a run of a memory-budget case whose peak RSS
     exceeds 1.5 x the budget (+ the interpreter's own 400 MB).
 ``hang``
-    the case's timeout (default 60 s) passed; the process group is killed.
+    the case's timeout (default 30 s) passed; the process group is killed.
 
 The cases are data (:func:`cases`): name, category, files to create, argv, env, timeout,
 culprit strings (any one must appear in stderr) and an optional check of the JSON output.
@@ -73,7 +73,7 @@ class Case:
     files: dict = field(default_factory=dict)   # relpath -> str | bytes | callable(path)
     culprit: tuple = ()             # any one of these (case-insensitive) in stderr -> named
     env: dict = field(default_factory=dict)
-    timeout: float = 60.0
+    timeout: float = 30.0
     check: object = None            # callable(json_obj, tmpdir) -> None or a failure text
     protect: tuple = ()             # files (relative) that must not change or appear
     setup: list = field(default_factory=list)   # argvs run first (their outcome ignored)
@@ -721,28 +721,28 @@ def cases() -> list[Case]:
                  timeout=30))
     add(Case("urdf=FIFO", cat, ["info", "{d}/s.toml"],
              {"s.toml": '[scene]\nname = "z"\nurdf = "pipe.urdf"\n', "pipe.urdf": fifo},
-             ("pipe.urdf",), timeout=20))
+             ("pipe.urdf",), timeout=10))
     add(Case("urdf=symlink to /dev/zero", cat, ["info", "{d}/s.toml"],
              {"s.toml": '[scene]\nname = "z"\nurdf = "z.urdf"\n', "z.urdf": symlink_to("/dev/zero")},
              ("z.urdf", "/dev/zero"), timeout=30))
     add(Case("urdf=directory", cat, ["info", "{d}/s.toml"],
-             {"s.toml": '[scene]\nname = "z"\nurdf = "sub"\n', "sub/x": "x"}, ("sub",), timeout=20))
+             {"s.toml": '[scene]\nname = "z"\nurdf = "sub"\n', "sub/x": "x"}, ("sub",), timeout=10))
     add(Case("scene=/dev/zero", cat, ["info", "/dev/zero"], {}, ("/dev/zero",), timeout=30))
-    add(Case("scene=FIFO", cat, ["info", "{d}/p.toml"], {"p.toml": fifo}, ("p.toml",), timeout=20))
-    add(Case("scene=FIFO (simulate)", cat, sim("p.toml"), {"p.toml": fifo}, ("p.toml",), timeout=20))
-    add(Case("scene=/dev/null", cat, ["info", "/dev/null"], {}, ("/dev/null",), timeout=20))
-    add(Case("scene=directory", cat, ["info", "{d}"], {}, ("{d}",), timeout=20))
+    add(Case("scene=FIFO", cat, ["info", "{d}/p.toml"], {"p.toml": fifo}, ("p.toml",), timeout=10))
+    add(Case("scene=FIFO (simulate)", cat, sim("p.toml"), {"p.toml": fifo}, ("p.toml",), timeout=10))
+    add(Case("scene=/dev/null", cat, ["info", "/dev/null"], {}, ("/dev/null",), timeout=10))
+    add(Case("scene=directory", cat, ["info", "{d}"], {}, ("{d}",), timeout=10))
     add(Case("urdf given directly=/dev/zero link", cat, ["info", "{d}/z.urdf"],
              {"z.urdf": symlink_to("/dev/zero")}, ("z.urdf", "/dev/zero"), timeout=30))
     add(Case("urdf given directly=FIFO", cat, ["info", "{d}/p.urdf"], {"p.urdf": fifo},
-             ("p.urdf",), timeout=20))
+             ("p.urdf",), timeout=10))
     add(Case("fe file=/dev/zero", cat, ["info", "{d}/s.toml"],
              {"s.toml": fe_scene("/dev/zero")}, ("/dev/zero",), timeout=30))
     add(Case("fe file=FIFO", cat, ["info", "{d}/s.toml"],
-             {"s.toml": fe_scene("p.npz"), "p.npz": fifo}, ("p.npz",), timeout=20))
+             {"s.toml": fe_scene("p.npz"), "p.npz": fifo}, ("p.npz",), timeout=10))
     add(Case("fe npz: unused 20000x20000 zero member", cat, ["info", "{d}/s.toml", "--json"],
              {"s.toml": fe_scene(), "part.npz": fe_file(extra=add_huge_zero_member())},
-             ("part.npz", "unused"), timeout=90))
+             ("part.npz", "unused"), timeout=30))
     add(Case("fe npz: forged header mass (1e6,1e6)", cat, ["info", "{d}/s.toml"],
              {"s.toml": fe_scene(), "part.npz": fe_file(extra=add_forged_member("mass", (10**6, 10**6)))},
              ("part.npz", "mass"), timeout=30))
@@ -759,25 +759,25 @@ def cases() -> list[Case]:
              {"s.toml": fe_scene(), "part.npz": b""}, ("part.npz",)))
     add(Case("fe npz: missing", cat, ["info", "{d}/s.toml"], {"s.toml": fe_scene()}, ("part.npz",)))
     add(Case("beam elements=10000000", cat, ["info", "{d}/s.toml"],
-             {"s.toml": beam_scene(elements=10_000_000)}, ("elements",), timeout=60))
+             {"s.toml": beam_scene(elements=10_000_000)}, ("elements",), timeout=30))
     add(Case("beam elements=1e9 (float)", cat, ["info", "{d}/s.toml"],
-             {"s.toml": beam_scene(elements="1e9")}, ("elements",), timeout=60))
+             {"s.toml": beam_scene(elements="1e9")}, ("elements",), timeout=30))
     add(Case("beam modes=10**6", cat, ["info", "{d}/s.toml"],
-             {"s.toml": beam_scene(modes=10**6)}, ("modes",), timeout=60))
+             {"s.toml": beam_scene(modes=10**6)}, ("modes",), timeout=30))
     add(Case("result=/dev/zero (plot)", cat, ["plot", "/dev/zero", "--out", "{d}/f.png"],
              {}, ("/dev/zero",), timeout=30, protect=("f.png",)))
     add(Case("result=FIFO (plot)", cat, ["plot", "{d}/p.npz", "--out", "{d}/f.png"],
-             {"p.npz": fifo}, ("p.npz",), timeout=20, protect=("f.png",)))
+             {"p.npz": fifo}, ("p.npz",), timeout=10, protect=("f.png",)))
     add(Case("result=FIFO (animate)", cat, ["animate", "{d}/p.npz", "--out", "{d}/f.png"],
-             {"p.npz": fifo}, ("p.npz",), timeout=20, protect=("f.png",)))
-    add(Case("linearize --from FIFO", cat, ["linearize", "{d}/s.toml", "--from", "{d}/p.npz"],
-             {"s.toml": SPRING, "p.npz": fifo}, ("p.npz",), timeout=20))
+             {"p.npz": fifo}, ("p.npz",), timeout=10, protect=("f.png",)))
+    add(Case("linearize --from FIFO", cat, ["linearize", "{d}/s.toml", "--from", "{d}/p.npz", "--time", "0"],
+             {"s.toml": SPRING, "p.npz": fifo}, ("p.npz",), timeout=10))
     made = [["simulate", "{d}/s.toml", "--t-end", "1", "--steps", "10", "--out", "{d}/r.npz"]]
     add(Case("result: forged header q (1e6,1e6) (plot)", cat,
              ["plot", "{d}/r.npz", "--out", "{d}/f.png"], {"s.toml": SPRING}, ("r.npz",),
              setup=made, prepare=forge_result_member("array/q", (10**6, 10**6)), protect=("f.png",)))
     add(Case("result: forged header t (1e12,) (linearize --from)", cat,
-             ["linearize", "{d}/s.toml", "--from", "{d}/r.npz"], {"s.toml": SPRING}, ("r.npz",),
+             ["linearize", "{d}/s.toml", "--from", "{d}/r.npz", "--time", "0"], {"s.toml": SPRING}, ("r.npz",),
              setup=made, prepare=forge_result_member("t", (10**12,))))
     add(Case("result: truncated (plot)", cat, ["plot", "{d}/r.npz", "--out", "{d}/f.png"],
              {"s.toml": SPRING}, ("r.npz",), setup=made, prepare=truncate_file("r.npz", -200),
@@ -792,7 +792,7 @@ def cases() -> list[Case]:
     add(Case("result: npz without meta (plot)", cat, ["plot", "{d}/r.npz", "--out", "{d}/f.png"],
              {"r.npz": lambda p: np.savez(p, t=np.arange(3.0))}, ("r.npz",), protect=("f.png",)))
     add(Case("urdf 5000-link chain info", cat, ["info", "{d}/long.urdf", "--json"],
-             {"long.urdf": urdf_chain(5000)}, ("long.urdf",), timeout=60))
+             {"long.urdf": urdf_chain(5000)}, ("long.urdf",), timeout=30))
 
     # ---- 2. memory guard --------------------------------------------------------------------
     cat = "memory guard"
@@ -801,18 +801,18 @@ def cases() -> list[Case]:
         add(Case(f"budget {budget}: {n}-body chain --steps {steps}", cat,
                  ["simulate", "{d}/s.toml", "--t-end", "0.01", "--steps", steps, "--out", "{d}/r.npz"],
                  {"s.toml": chain_scene(n)}, ("steps", "memory", "CASMBD_MEMORY_BUDGET"),
-                 env={"CASMBD_MEMORY_BUDGET": budget}, budget_mb=mb, timeout=120))
+                 env={"CASMBD_MEMORY_BUDGET": budget}, budget_mb=mb, timeout=60))
     add(Case("budget 1G: 60-body chain --steps 400000 --json", cat,
              ["simulate", "{d}/s.toml", "--t-end", "0.01", "--steps", "400000", "--json"],
              {"s.toml": chain_scene(60)}, ("steps", "memory", "CASMBD_MEMORY_BUDGET"),
-             env={"CASMBD_MEMORY_BUDGET": "1G"}, budget_mb=1024, timeout=120))
+             env={"CASMBD_MEMORY_BUDGET": "1G"}, budget_mb=1024, timeout=60))
     for bad in ("abc", "-1G", "0", "1e400", "1T2"):
         add(Case(f"CASMBD_MEMORY_BUDGET={bad}", cat, sim(), {"s.toml": SPRING},
                  ("CASMBD_MEMORY_BUDGET",), env={"CASMBD_MEMORY_BUDGET": bad}, check=check_spring()))
     add(Case("kinematics --steps 10000000", cat,
              ["kinematics", "{d}/s.toml", "--t-end", "1", "--steps", "10000000", "--json"],
              {"s.toml": SLIDER_CRANK}, ("steps", "memory"), env={"CASMBD_MEMORY_BUDGET": "1G"},
-             budget_mb=1024, timeout=120))
+             budget_mb=1024, timeout=60))
 
     # ---- 3. the event path ------------------------------------------------------------------
     cat = "event path"
@@ -846,7 +846,7 @@ def cases() -> list[Case]:
     add(Case("ball restitution 1, t_end 1e6", cat,
              ["simulate", "{d}/s.toml", "--t-end", "1e6", "--steps", "100", "--json"],
              {"s.toml": ballv(lambda d: d["contacts"][0].update(restitution=1.0))},
-             ("max_events", "events", "floor", "steps", "memory"), timeout=90,
+             ("max_events", "events", "floor", "steps", "memory"), timeout=60,
              check=check_ball_height))
     add(Case("ball restitution 1.5", cat, sim(), {"s.toml": ballv(
         lambda d: d["contacts"][0].update(restitution=1.5))}, ("restitution",)))
@@ -877,7 +877,7 @@ def cases() -> list[Case]:
         lambda d: d["contacts"][0].update(model="compliant", stiffness=-1e6))}, ("stiffness",)))
     add(Case("ball compliant stiffness 1e300", cat, sim(), {"s.toml": ballv(
         lambda d: d["contacts"][0].update(model="compliant", stiffness=1e300))},
-        ("stiffness", "floor"), check=check_ball_height, timeout=60))
+        ("stiffness", "floor"), check=check_ball_height, timeout=30))
     add(Case("ball model=teleport", cat, sim(), {"s.toml": ballv(
         lambda d: d["contacts"][0].update(model="teleport"))}, ("model",)))
     add(Case("ball [simulation] max_events=-5", cat, sim(), {"s.toml": ballv(
@@ -888,7 +888,7 @@ def cases() -> list[Case]:
     # ---- 4. OCP options -----------------------------------------------------------------------
     cat = "ocp options"
 
-    def ocp_case(name, opts, culprit, check=None, timeout=60, extra_ocp=None, argv_extra=()):
+    def ocp_case(name, opts, culprit, check=None, timeout=30, extra_ocp=None, argv_extra=()):
         doc = tomllib.loads(CART_POLE)
         if opts is not None:
             doc["ocp"]["solver_options"] = opts
@@ -897,14 +897,14 @@ def cases() -> list[Case]:
         add(Case(name, cat, ["ocp", "{d}/s.toml", "--json", "--no-replay", *argv_extra],
                  {"s.toml": dump_toml(doc)}, culprit, timeout=timeout, check=check))
     obj = check_objective(53.66, 0.05)
-    ocp_case("ocp baseline", None, (), check=obj, timeout=120)
+    ocp_case("ocp baseline", None, (), check=obj, timeout=60)
     ocp_case("ipopt.obj_scaling_factor=-1", {"ipopt.obj_scaling_factor": -1.0},
              ("obj_scaling_factor",), check=obj)
     ocp_case("ipopt.obj_scaling_factor=0", {"ipopt.obj_scaling_factor": 0.0},
              ("obj_scaling_factor",), check=obj)
     ocp_case("ipopt.print_level=12", {"ipopt.print_level": 12}, ("print_level",), check=obj)
     ocp_case("ipopt.derivative_test=second-order", {"ipopt.derivative_test": "second-order"},
-             ("derivative_test",), check=obj, timeout=90)
+             ("derivative_test",), check=obj, timeout=30)
     ocp_case("ipopt.max_iter=-1", {"ipopt.max_iter": -1}, ("max_iter",))
     ocp_case("ipopt.max_iter=1", {"ipopt.max_iter": 1}, ("max_iter", "iteration", "converge"))
     ocp_case("ipopt.tol=-1", {"ipopt.tol": -1.0}, ("tol",))
@@ -923,7 +923,7 @@ def cases() -> list[Case]:
     ocp_case("ocp horizon=-2", None, ("horizon",), extra_ocp={"horizon": -2.0})
     ocp_case("ocp horizon=inf", None, ("horizon",), extra_ocp={"horizon": float("inf")})
     ocp_case("ocp intervals=0", None, ("intervals",), extra_ocp={"intervals": 0})
-    ocp_case("ocp intervals=10**9", None, ("intervals",), extra_ocp={"intervals": 10**9}, timeout=60)
+    ocp_case("ocp intervals=10**9", None, ("intervals",), extra_ocp={"intervals": 10**9}, timeout=30)
     ocp_case("ocp --intervals 0", None, ("intervals",), argv_extra=("--intervals", "0"))
     ocp_case("ocp objective=bogus", None, ("objective",), extra_ocp={"objective": "bogus"})
     ocp_case("ocp controls reversed", None, ("force", "controls"),
@@ -954,7 +954,7 @@ def cases() -> list[Case]:
              check=check_bounded_spring))
     add(Case("dopri5 k=1e9", cat, sim("s.toml", "1", "10", "--integrator", "dopri5"),
              {"s.toml": stiff}, ("step", "block", "spring", "slide"), check=check_bounded_spring,
-             timeout=60))
+             timeout=30))
     add(Case("rk4 --step 1 k=100", cat,
              sim("s.toml", "1", "10", "--integrator", "rk4", "--step", "1"),
              {"s.toml": SPRING}, ("step",), check=check_spring(tol=1e-3)))
@@ -988,7 +988,7 @@ def cases() -> list[Case]:
         'name = "tip"', 'name = "rod2"') + '\n[[outputs]]\nname = "h"\nvalue = \'y("rod2")\'\n'},
         ("rod2",)))
     add(Case("tampered cache record", cat, sim(), {"s.toml": SPRING}, ("record", "cache"),
-             setup=[sim()], prepare=tamper_cache, check=check_spring(), compiled=True, timeout=180))
+             setup=[sim()], prepare=tamper_cache, check=check_spring(), compiled=True, timeout=60))
     add(Case("sensitivity-free: steps 1 t-end 1e-300", cat,
              sim("s.toml", "1e-300", "1"), {"s.toml": SPRING}, ("t-end",),
              check=lambda o, d: None if abs(_block_x(o)[-1] - 1.1) < 1e-9 else "moved"))
@@ -1033,9 +1033,9 @@ def cases() -> list[Case]:
              {"s.toml": SPRING}, ("f.exe", ".exe"), setup=made, protect=("f.exe",)))
     add(Case("animate --out onto the scene", cat,
              ["animate", "{d}/s.toml", "--out", "{d}/s.toml", "--t-end", "0.2", "--steps", "4"],
-             {"s.toml": SPRING}, ("s.toml",), protect=("s.toml",), timeout=60))
+             {"s.toml": SPRING}, ("s.toml",), protect=("s.toml",), timeout=30))
     add(Case("ocp --out onto the scene", cat, ["ocp", "{d}/s.toml", "--out", "{d}/s.toml", "--no-replay"],
-             {"s.toml": CART_POLE}, ("s.toml",), protect=("s.toml",), timeout=120))
+             {"s.toml": CART_POLE}, ("s.toml",), protect=("s.toml",), timeout=30))
     add(Case("sweep --out onto a file", cat,
              ["sweep", "{d}/s.toml", "--param", "k=50:100:2", "--analysis", "simulate", "--t-end", "0.1",
               "--steps", "2", "--out", "{d}/s.toml"], {"s.toml": SPRING}, ("s.toml",),
@@ -1054,7 +1054,7 @@ def cases() -> list[Case]:
     fe_ok = {"s.toml": fe_scene(), "part.npz": fe_file()}
     add(Case("fe baseline info", cat, ["info", "{d}/s.toml", "--json"], fe_ok, ()))
     add(Case("fe baseline simulate", cat, ["simulate", "{d}/s.toml", "--t-end", "0.05", "--steps", "5",
-                                           "--json"], fe_ok, (), timeout=90))
+                                           "--json"], fe_ok, (), timeout=30))
     for nm, kw, cul in (
             ("fe stiffness x1e300", {"stiff_scale": 1e300}, ("stiffness", "part.npz")),
             ("fe mass x1e-300", {"mass_scale": 1e-300}, ("mass", "part.npz")),
@@ -1078,7 +1078,7 @@ def cases() -> list[Case]:
              ("node_ids", "-1", "tip")),
             ("fe mass x1e-30 (units?)", {"mass_scale": 1e-30}, ("mass", "part.npz"))):
         add(Case(nm, cat, ["simulate", "{d}/s.toml", "--t-end", "0.05", "--steps", "5", "--json"],
-                 {"s.toml": fe_scene(), "part.npz": fe_file(**kw)}, cul, timeout=60))
+                 {"s.toml": fe_scene(), "part.npz": fe_file(**kw)}, cul, timeout=30))
     add(Case("fe modes=500", cat, ["info", "{d}/s.toml"],
              {"s.toml": fe_scene(modes=500), "part.npz": fe_file()}, ("modes",)))
     add(Case("fe modes=0", cat, ["info", "{d}/s.toml"],
@@ -1098,11 +1098,11 @@ def cases() -> list[Case]:
                         ("beam 400 modes of 200 elements", {"elements": 200, "modes": 400}, ("modes",)),
                         ("beam length -1", {"length": -1.0}, ("length",))):
         add(Case(nm, cat, ["simulate", "{d}/s.toml", "--t-end", "0.02", "--steps", "2", "--json"],
-                 {"s.toml": beam_scene(**kw)}, cul, timeout=60))
+                 {"s.toml": beam_scene(**kw)}, cul, timeout=30))
     add(Case("cache dir on /dev/full-like path (file as dir)", cat, sim(),
              {"s.toml": SPRING, "cachefile": "x"}, ("cache", "cachefile"),
              env={"CASMBD_CACHE_DIR": "{d}/cachefile"}, compiled=True, check=check_spring(),
-             timeout=180))
+             timeout=30))
 
     # ---- 8. malformed scenes, types, names, nesting, expressions -------------------------------
     cat = "malformed scene"
@@ -1148,7 +1148,7 @@ def cases() -> list[Case]:
     S(SPRING.replace('name = "spring_mass"', 'name = "../../../etc/x"'), ("name",), verb="simulate",
       name="scene name path traversal", check=check_spring())
     S(SPRING.replace('name = "spring_mass"', 'name = "' + "n" * 5000 + '"'), ("name",), verb="simulate",
-      name="scene name 5000 chars", check=check_spring(), compiled=True, timeout=180)
+      name="scene name 5000 chars", check=check_spring(), compiled=True, timeout=30)
     S(SPRING.replace('m = 1.0', 'm = "' + "+".join(["1"] * 6000) + '"'), ("m", "characters", "expression"),
       name="expression 12k chars")
     S(SPRING.replace('m = 1.0', 'm = "' + "(" * 3000 + "1" + ")" * 3000 + '"'), ("m",),
@@ -1172,7 +1172,7 @@ def cases() -> list[Case]:
     S(SPRING.replace('stiffness = "k"', 'stiffness = "1/(t-0.25)"'), ("spring", "stiffness"),
       verb="simulate", name="stiffness 1/(t-0.25)", check=check_bounded_spring)
     S(SPRING.replace('stiffness = "k"', 'stiffness = "k*exp(100*t)"'), ("spring", "stiffness", "block"),
-      verb="simulate", name="stiffness exp(100 t)", check=lambda o, d: None, timeout=60)
+      verb="simulate", name="stiffness exp(100 t)", check=lambda o, d: None, timeout=30)
     nest = "x = " + "[" * 1000 + "]" * 1000 + "\n"
     S(SPRING.replace("[parameters]", "[parameters]\n" + nest), ("nest", "s.toml", "deep"),
       name="arrays nested 1000 deep")
@@ -1180,9 +1180,9 @@ def cases() -> list[Case]:
     S(SPRING.replace("[parameters]", "[parameters]\n" + nest2), ("nest", "s.toml", "deep"),
       name="inline tables nested 600 deep")
     S(SPRING + "".join(f'\n[[markers]]\nname = "m{i}"\nbody = "block"\npoint = [1.1, 0.0]\n'
-                       for i in range(20000)), (), name="20000 markers (legal)", timeout=60,
+                       for i in range(20000)), (), name="20000 markers (legal)", timeout=30,
       verb="info")
-    S(chain_scene(21000), ("bodies", "20000", "20 000"), name="21000 bodies", timeout=60)
+    S(chain_scene(21000), ("bodies", "20000", "20 000"), name="21000 bodies", timeout=30)
     S(SPRING.replace('axis = [1.0, 0.0]', 'axis = [0.0, 0.0]'), ("axis", "slide"), name="prismatic axis zero")
     S(SPRING.replace('axis = [1.0, 0.0]', 'axis = [1e-320, 0.0]'), ("axis", "slide"),
       name="prismatic axis denormal")
@@ -1210,29 +1210,30 @@ def cases() -> list[Case]:
     for base, key, verb in ((SPRING, "spring", sim()), (BALL, "ball", sim())):
         doc = tomllib.loads(base)
         for path in numeric_leaves(doc):
-            for label, value in (("-1", -1.0), ("0", 0.0), ("nan", float("nan")), ("inf", float("inf")),
-                                 ("1e300", 1e300), ("'abc'", "abc")):
-                if value == 0.0 and path[-1] in (0, 1) and path[-2] in ("position", "point", "origin",
-                                                                          "normal", "point1", "point2",
-                                                                          "axis", "gravity"):
-                    continue
+            vector = isinstance(path[-1], int)
+            if vector and (path[-1] != 1 or path[-2] in ("point1", "origin")):
+                continue  # one component of each vector (the vertical one)
+            values = (("nan", float("nan")), ("1e300", 1e300)) if vector else (
+                ("-1", -1.0), ("0", 0.0), ("nan", float("nan")), ("inf", float("inf")),
+                ("1e300", 1e300), ("'abc'", "abc"))
+            for label, value in values:
                 add(Case(f"{key} {'.'.join(map(str, path))}={label}", cat, list(verb),
                          {"s.toml": dump_toml(replaced(doc, path, value))}, culprits_of(doc, path),
-                         timeout=45))
+                         timeout=30))
 
     # ---- 10. CLI flags -----------------------------------------------------------------------------
     cat = "cli flags"
     F = lambda nm, argv, cul, **kw: add(Case(nm, cat, argv, kw.pop("files", {"s.toml": SPRING}), cul, **kw))  # noqa: E731
-    for flag, vals in (("--t-end", ("-1", "0", "nan", "inf", "1e400", "abc", "1e-320")),
-                       ("--steps", ("0", "-5", "1.5", "1e12", "abc", "99999999999999999999"))):
+    for flag, vals in (("--t-end", ("-1", "0", "nan", "inf", "1e-320")),
+                       ("--steps", ("0", "1.5", "1e12", "99999999999999999999"))):
         for v in vals:
             argv = ["simulate", "{d}/s.toml", "--t-end", "1", "--steps", "10", "--json"]
             argv[argv.index(flag) + 1] = v
             F(f"simulate {flag} {v}", argv, (flag,))
-    for flag, vals in (("--rtol", ("0", "-1", "nan", "inf", "2", "1e-300")),
-                       ("--atol", ("-1", "nan", "0")),
-                       ("--step", ("0", "-0.1", "nan", "1e-12")),
-                       ("--max-steps", ("0", "-1", "1.5")),
+    for flag, vals in (("--rtol", ("0", "-1", "nan", "2", "1e-300")),
+                       ("--atol", ("-1", "nan")),
+                       ("--step", ("0", "nan", "1e-12")),
+                       ("--max-steps", ("0", "1.5")),
                        ("--integrator", ("euler",)),
                        ("--formulation", ("magic",)),
                        ("--mode", ("turbo",))):
@@ -1240,7 +1241,7 @@ def cases() -> list[Case]:
             argv = sim() + [flag, v]
             if flag == "--step":
                 argv += ["--integrator", "rk4"]
-            F(f"simulate {flag} {v}", argv, (flag,), check=check_spring(tol=2e-2), timeout=60)
+            F(f"simulate {flag} {v}", argv, (flag,), check=check_spring(tol=2e-2), timeout=30)
     F("unknown flag --frobnicate", sim() + ["--frobnicate"], ("--frobnicate",))
     F("unknown verb", ["teleport", "{d}/s.toml"], ("teleport",))
     F("no scene", ["simulate", "--t-end", "1", "--steps", "2"], ("scene", "required", "argument"))
@@ -1254,21 +1255,21 @@ def cases() -> list[Case]:
     F("sweep --param N=0", ["sweep", "{d}/s.toml", "--param", "k=1:2:0", "--t-end", "0.1",
                             "--steps", "2"], ("--param", "k"))
     F("sweep --param k=-5:-1:3 (negative k)", ["sweep", "{d}/s.toml", "--param", "k=-5:-1:3", "--t-end",
-                                               "0.1", "--steps", "2", "--json"], ("k",), timeout=60)
+                                               "0.1", "--steps", "2", "--json"], ("k",), timeout=30)
     F("sweep --param k=nan", ["sweep", "{d}/s.toml", "--param", "k=nan", "--t-end", "0.1",
                               "--steps", "2", "--json"], ("k", "--param"))
     F("sweep --workers 0", ["sweep", "{d}/s.toml", "--param", "k=50:100:2", "--t-end", "0.1",
                             "--steps", "2", "--workers", "0"], ("--workers",))
     F("sweep --workers 10000", ["sweep", "{d}/s.toml", "--param", "k=50:100:2", "--t-end", "0.1",
-                                "--steps", "2", "--workers", "10000"], ("--workers",), timeout=90)
+                                "--steps", "2", "--workers", "10000"], ("--workers",), timeout=30)
     F("sweep --output bogus", ["sweep", "{d}/s.toml", "--param", "k=50:100:2", "--t-end", "0.1",
                                "--steps", "2", "--output", "bogus:zz"], ("--output", "bogus", "zz"))
     F("sweep --scheduler bad", ["sweep", "{d}/s.toml", "--param", "k=50:100:2", "--t-end", "0.1",
                                 "--steps", "2", "--scheduler", "tcp://256.0.0.1:1"],
-      ("--scheduler", "dask", "256.0.0.1"), timeout=60)
-    F("linearize --from missing", ["linearize", "{d}/s.toml", "--from", "{d}/none.npz"], ("none.npz",))
+      ("--scheduler", "dask", "256.0.0.1"), timeout=30)
+    F("linearize --from missing", ["linearize", "{d}/s.toml", "--from", "{d}/none.npz", "--time", "0"], ("none.npz",))
     F("linearize --time without --from", ["linearize", "{d}/s.toml", "--time", "1"], ("--time", "--from"))
-    F("linearize --from other scene's result", ["linearize", "{d}/p.toml", "--from", "{d}/r.npz"],
+    F("linearize --from other scene's result", ["linearize", "{d}/p.toml", "--from", "{d}/r.npz", "--time", "0"],
       ("r.npz", "p.toml", "double_pendulum", "spring_mass"),
       files={"s.toml": SPRING, "p.toml": PENDULUM}, setup=made)
     F("linearize --from --time nan", ["linearize", "{d}/s.toml", "--from", "{d}/r.npz", "--time", "nan"],
@@ -1282,7 +1283,7 @@ def cases() -> list[Case]:
     F("plot --dpi 0", ["plot", "{d}/r.npz", "--out", "{d}/f.png", "--dpi", "0"], ("--dpi",),
       setup=made, protect=("f.png",))
     F("plot --dpi 1e6", ["plot", "{d}/r.npz", "--out", "{d}/f.png", "--dpi", "1000000"], ("--dpi",),
-      setup=made, protect=("f.png",), timeout=60)
+      setup=made, protect=("f.png",), timeout=30)
     F("animate --fps 0", ["animate", "{d}/s.toml", "--out", "{d}/a.gif", "--fps", "0", "--t-end", "0.2",
                           "--steps", "4"], ("--fps",), protect=("a.gif",))
     F("animate --max-frames 0", ["animate", "{d}/s.toml", "--out", "{d}/a.gif", "--max-frames", "0",
@@ -1293,7 +1294,7 @@ def cases() -> list[Case]:
                                 "--t-end", "0.2", "--steps", "4"], ("ghost",), protect=("a.png",))
     F("animate --max-frames 1e6 --fps 1e6", ["animate", "{d}/s.toml", "--out", "{d}/a.gif", "--max-frames",
                                              "1000000", "--fps", "1000000", "--t-end", "1", "--steps", "4"],
-      ("--max-frames", "--fps", "frames"), timeout=90)
+      ("--max-frames", "--fps", "frames"), timeout=30)
     F("animate --deformation-scale nan", ["animate", "{d}/s.toml", "--out", "{d}/a.png",
                                           "--deformation-scale", "nan", "--t-end", "0.2", "--steps", "4"],
       ("--deformation-scale",), protect=("a.png",))
@@ -1478,10 +1479,17 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repo", default=str(ROOT), help="checkout whose casmbd package runs")
     ap.add_argument("--label", default="after", help="name of the run (CSV file name)")
-    ap.add_argument("--only", default="", help="run only cases whose name contains this")
+    ap.add_argument("--only", default="", help="run only cases whose name contains this (several: a||b)")
     ap.add_argument("--list", action="store_true", help="list the cases and exit")
     ap.add_argument("--out", default=None, help="CSV path (default benchmarks/results/...)")
+    ap.add_argument("--update", action="store_true",
+                    help="rerun the --only cases and replace their rows in an existing CSV")
+    ap.add_argument("--summary", nargs=2, metavar=("BEFORE.csv", "AFTER.csv"),
+                    help="print the Markdown table of two runs and exit")
     args = ap.parse_args(argv)
+    if args.summary:
+        print(summary(Path(args.summary[0]), Path(args.summary[1])))
+        return 0
     all_cases = cases()
     names = [c.name for c in all_cases]
     dup = {n for n in names if names.count(n) > 1}
@@ -1491,30 +1499,65 @@ def main(argv=None):
             print(f"{c.category:16s} {c.name}")
         print(len(all_cases), "cases")
         return 0
-    chosen = [c for c in all_cases if args.only in c.name]
+    chosen = [c for c in all_cases if any(o in c.name for o in args.only.split("||"))]
     repo = Path(args.repo).resolve()
     out = Path(args.out) if args.out else HERE / "results" / f"hostile_sweep_{args.label}.csv"
     out.parent.mkdir(parents=True, exist_ok=True)
     base_env = {k: v for k, v in os.environ.items() if not k.startswith("CASMBD_")}
     base_env.setdefault("MPLBACKEND", "Agg")
-    counts = dict.fromkeys(VERDICTS + ("error",), 0)
+    header = ["case", "category", "verdict", "exit", "seconds", "first stderr line", "why"]
+    rows: dict[str, list] = {}
+    if args.update and out.exists():
+        with open(out, newline="") as fh:
+            rows = {r[0]: r for r in list(csv.reader(fh))[1:]}
     t0 = time.monotonic()
-    with tempfile.TemporaryDirectory(prefix="hostile_cache_") as cache_root, \
-            open(out, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(["case", "category", "verdict", "exit", "seconds", "first stderr line", "why"])
+    with tempfile.TemporaryDirectory(prefix="hostile_cache_") as cache_root:
         for i, c in enumerate(chosen, 1):
             verdict, code, seconds, first, why = run_case(c, repo, Path(cache_root), base_env)
-            counts[verdict] += 1
-            w.writerow([c.name, c.category, verdict, code, f"{seconds:.2f}", first, why])
-            fh.flush()
+            rows[c.name] = [c.name, c.category, verdict, code, f"{seconds:.2f}", first, why]
             print(f"[{i:3d}/{len(chosen)}] {verdict:7s} {seconds:6.1f}s {c.name}"
                   + (f"  -- {why}" if why else ""), flush=True)
+            if not args.update:
+                _write(out, header, [rows[n] for n in names if n in rows])
+    _write(out, header, [rows[n] for n in names if n in rows])
+    counts = dict.fromkeys(VERDICTS + ("error",), 0)
+    for r in rows.values():
+        counts[r[2]] += 1
     total = time.monotonic() - t0
-    print(f"\n{args.label}: {len(chosen)} cases in {total:.0f} s: "
+    print(f"\n{args.label}: {len(rows)} cases ({len(chosen)} run in {total:.0f} s): "
           + ", ".join(f"{k} {v}" for k, v in counts.items() if v or k in VERDICTS))
     print(f"CSV: {out}")
     return 0
+
+
+def summary(before: Path, after: Path) -> str:
+    """Markdown table of the verdict counts, per category, of two runs' CSVs."""
+    def load(p):
+        with open(p, newline="") as fh:
+            return list(csv.DictReader(fh))
+    runs = {"before": load(before), "after": load(after)}
+    cats = list(dict.fromkeys(r["category"] for r in runs["after"]))
+    head = "| category | cases | " + " | ".join(f"{v} (before → after)" for v in VERDICTS) + " |"
+    lines = [head, "|" + " --- |" * (2 + len(VERDICTS))]
+    for cat in cats + [None]:
+        cells = []
+        for v in VERDICTS:
+            n = {k: sum(1 for r in rs if (cat is None or r["category"] == cat) and r["verdict"] == v)
+                 for k, rs in runs.items()}
+            cells.append(f"{n['before']} → {n['after']}")
+        total = sum(1 for r in runs["after"] if cat is None or r["category"] == cat)
+        name = "**all**" if cat is None else cat
+        lines.append(f"| {name} | {total} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def _write(path, header, rows):
+    tmp = Path(str(path) + ".part")
+    with open(tmp, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(header)
+        w.writerows(rows)
+    os.replace(tmp, path)
 
 
 if __name__ == "__main__":
