@@ -107,7 +107,7 @@ def noise(panel, scale: float) -> float | None:
     if panel.health or panel.log:
         return None
     peak = max(_max_abs(line.y) for line in panel.lines)
-    if peak == 0.0 and scale == 0.0:
+    if peak == 0.0:
         return 0.0  # exactly zero everywhere
     if scale > 0 and peak <= NOISE * scale:
         return peak
@@ -167,10 +167,11 @@ def prune(result, panels, mechanism=None) -> tuple[list, list[str]]:
         peak = noise(panel, scale.get(panel.unit, 0.0))
         if peak is None:
             shown.append(panel)
+        elif peak == 0.0:
+            blank.append(f"{_short(panel.ylabel)} (zero at every output time)")
         else:
             quiet.append(f"{_short(panel.ylabel)} (max {peak:.2g} {panel.unit} against "
-                         f"{scale.get(panel.unit, 0.0):.3g} {panel.unit})" if peak else
-                         f"{_short(panel.ylabel)} (0 at every output time)")
+                         f"{scale.get(panel.unit, 0.0):.3g} {panel.unit})")
     twins = duplicates(shown)
     for panel, _ in twins:
         shown.remove(panel)

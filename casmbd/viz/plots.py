@@ -355,14 +355,14 @@ def plot_result(result, kinds: str | Sequence[str] | None = None,
         keep = {id(p) for p in kept}
         groups = [(g, [p for p in group if id(p) in keep]) for g, group in groups]
         panels, left = plot_select.concise(groups, limit)
+        shown = {p.kind for p in panels}
+        more = list(dict.fromkeys([*(p.kind for p in left),
+                                   *(k for k in available_kinds(result) if k not in shown)]))
         if left:
             notes.append(f"not drawn by default (at most {limit} panels): "
-                         + ", ".join(p.ylabel for p in left)
-                         + "; --what KIND draws any kind (--what energy --what drift …)")
-        others = [k for k in available_kinds(result)
-                  if k in ("coordinates", "reactions", "outputs")]
-        if others and not left:
-            notes.append(f"more with --what: {', '.join(others)}")
+                         + ", ".join(p.ylabel for p in left))
+        if more:
+            notes.append("more with --what: " + ", ".join(more))
     if not panels:
         raise AnalysisError(f"the {result.kind} result holds nothing to plot for "
                             f"{', '.join(elements or []) or 'its elements'}"
