@@ -72,7 +72,7 @@ def _selected(name: str, elements) -> bool:
     return elements is None or name in elements
 
 
-def _by_unit(columns, what: dict[str, str]) -> list[Panel]:
+def by_unit(columns, what: dict[str, str]) -> list[Panel]:
     """Group ``(label, y, unit, element, component)`` by unit, panels in order of appearance;
     ``what`` names the quantity of each unit (``{"m": "joint translations", …}``)."""
     panels: dict[str, Panel] = {}
@@ -119,7 +119,7 @@ def coordinates(result, elements=None, euler: str = "xyz", mechanism=None) -> li
                 unitless.append(prefix)
             continue
         columns.append((name, q[:, k], unit, colour(prefix), max("xyz".find(coord), 0)))
-    panels = _by_unit(columns, {"m": "positions", "rad": "angles"})
+    panels = by_unit(columns, {"m": "positions", "rad": "angles"})
     bodies = [b for b in result.names.get("bodies", []) if _selected(b, elements)]
     if result.dimension == 3 and "rotation_matrices" in result.arrays and bodies:
         panels.append(euler_panel(result, bodies, euler))
@@ -166,7 +166,7 @@ def joints(result, elements=None, mechanism=None) -> list[Panel]:
     colour = _element_index()
     columns = [(name, c[:, k], units[k], colour(name.partition(".")[0]), 0)
                for k, name in enumerate(names) if _selected(name.partition(".")[0], elements)]
-    return _by_unit(columns, {"m": "joint translations", "rad": "joint angles",
+    return by_unit(columns, {"m": "joint translations", "rad": "joint angles",
                               "m or rad": "joint coordinates"})
 
 
@@ -187,7 +187,7 @@ def efforts(result, elements=None, mechanism=None) -> list[Panel]:
                 columns.append((f"{group[:-1]} {name}{what}", result.arrays[key][:, k],
                                 units[k], n, 0))
             n += 1
-    return _by_unit(columns, {"N": "forces", "N m": "torques", "N or N m": "efforts"})
+    return by_unit(columns, {"N": "forces", "N m": "torques", "N or N m": "efforts"})
 
 
 def reactions(result, elements=None, mechanism=None) -> list[Panel]:
@@ -277,7 +277,7 @@ def _output_panels(result, key: str, units_key: str, elements) -> list[Panel]:
         if _selected(element, elements):
             y = result.arrays[key][:, k]
             columns.append((label, y, unit, colour(element), 0))
-    return _named(_by_unit(columns, _OUTPUT_QUANTITIES))
+    return _named(by_unit(columns, _OUTPUT_QUANTITIES))
 
 
 def flexible(result, elements=None, mechanism=None) -> list[Panel]:

@@ -36,7 +36,7 @@ from casmbd.limits import (
 from casmbd.results import atomic_write
 from casmbd.viz import plot_panels, plot_select
 from casmbd.viz.geometry import scene_name
-from casmbd.viz.quantities import scene_mechanism
+from casmbd.viz.quantities import joint_units, scene_mechanism
 
 
 def check_figure_size(figsize=None, dpi: float | None = None, what: str = "figure") -> None:
@@ -227,12 +227,30 @@ def _controls(result, panels, mechanism) -> None:
     for panel in panels:
         panel.ylabel = f"controls: {panel.ylabel}"
         panel.steps = True
+        at: dict[float, list[str]] = {}
         for line in panel.lines:
             name = line.label.split(" ")[1] if " " in line.label else line.label
             line.label = f"control {name}"
-            for side, value in zip(("lower", "upper"), bounds.get(name, ()), strict=False):
-                if math.isfinite(value):
-                    panel.bounds.append((f"{name} {side} bound", value))
+            for value in bounds.get(name, ()):
+                if math.isfinite(value) and name not in at.setdefault(value, []):
+                    at[value].append(name)
+        panel.bounds = [(f"bound of {', '.join(names)}", value) for value, names in at.items()]
+
+
+def _rates(result, elements) -> list:
+    """An OCP solution's joint rates (its states are q and q̇): [rad/s] and [m/s] panels."""
+    if "joint_velocities" not in result.arrays or not result.names.get("joints"):
+        return []
+    columns = []
+    units = joint_units(result, None)
+    for k, name in enumerate(result.names["joints"]):
+        if elements is None or name.partition(".")[0] in elements:
+            columns.append((f"{name} rate", result.arrays["joint_velocities"][:, k],
+                            f"{units[k]}/s", k, 1))
+    panels = plot_panels.by_unit(columns, {"m/s": "joint rates", "rad/s": "joint rates"})
+    for panel in panels:
+        panel.kind = "joints"
+    return panels
 
 
 def _default_groups(result, elements, euler, mechanism) -> list[tuple[str, list]]:
@@ -249,6 +267,10 @@ def _default_groups(result, elements, euler, mechanism) -> list[tuple[str, list]
             return []
 
     motion = of("joints") or of("coordinates")
+    if result.kind == "ocp":  # the states q and q̇, then the controls
+        motion += _rates(result, elements)
+        for panel in motion:
+            panel.ylabel = f"states: {panel.ylabel}"
     flexible = of("flexible")
     modal = [p for p in flexible if p.unit != "m"]
     nodes = [p for p in flexible if p.unit == "m"]
@@ -356,8 +378,10 @@ def plot_result(result, kinds: str | Sequence[str] | None = None,
         groups = [(g, [p for p in group if id(p) in keep]) for g, group in groups]
         panels, left = plot_select.concise(groups, limit)
         shown = {p.kind for p in panels}
+        omitted = {p.kind for p in everything} - {p.kind for p in kept}  # empty, noise
         more = list(dict.fromkeys([*(p.kind for p in left),
-                                   *(k for k in available_kinds(result) if k not in shown)]))
+                                   *(k for k in available_kinds(result)
+                                     if k not in shown and k not in omitted)]))
         if left:
             notes.append(f"not drawn by default (at most {limit} panels): "
                          + ", ".join(p.ylabel for p in left))
