@@ -202,6 +202,11 @@ def reactions(result, elements=None, mechanism=None) -> list[Panel]:
         for c, label in enumerate(labels):
             panel = forces if label.startswith("F") else moments
             panel.lines.append(Line(f"{name}.{label}", lam[:, j, c], j, c % 3))
+    undetermined = result.stats.get("undetermined_reactions") or {}
+    shown = [j for j in undetermined if _selected(j, elements)]
+    if shown:  # redundant constraints: one distribution of many (flag_undetermined)
+        forces.note = (f"minimum-norm distribution: undetermined at {', '.join(shown[:4])}"
+                       + (" …" if len(shown) > 4 else ""))
     return [p for p in (forces, moments) if p.lines]
 
 

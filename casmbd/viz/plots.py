@@ -275,7 +275,8 @@ def _default_groups(result, elements, euler, mechanism) -> list[tuple[str, list]
     modal = [p for p in flexible if p.unit != "m"]
     nodes = [p for p in flexible if p.unit == "m"]
     efforts, contacts = of("efforts"), of("contacts")
-    reactions = [] if (efforts or contacts) else of("reactions")[:1]
+    undetermined = result.stats.get("undetermined_reactions")  # redundant: not the physics
+    reactions = [] if (efforts or contacts or undetermined) else of("reactions")[:1]
     requests = plot_panels.requests(result, elements, mechanism)
     for panel in requests:
         panel.kind = "outputs"
