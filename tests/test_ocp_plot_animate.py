@@ -138,3 +138,23 @@ def test_solution_file_of_the_older_layout_still_plots(solution, tmp_path, capsy
     assert figure.is_file()
     status = cli.main(["animate", str(old), "--out", str(tmp_path / "old.gif")])
     assert status == 1 and "holds no scene text" in capsys.readouterr().err
+
+
+def test_solution_plot_has_units_states_controls_and_bounds(solution, tmp_path):
+    """``OcpSolution.plot``: states (angles [rad], rates [rad/s]) and controls (torques
+    [N m], piecewise constant per interval) in separate panels, the ±50 N m bounds dashed."""
+    import matplotlib.pyplot as plt
+
+    fig = solution.plot(tmp_path / "sol.png")
+    try:
+        labels = [ax.get_ylabel() for ax in fig.axes]
+        assert labels == ["state [rad]", "state [rad/s]", "control [N m]"], labels
+        controls = fig.axes[2]
+        drawn = {ln.get_label(): ln for ln in controls.get_lines()}
+        np.testing.assert_array_equal(drawn["control tau1"].get_ydata()[:-1], solution.u[:, 0])
+        bounds = sorted(float(ln.get_ydata()[0]) for ln in controls.get_lines()
+                        if ln.get_linestyle() == "--")
+        assert bounds == [-50.0, -50.0, 50.0, 50.0]  # tau1 and tau2
+        assert (tmp_path / "sol.png").stat().st_size > 1000
+    finally:
+        plt.close(fig)
