@@ -136,6 +136,26 @@ def coordinates(result, elements=None, euler: str = "xyz", mechanism=None) -> li
     return panels
 
 
+def bodies(result, elements=None, euler: str = "xyz", mechanism=None) -> list[Panel]:
+    """The selected bodies' centre positions [m] and angles [rad] (planar angle, or Euler
+    angles in space) from the body outputs: the motion of a body selected by name when q
+    holds joint coordinates."""
+    names = [b for b in result.names.get("bodies", []) if _selected(b, elements)]
+    if not names or elements is None or "body_positions" not in result.arrays:
+        return []
+    columns = []
+    for i, body in enumerate(names):
+        frame = result.body(body)
+        for c in range(result.dimension):
+            columns.append((f"{body}.{'xyz'[c]}", frame["position"][:, c], "m", i, c))
+        if result.dimension == 2 and "angle" in frame:
+            columns.append((f"{body}.angle", np.unwrap(frame["angle"]), "rad", i, 0))
+    panels = by_unit(columns, {"m": "positions", "rad": "angles"})
+    if result.dimension == 3 and "rotation_matrices" in result.arrays:
+        panels.append(euler_panel(result, names, euler))
+    return panels
+
+
 def euler_panel(result, bodies: list[str], sequence: str) -> Panel:
     """Euler angles (unwrapped) of spatial bodies; a singular pass is named in the panel."""
     if sequence not in EULER_SEQUENCES:

@@ -267,6 +267,10 @@ def _default_groups(result, elements, euler, mechanism) -> list[tuple[str, list]
             return []
 
     motion = of("joints") or of("coordinates")
+    if not motion and elements:  # bodies selected by name, q of joint coordinates
+        motion = plot_panels.bodies(result, elements, euler, mechanism)
+        for panel in motion:
+            panel.kind = "coordinates"
     if result.kind == "ocp":  # the states q and q̇, then the controls
         motion += _rates(result, elements)
         for panel in motion:
@@ -364,12 +368,8 @@ def plot_result(result, kinds: str | Sequence[str] | None = None,
     notes: list[str] = []
     if chosen:
         panels = []
-        for kind in kinds:
-            try:
-                new = _panels(result, kind, elements, euler, mechanism)
-            except _EmptyKindError:
-                raise
-            panels += new
+        for kind in kinds:  # a kind asked for by name must show something
+            panels += _panels(result, kind, elements, euler, mechanism)
         panels, notes = plot_select.prune(result, panels, mechanism)
     else:
         groups = _default_groups(result, elements, euler, mechanism)
@@ -389,9 +389,10 @@ def plot_result(result, kinds: str | Sequence[str] | None = None,
         if more:
             notes.append("more with --what: " + ", ".join(more))
     if not panels:
-        raise AnalysisError(f"the {result.kind} result holds nothing to plot for "
-                            f"{', '.join(elements or []) or 'its elements'}"
-                            + (f" ({'; '.join(notes)})" if notes else ""))
+        what = f" of {', '.join(kinds)}" if kinds else ""
+        which = f" for {', '.join(elements)}" if elements else ""
+        raise AnalysisError(f"the {result.kind} result has nothing to draw{what}{which}"
+                            + (f": {'; '.join(notes)}" if notes else ""))
     wide = any(len(p.lines) > 6 for p in panels)
     fig, axes = new_figure(len(panels), 1, figsize=(8.4 if wide else 6.4,
                                                     1.0 + 1.9 * len(panels)), sharex=True)
