@@ -12,9 +12,12 @@ like joint angles.  Figures are inspected through matplotlib's objects (Agg), no
 
 from __future__ import annotations
 
+import importlib.util
 import math
 import pathlib
 import re
+import sys
+import warnings
 
 import numpy as np
 import pytest
@@ -38,8 +41,11 @@ _INVERSE = ("slider_crank_inverse", "four_bar", "spatial_four_bar", "cardan_shaf
             "flexible_slider_crank", "spinup_beam", "crank_friction", "slider_crank",
             "spatial_slider_crank")
 _KINEMATICS = ("slider_crank", "four_bar", "spatial_slider_crank")
+#: the examples without a scene file: the URDF arm, the delta robot and two-link arm scripts
+_SCRIPTS = [("ur5_arm", "urdf"), ("delta_robot", "script"), ("two_link_arm", "script")]
 CASES = ([(p.stem, "simulate") for p in sorted(EXAMPLES.glob("*.toml"))]
-         + [(n, "inverse") for n in _INVERSE] + [(n, "kinematics") for n in _KINEMATICS])
+         + [(n, "inverse") for n in _INVERSE] + [(n, "kinematics") for n in _KINEMATICS]
+         + _SCRIPTS)
 
 _RESULTS: dict = {}
 
@@ -58,10 +64,33 @@ def _run(name: str, analysis: str = "simulate", t_end: float = T_END, steps: int
     return _RESULTS[key]
 
 
+def _script(name: str):
+    """A result of an example without a scene file, and its mechanism."""
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("CASMBD_COMPILE", "0")
+        if name == "ur5_arm":
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # its <visual> meshes are not read
+                mech = casmbd.load_urdf(EXAMPLES / "ur5_arm.urdf")
+            return casmbd.simulate(mech, t_end=0.2, steps=10, mode="vm"), mech
+        spec = importlib.util.spec_from_file_location(f"example_{name}", EXAMPLES / f"{name}.py")
+        module = importlib.util.module_from_spec(spec)
+        mp.setitem(sys.modules, spec.name, module)
+        spec.loader.exec_module(module)
+        if name == "delta_robot":
+            mech = module.delta_robot(path=module.gate_path)
+            return casmbd.inverse_dynamics(mech, t_end=0.2, steps=10, mode="vm"), mech
+        mech = module.arm(True)
+        return casmbd.inverse_dynamics(mech, t_end=0.5, steps=20, mode="vm"), mech
+
+
 @pytest.mark.parametrize(("name", "analysis"), CASES, ids=[f"{n}-{a}" for n, a in CASES])
 def test_default_figure_is_concise_and_full(name, analysis):
-    result = _run(name, analysis)
-    fig = plots.plot_result(result)
+    if analysis in ("urdf", "script"):
+        result, mech = _script(name)
+        fig = plots.plot_result(result, mechanism=mech)
+    else:
+        fig = plots.plot_result(_run(name, analysis))
     assert 1 <= len(fig.axes) <= plot_select.MAX_PANELS, fig.casmbd_panels
     seen = []
     for ax in fig.axes:
