@@ -14,7 +14,10 @@ one (``positions [m]``, ``angles [rad]``, ``forces [N]``, ``torques [N m]`` …)
   drivers, actuators and forces, :func:`casmbd.viz.quantities.energy_change_label`);
 * ``drift`` — max |C| and max |C_q v + C_t| (log scale; mixed units of the equations);
 * ``outputs`` — the requests (``[[outputs]]``, by their ``unit``) and what every force element
-  reports (a spring's length [m], rate [m/s] and force [N], …), one panel per unit.
+  reports (a spring's length [m], rate [m/s] and force [N], …), one panel per unit named by
+  its lines (``tip_height [m]``);
+* ``flexible`` — a flexible body's modal coordinates η [kg^½ m] and node deflections [m];
+* ``contacts`` — contact and joint-limit forces [N].
 
 Angles are drawn continuous: the result's joint angles are unwrapped already
 (:meth:`casmbd.compiled.model.NumericModel.outputs`), Euler angles are unwrapped here.

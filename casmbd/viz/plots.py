@@ -9,8 +9,11 @@ quaternions), ``joints`` (joint coordinates), ``efforts`` (driver efforts, actua
 inputs), ``reactions`` (joint reaction forces and moments), ``energy`` (kinetic, potential,
 total and the change of the total: drift or work of dampers/drivers) and ``drift`` (max |C|
 and max |C_q v + C_t| per output time, logarithmic), ``outputs`` (requests and force-element
-reports).  Each kind is split into panels of one
-unit each, built by :mod:`casmbd.viz.plot_panels`.
+reports, under their own names), ``flexible`` (modal coordinates and node deflections) and
+``contacts`` (contact forces).  Each kind is split into panels of one unit each, built by
+:mod:`casmbd.viz.plot_panels`.  Without kinds the figure is the concise default of at most six
+panels, and empty panels, panels of rounding noise and duplicated panels are left out with a
+note (:mod:`casmbd.viz.plot_select`).
 """
 
 from __future__ import annotations
