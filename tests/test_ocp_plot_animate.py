@@ -120,7 +120,7 @@ def test_default_ocp_figure_has_states_controls_and_bounds(solution, saved):
         legend = [t.get_text() for t in controls.get_legend().get_texts()]
         assert legend == ["control tau1", "control tau2"]  # bounds: one note, no entries
         # the double pendulum in joint coordinates has no constraint: max |C| is said empty
-        assert any("max |C| (zero at every output time)" in n for n in fig.casmbd_notes)
+        assert any("max |C| (zero at every output time" in n for n in fig.casmbd_notes)
 
 
 def test_solution_file_of_the_older_layout_still_plots(solution, tmp_path, capsys):

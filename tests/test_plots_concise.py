@@ -161,7 +161,8 @@ def test_empty_panels_are_omitted_with_the_reason(tmp_path, capsys):
     fig = plots.plot_result(_run("bouncing_ball"))
     assert "max |C| [m, rad or 1]" not in fig.casmbd_panels
     empty = [n for n in fig.casmbd_notes if n.startswith("omitted") and "empty" in n]
-    assert len(empty) == 1 and "max |C| (zero at every output time)" in empty[0]
+    assert len(empty) == 1
+    assert "max |C| (zero at every output time: no constraint equations)" in empty[0]
     # reactions of NaN (a run that did not compute them) are said to be so
     result = _run("four_bar")
     result = casmbd.results.Result(result.kind, result.t,
@@ -212,6 +213,9 @@ def test_requests_are_plotted_under_their_names():
 def test_impact_losses_and_friction_work_are_not_drift():
     ball = _run("bouncing_ball", t_end=0.6, steps=30)  # first impact at sqrt(2 h0 / g) = 0.45 s
     assert [e["kind"] for e in ball.events] == ["impact"]
+    notes = plots.plot_result(ball).casmbd_notes
+    assert any("contact forces (zero at every output time; impacts are impulses at events (1 "
+               "here), not forces on the output grid)" in n for n in notes)
     label = plots.plot_result(ball, "energy").axes[1].get_lines()[0].get_label()
     assert label == ("energy change: impact losses at contact 'floor' (1 impact, "
                      "restitution 0.8) (not a drift)")

@@ -260,11 +260,13 @@ def drift(result, elements=None, mechanism=None) -> list[Panel]:
                             [Line("velocity max|C_q v + C_t|",
                                   result.arrays["velocity_violation"])], log=True,
                             health=True))
+    loops = "constraints" not in result.names or bool(result.names["constraints"])
     for panel in panels:
         values = panel.lines[0].y
         panel.lines[0].y = np.where(values > 0, values, np.nan)
         if not np.any(values > 0):
-            panel.note = "zero at every output time"
+            panel.note = "zero at every output time" + ("" if loops else
+                                                        ": no constraint equations")
     return panels
 
 
@@ -349,4 +351,8 @@ def contacts(result, elements=None, mechanism=None) -> list[Panel]:
             label = f"{name} friction" if name in seen else f"{name} normal"
             panel.lines.append(Line(label, forces[:, k], colour(name), int(name in seen)))
         seen.append(name)
+    impacts = sum(e.get("kind") in ("impact", "limit") for e in result.events or [])
+    if impacts:  # an impact's impulse is an event, not a force on the grid
+        panel.note = (f"impacts are impulses at events ({impacts} here), not forces on the "
+                      "output grid")
     return [panel] if panel.lines else []

@@ -96,7 +96,7 @@ def empty(panel) -> str | None:
         return "no lines"
     values = [np.asarray(line.y, dtype=float) for line in panel.lines]
     if not any(np.isfinite(y).any() for y in values):
-        return "zero at every output time" if panel.note.startswith("zero") else \
+        return panel.note if panel.note.startswith("zero") else \
             "not a number at every output time (not computed by this analysis)"
     return None
 
@@ -168,7 +168,8 @@ def prune(result, panels, mechanism=None) -> tuple[list, list[str]]:
         if peak is None:
             shown.append(panel)
         elif peak == 0.0:
-            blank.append(f"{_short(panel.ylabel)} (zero at every output time)")
+            why = f"; {panel.note}" if panel.note else ""
+            blank.append(f"{_short(panel.ylabel)} (zero at every output time{why})")
         else:
             quiet.append(f"{_short(panel.ylabel)} (max {peak:.2g} {panel.unit} against "
                          f"{scale.get(panel.unit, 0.0):.3g} {panel.unit})")
