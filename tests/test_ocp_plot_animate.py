@@ -90,12 +90,37 @@ def test_plot_panels_carry_units(solution, tmp_path, capsys):
     panel: the joint angles in rad, the actuators' torques in N m."""
     fig = plot_result(solution.to_result(), ["coordinates", "efforts"])
     labels = [ax.get_ylabel() for ax in fig.axes if ax.get_ylabel()]
-    assert labels == ["angles [rad]", "torques [N m]"], labels
+    assert labels == ["angles [rad]", "controls: torques [N m]"], labels
     figure = tmp_path / "ocp.png"
     status = cli.main(["ocp", str(SWINGUP), "--intervals", "10", "--mode", "vm", "--no-replay",
                        "--plot", str(figure)])
     assert status == 0, capsys.readouterr().err
     assert figure.is_file() and figure.stat().st_size > 1000
+
+
+def test_default_ocp_figure_has_states_controls_and_bounds(solution, saved):
+    """Issue 32: the OCP figure names its units on every axis, draws the states (q and q̇)
+    and the controls in separate panels, the controls piecewise constant per interval, and the
+    control bounds of [ocp.controls] (tau1, tau2 in [-50, 50] N m) as dashed lines."""
+    for result in (solution.to_result(), load(saved)):
+        fig = plot_result(result)
+        labels = [ax.get_ylabel() for ax in fig.axes]
+        assert labels == ["states: joint angles [rad]", "states: joint rates [rad/s]",
+                          "controls: torques [N m]"], labels
+        assert all(label.endswith("]") for label in labels)
+        controls = fig.axes[2]
+        drawn = {ln.get_label(): ln for ln in controls.get_lines()}
+        assert {"control tau1", "control tau2"} <= set(drawn)
+        assert drawn["control tau1"].get_drawstyle() == "steps-post"
+        np.testing.assert_array_equal(drawn["control tau1"].get_ydata(),
+                                      solution.node_controls()[:, 0])
+        bounds = sorted(float(ln.get_ydata()[0]) for ln in controls.get_lines()
+                        if ln.get_label().startswith("_bound"))
+        assert bounds == [-50.0, 50.0]
+        legend = [t.get_text() for t in controls.get_legend().get_texts()]
+        assert legend == ["control tau1", "control tau2"]  # bounds: one note, no entries
+        # the double pendulum in joint coordinates has no constraint: max |C| is said empty
+        assert any("max |C| (zero at every output time" in n for n in fig.casmbd_notes)
 
 
 def test_solution_file_of_the_older_layout_still_plots(solution, tmp_path, capsys):
@@ -113,3 +138,23 @@ def test_solution_file_of_the_older_layout_still_plots(solution, tmp_path, capsy
     assert figure.is_file()
     status = cli.main(["animate", str(old), "--out", str(tmp_path / "old.gif")])
     assert status == 1 and "holds no scene text" in capsys.readouterr().err
+
+
+def test_solution_plot_has_units_states_controls_and_bounds(solution, tmp_path):
+    """``OcpSolution.plot``: states (angles [rad], rates [rad/s]) and controls (torques
+    [N m], piecewise constant per interval) in separate panels, the ±50 N m bounds dashed."""
+    import matplotlib.pyplot as plt
+
+    fig = solution.plot(tmp_path / "sol.png")
+    try:
+        labels = [ax.get_ylabel() for ax in fig.axes]
+        assert labels == ["state [rad]", "state [rad/s]", "control [N m]"], labels
+        controls = fig.axes[2]
+        drawn = {ln.get_label(): ln for ln in controls.get_lines()}
+        np.testing.assert_array_equal(drawn["control tau1"].get_ydata()[:-1], solution.u[:, 0])
+        bounds = sorted(float(ln.get_ydata()[0]) for ln in controls.get_lines()
+                        if ln.get_linestyle() == "--")
+        assert bounds == [-50.0, -50.0, 50.0, 50.0]  # tau1 and tau2
+        assert (tmp_path / "sol.png").stat().st_size > 1000
+    finally:
+        plt.close(fig)

@@ -37,9 +37,9 @@ def _cmd_ocp(args) -> tuple[dict, str]:
         sol.replay()
     if args.out:
         _save_solution(sol, args.out)
-    if args.plot:  # the plot verb's panels: one unit each (positions [m], torques [N m] …)
-        plot_result(sol.to_result(), ["coordinates", "efforts"], out=args.plot,
-                    mechanism=mech)
+    notes = []
+    if args.plot:  # the plot verb's default: states, controls with their bounds, max |C|
+        notes = plot_result(sol.to_result(), out=args.plot, mechanism=mech).casmbd_notes
     data = sol.to_json()
     s = sol.stats
     replay = s.get("replay_error")
@@ -58,6 +58,7 @@ def _cmd_ocp(args) -> tuple[dict, str]:
         u = sol.control(name)
         lines.append(f"  control {name:12s} [{u.min():+.4g}, {u.max():+.4g}]")
     lines += [f"  saved {f}" for f in (args.out, args.plot) if f]
+    lines += [f"  note: {n}" for n in notes]
     return data, "\n".join(lines)
 
 

@@ -20,9 +20,11 @@ def _add_workbench_verbs(sub) -> None:
     """The ``plot`` and ``animate`` verbs (figures and animations of results)."""
     p = sub.add_parser("plot", help="figures of a saved result against time")
     p.add_argument("result", help="result file (.npz) written with --out")
-    p.add_argument("--kind", action="append", default=None, metavar="KIND",
-                   help=f"what to draw: {', '.join(KINDS)} (repeatable; default every kind "
-                        "the result holds); each kind gets one panel per unit")
+    p.add_argument("--what", "--kind", dest="kind", action="append", default=None,
+                   metavar="KIND",
+                   help=f"what to draw: {', '.join(KINDS)} (repeatable or comma-separated; "
+                        "default: at most 6 panels, the motion, the efforts, the energy and "
+                        "max |C|); each kind gets one panel per unit")
     p.add_argument("--element", action="append", default=None, metavar="NAME",
                    help="draw only the lines of this body, joint, driver or actuator "
                         "(repeatable)")

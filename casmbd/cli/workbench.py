@@ -26,7 +26,7 @@ from casmbd.viz.animation import (
     draw_frame,
     save_animation,
 )
-from casmbd.viz.plots import available_kinds, check_figure_size, plot_result
+from casmbd.viz.plots import check_figure_size, plot_result
 
 
 def load(path: str) -> Result:
@@ -47,13 +47,16 @@ def _cmd_plot(args) -> tuple[dict, str]:
     _check_out(args)
     check_figure_size(dpi=args.dpi, what=f"--out '{args.out}'")  # before reading the result
     result = load(args.result)
-    kinds = args.kind or available_kinds(result)
+    kinds = [k.strip() for text in args.kind for k in text.split(",") if k.strip()] \
+        if args.kind else None
     fig = plot_result(result, kinds, out=args.out, dpi=args.dpi, elements=args.element,
                       euler=args.euler)
     notes = getattr(fig, "casmbd_notes", [])
-    data = {"out": args.out, "kinds": kinds, "result": args.result, "notes": notes}
-    return data, "\n".join([f"saved {args.out} ({', '.join(kinds)})",
-                            *(f"  note: {n}" for n in notes)])
+    panels = getattr(fig, "casmbd_panels", [])
+    data = {"out": args.out, "kinds": kinds or fig.casmbd_kinds, "panels": panels,
+            "result": args.result, "notes": notes}
+    what = ", ".join(kinds) if kinds else f"{len(panels)} panels: {'; '.join(panels)}"
+    return data, "\n".join([f"saved {args.out} ({what})", *(f"  note: {n}" for n in notes)])
 
 
 def _cmd_animate(args) -> tuple[dict, str]:

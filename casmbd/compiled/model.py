@@ -21,6 +21,7 @@ import scipy.sparse as sp
 from casmbd.compiled.codegen import BuildReport, compile_functions
 from casmbd.compiled.workspace import Workspace
 from casmbd.errors import ModelError
+from casmbd.model.measures import result_names
 from casmbd.system.equations import SIGNATURES, Equation, System
 
 #: Functions each analysis needs; nothing else is generated or compiled for it.
@@ -354,8 +355,9 @@ class NumericModel:
         A spatial joint angle is an ``atan2`` (and a planar angle in natural coordinates
         too), which jumps by 2π where it passes ±π; the result's joint angles (revolute,
         universal, cylindrical ``.angle``) and planar body angles (``angle_positions``) are
-        unwrapped, and planar marker angles (``marker_angles``) too, so that plots, CSV and JSON
-        are continuous.  They start in (−π, π] and stay
+        unwrapped, and planar marker angles (``marker_angles``) too, and every request and
+        force report in rad (a rotational spring-damper's ``angle`` is its joint's angle), so
+        that plots, CSV and JSON are continuous.  They start in (−π, π] and stay
         correct while an angle changes by less than π between outputs.  Planar absolute and
         joint coordinates give exact continuous angles and are left alone.
         """
@@ -373,3 +375,8 @@ class NumericModel:
         for key in ("angle_positions", "marker_angles"):  # planar body and marker angles
             if key in out and out[key].shape[0] > 1:
                 out[key] = np.unwrap(out[key], axis=0)
+        names = result_names(self.mechanism)  # requests and force reports in rad alike
+        for key, units in (("outputs", "output_units"), ("force_outputs", "force_output_units")):
+            cols = [k for k, unit in enumerate(names.get(units, [])) if unit == "rad"]
+            if cols and key in out and out[key].shape[0] > 1 and out[key].ndim == 2:
+                out[key][:, cols] = np.unwrap(out[key][:, cols], axis=0)

@@ -315,10 +315,12 @@ class OcpSolution:
                                   f"({type(exc).__name__}: {exc})") from None
 
     def plot(self, path: str | os.PathLike | None = None):
-        """Coordinates and controls against time (matplotlib figure; saved when ``path``).
+        """States and controls against time (matplotlib figure; saved when ``path``).
 
-        A quick figure of the raw arrays; the figure with one unit per panel (positions [m],
-        angles [rad], forces [N], torques [N m]) is
+        One panel per unit: the coordinates (positions [m], angles [rad]), their rates
+        ([m/s], [rad/s]), then the controls per interval (piecewise constant; forces [N],
+        torques [N m]) with the bounds of :meth:`Ocp.control_bounds` dashed.  The figure of
+        the ``plot`` verb (joint coordinates, max |C|) is
         ``casmbd.viz.plot_result(sol.to_result())``, which ``casmbd ocp --plot`` draws."""
         import matplotlib
 
@@ -326,21 +328,63 @@ class OcpSolution:
             matplotlib.use("Agg")
         import matplotlib.pyplot as plt
 
-        fig, (ax1, ax2) = plt.subplots(2, 1, sharex=True, figsize=(6.4, 5.0))
+        states: dict[str, list[tuple[str, np.ndarray]]] = {}
         for i, name in enumerate(self.coordinate_names):
-            ax1.plot(self.t, self.q[:, i], label=name)
-        ax1.set_ylabel("coordinates")
-        ax1.legend(fontsize=7)
+            unit = _coordinate_unit(name)
+            states.setdefault(unit, []).append((name, self.q[:, i]))
+        for i, name in enumerate(self.coordinate_names):
+            unit = _coordinate_unit(name)
+            states.setdefault(f"{unit}/s", []).append((f"{name} rate", self.v[:, i]))
+        mech = self.ocp.system.mechanism if self.ocp is not None else None
+        bounds = dict(getattr(self.ocp, "_control_bounds", {}) or {})
+        controls: dict[str, list[int]] = {}
         for i, name in enumerate(self.controls):
-            ax2.step(self.control_times[:-1], self.u[:, i], where="post", label=name)
-        ax2.set_ylabel("controls")
-        ax2.set_xlabel("t [s]")
-        ax2.legend(fontsize=7)
+            controls.setdefault(_control_unit(mech, name), []).append(i)
+        n = len(states) + len(controls)
+        fig, axes = plt.subplots(n, 1, sharex=True, figsize=(6.4, 1.0 + 1.9 * n), squeeze=False)
+        axes = axes[:, 0]
+        for ax, (unit, lines) in zip(axes, states.items(), strict=False):
+            for label, y in lines:
+                ax.plot(self.t, y, lw=1, label=label)
+            ax.set_ylabel(f"state [{unit}]", fontsize=8)
+            ax.legend(fontsize=7)
+        times = self.control_times
+        for ax, (unit, cols) in zip(axes[len(states):], controls.items(), strict=True):
+            for i in cols:
+                name = self.controls[i]
+                u = np.r_[self.u[:, i], self.u[-1:, i]] if len(self.u) else np.zeros(len(times))
+                ax.step(times, u, where="post", lw=1, label=f"control {name}")
+                for value in bounds.get(name, ()):
+                    if np.isfinite(value):
+                        ax.axhline(value, color="0.4", ls="--", lw=0.8)
+            ax.set_ylabel(f"control [{unit}]", fontsize=8)
+            ax.legend(fontsize=7)
+        axes[-1].set_xlabel("t [s]")
         fig.tight_layout()
         if path is not None:
             fig.savefig(path, dpi=110)
             plt.close(fig)
         return fig
+
+
+def _coordinate_unit(name: str) -> str:
+    """Unit of a generalized coordinate by the suffix of its name (1: Euler parameters and
+    unit-vector components)."""
+    suffix = name.rpartition(".")[2]
+    if suffix in ("x", "y", "z", "translation", "length"):
+        return "m"
+    return "rad" if suffix.startswith("angle") else "1"
+
+
+def _control_unit(mech, actuator: str) -> str:
+    """N along a length, N m about an angle (the actuator's joint coordinate)."""
+    act = getattr(mech, "actuators", {}).get(actuator) if mech is not None else None
+    joint = getattr(mech, "joints", {}).get(getattr(act, "joint", None)) if act else None
+    names = getattr(joint, "coordinate_names", ()) or ()
+    coordinate = getattr(act, "coordinate", None) or (names[0] if names else None)
+    if coordinate is None:
+        return "N or N m"
+    return "N m" if str(coordinate).startswith("angle") else "N"
 
 
 def _jsonable(value) -> bool:

@@ -10,6 +10,8 @@ unit of a joint quantity is unknown and reads ``"m or rad"`` / ``"N or N m"``.
 
 from __future__ import annotations
 
+import numpy as np
+
 from casmbd.errors import CasmbdError
 from casmbd.io import scene as _scene  # noqa: F401  (registers the reader of Result.mechanism)
 
@@ -97,18 +99,80 @@ def energy_exchange(result, mechanism=None) -> list[str] | None:
     return out
 
 
+def _restitution(contact, parameters) -> float | None:
+    try:
+        return float(contact.restitution_value(parameters))
+    except (CasmbdError, AttributeError, TypeError, ValueError):
+        return None
+
+
+def energy_terms(result, mechanism=None) -> list[str] | None:
+    """What changes the total energy T + V physically, each as the phrase of a label:
+    ``"work of driver 'm'"``, ``"work of damper 'd'"``, ``"friction work of 'A.friction'"``,
+    ``"friction work at contact 'c'"``, ``"impact losses at contact 'floor' (3 impacts,
+    restitution 0.8)"``, ``"modal damping of body 'beam'"`` … ([]: conservative, any change is
+    numerical drift; None: unknown, no mechanism).
+
+    Impacts lose ½ (1 − e²) of the normal approach energy (Newton's law with restitution e <
+    1), frictional contacts and joint friction dissipate; none of it is a drift.
+    """
+    mech = scene_mechanism(result, mechanism)
+    impacts: dict[str, int] = {}
+    for event in getattr(result, "events", []) or []:
+        if event.get("kind") in ("impact", "limit"):
+            impacts[event.get("element", "?")] = impacts.get(event.get("element", "?"), 0) + 1
+    base = energy_exchange(result, mech)
+    if mech is None:
+        if base is None and not impacts:
+            return None
+        return [*(f"work of {e}" for e in base or []),
+                *(f"impact losses at '{c}' ({n} impacts)" for c, n in impacts.items())]
+    out = [f"work of {e}" for e in base if e.startswith(("driver ", "actuator "))]
+    for name, force in mech.forces.items():
+        exchange = force.energy_exchange()
+        if exchange is None:
+            continue
+        if type(force).__name__ == "JointFriction":
+            out.append(f"friction work of '{name}'")
+        elif type(force).__name__ == "CompliantContact":
+            out.append(f"impact losses and friction of compliant contact '{name}'")
+        else:
+            out.append(f"work of {exchange} '{name}'")
+    parameters = dict(getattr(mech, "parameters", {}) or {})
+    for name, contact in getattr(mech, "contacts", {}).items():
+        e = _restitution(contact, parameters)
+        count = impacts.get(name, 0)
+        if count and (e is None or e < 1.0):
+            where = "joint limit" if type(contact).__name__ == "JointLimit" else "contact"
+            out.append(f"impact losses at {where} '{name}' ({count} impact"
+                       + "s" * (count > 1) + (f", restitution {e:g})" if e is not None else ")"))
+        if getattr(contact, "friction", 0.0):
+            out.append(f"friction work at contact '{name}'")
+    for name, body in getattr(mech, "bodies", {}).items():
+        ratio = getattr(body, "damping_ratio", 0.0)
+        try:
+            damped = bool(np.any(np.asarray(ratio, dtype=float) != 0.0))
+        except (TypeError, ValueError):
+            damped = True
+        if damped:
+            out.append(f"modal damping of body '{name}'")
+    return out
+
+
 def energy_change_label(result, mechanism=None) -> tuple[str, bool]:
     """A short label of total − total(0) and whether it is numerical drift.
 
-    ``("drift of the total", True)`` for a conservative mechanism; ``("energy change (work
-    of damper 'd', driver 'm')", False)`` when something does work, so that dissipation is
-    not called a drift; ``("change of the total", False)`` when this cannot be told.
+    ``("drift of the total", True)`` for a conservative mechanism; ``("energy change: work of
+    damper 'd', driver 'm' (not a drift)", False)`` when something does work, ``"energy
+    change: impact losses at contact 'floor' (…) (not a drift)"`` when impacts dissipate,
+    ``"… friction work of 'A.friction' …"`` for friction — so that dissipation is not called
+    a drift (:func:`energy_terms`); ``("change of the total", False)`` when this cannot be
+    told.
     """
-    elements = energy_exchange(result, mechanism)
-    if elements == []:
+    terms = energy_terms(result, mechanism)
+    if terms == []:
         return "drift of the total", True
-    if elements is None:
+    if terms is None:
         return "change of the total (drift only if nothing does work)", False
-    shown = ", ".join(elements[:3]) + (f" and {len(elements) - 3} more" if len(elements) > 3
-                                       else "")
-    return f"energy change (work of {shown}; not a drift)", False
+    shown = "; ".join(terms[:3]) + (f" and {len(terms) - 3} more" if len(terms) > 3 else "")
+    return f"energy change: {shown} (not a drift)", False
