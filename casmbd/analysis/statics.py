@@ -238,7 +238,7 @@ class StaticsResult:
                 "potential_energy": float(self.potential_energy), "stats": dict(self.stats),
                 "stability": self.stability.to_json() if self.stability else None,
                 **({"contacts": self.contacts} if self.contacts else {}),
-                **self.reports}
+                **self.reports, **_summary(self.reports, self.names)}
 
 
 def statics_functions(system) -> list[ca.Function]:
@@ -522,7 +522,8 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
     names = {"coordinates": model.coordinate_names, "bodies": list(model.body_names),
              "joints": list(model.joint_coordinate_names), "all_joints": all_joints,
              "markers": list(mech.markers),
-             **{k: v for k, v in result_names(mech).items() if k == "nodes"}}
+             **{k: v for k, v in result_names(mech).items()
+                if k in ("nodes", "outputs", "output_units")}}
     stats = dict(model.report_dict)
     stats.update({"coordinates": model.coordinates, "coordinate_choice": model.coordinates,
                   "coordinate_reason": model.coordinate_reason,
@@ -546,7 +547,7 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
         if model.dimension == 2 else np.zeros(0), body_quaternions=quats,
         joint_coordinates=joint_coordinates, stats=stats, stability=stability,
         marker_positions=np.reshape(out["marker_positions"][0], (-1, model.dimension)),
-        reports=_reports(mech, out), search="stable" if stable else "nearest", notes=notes)
+        reports=state_reports(mech, out), search="stable" if stable else "nearest", notes=notes)
 
 
 def _classify(prob: _Problem, q, lam) -> tuple[Stability, np.ndarray]:
@@ -582,7 +583,7 @@ def _leave(prob: _Problem, q, lam, n: np.ndarray) -> np.ndarray:
     return q
 
 
-def _reports(mech, out: dict) -> dict:
+def state_reports(mech, out: dict) -> dict:
     """Requests (``outputs``), force reports (``forces``) and flexible bodies' named nodes
     (``nodes``: position, deflection and rotation relative to the undeformed body frame) at the
     equilibrium, from the outputs Function's groups (:mod:`casmbd.system.requests`)."""
@@ -611,6 +612,32 @@ def _reports(mech, out: dict) -> dict:
                    [float(x) for x in rot[rdim * i:rdim * i + rdim]]}
             for i, name in enumerate(names["nodes"])}
     return reports
+
+
+def state_summary(reports: dict, names: dict) -> dict:
+    """The text summaries' values at one state (an equilibrium, an operating point), in the
+    form :meth:`casmbd.results.Result.summary` gives on a grid: ``{"outputs": {name: {"unit",
+    "value"}}, "node_deflections": {name: {"unit": "m", "value": |u_i|, "deflection": u_i}}}``
+    from the ``reports`` of :func:`state_reports` (u_i = Φ_i η, the node's elastic displacement
+    relative to its undeformed position, body axes; seed 002, eq. 5–26); {} when there is
+    neither."""
+    out: dict = {}
+    units = dict(zip(names.get("outputs", []), names.get("output_units", []), strict=False))
+    if reports.get("outputs"):
+        out["outputs"] = {name: {"unit": units.get(name, ""), "value": value}
+                          for name, value in reports["outputs"].items()}
+    if reports.get("nodes"):
+        out["node_deflections"] = {
+            name: {"unit": "m", "value": float(np.linalg.norm(node["deflection"])),
+                   "deflection": list(node["deflection"])}
+            for name, node in reports["nodes"].items()}
+    return out
+
+
+def _summary(reports: dict, names: dict) -> dict:
+    """``{"summary": state_summary(...)}``, or {} when there is nothing to summarise."""
+    summary = state_summary(reports, names)
+    return {"summary": summary} if summary else {}
 
 
 def _converged(prob: _Problem, f: np.ndarray, fscale: float, lscale: float) -> bool:
