@@ -214,6 +214,15 @@ def _number(x, fmt: str = "+.6g") -> str:
     return "-" if x is None else format(float(x) + 0.0, fmt)
 
 
+def _vector(values, fmt: str = "+.6g") -> str:
+    """``[x, y(, z)]`` with components below 1e-9 of the largest printed as 0 (round-off of
+    a deflection along the beam axis, not a stretch)."""
+    values = np.asarray(values, dtype=float)
+    scale = float(np.max(np.abs(values), initial=0.0))
+    return "[" + ", ".join(_number(x if abs(x) > 1e-9 * scale else 0.0, fmt)
+                           for x in values) + "]"
+
+
 def _table(header: list[str], rows: list[list[str]], more: str,
            limit: int = SUMMARY_ROWS) -> list[str]:
     """Lines of an aligned table (the first column, units and vectors left-aligned, the
@@ -246,11 +255,11 @@ def _node_lines(result) -> list[str]:
     nodes = result.summary().get("node_deflections", {})
     rows = []
     for name, s in nodes.items():
-        final = ", ".join(_number(x, "+.4g") for x in result.node(name)["deflection"][-1])
         rows.append([name, _number(s["start"], ".6g"), _number(s["end"], ".6g"),
-                     _number(s["max"], ".6g"), _number(s["t_max"], ".4g"), f"[{final}]"])
+                     _number(s["max"], ".6g"), _number(s["t_max"], ".4g"),
+                     _vector(result.node(name)["deflection"][-1], "+.4g")])
     return _table(["node deflection |u| [m]", "start", "end", "max", "t_max [s]",
-                   "end (body axes)"], rows, "--json 'nodes' / --out")
+                   "end (body axes)"], rows, "--json 'summary' / --out")
 
 
 def _output_lines(result) -> list[str]:
@@ -272,11 +281,10 @@ def _state_lines(summary: dict) -> list[str]:
                    [[name, _number(s["value"]), _unit(s["unit"])]
                     for name, s in outputs.items()], "--json 'summary'")
     nodes = summary.get("node_deflections", {})
-    rows = [[name, _number(s["value"], ".6g"),
-             "[" + ", ".join(_number(x) for x in s["deflection"]) + "]"]
+    rows = [[name, _number(s["value"], ".6g"), _vector(s["deflection"])]
             for name, s in nodes.items()]
     return lines + _table(["node deflection", "|u| [m]", "u (body axes) [m]"], rows,
-                          "--json 'nodes'")
+                          "--json 'summary'")
 
 
 def _finite_json(obj):
