@@ -37,6 +37,7 @@ import pytest
 import casmbd
 from casmbd.cli import _once_per_run, main
 from casmbd.cli.common import SUMMARY_ROWS
+from casmbd.results import extremes
 from tests.conftest import private_cache
 from tests.flexible_references import KANE_BEAM
 
@@ -226,6 +227,18 @@ unit = "m"
     assert "  h18 " not in text
     data, text = _run(capsys, "statics", str(scene))
     assert "  … 5 more, see --json 'summary'" in text.splitlines()
+
+
+def test_extremes_skip_nan_values():
+    """A request that is NaN at some times (a square root of a negative value): start and end
+    as they are, the extremes over the finite values at their first time; none finite: None
+    (the CLI writes null, the table '-')."""
+    t = np.array([0.0, 0.5, 1.0, 1.5, 2.0])
+    got = extremes(t, np.array([np.nan, 3.0, -1.0, 3.0, np.nan]))
+    assert np.isnan(got["start"]) and np.isnan(got["end"])
+    assert (got["min"], got["t_min"], got["max"], got["t_max"]) == (-1.0, 1.0, 3.0, 0.5)
+    got = extremes(t, np.full(5, np.nan))
+    assert got["min"] is got["t_min"] is got["max"] is got["t_max"] is None
 
 
 # ------------------------------------------------------------------ flexible bodies

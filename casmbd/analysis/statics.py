@@ -204,6 +204,9 @@ class StaticsResult:
     #: what the search did that the caller should know (a stall handed over to the descent,
     #: an unstable equilibrium left, a stable one asked for and not found)
     notes: list = field(default_factory=list)
+    #: the text summary's values at the equilibrium: requests with their units and named
+    #: nodes' deflections (:func:`state_summary`)
+    summary: dict = field(default_factory=dict)
 
     def to_json(self) -> dict:
         """The JSON object of the ``casmbd statics`` command."""
@@ -238,7 +241,7 @@ class StaticsResult:
                 "potential_energy": float(self.potential_energy), "stats": dict(self.stats),
                 "stability": self.stability.to_json() if self.stability else None,
                 **({"contacts": self.contacts} if self.contacts else {}),
-                **self.reports, **_summary(self.reports, self.names)}
+                **self.reports, **({"summary": self.summary} if self.summary else {})}
 
 
 def statics_functions(system) -> list[ca.Function]:
@@ -522,8 +525,7 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
     names = {"coordinates": model.coordinate_names, "bodies": list(model.body_names),
              "joints": list(model.joint_coordinate_names), "all_joints": all_joints,
              "markers": list(mech.markers),
-             **{k: v for k, v in result_names(mech).items()
-                if k in ("nodes", "outputs", "output_units")}}
+             **{k: v for k, v in result_names(mech).items() if k == "nodes"}}
     stats = dict(model.report_dict)
     stats.update({"coordinates": model.coordinates, "coordinate_choice": model.coordinates,
                   "coordinate_reason": model.coordinate_reason,
@@ -533,6 +535,7 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
     joint_coordinates = np.ravel(out["joint_positions"][0]).copy()
     for k in _periodic_joint_outputs(mech, model.joint_coordinate_names):
         joint_coordinates[k] = _wrap(joint_coordinates[k])
+    reports = state_reports(mech, out)
     quats = np.zeros((0, 4))
     if model.dimension == 3:
         quats = quaternions_from_matrices(out["rotation_matrices"][0].reshape(nb, 9))
@@ -547,7 +550,8 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
         if model.dimension == 2 else np.zeros(0), body_quaternions=quats,
         joint_coordinates=joint_coordinates, stats=stats, stability=stability,
         marker_positions=np.reshape(out["marker_positions"][0], (-1, model.dimension)),
-        reports=state_reports(mech, out), search="stable" if stable else "nearest", notes=notes)
+        reports=reports, search="stable" if stable else "nearest", notes=notes,
+        summary=state_summary(reports, result_names(mech)))
 
 
 def _classify(prob: _Problem, q, lam) -> tuple[Stability, np.ndarray]:
@@ -632,12 +636,6 @@ def state_summary(reports: dict, names: dict) -> dict:
                    "deflection": list(node["deflection"])}
             for name, node in reports["nodes"].items()}
     return out
-
-
-def _summary(reports: dict, names: dict) -> dict:
-    """``{"summary": state_summary(...)}``, or {} when there is nothing to summarise."""
-    summary = state_summary(reports, names)
-    return {"summary": summary} if summary else {}
 
 
 def _converged(prob: _Problem, f: np.ndarray, fscale: float, lscale: float) -> bool:
