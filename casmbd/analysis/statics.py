@@ -589,8 +589,9 @@ def _leave(prob: _Problem, q, lam, n: np.ndarray) -> np.ndarray:
 
 def state_reports(mech, out: dict) -> dict:
     """Requests (``outputs``), force reports (``forces``) and flexible bodies' named nodes
-    (``nodes``: position, deflection and rotation relative to the undeformed body frame) at the
-    equilibrium, from the outputs Function's groups (:mod:`casmbd.system.requests`)."""
+    (``nodes``: position, deflection and rotation relative to the undeformed body frame) at one
+    state (the equilibrium; linearize's operating point), from the outputs Function's groups
+    evaluated there (:mod:`casmbd.system.requests`)."""
     names = result_names(mech)
     reports: dict = {}
     if "outputs" in out:
