@@ -42,6 +42,24 @@ def _list(arr: np.ndarray):
     return np.asarray(arr, dtype=float).tolist()
 
 
+def extremes(t: np.ndarray, values: np.ndarray) -> dict:
+    """``start``, ``end``, ``min``, ``t_min``, ``max``, ``t_max`` of a series on the grid ``t``.
+
+    The extremes are over the finite values (the first output time where each is reached);
+    a series with no finite value has ``None`` extremes.  ``start`` and ``end`` are the first
+    and last values as they are (a NaN there stays NaN; the CLI writes it as ``null``).
+    """
+    values = np.asarray(values, dtype=float)
+    out = {"start": float(values[0]), "end": float(values[-1])}
+    finite = np.isfinite(values)
+    if not finite.any():
+        return {**out, "min": None, "t_min": None, "max": None, "t_max": None}
+    lo = int(np.argmin(np.where(finite, values, np.inf)))
+    hi = int(np.argmax(np.where(finite, values, -np.inf)))
+    return {**out, "min": float(values[lo]), "t_min": float(t[lo]),
+            "max": float(values[hi]), "t_max": float(t[hi])}
+
+
 def check_npz_name(path: str | os.PathLike) -> None:
     """Refuse to write an npz file under a name that does not end in ``.npz``
     (:class:`~casmbd.errors.ResultFileError` naming the file)."""
@@ -282,6 +300,35 @@ class Result:
                 for k, label in enumerate(self.names.get("force_outputs", []))
                 if label.rpartition(".")[0] == name}
 
+    def summary(self) -> dict:
+        """What the text summaries list: each request (``[[outputs]]``) with its unit and
+        :func:`extremes` (start, end, min and max with their times), and each named node of a
+        flexible body with the magnitude |u_i| = |Φ_i η| of its elastic displacement relative
+        to its undeformed position in the body frame (seed 002, eq. 5–26; the deflection of
+        :meth:`node`): start, end, max and its time, in m.
+
+        Returns ``{"outputs": {name: {"unit", "start", "end", "min", "t_min", "max",
+        "t_max"}}, "node_deflections": {name: {"unit", "start", "end", "max", "t_max"}}}``,
+        each key only when the result has such values (``{}``: none); ``to_json`` gives it as
+        ``"summary"``.
+        """
+        out: dict = {}
+        if "outputs" in self.arrays and self.names.get("outputs") and len(self.t):
+            units = list(self.names.get("output_units", []))
+            out["outputs"] = {
+                name: {"unit": units[k] if k < len(units) else "",
+                       **extremes(self.t, self.output(name))}
+                for k, name in enumerate(self.names["outputs"])}
+        if "node_deflections" in self.arrays and self.names.get("nodes") and len(self.t):
+            nodes = {}
+            for name in self.names["nodes"]:
+                size = np.linalg.norm(self.node(name)["deflection"], axis=1)
+                ext = extremes(self.t, size)
+                nodes[name] = {"unit": "m", "start": ext["start"], "end": ext["end"],
+                               "max": ext["max"], "t_max": ext["t_max"]}
+            out["node_deflections"] = nodes
+        return out
+
     # ------------------------------------------------------------------ views
     def to_json(self) -> dict:
         """The JSON object of the CLI contract."""
@@ -350,6 +397,9 @@ class Result:
                                            self.names.get("force_outputs", []))}
         if self.events or self.stats.get("event_driven"):
             out["events"] = [dict(e) for e in self.events]
+        summary = self.summary()
+        if summary:  # requests' extremes and nodes' deflection magnitudes (text summaries)
+            out["summary"] = summary
         if "contact_forces" in self.arrays:  # a frictional contact's second column: friction
             out["contacts"] = {}
             for k, name in enumerate(self.names.get("contacts", [])):

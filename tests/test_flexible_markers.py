@@ -176,12 +176,14 @@ def test_cantilever_node_marker_statics(coordinates, tmp_path, capsys):
     assert out["outputs"]["tip_y"] == pytest.approx(TIP, rel=1e-9)
     assert main(["statics", str(path), "--mode", "vm"]) == 0
     text = capsys.readouterr().out
-    tip_line = next(line for line in text.splitlines() if "node beam@tip" in line)
-    assert f"dy {TIP:+.6g} m" in tip_line and f"rotation {SLOPE:+.6g} rad" in tip_line
-    mid_line = next(line for line in text.splitlines() if "node beam@mid" in line)
-    assert f"dy {MID:+.6g} m" in mid_line
-    assert f"output tip_y        {TIP:+.6g} m" in text
-    assert f"output tip_slope    {SLOPE:+.6g} rad" in text
+    tip_line = next(line for line in text.splitlines() if line.startswith("  beam@tip "))
+    assert tip_line.split()[1] == f"{abs(TIP):.6g}" and f"{TIP:+.6g}]" in tip_line
+    mid_line = next(line for line in text.splitlines() if line.startswith("  beam@mid "))
+    assert f"{MID:+.6g}]" in mid_line
+    assert f"{TIP:+.6g}  m" in next(line for line in text.splitlines()
+                                    if line.startswith("  tip_y "))
+    assert f"{SLOPE:+.6g}  rad" in next(line for line in text.splitlines()
+                                        if line.startswith("  tip_slope "))
 
 
 def test_spatial_cantilever_node_marker_statics():
@@ -274,11 +276,12 @@ def test_node_marker_follows_the_node_in_simulation(tmp_path, capsys):
     assert out["outputs"]["tip_y"][-1] == pytest.approx(r_tip[-1, 1], abs=1e-9)
     assert main(args) == 0
     text = capsys.readouterr().out
-    tip_line = next(line for line in text.splitlines() if "node beam@tip" in line)
-    assert f"final [{defl[-1, 0]:+.6g}, {defl[-1, 1]:+.6g}] m" in tip_line
-    assert f"final {r_tip[-1, 1]:+.6g} m" in next(
-        line for line in text.splitlines() if "output tip_y" in line)
-    assert "output frame_angle" in text
+    tip_line = next(line for line in text.splitlines() if line.startswith("  beam@tip "))
+    assert tip_line.split()[2] == f"{np.linalg.norm(defl[-1]):.6g}"  # |u| at the end
+    assert f"[{defl[-1, 0]:+.4g}, {defl[-1, 1]:+.4g}]" in tip_line
+    assert next(line for line in text.splitlines()
+                if line.startswith("  tip_y ")).split()[2] == f"{r_tip[-1, 1]:+.6g}"  # end
+    assert "  frame_angle " in text
 
 
 _DRIVEN = _PENDULUM.replace('name = "flexible_pendulum"', 'name = "flexible_crank"') + """
@@ -404,15 +407,14 @@ def test_rigid_scene_summaries_list_outputs(tmp_path, capsys):
     assert "nodes" not in out
     assert main(["statics", str(path), "--mode", "vm"]) == 0
     text = capsys.readouterr().out
-    line = next(line for line in text.splitlines() if "output end_height" in line)
-    assert abs(float(line.split()[2])) <= 1e-9 and line.endswith(" m")
+    line = next(line for line in text.splitlines() if line.startswith("  end_height "))
+    assert abs(float(line.split()[1])) <= 1e-9 and line.endswith(" m")
     assert main(["simulate", str(path), "--t-end", "0.5", "--steps", "5", "--mode", "vm"]) == 0
     text = capsys.readouterr().out
-    line = next(line for line in text.splitlines() if "output end_height" in line)
-    assert "value [" in line and "final" in line
-    final = float(line.split("final")[1].split()[0])
-    assert abs(final) <= 1e-6
-    assert "node " not in text
+    line = next(line for line in text.splitlines() if line.startswith("  end_height "))
+    final = float(line.split()[2])  # start, end, min, t_min, max, t_max, unit
+    assert abs(final) <= 1e-6 and line.endswith(" m")
+    assert "node deflection" not in text
 
 
 def test_statics_sweep_reports_nodes_and_markers(tmp_path, capsys):

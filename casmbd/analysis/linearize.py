@@ -90,9 +90,16 @@ from casmbd.analysis.independent import (
 from casmbd.analysis.kkt import accelerations_and_multipliers, project_velocities
 from casmbd.analysis.redundancy import RANK_RTOL, null_space_basis
 from casmbd.analysis.stability import STABILITY_RTOL, Stability, classify_stability
-from casmbd.analysis.statics import STATICS_NEEDS, static_equilibrium, statics_functions
+from casmbd.analysis.statics import (
+    STATICS_NEEDS,
+    state_reports,
+    state_summary,
+    static_equilibrium,
+    statics_functions,
+)
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, CompositionError, ModelError, SingularConfigurationError
+from casmbd.model.measures import result_names
 from casmbd.model.needs import ALL_NEEDS, Handling, check
 from casmbd.system.equations import System
 
@@ -200,6 +207,11 @@ class LinearModel:
     actuator_names: list[str]
     stats: dict = field(default_factory=dict)
     stability: Stability | None = None
+    #: requests, force reports and named nodes at the state ("outputs": name -> value,
+    #: "forces", "nodes"), as statics gives them at its equilibrium
+    reports: dict = field(default_factory=dict)
+    #: the text summary's values at the state (:func:`casmbd.analysis.statics.state_summary`)
+    summary: dict = field(default_factory=dict)
 
     @property
     def damped_frequencies_hz(self) -> np.ndarray:
@@ -280,6 +292,7 @@ class LinearModel:
             "actuators": list(self.actuator_names),
             "q": self.q.tolist(), "v": self.v.tolist(), "t": self.t,
             "stats": dict(self.stats),
+            **self.reports, **({"summary": self.summary} if self.summary else {}),
         }
 
 
@@ -621,9 +634,23 @@ def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "au
              "equilibrium": equilibrium, **about, **plan.stats(),
              "build_seconds": t_build, "solve_seconds": time.perf_counter() - t1,
              **{k: val for k, val in model.report_dict.items() if k != "build_seconds"}}
+    reports, summary = _state_reports(model, system.mechanism, q, v, acc, t)
     return LinearModel(m_bar, c_bar, k_bar, b_bar, a_mat, b_ss, basis, eig, freq, zeta, fn,
                        q, v, t, u, lam, list(system.coordinate_names),
-                       list(system.mechanism.actuators), stats, stability)
+                       list(system.mechanism.actuators), stats, stability, reports, summary)
+
+
+def _state_reports(model: NumericModel, mech, q, v, acc, t: float) -> tuple[dict, dict]:
+    """The requests (``[[outputs]]``), force reports and named nodes at the operating point
+    (q, v, q̈, t), and their summary (:func:`casmbd.analysis.statics.state_summary`); the
+    outputs Function is evaluated only when the mechanism has requests or named nodes."""
+    names = result_names(mech)
+    if not ("outputs" in names or "nodes" in names):
+        return {}, {}
+    out = model.outputs(q[None, :], v[None, :], np.asarray(acc, dtype=float)[None, :],
+                        np.array([t]))
+    reports = state_reports(mech, out)
+    return reports, state_summary(reports, names)
 
 
 def _classify(model: NumericModel, system: System, q, t: float, basis: np.ndarray,

@@ -204,6 +204,9 @@ class StaticsResult:
     #: what the search did that the caller should know (a stall handed over to the descent,
     #: an unstable equilibrium left, a stable one asked for and not found)
     notes: list = field(default_factory=list)
+    #: the text summary's values at the equilibrium: requests with their units and named
+    #: nodes' deflections (:func:`state_summary`)
+    summary: dict = field(default_factory=dict)
 
     def to_json(self) -> dict:
         """The JSON object of the ``casmbd statics`` command."""
@@ -238,7 +241,7 @@ class StaticsResult:
                 "potential_energy": float(self.potential_energy), "stats": dict(self.stats),
                 "stability": self.stability.to_json() if self.stability else None,
                 **({"contacts": self.contacts} if self.contacts else {}),
-                **self.reports}
+                **self.reports, **({"summary": self.summary} if self.summary else {})}
 
 
 def statics_functions(system) -> list[ca.Function]:
@@ -532,6 +535,7 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
     joint_coordinates = np.ravel(out["joint_positions"][0]).copy()
     for k in _periodic_joint_outputs(mech, model.joint_coordinate_names):
         joint_coordinates[k] = _wrap(joint_coordinates[k])
+    reports = state_reports(mech, out)
     quats = np.zeros((0, 4))
     if model.dimension == 3:
         quats = quaternions_from_matrices(out["rotation_matrices"][0].reshape(nb, 9))
@@ -546,7 +550,8 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
         if model.dimension == 2 else np.zeros(0), body_quaternions=quats,
         joint_coordinates=joint_coordinates, stats=stats, stability=stability,
         marker_positions=np.reshape(out["marker_positions"][0], (-1, model.dimension)),
-        reports=_reports(mech, out), search="stable" if stable else "nearest", notes=notes)
+        reports=reports, search="stable" if stable else "nearest", notes=notes,
+        summary=state_summary(reports, result_names(mech)))
 
 
 def _classify(prob: _Problem, q, lam) -> tuple[Stability, np.ndarray]:
@@ -582,10 +587,11 @@ def _leave(prob: _Problem, q, lam, n: np.ndarray) -> np.ndarray:
     return q
 
 
-def _reports(mech, out: dict) -> dict:
+def state_reports(mech, out: dict) -> dict:
     """Requests (``outputs``), force reports (``forces``) and flexible bodies' named nodes
-    (``nodes``: position, deflection and rotation relative to the undeformed body frame) at the
-    equilibrium, from the outputs Function's groups (:mod:`casmbd.system.requests`)."""
+    (``nodes``: position, deflection and rotation relative to the undeformed body frame) at one
+    state (the equilibrium; linearize's operating point), from the outputs Function's groups
+    evaluated there (:mod:`casmbd.system.requests`)."""
     names = result_names(mech)
     reports: dict = {}
     if "outputs" in out:
@@ -611,6 +617,26 @@ def _reports(mech, out: dict) -> dict:
                    [float(x) for x in rot[rdim * i:rdim * i + rdim]]}
             for i, name in enumerate(names["nodes"])}
     return reports
+
+
+def state_summary(reports: dict, names: dict) -> dict:
+    """The text summaries' values at one state (an equilibrium, an operating point), in the
+    form :meth:`casmbd.results.Result.summary` gives on a grid: ``{"outputs": {name: {"unit",
+    "value"}}, "node_deflections": {name: {"unit": "m", "value": |u_i|, "deflection": u_i}}}``
+    from the ``reports`` of :func:`state_reports` (u_i = Φ_i η, the node's elastic displacement
+    relative to its undeformed position, body axes; seed 002, eq. 5–26); {} when there is
+    neither."""
+    out: dict = {}
+    units = dict(zip(names.get("outputs", []), names.get("output_units", []), strict=False))
+    if reports.get("outputs"):
+        out["outputs"] = {name: {"unit": units.get(name, ""), "value": value}
+                          for name, value in reports["outputs"].items()}
+    if reports.get("nodes"):
+        out["node_deflections"] = {
+            name: {"unit": "m", "value": float(np.linalg.norm(node["deflection"])),
+                   "deflection": list(node["deflection"])}
+            for name, node in reports["nodes"].items()}
+    return out
 
 
 def _converged(prob: _Problem, f: np.ndarray, fscale: float, lscale: float) -> bool:

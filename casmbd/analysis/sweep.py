@@ -183,7 +183,7 @@ def _statics_result(res) -> Result:
               # names q[NAME.x] … read them whatever coordinates were chosen
               "body_positions": np.asarray(res.body_positions, float).reshape(1, -1),
               "marker_positions": np.asarray(res.marker_positions, float).reshape(1, -1)}
-    nodes = res.reports.get("nodes", {})  # flexible bodies' named nodes (statics._reports)
+    nodes = res.reports.get("nodes", {})  # flexible bodies' named nodes (statics.state_reports)
     for key in ("position", "deflection", "rotation") if nodes else ():
         arrays[f"node_{key}s"] = np.concatenate(
             [np.ravel(node[key]) for node in nodes.values()]).reshape(1, -1)

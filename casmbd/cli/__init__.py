@@ -257,16 +257,33 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``casmbd`` command; returns the exit status.
 
     Warnings print as one ``warning: …`` line each (Python's form, with the file and source
-    line, with ``--debug``).
+    line, with ``--debug``), each notice once per command (:func:`_once_per_run`).
     """
     argv = list(sys.argv[1:] if argv is None else argv)
-    saved = warnings.formatwarning
+    saved, saved_show = warnings.formatwarning, warnings.showwarning
     if "--debug" not in argv:
         warnings.formatwarning = _one_line_warning
+    warnings.showwarning = _once_per_run(saved_show)
     try:
         return _run(argv)
     finally:
-        warnings.formatwarning = saved
+        warnings.formatwarning, warnings.showwarning = saved, saved_show
+
+
+def _once_per_run(show):
+    """``warnings.showwarning`` that says each notice (category and text) once per command:
+    a scene read again by a verb (the result's embedded scene, an animation's frames) would
+    otherwise repeat its loader's warnings (a URDF's ignored <visual>/<collision> elements were
+    said three times per ``animate``; Python's default filter repeats a warning raised from
+    another line)."""
+    said: set = set()
+
+    def once(message, category, filename, lineno, file=None, line=None):
+        key = (category, str(message))
+        if key not in said:
+            said.add(key)
+            show(message, category, filename, lineno, file, line)
+    return once
 
 
 def _run(argv: list[str]) -> int:

@@ -9,7 +9,7 @@ from casmbd.analysis.kinematics import kinematics
 from casmbd.analysis.linearize import linearize
 from casmbd.analysis.simulate import simulate
 from casmbd.analysis.statics import static_equilibrium
-from casmbd.cli.common import _load, _range, _save, _summary_table, _timing
+from casmbd.cli.common import _load, _range, _save, _state_lines, _summary_table, _timing
 from casmbd.errors import AnalysisError, IntegratorError
 from casmbd.results import load as load_result
 from casmbd.viz.quantities import effort_units, energy_exchange, joint_coordinate_unit
@@ -174,17 +174,7 @@ def _cmd_statics(args) -> tuple[dict, str]:
         reaction = "  ".join(f"{label} {x + 0.0:+.6g} {'N' if label[0] == 'F' else 'N m'}"
                              for label, x in zip(labels, j["reaction"]))  # no "-0"
         lines.append(f"  joint {name:<13} {coords}reaction {reaction}")
-    for name, node in data.get("nodes", {}).items():
-        defl = "  ".join(f"d{axis} {x:+.6g} m" for axis, x in zip("xyz", node["deflection"]))
-        rot = node["rotation"]
-        rot = (f"rotation {rot:+.6g} rad" if isinstance(rot, float) else
-               "rotation [" + ", ".join(f"{x:+.6g}" for x in rot) + "] rad")
-        pos = "  ".join(f"{axis} {x:+.6g} m" for axis, x in zip("xyz", node["position"]))
-        lines.append(f"  node {name:<14} {pos}  deflection (body axes) {defl}  {rot}")
-    units = dict(zip(mech.outputs, (o.unit for o in mech.outputs.values())))
-    for name, value in data.get("outputs", {}).items():
-        unit = "" if units.get(name, "-") in ("", "-") else f" {units[name]}"
-        lines.append(f"  output {name:<12} {value:+.6g}{unit}")
+    lines += _state_lines(data.get("summary", {}))  # requests and nodes at the equilibrium
     eig = ", ".join(f"{e:.4g}" for e in result.eigenvalues) or "none (no degrees of freedom)"
     lines.append(f"  stiffness eigenvalues: {eig}")
     s = result.stats
@@ -231,6 +221,7 @@ def _cmd_linearize(args) -> tuple[dict, str]:
                                         lin.damped_frequencies_hz, lin.damping_ratios)):
         lines.append(f"  mode {k + 1:<3} natural frequency {fn:.6g} Hz  damped frequency "
                      f"{fd:.6g} Hz  damping ratio {z + 0.0:.4g}")  # no "-0"
+    lines += _state_lines(data.get("summary", {}))  # requests and nodes at that state
     if lin.stability is not None:
         eig = ", ".join(f"{e:.4g}" for e in lin.stability.eigenvalues)
         lines.append(f"  stiffness eigenvalues: {eig or 'none (no degrees of freedom)'}")

@@ -204,37 +204,87 @@ def _summary_table(result, mech=None) -> list[str]:
     return lines + _node_lines(result) + _output_lines(result)
 
 
-def _node_lines(result) -> list[str]:
-    """One line per named node of a flexible body: the ranges of its deflection and rotation
-    relative to the undeformed body frame (body axes) and its final deflection."""
-    if "node_deflections" not in result.arrays:
+#: rows of one table of a text summary (requests, nodes); the rest are counted and left to
+#: --json / --out
+SUMMARY_ROWS = 20
+
+
+def _number(x, fmt: str = "+.6g") -> str:
+    """A summary's number (``-`` for a missing extreme, ``nan`` as is, no ``-0``)."""
+    return "-" if x is None else format(float(x) + 0.0, fmt)
+
+
+def _vector(values, fmt: str = "+.6g") -> str:
+    """``[x, y(, z)]`` with components below 1e-9 of the largest printed as 0 (round-off of
+    a deflection along the beam axis, not a stretch)."""
+    values = np.asarray(values, dtype=float)
+    scale = float(np.max(np.abs(values), initial=0.0))
+    return "[" + ", ".join(_number(x if abs(x) > 1e-9 * scale else 0.0, fmt)
+                           for x in values) + "]"
+
+
+def _table(header: list[str], rows: list[list[str]], more: str,
+           limit: int = SUMMARY_ROWS) -> list[str]:
+    """Lines of an aligned table (the first column, units and vectors left-aligned, the
+    numbers right-aligned), at most ``limit`` rows, then one line
+    ``… N more, see <more>``."""
+    if not rows:
         return []
-    lines = []
-    for name in result.names.get("nodes", []):
-        node = result.node(name)
-        defl, rot = node["deflection"], np.reshape(node["rotation"], (len(result.t), -1))
-        axes = "xyz"[:defl.shape[1]]
-        parts = [_range(f"d{a}", defl[:, k], "m") for k, a in enumerate(axes)]
-        parts += [_range("rotation" if rot.shape[1] == 1 else f"r{a}", rot[:, k], "rad")
-                  for k, a in enumerate("xyz"[:rot.shape[1]])]
-        final = ", ".join(f"{x:+.6g}" for x in defl[-1])
-        lines.append(f"  node {name:<14} deflection (body axes) " + "  ".join(parts)
-                     + f"; final [{final}] m")
-    return lines
+    shown = rows[:limit]
+    widths = [max(len(r[k]) for r in [header, *shown]) for k in range(len(header))]
+    left = {0} | {k for k, h in enumerate(header) if h == "unit" or "body axes" in h}
+
+    def line(cells):
+        return "  " + "  ".join(c.ljust(w) if k in left else c.rjust(w)
+                                for k, (c, w) in enumerate(zip(cells, widths))).rstrip()
+
+    out = [line(header), *(line(r) for r in shown)]
+    if len(rows) > limit:
+        out.append(f"  … {len(rows) - limit} more, see {more}")
+    return out
+
+
+def _unit(unit: str) -> str:
+    return "-" if unit in ("", "-", None) else unit
+
+
+def _node_lines(result) -> list[str]:
+    """The table of named nodes of flexible bodies: the magnitude |u_i| of each node's
+    elastic displacement relative to its undeformed position in the body frame (start, end,
+    max and its time) and its final components in body axes (``Result.summary``)."""
+    nodes = result.summary().get("node_deflections", {})
+    rows = []
+    for name, s in nodes.items():
+        rows.append([name, _number(s["start"], ".6g"), _number(s["end"], ".6g"),
+                     _number(s["max"], ".6g"), _number(s["t_max"], ".4g"),
+                     _vector(result.node(name)["deflection"][-1], "+.4g")])
+    return _table(["node deflection |u| [m]", "start", "end", "max", "t_max [s]",
+                   "end (body axes)"], rows, "--json 'summary' / --out")
 
 
 def _output_lines(result) -> list[str]:
-    """One line per request (``[[outputs]]``): its range and final value with its unit."""
-    if "outputs" not in result.arrays:
-        return []
-    units = result.names.get("output_units", [])
-    lines = []
-    for k, name in enumerate(result.names.get("outputs", [])):
-        values = result.output(name)
-        unit = units[k] if k < len(units) and units[k] not in ("", "-") else ""
-        lines.append(f"  output {name:<12} {_range('value', values, unit)}, final "
-                     f"{values[-1]:+.6g}{' ' + unit if unit else ''}")
-    return lines
+    """The table of requests (``[[outputs]]``): start, end, min and max with the times they
+    are reached, in the request's unit (``Result.summary``)."""
+    outputs = result.summary().get("outputs", {})
+    rows = [[name, _number(s["start"]), _number(s["end"]), _number(s["min"]),
+             _number(s["t_min"], ".4g"), _number(s["max"]), _number(s["t_max"], ".4g"),
+             _unit(s["unit"])] for name, s in outputs.items()]
+    return _table(["output", "start", "end", "min", "t_min [s]", "max", "t_max [s]", "unit"],
+                  rows, "--json 'summary' / --out")
+
+
+def _state_lines(summary: dict) -> list[str]:
+    """The tables of the requests and the named nodes at one state (an equilibrium, an
+    operating point): ``state_summary`` of :mod:`casmbd.analysis.statics`."""
+    outputs = summary.get("outputs", {})
+    lines = _table(["output", "value", "unit"],
+                   [[name, _number(s["value"]), _unit(s["unit"])]
+                    for name, s in outputs.items()], "--json 'summary'")
+    nodes = summary.get("node_deflections", {})
+    rows = [[name, _number(s["value"], ".6g"), _vector(s["deflection"])]
+            for name, s in nodes.items()]
+    return lines + _table(["node deflection", "|u| [m]", "u (body axes) [m]"], rows,
+                          "--json 'summary'")
 
 
 def _finite_json(obj):
