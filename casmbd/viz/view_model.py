@@ -197,7 +197,7 @@ def _with_poses(result: Result, mech) -> Result:
             v = result.arrays.get("v", np.zeros_like(q))
             out = _outputs_result(result.kind, model, mech, q, v, result.t)
             arrays = {**out.arrays, **result.arrays}
-            return Result(result.kind, result.t, arrays, {**out.names, **result.names},
+            return Result(result.kind, result.t, arrays, {**result.names, **out.names},
                           result.stats, result.scene or out.scene, list(result.events))
     raise AnalysisError(f"the {result.kind} result holds no body poses, and its coordinates "
                         f"({', '.join(names[:4])}…) are none of mechanism '{mech.name}''s "

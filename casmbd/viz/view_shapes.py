@@ -201,25 +201,27 @@ def inertia_disc(body, mech, length: float) -> Shape | None:
     return Shape(f"{body.name}.inertia", body.name, "cylinder", (r, 0.2 * r), source="inertia")
 
 
-def visual_shapes(body: str, visuals, notes: list[str]) -> list[Shape] | None:
-    """The shapes of a body's URDF visuals; None when a mesh does not load (named in a warning
-    and in ``notes``: the body then takes the derived shapes)."""
+def visual_shapes(body: str, visuals, notes: list[str],
+                  color: tuple[int, int, int] = (160, 160, 170)) -> list[Shape] | None:
+    """The shapes of a body's URDF visuals; None when a mesh does not load (the reason, naming
+    the file, appended to ``notes``: the body then takes the derived shapes)."""
     out = []
+    default = color
     for k, vis in enumerate(visuals):
-        color = (160, 160, 170)
-        opacity = 1.0
+        color, opacity = default, 1.0
         if vis.rgba is not None:
             color = tuple(round(255 * min(max(c, 0.0), 1.0)) for c in vis.rgba[:3])
             opacity = float(min(max(vis.rgba[3], 0.0), 1.0))
-        name = f"{body}.visual{k + 1}" if not vis.name else f"{body}.{vis.name}"
+        name = vis.name or f"visual{k + 1}"
+        name = name if name.startswith(f"{body}.") else f"{body}.{name}"
         wxyz = _quat(vis.rotation)
         if vis.kind == "mesh":
             try:
                 vertices, faces = load_mesh(vis.filename, vis.scale, vis.uri)
             except CasmbdError as exc:
-                message = f"body '{body}': {exc}; drawn with the shapes of its inertia instead"
-                warnings.warn(message, RuntimeWarning, stacklevel=4)
-                notes.append(message)
+                instead = ("not drawn" if body == GROUND else
+                           "the body is drawn with the shapes derived from the scene")
+                notes.append(f"body '{body}': {exc}; {instead}")
                 return None
             out.append(Shape(name, body, "mesh", (), vis.position.copy(), wxyz, color,
                              vertices, faces, "urdf-visual", opacity))
@@ -234,12 +236,16 @@ def shapes(mech, geo: Geometry, vm) -> list[Shape]:
     length = vm.length_scale
     visuals = getattr(mech, "visuals", {}) or {}
     spheres = _contact_spheres(mech, length)
+    known = len(vm.notes)
     out = [s for s in spheres if s.body == GROUND]
+    if visuals.get(GROUND):  # links welded to the ground (a robot's base)
+        out += visual_shapes(GROUND, visuals[GROUND], vm.notes) or []
     for i, (name, body) in enumerate(mech.bodies.items()):
         if _is_flexible(body):
             continue
         color = PALETTE[i % len(PALETTE)]
-        own = visual_shapes(name, visuals[name], vm.notes) if visuals.get(name) else None
+        own = (visual_shapes(name, visuals[name], vm.notes, color) if visuals.get(name)
+               else None)
         if not own:
             own = [s for s in spheres if s.body == name]
             rods = _rods(name, geo, ROD_RADIUS * length)
@@ -255,6 +261,11 @@ def shapes(mech, geo: Geometry, vm) -> list[Shape]:
             for s in own:
                 s.color = color
         out += own
+    failed = vm.notes[known:]
+    if failed:  # one warning for the view, however many meshes failed
+        more = f" (and {len(failed) - 3} more)" if len(failed) > 3 else ""
+        warnings.warn(f"{len(failed)} visual(s) not drawn as given: "
+                      + " | ".join(failed[:3]) + more, RuntimeWarning, stacklevel=3)
     return out
 
 
