@@ -164,6 +164,7 @@ def test_max_frames_keeps_first_last_and_event_times():
     assert [(s.kind, s.size, s.source) for s in vm.shapes] == [("sphere", (0.1,), "contact")]
     assert [(p.point.tolist(), p.normal.tolist()) for p in vm.planes] == [
         ([0.0, 0.0, 0.0], [0.0, 1.0, 0.0])]
+    assert [(f.name, f.body, f.kind) for f in vm.frames] == [("ball", "ball", "body")]
 
 
 # ---------------------------------------------------------------- sources
@@ -443,17 +444,21 @@ def test_force_arrows_and_series():
     mech = load_scene(ROOT / "tests" / "scenes" / "spring_mass.toml")
     res = casmbd.simulate(mech, t_end=0.5, steps=20).attach_scene(mech)
     vm = view_model(res, forces=True)
-    springs = [n for n, f in mech.forces.items() if type(f).__name__ == "SpringDamper"]
-    assert springs
-    for name in springs:
-        force = mech.forces[name]
-        tension = res.force(name)["force"]
-        for key, (point, vec) in vm.forces.items():
-            if not key.startswith(f"{name}@"):
-                continue
-            assert point.shape == vec.shape == (len(res.t), 3)
-            assert np.max(np.abs(np.linalg.norm(vec, axis=1) - np.abs(tension))) < 1e-12
-            assert key in (f"{name}@{force.body1}", f"{name}@{force.body2}")
+    assert set(vm.forces) == {"spring@block"}  # the ground end carries no arrow
+    point, vec = vm.forces["spring@block"]
+    tension = res.force("spring")["force"]
+    block_xy = res.body("block")["position"]
+    assert np.max(np.abs(point[:, :2] - block_xy)) < 1e-12 and np.all(point[:, 2] == 0.0)
+    unit = block_xy / np.linalg.norm(block_xy, axis=1, keepdims=True)  # anchor at the origin
+    assert np.max(np.abs(vec[:, :2] + tension[:, None] * unit)) < 1e-12
+    assert np.max(np.abs(tension)) > 1.0  # the spring does pull
+    anchor, block = vm.links["spring"][:, 0], vm.links["spring"][:, 1]
+    assert np.all(anchor == 0.0)  # the spring's ground end: the origin
+    assert np.max(np.abs(block[:, :2] - res.body("block")["position"])) < 1e-12
+    length = np.linalg.norm(block - anchor, axis=1)
+    assert np.max(np.abs(length - res.force("spring")["length"])) < 1e-12
     assert vm.series and vm.series[0].name == "total energy" and vm.series[0].unit == "J"
     assert all(len(s.values) == len(vm.times) for s in vm.series)
+    assert [(s.name, s.unit) for s in vm.series] == [("total energy", "J"), ("slide", "m")]
+    assert np.array_equal(vm.series[1].values, res.joint("slide")["coordinate"])
     assert not view_model(res).forces  # only when asked
