@@ -462,3 +462,22 @@ def test_force_arrows_and_series():
     assert [(s.name, s.unit) for s in vm.series] == [("total energy", "J"), ("slide", "m")]
     assert np.array_equal(vm.series[1].values, res.joint("slide")["coordinate"])
     assert not view_model(res).forces  # only when asked
+
+
+def test_missing_optional_readers_are_named(tmp_path, monkeypatch):
+    """Without pycollada trimesh cannot read DAE (trimesh 5.2 imports it to parse COLLADA):
+    the error names it and the extra; without trimesh no mesh is read, naming the extra."""
+    import shutil
+    import sys
+
+    dae = tmp_path / "cone.dae"
+    shutil.copy(ARM.parent / "meshes" / "link3.dae", dae)
+    monkeypatch.setitem(sys.modules, "collada", None)
+    with pytest.raises(casmbd.errors.SceneError,
+                       match=r"reading DAE needs pycollada \(pip install \"casmbd\[view\]\"\)"):
+        load_mesh(dae)
+    stl = tmp_path / "a.stl"
+    shutil.copy(ARM.parent / "meshes" / "link1.stl", stl)
+    monkeypatch.setitem(sys.modules, "trimesh", None)
+    with pytest.raises(casmbd.errors.SceneError, match=r"meshes need trimesh"):
+        load_mesh(stl)
