@@ -272,9 +272,9 @@ def shapes(mech, geo: Geometry, vm) -> list[Shape]:
 # ---------------------------------------------------------------------- frames
 def frames(mech, geo: Geometry) -> list[Frame]:
     """A frame per joint with a point (z along its axis when it has one: revolute,
-    prismatic, cylindrical; a planar revolute joint's axis is z), per marker (its own
-    orientation, else its body's), and the body axes at the centre of mass of each rigid
-    body that carries neither (kind ``"body"``: a free ball's spin stays visible)."""
+    prismatic, cylindrical; a planar revolute joint's axis is z) and per marker (its own
+    orientation, else its body's).  The body axes themselves are the renderer's (every body
+    is a frame of the scene at its centre of mass)."""
     out = []
     for name, (on, u) in geo.joints.items():
         joint = mech.joints[name]
@@ -305,11 +305,6 @@ def frames(mech, geo: Geometry) -> list[Frame]:
             offset = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
         out.append(Frame(name, marker.body, _local(mech, marker.body, marker.point),
                          _quat(np.asarray(offset, float)), None, "marker"))
-    framed = {f.body for f in out}
-    for name, body in mech.bodies.items():  # a free body's axes: its spin stays visible
-        if name not in framed and not _is_flexible(body):
-            out.append(Frame(name, name, np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0]), None,
-                             "body"))
     return out
 
 

@@ -49,7 +49,7 @@ class Frame:
     position: np.ndarray
     wxyz: np.ndarray
     axis: np.ndarray | None = None
-    kind: str = "joint"          # "joint", "marker" or "body" (a free body's axes: addition)
+    kind: str = "joint"          # "joint" or "marker"
 
 
 @dataclass
