@@ -481,3 +481,26 @@ def test_missing_optional_readers_are_named(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "trimesh", None)
     with pytest.raises(casmbd.errors.SceneError, match=r"meshes need trimesh"):
         load_mesh(stl)
+
+
+def test_contact_normal_force_arrows():
+    """The ball resting on the floor (statics): N n = (0, m g) at the touching point (0, 0),
+    1e-12; the compliant model's reported normal force along the normal at r_c − r n."""
+    mech = load_scene(EXAMPLES / "bouncing_ball.toml")
+    vm = view_model(casmbd.static_equilibrium(mech), mech, forces=True)
+    point, vec = vm.forces["floor"]
+    assert np.max(np.abs(point)) < 1e-12
+    assert np.max(np.abs(vec - [0.0, 9.81, 0.0])) < 1e-12
+    text = (EXAMPLES / "bouncing_ball.toml").read_text().replace('model = "impact"',
+                                                                 'model = "compliant"')
+    soft = casmbd.loads_scene(text)
+    res = casmbd.simulate(soft, t_end=0.6, steps=60).attach_scene(soft)
+    vm = view_model(res, forces=True)
+    (name,) = vm.forces
+    point, vec = vm.forces[name]
+    force = next(v for k, v in res.force(next(iter(soft.forces))).items() if k == "normal_force")
+    assert np.max(force) > 1.0  # it touched the floor
+    assert np.max(np.abs(vec[:, 1] - force)) < 1e-12 and np.all(vec[:, [0, 2]] == 0.0)
+    ball = res.body("ball")["position"]
+    assert np.max(np.abs(point[:, :2] - (ball - [0.0, 0.1]))) < 1e-12
+    assert vm.notes == []

@@ -333,15 +333,21 @@ def force_arrows(result, mech, geo: Geometry, pos: dict, rot: dict,
     ``fx``, ``fy`` (, ``fz``) at their point, the centre of mass without one), and
     spring-damper-actuators (the tension f along the line, as the force on each end:
     f (r_2 − r_1)/|r_2 − r_1| on body1 at r_1 and its opposite on body2 at r_2, keys
-    ``<name>@<body>``).  Elements without a force vector (torques, joint forces, contacts)
-    are listed in one line of ``notes``."""
+    ``<name>@<body>``), and the normal force N n of each plane contact at its touching point
+    r_c − r n (the result's ``contact_forces`` of an event-driven run or a statics point, or
+    the ``normal_force`` a compliant contact reports; key the contact's name).  Elements
+    without a force vector (torques, joint forces) are listed in one line of ``notes``; the
+    friction forces of contacts are not drawn."""
     labels = list(result.names.get("force_outputs", []))
     values = result.arrays.get("force_outputs")
     n_t, dim = len(result.t), geo.dimension
     out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     column = {label: k for k, label in enumerate(labels)}
     without = []
+    shown = _contact_arrows(result, mech, pos, rot, column, values, out)
     for name, force in mech.forces.items():
+        if name in shown:
+            continue
         comps = [f"{name}.f{a}" for a in "xyz"[:dim]]
         body = getattr(force, "body", None)
         if values is not None and all(c in column for c in comps) and body not in (None, GROUND):
@@ -373,6 +379,33 @@ def force_arrows(result, mech, geo: Geometry, pos: dict, rot: dict,
                      + ("; this result holds no force reports" if values is None else "")
                      + ")")
     return out
+
+
+def _contact_arrows(result, mech, pos, rot, column, values, out) -> set[str]:
+    """Normal-force arrows of plane contacts into ``out``; the names of the force elements
+    (compliant contacts) drawn."""
+    n_t = len(result.t)
+    stored = result.arrays.get("contact_forces")
+    names = list(result.names.get("contacts", []))
+    compliant = {f.element.name: name for name, f in mech.forces.items()
+                 if isinstance(getattr(f, "element", None), PlaneContact)}
+    shown = set()
+    for c in _contact_elements(mech):
+        if not isinstance(c, PlaneContact) or c.body not in mech.bodies \
+                or _is_flexible(mech.bodies[c.body]):
+            continue
+        if stored is not None and c.name in names and stored.shape[1] == len(names):
+            normal_force = stored[:, names.index(c.name)]
+        elif values is not None and f"{compliant.get(c.name)}.normal_force" in column:
+            normal_force = values[:, column[f"{compliant[c.name]}.normal_force"]]
+            shown.add(compliant[c.name])
+        else:
+            continue
+        n = np.asarray(c.normal, float)
+        centre = _place(pos, rot, c.body, mech.bodies[c.body].local(c.point), n_t)
+        out[c.name] = (_pad3(centre - float(c.radius) * n),
+                       _pad3(normal_force[:, None] * n[None, :]))
+    return shown
 
 
 def _pad3(a: np.ndarray) -> np.ndarray:
