@@ -156,6 +156,10 @@ def test_max_frames_keeps_first_last_and_event_times():
     for event in res.events:
         nearest = res.t[np.argmin(np.abs(res.t - event["time"]))]
         assert nearest in vm.times
+    for bad in (0, "10", True, 2.5):
+        with pytest.raises(AnalysisError, match="max_frames must be an integer >= 1"):
+            view_model(res, max_frames=bad)
+    assert np.array_equal(view_model(res, max_frames=1).times[:1], res.t[:1])
     assert [t for t, _ in vm.events] == [e["time"] for e in res.events]
     assert all(label == "floor impact" for _, label in vm.events)
     k = np.searchsorted(res.t, vm.times)
@@ -504,3 +508,25 @@ def test_contact_normal_force_arrows():
     ball = res.body("ball")["position"]
     assert np.max(np.abs(point[:, :2] - (ball - [0.0, 0.1]))) < 1e-12
     assert vm.notes == []
+
+
+def test_a_malformed_visual_is_left_out_with_a_warning_naming_the_link():
+    """Visuals change nothing that is computed: a box with two sizes, a geometry casmbd does
+    not know and a mesh without a filename are each named (link, element, attribute) and left
+    out; the robot loads and its well-formed visual stays."""
+    text = ARM.read_text().replace('<box size="0.2 0.2 0.05"/></geometry>\n      <material',
+                                   '<box size="0.2 0.2"/></geometry>\n      <material')
+    text = text.replace('<sphere radius="0.03"/>', '<capsule radius="0.03" length="0.1"/>')
+    text = text.replace('<mesh filename="meshes/link1.stl"/>', '<mesh/>')
+    with pytest.warns(RuntimeWarning) as rec:
+        mech = casmbd.loads_urdf(text, str(ARM))
+    messages = [str(w.message) for w in rec]
+    assert any("link 'base_link' <visual> number 1 <box> attribute 'size'" in m
+               for m in messages)
+    assert any("link 'tool' <visual> number 1 <geometry>: unknown geometry <capsule>" in m
+               for m in messages)
+    assert any("link 'link1' <visual> number 1 <mesh>: missing attribute 'filename'" in m
+               for m in messages)
+    assert "ground" not in mech.visuals and "link1" not in mech.visuals
+    assert [v.kind for v in mech.visuals["link3"]] == ["mesh"]
+    assert [v.kind for v in mech.visuals["link2"]] == ["mesh", "cylinder"]

@@ -234,16 +234,17 @@ def _resolve(source, mechanism):
 # ---------------------------------------------------------------------- grid
 def _frame_indices(t: np.ndarray, max_frames: int | None, event_times) -> np.ndarray:
     """Output steps kept: all, or ``max_frames`` evenly spread ones (the first and last
-    included) plus the steps nearest each event time."""
+    included; 1: the first alone) plus the steps nearest each event time."""
     n = len(t)
-    if max_frames is None or max_frames >= n:
+    if max_frames is None:
         return np.arange(n)
     if isinstance(max_frames, bool) or not isinstance(max_frames, int | np.integer) \
             or max_frames < 1:
         raise AnalysisError(f"max_frames must be an integer >= 1, got {max_frames!r}")
-    keep = set(np.linspace(0, n - 1, max(int(max_frames), 2)).round().astype(int).tolist())
-    if max_frames == 1:
-        keep = {0}
+    if max_frames >= n:
+        return np.arange(n)
+    keep = ({0} if max_frames == 1 else
+            set(np.linspace(0, n - 1, int(max_frames)).round().astype(int).tolist()))
     for te in event_times:
         keep.add(int(np.argmin(np.abs(t - te))))
     return np.array(sorted(keep), dtype=int)
