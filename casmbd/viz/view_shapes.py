@@ -374,8 +374,8 @@ def force_arrows(result, mech, geo: Geometry, pos: dict, rot: dict,
                 continue
         without.append(name)
     if without:
-        notes.append("forces: no arrow for " + ", ".join(without) + " (torques, joint "
-                     "forces and contact forces are not reported as vectors"
+        notes.append("forces: no arrow for " + ", ".join(without) + " (torques and forces "
+                     "along a joint coordinate have no point of application"
                      + ("; this result holds no force reports" if values is None else "")
                      + ")")
     return out
