@@ -530,3 +530,27 @@ def test_a_malformed_visual_is_left_out_with_a_warning_naming_the_link():
     assert "ground" not in mech.visuals and "link1" not in mech.visuals
     assert [v.kind for v in mech.visuals["link3"]] == ["mesh"]
     assert [v.kind for v in mech.visuals["link2"]] == ["mesh", "cylinder"]
+
+
+def test_a_scene_naming_a_urdf_relative_to_itself_reloads_from_a_result_anywhere(
+        tmp_path, monkeypatch):
+    """ocp/ur5_min_time.toml names ../examples/ur5_arm.urdf: the scene text a result embeds
+    holds the absolute path, so `casmbd view` of its solution works from any folder (before,
+    Result.mechanism() looked for the URDF relative to the working folder); the scene's
+    tables are otherwise unchanged."""
+    import tomllib
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        mech = load_scene(ROOT / "ocp" / "ur5_min_time.toml")
+    data = tomllib.loads(mech.scene_text)
+    assert data["scene"]["urdf"] == str(ROOT / "examples" / "ur5_arm.urdf")
+    original = tomllib.loads((ROOT / "ocp" / "ur5_min_time.toml").read_text())
+    original["scene"]["urdf"] = data["scene"]["urdf"]
+    assert data == original
+    monkeypatch.chdir(tmp_path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        again = casmbd.Result("x", np.zeros(1), {}, {"bodies": []}, {},
+                              mech.scene_text).mechanism()
+    assert list(again.bodies) == list(mech.bodies)
