@@ -245,6 +245,11 @@ def test_an_ocp_solution_and_its_file(swing_up, tmp_path):
         assert np.max(np.abs(vm.body_positions["lower"][:, :2] - lower)) < 1e-12
         check_quaternions(vm)
     assert "body_positions" not in bare.to_result().arrays  # the q path was taken
+    controls = {s.name: s for s in view_model(swing_up).series if s.name.endswith("(input)")}
+    assert list(controls) == [f"{c} (input)" for c in swing_up.controls]
+    for k, name in enumerate(swing_up.controls):
+        assert controls[f"{name} (input)"].unit == "N m"
+        assert np.array_equal(controls[f"{name} (input)"].values, swing_up.node_controls()[:, k])
 
 
 # ---------------------------------------------------------------- shapes

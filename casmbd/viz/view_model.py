@@ -59,7 +59,7 @@ from casmbd.viz.geometry import (
     flexible_states,
     frame_poses,
 )
-from casmbd.viz.quantities import joint_coordinate_unit
+from casmbd.viz.quantities import effort_units, joint_coordinate_unit
 from casmbd.viz.view_types import Frame, Plane, Series, Shape, ViewModel
 
 __all__ = ["Frame", "Plane", "Series", "Shape", "ViewModel", "quaternions_from_rotations",
@@ -395,13 +395,14 @@ def _events(result: Result) -> list[tuple[float, str]]:
     return out
 
 
-#: joint coordinates shown by default in the side panel
+#: joint coordinates (and actuator inputs) shown by default in the side panel
 SERIES_JOINTS = 3
 
 
 def _series(result: Result, mech) -> list[Series]:
     """The default side-panel plots: total energy, the first :data:`SERIES_JOINTS` joint
-    coordinates, every request (``[[outputs]]``) under its own name and unit."""
+    coordinates, the first :data:`SERIES_JOINTS` actuator inputs that are not all zero (an
+    OCP's controls, N or N m), every request (``[[outputs]]``) under its own name and unit."""
     out = []
     arrays, names = result.arrays, result.names
     if "total_energy" in arrays and np.all(np.isfinite(arrays["total_energy"])):
@@ -414,6 +415,14 @@ def _series(result: Result, mech) -> list[Series]:
             if np.all(np.isfinite(values)):
                 out.append(Series(column, joint_coordinate_unit(mech, joint, coord or None),
                                   values))
+    inputs = arrays.get("actuator_inputs")
+    actuators = list(names.get("actuators", []))
+    if inputs is not None and inputs.ndim == 2 and inputs.shape[1] == len(actuators):
+        units = effort_units(result, "actuators", mech)
+        for k, name in enumerate(actuators[:SERIES_JOINTS]):
+            values = np.asarray(inputs[:, k], float)
+            if np.all(np.isfinite(values)) and np.any(values != 0.0):
+                out.append(Series(f"{name} (input)", units[k], values))
     requests = list(names.get("outputs", []))
     units = list(names.get("output_units", ["-"] * len(requests)))
     if "outputs" in arrays:
