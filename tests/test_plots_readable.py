@@ -261,3 +261,48 @@ def test_cli_printouts_carry_units(capsys):
     assert re.search(r"joint crank_bearing coordinate \S+ rad  reaction Fx \S+ N  Fy \S+ N  "
                      r"Fz \S+ N  Mx \S+ N m  My \S+ N m  Mz \S+ N m", text)
     assert re.search(r"body crank +x \S+ m  y \S+ m  z \S+ m", text)
+
+
+def test_cli_energy_change_names_what_changes_it(capsys, tmp_path):
+    """The simulate summary names impact losses (with the count) and does not call a damper
+    whose damping is a parameter set to 0 a source of work: that mechanism is conservative and
+    its change is drift."""
+    text = _cli_text(capsys, "simulate", str(EXAMPLES / "bouncing_ball.toml"), "--t-end",
+                     "1.5", "--steps", "15", "--mode", "vm")
+    assert re.search(r"change \S+ J: impact losses at contact 'floor' \(2 impacts, restitution "
+                     r"0\.8\), not numerical drift", text)
+    scene = tmp_path / "spring.toml"
+    scene.write_text("""
+[scene]
+name = "oscillator"
+dimension = 2
+gravity = [0.0, 0.0]
+[parameters]
+k = 100.0
+c = 0.0
+[[bodies]]
+name = "block"
+mass = 1.0
+inertia = 0.1
+position = [1.1, 0.0]
+[[joints]]
+name = "rail"
+type = "prismatic"
+body1 = "ground"
+body2 = "block"
+point = [1.1, 0.0]
+axis = [1.0, 0.0]
+[[forces]]
+name = "spring"
+type = "spring_damper"
+body1 = "ground"
+point1 = [0.0, 0.0]
+body2 = "block"
+point2 = [1.1, 0.0]
+stiffness = "k"
+damping = "c"
+free_length = 1.0
+""")
+    text = _cli_text(capsys, "simulate", str(scene), "--t-end", "0.5", "--steps", "5",
+                     "--mode", "vm")
+    assert re.search(r"\(drift \S+ J\)", text), text

@@ -68,6 +68,17 @@ def _zero_at(value, params: dict) -> bool:
         return False  # depends on time, or not a plain value: it may do work
 
 
+def force_exchange(force, params: dict) -> str | None:
+    """:meth:`~casmbd.model.forces.ForceElement.energy_exchange` of ``force`` at the parameter
+    values ``params``: a spring-damper whose ``damping`` and ``actuator`` are 0 there (an
+    expression or a parameter set to 0) is a pure spring (None), whatever the fields' form."""
+    exchange = force.energy_exchange()
+    if exchange is not None and hasattr(force, "damping") and hasattr(force, "actuator") \
+            and _zero_at(force.damping, params) and _zero_at(force.actuator, params):
+        return None
+    return exchange
+
+
 def energy_exchange(mechanism, result: Result, params: dict | None = None) -> list[str]:
     """The elements through which the total energy may change physically (empty: the
     mechanism is conservative): drivers, actuators with a non-zero input, contacts and joint
@@ -83,10 +94,7 @@ def energy_exchange(mechanism, result: Result, params: dict | None = None) -> li
             out.append(f"actuator '{name}'")
     out += [f"contact '{c}'" for c in getattr(mechanism, "contacts", {})]
     for name, force in mechanism.forces.items():
-        exchange = force.energy_exchange()
-        if exchange is not None and hasattr(force, "damping") and hasattr(force, "actuator") \
-                and _zero_at(force.damping, params) and _zero_at(force.actuator, params):
-            exchange = None  # a spring whose damper and actuator are 0 at these parameters
+        exchange = force_exchange(force, params)
         if exchange is not None:
             out.append(f"{exchange} '{name}'")
         elif any(_time_dependent(getattr(force, key, None), params)

@@ -12,7 +12,7 @@ from casmbd.analysis.statics import static_equilibrium
 from casmbd.cli.common import _load, _range, _save, _state_lines, _summary_table, _timing
 from casmbd.errors import AnalysisError, IntegratorError
 from casmbd.results import load as load_result
-from casmbd.viz.quantities import effort_units, energy_exchange, joint_coordinate_unit
+from casmbd.viz.quantities import effort_units, energy_terms, joint_coordinate_unit
 
 
 def _redundancy_lines(s: dict) -> list[str]:
@@ -103,20 +103,17 @@ def _events_line(result) -> str:
 
 
 def _energy_change(result, mech) -> str:
-    """total − total(0): "drift" for a conservative mechanism, else the work of the dampers,
-    drivers, actuators and forces that change it (not a conservation error)."""
+    """total − total(0): "drift" for a conservative mechanism, else what changes it (work of
+    dampers, drivers, actuators and forces, friction work, impact losses; not a conservation
+    error), the phrases of the plots' energy panel (:func:`casmbd.viz.quantities.energy_terms`)."""
     energy = result["total_energy"]
     delta = f"{energy[-1] - energy[0]:+.3g} J"
-    elements = energy_exchange(result, mech)
-    impacts = [e for e in result.events if e["kind"] in ("impact", "limit")]
-    if impacts and any(c.restitution_value(mech.parameters) < 1.0
-                       for c in getattr(mech, "contacts", {}).values()):
-        elements = [*(elements or []), f"{len(impacts)} impacts (restitution < 1)"]
-    if elements == []:
+    terms = energy_terms(result, mech)
+    if terms == []:
         return f"drift {delta}"
-    if elements is None:
+    if terms is None:
         return f"change {delta}; numerical drift only if nothing does work"
-    return f"change {delta}: work of {', '.join(elements)}, not numerical drift"
+    return f"change {delta}: {', '.join(terms)}, not numerical drift"
 
 
 def _cmd_inverse(args) -> tuple[dict, str]:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from casmbd.analysis.invariants import force_exchange
 from casmbd.errors import CasmbdError
 from casmbd.io import scene as _scene  # noqa: F401  (registers the reader of Result.mechanism)
 
@@ -92,8 +93,9 @@ def energy_exchange(result, mechanism=None) -> list[str] | None:
             out.append(f"actuator '{name}'")
     if mech is None:
         return out or None
+    parameters = dict(getattr(mech, "parameters", {}) or {})
     for name, force in mech.forces.items():
-        exchange = force.energy_exchange()  # each force kind says how it does work
+        exchange = force_exchange(force, parameters)  # each kind says how it does work
         if exchange is not None:
             out.append(f"{exchange} '{name}'")
     return out
@@ -128,8 +130,9 @@ def energy_terms(result, mechanism=None) -> list[str] | None:
         return [*(f"work of {e}" for e in base or []),
                 *(f"impact losses at '{c}' ({n} impacts)" for c, n in impacts.items())]
     out = [f"work of {e}" for e in base if e.startswith(("driver ", "actuator "))]
+    parameters = dict(getattr(mech, "parameters", {}) or {})
     for name, force in mech.forces.items():
-        exchange = force.energy_exchange()
+        exchange = force_exchange(force, parameters)
         if exchange is None:
             continue
         if type(force).__name__ == "JointFriction":
