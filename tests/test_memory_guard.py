@@ -25,14 +25,16 @@ TOLERANCE = 1.5
 def chain50(tmp_path_factory):
     path = tmp_path_factory.mktemp("mem") / "chain50.toml"
     path.write_text(chain_scene(50))
+    simulate(load_scene(path), t_end=0.1, steps=3)  # builds and caches the model once
     return path
 
 
 @pytest.mark.parametrize(("output", "steps"), [("result", 4000), ("json", 2000)])
 def test_measured_peak_memory_within_tolerance_of_the_estimate(chain50, output, steps):
-    """A 50-rod chain through the Python API (~65 MB of growth) and ``simulate --json``
-    (~130 MB): peak RSS of a child at ``steps`` minus that at 10 steps, per output time."""
-    row = growth_per_time(chain50, steps, output)
+    """A 50-rod chain through the Python API (~60 MB of growth) and ``simulate --json``
+    (~95 MB): peak RSS of a child at ``steps`` minus that at a quarter of them, per added
+    output time (benchmarks/memory_guard.py says why not from a tiny baseline)."""
+    row = growth_per_time(chain50, steps, output, warm_up=False)
     assert row["estimate"] / TOLERANCE <= row["measured"] <= row["estimate"] * TOLERANCE, row
 
 
