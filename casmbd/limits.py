@@ -224,12 +224,14 @@ def result_counts(mechanism) -> dict[str, int]:
     * ``outputs``: the mapped kinematic outputs (``NumericModel.outputs``): position,
       velocity and acceleration of every body's centre of mass and orientation (plane: 3 × 3;
       space: 3 × 3 + rotation matrix 9 + ω 3 + α 3 = 24), of every marker (6; space 18 with
-      its rotation matrix) and of every joint's coordinate (3);
+      its rotation matrix), of every joint's coordinate (3) and the position, deflection and
+      rotation of every named node of a flexible body (5; space 9);
     * ``values``: every float the :class:`~casmbd.results.Result` stores: the outputs, q, v,
       a (absolute coordinates, the most generous description: 3 per body in the plane, 7 in
-      space), λ (one per joint equation and driver, and one Euler-parameter normalisation per
-      spatial body), the joint reactions (3 or 6), driver efforts, actuator inputs, two values
-      per contact, and 6 scalars (energies, violations, conditioning);
+      space, plus the modal coordinates of flexible bodies), λ (one per joint equation and
+      driver, and one Euler-parameter normalisation per spatial body), the joint reactions
+      (3 or 6), driver efforts, actuator inputs, two values per contact, and 6 scalars
+      (energies, violations, conditioning);
     * ``json_floats`` and ``json_rows``: the values of ``Result.to_json`` (body position,
       orientation, velocity, angular velocity; marker position and orientation; joint
       coordinate, rate, reaction; efforts, energies and t) and its row lists;
@@ -241,19 +243,25 @@ def result_counts(mechanism) -> dict[str, int]:
     joints = (getattr(mechanism, "joints", None) or {})
     equations = sum(len(getattr(j, "labels", ()) or ()) for j in
                     (joints.values() if isinstance(joints, dict) else joints))
-    nq = n["bodies"] * (3 if d == 2 else 7)
+    bodies = getattr(mechanism, "bodies", None) or {}
+    flexible = [b for b in (bodies.values() if isinstance(bodies, dict) else bodies)
+                if getattr(b, "modal", None) is not None]
+    modes = sum(len(np.ravel(getattr(b.modal, "frequencies", ()))) for b in flexible)
+    nodes = sum(len(getattr(b, "nodes", None) or ()) for b in flexible)
+    nq = n["bodies"] * (3 if d == 2 else 7) + modes
     nc = equations + n["drivers"] + (n["bodies"] if d == 3 else 0)
+    node_values = nodes * (5 if d == 2 else 9)  # position, deflection (d), rotation (1 | 3)
     outputs = (n["bodies"] * (9 if d == 2 else 24) + n["markers"] * (6 if d == 2 else 18)
-               + 3 * n["joints"])
+               + 3 * n["joints"] + node_values)
     reaction = 3 if d == 2 else 6
     values = (outputs + 3 * nq + nc + reaction * n["joints"] + n["drivers"] + n["actuators"]
               + 2 * n["contacts"] + 6)
     # to_json: body position (d), angle 1 | quaternion 4, velocity (d), angular velocity 1 | 3
     json_floats = (n["bodies"] * (6 if d == 2 else 13) + n["markers"] * (2 if d == 2 else 7)
                    + n["joints"] * (2 + reaction) + n["drivers"] + n["actuators"]
-                   + n["contacts"] + 4)
+                   + n["contacts"] + 4 + modes + node_values)
     json_rows = (n["bodies"] * (2 if d == 2 else 4) + n["markers"] * (1 if d == 2 else 2)
-                 + n["joints"])
+                 + n["joints"] + len(flexible) + nodes * (2 if d == 2 else 3))
     return {"outputs": outputs, "values": values, "json_floats": json_floats,
             "json_rows": json_rows, "nq": nq, "nc": nc}
 
