@@ -91,6 +91,8 @@ CASES = [  # (label, scene, steps, output, t_end, extra CLI flags)
     ("double pendulum (plane)", "examples/double_pendulum.toml", 50000, "json", 1.0, ()),
     ("spatial slider-crank", "examples/spatial_slider_crank.toml", 50000, "json", 1.0, ()),
     ("bouncing ball (event path)", "examples/bouncing_ball.toml", 50000, "json", 2.0, ()),
+    ("flexible slider-crank (modes, nodes)", "examples/flexible_slider_crank.toml", 20000,
+     "json", 0.5, ()),
 ]
 
 
