@@ -132,6 +132,7 @@ def _energy_change(result, mech) -> str:
 
 def _cmd_inverse(args) -> tuple[dict, str]:
     mech = _load(args)
+    _check_memory(args, mech, "inverse dynamics")
     result = inverse_dynamics(mech, t_end=args.t_end, steps=args.steps, mode=args.mode,
                               redundancy=args.redundancy)
     result.scene = getattr(mech, "scene_text", "")
