@@ -8,10 +8,12 @@ naming the quantity, its value, the limit and what to do instead (a TOML file ne
 deeply is a :class:`~casmbd.errors.SceneError`).  The limits are generous: a scene of a
 thousand bodies and ten thousand output times runs; what they refuse could not have finished.
 
-The memory a result will need is estimated from the number of output times times the values
-stored per time (:func:`output_values`, a lower bound from the mechanism's element counts)
-times 8 bytes, and compared with :func:`memory_budget`: ``$CASMBD_MEMORY_BUDGET`` (bytes,
-or with a suffix ``K``, ``M``, ``G``, ``T``: ``"16G"``) or half the physical memory.
+The memory a run will need is the number of output times times the peak bytes per output time
+(:func:`memory_per_time`: the result's arrays, the transient copy of the kinematic outputs,
+and on the command line the Python objects of ``to_json`` and the JSON text; the counts from
+the mechanism's elements, :func:`result_counts`), compared with :func:`memory_budget`:
+``$CASMBD_MEMORY_BUDGET`` (bytes, or with a suffix ``K``, ``M``, ``G``, ``T``: ``"16G"``) or
+half the physical memory.
 
 Files (issue 31): every file casmbd reads goes through :func:`check_regular_file` (``os.stat``
 before any open: a FIFO or a device such as ``/dev/zero`` is refused, never opened) and, for
@@ -68,8 +70,10 @@ __all__ = [
     "check_steps",
     "format_bytes",
     "memory_budget",
+    "memory_per_time",
     "output_values",
     "read_bounded",
+    "result_counts",
 ]
 
 #: Largest scene file (or TOML text) read, in bytes; a 5000-body chain takes 0.6 MB.
@@ -200,48 +204,147 @@ def _number(value: float) -> str:
     return f"{int(value):,}" if float(value).is_integer() else f"{value:,g}"
 
 
-def check_memory(what: str, times: int, values_per_time: int, hint: str = "") -> int:
-    """Refuse a result of ``times`` × ``values_per_time`` floats larger than the budget.
+#: Bytes of one float of a result array.
+FLOAT_BYTES = 8
+#: Bytes a value of ``Result.to_json`` takes in Python: a float object (24) and its slot in a
+#: list (8).
+JSON_FLOAT_BYTES = 32
+#: Bytes of a row list of ``to_json`` (``[x, y]`` of a position, a reaction's components):
+#: the list object with its GC header (56) and its slot in the outer list (8).
+JSON_ROW_BYTES = 64
+#: Characters of one value in the JSON text: ``repr`` of a float64 (up to 17 significant
+#: digits, sign, point, exponent) and ``", "``; measured 22.6 on a 50-body chain.
+JSON_TEXT_BYTES = 23
+#: Copies of the JSON text at the peak of ``--json``: the C encoder's accumulated pieces and
+#: the joined string (then the string and its UTF-8 bytes while it is written).
+JSON_TEXT_COPIES = 2
+#: Copies of the mapped kinematic outputs at the peak: the CasADi result (a DM) and its
+#: numpy conversion, alive together in :meth:`casmbd.compiled.model.NumericModel.outputs`.
+OUTPUT_COPIES = 2
 
-    Returns the estimated number of bytes.  The message names the analysis, the number of
-    output times, the estimate, the budget and its source, the most output times that fit,
-    and ``hint``.
+
+def result_counts(mechanism) -> dict[str, int]:
+    """Values per output time of a time-domain run, from the element counts only.
+
+    No equations are built.  Returns
+
+    * ``outputs``: the mapped kinematic outputs (``NumericModel.outputs``): position,
+      velocity and acceleration of every body's centre of mass and orientation (plane: 3 × 3;
+      space: 3 × 3 + rotation matrix 9 + ω 3 + α 3 = 24), of every marker (6; space 18 with
+      its rotation matrix), of every joint's coordinate (3) and the position, deflection and
+      rotation of every named node of a flexible body (5; space 9);
+    * ``values``: every float the :class:`~casmbd.results.Result` stores: the outputs, q, v,
+      a (absolute coordinates, the most generous description: 3 per body in the plane, 7 in
+      space, plus the modal coordinates of flexible bodies), λ (one per joint equation and
+      driver, and one Euler-parameter normalisation per spatial body), the joint reactions
+      (3 or 6), driver efforts, actuator inputs, two values per contact, and 6 scalars
+      (energies, violations, conditioning);
+    * ``json_floats`` and ``json_rows``: the values of ``Result.to_json`` (body position,
+      orientation, velocity, angular velocity; marker position and orientation; joint
+      coordinate, rate, reaction; efforts, energies and t) and its row lists;
+    * ``nq``, ``nc``: the coordinates and equations assumed.
     """
-    need = 8 * int(times) * max(int(values_per_time), 1)
+    d = int(getattr(mechanism, "dimension", 2))
+    n = {name: len(getattr(mechanism, name, ()) or ())
+         for name in ("bodies", "markers", "joints", "drivers", "actuators", "contacts")}
+    joints = (getattr(mechanism, "joints", None) or {})
+    equations = sum(len(getattr(j, "labels", ()) or ()) for j in
+                    (joints.values() if isinstance(joints, dict) else joints))
+    bodies = getattr(mechanism, "bodies", None) or {}
+    flexible = [b for b in (bodies.values() if isinstance(bodies, dict) else bodies)
+                if getattr(b, "modal", None) is not None]
+    modes = sum(len(np.ravel(getattr(b.modal, "frequencies", ()))) for b in flexible)
+    nodes = sum(len(getattr(b, "nodes", None) or ()) for b in flexible)
+    nq = n["bodies"] * (3 if d == 2 else 7) + modes
+    nc = equations + n["drivers"] + (n["bodies"] if d == 3 else 0)
+    node_values = nodes * (5 if d == 2 else 9)  # position, deflection (d), rotation (1 | 3)
+    outputs = (n["bodies"] * (9 if d == 2 else 24) + n["markers"] * (6 if d == 2 else 18)
+               + 3 * n["joints"] + node_values)
+    reaction = 3 if d == 2 else 6
+    values = (outputs + 3 * nq + nc + reaction * n["joints"] + n["drivers"] + n["actuators"]
+              + 2 * n["contacts"] + 6)
+    # to_json: body position (d), angle 1 | quaternion 4, velocity (d), angular velocity 1 | 3
+    json_floats = (n["bodies"] * (6 if d == 2 else 13) + n["markers"] * (2 if d == 2 else 7)
+                   + n["joints"] * (2 + reaction) + n["drivers"] + n["actuators"]
+                   + n["contacts"] + 4 + modes + node_values)
+    json_rows = (n["bodies"] * (2 if d == 2 else 4) + n["markers"] * (1 if d == 2 else 2)
+                 + n["joints"] + len(flexible) + nodes * (2 if d == 2 else 3))
+    return {"outputs": outputs, "values": values, "json_floats": json_floats,
+            "json_rows": json_rows, "nq": nq, "nc": nc}
+
+
+def memory_per_time(counts: dict[str, int], output: str = "result") -> int:
+    """Peak bytes a run holds per output time: the one estimate of the memory guard.
+
+    .. math::
+
+        b = 8 n_v + 2 \\cdot 8 n_o
+            \\;[+\\; 32 n_j + 64 n_r]_{\\text{cli}}
+            \\;[+\\; 2 \\cdot 23 n_j]_{\\text{json}}
+
+    with ``counts`` from :func:`result_counts`: n_v the result's values (8 bytes each), n_o the
+    mapped kinematic outputs held twice while converted (:data:`OUTPUT_COPIES`), n_j and n_r
+    the values and row lists of ``Result.to_json`` as Python objects
+    (:data:`JSON_FLOAT_BYTES`, :data:`JSON_ROW_BYTES`; the command line builds them for its
+    summary too) and, with ``--json``, the JSON text (:data:`JSON_TEXT_BYTES` per value,
+    :data:`JSON_TEXT_COPIES` copies).  Measured against peak RSS in
+    ``benchmarks/memory_guard.py`` (docs/cli.md, "Memory of a run").
+
+    Parameters
+    ----------
+    counts : dict
+        :func:`result_counts` of the mechanism.
+    output : {"result", "cli", "json"}
+        What the run builds: a :class:`~casmbd.results.Result` (the Python API, ``--out``),
+        plus ``to_json`` (the command line), plus the JSON text (``--json``).
+    """
+    if output not in ("result", "cli", "json"):
+        raise ValueError(f"output must be 'result', 'cli' or 'json', got {output!r}")
+    need = FLOAT_BYTES * (max(int(counts["values"]), 1) + OUTPUT_COPIES * counts["outputs"])
+    if output in ("cli", "json"):
+        need += JSON_FLOAT_BYTES * counts["json_floats"] + JSON_ROW_BYTES * counts["json_rows"]
+    if output == "json":
+        need += JSON_TEXT_COPIES * JSON_TEXT_BYTES * counts["json_floats"]
+    return int(need)
+
+
+def check_memory(what: str, times: int, per_time: int, hint: str = "") -> int:
+    """Refuse a run of ``times`` output times of ``per_time`` bytes each beyond the budget.
+
+    ``per_time`` comes from :func:`memory_per_time`.  Returns the estimated bytes.  The
+    message names the analysis, the number of output times, the estimate, the budget and its
+    source, the most steps that fit (``times - 1`` output intervals: that many steps are
+    accepted by the same comparison, one more is refused), and ``hint``.
+    """
+    per_time = max(int(per_time), 1)
+    need = int(times) * per_time
     budget, source = memory_budget()
     if need > budget:
-        fit = budget // (8 * max(int(values_per_time), 1))
+        fit = budget // per_time - 1  # steps: fit + 1 output times × per_time <= budget
         raise LimitError(
-            f"{what}: {times:,} output times × {values_per_time:,} values × 8 bytes = "
+            f"{what}: {times:,} output times × {format_bytes(per_time)} per output time = "
             f"{format_bytes(need)} exceeds the memory budget of {format_bytes(budget)} "
-            f"({source}): use at most {max(fit - 1, 0):,} steps{', ' + hint if hint else ''}"
+            f"({source}): use at most {max(fit, 0):,} steps{', ' + hint if hint else ''}"
             f", or raise ${MEMORY_ENV} (e.g. {MEMORY_ENV}=64G)")
     return need
 
 
 def output_values(mechanism) -> int:
-    """A lower bound of the values a time-domain result stores per output time.
-
-    From the element counts only (no equations are built): centre-of-mass position, velocity
-    and acceleration and the angles (plane) or rotation matrix, angular velocity and angular
-    acceleration (space) of every body, marker positions, velocities and accelerations, the
-    reaction of every joint, one effort per driver and actuator, and the coordinates q, v, a of
-    the least generous description (joint coordinates: one per body).  Results also hold the
-    multipliers and the absolute or natural coordinates, so the true figure is larger.
-    """
-    d = int(getattr(mechanism, "dimension", 2))
-    per_body = 9 if d == 2 else 24
-    per_marker, per_joint = 3 * d, 3 if d == 2 else 6
-    count = lambda name: len(getattr(mechanism, name, ()) or ())  # noqa: E731
-    return (count("bodies") * (per_body + 3) + count("markers") * per_marker
-            + count("joints") * per_joint + count("drivers") + count("actuators") + 6)
+    """Values a time-domain result stores per output time (``result_counts(…)["values"]``)."""
+    return result_counts(mechanism)["values"]
 
 
-def check_steps(what: str, steps: int, values_per_time: int, hint: str = "") -> int:
+def check_steps(what: str, steps: int, mechanism, hint: str = "", output: str = "result",
+                extra_values: int = 0) -> int:
     """:func:`check_count` of ``steps`` against :data:`MAX_STEPS`, then :func:`check_memory`
-    of the ``steps + 1`` output times; returns the estimated bytes."""
+    of the ``steps + 1`` output times at :func:`memory_per_time` of the mechanism's
+    :func:`result_counts` (plus ``extra_values`` floats per time); returns the estimated
+    bytes.  Every analysis and the command line call this one function, so that the refusal
+    and its advice come from one estimate."""
     check_count(f"{what}: steps", int(steps), MAX_STEPS, "use fewer steps")
-    return check_memory(what, int(steps) + 1, values_per_time, hint)
+    counts = dict(result_counts(mechanism))
+    counts["values"] += int(extra_values)
+    return check_memory(what, int(steps) + 1, memory_per_time(counts, output), hint)
 
 
 def check_regular_file(path: str | os.PathLike, what: str, limit: int,

@@ -23,7 +23,7 @@ from casmbd.analysis.integrators import INTEGRATORS
 from casmbd.analysis.redundancy import rank_report
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, AssemblyError, CasmbdError, RedundantConstraintError
-from casmbd.limits import check_steps, output_values
+from casmbd.limits import check_steps
 from casmbd.model.flexible_bodies import rigidified
 from casmbd.model.measures import result_names
 from casmbd.model.needs import ALL_NEEDS, Handling, check
@@ -44,13 +44,11 @@ def _model(mechanism_or_model, analysis: str, mode: str, rigid: bool = True) -> 
 def check_result_size(mechanism_or_model, steps: int, what: str) -> None:
     """Refuse (:class:`~casmbd.errors.LimitError`) a time grid of ``steps`` intervals whose
     result would not fit the memory budget of :mod:`casmbd.limits`, before anything is built:
-    the values per output time are a lower bound from the element counts
-    (:func:`casmbd.limits.output_values`), plus q, v, a when a model is given."""
-    if isinstance(mechanism_or_model, NumericModel):
-        mech, extra = mechanism_or_model.mechanism, 3 * mechanism_or_model.nq
-    else:
-        mech, extra = mechanism_or_model, 0
-    check_steps(what, int(steps), output_values(mech) + extra)
+    the bytes per output time from the element counts (:func:`casmbd.limits.memory_per_time`
+    of :func:`casmbd.limits.result_counts`), the same for a mechanism and its model."""
+    mech = mechanism_or_model.mechanism if isinstance(mechanism_or_model, NumericModel) \
+        else mechanism_or_model
+    check_steps(what, int(steps), mech)
 
 
 def dependent_equations(model: NumericModel, q: np.ndarray, t: float) -> list[dict]:

@@ -38,7 +38,7 @@ from casmbd.analysis.stepping import Stepping
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, CasmbdError, IntegratorError, UnknownMethodError
 from casmbd.interrupts import reraise_interrupt
-from casmbd.limits import check_steps, output_values
+from casmbd.limits import check_steps
 from casmbd.model.contacts import slides
 from casmbd.model.needs import ALL_NEEDS, EVENT_NEEDS, Handling, check
 from casmbd.results import Result
@@ -284,8 +284,8 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
             # numeric right-hand sides are ~100x dearer: fail in seconds, not minutes
             max_steps = 20_000 if self.formulation.kind == "numeric" else 500_000
         model = self.model
-        check_steps("simulation", int(steps), output_values(model.mechanism)
-                    + 3 * model.nq + model.nc)  # LimitError before the grid is allocated
+        # LimitError before the grid is allocated: the estimate of simulate() (one message)
+        check_steps("simulation", int(steps), model.mechanism)
         grid = np.linspace(t_start, t_end, int(steps) + 1)
         q0 = model.initial_coordinates() if q0 is None else np.asarray(q0, float)
         v0 = model.initial_velocities() if v0 is None else np.asarray(v0, float)
@@ -588,7 +588,7 @@ def simulate(mechanism, t_end: float, steps: int, *, formulation: str | None = N
         constraint violations and solver statistics.
     """
     if isinstance(steps, (int, np.integer)) and steps >= 1:  # before anything is built
-        check_steps("simulation", int(steps), output_values(mechanism))
+        check_steps("simulation", int(steps), mechanism)
     check(mechanism, simulate_handling(formulation, integrator, projection, step))
     if has_events(mechanism):  # impacts, contact and detach: phase by phase
         formulation = event_formulation(mechanism, formulation)

@@ -74,7 +74,7 @@ from casmbd.errors import (
     CasmbdError,
     ModelError,
 )
-from casmbd.limits import check_steps, output_values
+from casmbd.limits import check_steps
 from casmbd.model import Mechanism
 from casmbd.model.needs import Handling, check
 from casmbd.results import Result
@@ -491,7 +491,7 @@ def sweep(mechanism, params: Mapping[str, Iterable[float]] | None = None, *,
         scenes = None                                      # read: the points run that object
     text = scenes.text if scenes is not None else None
     if analysis != "statics":  # one point's result must fit (LimitError before any build)
-        check_steps(f"sweep ({analysis}) at each point", int(steps), output_values(mech))
+        check_steps(f"sweep ({analysis}) at each point", int(steps), mech)
     known = list(mech.parameters)
     for name in pts[0]:
         if name not in known:

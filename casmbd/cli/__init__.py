@@ -49,7 +49,6 @@ from casmbd.cli.verbs import (
     _add_workbench_verbs,
 )
 from casmbd.errors import CasmbdError
-from casmbd.results import _json_default
 from casmbd.system.formulations import FORMULATIONS
 
 EXIT_ERROR = 1
@@ -343,8 +342,10 @@ def _print_output(args, data: dict, text: str) -> None:
     here as ``exc.cli_output = (data, text)``."""
     try:
         if args.json:
-            data = json.loads(json.dumps(data, default=_json_default))  # numpy -> builtins
-            sys.stdout.write(json.dumps(_finite_json(data), allow_nan=False) + "\n")
+            # numpy -> builtins, NaN -> null, without copying the result's lists; the text
+            # and its newline written apart (no third copy of the text)
+            sys.stdout.write(json.dumps(_finite_json(data), allow_nan=False))
+            sys.stdout.write("\n")
         else:
             if text:
                 print(text)

@@ -11,6 +11,7 @@ from casmbd.analysis.simulate import simulate
 from casmbd.analysis.statics import static_equilibrium
 from casmbd.cli.common import _load, _range, _save, _state_lines, _summary_table, _timing
 from casmbd.errors import AnalysisError, IntegratorError
+from casmbd.limits import check_steps
 from casmbd.results import load as load_result
 from casmbd.viz.quantities import effort_units, energy_terms, joint_coordinate_unit
 
@@ -27,8 +28,17 @@ def _redundancy_lines(s: dict) -> list[str]:
     return lines
 
 
+def _check_memory(args, mech, what: str) -> None:
+    """The memory guard with what the command line adds to a result: its ``to_json`` objects
+    and, with ``--json``, the JSON text (:func:`casmbd.limits.memory_per_time`); before any
+    build, one estimate for the refusal and its advice."""
+    if isinstance(args.steps, int) and args.steps >= 1:
+        check_steps(what, args.steps, mech, output="json" if args.json else "cli")
+
+
 def _cmd_kinematics(args) -> tuple[dict, str]:
     mech = _load(args)
+    _check_memory(args, mech, "kinematics")
     result = kinematics(mech, t_end=args.t_end, steps=args.steps, mode=args.mode,
                         redundancy=args.redundancy)
     result.scene = getattr(mech, "scene_text", "")
@@ -48,6 +58,7 @@ def _cmd_kinematics(args) -> tuple[dict, str]:
 
 def _cmd_simulate(args) -> tuple[dict, str]:
     mech = _load(args)
+    _check_memory(args, mech, "simulation")
     try:
         result = simulate(mech, t_end=args.t_end, steps=args.steps, formulation=args.formulation,
                           integrator=args.integrator, rtol=args.rtol, atol=args.atol,
@@ -118,6 +129,7 @@ def _energy_change(result, mech) -> str:
 
 def _cmd_inverse(args) -> tuple[dict, str]:
     mech = _load(args)
+    _check_memory(args, mech, "inverse dynamics")
     result = inverse_dynamics(mech, t_end=args.t_end, steps=args.steps, mode=args.mode,
                               redundancy=args.redundancy)
     result.scene = getattr(mech, "scene_text", "")

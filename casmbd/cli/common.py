@@ -14,6 +14,7 @@ import numpy as np
 from casmbd.errors import AnalysisError
 from casmbd.io.scene import load_scene
 from casmbd.limits import MAX_STEPS
+from casmbd.results import _json_default
 from casmbd.viz.quantities import joint_units
 
 
@@ -288,12 +289,25 @@ def _state_lines(summary: dict) -> list[str]:
 
 
 def _finite_json(obj):
-    """Replace NaN/inf (e.g. reactions that cannot be determined) by null: strict JSON."""
+    """``obj`` with numpy values as Python ones (:func:`casmbd.results._json_default`) and
+    NaN/inf (e.g. reactions that cannot be determined) as null: strict JSON.
+
+    A list or dict whose items need no change is returned itself, not copied: a result's
+    ``to_json`` holds one Python float object per value (32 bytes each with its list slot),
+    and the copies made here before (a ``json.loads(json.dumps(…))`` round trip, then a
+    rebuilt tree) doubled the memory of ``--json`` (:func:`casmbd.limits.memory_per_time`).
+    """
     if isinstance(obj, float):
         return obj if math.isfinite(obj) else None
+    if isinstance(obj, (str, int, bool)) or obj is None:
+        return obj
     if isinstance(obj, dict):
-        return {k: _finite_json(v) for k, v in obj.items()}
+        out = {k: _finite_json(v) for k, v in obj.items()}
+        return obj if all(out[k] is v for k, v in obj.items()) else out
     if isinstance(obj, (list, tuple)):
-        return [_finite_json(v) for v in obj]
-    return obj
+        if all(type(v) is float for v in obj) and all(map(math.isfinite, obj)):
+            return obj  # a row of finite floats (tolist): the common case, no copy
+        out = [_finite_json(v) for v in obj]
+        return obj if isinstance(obj, list) and all(a is b for a, b in zip(out, obj)) else out
+    return _finite_json(_json_default(obj))  # numpy arrays and scalars; others: TypeError
 
