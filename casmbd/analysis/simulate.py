@@ -33,6 +33,7 @@ from casmbd.analysis.events import MAX_EVENTS, compliant_events, has_events, sim
 from casmbd.analysis.independent import find_redundant
 from casmbd.analysis.invariants import check_energy, check_energy_blowup
 from casmbd.analysis.kkt import consistent_state
+from casmbd.analysis.option_ranges import check_integrator_options
 from casmbd.analysis.postprocess import PostProcessing, truncated
 from casmbd.analysis.stepping import Stepping
 from casmbd.compiled.model import NumericModel
@@ -589,6 +590,9 @@ def simulate(mechanism, t_end: float, steps: int, *, formulation: str | None = N
     """
     if isinstance(steps, (int, np.integer)) and steps >= 1:  # before anything is built
         check_steps("simulation", int(steps), output_values(mechanism))
+    check_integrator_options(t_end, steps, t_start=t_start, rtol=rtol,
+                             atol=rtol if atol is None else atol, step=step,
+                             max_steps=max_steps)
     check(mechanism, simulate_handling(formulation, integrator, projection, step))
     if has_events(mechanism):  # impacts, contact and detach: phase by phase
         formulation = event_formulation(mechanism, formulation)
