@@ -46,7 +46,7 @@ INTERVAL_MIN = 1e-15
 #: relative floor of the output interval and of the fixed step (to |t_start|, |t_end|)
 INTERVAL_REL_MIN = 1e-12
 #: most steps per output interval of the variable-step integrators
-MAX_STEPS_PER_INTERVAL = 100_000_000
+MAX_STEPS_PER_INTERVAL = 10_000_000  # the CLI bound of --max-steps too
 
 
 def _number(value) -> bool:

@@ -301,7 +301,7 @@ def _diagnose(model, t, q, v, t_start, q0, v0, rtol, t_end, u) -> str:
     if not rate > 0:
         return ""
     scale = 1.0 / rate
-    what = (f"natural frequency {omega:.3g} rad/s (period {2 * math.pi / omega:.3g} s)"
+    what = (f"natural frequency {omega:.4g} rad/s (period {2 * math.pi / omega:.3g} s)"
             if omega >= sigma else f"damping rate {sigma:.3g} 1/s (time constant {scale:.3g} s)")
     h = STABILITY / rate
     text = f"; the fastest element at t = {t:.6g} is {label}: {what} with the mechanism's masses"
