@@ -258,3 +258,16 @@ def test_plausible_stiffness_runs():
     omega = math.sqrt(1e4 / 2.0)
     x = np.asarray(res["q"])[:, 0]
     assert x == pytest.approx(0.1 * (np.cos(omega * res.t) - 1.0), abs=1e-6)  # from 1.1
+
+
+def test_urdf_huge_axis_component_is_normalised():
+    """<axis xyz="1 1e300 0"> is the y axis (|axis|² overflowed to inf: a zero axis)."""
+    from casmbd import loads_urdf
+
+    text = ('<robot name="r"><link name="a"/><link name="b"><inertial><mass value="1"/>'
+            '<inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>'
+            '<joint name="j" type="revolute"><parent link="a"/><child link="b"/>'
+            '<origin xyz="0 0 0"/><axis xyz="1 1e300 0"/><limit lower="-1" upper="1" '
+            'effort="1" velocity="1"/></joint></robot>')
+    axis = loads_urdf(text, "t.urdf").joints["j"].axis
+    assert axis.tolist() == pytest.approx([0.0, 1.0, 0.0], abs=1e-15)
