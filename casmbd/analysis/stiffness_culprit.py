@@ -47,11 +47,14 @@ from casmbd.interrupts import reraise_interrupt
 from casmbd.model.bodies import GROUND
 from casmbd.model.values import numeric
 
-__all__ = ["FREE_LENGTH_MAX", "GROWTH", "MAX_COORDINATES", "OMEGA_MAX",
+__all__ = ["FREE_LENGTH_MAX", "GROWTH", "MAX_COORDINATES", "MAX_ELEMENTS", "OMEGA_MAX",
            "check_plausible_elements", "diagnose_stiffness"]
 
 #: above this many coordinates the dense eigenvalue diagnosis is skipped
 MAX_COORDINATES = 300
+#: above this many force elements and flexible bodies the diagnosis is skipped (one
+#: CasADi Function with two Jacobians each)
+MAX_ELEMENTS = 200
 #: an element's frequency growing by more than this factor from the start to the failure
 #: time is named as a time singularity / growth
 GROWTH = 1e3
@@ -251,6 +254,12 @@ def _diagnose(model, t, q, v, t_start, q0, v0, rtol, t_end, u) -> str:
     if n > MAX_COORDINATES:
         return (f"; no stiffness diagnosis above {MAX_COORDINATES} coordinates ({n}): dense "
                 "eigenvalues would be too dear")
+    count = len(system.mechanism.forces) + sum(
+        getattr(system.descriptions[name], "body_forces", None) is not None
+        for name in system.body_names)
+    if count > MAX_ELEMENTS:
+        return (f"; no stiffness diagnosis above {MAX_ELEMENTS} force elements and bodies "
+                f"({count})")
     elements = _element_forces(system)
     if not elements:
         return ""
