@@ -80,11 +80,12 @@ stiffness = 1e6
 """
 
 
-def cli(tmp_path, capsys, text: str, *args: str, verb: str = "simulate") -> str:
+def cli(tmp_path, capsys, text: str, *args: str, verb: str = "simulate",
+        vm: bool = True) -> str:
     """Run the CLI on scene ``text``; assert exit 1, one error line, no traceback; the line."""
     scene = tmp_path / "s.toml"
     scene.write_text(text)
-    code = main([verb, str(scene), "--mode", "vm", *args])
+    code = main([verb, str(scene), *(("--mode", "vm") if vm else ()), *args])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 1, err
     assert len(err) == 1 and err[0].startswith("error: "), err
@@ -291,3 +292,10 @@ def test_diagnosis_of_a_flexible_body_matches_the_linearized_frequency():
                               model.initial_velocities())
     assert "body 'beam'" in diag and "'rhoA'" in diag, diag
     assert _frequency(diag) == pytest.approx(omega_max, rel=1e-3)
+
+
+def test_sensitivity_rtol_out_of_range_names_it(tmp_path, capsys):
+    """The sensitivity verb's --rtol has the same range as simulate's."""
+    line = cli(tmp_path, capsys, SPRING, "--output", "x", "--param", "k", "--t-end", "1",
+               "--rtol", "1e-300", verb="sensitivity", vm=False)
+    assert "--rtol" in line, line
