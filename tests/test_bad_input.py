@@ -217,9 +217,14 @@ def test_spring_with_negative_free_length():
                   "-0.5")
 
 
+def test_absurd_mass_refused_naming_the_body_and_field():
+    """Mass 1e308 is beyond the plausible range [1e-15, 1e15] kg (issue 31; it used to reach
+    the penalty check of the augmented Lagrangian)."""
+    raises_naming(SceneError, HEAD + body("rod", mass="1e308", inertia="1e308") + PIVOT,
+                  "'rod'", "'mass'", "1e+308", "1e+15")
+
+
 @pytest.mark.parametrize("fields, culprit", [
-    ({"mass": "1e308", "inertia": "1e308"}, "mass-matrix diagonal up to 1e+308 (coordinate "
-                                            "'rod.x')"),
     ({"position": "[1e308, 0.0]"}, "C_q^T C_q diagonal up to inf (coordinate 'rod.angle')"),
 ])
 def test_absurd_mass_or_position_names_the_coordinate(fields, culprit):

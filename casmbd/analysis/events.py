@@ -56,6 +56,7 @@ from casmbd.analysis.event_rows import EventRows, SlideRow, StickRow, closure
 from casmbd.analysis.impulses import impact, project
 from casmbd.analysis.joint_friction import has_reaction_friction
 from casmbd.analysis.kkt import accelerations_and_multipliers, consistent_state
+from casmbd.analysis.stiffness_culprit import diagnose_stiffness
 from casmbd.errors import AnalysisError, CasmbdError, IntegratorError
 from casmbd.interrupts import reraise_interrupt
 from casmbd.model.contacts import SLIP_VELOCITY, ContactSlide, slides
@@ -527,8 +528,13 @@ def _failure(exc: Exception, rec: dict, rtol: float) -> IntegratorError:
         f"between t = {t_lo:.6g} and t = {t_hi:.6g}"
     text = (f"integrator '{rec['name']}' ({base.formulation_name}, event-driven) failed {where} "
             f"with {flag}; {kept}")
+    stiff = "" if culprits or not np.all(np.isfinite(x_now)) else diagnose_stiffness(
+        model, t_now, x_now[:nq], x_now[nq:], t_start=float(samples[0][0]),
+        q0=samples[0][1][:nq], v0=samples[0][1][nq:], rtol=rtol, t_end=float(grid[-1]))
     if culprits:
         text += "; " + "; ".join(culprits[:3])
+    elif stiff:  # the element whose stiffness or time singularity stopped the run
+        text += stiff + (f"; {_ADVICE[flag]}" if flag in _ADVICE else "")
     elif flag in _ADVICE:
         text += f"; {_ADVICE[flag]}"
     elif not match:

@@ -38,6 +38,7 @@ import numpy as np
 from casmbd.analysis.events import has_events
 from casmbd.analysis.integrators import CapturedOutput
 from casmbd.analysis.kkt import consistent_state
+from casmbd.analysis.option_ranges import check_integrator_options
 from casmbd.analysis.sensitivity_events import (
     ADJOINT_OPTIONS,
     check_event_elements,
@@ -240,6 +241,7 @@ def sensitivity(mechanism, outputs: Sequence[str] | str, parameters: Sequence[st
         raise AnalysisError(f"sensitivity: t_end must be finite and > t_start = {t_start}, "
                             f"got {t_end!r}")
     atol = rtol if atol is None else atol
+    check_integrator_options(t_end, 1, t_start=t_start, rtol=rtol, atol=atol)  # by meaning
     outputs = [outputs] if isinstance(outputs, str) else list(outputs)
     if not outputs:
         raise AnalysisError("sensitivity: no outputs given")

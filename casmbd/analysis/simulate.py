@@ -33,8 +33,10 @@ from casmbd.analysis.events import MAX_EVENTS, compliant_events, has_events, sim
 from casmbd.analysis.independent import find_redundant
 from casmbd.analysis.invariants import check_energy, check_energy_blowup
 from casmbd.analysis.kkt import consistent_state
+from casmbd.analysis.option_ranges import check_integrator_options
 from casmbd.analysis.postprocess import PostProcessing, truncated
 from casmbd.analysis.stepping import Stepping
+from casmbd.analysis.stiffness_culprit import check_plausible_elements, diagnose_stiffness
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, CasmbdError, IntegratorError, UnknownMethodError
 from casmbd.interrupts import reraise_interrupt
@@ -335,6 +337,10 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
                 if culprits:  # a model value that is not finite where the run stopped
                     raise IntegratorError(f"{exc}; " + "; ".join(culprits[:3]), exc.time,
                                           exc.flag, exc.partial) from None
+                stiff = self._stiffness_culprit(exc.partial, exc.time, rtol, t_end)
+                if stiff:  # the element whose stiffness or singularity stopped the run
+                    raise IntegratorError(f"{exc}{stiff}", exc.time, exc.flag,
+                                          exc.partial) from None
                 raise
             failure = exc
         except (RuntimeError, CasmbdError) as exc:
@@ -381,14 +387,29 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
             flag = match.group(1) if match else type(failure).__name__
             msg = captured.last_line or (str(failure).strip().splitlines()[-1]
                                          if str(failure).strip() else flag)
+            why = self._diagnose(result, t_fail)
+            if not why or why.startswith("; at t ≈"):  # no non-finite value: the stiffest
+                why = self._stiffness_culprit(result, t_fail, rtol, t_end) + why
             raise IntegratorError(
                 f"integrator '{name}' ({self.formulation_name}) failed at t = {t_fail:.6g} with "
                 f"{flag} ({msg}); results kept up to t = {grid[n_ok - 1]:.6g} "
-                f"({n_ok} of {len(grid)} output times){self._diagnose(result, t_fail)}"
+                f"({n_ok} of {len(grid)} output times){why}"
                 f"{self.kind.failure_hint(flag, rtol)}", t_fail,
                 flag,
                 result)
         return result
+
+    def _stiffness_culprit(self, result, t_fail: float, rtol: float, t_end: float) -> str:
+        """The element behind a failure at ``t_fail`` from the last kept state of ``result``
+        (:func:`~casmbd.analysis.stiffness_culprit.diagnose_stiffness`; "" when none)."""
+        try:
+            q, v, t = result["q"], result["v"], result.t
+        except (KeyError, AttributeError, TypeError):
+            return ""
+        if not len(t):
+            return ""
+        return diagnose_stiffness(self.model, t_fail, q[-1], v[-1], t_start=float(t[0]),
+                                  q0=q[0], v0=v[0], rtol=rtol, t_end=t_end)
 
     def stiffness(self, x0: np.ndarray, t: float) -> float | None:
         """Largest decay rate max(−Re λ) of the ODE's Jacobian at (t, x0), by one-sided
@@ -589,7 +610,11 @@ def simulate(mechanism, t_end: float, steps: int, *, formulation: str | None = N
     """
     if isinstance(steps, (int, np.integer)) and steps >= 1:  # before anything is built
         check_steps("simulation", int(steps), mechanism)
+    check_integrator_options(t_end, steps, t_start=t_start, rtol=rtol,
+                             atol=rtol if atol is None else atol, step=step,
+                             max_steps=max_steps)
     check(mechanism, simulate_handling(formulation, integrator, projection, step))
+    check_plausible_elements(mechanism)  # sqrt(k/m) and free lengths no unit makes sensible
     if has_events(mechanism):  # impacts, contact and detach: phase by phase
         formulation = event_formulation(mechanism, formulation)
         if simulators is None:

@@ -212,8 +212,17 @@ def _cmd_linearize(args) -> tuple[dict, str]:
                  f"iterations, residual {lin.stats['statics_residual']:.3g})")
     elif args.from_result is not None:
         result = load_result(args.from_result)
-        lin = linearize(mech, mode=args.mode, at=result, at_time=args.time,
-                        redundancy=args.redundancy)
+        try:
+            lin = linearize(mech, mode=args.mode, at=result, at_time=args.time,
+                            redundancy=args.redundancy)
+        except AnalysisError as exc:  # name the result file and the scene (issue 31)
+            text = str(exc)
+            if not text.startswith("linearize: the result"):
+                raise
+            raise AnalysisError(f"linearize: result file '{args.from_result}'" + text[len(
+                                    "linearize: the result"):].replace(
+                                    "this scene", f"scene '{args.scene}' ('{mech.name}')", 1)
+                                ) from None
         where = (f"the state of '{args.from_result}' at t = {lin.t:.6g} (output "
                  f"{lin.stats['state_index']}, nearest to {args.time:g})")
     else:

@@ -47,7 +47,7 @@ from typing import Any
 from casmbd import results
 from casmbd.analysis.events import MAX_EVENTS_LIMIT, SIMULATION_KEYS
 from casmbd.compiled import modal_cache  # noqa: F401 (registers the on-disk store of modes)
-from casmbd.errors import CasmbdError, ExpressionError, SceneError
+from casmbd.errors import CasmbdError, ExpressionError, ModelError, SceneError
 from casmbd.io.files import read_text
 from casmbd.io.scene_points import ScenePoints
 from casmbd.io.urdf import urdf_scene
@@ -314,8 +314,13 @@ def _build(data: dict, source: str) -> Mechanism:
         if any(key in scene.data for key in ("initial", "locked", "damping", "friction")):
             raise scene.error("initial", "'initial', 'locked' and 'damping' need 'urdf' (so "
                               "does 'friction')")
-        mech = Mechanism(name, gravity=scene.vector("gravity", dim, default=[0.0] * dim),
-                         dimension=dim, coordinates=coords)
+        gravity = scene.vector("gravity", dim, default=[0.0] * dim)
+        try:
+            mech = Mechanism(name, gravity=gravity, dimension=dim, coordinates=coords)
+        except ModelError as exc:  # the plausible range of gravity (issue 31)
+            if "'gravity'" not in str(exc):
+                raise
+            raise scene.error("gravity", str(exc).split(": ", 1)[-1]) from None
 
     def guarded(entry: _Entry, action):
         try:

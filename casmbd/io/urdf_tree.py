@@ -290,7 +290,8 @@ def _joint(elem, index: int, links: dict) -> UrdfJoint:
         ends.append(link)
     rot, pos = _origin(elem, where)
     axis = _numbers(elem.find("axis"), "xyz", 3, f"{where} <axis>", [1.0, 0.0, 0.0])
-    norm = float(np.linalg.norm(axis))
+    scale = float(np.max(np.abs(axis)))  # |[1, 1e300]|² overflows: scale first
+    norm = scale * float(np.linalg.norm(axis / scale)) if scale > 0 else 0.0
     if kind in (*MOVING, "planar") and norm < 1e-12:
         raise SceneError(f"{where} <axis> attribute 'xyz': zero axis")
     axis = axis / norm if norm > 0 else axis

@@ -51,6 +51,19 @@ def vector(value, where: str, size: int) -> np.ndarray:
     return arr
 
 
+def unit_vector(value, where: str, size: int) -> np.ndarray:
+    """The direction n / |n| of a finite non-zero vector of ``size`` numbers, scale-safely:
+    divided by its largest |entry| first (|[1, 1e300]|² overflows to inf and n / inf is the
+    zero vector; |[1e-200, 0]|² underflows to 0).  ModelError naming ``where`` when it is not
+    finite or zero."""
+    vec = vector(value, where, size)
+    scale = float(np.max(np.abs(vec)))
+    if scale == 0.0:
+        raise ModelError(f"{where}: must not be the zero vector, got {value!r}")
+    vec = vec / scale
+    return vec / float(np.linalg.norm(vec))
+
+
 def vector2(value, where: str) -> np.ndarray:
     """Validate a finite 2-vector."""
     return vector(value, where, 2)
@@ -86,15 +99,36 @@ RIGID_SCENE_KEYS = frozenset({"name", "type", "mass", "inertia", "position", "an
                               "euler_zxz", "description"})
 
 
+#: plausible non-zero masses [kg]: a picogram (a MEMS proof mass is ~1e-9 kg) to 1e15 kg (a
+#: mountain); beyond, the mass matrix spans more than 30 orders with any other body and the
+#: integrators fail far from the cause (mass 1e300: "position constraints violated at t = 0.5").
+#: Other units (g, t) still fit: the range is 30 orders wide.
+MASS_RANGE = (1e-15, 1e15)
+#: largest plausible moment of inertia [kg m²]: 1e15 kg at a radius of gyration of 100 km
+INERTIA_MAX = 1e25
+
+
 def check_positive(body) -> None:
     """Reject a numeric mass < 0 (and, in the plane, a moment of inertia < 0; spatial
-    moments are checked by :func:`check_inertia`).  Zero mass and inertia are accepted here:
-    whether the mass matrix of the chosen coordinates is positive definite is checked at the
-    start of forward dynamics (:func:`casmbd.analysis.checks.check_mass_matrix`)."""
+    moments are checked by :func:`check_inertia`), a non-zero mass outside
+    :data:`MASS_RANGE` and a moment of inertia above :data:`INERTIA_MAX`.  Zero mass and inertia
+    are accepted here: whether the mass matrix of the chosen coordinates is positive definite
+    is checked at the start of forward dynamics
+    (:func:`casmbd.analysis.checks.check_mass_matrix`)."""
     values = [body.mass] + (list(body.inertia) if body.dimension == 3 else [body.inertia])
     for key, value in zip(["mass"] + ["inertia"] * (len(values) - 1), values, strict=True):
         if isinstance(value, float) and value < 0.0 and (key == "mass" or body.dimension == 2):
             raise ModelError(f"body '{body.name}' field '{key}': must be >= 0, got {value}")
+        if not isinstance(value, float) or value == 0.0:
+            continue
+        lo, hi = MASS_RANGE if key == "mass" else (0.0, INERTIA_MAX)
+        if not lo <= abs(value) <= hi:
+            unit = "kg" if key == "mass" else "kg m²"
+            limit = "MASS_RANGE" if key == "mass" else "INERTIA_MAX"
+            raise ModelError(
+                f"body '{body.name}' field '{key}': {value:g} {unit} is outside the plausible "
+                f"range {'0 or ' if key == 'mass' else ''}[{lo:g}, {hi:g}] {unit} (a wrong unit "
+                f"or a typo; casmbd.model.bodies.{limit})")
 
 
 #: principal moments above -INERTIA_ROUNDING kg m² count as zero (rounding in published robot

@@ -22,7 +22,7 @@ import casadi as ca
 import numpy as np
 
 from casmbd.errors import ModelError
-from casmbd.model.bodies import GROUND, scalar, vector, vector2
+from casmbd.model.bodies import GROUND, scalar, unit_vector, vector, vector2
 from casmbd.model.registry import joint_kinds, register_joint
 
 
@@ -316,11 +316,7 @@ class Prismatic(Joint):
 
     def __post_init__(self):
         self.point = vector2(self.point, f"joint '{self.name}' field 'point'")
-        axis = vector2(self.axis, f"joint '{self.name}' field 'axis'")
-        norm = float(np.linalg.norm(axis))
-        if norm == 0.0:
-            raise ModelError(f"joint '{self.name}' field 'axis': must not be the zero vector")
-        self.axis = axis / norm
+        self.axis = unit_vector(self.axis, f"joint '{self.name}' field 'axis'", 2)
 
     def _separation(self, ctx):
         p1 = ctx.point(self.body1, ctx.local(self.body1, self.point))

@@ -48,6 +48,10 @@ from casmbd.model.rotations import euler_zxz_to_quaternion
 from casmbd.model.values import Value, check_value, numeric
 
 #: characters that never appear in a declared name, and what they mean in the scene syntax
+#: largest plausible gravity component [m/s²] (10⁷ g: an ultracentrifuge reaches 10⁶ g); a
+#: component of 1e300 made the kinetic energy inf at t = 0.1 without naming the gravity
+GRAVITY_MAX = 1e8
+
 RESERVED_CHARACTERS = {
     "@": "it attaches to a node of a flexible body, '<body>@<node>'",
     ".": "it separates an element from a generated part, as in '<joint>.limit', "
@@ -92,6 +96,11 @@ class Mechanism:
         self.tree: list[str] = []
         gravity = np.zeros(self.dimension) if gravity is None else gravity
         self.gravity = vector(gravity, "mechanism field 'gravity'", self.dimension)
+        if float(np.max(np.abs(self.gravity), initial=0.0)) > GRAVITY_MAX:
+            raise ModelError(f"mechanism field 'gravity': {self.gravity.tolist()} has a component "
+                             f"beyond the plausible {GRAVITY_MAX:g} m/s² (10⁷ g, an "
+                             "ultracentrifuge; a wrong unit or a typo; "
+                             "casmbd.model.mechanism.GRAVITY_MAX)")
         self.parameters: dict[str, float] = {}
         self.bodies: dict[str, Body] = {}
         self.markers: dict[str, Marker] = {}

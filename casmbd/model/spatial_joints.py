@@ -37,7 +37,7 @@ import casadi as ca
 import numpy as np
 
 from casmbd.errors import ModelError
-from casmbd.model.bodies import vector
+from casmbd.model.bodies import unit_vector, vector
 from casmbd.model.joints import (
     Joint,
     axis_from_scene,
@@ -51,11 +51,7 @@ from casmbd.model.rotations import E_matrix, rotation_matrix
 
 
 def _unit(value, where: str) -> np.ndarray:
-    axis = vector(value, where, 3)
-    norm = float(np.linalg.norm(axis))
-    if norm == 0.0:
-        raise ModelError(f"{where}: must not be the zero vector")
-    return axis / norm
+    return unit_vector(value, where, 3)  # scale-safe: [1, 1e300] is the y axis
 
 
 def triad(axis) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -26,8 +26,12 @@ argument reaches that argument.
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import functools
 import math
+import subprocess
+import sys
 
 import casadi as ca
 
@@ -172,12 +176,59 @@ def check_solver(solver, where: str = "ocp", error: type[Exception] = AnalysisEr
     return solver
 
 
+#: The shared libraries IPOPT loads at run time for a linear solver it was not linked with
+#: (IPOPT 3.14: option ``hsllib``, default ``libhsl.so``, and the COIN-HSL build's
+#: ``libcoinhsl.so``; ``pardisolib``, default ``libpardiso.so``).  IPOPT crashes the process
+#: (SIGSEGV) when one of them is named and the library is missing, so the library is looked
+#: for first and the solver probed in a child process.
+RUNTIME_LIBRARIES = {**{name: ("libhsl.so", "libcoinhsl.so")
+                        for name in ("ma27", "ma57", "ma77", "ma86", "ma97")},
+                     "pardiso": ("libpardiso.so",)}
+
+
+def runtime_library(name: str) -> tuple[str | None, tuple[str, ...]]:
+    """(the library file that loads, or None; the files looked for) of linear solver ``name``
+    (:data:`RUNTIME_LIBRARIES`; ``(None, ())`` for solvers built into IPOPT)."""
+    files = RUNTIME_LIBRARIES.get(name, ())
+    for file in files:
+        for candidate in (file, ctypes.util.find_library(file[3:].split(".")[0])):
+            if not candidate:
+                continue
+            try:
+                ctypes.CDLL(candidate)
+            except OSError:
+                continue
+            return candidate, files
+    return None, files
+
+
+_PROBE = """
+import casadi as ca
+x = ca.SX.sym("x")
+s = ca.nlpsol("casmbd_probe", "ipopt", {"x": x, "f": (x - 1) ** 2},
+              {"ipopt.linear_solver": %r, "ipopt.print_level": 0, "ipopt.sb": "yes",
+               "print_time": False, "error_on_fail": False})
+s(x0=0.0)
+raise SystemExit(0 if s.stats().get("success", False) else 3)
+"""
+
+
 @functools.cache
 def linear_solver_available(name: str) -> bool:
     """Whether IPOPT can use the linear solver ``name`` here (MUMPS ships with CasADi; the
-    others are tried once on a one-variable problem)."""
+    others are tried once on a one-variable problem: in a child process when IPOPT loads
+    them from a shared library, whose absence crashes IPOPT)."""
     if name == "mumps":
         return True
+    if name in RUNTIME_LIBRARIES:
+        if runtime_library(name)[0] is None:
+            return False
+        try:
+            run = subprocess.run([sys.executable, "-c", _PROBE % name], capture_output=True,
+                                 timeout=60, check=False)
+        except (OSError, subprocess.SubprocessError):
+            return False
+        return run.returncode == 0
     x = ca.SX.sym("x")
     try:
         solver = ca.nlpsol("casmbd_probe", "ipopt", {"x": x, "f": (x - 1) ** 2},
@@ -201,6 +252,11 @@ def _check_value(key: str, value, spec: tuple, where: str, error: type[Exception
         if not (isinstance(value, str) and value in values):
             raise error(f"{bad} expected one of {', '.join(values)}")
         if kind == "linear_solver" and not linear_solver_available(value):
+            found, files = runtime_library(value)
+            if files and found is None:
+                raise error(f"{bad} IPOPT loads '{value}' from the shared library "
+                            f"{' or '.join(files)}, and none could be loaded here (IPOPT "
+                            "would crash the process); install it or use mumps")
             raise error(f"{bad} this linear solver is not available here (IPOPT refuses it; "
                         "mumps always is)")
         return value
