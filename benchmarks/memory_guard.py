@@ -1,8 +1,8 @@
 """Peak memory of guarded runs against the memory guard's estimate (issue 31, item 2).
 
 Each case runs twice in a **fresh subprocess** — at ``steps`` and at a baseline of a quarter
-of them — and the growth of the peak resident set size (``ru_maxrss`` of that child, from
-``os.wait4``) per added output time is compared with
+of them — and the growth of the peak resident set size (the child's own ``VmHWM`` on Linux,
+see :func:`peak_rss`) per added output time is compared with
 :func:`casmbd.limits.memory_per_time` (``"result"`` for the Python API, ``"cli"`` for the
 command line, ``"json"`` with ``--json``).  The baseline removes the interpreter, CasADi and
 the compiled model; it is not a tiny run because the first output times fill memory the
@@ -38,26 +38,52 @@ BASE_STEPS = 10
 _API = ("import sys; from casmbd.io.scene import load_scene; "
         "from casmbd.analysis.simulate import simulate; "
         "simulate(load_scene(sys.argv[1]), t_end=float(sys.argv[2]), steps=int(sys.argv[3]))")
+#: the command line, run in the same interpreter as ``python -m casmbd``
+_CLI = "import runpy, sys; sys.argv[0] = 'casmbd'; runpy.run_module('casmbd', run_name='__main__')"
+#: prepended to the child's code: at exit, write the peak RSS of this process image
+#: (``VmHWM`` of /proc/self/status, kB: counted from the exec, not inherited) to the file
+#: named by $CASMBD_PEAK_FILE
+_REPORT = ("import atexit, os\n"
+           "def _peak():\n"
+           "    for line in open('/proc/self/status'):\n"
+           "        if line.startswith('VmHWM:'):\n"
+           "            open(os.environ['CASMBD_PEAK_FILE'], 'w').write(line.split()[1])\n"
+           "atexit.register(_peak)\n")
 
 
 def peak_rss(scene: str | Path, steps: int, t_end: float = 1.0, cli: bool = True,
              extra: tuple[str, ...] = ()) -> int:
-    """Peak RSS [bytes] of one run in a fresh Python process (``os.wait4``'s ``ru_maxrss``)."""
+    """Peak RSS [bytes] of one run in a fresh Python process.
+
+    On Linux the child's own ``VmHWM`` (its high-water mark since its exec): the
+    ``ru_maxrss`` that ``os.wait4`` reports also keeps the parent's RSS at the fork (the
+    kernel carries the old image's high-water mark over the exec), so a child of a large
+    process, e.g. a long pytest session, reads the parent's size, not its own.  Elsewhere
+    ``ru_maxrss``.
+    """
     if cli:
-        cmd = [sys.executable, "-m", "casmbd", "simulate", str(scene), "--t-end", str(t_end),
-               "--steps", str(steps), *extra]
+        code = _CLI
+        args = ["simulate", str(scene), "--t-end", str(t_end), "--steps", str(steps), *extra]
     else:
-        cmd = [sys.executable, "-c", _API, str(scene), str(t_end), str(steps)]
-    env = dict(os.environ, PYTHONPATH=str(ROOT), CASMBD_PROGRESS="0")
-    env.pop("CASMBD_MEMORY_BUDGET", None)
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, env=env,
-                            cwd=str(ROOT))
-    err = proc.stderr.read().decode(errors="replace")
-    _, status, usage = os.wait4(proc.pid, 0)
-    proc.stderr.close()
-    proc.returncode = os.waitstatus_to_exitcode(status)
-    if proc.returncode:
-        raise RuntimeError(f"{' '.join(cmd)} failed ({proc.returncode}): {err[-500:]}")
+        code, args = _API, [str(scene), str(t_end), str(steps)]
+    linux = os.path.exists("/proc/self/status")
+    with tempfile.TemporaryDirectory() as tmp:
+        peak_file = Path(tmp) / "peak"
+        env = dict(os.environ, PYTHONPATH=str(ROOT), CASMBD_PROGRESS="0",
+                   CASMBD_PEAK_FILE=str(peak_file))
+        env.pop("CASMBD_MEMORY_BUDGET", None)
+        cmd = [sys.executable, "-c", (_REPORT if linux else "") + code, *args]
+        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                                env=env, cwd=str(ROOT))
+        err = proc.stderr.read().decode(errors="replace")
+        _, status, usage = os.wait4(proc.pid, 0)
+        proc.stderr.close()
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        if proc.returncode:
+            raise RuntimeError(f"{' '.join(cmd[:2])} … {' '.join(args)} failed "
+                               f"({proc.returncode}): {err[-500:]}")
+        if linux:
+            return int(peak_file.read_text()) * 1024
     return int(usage.ru_maxrss) * 1024  # kilobytes on Linux
 
 
