@@ -1,0 +1,119 @@
+"""CONTRACT between helpers h-viewmodel and h-viser (issue 32, item 1): casmbd/viz/view_model.py.
+
+h-viewmodel owns this module and implements ``view_model``; h-viser renders a ``ViewModel``
+with viser (live server and --html).  Field names and meanings below are fixed; add fields if
+needed (tell the lead), never rename.  All arrays are float64 numpy arrays, SI units, global
+frame z up for spatial scenes; planar scenes are placed in the global x-y plane (z = 0) with
+their rotations about z.  Quaternions are scalar-first (w, x, y, z), unit, continuous in time
+(no sign flips between frames).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class Shape:
+    """One drawn solid, fixed in a body frame (or in the ground when ``body`` is "ground").
+
+    kind: "box" (size = (lx, ly, lz)), "sphere" (size = (r,)), "cylinder" (size = (r, length),
+    axis along local z), "capsule" (size = (r, length), axis along local z: rods between joint
+    points), "ellipsoid" (size = semi-axes (a, b, c)), "mesh" (vertices (n,3), faces (m,3) int,
+    already scaled, in the shape's local frame).
+    position, wxyz: pose of the shape in its body frame (body frame origin = the body's
+    centre of mass as stored in results; rotation = the body's rotation).
+    color: RGB in 0..255.  source: where it came from ("urdf-visual", "inertia", "joints",
+    "contact") for the docs/tests.
+    """
+
+    name: str
+    body: str
+    kind: str
+    size: tuple[float, ...] = ()
+    position: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    wxyz: np.ndarray = field(default_factory=lambda: np.array([1.0, 0, 0, 0]))
+    color: tuple[int, int, int] = (160, 160, 170)
+    vertices: np.ndarray | None = None
+    faces: np.ndarray | None = None
+    source: str = ""
+
+
+@dataclass
+class Frame:
+    """A joint frame or marker frame drawn as axes: fixed in ``body`` at position/wxyz
+    (body-frame), ``axis`` (unit, body frame) for joints with an axis (drawn as an arrow)."""
+
+    name: str
+    body: str
+    position: np.ndarray
+    wxyz: np.ndarray
+    axis: np.ndarray | None = None
+    kind: str = "joint"          # "joint" or "marker"
+
+
+@dataclass
+class Plane:
+    """A contact plane / floor: point, unit normal, half-size of the drawn square [m]."""
+
+    name: str
+    point: np.ndarray
+    normal: np.ndarray
+    half_size: float
+
+
+@dataclass
+class Series:
+    """One plotted quantity for the side panel: values (n_t,) on ViewModel.times."""
+
+    name: str
+    unit: str
+    values: np.ndarray
+
+
+@dataclass
+class ViewModel:
+    """Everything the 3-D view shows, on one time grid.
+
+    times: (n_t,) [s]; a mechanism alone (no result) gives n_t = 1 at t = 0 (initial pose).
+    body_positions: body -> (n_t, 3) centre of mass; body_wxyz: body -> (n_t, 4).
+    shapes, frames, planes: static geometry (see classes).
+    traces: marker name -> (n_t, 3) global path of the marker point.
+    flexible: flexible body name -> (n_t, n_nodes, 3) deformed global node positions (with
+    ``deformation_scale`` applied), plus flexible_edges: body -> (k, 2) int node pairs drawn
+    as lines (beam segments).
+    forces: name -> ((n_t, 3) application point, (n_t, 3) force vector [N]) (optional arrows;
+    empty unless asked).
+    events: list of (time, label) (impacts, stick/slip changes) from the result.
+    series: side-panel plots (a concise default set: e.g. energy, first joint coordinates,
+    outputs requested in the scene).
+    planar: True for a planar scene.  length_scale: a characteristic size of the mechanism
+    [m] (for axes length, arrow scaling, camera).  title: scene name.
+    """
+
+    times: np.ndarray
+    body_positions: dict[str, np.ndarray]
+    body_wxyz: dict[str, np.ndarray]
+    shapes: list[Shape] = field(default_factory=list)
+    frames: list[Frame] = field(default_factory=list)
+    planes: list[Plane] = field(default_factory=list)
+    traces: dict[str, np.ndarray] = field(default_factory=dict)
+    flexible: dict[str, np.ndarray] = field(default_factory=dict)
+    flexible_edges: dict[str, np.ndarray] = field(default_factory=dict)
+    forces: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+    events: list[tuple[float, str]] = field(default_factory=list)
+    series: list[Series] = field(default_factory=list)
+    planar: bool = False
+    length_scale: float = 1.0
+    title: str = ""
+
+
+def view_model(source, mechanism=None, *, deformation_scale: float = 1.0,
+               forces: bool = False, max_frames: int | None = None) -> ViewModel:
+    """The view of ``source``: a Mechanism (initial pose), a Result (its time grid) or an
+    OcpSolution (its trajectory).  ``mechanism`` overrides the one embedded in a result.
+    ``max_frames`` subsamples the grid (keeping the first and last time and event times).
+    Raises casmbd errors (AnalysisError/SceneError) naming what is missing; never NaN."""
+    raise NotImplementedError("view_model: placeholder of the contract until h-viewmodel lands")
