@@ -48,6 +48,8 @@ __all__ = [
     "MAX_FIXED_STEPS",
     "MAX_FPS",
     "MAX_FRAMES",
+    "MAX_MESH_BYTES",
+    "MAX_MESH_FACES",
     "MAX_MODES",
     "MAX_NPZ_BYTES",
     "MAX_OCP_INTERVALS",
@@ -72,6 +74,11 @@ __all__ = [
 
 #: Largest scene file (or TOML text) read, in bytes; a 5000-body chain takes 0.6 MB.
 MAX_SCENE_BYTES = 64 * 2**20
+#: Largest mesh file (STL, OBJ, DAE of a URDF ``<visual>``) read by the 3-D view, in bytes; a
+#: robot's visual meshes take 0.1-5 MB each.
+MAX_MESH_BYTES = 64 * 2**20
+#: Most triangles of one mesh drawn by the 3-D view (a finer mesh is refused with its name).
+MAX_MESH_FACES = 2_000_000
 #: Largest cache record (``*.model.json`` and the like) read, in bytes; records take a few KB.
 MAX_RECORD_BYTES = 16 * 2**20
 #: Largest total size of the arrays of an ``.npz`` file (a result, a sweep, an OCP solution,
