@@ -43,13 +43,16 @@ def _cmd_view(args) -> tuple[dict, str]:
             return make_view_model(source, **{**options, "deformation_scale": scale})
     handle = serve(vm, port=args.port, forces=args.forces, rebuild=rebuild,
                    deformation_scale=args.deformation_scale)
-    print(f"casmbd view: {handle.url}  ({vm.title or args.source}; Ctrl-C to stop)",
-          file=sys.stderr, flush=True)
-    if not args.no_browser:
-        try:
-            webbrowser.open(handle.url)
-        except Exception:  # no browser here: the URL is printed
-            pass
-    handle.wait()
+    try:  # from here on Ctrl-C is the way to stop, not an interrupt
+        print(f"casmbd view: {handle.url}  ({vm.title or args.source}; Ctrl-C to stop)",
+              file=sys.stderr, flush=True)
+        if not args.no_browser:
+            try:
+                webbrowser.open(handle.url)
+            except Exception:  # no browser here: the URL is printed
+                pass
+        handle.wait()
+    except KeyboardInterrupt:
+        handle.stop()
     data = {"url": handle.url, **view_summary(vm)}
     return data, f"stopped the view at {handle.url}"

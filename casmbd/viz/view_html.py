@@ -20,7 +20,6 @@ import numpy as np
 
 from casmbd.errors import AnalysisError
 from casmbd.results import atomic_write
-from casmbd.viz.view_model import ViewModel
 from casmbd.viz.view_scene import (
     ViewScene,
     free_port,
@@ -29,6 +28,7 @@ from casmbd.viz.view_scene import (
     stop_server,
     view_summary,
 )
+from casmbd.viz.view_types import ViewModel
 
 
 def check_html_file(path: str | Path) -> Path:

@@ -32,7 +32,7 @@ import socket
 import numpy as np
 
 from casmbd.errors import AnalysisError
-from casmbd.viz.view_model import Shape, ViewModel
+from casmbd.viz.view_types import Shape, ViewModel
 
 #: how to get the optional dependencies of the viewer
 VIEW_EXTRA = 'pip install "casmbd[view]"'

@@ -29,9 +29,7 @@ import numpy as np
 
 from casmbd.errors import AnalysisError, ResultFileError
 from casmbd.io.scene import load_scene
-from casmbd.model import Mechanism
 from casmbd.ocp.solution import OcpSolution
-from casmbd.results import Result
 from casmbd.results import load as load_result
 from casmbd.viz.view_html import write_html
 from casmbd.viz.view_model import ViewModel, view_model
@@ -76,9 +74,6 @@ def make_view_model(source, mechanism=None, *, deformation_scale: float = 1.0,
         return source
     if isinstance(source, (str, Path)):
         source = load_source(source)
-    if not isinstance(source, (Mechanism, Result, OcpSolution)):
-        raise AnalysisError(f"view: cannot show a {type(source).__name__} (give a Mechanism, "
-                            "a Result, an OcpSolution or the path of a scene or result file)")
     return view_model(source, mechanism, deformation_scale=deformation_scale, forces=forces,
                       max_frames=max_frames)
 
