@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import importlib.util
+import json
 import os
 import shutil
 import time
@@ -89,7 +90,8 @@ def browser():
 class Page:
     """A page of ``browser`` at ``url`` with its console errors collected."""
 
-    def __init__(self, b, url: str, *, offline: bool = False):
+    def __init__(self, b, url: str, *, offline: bool = False,
+                 watch: dict[str, int] | None = None):
         self.context = b.new_context(viewport=VIEWPORT, offline=offline)
         self.page = self.context.new_page()
         self.errors: list[str] = []
@@ -98,6 +100,8 @@ class Page:
         self.page.on("pageerror", lambda e: self.errors.append(f"pageerror: {e}"))
         self.page.on("request", lambda r: self.requests.append(r.url))
         self.page.add_init_script(INIT_SCRIPT)
+        if watch is not None:  # time the opening (open_ms)
+            self.page.add_init_script(f"window.__want = {json.dumps(watch)};" + OPEN_WATCH)
         self.page.goto(url)
 
     def close(self) -> None:
@@ -169,3 +173,67 @@ def rotations(meshes: list[dict], color: str, rot: np.ndarray) -> list[np.ndarra
 def pixel_spread(img: np.ndarray) -> float:
     """Standard deviation of the grey levels of a screenshot (0 for a blank page)."""
     return float(img.mean(axis=2).std())
+
+
+#: in the page, from its first script on: once per animation frame, whether the scene holds
+#: ``window.__want[c]`` meshes of every colour ``c``; ``window.__openMs`` is performance.now()
+#: (ms since navigation) at the next animation frame (that frame rendered them)
+OPEN_WATCH = """
+(function () {
+  function ready() {
+    if (!window.__want) return false;
+    const n = {};
+    for (const s of window.__scenes) s.traverse(o => {
+      if (o.isMesh && o.material && o.material.color) {
+        const c = o.material.color.getHexString();
+        n[c] = (n[c] || 0) + 1;
+      }
+    });
+    return Object.keys(window.__want).every(c => n[c] === window.__want[c]);
+  }
+  function frame() {
+    if (ready()) requestAnimationFrame(() => { window.__openMs = performance.now(); });
+    else requestAnimationFrame(frame);
+  }
+  requestAnimationFrame(frame);
+})();
+"""
+
+#: in the page: for ``seconds``, count animation frames and the frames in which the world
+#: matrix of the (first) mesh of colour ``color`` changed
+PLAY_JS = """([color, seconds]) => new Promise(resolve => {
+  let frames = 0, changes = 0, last = null, t0 = null;
+  function find() {
+    let found = null;
+    for (const s of window.__scenes) s.traverse(o => {
+      if (!found && o.isMesh && o.material && o.material.color &&
+          o.material.color.getHexString() === color) found = o;
+    });
+    return found;
+  }
+  function frame(now) {
+    if (t0 === null) t0 = now;
+    frames++;
+    const m = find();
+    const e = m ? m.matrixWorld.elements.join(',') : null;
+    if (last !== null && e !== last) changes++;
+    last = e;
+    if (now - t0 < seconds * 1000) requestAnimationFrame(frame);
+    else resolve({frames: frames - 1, changes, seconds: (now - t0) / 1000});
+  }
+  requestAnimationFrame(frame);
+})"""
+
+
+def open_ms(page: Page, timeout: float = 120.0) -> float:
+    """Milliseconds from navigation to the first rendered frame with every mesh of the page's
+    ``watch`` (in the page's clock)."""
+    page.page.wait_for_function("window.__openMs !== undefined", timeout=timeout * 1000)
+    return float(page.page.evaluate("window.__openMs"))
+
+
+def play_rate(page: Page, color: str, seconds: float = 5.0) -> dict:
+    """Animation frames per second and pose changes per second of one mesh while playing."""
+    r = page.page.evaluate(PLAY_JS, [color, seconds])
+    return {"fps": r["frames"] / r["seconds"], "changes_per_s": r["changes"] / r["seconds"],
+            "frames": r["frames"], "changes": r["changes"], "seconds": r["seconds"]}

@@ -125,6 +125,9 @@ class ViewScene:
                                         "traces": [], "forces": []}
         self.flex: dict[str, object] = {}
         self.arrows: dict[str, object] = {}
+        # shadows off: the default lights' shadow maps cost one more render pass per light,
+        # which software WebGL (headless browsers, remote desktops) pays on every frame
+        self.scene.configure_default_lights(enabled=True, cast_shadow=False)
         self._camera()
         self._planes()
         self._bodies()

@@ -44,7 +44,7 @@ from casmbd.viz.view_scene import (
 )
 
 #: updates per second of the playing slider (the browser renders at its own rate)
-PLAY_FPS = 30.0
+PLAY_FPS = 60.0
 #: playback speeds offered (factor on real time)
 SPEEDS = ("0.25x", "0.5x", "1x", "2x", "4x")
 #: plot updates per second while playing (the dot at the shown time)
