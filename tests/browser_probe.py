@@ -237,3 +237,38 @@ def play_rate(page: Page, color: str, seconds: float = 5.0) -> dict:
     r = page.page.evaluate(PLAY_JS, [color, seconds])
     return {"fps": r["frames"] / r["seconds"], "changes_per_s": r["changes"] / r["seconds"],
             "frames": r["frames"], "changes": r["changes"], "seconds": r["seconds"]}
+
+
+def tree_cpu_seconds(root: int | None = None) -> float:
+    """CPU time (user + system) [s] of process ``root`` (default: this one) and all its live
+    descendants (playwright's driver, Chromium's browser, GPU and renderer processes), from
+    /proc (0 where /proc is missing)."""
+    root = os.getpid() if root is None else root
+    tick = os.sysconf("SC_CLK_TCK")
+    parent, cpu = {}, {}
+    for entry in Path("/proc").glob("[0-9]*"):
+        try:
+            fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        pid = int(entry.name)
+        parent[pid] = int(fields[1])
+        cpu[pid] = (int(fields[11]) + int(fields[12])) / tick
+    total, todo = 0.0, [root]
+    while todo:
+        pid = todo.pop()
+        total += cpu.get(pid, 0.0)
+        todo += [c for c, p in parent.items() if p == pid]
+    return total
+
+
+def play_cost(page: Page, color: str, seconds: float = 5.0) -> dict:
+    """:func:`play_rate` with the CPU time the whole process tree spent meanwhile: ``cpu_ms``
+    per animation frame, and ``fps_per_core`` = frames / CPU seconds (the rate one idle core
+    would sustain; a measure that holds on a machine shared with other jobs)."""
+    c0 = tree_cpu_seconds()
+    r = play_rate(page, color, seconds)
+    cpu = tree_cpu_seconds() - c0
+    r["cpu_ms"] = 1000.0 * cpu / max(r["frames"], 1)
+    r["fps_per_core"] = r["frames"] / cpu if cpu > 0 else float("nan")
+    return r

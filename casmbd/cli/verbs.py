@@ -12,7 +12,6 @@ from casmbd.cli.common import (
     _add_dpi,
     _add_mode,
     _add_output_flags,
-    _nonnegative_float,
     _positive_float,
     _positive_int,
 )
@@ -130,7 +129,7 @@ def _add_view_verb(sub) -> None:
                    help="write one self-contained .html file that plays offline, no server")
     p.add_argument("--no-browser", action="store_true",
                    help="do not open the page in the default browser")
-    p.add_argument("--deformation-scale", type=_nonnegative_float, default=1.0,
+    p.add_argument("--deformation-scale", type=_positive_float, default=1.0,
                    help="magnify the elastic displacements of flexible bodies (default 1)")
     p.add_argument("--forces", action="store_true", help="draw force arrows")
     p.add_argument("--max-frames", type=_positive_int, default=None,

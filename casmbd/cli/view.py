@@ -36,7 +36,7 @@ def _cmd_view(args) -> tuple[dict, str]:
         text = (f"saved {data['file']} ({data['bytes'] / 1e6:.2f} MB): {data['frames']} frames "
                 f"from t = {data['t_start']:g} to {data['t_end']:g} s, {data['bodies']} bodies, "
                 f"{data['shapes']} shapes; opens offline in a browser")
-        return data, text
+        return data, "\n".join([text, *(f"  note: {n}" for n in data["notes"])])
     rebuild = None
     if vm.flexible:
         def rebuild(scale: float):
@@ -46,6 +46,8 @@ def _cmd_view(args) -> tuple[dict, str]:
     try:  # from here on Ctrl-C is the way to stop, not an interrupt
         print(f"casmbd view: {handle.url}  ({vm.title or args.source}; Ctrl-C to stop)",
               file=sys.stderr, flush=True)
+        for note in view_summary(vm)["notes"]:
+            print(f"note: {note}", file=sys.stderr, flush=True)
         if not args.no_browser:
             try:
                 webbrowser.open(handle.url)

@@ -364,7 +364,8 @@ def view_summary(vm: ViewModel) -> dict:
     n_shapes = len(vm.shapes)
     return {"frames": len(vm.times), "bodies": len(vm.body_positions), "shapes": n_shapes,
             "t_start": float(vm.times[0]), "t_end": float(vm.times[-1]),
-            "events": len(vm.events), "planar": bool(vm.planar), "title": vm.title}
+            "events": len(vm.events), "planar": bool(vm.planar), "title": vm.title,
+            "notes": list(getattr(vm, "notes", []))}
 
 
 def frame_interval(times: np.ndarray) -> float:

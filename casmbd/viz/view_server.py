@@ -182,7 +182,7 @@ class _Gui:
                 box.on_update(lambda _, g=group, b=box: scene.set_visible(g, b.value))
             if vm.flexible and rebuild is not None:
                 self.deform = gui.add_number("deformation scale", initial_value=deformation_scale,
-                                             min=0.0, step=0.5)
+                                             min=0.01, step=0.5)
                 self.deform.on_update(lambda _: self._rescale())
         self.plots = []
         if vm.series:
@@ -240,7 +240,7 @@ class _Gui:
 
     def _rescale(self) -> None:
         scale = float(self.deform.value)
-        if not np.isfinite(scale) or scale < 0:
+        if not np.isfinite(scale) or scale <= 0:
             return
         vm = self.rebuild(scale)
         self.scene.vm.flexible = vm.flexible
