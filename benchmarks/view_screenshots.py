@@ -33,6 +33,7 @@ def shoot(b, name: str, out: Path) -> Path:
     if steps is not None:
         source = casmbd.simulate(mech, t_end=t_end, steps=steps)
         source.attach_scene(mech)
+    bp.VIEWPORT.update(width=1280, height=860)
     with view(source, **options) as handle:
         handle.set_time(t_show)
         page = bp.Page(b, handle.url)

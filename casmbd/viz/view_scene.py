@@ -165,17 +165,20 @@ class ViewScene:
         """Planar scenes are seen from +z with +y up; spatial ones from an oblique view, z up."""
         lo, hi = self._bounds()
         centre = 0.5 * (lo + hi)
-        extent = max(float(np.max(hi - lo)), 2.0 * self.L)
+        # the whole motion in view: viser's camera has a 75° vertical field of view, a
+        # distance d shows ±0.77 d; a little more for the oblique view of spatial scenes
+        extent = max(float(np.max(hi - lo)), self.L)
         cam = self.server.initial_camera
         if self.vm.planar:
             self.scene.set_up_direction("+y")
             cam.look_at = tuple(centre)
-            cam.position = (centre[0], centre[1], centre[2] + 1.6 * extent)
+            cam.position = (centre[0], centre[1], centre[2] + 1.1 * extent)
             cam.up = (0.0, 1.0, 0.0)
         else:
             self.scene.set_up_direction("+z")
             cam.look_at = tuple(centre)
-            cam.position = tuple(centre + extent * np.array([1.1, -1.3, 0.8]))
+            direction = np.array([1.0, -1.2, 0.8]) / np.linalg.norm([1.0, -1.2, 0.8])
+            cam.position = tuple(centre + 1.4 * extent * direction)
 
     def _planes(self) -> None:
         for pl in self.vm.planes:
@@ -246,19 +249,19 @@ class ViewScene:
         for f in self.vm.frames:
             parent = self._parent(f.body)
             group = "markers" if f.kind == "marker" else "frames"
-            size = 0.12 * self.L if f.kind == "marker" else 0.18 * self.L
+            size = 0.06 * self.L if f.kind == "marker" else 0.09 * self.L
             h = self.scene.add_frame(f"{parent}/{group}/{node_name(f.name)}",
                                      axes_length=size, axes_radius=0.04 * size,
                                      origin_radius=0.08 * size, position=tuple(f.position),
                                      wxyz=tuple(f.wxyz))
             self.groups[group].append(h)
             if f.axis is not None and f.kind != "marker":
-                tip = np.asarray(f.axis, float) * 0.35 * self.L
+                tip = np.asarray(f.axis, float) * 0.16 * self.L
                 a = self.scene.add_arrows(
                     f"{parent}/axes/{node_name(f.name)}",
                     points=np.array([[[0.0, 0.0, 0.0], tip]], np.float32),
-                    colors=(240, 170, 0), shaft_radius=0.012 * self.L,
-                    head_radius=0.03 * self.L, head_length=0.06 * self.L,
+                    colors=(240, 170, 0), shaft_radius=0.005 * self.L,
+                    head_radius=0.012 * self.L, head_length=0.03 * self.L,
                     position=tuple(f.position))
                 self.groups["frames"].append(a)
 

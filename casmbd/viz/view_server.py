@@ -78,6 +78,17 @@ def make_view_model(source, mechanism=None, *, deformation_scale: float = 1.0,
                       max_frames=max_frames)
 
 
+def _y_range(y: np.ndarray) -> list[float]:
+    """A fixed y range of a chart: the finite values' span and 5 % on each side (uPlot's own
+    auto-range loses the whole chart when the "now" series' first value is missing)."""
+    finite = y[np.isfinite(y)]
+    if not len(finite):
+        return [-1.0, 1.0]
+    lo, hi = float(finite.min()), float(finite.max())
+    pad = 0.05 * (hi - lo) if hi > lo else max(0.05 * abs(hi), 1e-9)
+    return [lo - pad, hi + pad]
+
+
 class ViewHandle:
     """A running live view: :attr:`url`, :attr:`server` (the ``viser.ViserServer``),
     :attr:`scene` (:class:`ViewScene`); :meth:`stop` ends it, :meth:`wait` blocks until
@@ -185,9 +196,10 @@ class _Gui:
                                              min=0.01, step=0.5)
                 self.deform.on_update(lambda _: self._rescale())
         self.plots = []
-        if vm.series:
+        shown = [s for s in vm.series if np.isfinite(np.asarray(s.values, float)).any()]
+        if shown:
             with gui.add_folder("Plots"):
-                for s in vm.series:
+                for s in shown:
                     self.plots.append((s, self._plot(s)))
         self.thread = threading.Thread(target=self._play_loop, name="casmbd-view-play",
                                        daemon=True)
@@ -197,8 +209,8 @@ class _Gui:
         """One uPlot chart of series ``s`` with a dot at the shown time."""
         from viser import uplot
 
-        t = np.asarray(self.scene.vm.times, float)
-        y = np.asarray(s.values, float)
+        t = np.ascontiguousarray(self.scene.vm.times, dtype=np.float64)
+        y = np.ascontiguousarray(s.values, dtype=np.float64)  # uPlot reads the raw buffer
         dot = np.full_like(y, np.nan)
         dot[0] = y[0]
         label = f"{s.name} [{s.unit}]" if s.unit else s.name
@@ -208,7 +220,8 @@ class _Gui:
                     uplot.Series(label=label, stroke="#1f77b4", width=1.5),
                     uplot.Series(label="now", stroke="#d62728", width=0,
                                  points={"show": True, "size": 8, "fill": "#d62728"})),
-            scales={"x": {"time": False}}, title=label, aspect=1.6)
+            scales={"x": {"time": False}, "y": {"auto": False, "range": _y_range(y)}},
+            title=label, aspect=1.6)
 
     def _update_plots(self, force: bool = False) -> None:
         now = time.monotonic()
@@ -216,9 +229,9 @@ class _Gui:
             return
         self._last_plot = now
         i = self.scene.index
-        t = np.asarray(self.scene.vm.times, float)
+        t = np.ascontiguousarray(self.scene.vm.times, dtype=np.float64)
         for s, handle in self.plots:
-            y = np.asarray(s.values, float)
+            y = np.ascontiguousarray(s.values, dtype=np.float64)
             dot = np.full_like(y, np.nan)
             dot[i] = y[i]
             handle.data = (t, y, dot)
