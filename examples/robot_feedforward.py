@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import pathlib
-import warnings
 
 import numpy as np
 
@@ -71,9 +70,7 @@ def solve_ik(arm, q0: np.ndarray, p_d: np.ndarray, r_d: np.ndarray, k: int,
 
 def run(samples: int = 151, mode: str = "auto") -> dict:
     """The move on ``samples`` equally spaced times; returns the arrays and the check figures."""
-    with warnings.catch_warnings():  # the URDF's <visual> meshes are ignored (one warning)
-        warnings.simplefilter("ignore", UserWarning)
-        mech = casmbd.load_urdf(str(URDF))
+    mech = casmbd.load_urdf(str(URDF))
     arm = casmbd.compile(mech, coordinates="joint", mode=mode)
     k = arm.frame_names.index(FRAME)
     p0, r0 = pose(arm, Q_START, k)

@@ -384,15 +384,21 @@ def test_inverse_json_driver_effort(capsys):
 
 
 def test_warnings_print_as_one_line_and_debug_keeps_the_source(tmp_path):
-    """A warning on the command line is one ``warning: …`` line (here the URDF's ignored
-    meshes); ``--debug`` keeps Python's form with the file and category."""
-    urdf = pathlib.Path(__file__).resolve().parent.parent / "examples" / "ur5_arm.urdf"
+    """A warning on the command line is one ``warning: …`` line (here a URDF's <mimic> of a
+    fixed joint, ignored); ``--debug`` keeps Python's form with the file and category."""
+    urdf = tmp_path / "r.urdf"
+    urdf.write_text(
+        '<robot name="r"><link name="a"/><link name="b"><inertial><mass value="1"/>'
+        '<inertia ixx="1" ixy="0" ixz="0" iyy="1" iyz="0" izz="1"/></inertial></link>'
+        '<joint name="j" type="revolute"><parent link="a"/><child link="b"/>'
+        '<axis xyz="0 0 1"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>'
+        '<link name="c"/><joint name="f" type="fixed"><parent link="b"/><child link="c"/>'
+        '<mimic joint="j" multiplier="1"/></joint></robot>')
     env = {**os.environ, "CASMBD_COMPILE": "0", "CASMBD_CACHE_DIR": str(tmp_path)}
     runs = [subprocess.run([sys.executable, "-m", "casmbd", "info", str(urdf), *extra],
                            capture_output=True, text=True, env=env, timeout=120)
             for extra in ([], ["--debug"])]
     plain, debug = (r.stderr.strip().splitlines() for r in runs)
     assert runs[0].returncode == 0 and runs[1].returncode == 0
-    assert plain == ["warning: URDF 'ur5_arm': 3 <visual>/<collision> elements ignored "
-                     "(meshes are not used)"]
-    assert any("UserWarning" in line for line in debug)
+    assert plain == ["warning: URDF 'r': <mimic> of a fixed joint ignored for f"]
+    assert any("RuntimeWarning" in line for line in debug)

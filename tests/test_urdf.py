@@ -290,10 +290,19 @@ def test_mimic_gear_limits_damping_locked_initial():
     assert not ur.forces  # damping off by default
 
 
-def test_visual_elements_give_one_notice():
-    with pytest.warns(UserWarning, match="3 <visual>/<collision> elements ignored") as rec:
-        load_urdf(UR5)
-    assert len(rec) == 1
+def test_visual_elements_are_kept_without_a_notice():
+    """<visual> elements are kept for the 3-D view (issue 32), no longer ignored with a
+    warning: the two mesh visuals of the UR5 file, on the ground (the base, welded to the
+    world) and on the shoulder, with their package:// URIs, which do not resolve here (the
+    view draws those bodies with derived shapes and says so); <collision> is not used."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        mech = load_urdf(UR5)
+    assert {body: [(v.kind, v.uri, v.filename) for v in vis]
+            for body, vis in mech.visuals.items()} == {
+        "ground": [("mesh", "package://ur_description/meshes/ur5/visual/base.dae", None)],
+        "shoulder_link": [("mesh", "package://ur_description/meshes/ur5/visual/shoulder.dae",
+                           None)]}
 
 
 # ---------------------------------------------------------------- errors

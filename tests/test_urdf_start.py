@@ -56,7 +56,7 @@ def _scene(tmp_path: Path, urdf: Path, coordinates: str, initial=None, locked=No
 
 def _load_scene(path):
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # <visual> elements ignored
+        warnings.simplefilter("ignore")  # a scene's own notices are not under test here
         return casmbd.load_scene(path)
 
 

@@ -56,8 +56,9 @@ MODEL_RECORD_FORMAT = 1
 MODEL_SUFFIX = ".model.json"
 #: attributes of a mechanism that do not change what is built (the scene's text and parsed
 #: tables, whose analysis settings — t_end, steps, tolerances — are the caller's, and a
-#: sweep's points; the results take them from the mechanism at hand)
-_SKIPPED = frozenset({"scene_text", "scene_data", "scene_points"})
+#: sweep's points; the results take them from the mechanism at hand; the bodies' visuals for
+#: the 3-D view)
+_SKIPPED = frozenset({"scene_text", "scene_data", "scene_points", "visuals"})
 _MAX_DEPTH = 12
 
 

@@ -530,6 +530,51 @@ def _toml_depth(text: str) -> int:
     return deepest
 
 
+def _file_keys(data: dict) -> list[tuple[tuple, str]]:
+    """(key path, value) of the file names a scene reads: ``[scene] urdf`` and each
+    ``[bodies.fe] file``."""
+    out = []
+    scene = data.get("scene")
+    if isinstance(scene, dict) and isinstance(scene.get("urdf"), str):
+        out.append((("scene", "urdf"), scene["urdf"]))
+    bodies = data.get("bodies")
+    for i, body in enumerate(bodies if isinstance(bodies, list) else []):
+        fe = body.get("fe") if isinstance(body, dict) else None
+        if isinstance(fe, dict) and isinstance(fe.get("file"), str):
+            out.append((("bodies", i, "fe", "file"), fe["file"]))
+    return out
+
+
+def _portable(text: str, data: dict, source: str) -> str:
+    """The scene text with the relative file names it reads (``urdf``, ``[bodies.fe] file``)
+    made absolute against the scene file's folder, so that the copy a result embeds
+    (:meth:`casmbd.results.Result.mechanism`) reloads from any working folder.  The text is
+    changed only where re-reading it gives the same tables with those names absolute; else
+    (a name written in an unusual form) it is kept as written."""
+    if not source or source.startswith("<"):
+        return text
+    keys = [(path, value) for path, value in _file_keys(data)
+            if value and not Path(value).is_absolute()]
+    if not keys:
+        return text
+    base = Path(source).resolve().parent
+    new = text
+    expected = json.loads(json.dumps(data, default=str))
+    for path, value in keys:
+        absolute = os.path.normpath(base / value)
+        for quoted in (json.dumps(value), f"'{value}'"):
+            new = new.replace(quoted, json.dumps(absolute))
+        table = expected
+        for key in path[:-1]:
+            table = table[key]
+        table[path[-1]] = absolute
+    try:
+        same = json.loads(json.dumps(tomllib.loads(new), default=str)) == expected
+    except (tomllib.TOMLDecodeError, RecursionError):
+        same = False
+    return new if same else text
+
+
 def loads_scene(text: str, source: str = "<string>") -> Mechanism:
     """Build a :class:`Mechanism` from TOML text.
 
@@ -551,7 +596,7 @@ def loads_scene(text: str, source: str = "<string>") -> Mechanism:
         raise SceneError(f"{source}: nested too deeply for the TOML reader (the limit is "
                          f"{MAX_TOML_DEPTH} levels)") from None
     mech = _build(data, source)
-    mech.scene_text = text
+    mech.scene_text = _portable(text, data, source)
     mech.scene_data = data
     mech.scene_points = ScenePoints(text, source, loads_scene)  # sweeps re-read it per point
     return mech

@@ -38,13 +38,21 @@ are kept on the joint objects as the dicts ``urdf_limits`` and ``urdf_dynamics``
 nonzero value gets a ``joint_friction`` element (:mod:`casmbd.model.joint_friction`,
 Q_j = −c q̇_j − F_c tanh(q̇_j / v_s), v_s = 1e-3) named ``<joint>_damping`` (or
 ``<joint>_friction`` when only ``friction`` is on); each switch applies only its own term.
-``<visual>`` and ``<collision>`` elements are ignored with one warning.
+``<visual>`` elements are kept for the 3-D view as ``mech.visuals`` (body name → tuple of
+:class:`~casmbd.model.visuals.Visual`, ``"ground"`` for the links welded to the ground), each
+posed in its body's frame: a visual with origin (R_v, p_v) in link l, whose frame is (R_l, p_l)
+at the design pose, on a body with centre of mass c and rotation A₀ there, is at
+u = A₀ᵀ (p_l + R_l p_v − c) with axes A₀ᵀ R_l R_v.  A mesh's filename is resolved here
+(:func:`resolve_mesh`: relative to the URDF file, ``file://`` paths, ``package://NAME/…`` by
+searching the URDF's folder and its parents for the package folder ``NAME``); the file is read
+only by the view (:mod:`casmbd.viz.meshes`, bounded).  ``<collision>`` elements are not used.
 """
 
 from __future__ import annotations
 
 import functools
 import os
+import urllib.parse
 import warnings
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -58,6 +66,7 @@ from casmbd.limits import MAX_SCENE_BYTES, format_bytes
 from casmbd.model import Mechanism
 from casmbd.model.bodies import GROUND
 from casmbd.model.rotations import quaternion_from_matrix
+from casmbd.model.visuals import Visual
 
 #: default gravity of a robot (URDF has none): −9.81 m/s² along global −z
 GRAVITY = (0.0, 0.0, -9.81)
@@ -238,11 +247,13 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
         except CasmbdError as exc:
             raise SceneError(f"{where}: {exc}") from None
 
+    frames = {GROUND: (np.eye(3), np.zeros(3))}  # body frames: rotation, centre of mass
     for body in dict.fromkeys(g for g in group.values() if g != GROUND):
         mass, com, tensor = merge(parts[body])
         if mass <= 0.0:  # a massless link: its frame origin (forward dynamics checks M)
             com, tensor = design[body][1], sum(part[2] for part in parts[body])
         rot = design[body][0]
+        frames[body] = (rot, com)
         local = rot.T @ tensor @ rot
         omega, vel0 = twists[body]
         com_start = at_start[body][0] @ (rot.T @ (com - design[body][1])) + at_start[body][1]
@@ -283,10 +294,60 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
                 d=offset: mech.add_gear(f"{f}_mimic", lead, f, ratio=r, offset=d))
     if damping or friction:
         _add_damping(robot, mech, locked, damping, friction)
-    if robot.ignored:
-        warnings.warn(f"URDF '{robot.name}': {robot.ignored} <visual>/<collision> elements "
-                      "ignored (meshes are not used)", stacklevel=4)
+    mech.visuals = _body_visuals(robot, group, design, frames)
     return mech
+
+
+def resolve_mesh(uri: str, source: str) -> str | None:
+    """The file of a mesh filename of a URDF read from ``source`` (its path; a text without a
+    file resolves against the working folder), or None when it cannot be found.
+
+    ``package://NAME/REST``: the first of the URDF's folder and its parents that is the
+    package folder ``NAME`` itself, or holds a folder ``NAME``, with ``REST`` there (as ROS
+    finds a package in a workspace); ``file://PATH``: that path; otherwise a path relative to
+    the URDF's folder (or absolute).  Nothing is opened here (the view reads the file,
+    bounded, :mod:`casmbd.viz.meshes`).
+    """
+    base = (Path(source).resolve().parent if source and not source.startswith("<")
+            else Path.cwd())
+    if uri.startswith("package://"):
+        package, _, rest = uri[len("package://"):].partition("/")
+        if not package or not rest:
+            return None
+        rest_path = Path(urllib.parse.unquote(rest))
+        if rest_path.is_absolute() or ".." in rest_path.parts:
+            return None
+        for folder in (base, *base.parents):
+            for root in ((folder,) if folder.name == package else ()) + (folder / package,):
+                candidate = root / rest_path
+                if candidate.exists():
+                    return str(candidate)
+        return None
+    if uri.startswith("file://"):
+        return urllib.parse.unquote(uri[len("file://"):]) or None
+    path = Path(uri)
+    return str(path if path.is_absolute() else base / path)
+
+
+def _body_visuals(robot: Robot, group: dict, design: dict, frames: dict) -> dict:
+    """Body (or ``"ground"``) → its links' visuals posed in the body frame (module
+    docstring)."""
+    out: dict[str, list[Visual]] = {}
+    for lname, link in robot.links.items():
+        if not link.visuals:
+            continue
+        body = group[lname]
+        rot_l, pos_l = design[lname]
+        rot_b, com = frames[body]
+        for k, vis in enumerate(link.visuals):
+            filename = resolve_mesh(vis.filename, robot.source) if vis.kind == "mesh" else None
+            out.setdefault(body, []).append(Visual(
+                vis.kind, tuple(float(x) for x in vis.size),
+                rot_b.T @ (pos_l + rot_l @ vis.origin - com), rot_b.T @ rot_l @ vis.rotation,
+                filename, vis.filename, np.asarray(vis.scale, float).copy(),
+                None if vis.rgba is None else tuple(float(c) for c in vis.rgba),
+                vis.name or f"{lname}.visual{k + 1}", lname))
+    return {body: tuple(v) for body, v in out.items()}
 
 
 def _add_damping(robot: Robot, mech: Mechanism, locked: Mapping, damping: bool,

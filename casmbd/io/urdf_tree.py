@@ -8,7 +8,13 @@ Conventions of the URDF specification (wiki.ros.org/urdf/XML):
 * ``<axis xyz>`` (default 1 0 0) in the joint frame, which is the child link's frame;
 * ``<inertial>``: mass, the centre-of-mass frame ``<origin>`` in the link frame and the inertia
   tensor ``ixx ixy ixz iyy iyz izz`` about the centre of mass in that frame (tensor elements:
-  ixy = −∫xy dm), so in link axes I_link = R I Rᵀ.
+  ixy = −∫xy dm), so in link axes I_link = R I Rᵀ;
+* ``<visual>``: an ``<origin>`` in the link frame, one ``<geometry>`` (``box size``,
+  ``cylinder radius length`` along z, ``sphere radius``, ``mesh filename scale``) and an optional
+  ``<material>`` (inline ``<color rgba>``, or a name defined by a top-level ``<material>``); kept
+  as :class:`LinkVisual` for the 3-D view.  A visual that cannot be read (no or an unknown
+  geometry, a malformed attribute) is left out with a warning naming the link: it changes
+  nothing that is computed.  ``<collision>`` elements are counted and not used.
 
 The merge of rigidly joined links into one body adds masses, centres of mass
 c = Σ mᵢ cᵢ / Σ mᵢ and inertia tensors (global axes) by the parallel-axis theorem
@@ -18,6 +24,7 @@ I = Σ [Rᵢ Iᵢ Rᵢᵀ + mᵢ (|dᵢ|² 1 − dᵢ dᵢᵀ)], dᵢ = cᵢ −
 from __future__ import annotations
 
 import math
+import warnings
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 
@@ -51,13 +58,31 @@ def axis_rotation(axis, angle: float) -> np.ndarray:
 
 
 @dataclass
+class LinkVisual:
+    """A URDF ``<visual>``: its frame (R, p) in the link frame, the geometry kind and size
+    (box (lx, ly, lz), cylinder (radius, length), sphere (radius,), mesh ()), a mesh's
+    filename as written and scale, the material colour (rgba 0..1) and the name."""
+
+    rotation: np.ndarray
+    origin: np.ndarray
+    kind: str
+    size: tuple = ()
+    filename: str = ""
+    scale: np.ndarray = field(default_factory=lambda: np.ones(3))
+    rgba: tuple | None = None
+    name: str = ""
+
+
+@dataclass
 class Link:
-    """A URDF link: mass, centre of mass and inertia tensor (about it) in link axes."""
+    """A URDF link: mass, centre of mass and inertia tensor (about it) in link axes, and its
+    visuals."""
 
     name: str
     mass: float = 0.0
     com: np.ndarray = field(default_factory=lambda: np.zeros(3))
     inertia: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+    visuals: list[LinkVisual] = field(default_factory=list)
 
 
 @dataclass
@@ -86,13 +111,16 @@ class UrdfJoint:
 
 @dataclass
 class Robot:
-    """The parsed URDF: links, joints (in file order), the root link, ignored element count."""
+    """The parsed URDF: links, joints (in file order), the root link, the number of
+    ``<collision>`` elements (not used) and the source (the file's path, for the visuals'
+    relative mesh filenames)."""
 
     name: str
     links: dict[str, Link]
     joints: dict[str, UrdfJoint]
     root: str
-    ignored: int = 0
+    collisions: int = 0
+    source: str = ""
 
     def parent_joint(self) -> dict[str, UrdfJoint]:
         return {j.child: j for j in self.joints.values()}
@@ -180,6 +208,70 @@ def _link(elem, index: int) -> Link:
     return Link(name, mass, com, rot @ tensor @ rot.T)
 
 
+def _materials(root) -> dict[str, tuple]:
+    """Top-level ``<material name><color rgba/></material>`` definitions: name → rgba."""
+    out = {}
+    for el in root.findall("material"):
+        name, color = el.get("name"), el.find("color")
+        if name and color is not None:
+            try:
+                out[name] = tuple(_numbers(color, "rgba", 4, f"<material '{name}'> <color>"))
+            except SceneError as exc:
+                warnings.warn(f"URDF: {exc}; the material is not used", RuntimeWarning,
+                              stacklevel=4)
+    return out
+
+
+def _visual(elem, where: str, materials: dict) -> LinkVisual:
+    """One ``<visual>`` (SceneError naming the element and attribute when malformed)."""
+    rot, pos = _origin(elem, where)
+    geometry = elem.find("geometry")
+    shapes = [] if geometry is None else list(geometry)
+    if len(shapes) != 1:
+        raise SceneError(f"{where} <geometry>: expected one of box, cylinder, sphere, mesh")
+    shape = shapes[0]
+    tag = shape.tag
+    filename, scale, size = "", np.ones(3), ()
+    if tag == "box":
+        size = tuple(_numbers(shape, "size", 3, f"{where} <box>"))
+    elif tag == "cylinder":
+        size = (_number(shape, "radius", f"{where} <cylinder>"),
+                _number(shape, "length", f"{where} <cylinder>"))
+    elif tag == "sphere":
+        size = (_number(shape, "radius", f"{where} <sphere>"),)
+    elif tag == "mesh":
+        filename = shape.get("filename") or ""
+        if not filename:
+            raise SceneError(f"{where} <mesh>: missing attribute 'filename'")
+        scale = _numbers(shape, "scale", 3, f"{where} <mesh>", [1.0, 1.0, 1.0])
+    else:
+        raise SceneError(f"{where} <geometry>: unknown geometry <{tag}> (box, cylinder, "
+                         "sphere, mesh)")
+    if any(x < 0.0 for x in size):
+        raise SceneError(f"{where} <{tag}>: sizes must be >= 0, got {list(size)}")
+    rgba = None
+    material = elem.find("material")
+    if material is not None:
+        color = material.find("color")
+        if color is not None:
+            rgba = tuple(_numbers(color, "rgba", 4, f"{where} <material> <color>"))
+        else:
+            rgba = materials.get(material.get("name", ""))
+    return LinkVisual(rot, pos, tag, size, filename, scale, rgba, elem.get("name") or "")
+
+
+def _visuals(el, name: str, materials: dict) -> list[LinkVisual]:
+    """The readable visuals of a link; each unreadable one is left out with a warning."""
+    out = []
+    for k, vis in enumerate(el.findall("visual")):
+        try:
+            out.append(_visual(vis, f"link '{name}' <visual> number {k + 1}", materials))
+        except SceneError as exc:
+            warnings.warn(f"URDF: {exc}; this visual is not drawn", RuntimeWarning,
+                          stacklevel=4)
+    return out
+
+
 def _joint(elem, index: int, links: dict) -> UrdfJoint:
     name = _name(elem, "<joint>", index)
     where = f"joint '{name}'"
@@ -250,13 +342,15 @@ def parse_urdf(text: str, source: str) -> Robot:
     check_count(f"{source}: links", len(link_els), MAX_BODIES)
     check_count(f"{source}: joints", len(joint_els), MAX_ELEMENTS)
     links: dict[str, Link] = {}
-    ignored = 0
+    collisions = 0
+    materials = _materials(root)
     for i, el in enumerate(link_els):
         link = _link(el, i)
         if link.name in links:
             raise SceneError(f"{source}: duplicate link name '{link.name}'")
+        link.visuals = _visuals(el, link.name, materials)
         links[link.name] = link
-        ignored += len(el.findall("visual")) + len(el.findall("collision"))
+        collisions += len(el.findall("collision"))
     joints: dict[str, UrdfJoint] = {}
     parent_of: dict[str, str] = {}
     for i, el in enumerate(joint_els):
@@ -277,7 +371,7 @@ def parse_urdf(text: str, source: str) -> Robot:
                          "exactly one link without a parent joint")
     if not roots:
         raise SceneError(f"{source}: the joints form a cycle (no root link)")
-    robot = Robot(root.get("name") or "robot", links, joints, roots[0], ignored)
+    robot = Robot(root.get("name") or "robot", links, joints, roots[0], collisions, source)
     reached = {robot.root} | {j.child for j in robot.order()}
     if len(reached) != len(links):
         lost = sorted(set(links) - reached)

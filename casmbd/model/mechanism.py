@@ -105,6 +105,10 @@ class Mechanism:
         self.actuators: dict[str, Actuator] = {}
         #: requests: named expressions of measures reported on result grids (``[[outputs]]``)
         self.outputs: dict[str, Output] = {}
+        #: what the bodies look like in the 3-D view (body name or "ground" -> tuple of
+        #: :class:`casmbd.model.visuals.Visual`, body frame; URDF ``<visual>``); no analysis
+        #: reads it and the model key of a build skips it
+        self.visuals: dict[str, tuple] = {}
         #: names the mechanism makes itself ("<joint>.limit", "<contact>.force",
         #: "<joint>.friction"), the only ones that may hold a reserved character (a dict, in
         #: order: the model key canonicalises the mechanism and takes no sets)

@@ -102,7 +102,8 @@ def _load(path: str, stamp: tuple, file_type: str, named: str) -> tuple[np.ndarr
     except Exception as exc:  # a third-party parser raises anything on a broken file
         reraise_interrupt(exc)
         if isinstance(exc, ImportError):
-            raise SceneError(f"{where}: {file_type.upper()} needs {exc.name or 'a module'} "
+            needed = "pycollada" if file_type == "dae" else (exc.name or "a module")
+            raise SceneError(f"{where}: reading {file_type.upper()} needs {needed} "
                              f"({VIEW_EXTRA})") from None
         raise SceneError(f"{where} cannot be read ({type(exc).__name__}: "
                          f"{str(exc)[:200]})") from None

@@ -54,11 +54,12 @@ from casmbd.system import System
 from casmbd.viz import view_shapes
 from casmbd.viz.geometry import (
     Geometry,
+    _place,
     flexible_nodes,
     flexible_states,
     frame_poses,
 )
-from casmbd.viz.quantities import joint_coordinate_unit
+from casmbd.viz.quantities import effort_units, joint_coordinate_unit
 from casmbd.viz.view_types import Frame, Plane, Series, Shape, ViewModel
 
 __all__ = ["Frame", "Plane", "Series", "Shape", "ViewModel", "quaternions_from_rotations",
@@ -197,7 +198,7 @@ def _with_poses(result: Result, mech) -> Result:
             v = result.arrays.get("v", np.zeros_like(q))
             out = _outputs_result(result.kind, model, mech, q, v, result.t)
             arrays = {**out.arrays, **result.arrays}
-            return Result(result.kind, result.t, arrays, {**out.names, **result.names},
+            return Result(result.kind, result.t, arrays, {**result.names, **out.names},
                           result.stats, result.scene or out.scene, list(result.events))
     raise AnalysisError(f"the {result.kind} result holds no body poses, and its coordinates "
                         f"({', '.join(names[:4])}…) are none of mechanism '{mech.name}''s "
@@ -233,16 +234,17 @@ def _resolve(source, mechanism):
 # ---------------------------------------------------------------------- grid
 def _frame_indices(t: np.ndarray, max_frames: int | None, event_times) -> np.ndarray:
     """Output steps kept: all, or ``max_frames`` evenly spread ones (the first and last
-    included) plus the steps nearest each event time."""
+    included; 1: the first alone) plus the steps nearest each event time."""
     n = len(t)
-    if max_frames is None or max_frames >= n:
+    if max_frames is None:
         return np.arange(n)
     if isinstance(max_frames, bool) or not isinstance(max_frames, int | np.integer) \
             or max_frames < 1:
         raise AnalysisError(f"max_frames must be an integer >= 1, got {max_frames!r}")
-    keep = set(np.linspace(0, n - 1, max(int(max_frames), 2)).round().astype(int).tolist())
-    if max_frames == 1:
-        keep = {0}
+    if max_frames >= n:
+        return np.arange(n)
+    keep = ({0} if max_frames == 1 else
+            set(np.linspace(0, n - 1, int(max_frames)).round().astype(int).tolist()))
     for te in event_times:
         keep.add(int(np.argmin(np.abs(t - te))))
     return np.array(sorted(keep), dtype=int)
@@ -332,6 +334,10 @@ def view_model(source, mechanism=None, *, deformation_scale: float = 1.0,
                                      axis=1).astype(int) if n.shape[1] > 1
                          else np.zeros((0, 2), int) for b, n in nodes.items()}
     vm.traces = _traces(result, mech)
+    n_t = len(result.t)
+    vm.links = {name: np.stack([_pad3(_place(pos, rot, b1, u1, n_t)),
+                                _pad3(_place(pos, rot, b2, u2, n_t))], axis=1)
+                for name, b1, u1, b2, u2, _ in geo.links}
     vm.length_scale = _length_scale(vm, geo)
     vm.shapes = view_shapes.shapes(mech, geo, vm)
     vm.frames = view_shapes.frames(mech, geo)
@@ -389,13 +395,14 @@ def _events(result: Result) -> list[tuple[float, str]]:
     return out
 
 
-#: joint coordinates shown by default in the side panel
+#: joint coordinates (and actuator inputs) shown by default in the side panel
 SERIES_JOINTS = 3
 
 
 def _series(result: Result, mech) -> list[Series]:
     """The default side-panel plots: total energy, the first :data:`SERIES_JOINTS` joint
-    coordinates, every request (``[[outputs]]``) under its own name and unit."""
+    coordinates, the first :data:`SERIES_JOINTS` actuator inputs that are not all zero (an
+    OCP's controls, N or N m), every request (``[[outputs]]``) under its own name and unit."""
     out = []
     arrays, names = result.arrays, result.names
     if "total_energy" in arrays and np.all(np.isfinite(arrays["total_energy"])):
@@ -408,6 +415,14 @@ def _series(result: Result, mech) -> list[Series]:
             if np.all(np.isfinite(values)):
                 out.append(Series(column, joint_coordinate_unit(mech, joint, coord or None),
                                   values))
+    inputs = arrays.get("actuator_inputs")
+    actuators = list(names.get("actuators", []))
+    if inputs is not None and inputs.ndim == 2 and inputs.shape[1] == len(actuators):
+        units = effort_units(result, "actuators", mech)
+        for k, name in enumerate(actuators[:SERIES_JOINTS]):
+            values = np.asarray(inputs[:, k], float)
+            if np.all(np.isfinite(values)) and np.any(values != 0.0):
+                out.append(Series(f"{name} (input)", units[k], values))
     requests = list(names.get("outputs", []))
     units = list(names.get("output_units", ["-"] * len(requests)))
     if "outputs" in arrays:

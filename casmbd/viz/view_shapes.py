@@ -201,25 +201,27 @@ def inertia_disc(body, mech, length: float) -> Shape | None:
     return Shape(f"{body.name}.inertia", body.name, "cylinder", (r, 0.2 * r), source="inertia")
 
 
-def visual_shapes(body: str, visuals, notes: list[str]) -> list[Shape] | None:
-    """The shapes of a body's URDF visuals; None when a mesh does not load (named in a warning
-    and in ``notes``: the body then takes the derived shapes)."""
+def visual_shapes(body: str, visuals, notes: list[str],
+                  color: tuple[int, int, int] = (160, 160, 170)) -> list[Shape] | None:
+    """The shapes of a body's URDF visuals; None when a mesh does not load (the reason, naming
+    the file, appended to ``notes``: the body then takes the derived shapes)."""
     out = []
+    default = color
     for k, vis in enumerate(visuals):
-        color = (160, 160, 170)
-        opacity = 1.0
+        color, opacity = default, 1.0
         if vis.rgba is not None:
             color = tuple(round(255 * min(max(c, 0.0), 1.0)) for c in vis.rgba[:3])
             opacity = float(min(max(vis.rgba[3], 0.0), 1.0))
-        name = f"{body}.visual{k + 1}" if not vis.name else f"{body}.{vis.name}"
+        name = vis.name or f"visual{k + 1}"
+        name = name if name.startswith(f"{body}.") else f"{body}.{name}"
         wxyz = _quat(vis.rotation)
         if vis.kind == "mesh":
             try:
                 vertices, faces = load_mesh(vis.filename, vis.scale, vis.uri)
             except CasmbdError as exc:
-                message = f"body '{body}': {exc}; drawn with the shapes of its inertia instead"
-                warnings.warn(message, RuntimeWarning, stacklevel=4)
-                notes.append(message)
+                instead = ("not drawn" if body == GROUND else
+                           "the body is drawn with the shapes derived from the scene")
+                notes.append(f"body '{body}': {exc}; {instead}")
                 return None
             out.append(Shape(name, body, "mesh", (), vis.position.copy(), wxyz, color,
                              vertices, faces, "urdf-visual", opacity))
@@ -234,12 +236,16 @@ def shapes(mech, geo: Geometry, vm) -> list[Shape]:
     length = vm.length_scale
     visuals = getattr(mech, "visuals", {}) or {}
     spheres = _contact_spheres(mech, length)
+    known = len(vm.notes)
     out = [s for s in spheres if s.body == GROUND]
+    if visuals.get(GROUND):  # links welded to the ground (a robot's base)
+        out += visual_shapes(GROUND, visuals[GROUND], vm.notes) or []
     for i, (name, body) in enumerate(mech.bodies.items()):
         if _is_flexible(body):
             continue
         color = PALETTE[i % len(PALETTE)]
-        own = visual_shapes(name, visuals[name], vm.notes) if visuals.get(name) else None
+        own = (visual_shapes(name, visuals[name], vm.notes, color) if visuals.get(name)
+               else None)
         if not own:
             own = [s for s in spheres if s.body == name]
             rods = _rods(name, geo, ROD_RADIUS * length)
@@ -255,6 +261,11 @@ def shapes(mech, geo: Geometry, vm) -> list[Shape]:
             for s in own:
                 s.color = color
         out += own
+    failed = vm.notes[known:]
+    if failed:  # one warning for the view, however many meshes failed
+        more = f" (and {len(failed) - 3} more)" if len(failed) > 3 else ""
+        warnings.warn(f"{len(failed)} visual(s) not drawn as given: "
+                      + " | ".join(failed[:3]) + more, RuntimeWarning, stacklevel=3)
     return out
 
 
@@ -262,7 +273,8 @@ def shapes(mech, geo: Geometry, vm) -> list[Shape]:
 def frames(mech, geo: Geometry) -> list[Frame]:
     """A frame per joint with a point (z along its axis when it has one: revolute,
     prismatic, cylindrical; a planar revolute joint's axis is z) and per marker (its own
-    orientation, else its body's)."""
+    orientation, else its body's).  The body axes themselves are the renderer's (every body
+    is a frame of the scene at its centre of mass)."""
     out = []
     for name, (on, u) in geo.joints.items():
         joint = mech.joints[name]
@@ -321,15 +333,21 @@ def force_arrows(result, mech, geo: Geometry, pos: dict, rot: dict,
     ``fx``, ``fy`` (, ``fz``) at their point, the centre of mass without one), and
     spring-damper-actuators (the tension f along the line, as the force on each end:
     f (r_2 − r_1)/|r_2 − r_1| on body1 at r_1 and its opposite on body2 at r_2, keys
-    ``<name>@<body>``).  Elements without a force vector (torques, joint forces, contacts)
-    are listed in one line of ``notes``."""
+    ``<name>@<body>``), and the normal force N n of each plane contact at its touching point
+    r_c − r n (the result's ``contact_forces`` of an event-driven run or a statics point, or
+    the ``normal_force`` a compliant contact reports; key the contact's name).  Elements
+    without a force vector (torques, joint forces) are listed in one line of ``notes``; the
+    friction forces of contacts are not drawn."""
     labels = list(result.names.get("force_outputs", []))
     values = result.arrays.get("force_outputs")
     n_t, dim = len(result.t), geo.dimension
     out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     column = {label: k for k, label in enumerate(labels)}
     without = []
+    shown = _contact_arrows(result, mech, pos, rot, column, values, out)
     for name, force in mech.forces.items():
+        if name in shown:
+            continue
         comps = [f"{name}.f{a}" for a in "xyz"[:dim]]
         body = getattr(force, "body", None)
         if values is not None and all(c in column for c in comps) and body not in (None, GROUND):
@@ -356,11 +374,38 @@ def force_arrows(result, mech, geo: Geometry, pos: dict, rot: dict,
                 continue
         without.append(name)
     if without:
-        notes.append("forces: no arrow for " + ", ".join(without) + " (torques, joint "
-                     "forces and contact forces are not reported as vectors"
+        notes.append("forces: no arrow for " + ", ".join(without) + " (torques and forces "
+                     "along a joint coordinate have no point of application"
                      + ("; this result holds no force reports" if values is None else "")
                      + ")")
     return out
+
+
+def _contact_arrows(result, mech, pos, rot, column, values, out) -> set[str]:
+    """Normal-force arrows of plane contacts into ``out``; the names of the force elements
+    (compliant contacts) drawn."""
+    n_t = len(result.t)
+    stored = result.arrays.get("contact_forces")
+    names = list(result.names.get("contacts", []))
+    compliant = {f.element.name: name for name, f in mech.forces.items()
+                 if isinstance(getattr(f, "element", None), PlaneContact)}
+    shown = set()
+    for c in _contact_elements(mech):
+        if not isinstance(c, PlaneContact) or c.body not in mech.bodies \
+                or _is_flexible(mech.bodies[c.body]):
+            continue
+        if stored is not None and c.name in names and stored.shape[1] == len(names):
+            normal_force = stored[:, names.index(c.name)]
+        elif values is not None and f"{compliant.get(c.name)}.normal_force" in column:
+            normal_force = values[:, column[f"{compliant[c.name]}.normal_force"]]
+            shown.add(compliant[c.name])
+        else:
+            continue
+        n = np.asarray(c.normal, float)
+        centre = _place(pos, rot, c.body, mech.bodies[c.body].local(c.point), n_t)
+        out[c.name] = (_pad3(centre - float(c.radius) * n),
+                       _pad3(normal_force[:, None] * n[None, :]))
+    return shown
 
 
 def _pad3(a: np.ndarray) -> np.ndarray:

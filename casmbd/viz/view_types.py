@@ -94,6 +94,8 @@ class ViewModel:
     [m] (for axes length, arrow scaling, camera).  title: scene name.
     notes: what the view could not show as asked (a mesh file that did not load, forces
     that the result does not hold), one line each.  [addition to the contract]
+    links: spring-dampers and distance links, name -> (n_t, 2, 3) global end points, drawn
+    as lines between the bodies they join.  [addition to the contract]
     """
 
     times: np.ndarray
@@ -112,3 +114,4 @@ class ViewModel:
     length_scale: float = 1.0
     title: str = ""
     notes: list[str] = field(default_factory=list)
+    links: dict[str, np.ndarray] = field(default_factory=dict)
