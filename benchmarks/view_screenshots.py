@@ -19,6 +19,7 @@ SHOTS = {
     "spinup_beam": ("spinup_beam.toml", 2.0, 200, 1.5, {"deformation_scale": 20.0}),
     "ur5_arm": ("ur5_arm.urdf", 5.0, 1000, 2.5, {}),
     "bricard": ("bricard.toml", None, None, 0.0, {}),
+    "mesh_arm": ("../tests/robots/mesh_arm/mesh_arm.urdf", 2.0, 200, 1.0, {}),
 }
 
 

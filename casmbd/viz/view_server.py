@@ -85,8 +85,11 @@ def _y_range(y: np.ndarray) -> list[float]:
     if not len(finite):
         return [-1.0, 1.0]
     lo, hi = float(finite.min()), float(finite.max())
-    pad = 0.05 * (hi - lo) if hi > lo else max(0.05 * abs(hi), 1e-9)
-    return [lo - pad, hi + pad]
+    # at least 0.1 % of the magnitude: a quantity constant to rounding (an energy conserved
+    # to 1e-9) is drawn flat, not as magnified noise
+    span = max(hi - lo, 1e-3 * max(abs(lo), abs(hi)), 1e-9)
+    mid = 0.5 * (lo + hi)
+    return [mid - 0.55 * span, mid + 0.55 * span]
 
 
 class ViewHandle:
