@@ -156,6 +156,7 @@ class _Gui:
         self.playing = False
         self.speed = 1.0
         self._stop = threading.Event()
+        self._lock = threading.RLock()
         self._last_plot = 0.0
         times = vm.times
         t0, t1 = float(times[0]), float(times[-1])
@@ -240,10 +241,12 @@ class _Gui:
             handle.data = (t, y, dot)
 
     def _on_time(self) -> None:
-        i = self.scene.index_at(float(self.slider.value))
-        if i != self.scene.index:
-            self.scene.show_frame(i)
-            self._update_plots(force=not self.playing)
+        # the page (websocket thread) and the play thread both move the slider
+        with self._lock:
+            i = self.scene.index_at(float(self.slider.value))
+            if i != self.scene.index:
+                self.scene.show_frame(i)
+                self._update_plots(force=not self.playing)
 
     def _goto(self) -> None:
         choice = self.goto.value
@@ -259,9 +262,10 @@ class _Gui:
         if not np.isfinite(scale) or scale <= 0:
             return
         vm = self.rebuild(scale)
-        self.scene.vm.flexible = vm.flexible
-        i, self.scene.index = self.scene.index, -1
-        self.scene.show_frame(i)
+        with self._lock:
+            self.scene.vm.flexible = vm.flexible
+            i, self.scene.index = self.scene.index, -1
+            self.scene.show_frame(i)
 
     def set_playing(self, playing: bool) -> None:
         times = self.scene.vm.times
