@@ -51,6 +51,7 @@ _LAZY = {
     "Mechanism": "casmbd.model",
     "Result": "casmbd.results", "load": "casmbd.results", "load_result": "casmbd.results",
     "System": "casmbd.system",
+    "view": "casmbd.viz.view_server",
 }
 #: subpackages reached as attributes (``casmbd.ocp.Ocp`` after a bare ``import casmbd``)
 _SUBMODULES = ("analysis", "cli", "compiled", "io", "model", "ocp", "results", "system", "viz")
@@ -117,4 +118,5 @@ __all__ = [
     "static_equilibrium",
     "sweep",
     "velocities",
+    "view",
 ]

@@ -46,6 +46,7 @@ from casmbd.cli.verbs import (
     _add_bench_verb,
     _add_sensitivity_verb,
     _add_sweep_verb,
+    _add_view_verb,
     _add_workbench_verbs,
 )
 from casmbd.errors import CasmbdError
@@ -63,7 +64,7 @@ _HANDLERS = {"info": ("info", "_cmd_info"), "kinematics": ("analyses", "_cmd_kin
              "linearize": ("analyses", "_cmd_linearize"), "ocp": ("optimal", "_cmd_ocp"),
              "plot": ("workbench", "_cmd_plot"), "sensitivity": ("workbench", "_cmd_sensitivity"),
              "bench": ("optimal", "_cmd_bench"), "animate": ("workbench", "_cmd_animate"),
-             "sweep": ("workbench", "_cmd_sweep")}
+             "sweep": ("workbench", "_cmd_sweep"), "view": ("view", "_cmd_view")}
 
 
 def _verb(module: str, name: str):
@@ -180,6 +181,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_sweep_verb(sub)
     _add_sensitivity_verb(sub)
     _add_bench_verb(sub)
+    _add_view_verb(sub)
     for p in sub.choices.values():
         if not any("--verbose" in a.option_strings for a in p._actions):
             p.add_argument("--verbose", action="store_true",

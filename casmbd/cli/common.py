@@ -95,9 +95,11 @@ def _same_file(a, b) -> bool:
 
 
 def _outputs(args) -> list[tuple[str, str]]:
-    """The files the verb will write: ``(option, path)`` for ``--out`` and ``ocp --plot``."""
+    """The files the verb will write: ``(option, path)`` for ``--out``, ``ocp --plot`` and
+    ``view --html``."""
     return [(opt, val) for opt, val in (("--out", getattr(args, "out", None)),
-                                        ("--plot", getattr(args, "plot", None))) if val]
+                                        ("--plot", getattr(args, "plot", None)),
+                                        ("--html", getattr(args, "html", None))) if val]
 
 
 def _check_not_input(args, inputs) -> None:

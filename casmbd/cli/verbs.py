@@ -6,6 +6,8 @@ handlers are imported when their verb runs: ``casmbd.cli.VERBS``).
 
 from __future__ import annotations
 
+import argparse
+
 from casmbd.cli.common import (
     _add_dpi,
     _add_mode,
@@ -114,3 +116,32 @@ def _add_bench_verb(sub) -> None:
     p.add_argument("--update-docs", action="store_true",
                    help="regenerate docs/performance.md (full suite only)")
     _add_output_flags(p)
+
+
+def _add_view_verb(sub) -> None:
+    """The ``view`` verb: 3-D view in the browser (casmbd.cli.view; needs casmbd[view])."""
+    p = sub.add_parser("view", help="3-D view of a scene, result or OCP solution in the "
+                                    "browser (live server on 127.0.0.1, or --html FILE)")
+    p.add_argument("source", help="scene file (TOML/URDF: the initial pose), result file or "
+                                  "OCP solution file (.npz: the motion)")
+    p.add_argument("--port", type=_port, default=None,
+                   help="TCP port on 127.0.0.1 (default: a free one; the URL is printed on "
+                        "stderr)")
+    p.add_argument("--html", default=None, metavar="FILE",
+                   help="write one self-contained .html file that plays offline, no server")
+    p.add_argument("--no-browser", action="store_true",
+                   help="do not open the page in the default browser")
+    p.add_argument("--deformation-scale", type=_positive_float, default=1.0,
+                   help="magnify the elastic displacements of flexible bodies (default 1)")
+    p.add_argument("--forces", action="store_true", help="draw force arrows")
+    p.add_argument("--max-frames", type=_positive_int, default=None,
+                   help="show at most this many output times (first, last and events kept)")
+    _add_output_flags(p)
+
+
+def _port(text: str) -> int:
+    """A TCP port number 1 … 65535."""
+    port = _positive_int(text)
+    if port > 65535:
+        raise argparse.ArgumentTypeError(f"must be a TCP port 1 … 65535, got {text}")
+    return port
