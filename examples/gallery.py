@@ -26,6 +26,8 @@ ROOT = Path(__file__).resolve().parent.parent
 FIGURES = ROOT / "docs" / "figures" / "gallery"
 PAGE = ROOT / "docs" / "gallery.md"
 DPI = 80
+#: markers of the "3-D views" block that ``python -m benchmarks.view_screenshots`` writes
+VIEW_BEGIN, VIEW_END = "<!-- view:begin -->", "<!-- view:end -->"
 
 #: final time [s] and output steps per scene (default 2 s, 60 steps)
 RUNS = {"andrews": (0.03, 60), "bricard": (4.99, 60), "flyball_governor": (1.0, 50),
@@ -86,7 +88,13 @@ def main(names: list[str]) -> int:
         print(f"{path.stem:24s} {verb:10s} {time.perf_counter() - t0:6.2f} s")
     elapsed = time.perf_counter() - started
     print(f"total {elapsed:.1f} s")
-    atomic_write(PAGE, lambda tmp: Path(tmp).write_text(page(entries), encoding="utf-8"))
+    text = page(entries)
+    old = PAGE.read_text(encoding="utf-8") if PAGE.exists() else ""
+    if VIEW_BEGIN in old and VIEW_END in old:  # the 3-D views of benchmarks/view_screenshots.py
+        block = VIEW_BEGIN + old.split(VIEW_BEGIN, 1)[1].split(VIEW_END, 1)[0] + VIEW_END
+        title, rest = text.split("\n", 1)
+        text = f"{title}\n\n{block}\n{rest}"
+    atomic_write(PAGE, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
     return 0
 
 
