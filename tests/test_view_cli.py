@@ -91,3 +91,38 @@ def test_html_file_is_self_contained(tmp_path):
     assert "window.__VISER_EMBED_DATA__=" in text
     assert not re.search(r"<(script|link)[^>]+(src|href)=\"https?://", text)
     assert not list(tmp_path.glob(".tmp_casmbd*"))  # the atomic write left nothing behind
+
+
+@pytest.mark.skipif(not HAVE_VISER, reason='viser/trimesh missing: pip install "casmbd[view]"')
+def test_view_html_of_a_result_an_ocp_solution_and_a_urdf(tmp_path):
+    """``casmbd view X --html F --json`` from a result file (its time grid: steps + 1 frames),
+    an OCP solution file (its nodes) and a URDF robot with meshes (one frame, every link)."""
+    import json
+
+    from casmbd.io.ocp_table import load_ocp
+
+    def view(source) -> dict:
+        out = tmp_path / f"{Path(source).stem}.html"
+        proc = subprocess.run([sys.executable, "-m", "casmbd", "view", str(source), "--html",
+                               str(out), "--json"], capture_output=True, text=True,
+                              timeout=180, cwd=ROOT)
+        assert proc.returncode == 0, proc.stderr
+        data = json.loads(proc.stdout)
+        assert data["bytes"] == out.stat().st_size
+        return data
+
+    result = tmp_path / "run.npz"
+    proc = subprocess.run([sys.executable, "-m", "casmbd", "simulate", str(SCENE), "--t-end",
+                           "0.2", "--steps", "8", "--mode", "vm", "--out", str(result)],
+                          capture_output=True, text=True, timeout=180, cwd=ROOT)
+    assert proc.returncode == 0, proc.stderr
+    data = view(result)
+    assert (data["frames"], data["bodies"]) == (9, 3)
+    ocp = load_ocp(ROOT / "ocp" / "double_pendulum_swingup.toml")
+    ocp.intervals, ocp.subintervals, ocp.compile = 10, 1, False
+    solution = tmp_path / "swing.npz"
+    ocp.solve().save(solution)
+    data = view(solution)
+    assert data["frames"] >= 11 and data["bodies"] == 2
+    data = view(ROOT / "tests" / "robots" / "mesh_arm" / "mesh_arm.urdf")
+    assert data["frames"] == 1 and data["bodies"] >= 3
