@@ -143,11 +143,31 @@ class EventRows:
         self.fun = ca.Function("gaps", [system.q, system.v, system.t, system.p],
                                [g, ca.densify(ca.jacobian(pos, system.q)),
                                 ca.densify(ca.jacobian(vt, system.v)), pos])
+        #: the open-state values alone (the root finding's per-trial evaluation)
+        self._values = ca.Function("gap_values", [system.q, system.v, system.t, system.p],
+                                   [ca.densify(g)])
+        self._values_buffer = None
 
     def __call__(self, q, v, t, p):
         g, gq, tv, _ = self.fun(q, v, t, p)
         return (np.asarray(g, float).ravel(), np.asarray(gq, float),
                 np.asarray(tv, float))
+
+    def values(self, q, v, t, p) -> np.ndarray:
+        """The open-state values at one state (the first output of :meth:`__call__`), by
+        the Function's buffer (a few µs instead of the wrapper's ~85)."""
+        if self._values_buffer is None:
+            f = self._values
+            self._values_buffer = f.buffer()
+            self._values_io = [np.zeros(f.nnz_in(i)) for i in range(f.n_in())] + \
+                [np.zeros(f.nnz_out(0))]
+            for i in range(f.n_in()):
+                self._values_buffer[0].set_arg(i, memoryview(self._values_io[i]))
+            self._values_buffer[0].set_res(0, memoryview(self._values_io[-1]))
+        for a, value in zip(self._values_io, (q, v, t, p)):
+            a[:] = value
+        self._values_buffer[1]()
+        return self._values_io[-1].copy()
 
     def values_many(self, qs: np.ndarray, vs: np.ndarray, ts: np.ndarray,
                     p: np.ndarray) -> np.ndarray:
