@@ -186,9 +186,9 @@ def markdown(data: dict) -> str:
                       f"{row['mode']} {row['ms_per_event']:.2f} ms"
                       for row in data["per_event"]) + ". Before issue 31 (commit 2f9cb74, "
                   "`CASMBD_COMPILE=0 casmbd simulate ball_e1.toml --t-end 1e6 --steps 100 "
-                  "--json`, 10 000 events, 2 loaded cores): 44 s CPU (4.4 ms per event), "
-                  "130 s wall; after the economies 14.7 s CPU (1.5 ms per event), and the "
-                  "projection stops that run after 1000 events in 2.1 s CPU."]
+                  "--json`, 10 000 events, 2 shared cores): 40.5 s (4.0 ms per event); after "
+                  "the economies 12.7 s (1.2 ms per event), and the projection stops that run "
+                  "after 1000 events in 2.1 s (docs/contact.md, \"Cost per event\")."]
     return "\n".join(lines) + "\n"
 
 
