@@ -25,7 +25,8 @@ from conftest import private_cache
 
 from casmbd.analysis import events as ev
 from casmbd.analysis import integrators as integ
-from casmbd.analysis.events import PROJECT_AFTER, Buffered, periodic_overrun
+from casmbd.analysis.buffered import Buffered
+from casmbd.analysis.events import PROJECT_AFTER, periodic_overrun
 from casmbd.analysis.simulate import simulate
 from casmbd.errors import IntegratorError
 from casmbd.io.scene import loads_scene

@@ -51,6 +51,7 @@ import numpy as np
 
 from casmbd.analysis import integrators as integ
 from casmbd.analysis.assembly import assemble
+from casmbd.analysis.buffered import Buffered
 from casmbd.analysis.checks import check_mass_matrix, check_start, diagnose_failure
 from casmbd.analysis.event_rows import EventRows, SlideRow, StickRow, closure
 from casmbd.analysis.impulses import impact, project
@@ -238,58 +239,17 @@ def _progress(stats: dict, t0: float, h: float, x, end: float = 1.0) -> None:
                          t0, t0 + h, x)
 
 
-class Buffered:
-    """A CasADi Function evaluated through its ``FunctionBuffer``: inputs and outputs live in
-    NumPy arrays the Function reads and writes in place, so that a call costs the evaluation
-    and not the conversions of the Python wrapper (a keyword call of an integrator took
-    ~190 µs, ~70 µs of it conversions; a gap function ~85 µs for a few flops).  The same
-    evaluation as the Function's own call, so the same numbers; failures raise the same
-    RuntimeError.  Dense inputs and outputs only (:meth:`of` falls back to the Function)."""
-
-    def __init__(self, f: ca.Function):
-        self.f = f
-        self._buf, self._eval = f.buffer()
-        self._in = [np.zeros(f.nnz_in(i)) for i in range(f.n_in())]
-        self._out = [np.zeros(f.nnz_out(i)) for i in range(f.n_out())]
-        for i, a in enumerate(self._in):
-            self._buf.set_arg(i, memoryview(a))
-        for i, a in enumerate(self._out):
-            self._buf.set_res(i, memoryview(a))
-        self._index = {n: i for i, n in enumerate(f.name_in())}
-        self._shape = [(f.size2_out(i), f.size1_out(i)) for i in range(f.n_out())]
-
-    @classmethod
-    def of(cls, f):
-        """``f`` buffered when it is a CasADi Function with dense inputs and outputs, else
-        ``f`` itself (a :class:`~casmbd.analysis.integrators.ConsistentStart`)."""
-        if isinstance(f, ca.Function) and \
-                all(f.sparsity_in(i).is_dense() for i in range(f.n_in())) and \
-                all(f.sparsity_out(i).is_dense() for i in range(f.n_out())):
-            return cls(f)
-        return f
-
-    def __call__(self, *args, **kwargs) -> list[np.ndarray]:
-        """The outputs (arrays shaped like ``DM.full()``) at the positional or named
-        inputs (the others zero)."""
-        for a, value in zip(self._in, args):
-            a[:] = np.ravel(value, order="F")
-        for name, value in kwargs.items():
-            self._in[self._index[name]][:] = np.ravel(value, order="F")
-        self._eval()
-        return [o.reshape(shape).T.copy() for o, shape in zip(self._out, self._shape,
-                                                               strict=True)]
-
-    def stats(self) -> dict:
-        return self._buf.stats()
-
-
 def _solve(solver, x, z, p) -> tuple[np.ndarray, np.ndarray]:
     """(xf, zf) of one integrator call, as arrays (columns: output times): a
-    :class:`Buffered` CasADi integrator, or a
+    :class:`Buffered` CasADi integrator, a CasADi integrator (called with a dict: its
+    keyword call costs ~80 µs more), or a
     :class:`~casmbd.analysis.integrators.ConsistentStart` called by keywords."""
     if isinstance(solver, Buffered):
         out = solver(x0=x, z0=z, p=p)
         return out[0], out[1]
+    if isinstance(solver, ca.Function):
+        r = solver.call({"x0": x, "z0": z, "p": p})
+        return r["xf"].full(), r["zf"].full()
     r = solver(x0=x, z0=z, p=p)
     return np.asarray(r["xf"], float), np.asarray(r["zf"], float)
 
@@ -327,25 +287,17 @@ class _Phase:
         span = float(times[-1] - t0)
         rel = tuple(np.round((np.asarray(times) - t0) / span, 12))
         solver = self._many.get(rel)
-        if solver is None and len(times) > 2 and not math.isclose(
-                float(times[0] - t0), float(times[1] - times[0]), rel_tol=1e-9):
-            # a window after an event starts inside a sub-interval: its relative output
-            # times are new at every event, and building an integrator for them costs ~1 ms
-            # (a third of an event's cost): the partial sub-interval by the one-output
-            # integrator, the rest (uniform: a cached integrator) from its end
-            x1, z1 = self.advance(x, z, t0, float(times[0]) - t0)
-            try:
-                xs, zs = self.advance_many(x1, z1, float(times[0]), times[1:])
-            except _StepError:  # the next sub-interval fails: the loop's next call says so
-                xs, zs = np.zeros((0, len(x))), np.zeros((0, len(z)))
-            return np.vstack([x1[None, :], xs]), \
-                np.vstack([np.reshape(z1, (1, len(z))), zs.reshape(len(xs), len(z))])
         if solver is None:
             if len(self._many) > 64:
                 self._many.clear()
-            solver = self._many[rel] = Buffered.of(integ.sundials(
-                self._scaled, self.name, 0.0, list(rel), self.rtol, self.atol,
-                self.max_steps))
+            # a window after an event has output times of its own (the event inside a
+            # sub-interval), used once: called as built (a buffer costs more than it saves
+            # on one call); a window of the uniform grid is used again: buffered then
+            solver = self._many[rel] = integ.sundials(self._scaled, self.name, 0.0,
+                                                      list(rel), self.rtol, self.atol,
+                                                      self.max_steps)
+        elif isinstance(solver, ca.Function):
+            solver = self._many[rel] = Buffered.of(solver)
         try:
             xf, zf = _solve(solver, x, z, np.concatenate([self.sim.model.p, [t0, span]]))
         except RuntimeError as exc:
