@@ -187,8 +187,8 @@ def markdown(data: dict) -> str:
                       for row in data["per_event"]) + ". Before issue 31 (commit 2f9cb74, "
                   "`CASMBD_COMPILE=0 casmbd simulate ball_e1.toml --t-end 1e6 --steps 100 "
                   "--json`, 10 000 events, 2 shared cores): 40.5 s (4.0 ms per event); after "
-                  "the economies 12.7 s (1.2 ms per event), and the projection stops that run "
-                  "after 1000 events in 2.1 s (docs/contact.md, \"Cost per event\")."]
+                  "the economies 17.5 s (1.7 ms per event), and the projection stops that run "
+                  "after 1000 events in 2.4 s (docs/contact.md, \"Cost per event\")."]
     return "\n".join(lines) + "\n"
 
 

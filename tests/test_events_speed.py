@@ -1,9 +1,9 @@
 """The event loop's economies (issue 31) change no number, and the event-count projection.
 
-* the trial times of the root finding screened in one integrator call, the windows after an
-  event split at their first sub-interval, and the integrators and gap values called through
-  CasADi FunctionBuffers: the bouncing ball (e = 0.8) on a coarse grid — every bounce inside one
-  sub-interval, the case these serve — against the closed form t_1 = sqrt(2 h/g),
+* the trial times of the root finding screened in one integrator call, and the integrators
+  and gap values called through CasADi FunctionBuffers: the bouncing ball (e = 0.8) on a
+  coarse grid — every bounce inside one sub-interval, the case these serve — against the
+  closed form t_1 = sqrt(2 h/g),
   t_(k+1) = t_k + 2 e^k sqrt(2 h g)/g, and the same run without the screen (identical events);
 * :func:`~casmbd.analysis.events.periodic_overrun` on constructed impact times, and the ball of
   restitution 1 with t_end far beyond its event bound: stopped early (after
