@@ -29,11 +29,14 @@ def impact(model, gaps, closed, i_ev, q, v, t, p, v_rest):
     g, gq, tv = gaps(q, v, t, p)
     if gq[i_ev] @ v >= 0.0:
         return None
-    m_mat = model.mass_matrix(q).toarray() if hasattr(model.mass_matrix(q), "toarray") else \
-        np.asarray(model.mass_matrix(q))
+    m_mat = model.mass_matrix(q)  # once (it was evaluated twice, three times when sparse)
+    m_mat = m_mat.toarray() if hasattr(m_mat, "toarray") else np.asarray(m_mat)
     n = len(v)
-    cq = model.constraint_jacobian(q, t)
-    cq = cq.toarray() if hasattr(cq, "toarray") else np.asarray(cq).reshape(-1, n)
+    if model.nc:
+        cq = model.constraint_jacobian(q, t)
+        cq = cq.toarray() if hasattr(cq, "toarray") else np.asarray(cq).reshape(-1, n)
+    else:  # no bilateral constraint (a free body): nothing to evaluate
+        cq = np.zeros((0, n))
     ct = np.asarray(model.constraint_time_derivative(q, t), float).ravel() if model.nc else \
         np.zeros(0)
     stick = getattr(gaps, "stick", [False] * len(g))  # stick-slip rows never impact
