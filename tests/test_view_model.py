@@ -307,7 +307,8 @@ def test_mesh_robot_visuals_land_where_the_urdf_puts_them():
     primitives, materials inline and by name.  Vertex counts are trimesh's own; a vertex of
     each mesh, placed by the view (r_G + A (p + R v)), is where the URDF's zero-pose forward
     kinematics put it (written here with Rz, Ry, Rx), to 1e-12."""
-    import trimesh
+    trimesh = pytest.importorskip("trimesh", reason='the [view] extra: pip install "casmbd[view]"')
+    pytest.importorskip("collada", reason="reading DAE needs pycollada (the [view] extra)")
 
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # every visual loads, no notice
