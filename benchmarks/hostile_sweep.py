@@ -744,7 +744,15 @@ def tamper_result_scene(replace_from, replace_to):
         with np.load(p, allow_pickle=False) as z:
             data = {k: z[k] for k in z.files}
         if "scene" in data:
-            data["scene"] = np.asarray(str(data["scene"]).replace(replace_from, replace_to))
+            text = str(data["scene"])
+            # the stored scene names its files by absolute paths (the result opens from any
+            # folder): 'urdf = "arm.urdf"' is stored as 'urdf = "/tmp/…/arm.urdf"'
+            key, _, name = replace_from.partition(' = "')
+            stored = re.sub(rf'{re.escape(key)} = "[^"]*{re.escape(name)}', replace_from, text)
+            new = stored.replace(replace_from, replace_to)
+            if new == text:
+                raise RuntimeError(f"tamper_result_scene: {replace_from!r} not in the stored scene")
+            data["scene"] = np.asarray(new)
         np.savez(p, **data)
 
     return go
