@@ -96,8 +96,23 @@ def _y_range(y: np.ndarray) -> tuple[float, float]:
     return lo - pad, hi + pad
 
 
-def _num(v: float) -> str:
-    return f"{v:.4g}"
+def tick_labels(ticks: list[float]) -> tuple[list[str], str]:
+    """Labels of evenly spaced ``ticks`` with as many decimals as their step needs, and an
+    offset ("" or e.g. "+12.63") when the labels would be too long (a small variation on a
+    large value, such as an energy conserved to 1e-6): the labels are then ``tick - offset``."""
+    if len(ticks) < 2:
+        return [f"{v:.4g}" for v in ticks], ""
+    step = ticks[1] - ticks[0]
+    big = max(abs(v) for v in ticks)
+    if big >= 1e5 or big < 1e-3:
+        labels = [f"{v:.3g}" for v in ticks]
+    else:
+        dec = max(0, -math.floor(math.log10(step) + 1e-9))
+        labels = [f"{v:.{dec}f}" for v in ticks]
+    if len(set(labels)) == len(labels) and max(map(len, labels)) <= 8:
+        return labels, ""
+    off = ticks[0]
+    return [f"{v - off:.3g}" for v in ticks], f"{off:+.10g}"
 
 
 def chart_svg(s: Series, times: np.ndarray, events: list[tuple[float, str]],
@@ -120,16 +135,25 @@ def chart_svg(s: Series, times: np.ndarray, events: list[tuple[float, str]],
     parts = [f'<svg class="cmbd-chart" width="{WIDTH}" height="{HEIGHT}" '
              f'viewBox="0 0 {WIDTH} {HEIGHT}" data-tmin="{tmin!r}" data-tmax="{tmax!r}" '
              f'data-x0="{LEFT}" data-w="{pw}" xmlns="http://www.w3.org/2000/svg">']
-    for v in nice_ticks(ylo, yhi):
+    ticks = nice_ticks(ylo, yhi)
+    labels, offset = tick_labels(ticks)
+    for v, lab in zip(ticks, labels):
         yy = py(v)
         parts.append(f'<line x1="{LEFT}" x2="{LEFT + pw}" y1="{yy:.1f}" y2="{yy:.1f}" '
                      f'stroke="{grid}"/><text x="{LEFT - 4}" y="{yy + 3:.1f}" '
-                     f'text-anchor="end">{_num(v)}</text>')
-    for v in nice_ticks(tmin, tmax):
+                     f'text-anchor="end">{lab}</text>')
+    if offset:
+        parts.append(f'<text class="cmbd-offset" x="{LEFT + 3}" y="{TOP + 10}">'
+                     f"{offset}</text>")
+    ticks = nice_ticks(tmin, tmax)
+    labels, offset = tick_labels(ticks)
+    for v, lab in zip(ticks, labels):
         xx = px(v)
         parts.append(f'<line x1="{xx:.1f}" x2="{xx:.1f}" y1="{TOP + ph}" y2="{TOP + ph + 4}" '
                      f'stroke="{fg}"/><text x="{xx:.1f}" y="{TOP + ph + 15}" '
-                     f'text-anchor="middle">{_num(v)}</text>')
+                     f'text-anchor="middle">{lab}</text>')
+    if offset:
+        parts.append(f'<text x="{LEFT}" y="{HEIGHT - 1}">{offset} s</text>')
     parts.append(f'<text x="{LEFT + pw}" y="{HEIGHT - 1}" text-anchor="end">t [s]</text>')
     parts.append(f'<rect x="{LEFT}" y="{TOP}" width="{pw}" height="{ph}" fill="none" '
                  f'stroke="{fg}"/>')
