@@ -45,7 +45,7 @@ MAX_POINTS = 1000
 MAX_EVENTS = 200
 #: chart size and plot-area margins [CSS px]; the SVG is drawn at 1:1 (user unit = px)
 WIDTH, HEIGHT = 300, 130
-LEFT, RIGHT, TOP, BOTTOM = 54, 10, 8, 22
+LEFT, RIGHT, TOP, BOTTOM = 54, 10, 14, 22
 
 
 def subsample(values: np.ndarray, max_points: int = MAX_POINTS) -> np.ndarray:
@@ -143,7 +143,7 @@ def chart_svg(s: Series, times: np.ndarray, events: list[tuple[float, str]],
                      f'stroke="{grid}"/><text x="{LEFT - 4}" y="{yy + 3:.1f}" '
                      f'text-anchor="end">{lab}</text>')
     if offset:
-        parts.append(f'<text class="cmbd-offset" x="{LEFT + 3}" y="{TOP + 10}">'
+        parts.append(f'<text class="cmbd-offset" x="{LEFT}" y="{TOP - 4}">'
                      f"{offset}</text>")
     ticks = nice_ticks(tmin, tmax)
     labels, offset = tick_labels(ticks)
