@@ -154,7 +154,7 @@ def chart_svg(s: Series, times: np.ndarray, events: list[tuple[float, str]],
                      f'text-anchor="middle">{lab}</text>')
     if offset:
         parts.append(f'<text x="{LEFT}" y="{HEIGHT - 1}">{offset} s</text>')
-    parts.append(f'<text x="{LEFT + pw}" y="{HEIGHT - 1}" text-anchor="end">t [s]</text>')
+    parts.append(f'<text x="2" y="{TOP + ph + 15}">t [s]</text>')
     parts.append(f'<rect x="{LEFT}" y="{TOP}" width="{pw}" height="{ph}" fill="none" '
                  f'stroke="{fg}"/>')
     for te, _ in events[:MAX_EVENTS]:
