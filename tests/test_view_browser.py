@@ -188,6 +188,79 @@ def test_html_file_plays_offline(view, chromium, tmp_path):
     page.close()
 
 
+EVIL = '<img src=x onerror="window.__pwned=1"><script>window.__pwned=2</script>'
+
+#: in the page: per chart, its title, the cursor's x and the x of the polyline's points
+#: (SVG user units; the charts are drawn at 1:1, one unit per CSS pixel)
+CHARTS_JS = """() => Array.from(document.querySelectorAll('#cmbd-panel svg.cmbd-chart'))
+  .map(s => ({title: s.parentElement.querySelector('h4').textContent,
+              cursor: parseFloat(s.querySelector('.cmbd-cursor').getAttribute('x1')),
+              scale: s.getScreenCTM().a,
+              xs: Array.from(s.querySelectorAll('polyline.cmbd-line')).flatMap(
+                p => p.getAttribute('points').trim().split(/\\s+/)
+                      .map(xy => parseFloat(xy.split(',')[0])))}))"""
+
+
+def test_html_side_panel(view, chromium, tmp_path):
+    """The --html file's side panel: one chart per series (titled "name [unit]"), the
+    cursor at the x of the sample at the player's time after typing that time (to 1 px),
+    clicking an event sets the player's time to it (1e-3 s; the slider's aria-valuenow) and
+    shows that output's poses (1e-6 m), a series name and an event label holding markup are
+    shown as text (no script ran: window.__pwned unset), the panel hides and shows, no
+    console errors, no network."""
+    import dataclasses
+
+    from casmbd.viz.view_html import write_html
+    from casmbd.viz.view_types import Series
+
+    vm0, _ = view
+    t, dt = vm0.times, float(vm0.times[1] - vm0.times[0])
+    series = [*vm0.series, Series(EVIL, "m", np.sin(3.0 * t))]
+    events = [(float(t[12] + 0.3 * dt), "impact"), (float(t[-1]), EVIL)]
+    vm = dataclasses.replace(vm0, series=series, events=events)
+    out = tmp_path / "panel.html"
+    write_html(vm, out)
+    page = bp.Page(chromium, out.as_uri(), offline=True)
+    page.wait_meshes(expected_colors(vm))
+    p = page.page
+    p.locator("button:has(svg.tabler-icon-player-pause-filled)").click()
+    p.locator("button:has(svg.tabler-icon-player-play-filled)").wait_for()
+    charts = p.evaluate(CHARTS_JS)
+    assert [c["title"] for c in charts] == [f"{s.name} [{s.unit}]" for s in series]
+    assert all(len(c["xs"]) == len(t) for c in charts)
+    assert all(abs(c["scale"] - 1.0) < 1e-9 for c in charts)
+    t0 = float(t[0])
+    field = p.locator("input[inputmode=decimal]")
+    for k in (7, 23, 38):  # not multiples of 0.1 s (the field's shown resolution)
+        field.fill(f"{t[k] - t0:.9f}")
+        p.wait_for_function("([t]) => Math.abs(parseFloat(document.getElementById("
+                            "'cmbd-panel').dataset.time) - t) < 1e-9", arg=[float(t[k])])
+        for c in p.evaluate(CHARTS_JS):
+            assert abs(c["cursor"] - c["xs"][k]) <= 1.0, (k, c["title"], c["cursor"])
+    slider = p.locator("[role=slider]")
+    for (te, _), k in zip(events, (12, None)):
+        p.locator("button.cmbd-ev").filter(has_text=f"t = {te:.6g} s").click()
+        p.wait_for_timeout(200)
+        tau = float(slider.get_attribute("aria-valuenow"))
+        assert abs(tau - (te - t0)) < 1e-3, (te, tau)
+        if k is not None:
+            assert wait_pose(page, view, k) < TOL
+            assert abs(float(p.evaluate("document.getElementById('cmbd-panel')"
+                                        ".dataset.time")) - te) < 1e-3
+    labels = p.locator("#cmbd-panel li").all_text_contents()
+    assert labels[1].endswith(EVIL) and p.locator("#cmbd-panel img").count() == 0
+    assert p.evaluate("window.__pwned") is None
+    toggle = p.locator("#cmbd-toggle")
+    toggle.click()
+    assert not p.locator("#cmbd-panel").is_visible()
+    toggle.click()
+    assert p.locator("#cmbd-panel").is_visible()
+    assert page.errors == []
+    assert all(u.startswith(("file:", "data:", "blob:")) for u in page.requests), \
+        page.requests
+    page.close()
+
+
 def test_cli_html_json_and_refusal(tmp_path):
     """``casmbd view SCENE --html F --json``: one JSON object (file, bytes, frames, bodies);
     --html onto the input file is refused and leaves it untouched."""

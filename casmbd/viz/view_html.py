@@ -6,8 +6,10 @@ output time a pause of the output step (``insert_sleep``) and the new poses — 
 the viser client inlined (``StateSerializer.as_html``: JavaScript, styles and the recording as
 base64 in one file; no network needed).  Opening the file shows viser's player: a time slider,
 play/pause and speed; the recording's clock is the result's time (1x plays in real time).
-The side panel of the live view (toggles, plots) is not part of the file: viser records the
-scene only.  Events appear as a label at their time (for a twentieth of the time span).
+viser records the scene only, so the file gets a side panel of our own after viser's client
+(:mod:`casmbd.viz.view_panel`): an SVG chart per plotted quantity with a cursor that follows
+the player's time, and the event list (clicking an event sets the player's time).  Events also
+appear as a label in the scene at their time (for a twentieth of the time span).
 
 The file is written atomically (:func:`casmbd.results.atomic_write`).
 """
@@ -20,6 +22,7 @@ import numpy as np
 
 from casmbd.errors import AnalysisError
 from casmbd.results import atomic_write
+from casmbd.viz.view_panel import inject_panel, panel_html
 from casmbd.viz.view_scene import (
     ViewScene,
     free_port,
@@ -59,7 +62,8 @@ def render_html(vm: ViewModel, *, forces: bool = True, dark_mode: bool = False) 
             scene.show_frame(i)
         if len(times) == 1:
             serializer.insert_sleep(0.0)
-        return serializer.as_html(dark_mode=dark_mode)
+        page = serializer.as_html(dark_mode=dark_mode)
+    return inject_panel(page, panel_html(vm, dark_mode=dark_mode))
 
 
 class _QuietServer:
