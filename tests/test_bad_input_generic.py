@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -299,3 +300,23 @@ def test_sensitivity_rtol_out_of_range_names_it(tmp_path, capsys):
     line = cli(tmp_path, capsys, SPRING, "--output", "x", "--param", "k", "--t-end", "1",
                "--rtol", "1e-300", verb="sensitivity", vm=False)
     assert "--rtol" in line, line
+
+
+BALL_EXAMPLE = (Path(__file__).resolve().parent.parent / "examples" / "bouncing_ball.toml").read_text()
+
+
+def test_body_position_beyond_the_plausible_range_named(tmp_path, capsys):
+    """A ball at y = 1e300 with its contact sphere at y = 1.1: the body-fixed offset −1e300
+    put the sphere's centre at 0 ("penetrates by 0.1"); now the body's field is named."""
+    text = BALL_EXAMPLE.replace('position = [0.0, "h0 + r"]', "position = [0.0, 1e300]")
+    err = cli(tmp_path, capsys, text, "--t-end", "1", "--steps", "4")
+    assert "body 'ball' field 'position'" in err and "1e+09 m" in err
+
+
+def test_initial_penetration_names_the_body(tmp_path, capsys):
+    """h0 = −1: the ball starts 1 m inside the floor; the message names the contact, the gap
+    and the body whose position to check."""
+    text = BALL_EXAMPLE.replace("h0 = 1.0 ", "h0 = -1.0 ")
+    err = cli(tmp_path, capsys, text, "--t-end", "1", "--steps", "4")
+    assert "contact 'floor'" in err and "penetrates by 1 " in err
+    assert "body 'ball': check its 'position'" in err

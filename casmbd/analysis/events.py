@@ -726,9 +726,13 @@ def _march(mechanism, t_end: float, steps: int, *, simulator_factory, integrator
     if n_gaps and np.min(g0) < -1e-9:
         k = int(np.argmin(g0))
         what = "contact" if gaps.rows[k][0].event_kind == "impact" else "joint limit"
+        bodies = [b for b in (getattr(gaps.rows[k][0], key, None)
+                              for key in ("body", "body1", "body2")) if isinstance(b, str)]
+        where = f" (body {', '.join(repr(b) for b in bodies)}: check its 'position' and the " \
+            f"{what}'s points)" if bodies else ""
         raise AnalysisError(f"{what} '{gaps.label(k)}': the initial pose penetrates by "
-                            f"{-g0[k]:.3g} (gap < 0 at t = {t_start:g}); start it open or "
-                            "touching")
+                            f"{-g0[k]:.3g} (gap < 0 at t = {t_start:g}){where}; start it open "
+                            "or touching")
     closed: frozenset = frozenset()
     events: list[dict] = []
     impact_times: dict[str, list[float]] = {}  # per gap, for the Zeno guard

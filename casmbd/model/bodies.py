@@ -106,15 +106,26 @@ RIGID_SCENE_KEYS = frozenset({"name", "type", "mass", "inertia", "position", "an
 MASS_RANGE = (1e-15, 1e15)
 #: largest plausible moment of inertia [kg m²]: 1e15 kg at a radius of gyration of 100 km
 INERTIA_MAX = 1e25
+#: largest plausible distance of a body's centre of mass from the origin [m]: at 1e9 m a
+#: double resolves 1e-7 m, and a body-fixed offset u = r_P − r_G of its points (joints,
+#: contacts) loses every digit beyond (a ball at y = 1e300 with its contact sphere at y = 1.1:
+#: u = −1e300, the sphere's centre computed at 0, "penetrates by 0.1")
+POSITION_MAX = 1e9
 
 
 def check_positive(body) -> None:
-    """Reject a numeric mass < 0 (and, in the plane, a moment of inertia < 0; spatial
+    """Reject a position farther than :data:`POSITION_MAX` from the origin, a numeric mass < 0
+    (and, in the plane, a moment of inertia < 0; spatial
     moments are checked by :func:`check_inertia`), a non-zero mass outside
     :data:`MASS_RANGE` and a moment of inertia above :data:`INERTIA_MAX`.  Zero mass and inertia
     are accepted here: whether the mass matrix of the chosen coordinates is positive definite
     is checked at the start of forward dynamics
     (:func:`casmbd.analysis.checks.check_mass_matrix`)."""
+    distance = float(np.max(np.abs(np.asarray(body.position, dtype=float))))
+    if distance > POSITION_MAX:
+        raise ModelError(f"body '{body.name}' field 'position': a coordinate of {distance:g} m "
+                         f"is beyond the plausible {POSITION_MAX:g} m from the origin (a wrong "
+                         "unit or a typo; casmbd.model.bodies.POSITION_MAX)")
     values = [body.mass] + (list(body.inertia) if body.dimension == 3 else [body.inertia])
     for key, value in zip(["mass"] + ["inertia"] * (len(values) - 1), values, strict=True):
         if isinstance(value, float) and value < 0.0 and (key == "mass" or body.dimension == 2):
