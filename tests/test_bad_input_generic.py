@@ -302,7 +302,8 @@ def test_sensitivity_rtol_out_of_range_names_it(tmp_path, capsys):
     assert "--rtol" in line, line
 
 
-BALL_EXAMPLE = (Path(__file__).resolve().parent.parent / "examples" / "bouncing_ball.toml").read_text()
+BALL_EXAMPLE = (Path(__file__).resolve().parent.parent / "examples"
+                / "bouncing_ball.toml").read_text()
 
 
 def test_body_position_beyond_the_plausible_range_named(tmp_path, capsys):
