@@ -23,7 +23,7 @@ from casmbd.analysis.simulate import simulate
 from casmbd.analysis.sweep import parse_values, sweep
 from casmbd.cli import workbench as cli_workbench
 from casmbd.compiled import codegen
-from casmbd.errors import LimitError, SceneError
+from casmbd.errors import AnalysisError, LimitError, SceneError
 from casmbd.io.scene import load_scene, loads_scene
 from casmbd.limits import (
     MAX_BODIES,
@@ -356,15 +356,24 @@ def test_large_minimum_norm_assembly_equals_the_dense_one(monkeypatch):
 
 
 # ---------------------------------------------------------------------- fixed steps, fps
-@pytest.mark.parametrize("integrator, step, count", [("rk4", 1e-300, r"1e\+300"),
-                                                     ("abm", 5e-324, "inf")])
-def test_fixed_step_count_beyond_the_limit(integrator, step, count):
-    """``--step 1e-300`` used to run forever; 5e-324 ended in an internal OverflowError."""
+@pytest.mark.parametrize("integrator, step", [("rk4", 1e-300), ("abm", 5e-324)])
+def test_fixed_step_below_the_floor(integrator, step):
+    """``--step 1e-300`` used to run forever; 5e-324 ended in an internal OverflowError; both
+    are below the option's floor of 1 fs (casmbd.analysis.option_ranges)."""
     mech = load_scene(PENDULUM)
-    with pytest.raises(LimitError, match=rf"fixed step \(--step\) {step:g}: {count} steps over "
+    with pytest.raises(AnalysisError, match=rf"fixed step \(--step\) {step:g} s is below the "
+                                            r"floor of 1e-12 s"):
+        simulate(mech, t_end=1.0, steps=2, integrator=integrator, step=step)
+
+
+def test_fixed_step_count_beyond_the_limit():
+    """A step above the floor (1e-12 of |t| = 1e-8 s here) whose count is still absurd (1e-7 s
+    over 1e4 s: 1e11 steps) is refused by the step-count limit before the run."""
+    mech = load_scene(PENDULUM)
+    with pytest.raises(LimitError, match=r"fixed step \(--step\) 1e-07: 1e\+11 steps over "
                                          rf"2 output intervals exceed the limit of "
                                          rf"{limit_text(MAX_FIXED_STEPS)}"):
-        simulate(mech, t_end=1.0, steps=2, integrator=integrator, step=step)
+        simulate(mech, t_end=1e4, steps=2, integrator="rk4", step=1e-7)
 
 
 def test_fixed_step_error_is_not_masked_by_a_sundials_rerun():

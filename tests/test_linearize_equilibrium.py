@@ -287,9 +287,11 @@ def test_from_errors_name_the_time_and_the_mismatch(capsys, tmp_path):
     cases = [([PENDULUM2, "--from", str(out), "--time", "2.5"],
               "time 2.5 is outside the result's output times [0, 1] (5 outputs)"),
              ([TOP, "--from", str(out), "--time", "0.5"],
-              "the result is not of this scene (it has 2 coordinates, the scene 7)"),
+              f"result file '{out}' is not of scene"),
+             ([TOP, "--from", str(out), "--time", "0.5"],
+              "(it has 2 coordinates, the scene 7)"),
              ([str(crane), "--from", str(out), "--time", "0.5"],  # both in joint coordinates
-              "the result is not of this scene (its coordinate 0 is 'shoulder.angle', the "
+              f"is not of scene '{crane}' ('crane') (its coordinate 0 is 'shoulder.angle', the "
               "scene's 'rail.translation')"),
              ([PENDULUM2, "--from", str(out)], "--from RESULT.npz and --time T go together")]
     for argv, message in cases:

@@ -28,6 +28,7 @@ import contextlib
 import io
 import re
 import socket
+import threading
 
 import numpy as np
 
@@ -63,10 +64,22 @@ def start_server(viser, port: int):
         return viser.ViserServer(host="127.0.0.1", port=port, verbose=False)
 
 
+#: how long stopping the server may take before the caller goes on [s] (its threads are
+#: daemons: a stop that hangs on a loaded machine must not keep Ctrl-C from ending the command)
+STOP_TIMEOUT = 10.0
+
+
 def stop_server(server) -> None:
-    """Stop ``server`` without viser's "Server stopped" line on stdout."""
-    with contextlib.redirect_stdout(io.StringIO()), contextlib.suppress(Exception):
-        server.stop()
+    """Stop ``server`` without viser's "Server stopped" line on stdout, waiting at most
+    :data:`STOP_TIMEOUT` seconds."""
+    def stop() -> None:
+        with contextlib.suppress(Exception):
+            server.stop()
+
+    with contextlib.redirect_stdout(io.StringIO()):
+        stopper = threading.Thread(target=stop, name="casmbd-view-stop", daemon=True)
+        stopper.start()
+        stopper.join(timeout=STOP_TIMEOUT)
 
 
 def node_name(name: str) -> str:
