@@ -283,9 +283,12 @@ def test_ctrl_c_stops_the_live_view_cleanly():
     """``casmbd view SCENE --no-browser``: the URL on stderr, Ctrl-C ends with status 0, one
     summary line and no traceback."""
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    # a suite started in the background by a non-interactive shell (CI) ignores SIGINT, and
+    # children inherit that: restore the default, as a terminal's Ctrl-C finds it
     proc = subprocess.Popen([sys.executable, "-m", "casmbd", "view", str(SCENE),
                              "--no-browser"], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            text=True, cwd=ROOT, env=env)
+                            text=True, cwd=ROOT, env=env,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         line = proc.stderr.readline()
         assert re.search(r"http://127\.0\.0\.1:\d+/", line), line
