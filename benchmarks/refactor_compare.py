@@ -182,7 +182,7 @@ def _text(value) -> np.ndarray:
 
 
 def _numeric(value) -> bool:
-    return isinstance(value, np.ndarray) and value.dtype.kind in "biufc" or \
+    return (isinstance(value, np.ndarray) and value.dtype.kind in "biufc") or \
         isinstance(value, (bool, int, float, complex, np.number, np.bool_))
 
 
@@ -262,7 +262,7 @@ def worker(case_file: Path, out_dir: Path, scenes_root: Path) -> int:
             try:
                 payload = record_value(run_case(case, scenes_root), paths)
                 payload["text/outcome"] = _text("result")
-            except Exception as exc:  # noqa: BLE001 - every failure is a recorded outcome
+            except Exception as exc:  # every failure is a recorded outcome
                 refused = isinstance(exc, CasmbdError)
                 payload = {"text/outcome": _text("refused" if refused else "exception"),
                            "text/error_class": _text(type(exc).__name__),
