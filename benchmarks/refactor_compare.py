@@ -57,6 +57,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import tomllib
 from collections import defaultdict
 from pathlib import Path
 
@@ -69,6 +70,8 @@ SCENE_GLOBS = ("examples/*.toml", "examples/*.urdf", "tests/scenes/*.toml",
 #: analyses tried on every scene
 ANALYSES = ("simulate", "kinematics", "inverse", "statics", "statics_reduced", "linearize",
             "linearize_eq")
+#: studies tried on every scene with a ``[parameters]`` table
+STUDIES = ("sweep", "sensitivity")
 #: the formulation × integrator × coordinate matrix (fixed lists: the names registered on
 #: 16db669; a name a checkout does not know is recorded as its refusal)
 FORMULATIONS = ("index1", "ggl", "kkt_ode", "augmented_lagrangian", "articulated",
@@ -95,6 +98,8 @@ T_END_SCENE = {"examples/bouncing_ball.toml": 1.0, "examples/pendulum_stops.toml
                "examples/rolling_sphere.toml": 0.5}
 #: statistics keys left out of the record (they measure time or the disk cache)
 VOLATILE_KEY = re.compile(r"(seconds|_wall|elapsed)$|^cache_hit$")
+#: result fields left out (a sweep's per-point worker host:pid and timings)
+VOLATILE_FIELDS = ("point_stats",)
 #: a run that takes longer than this is stopped and recorded as a timeout [s]
 CASE_TIMEOUT = 300.0
 
@@ -113,12 +118,24 @@ def case_id(scene: str, analysis: str, *options: str) -> str:
     return "-".join([scene.replace("/", "-"), analysis, *options])
 
 
+def has_parameters(path: Path) -> bool:
+    """Whether a scene file declares a ``[parameters]`` table (read without casmbd)."""
+    if path.suffix != ".toml":
+        return False
+    with open(path, "rb") as fh:
+        return bool(tomllib.load(fh).get("parameters"))
+
+
 def cases(scenes_root: Path) -> list[dict]:
     """Every run of the comparison set, in a fixed order (by scene, then as listed)."""
     out = []
     for scene in scene_files(scenes_root):
         for analysis in ANALYSES:
             out.append({"id": case_id(scene, analysis), "scene": scene, "analysis": analysis})
+        if has_parameters(scenes_root / scene):
+            for analysis in STUDIES:
+                out.append({"id": case_id(scene, analysis), "scene": scene,
+                            "analysis": analysis})
         if scene in MATRIX_SCENES:
             for coords in COORDINATES:
                 for form in FORMULATIONS:
@@ -203,7 +220,12 @@ def record_value(obj, paths: dict[str, str]) -> dict[str, np.ndarray]:
     if dataclasses.is_dataclass(obj):
         for f in dataclasses.fields(obj):
             value = getattr(obj, f.name)
-            if _numeric(value):
+            if f.name in VOLATILE_FIELDS:
+                continue
+            if isinstance(value, np.ndarray) and value.dtype.names:  # a structured array
+                for name in value.dtype.names:
+                    out[f"array/{f.name}.{name}"] = np.asarray(value[name])
+            elif _numeric(value):
                 out[f"array/{f.name}"] = np.asarray(value)
             else:
                 out[f"text/{f.name}"] = _text(_jsonable(value, paths))
@@ -233,6 +255,13 @@ def run_case(case: dict, scenes_root: Path) -> object:
         return casmbd.linearize(mech, mode="vm")
     if analysis == "linearize_eq":
         return casmbd.linearize(mech, mode="vm", at="equilibrium")
+    if analysis == "sweep":  # the first parameter at its value and 5 % above, serially
+        name, value = next(iter(mech.parameters.items()))
+        return casmbd.sweep(mech, {name: [value, 1.05 * value]}, analysis="simulate",
+                            t_end=t_end, steps=STEPS, mode="vm", executor="serial",
+                            progress=False)
+    if analysis == "sensitivity":  # the first body's x at t_end, every parameter
+        return casmbd.sensitivity(mech, f"{next(iter(mech.bodies))}_x", t_end=t_end)
     if analysis == "simulate_matrix":
         mech.coordinates = case["coordinates"]
         return casmbd.simulate(mech, t_end, STEPS, mode="vm", formulation=case["formulation"],
@@ -339,14 +368,19 @@ def _run_worker(todo: list[dict], out_dir: Path, repo: Path, scenes_root: Path,
     return current, why
 
 
-def record(out_dir: Path, repo: Path, scenes_root: Path, only: str | None = None) -> int:
+def _matches(run: str, globs: list[str]) -> bool:
+    return any(fnmatch.fnmatch(run, pattern) for pattern in globs)
+
+
+def record(out_dir: Path, repo: Path, scenes_root: Path, only: list[str] | None = None) -> int:
     """Record the comparison set of ``repo``'s package into ``out_dir``."""
     out_dir.mkdir(parents=True, exist_ok=True)
     all_cases = cases(scenes_root)
-    if only:
-        all_cases = [c for c in all_cases if fnmatch.fnmatch(c["id"], only)]
+    if only:  # these runs again, the others of an earlier record kept
+        all_cases = [c for c in all_cases if _matches(c["id"], only)]
     for old in out_dir.glob("*.npz"):
-        old.unlink()
+        if not only or _matches(old.stem, only):
+            old.unlink()
     times: dict[str, float] = {}
     t0 = time.perf_counter()
     by_scene: dict[str, list[dict]] = defaultdict(list)
@@ -375,12 +409,16 @@ def record(out_dir: Path, repo: Path, scenes_root: Path, only: str | None = None
     counts = defaultdict(int)
     for case in all_cases:
         counts[case["analysis"]] += 1
+    old = out_dir / "manifest.json"
+    if only and old.exists():  # a partial record: the earlier runs' times kept
+        times = {**json.loads(old.read_text()).get("case_seconds", {}), **times}
     manifest = {
         "repo": str(repo), "commit": _git(repo, "rev-parse", "HEAD"),
         "dirty": bool(_git(repo, "status", "--porcelain", "--untracked-files=no")),
         "scenes_root": str(scenes_root), "casmbd": probe[0] if probe else "",
         "versions": dict(zip(("casadi", "numpy", "scipy", "python"), probe[1:])),
         "runs": len(all_cases), "runs_by_analysis": dict(counts), "wall_seconds": wall,
+        "only": only,
         "case_seconds": times,
     }
     (out_dir / "manifest.json").write_text(json.dumps(manifest, indent=1) + "\n")
@@ -526,7 +564,9 @@ def main(argv: list[str] | None = None) -> int:
                         help="checkout whose casmbd package runs the set (default: this one)")
     parser.add_argument("--scenes-root", type=Path, default=ROOT,
                         help="checkout whose scene files make the set (default: this one)")
-    parser.add_argument("--only", metavar="GLOB", help="record only the case ids matching")
+    parser.add_argument("--only", action="append", metavar="GLOB",
+                        help="record again only the case ids matching, keep the other runs "
+                        "of DIR (repeatable)")
     parser.add_argument("--ignore", action="append", default=[], metavar="KEY_GLOB",
                         help="leave out keys matching, e.g. 'text/warnings' (repeatable)")
     args = parser.parse_args(argv)
