@@ -400,25 +400,28 @@ def record(out_dir: Path, repo: Path, scenes_root: Path, only: list[str] | None 
             todo = todo[ids.index(stopped) + 1:]
         print(f"[{k + 1}/{len(by_scene)}] {scene}: {len(by_scene[scene])} runs, "
               f"{time.perf_counter() - s0:.1f} s", flush=True)
-    wall = time.perf_counter() - t0
+    wall = took = time.perf_counter() - t0
     probe = subprocess.run([sys.executable, "-c", "import casmbd, casadi, numpy, scipy, sys;"
                             "print(casmbd.__file__, casadi.__version__, numpy.__version__, "
                             "scipy.__version__, sys.version.split()[0])"],
                            env=_env(repo), cwd=str(scenes_root), capture_output=True,
                            text=True).stdout.split()
-    counts = defaultdict(int)
-    for case in all_cases:
-        counts[case["analysis"]] += 1
+    counts = defaultdict(int)  # every run in DIR, also those kept from an earlier record
+    for case in cases(scenes_root):
+        if (out_dir / f"{case['id']}.npz").exists():
+            counts[case["analysis"]] += 1
     old = out_dir / "manifest.json"
     if only and old.exists():  # a partial record: the earlier runs' times kept
-        times = {**json.loads(old.read_text()).get("case_seconds", {}), **times}
+        earlier = json.loads(old.read_text())
+        times = {**earlier.get("case_seconds", {}), **times}
+        wall += earlier.get("wall_seconds", 0.0)
     manifest = {
         "repo": str(repo), "commit": _git(repo, "rev-parse", "HEAD"),
         "dirty": bool(_git(repo, "status", "--porcelain", "--untracked-files=no")),
         "scenes_root": str(scenes_root), "casmbd": probe[0] if probe else "",
         "versions": dict(zip(("casadi", "numpy", "scipy", "python"), probe[1:])),
-        "runs": len(all_cases), "runs_by_analysis": dict(counts), "wall_seconds": wall,
-        "only": only,
+        "runs": sum(counts.values()), "runs_by_analysis": dict(counts),
+        "wall_seconds": wall, "last_only": only,
         "case_seconds": times,
     }
     (out_dir / "manifest.json").write_text(json.dumps(manifest, indent=1) + "\n")
@@ -427,9 +430,10 @@ def record(out_dir: Path, repo: Path, scenes_root: Path, only: list[str] | None 
         with np.load(out_dir / f"{case['id']}.npz") as data:
             outcomes[json.loads(str(data["text/outcome"]))] += 1
     print(f"recorded {len(all_cases)} runs of {repo} ({manifest['commit'][:7]}"
-          f"{', dirty' if manifest['dirty'] else ''}) into {out_dir} in {wall:.0f} s: "
+          f"{', dirty' if manifest['dirty'] else ''}) into {out_dir} in {took:.0f} s: "
           + ", ".join(f"{n} {k}" for k, n in sorted(outcomes.items())))
-    print("runs by analysis: " + ", ".join(f"{k} {n}" for k, n in counts.items()))
+    print(f"{out_dir} holds {sum(counts.values())} runs: "
+          + ", ".join(f"{k} {n}" for k, n in counts.items()))
     return 0
 
 
@@ -543,7 +547,8 @@ def compare(dir_a: Path, dir_b: Path, ignore: list[str]) -> int:
             print(f"  {key}: {how}")
     for label, ids in (("missing in B", ids_a - ids_b), ("extra in B", ids_b - ids_a)):
         if ids:
-            print(f"\n{label}: " + ", ".join(sorted(ids)))
+            print(f"\n{label} ({len(ids)}): " + ", ".join(sorted(ids)[:20])
+                  + (", ..." if len(ids) > 20 else ""))
     bad = total["different"] + total["missing"] + total["extra"]
     print(f"\n{'IDENTICAL' if not bad else 'DIFFERENT'}: {total['identical']} of "
           f"{sum(total.values())} runs identical")
