@@ -13,9 +13,8 @@ import numpy as np
 
 from casmbd import progress
 from casmbd.analysis import integrators as integ
-from casmbd.analysis import numeric_run
 from casmbd.analysis.assembly import assemble
-from casmbd.analysis.kkt import accelerations_and_multipliers, project_velocities
+from casmbd.analysis.kkt import project_velocities
 from casmbd.compiled.model import _c_name
 from casmbd.errors import IntegratorError
 from casmbd.interrupts import reraise_interrupt
@@ -52,8 +51,6 @@ class Stepping:
         interval = grid[1] - grid[0]
         nq = self.model.nq
         shifted = self._solver("shifted", lambda: integ.shifted(self.dyn))
-        if integ.INTEGRATORS[name].fixed_step:
-            return self._fixed_step(name, grid, x0, step, project=True)
         solver = self._solver(
             (name, "interval", interval, rtol, atol, max_steps),
             lambda: integ.sundials(shifted, name, 0.0, [interval], rtol, atol, max_steps))
@@ -80,9 +77,7 @@ class Stepping:
                 q = assemble(model, x[:nq], t).q
                 v = project_velocities(model, q, x[nq:], t)
                 x = np.concatenate([q, v])
-                if self.formulation.kind == "dae":
-                    a, lam = accelerations_and_multipliers(model, q, v, t, self.inputs_at(t))
-                    z = self._z0(q, a, lam)
+                z = self._algebraic_at(q, v, t)
             xs.append(x)
         return np.vstack(xs), totals
 
@@ -183,9 +178,7 @@ class Stepping:
         reproduces the failed run up to its last output before ``t_fail``.  Otherwise (or if
         that re-run fails too) the run is repeated interval by interval.
         """
-        if self.formulation.kind == "numeric":
-            return numeric_run.partial(self, name, grid, x0, rtol, atol, max_steps)
-        if t_fail is not None and not integ.INTEGRATORS[name].fixed_step:
+        if integ.INTEGRATORS[name].repeats_before(t_fail):
             kept = grid[grid < t_fail]
             if len(kept) <= 1:  # failed in the first interval (or at its start)
                 return np.asarray(x0, float)[None, :], {}
