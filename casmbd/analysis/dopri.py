@@ -284,8 +284,8 @@ class DopriKind(IntegratorKind):
     def integrate(self, runs, grid, x0, z0, rtol: float, atol: float, projection: bool,
                   step, max_steps: int):
         """Adaptive steps in compiled blocks (:meth:`~casmbd.analysis.stepping.Stepping.
-        _compiled_run`), projected at every output with ``projection``."""
-        return runs._compiled_run(self.name, grid, x0, rtol, atol, max_steps, projection)
+        compiled_blocks`), projected at every output with ``projection``."""
+        return runs.compiled_blocks(self.name, grid, x0, rtol, atol, max_steps, projection)
 
     def runner(self, dyn: ca.Function, mode: str, name: str,
                functions: dict | None = None) -> Dopri:

@@ -418,7 +418,7 @@ class _Phase:
         return self._closed(self._all(q, v, t)) if self.closure_rows else np.zeros(0)
 
     def z0(self, q, v, t):
-        return self.sim._algebraic_at(q, v, t)
+        return self.sim.algebraic_state_at(q, v, t)
 
 
 #: a value of an event row that counts as clearly inside (away from its surface) when the
@@ -1138,7 +1138,7 @@ def _assemble_result(base, phase_of, gaps, grid, qs, vs, samples, events, second
     ``contact_forces``: normal forces of contacts and stops, friction forces of stick-slip
     joints — −F_c σ while they slide)."""
     base.model.p[:] = default
-    result = base._post(grid, qs, vs, {})
+    result = base.post.outputs(grid, qs, vs, {})
     n_gaps = len(gaps.rows)
     forces = np.zeros((len(grid), n_gaps))
     base_labels = [str(lab) for lab in base.model.constraint_labels]
@@ -1156,7 +1156,7 @@ def _assemble_result(base, phase_of, gaps, grid, qs, vs, samples, events, second
         phase.sim.model.p[:] = pk
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", RuntimeWarning)
-            sub = phase.sim._post(grid[idx], qs[idx], vs[idx], {})
+            sub = phase.sim.post.outputs(grid[idx], qs[idx], vs[idx], {})
         for w in caught:  # the closures' own reactions (undetermined when redundant) are not
             # reported: only a warning naming a joint of the mechanism is passed on
             if any(f"'{j}'" in str(w.message) for j in base.model.mechanism.joints):

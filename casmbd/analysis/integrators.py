@@ -392,7 +392,7 @@ class IntegratorKind:
         (:class:`casmbd.analysis.stepping.Stepping`): by default a SUNDIALS method, in one
         call over the grid or, with ``projection``, output interval by output interval."""
         if projection:
-            return runs._interval_by_interval(self.name, grid, x0, z0, rtol, atol, step,
+            return runs.interval_by_interval(self.name, grid, x0, z0, rtol, atol, step,
                                               max_steps, project=True)
         return runs.one_call(self.name, grid, x0, z0, rtol, atol, max_steps)
 
@@ -601,8 +601,8 @@ class FixedStepKind(IntegratorKind):
     def integrate(self, runs, grid, x0, z0, rtol: float, atol: float, projection: bool,
                   step, max_steps: int):
         """Fixed steps in compiled chunks (:meth:`~casmbd.analysis.stepping.Stepping.
-        _fixed_step`), projected at every output with ``projection``."""
-        return runs._fixed_step(self.name, grid, x0, step, project=projection)
+        fixed_steps`), projected at every output with ``projection``."""
+        return runs.fixed_steps(self.name, grid, x0, step, project=projection)
 
     def keeps_partial(self, exc: Exception) -> bool:
         """A casmbd error (a ``step`` limit, a projection's AssemblyError) is final: no

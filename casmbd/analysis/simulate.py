@@ -147,7 +147,7 @@ _FLAG = re.compile(r'returned "([A-Z_]+)"')
 _AT_T = re.compile(r"t = ([-+0-9.eE]+)")
 
 
-class Simulator(Stepping, PostProcessing, CachedBuild):
+class Simulator(Stepping, CachedBuild):
     """A mechanism compiled for one formulation, ready to integrate many times.
 
     Parameters
@@ -173,6 +173,8 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
         # a model record of the same description: no System, no code (analysis.build_cache)
         if self._from_cache(mechanism, formulation, inputs, mode, formulation_options,
                             redundancy):
+            #: outputs and failure diagnosis (analysis.postprocess)
+            self.post = PostProcessing(self.model, self.redundancy, self.ufun)
             self.build_seconds = time.perf_counter() - t0
             return
         system = mechanism if isinstance(mechanism, System) else System(mechanism)
@@ -207,6 +209,8 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
         self.system = system
         self.dyn = self.model.function(self.formulation.function.name())
         self.ufun = self.model.function(INPUTS_FUNCTION)
+        #: outputs and failure diagnosis (analysis.postprocess)
+        self.post = PostProcessing(self.model, self.redundancy, self.ufun)
         self._remember()  # the model record for the next run (analysis.build_cache)
         self.build_seconds = time.perf_counter() - t0
 
@@ -227,7 +231,7 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
         return self.kind.algebraic_state(lambda: (a, lam),
                                          lambda lam: self._kept_multipliers(q, lam))
 
-    def _algebraic_at(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+    def algebraic_state_at(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
         """The formulation's algebraic state at (q, v, t) (q̈ and λ from the KKT system)."""
         return self.kind.algebraic_state(
             lambda: accelerations_and_multipliers(self.model, q, v, t, self.inputs_at(t)),
@@ -364,22 +368,22 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
         stats["build_seconds"] = self.build_seconds
         stats.update({k: v for k, v in model.report_dict.items() if k != "build_seconds"})
         n_ok = xs.shape[0]
-        result = self._post(grid[:n_ok], xs[:, :nq], xs[:, nq:], stats)
+        result = self.post.outputs(grid[:n_ok], xs[:, :nq], xs[:, nq:], stats)
         if failure is None:  # a value that is not finite: stops naming it and the time
-            self._check_finite(result)
+            self.post.check_finite(result)
             mech = model.mechanism  # the energy: watched as the integrator needs
             params = dict(zip(mech.parameters, np.ravel(model.p), strict=False)) \
                 if len(np.ravel(model.p)) == len(mech.parameters) else None
             integ.INTEGRATORS[name].check_energy(result, mech, truncated, params, rtol,
                                                  stats.get("step_size", step))
-        self._check_violation(result)  # beyond the tolerance: stops naming the culprit
+        self.post.check_violation(result)  # beyond the tolerance: stops naming the culprit
         if failure is not None:
             t_fail = float(solver_stats.get("failure_time", grid[n_ok - 1]))
             match = _FLAG.search(str(failure))
             flag = match.group(1) if match else type(failure).__name__
             msg = captured.last_line or (str(failure).strip().splitlines()[-1]
                                          if str(failure).strip() else flag)
-            why = self._diagnose(result, t_fail)
+            why = self.post.diagnose(result, t_fail)
             if not why or why.startswith("; at t ≈"):  # no non-finite value: the stiffest
                 why = self._stiffness_culprit(result, t_fail, rtol, t_end) + why
             raise IntegratorError(
@@ -649,8 +653,8 @@ def simulate(mechanism, t_end: float, steps: int, *, formulation: str | None = N
             else rest_velocity)
         # beyond the tolerance the run stops naming the culprit, as without events (the
         # base simulator is the one of the open phases, kept by ``simulators``)
-        simulators(mechanism)._check_finite(result)
-        simulators(mechanism)._check_violation(result)
+        simulators(mechanism).post.check_finite(result)
+        simulators(mechanism).post.check_violation(result)
         return result
     sim = Simulator(mechanism, formulation, inputs=inputs, mode=mode,
                     formulation_options=formulation_options, redundancy=redundancy)
