@@ -281,6 +281,12 @@ class DopriKind(IntegratorKind):
         """The block of attempted steps, compiled in the model's library beside ``dyn``."""
         return [dopri_block(dyn)]
 
+    def integrate(self, runs, grid, x0, z0, rtol: float, atol: float, projection: bool,
+                  step, max_steps: int):
+        """Adaptive steps in compiled blocks (:meth:`~casmbd.analysis.stepping.Stepping.
+        compiled_blocks`), projected at every output with ``projection``."""
+        return runs.compiled_blocks(self.name, grid, x0, rtol, atol, max_steps, projection)
+
     def runner(self, dyn: ca.Function, mode: str, name: str,
                functions: dict | None = None) -> Dopri:
         """The compiled stepping of ``dyn`` (built once per simulator); with the block among

@@ -269,7 +269,6 @@ class _Phase:
         self.redundant = getattr(sim, "redundancy", {}).get("kept_rows") is not None
         #: every row of the closures (a pair's second rows included)
         self.all_rows = list(closure_rows) + list(self.pairs.values())
-        self.dae = sim.formulation.kind == "dae"
         self._scaled = _scaled(sim.dyn)
         self.name, self.rtol, self.atol, self.max_steps = name, rtol, atol, max_steps
         self._many: dict[tuple, object] = {}
@@ -419,10 +418,7 @@ class _Phase:
         return self._closed(self._all(q, v, t)) if self.closure_rows else np.zeros(0)
 
     def z0(self, q, v, t):
-        if not self.dae:
-            return np.zeros(0)
-        a, lam = accelerations_and_multipliers(self.sim.model, q, v, t, self.sim.inputs_at(t))
-        return self.sim._z0(q, a, lam)
+        return self.sim.algebraic_state_at(q, v, t)
 
 
 #: a value of an event row that counts as clearly inside (away from its surface) when the
@@ -648,15 +644,9 @@ def _march(mechanism, t_end: float, steps: int, *, simulator_factory, integrator
                  if getattr(f, "stick_slip", False)]
     elements += [SlideRow(c) for c in mechanism.contacts.values() if slides(c)]
     base = simulator_factory(mechanism)
-    if base.formulation_name == "ggl":
-        raise AnalysisError("formulation 'ggl': its index-2 start cannot be made consistent "
-                            "after an impact by IDAS; with contacts and stops use 'index1' "
-                            "(or the default)")
-    if base.formulation.kind not in ("ode", "dae"):
-        raise AnalysisError(f"formulation '{base.formulation_name}': events need a compiled "
-                            "ODE or DAE formulation (not a numeric right-hand side)")
-    name = integrator or ("idas" if base.formulation.kind == "dae" else "adams")
-    if name not in ("cvodes", "idas", "adams"):
+    base.kind.refuse_events()  # GGL's index-2 restart, numeric right-hand sides
+    name = integrator or base.kind.event_integrator
+    if not EVENT_NEEDS <= getattr(integ.INTEGRATORS.get(name), "handles", frozenset()):
         raise AnalysisError(f"integrator '{name}': the event-driven run uses a variable-step "
                             "SUNDIALS integrator (cvodes, adams, idas)")
     gaps = EventRows(System(mechanism), elements)
@@ -1148,7 +1138,7 @@ def _assemble_result(base, phase_of, gaps, grid, qs, vs, samples, events, second
     ``contact_forces``: normal forces of contacts and stops, friction forces of stick-slip
     joints — −F_c σ while they slide)."""
     base.model.p[:] = default
-    result = base._post(grid, qs, vs, {})
+    result = base.post.outputs(grid, qs, vs, {})
     n_gaps = len(gaps.rows)
     forces = np.zeros((len(grid), n_gaps))
     base_labels = [str(lab) for lab in base.model.constraint_labels]
@@ -1166,7 +1156,7 @@ def _assemble_result(base, phase_of, gaps, grid, qs, vs, samples, events, second
         phase.sim.model.p[:] = pk
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", RuntimeWarning)
-            sub = phase.sim._post(grid[idx], qs[idx], vs[idx], {})
+            sub = phase.sim.post.outputs(grid[idx], qs[idx], vs[idx], {})
         for w in caught:  # the closures' own reactions (undetermined when redundant) are not
             # reported: only a warning naming a joint of the mechanism is passed on
             if any(f"'{j}'" in str(w.message) for j in base.model.mechanism.joints):

@@ -33,9 +33,10 @@ from dataclasses import dataclass
 import casadi as ca
 import numpy as np
 
+from casmbd.analysis.invariants import check_energy, check_energy_blowup
 from casmbd.compiled.codegen import compile_functions
 from casmbd.compiled.workspace import buffered
-from casmbd.errors import LimitError, ModelError, UnknownMethodError
+from casmbd.errors import CasmbdError, LimitError, ModelError, UnknownMethodError
 from casmbd.limits import MAX_FIXED_STEPS
 from casmbd.model.needs import ALL_NEEDS, EVENT_NEEDS
 
@@ -385,6 +386,33 @@ class IntegratorKind:
         "numeric": :attr:`casmbd.system.formulations.FormulationKind.kind`)."""
         return bool(getattr(self, kind, False))
 
+    def integrate(self, runs, grid, x0, z0, rtol: float, atol: float, projection: bool,
+                  step, max_steps: int):
+        """``(xs, stats)`` on the output ``grid`` for the simulator ``runs``
+        (:class:`casmbd.analysis.stepping.Stepping`): by default a SUNDIALS method, in one
+        call over the grid or, with ``projection``, output interval by output interval."""
+        if projection:
+            return runs.interval_by_interval(self.name, grid, x0, z0, rtol, atol, step,
+                                              max_steps, project=True)
+        return runs.one_call(self.name, grid, x0, z0, rtol, atol, max_steps)
+
+    def keeps_partial(self, exc: Exception) -> bool:
+        """Whether the outputs before the failure ``exc`` are kept by running again."""
+        return True
+
+    def repeats_before(self, t_fail: float | None) -> bool:
+        """Whether a run on the outputs before a failure at ``t_fail`` repeats the failed
+        run up to them (SUNDIALS steps past each output and interpolates: its steps do not
+        depend on later outputs)."""
+        return t_fail is not None
+
+    def check_energy(self, result, mechanism, truncated, params, rtol: float,
+                     step_size) -> None:
+        """After a run: error control, but a loose tolerance may still let the energy
+        explode (:func:`~casmbd.analysis.invariants.check_energy_blowup`)."""
+        check_energy_blowup(result, mechanism, f"{self.name} (rtol = {rtol:g})", truncated,
+                            params)
+
     def shooting_step(self, f: ca.Function, x: ca.SX, u: ca.SX, t: ca.SX,
                       steps: int) -> ca.Function:
         """``ocp_step(x, u, t, h) -> (x(t + h), ∫ L dt)`` of ``f(x, u, t) -> (ẋ, L)`` over one
@@ -569,6 +597,28 @@ class FixedStepKind(IntegratorKind):
     step_builder: Callable[[ca.Function], ca.Function] = rk4_step
     history: int = 0
     evaluations_per_step: int = 4
+
+    def integrate(self, runs, grid, x0, z0, rtol: float, atol: float, projection: bool,
+                  step, max_steps: int):
+        """Fixed steps in compiled chunks (:meth:`~casmbd.analysis.stepping.Stepping.
+        fixed_steps`), projected at every output with ``projection``."""
+        return runs.fixed_steps(self.name, grid, x0, step, project=projection)
+
+    def keeps_partial(self, exc: Exception) -> bool:
+        """A casmbd error (a ``step`` limit, a projection's AssemblyError) is final: no
+        SUNDIALS re-run."""
+        return not isinstance(exc, CasmbdError)
+
+    def repeats_before(self, t_fail: float | None) -> bool:
+        """No: the re-run is interval by interval."""
+        return False
+
+    def check_energy(self, result, mechanism, truncated, params, rtol: float,
+                     step_size) -> None:
+        """No error control: watch the energy (:func:`~casmbd.analysis.invariants.
+        check_energy`)."""
+        check_energy(result, mechanism, f"fixed-step {self.name} (h = {step_size:.3g})",
+                     truncated, params)
 
     def shooting_step(self, f: ca.Function, x: ca.SX, u: ca.SX, t: ca.SX,
                       steps: int) -> ca.Function:

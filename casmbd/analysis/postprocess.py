@@ -1,6 +1,7 @@
 """A simulation's outputs from its states, and the diagnosis of a failed run.
 
-A mixin of :class:`casmbd.analysis.simulate.Simulator`: at every output time q̈ and λ from the
+A collaborator of :class:`casmbd.analysis.simulate.Simulator` (its ``post``), built on the
+compiled model, the redundancy plan and the inputs Function: at every output time q̈ and λ from the
 sparse KKT system (a minimum-norm solve at singular points), joint reactions (seed 000, eqs.
 6.145–6.151), driver efforts (−λ of the driver row), energies, constraint violations and
 conditioning, collected in a :class:`~casmbd.results.Result`; and, where a run failed, the
@@ -125,9 +126,15 @@ def truncated(result: Result, n: int) -> Result:
 
 
 class PostProcessing:
-    """Outputs and failure diagnosis of the :class:`~casmbd.analysis.simulate.Simulator`."""
+    """Outputs and failure diagnosis of a simulation on the compiled ``model`` (a
+    :class:`~casmbd.compiled.model.NumericModel`), with the ``redundancy`` plan of
+    :func:`~casmbd.analysis.simulate.plan_redundancy` and the inputs Function ``ufun``
+    u(t, p); the :class:`~casmbd.analysis.simulate.Simulator`'s ``post``."""
 
-    def _diagnose(self, result: Result, t_fail: float) -> str:
+    def __init__(self, model, redundancy: dict, ufun):
+        self.model, self.redundancy, self.ufun = model, redundancy, ufun
+
+    def diagnose(self, result: Result, t_fail: float) -> str:
         """Rank and conditioning of C_q where a run failed: at the state extrapolated from the
         last kept output, q + h q̇ + ½ h² q̈ with h = t_fail − t_last (an estimate, accurate to
         O(h³), enough to tell a singular pose)."""
@@ -156,7 +163,7 @@ class PostProcessing:
                      + "; the augmented_lagrangian formulation passes singular poses")
         return text
 
-    def _check_violation(self, result: Result) -> None:
+    def check_violation(self, result: Result) -> None:
         """Stop a run whose position constraints are violated beyond the tolerance
         (:func:`first_violation`): a :class:`~casmbd.errors.ConstraintViolationError` naming
         the time, the size and the driver or joint at fault, with the results before it."""
@@ -176,7 +183,7 @@ class PostProcessing:
             f"{result.t[n_kept - 1]:.6g} ({n_kept} of {len(result.t)} output times){cause}",
             t, partial=partial, culprits=culprits)
 
-    def _check_finite(self, result: Result) -> None:
+    def check_finite(self, result: Result) -> None:
         """Stop a run whose results hold a value that is not finite (:func:`first_non_finite`):
         an :class:`~casmbd.errors.IntegratorError` (flag ``NON_FINITE``) naming the quantity
         and the first such output time, with the results before it; never a silent NaN."""
@@ -242,7 +249,7 @@ class PostProcessing:
                                        + model.constraint_time_derivative(qs[k], t_k)))
         return acc, lam, np.full(n, np.nan), kin, pot, pos, vel
 
-    def _post(self, grid, qs, vs, stats) -> Result:
+    def outputs(self, grid, qs, vs, stats) -> Result:
         # names and sizes from the model: a simulator from the cache has no System built
         model = system = self.model
         n = len(grid)

@@ -31,8 +31,7 @@ from casmbd.analysis.checks import (
 )
 from casmbd.analysis.events import MAX_EVENTS, compliant_events, has_events, simulate_events
 from casmbd.analysis.independent import find_redundant
-from casmbd.analysis.invariants import check_energy, check_energy_blowup
-from casmbd.analysis.kkt import consistent_state
+from casmbd.analysis.kkt import accelerations_and_multipliers, consistent_state
 from casmbd.analysis.option_ranges import check_integrator_options
 from casmbd.analysis.postprocess import PostProcessing, truncated
 from casmbd.analysis.stepping import Stepping
@@ -148,7 +147,7 @@ _FLAG = re.compile(r'returned "([A-Z_]+)"')
 _AT_T = re.compile(r"t = ([-+0-9.eE]+)")
 
 
-class Simulator(Stepping, PostProcessing, CachedBuild):
+class Simulator(Stepping, CachedBuild):
     """A mechanism compiled for one formulation, ready to integrate many times.
 
     Parameters
@@ -174,17 +173,17 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
         # a model record of the same description: no System, no code (analysis.build_cache)
         if self._from_cache(mechanism, formulation, inputs, mode, formulation_options,
                             redundancy):
+            #: outputs and failure diagnosis (analysis.postprocess)
+            self.post = PostProcessing(self.model, self.redundancy, self.ufun)
             self.build_seconds = time.perf_counter() - t0
             return
         system = mechanism if isinstance(mechanism, System) else System(mechanism)
         self.formulation_name = formulation or default_formulation(system)
-        #: why this formulation: "given" or the default rule (articulated for trees)
-        self.formulation_reason = "given" if formulation else (
-            "default: the articulated-body recursion (a tree in joint coordinates)"
-            if self.formulation_name == "articulated" else
-            f"default: {self.formulation_name} (constraint equations: {system.nc})")
         #: the registered formulation (UnknownMethodError listing the choices otherwise)
         self.kind = formulation_kind(self.formulation_name)
+        #: why this formulation: "given" or the default rule (articulated for trees)
+        self.formulation_reason = "given" if formulation else \
+            self.kind.default_reason(system)
         self.redundancy = plan_redundancy(system, self.kind, redundancy)
         u_expr = _input_expression(system, inputs)
         self.ufun = ca.Function(INPUTS_FUNCTION, [system.t, system.p], [u_expr],
@@ -194,7 +193,7 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
         self.formulation = self.kind.build(self._dyn_system, inputs=u_expr,
                                            **dict(formulation_options or {}))
         # an ODE of an unconstrained system gives q̈ to the post-processing (no M solve)
-        ode = self.formulation.function if self.formulation.kind == "ode" else None
+        ode = self.kind.ode_right_hand_side(self.formulation.function)
         # the default integrator's own compiled stepping (DOPRI5's block) goes into the
         # model's library, in one translation unit with the dynamics it calls
         stepping = integ.INTEGRATORS.get(self.kind.default_integrator)
@@ -206,10 +205,12 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
         self.model = NumericModel(system, needs, mode=mode,
                                   extra=[*self.formulation.functions, *steps,
                                          post_processing(system, u_expr, ode), self.ufun],
-                                  hot=None if self.kind.numeric else hot)  # per step: -O2
+                                  hot=self.kind.hot_functions(hot))  # per step: -O2
         self.system = system
         self.dyn = self.model.function(self.formulation.function.name())
         self.ufun = self.model.function(INPUTS_FUNCTION)
+        #: outputs and failure diagnosis (analysis.postprocess)
+        self.post = PostProcessing(self.model, self.redundancy, self.ufun)
         self._remember()  # the model record for the next run (analysis.build_cache)
         self.build_seconds = time.perf_counter() - t0
 
@@ -227,18 +228,26 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
         return np.asarray(self.ufun(t, self.model.p)).reshape(-1)
 
     def _z0(self, q: np.ndarray, a: np.ndarray, lam: np.ndarray) -> np.ndarray:
-        if self.formulation.kind != "dae":
-            return np.zeros(0)
+        return self.kind.algebraic_state(lambda: (a, lam),
+                                         lambda lam: self._kept_multipliers(q, lam))
+
+    def algebraic_state_at(self, q: np.ndarray, v: np.ndarray, t: float) -> np.ndarray:
+        """The formulation's algebraic state at (q, v, t) (q̈ and λ from the KKT system)."""
+        return self.kind.algebraic_state(
+            lambda: accelerations_and_multipliers(self.model, q, v, t, self.inputs_at(t)),
+            lambda lam: self._kept_multipliers(q, lam))
+
+    def _kept_multipliers(self, q: np.ndarray, lam: np.ndarray) -> np.ndarray:
         keep = self.redundancy.get("kept_rows")
         if keep is not None:  # multipliers of the kept rows carrying the same C_qᵀ λ
             cq = self.model.constraint_jacobian(q, 0.0).toarray()
             lam = np.linalg.lstsq(cq[keep].T, cq.T @ lam, rcond=None)[0]
-        return self.kind.initial_algebraic(a, lam)
+        return lam
 
     def _ode_accelerations(self, t: float):
         """q̈(q, v) at ``t`` from the ODE right-hand side of an unconstrained system whose
         model has no compiled forces (``NEEDS["ode_dynamics"]``), else None."""
-        if self.formulation.kind != "ode" or self.model.nc or \
+        if self.kind.ode_right_hand_side(self.dyn) is None or self.model.nc or \
                 "quadratic_velocity_forces" in self.model.functions:
             return None
         nq, p = self.model.nq, self.model.p
@@ -283,8 +292,7 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
         atol = rtol if atol is None else atol
         name = self._integrator_name(integrator)
         if max_steps is None:
-            # numeric right-hand sides are ~100x dearer: fail in seconds, not minutes
-            max_steps = 20_000 if self.formulation.kind == "numeric" else 500_000
+            max_steps = self.kind.max_steps
         model = self.model
         # LimitError before the grid is allocated: the estimate of simulate() (one message)
         check_steps("simulation", int(steps), model.mechanism)
@@ -345,19 +353,14 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
             failure = exc
         except (RuntimeError, CasmbdError) as exc:
             reraise_interrupt(exc)  # Ctrl-C is no integrator failure: no partial re-run
-            if isinstance(exc, CasmbdError) and integ.INTEGRATORS[name].fixed_step:
+            if not integ.INTEGRATORS[name].keeps_partial(exc):
                 raise  # no SUNDIALS re-run: a --step limit, a --projection AssemblyError
             failure = exc
         if failure is not None:
-            # SUNDIALS names the failure time; on the one-call grid run it is absolute time
-            when = _AT_T.search(captured.text)
-            global_time = not projection and self.formulation.kind != "numeric"
-            t_msg = float(when.group(1)) if when and global_time else None
             with integ.CapturedOutput():
-                xs, solver_stats = self._partial(name, grid, x0, z0, rtol, atol, step,
-                                                 max_steps, t_msg)
-            if t_msg is not None:
-                solver_stats["failure_time"] = t_msg
+                xs, solver_stats = self.kind.keep_partial(self, name, grid, x0, z0, rtol,
+                                                          atol, step, max_steps,
+                                                          captured.text, projection)
         solve_seconds = time.perf_counter() - t0 - self._setup_seconds
         stats.update(solver_stats)
         stats["solve_seconds"] = solve_seconds
@@ -365,29 +368,22 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
         stats["build_seconds"] = self.build_seconds
         stats.update({k: v for k, v in model.report_dict.items() if k != "build_seconds"})
         n_ok = xs.shape[0]
-        result = self._post(grid[:n_ok], xs[:, :nq], xs[:, nq:], stats)
+        result = self.post.outputs(grid[:n_ok], xs[:, :nq], xs[:, nq:], stats)
         if failure is None:  # a value that is not finite: stops naming it and the time
-            self._check_finite(result)
-            if integ.INTEGRATORS[name].fixed_step:  # no error control: watch the energy
-                mech = model.mechanism
-                params = dict(zip(mech.parameters, np.ravel(model.p), strict=False)) \
-                    if len(np.ravel(model.p)) == len(mech.parameters) else None
-                check_energy(result, mech, f"fixed-step {name} (h = "
-                             f"{stats.get('step_size', step):.3g})", truncated, params)
-            else:  # error control, but a loose tolerance may still let the energy explode
-                mech = model.mechanism
-                params = dict(zip(mech.parameters, np.ravel(model.p), strict=False)) \
-                    if len(np.ravel(model.p)) == len(mech.parameters) else None
-                check_energy_blowup(result, mech, f"{name} (rtol = {rtol:g})", truncated,
-                                    params)
-        self._check_violation(result)  # beyond the tolerance: stops naming the culprit
+            self.post.check_finite(result)
+            mech = model.mechanism  # the energy: watched as the integrator needs
+            params = dict(zip(mech.parameters, np.ravel(model.p), strict=False)) \
+                if len(np.ravel(model.p)) == len(mech.parameters) else None
+            integ.INTEGRATORS[name].check_energy(result, mech, truncated, params, rtol,
+                                                 stats.get("step_size", step))
+        self.post.check_violation(result)  # beyond the tolerance: stops naming the culprit
         if failure is not None:
             t_fail = float(solver_stats.get("failure_time", grid[n_ok - 1]))
             match = _FLAG.search(str(failure))
             flag = match.group(1) if match else type(failure).__name__
             msg = captured.last_line or (str(failure).strip().splitlines()[-1]
                                          if str(failure).strip() else flag)
-            why = self._diagnose(result, t_fail)
+            why = self.post.diagnose(result, t_fail)
             if not why or why.startswith("; at t ≈"):  # no non-finite value: the stiffest
                 why = self._stiffness_culprit(result, t_fail, rtol, t_end) + why
             raise IntegratorError(
@@ -419,7 +415,7 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
         An explicit multistep method (Adams) needs about max(−Re λ) · (t_end − t_start) steps
         to stay stable whatever the tolerance; BDF does not (Hairer & Wanner, stiff problems).
         """
-        if self.formulation.kind != "ode" or len(x0) > STIFF_CHECK_MAX:
+        if self.kind.ode_right_hand_side(self.dyn) is None or len(x0) > STIFF_CHECK_MAX:
             return None
         p = self._params()
 
@@ -441,16 +437,43 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
         return float(max(0.0, np.max(-np.linalg.eigvals(jac).real, initial=0.0)))
 
     def _integrate(self, name, grid, x0, z0, rtol, atol, projection, step, max_steps):
-        if self.formulation.kind == "numeric":
-            return numeric_run.integrate(self, name, grid, x0, rtol, atol, max_steps,
-                                          projection=projection)
-        if integ.INTEGRATORS[name].compiled:  # adaptive steps in compiled blocks (DOPRI5)
-            return self._compiled_run(name, grid, x0, rtol, atol, max_steps, projection)
-        if projection:
-            return self._interval_by_interval(name, grid, x0, z0, rtol, atol, step, max_steps,
-                                              project=True)
-        if integ.INTEGRATORS[name].fixed_step:
-            return self._fixed_step(name, grid, x0, step, project=False)
+        """The formulation's run (:meth:`FormulationKind.integrate`): on the compiled
+        dynamics by the integrator (:meth:`integrate_compiled`) or a numeric right-hand
+        side (:meth:`integrate_numeric`)."""
+        return self.kind.integrate(self, name, grid, x0, z0, rtol, atol, projection, step,
+                                   max_steps)
+
+    def integrate_compiled(self, name, grid, x0, z0, rtol, atol, projection, step,
+                           max_steps):
+        """The compiled dynamics stepped by the integrator's kind
+        (:meth:`~casmbd.analysis.integrators.IntegratorKind.integrate`)."""
+        return integ.INTEGRATORS[name].integrate(self, grid, x0, z0, rtol, atol, projection,
+                                                 step, max_steps)
+
+    def integrate_numeric(self, name, grid, x0, rtol, atol, max_steps, projection):
+        """A numeric right-hand side (:func:`casmbd.analysis.numeric_run.integrate`)."""
+        return numeric_run.integrate(self, name, grid, x0, rtol, atol, max_steps,
+                                     projection=projection)
+
+    def partial_numeric(self, name, grid, x0, rtol, atol, max_steps):
+        """The outputs of a numeric run before its failure."""
+        return numeric_run.partial(self, name, grid, x0, rtol, atol, max_steps)
+
+    def partial_compiled(self, name, grid, x0, z0, rtol, atol, step, max_steps,
+                         solver_text: str, projection: bool):
+        """The outputs of a compiled run before its failure (:meth:`_partial`)."""
+        # SUNDIALS names the failure time; on the one-call grid run it is absolute time
+        when = _AT_T.search(solver_text)
+        t_msg = float(when.group(1)) if when and not projection else None
+        xs, solver_stats = self._partial(name, grid, x0, z0, rtol, atol, step, max_steps,
+                                         t_msg)
+        if t_msg is not None:
+            solver_stats["failure_time"] = t_msg
+        return xs, solver_stats
+
+    def one_call(self, name, grid, x0, z0, rtol, atol, max_steps):
+        """A SUNDIALS method over the whole output grid in one call (a progress bar per
+        output interval when enabled: the same steps and numbers)."""
         if progress.enabled():  # a bar per output interval, the same steps and numbers
             clocked = self._solver(
                 (name, tuple(grid), rtol, atol, max_steps, "clock"),
@@ -554,8 +577,7 @@ class Simulators:
         sim = Simulator(mech, formulation, inputs=inputs, mode=mode,
                         formulation_options=formulation_options, redundancy=redundancy)
         self.built += 1
-        by_values = sim.formulation_name == "augmented_lagrangian" and \
-            "penalty" not in dict(formulation_options or {})
+        by_values = sim.kind.built_from_values(dict(formulation_options or {}))
         while len(self._found) >= self.MAX:  # oldest first
             self._found.pop(next(iter(self._found)))
         self._found[self._key(mech, by_values)] = sim
@@ -631,8 +653,8 @@ def simulate(mechanism, t_end: float, steps: int, *, formulation: str | None = N
             else rest_velocity)
         # beyond the tolerance the run stops naming the culprit, as without events (the
         # base simulator is the one of the open phases, kept by ``simulators``)
-        simulators(mechanism)._check_finite(result)
-        simulators(mechanism)._check_violation(result)
+        simulators(mechanism).post.check_finite(result)
+        simulators(mechanism).post.check_violation(result)
         return result
     sim = Simulator(mechanism, formulation, inputs=inputs, mode=mode,
                     formulation_options=formulation_options, redundancy=redundancy)

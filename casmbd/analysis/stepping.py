@@ -13,9 +13,8 @@ import numpy as np
 
 from casmbd import progress
 from casmbd.analysis import integrators as integ
-from casmbd.analysis import numeric_run
 from casmbd.analysis.assembly import assemble
-from casmbd.analysis.kkt import accelerations_and_multipliers, project_velocities
+from casmbd.analysis.kkt import project_velocities
 from casmbd.compiled.model import _c_name
 from casmbd.errors import IntegratorError
 from casmbd.interrupts import reraise_interrupt
@@ -47,13 +46,11 @@ class Stepping:
                 "error_test_failures": int(st.get("netfails", 0)),
                 "nonlinear_iterations": int(st.get("nniters", 0))}
 
-    def _interval_by_interval(self, name, grid, x0, z0, rtol, atol, step, max_steps,
+    def interval_by_interval(self, name, grid, x0, z0, rtol, atol, step, max_steps,
                               project: bool):
         interval = grid[1] - grid[0]
         nq = self.model.nq
         shifted = self._solver("shifted", lambda: integ.shifted(self.dyn))
-        if integ.INTEGRATORS[name].fixed_step:
-            return self._fixed_step(name, grid, x0, step, project=True)
         solver = self._solver(
             (name, "interval", interval, rtol, atol, max_steps),
             lambda: integ.sundials(shifted, name, 0.0, [interval], rtol, atol, max_steps))
@@ -80,13 +77,11 @@ class Stepping:
                 q = assemble(model, x[:nq], t).q
                 v = project_velocities(model, q, x[nq:], t)
                 x = np.concatenate([q, v])
-                if self.formulation.kind == "dae":
-                    a, lam = accelerations_and_multipliers(model, q, v, t, self.inputs_at(t))
-                    z = self._z0(q, a, lam)
+                z = self.algebraic_state_at(q, v, t)
             xs.append(x)
         return np.vstack(xs), totals
 
-    def _fixed_step(self, name, grid, x0, step, project: bool):
+    def fixed_steps(self, name, grid, x0, step, project: bool):
         """RK4 / ABM4 over the output grid in compiled chunks; optional projection.
 
         A non-finite state stops the run with an :class:`IntegratorError` that keeps the
@@ -121,8 +116,10 @@ class Stepping:
             state = runner.advance(state, p, h, n_sub)
             x = state.x(nx)
             if not np.all(np.isfinite(x)):
-                partial = self._post(grid[:k + 1], np.vstack(xs)[:, :nq], np.vstack(xs)[:, nq:],
-                                     {"formulation": self.formulation_name, "integrator": name})
+                partial = self.post.outputs(grid[:k + 1], np.vstack(xs)[:, :nq],
+                                            np.vstack(xs)[:, nq:],
+                                            {"formulation": self.formulation_name,
+                                             "integrator": name})
                 raise IntegratorError(
                     f"fixed-step {name} (h = {h:.3g}) produced non-finite states between "
                     f"t = {grid[k]:.6g} and {grid[k + 1]:.6g}; results kept up to "
@@ -136,7 +133,7 @@ class Stepping:
             pbar.update()
         return xs, state
 
-    def _compiled_run(self, name, grid, x0, rtol, atol, max_steps, project: bool):
+    def compiled_blocks(self, name, grid, x0, rtol, atol, max_steps, project: bool):
         """An adaptive method in compiled blocks (DOPRI5, :mod:`casmbd.analysis.dopri`) over
         the output grid, each step clipped to the next output; optional projection (then a
         restart with the same step size).  A failure raises an :class:`IntegratorError` that
@@ -167,8 +164,9 @@ class Stepping:
                     pbar.update()
         except IntegratorError as exc:
             xv = np.vstack(xs)
-            partial = self._post(grid[:k + 1], xv[:, :nq], xv[:, nq:],
-                                 {"formulation": self.formulation_name, "integrator": name})
+            partial = self.post.outputs(grid[:k + 1], xv[:, :nq], xv[:, nq:],
+                                        {"formulation": self.formulation_name,
+                                         "integrator": name})
             raise IntegratorError(f"{exc}; results kept up to t = {grid[k]:.6g}", exc.time,
                                   exc.flag, partial) from None
         return np.vstack(xs), state.stats()
@@ -183,9 +181,7 @@ class Stepping:
         reproduces the failed run up to its last output before ``t_fail``.  Otherwise (or if
         that re-run fails too) the run is repeated interval by interval.
         """
-        if self.formulation.kind == "numeric":
-            return numeric_run.partial(self, name, grid, x0, rtol, atol, max_steps)
-        if t_fail is not None and not integ.INTEGRATORS[name].fixed_step:
+        if integ.INTEGRATORS[name].repeats_before(t_fail):
             kept = grid[grid < t_fail]
             if len(kept) <= 1:  # failed in the first interval (or at its start)
                 return np.asarray(x0, float)[None, :], {}

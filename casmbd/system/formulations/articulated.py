@@ -48,5 +48,8 @@ class Articulated(FormulationKind):
                   **options) -> Formulation:
         return articulated(system, inputs=inputs, **options)
 
+    def default_reason(self, system: System) -> str:
+        return "default: the articulated-body recursion (a tree in joint coordinates)"
+
     def preferred_for(self, system: System) -> bool:
         return system.coordinates == "joint" and supported(system) is None

@@ -292,3 +292,7 @@ class AugmentedLagrangian(FormulationKind):
     def equations(self, system: System, inputs: ca.SX | None = None,
                   **options) -> Formulation:
         return augmented_lagrangian(system, inputs=inputs, **options)
+
+    def built_from_values(self, options: dict) -> bool:
+        """The default penalty is computed from the parameter values at build time."""
+        return "penalty" not in options

@@ -18,7 +18,7 @@ from typing import ClassVar
 import casadi as ca
 import numpy as np
 
-from casmbd.errors import ModelError, UnknownMethodError
+from casmbd.errors import AnalysisError, ModelError, UnknownMethodError
 from casmbd.system.equations import System
 
 
@@ -67,6 +67,8 @@ class FormulationKind:
         numeric formulations choose their independent equations themselves: False).
     kept_redundancy : str
         What ``stats["redundancy"]`` says when the redundant equations are kept.
+    max_steps : int
+        The integrator steps allowed per run when none is given.
     """
 
     name: str = ""
@@ -76,6 +78,8 @@ class FormulationKind:
     keeps_redundant: bool = False
     removes_redundant: bool = True
     kept_redundancy: str = "kept: independent coordinates chosen by rank"
+    #: the integrator steps allowed per run when ``max_steps`` is not given
+    max_steps: int = 500_000
     #: the needs of elements it meets (casmbd.model.needs; by default no events and no
     #: reaction-dependent forces); ``refuses``: need -> why not; ``instead``: need -> advice
     handles: frozenset = frozenset({"modal_coordinates", "drivers", "inputs"})
@@ -108,10 +112,70 @@ class FormulationKind:
         multipliers ``lam``: (q̈, λ) for a DAE, empty otherwise."""
         return np.concatenate([a, lam]) if self.kind == "dae" else np.zeros(0)
 
+    def ode_right_hand_side(self, function):
+        """``function`` (the dynamics, or its compiled twin) when this formulation is an
+        explicit ODE ẋ = f(t, x) — its q̈ then serves the post-processing of an
+        unconstrained system and its Jacobian the stiffness check — else None."""
+        return function if self.kind == "ode" else None
+
+    def algebraic_state(self, accelerations_and_multipliers, kept_multipliers) -> np.ndarray:
+        """The algebraic state z at a consistent state: :meth:`initial_algebraic` of
+        (q̈, λ) = ``accelerations_and_multipliers()`` with λ mapped by ``kept_multipliers``
+        onto the rows integrated (redundant rows removed); the empty array, with neither
+        called, for a formulation without algebraic states (ODE, numeric)."""
+        if self.kind != "dae":
+            return np.zeros(0)
+        a, lam = accelerations_and_multipliers()
+        return self.initial_algebraic(a, kept_multipliers(lam))
+
+    def hot_functions(self, names: list[str]) -> list[str] | None:
+        """The compiled Functions called at every step (``names``: the dynamics and the
+        integrator's own stepping), compiled at -O2; None for a numeric right-hand side,
+        which calls the model's functions from Python (all at the default level)."""
+        return None if self.kind == "numeric" else names
+
+    def integrate(self, runs, name: str, grid, x0, z0, rtol: float, atol: float,
+                  projection: bool, step, max_steps: int):
+        """``(xs, stats)`` on the output ``grid`` from (x0, z0): the compiled dynamics of the
+        simulator ``runs`` stepped by the integrator ``name``
+        (:meth:`~casmbd.analysis.integrators.IntegratorKind.integrate`)."""
+        return runs.integrate_compiled(name, grid, x0, z0, rtol, atol, projection, step,
+                                       max_steps)
+
+    def keep_partial(self, runs, name: str, grid, x0, z0, rtol: float, atol: float, step,
+                     max_steps: int, solver_text: str, projection: bool):
+        """``(xs, stats)``: the outputs before a failed :meth:`integrate` (``solver_text``:
+        what the integrator printed, naming the failure time of a one-call run)."""
+        return runs.partial_compiled(name, grid, x0, z0, rtol, atol, step, max_steps,
+                                     solver_text, projection)
+
+    @property
+    def event_integrator(self) -> str:
+        """The integrator of an event-driven run when none is named: IDAS for a DAE,
+        Adams otherwise."""
+        return "idas" if self.kind == "dae" else "adams"
+
+    def refuse_events(self) -> None:
+        """Raise :class:`~casmbd.errors.AnalysisError` when an event-driven run (impacts,
+        stops, stick-slip) cannot use this formulation: a numeric right-hand side has no
+        compiled dynamics to find roots on."""
+        if self.kind not in ("ode", "dae"):
+            raise AnalysisError(f"formulation '{self.name}': events need a compiled ODE or "
+                                "DAE formulation (not a numeric right-hand side)")
+
     def failure_hint(self, flag: str, rtol: float) -> str:
         """Advice appended to an integrator failure of this formulation (the SUNDIALS
         ``flag`` at relative tolerance ``rtol``); none by default."""
         return ""
+
+    def default_reason(self, system: System) -> str:
+        """Why this formulation, taken by default for ``system`` (``stats``)."""
+        return f"default: {self.name} (constraint equations: {system.nc})"
+
+    def built_from_values(self, options: dict) -> bool:
+        """Whether the equations built with ``options`` hold the parameters' values at build
+        time (not only their symbols), so that a simulator serves these values only."""
+        return False
 
     def preferred_for(self, system: System) -> bool:
         """Whether this formulation is the default for ``system`` (checked in registration

@@ -14,6 +14,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from casmbd.errors import AnalysisError
 from casmbd.model.needs import ALL_NEEDS, EVENT_NEEDS
 from casmbd.system.equations import System
 from casmbd.system.formulations.base import (
@@ -92,6 +93,13 @@ class Ggl(FormulationKind):
     def equations(self, system: System, inputs: ca.SX | None = None,
                   **options) -> Formulation:
         return ggl(system, inputs=inputs, **options)
+
+    def refuse_events(self) -> None:
+        """No event-driven run: after an impact IDAS cannot make the index-2 start
+        consistent."""
+        raise AnalysisError(f"formulation '{self.name}': its index-2 start cannot be made "
+                            "consistent after an impact by IDAS; with contacts and stops use "
+                            "'index1' (or the default)")
 
     def initial_algebraic(self, a: np.ndarray, lam: np.ndarray) -> np.ndarray:
         """(q̈, λ, μ) with μ = 0: the velocity correction vanishes at a consistent start."""

@@ -30,6 +30,20 @@ class NumericFormulation(FormulationKind):
     kind = "numeric"
     keeps_redundant = True
     removes_redundant = False
+    #: numeric right-hand sides are ~100x dearer: fail in seconds, not minutes
+    max_steps = 20_000
+
+    def integrate(self, runs, name: str, grid, x0, z0, rtol: float, atol: float,
+                  projection: bool, step, max_steps: int):
+        """Output interval by output interval on this right-hand side
+        (:mod:`casmbd.analysis.numeric_run`, through the simulator ``runs``)."""
+        return runs.integrate_numeric(name, grid, x0, rtol, atol, max_steps, projection)
+
+    def keep_partial(self, runs, name: str, grid, x0, z0, rtol: float, atol: float, step,
+                     max_steps: int, solver_text: str, projection: bool):
+        """The intervals before the failure (the run's times are shifted: the integrator's
+        message names no absolute failure time)."""
+        return runs.partial_numeric(name, grid, x0, rtol, atol, max_steps)
 
     def equations(self, system: System, inputs: ca.SX | None = None,
                   **options) -> Formulation:
