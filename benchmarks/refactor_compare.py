@@ -480,6 +480,12 @@ def _text_difference(a: str, b: str) -> str:
     return f"{json.dumps(x)[:100]} vs {json.dumps(y)[:100]}"
 
 
+def _rooted(text: str) -> str:
+    """``text`` with both path tokens as one: a record made with the scenes of another tree
+    (``<scenes>``) and one made in the checkout itself (``<casmbd>``) name the same files."""
+    return text.replace("<scenes>", "<root>").replace("<casmbd>", "<root>")
+
+
 def compare_runs(a: dict[str, np.ndarray], b: dict[str, np.ndarray],
                  ignore: list[str]) -> list[tuple[str, str]]:
     """Differences between two runs: (key, how), empty when identical."""
@@ -490,9 +496,11 @@ def compare_runs(a: dict[str, np.ndarray], b: dict[str, np.ndarray],
         if key not in a or key not in b:
             out.append((key, "only in " + ("A" if key in a else "B")))
             continue
-        how = _array_difference(a[key], b[key]) if key.startswith("array/") else (
-            None if np.array_equal(a[key], b[key]) else _text_difference(str(a[key]),
-                                                                         str(b[key])))
+        if key.startswith("array/"):
+            how = _array_difference(a[key], b[key])
+        else:  # a path under the scene root or the checkout: the same file either way
+            ta, tb = (_rooted(str(x[key])) for x in (a, b))
+            how = None if ta == tb else _text_difference(ta, tb)
         if how:
             out.append((key, how))
     return out
