@@ -19,7 +19,7 @@ from casmbd.analysis.simulate import simulate
 from casmbd.cli import main
 from casmbd.errors import AnalysisError, ResultFileError
 from casmbd.io.scene import loads_scene
-from casmbd.results import load
+from casmbd.io.scene import load_result as load
 
 SCENE = """
 [scene]

@@ -46,7 +46,7 @@ from typing import Any
 
 from casmbd import results
 from casmbd.analysis.events import MAX_EVENTS_LIMIT, SIMULATION_KEYS
-from casmbd.compiled import modal_cache  # noqa: F401 (registers the on-disk store of modes)
+from casmbd.compiled.modal_cache import DISK_STORE
 from casmbd.errors import CasmbdError, ExpressionError, ModelError, SceneError
 from casmbd.io.files import read_text
 from casmbd.io.scene_points import ScenePoints
@@ -345,6 +345,7 @@ def _build(data: dict, source: str) -> Mechanism:
         out = [_Entry(table, i, item, params) for i, item in enumerate(raw)]
         for entry in out:  # files named by an entry (a flexible body's [bodies.fe]) are
             entry.base_dir = base_dir  # relative to the scene file
+            entry.modal_store = DISK_STORE  # a flexible body's modes, cached on disk
         return out
 
     for e in entries("bodies"):  # each kind reads its own keys (casmbd.model.registry)
@@ -604,6 +605,7 @@ def loads_scene(text: str, source: str = "<string>") -> Mechanism:
     mech.scene_text = _portable(text, data, source)
     mech.scene_data = data
     mech.scene_points = ScenePoints(text, source, loads_scene)  # sweeps re-read it per point
+    mech.scene_reader = loads_scene  # a Result of this mechanism reads its scene back with it
     return mech
 
 
@@ -621,6 +623,14 @@ def load_scene(path: str | os.PathLike) -> Mechanism:
     return loads_scene(text, source=str(path))
 
 
-# Result.mechanism() parses a result's embedded scene with this module's reader (casmbd.results
-# sits below io and cannot import it)
-results.register_scene_reader(loads_scene)
+def load_result(path: str | os.PathLike) -> results.Result:
+    """Read a result file (:func:`casmbd.results.load`) with this module's scene reader, so
+    that :meth:`~casmbd.results.Result.mechanism` can read the embedded scene (``results`` sits
+    below ``io`` and cannot import it: the reader is passed in, never registered)."""
+    result = results.load(path)
+    result.scene_reader = loads_scene
+    return result
+
+
+#: ``casmbd.load``
+load = load_result
