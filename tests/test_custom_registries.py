@@ -9,6 +9,7 @@ shipped registries only."""
 
 from __future__ import annotations
 
+import itertools
 import pathlib
 import runpy
 
@@ -51,6 +52,6 @@ def test_trapezoidal_collocation_converges_at_second_order(trapezoidal):
                and s.stats["degree"] is None for s in sols)
     errors = [s.objective - reference for s in sols]
     assert all(e > 0 for e in errors)
-    for coarse, fine in zip(errors, errors[1:], strict=False):
+    for coarse, fine in itertools.pairwise(errors):
         assert 3.0 < coarse / fine < 6.0, errors
     assert errors[-1] < 3e-3 * reference
