@@ -3,6 +3,8 @@
 
 * a transcription method, ``examples/custom_transcription.py`` (trapezoidal collocation,
   :func:`casmbd.ocp.methods.register_transcription`);
+* a command-line verb, ``examples/custom_verb.py`` (``casmbd mass_properties``,
+  :func:`casmbd.cli.registry.register_verb`);
 
 each run as a script would run it, then removed from its registry so that other tests see the
 shipped registries only."""
@@ -10,11 +12,14 @@ shipped registries only."""
 from __future__ import annotations
 
 import itertools
+import json
 import pathlib
 import runpy
 
 import pytest
 
+from casmbd import cli
+from casmbd.cli import registry
 from casmbd.errors import AnalysisError, ModelError
 from casmbd.ocp import methods
 
@@ -55,3 +60,64 @@ def test_trapezoidal_collocation_converges_at_second_order(trapezoidal):
     for coarse, fine in itertools.pairwise(errors):
         assert 3.0 < coarse / fine < 6.0, errors
     assert errors[-1] < 3e-3 * reference
+
+
+@pytest.fixture(scope="module")
+def mass_verb():
+    space = runpy.run_path(str(EXAMPLES / "custom_verb.py"), run_name="custom_verb_example")
+    yield space
+    registry.VERBS.pop("mass_properties")
+    registry.VERB_PARSERS.pop("mass_properties")
+
+
+SCENE = """[scene]
+name = "three"
+dimension = 3
+
+[parameters]
+k = 1.5
+
+[[bodies]]
+name = "a"
+mass = 1.0
+inertia = [0.1, 0.1, 0.1]
+position = [0.0, 0.0, 0.0]
+
+[[bodies]]
+name = "b"
+mass = "2 * k"
+inertia = [0.1, 0.1, 0.1]
+position = [1.0, 2.0, 0.0]
+
+[[bodies]]
+name = "c"
+mass = 2.0
+inertia = [0.1, 0.1, 0.1]
+position = [0.0, -1.0, 4.0]
+"""
+
+
+def test_a_verb_is_one_function_and_its_registration(mass_verb, tmp_path, capsys):
+    """``casmbd mass_properties``: m = 1 + 2·1.5 + 2 = 6 kg and r_G = (1·0 + 3·1 + 2·0,
+    1·0 + 3·2 − 2·1, 1·0 + 3·0 + 2·4) / 6 = (0.5, 0.6667, 1.3333) m (1e-12); ``--body``
+    restricts the sum; --json prints exactly one JSON object; a wrong body is one ``error:``
+    line (exit 1), an unknown option a usage error (exit 2); ``--help`` lists the verb."""
+    scene = tmp_path / "three.toml"
+    scene.write_text(SCENE)
+    assert cli.main(["mass_properties", str(scene), "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["mass"] == pytest.approx(6.0, abs=1e-12)
+    assert data["centre_of_mass"] == pytest.approx([0.5, 4.0 / 6.0, 8.0 / 6.0], abs=1e-12)
+    assert cli.main(["mass_properties", str(scene), "--json", "--body", "b",
+                     "--body", "c"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["mass"] == pytest.approx(5.0, abs=1e-12)
+    assert data["centre_of_mass"] == pytest.approx([0.6, 0.8, 1.6], abs=1e-12)
+    assert cli.main(["mass_properties", str(scene), "--body", "nope"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "no body 'nope'" in err[0]
+    assert cli.main(["mass_properties", str(scene), "--bogus"]) == 2
+    capsys.readouterr()
+    assert "mass_properties" in cli.build_parser().format_help()
+    with pytest.raises(ModelError, match="already registered"):
+        registry.register_verb("mass_properties", mass_verb["_run"])
