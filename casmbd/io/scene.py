@@ -59,6 +59,7 @@ from casmbd.limits import (
     check_count,
 )
 from casmbd.model import Mechanism, measures
+from casmbd.model.contacts import CONTACT_SHAPES
 from casmbd.model.expressions import evaluate_number, parse_expression
 from casmbd.model.joint_friction import joint_friction_from_scene
 from casmbd.model.registry import BODY_KINDS, FORCE_KINDS, JOINT_KINDS
@@ -412,24 +413,21 @@ def _build(data: dict, source: str) -> Mechanism:
         e.check_keys({"name", "type", "description"} | force_kind.scene_keys)
         guarded(e, lambda force_kind=force_kind, e=e: force_kind.from_scene(mech, e))
 
-    for e in entries("contacts"):
-        e.check_keys(_CONTACT_KEYS)
+    for e in entries("contacts"):  # each shape reads its own keys (CONTACT_SHAPES)
+        e.check_keys(_CONTACT_KEYS.union(*(getattr(k, "scene_keys", ())
+                                           for k in CONTACT_SHAPES.values())))
         ctype = e.string("type", default="plane")
-        if ctype not in ("plane", "sphere"):
-            raise e.error("type", f"unknown contact type {ctype!r} (allowed: plane, sphere)")
+        if ctype not in CONTACT_SHAPES:
+            raise e.error("type", f"unknown contact type {ctype!r} (allowed: "
+                          f"{', '.join(CONTACT_SHAPES)})")
         compliant = {k: e.number(k) for k in (*_COMPLIANT_KEYS, "rest_velocity")
                      if e.has(k)}
-        if ctype == "plane":  # against a ground plane, or (sphere) another body's sphere
-            other = {"origin": e.vector("origin", dim, default=[0.0] * dim),
-                     "normal": e.vector("normal", dim, required=False)}
-        else:
-            other = {"body2": e.string("body2"), "point2": e.vector("point2", dim),
-                     "radius2": e.number("radius2", 0.0)}
-        guarded(e, lambda e=e, compliant=compliant, other=other: mech.add_contact(
+        other = CONTACT_SHAPES[ctype].scene_args(e, dim)
+        guarded(e, lambda e=e, compliant=compliant, other=other, ctype=ctype: mech.add_contact(
             _name(e), e.string("body"), e.vector("point", dim),
             radius=e.number("radius", 0.0), model=e.string("model", default="impact"),
             restitution=e.value("restitution", 0.0), friction=e.number("friction", 0.0),
-            **other, **compliant))
+            shape=ctype, **other, **compliant))
 
     for e in entries("actuators"):
         e.check_keys(_ACTUATOR_KEYS)
