@@ -5,6 +5,8 @@
   :func:`casmbd.ocp.methods.register_transcription`);
 * a command-line verb, ``examples/custom_verb.py`` (``casmbd mass_properties``,
   :func:`casmbd.cli.registry.register_verb`);
+* a contact shape, ``examples/custom_contact.py`` (a sphere against a fixed dome,
+  :func:`casmbd.model.contacts.register_contact_shape`);
 
 each run as a script would run it, then removed from its registry so that other tests see the
 shipped registries only."""
@@ -16,11 +18,14 @@ import json
 import pathlib
 import runpy
 
+import numpy as np
 import pytest
 
+import casmbd
 from casmbd import cli
 from casmbd.cli import registry
 from casmbd.errors import AnalysisError, ModelError
+from casmbd.model import contacts
 from casmbd.ocp import methods
 
 EXAMPLES = pathlib.Path(__file__).resolve().parent.parent / "examples"
@@ -121,3 +126,33 @@ def test_a_verb_is_one_function_and_its_registration(mass_verb, tmp_path, capsys
     assert "mass_properties" in cli.build_parser().format_help()
     with pytest.raises(ModelError, match="already registered"):
         registry.register_verb("mass_properties", mass_verb["_run"])
+
+
+@pytest.fixture(scope="module")
+def dome():
+    space = runpy.run_path(str(EXAMPLES / "custom_contact.py"), run_name="custom_contact_example")
+    yield space
+    contacts.CONTACT_SHAPES.pop("dome")
+
+
+def test_a_contact_shape_is_one_class_and_its_registration(dome):
+    """A ball (r = 0.1 m) dropped from 0.9 m above a dome (R = 1 m) with e = 0.5: the impact at
+    t_i = sqrt(2 · 0.9 / g) = 0.428353 s (1e-7 s) and the height at 0.6 s after the rebound
+    y = 1.1 + e g t_i (t − t_i) − g (t − t_i)² / 2 = 1.316128 m (1e-6 m; measured 1e-7:
+    the integrator's tolerance); the scene and the Python build give the same run (0)."""
+    assert list(contacts.CONTACT_SHAPES) == ["plane", "sphere", "dome"]
+    scene = casmbd.loads_scene(dome["SCENE"])
+    res = casmbd.simulate(scene, t_end=0.6, steps=60, mode="vm")
+    same = casmbd.simulate(dome["python_mechanism"](), t_end=0.6, steps=60, mode="vm")
+    np.testing.assert_array_equal(res["q"], same["q"])
+    g, e = 9.81, 0.5
+    t_i = np.sqrt(2 * 0.9 / g)
+    impacts = [ev["time"] for ev in res.events if ev["kind"] == "impact"]
+    assert len(impacts) == 1 and impacts[0] == pytest.approx(t_i, abs=1e-7)
+    t = res.t[-1] - t_i
+    y = 1.1 + e * g * t_i * t - g * t * t / 2
+    assert res.body("ball")["position"][-1, 1] == pytest.approx(y, abs=1e-6)
+    with pytest.raises(casmbd.SceneError, match=r"unknown contact type 'cone'.*dome"):
+        casmbd.loads_scene(dome["SCENE"].replace('type = "dome"', 'type = "cone"'))
+    with pytest.raises(ModelError, match="already registered"):
+        contacts.register_contact_shape(dome["DomeContact"])

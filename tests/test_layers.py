@@ -159,6 +159,7 @@ REGISTRIES = {
     "joint kinds": ("casmbd.model", "casmbd.model.registry.JOINT_KINDS"),
     "force element kinds": ("casmbd.model", "casmbd.model.registry.FORCE_KINDS"),
     "body kinds": ("casmbd.model", "casmbd.model.registry.BODY_KINDS"),
+    "contact shapes": ("casmbd.model", "casmbd.model.contacts.CONTACT_SHAPES"),
     "body descriptions": ("casmbd.system", "casmbd.system.descriptions.DESCRIPTIONS"),
     "formulations": ("casmbd.system.formulations", "casmbd.system.formulations.FORMULATIONS"),
     "integrators": ("casmbd.analysis.integrators", "casmbd.analysis.integrators.INTEGRATORS"),
