@@ -49,7 +49,7 @@ _LAZY = {
     "load_scene": "casmbd.io.scene", "loads_scene": "casmbd.io.scene",
     "load_urdf": "casmbd.io.urdf", "loads_urdf": "casmbd.io.urdf",
     "Mechanism": "casmbd.model",
-    "Result": "casmbd.results", "load": "casmbd.results", "load_result": "casmbd.results",
+    "Result": "casmbd.results", "load": "casmbd.io.scene", "load_result": "casmbd.io.scene",
     "System": "casmbd.system",
     "view": "casmbd.viz.view_server",
 }
@@ -60,14 +60,12 @@ _SUBMODULES = ("analysis", "cli", "compiled", "io", "model", "ocp", "results", "
 def __getattr__(name: str):
     """Import the module of a public name on first use (PEP 562) and keep the value.
 
-    The scene reader that :meth:`Result.mechanism` uses is registered by
-    :mod:`casmbd.io.scene` when it is imported, so it is imported with every public name.
+    ``load``/``load_result`` are :func:`casmbd.io.scene.load_result`: the result they read
+    carries the scene reader :meth:`Result.mechanism` uses (passed in, never registered).
     """
     if name in _LAZY:
-        importlib.import_module("casmbd.io.scene")
         value = getattr(importlib.import_module(_LAZY[name]), name)
     elif name in _SUBMODULES:
-        importlib.import_module("casmbd.io.scene")
         value = importlib.import_module(f"casmbd.{name}")
     else:
         raise AttributeError(f"module 'casmbd' has no attribute {name!r}")

@@ -76,20 +76,6 @@ _REACTIONS = {3: ("Fx", "Fy", "M"), 6: ("Fx", "Fy", "Fz", "Mx", "My", "Mz")}
 _EQUATION = re.compile(r"^(\w+) '(.*)' equation '(.*)'$")
 
 
-#: Reads a result's embedded scene text into a Mechanism (``reader(text, source=...)``).
-#: Scene parsing lives in :mod:`casmbd.io`, a layer above this one (the analyses below io
-#: build Results), so :mod:`casmbd.io.scene` registers its ``loads_scene`` here when it is
-#: imported (``import casmbd`` does) instead of this module importing it.
-_SCENE_READER: Callable[..., object] | None = None
-
-
-def register_scene_reader(reader: Callable[..., object]) -> None:
-    """Set the reader :meth:`Result.mechanism` parses embedded scene text with (called by
-    :mod:`casmbd.io.scene` on import)."""
-    global _SCENE_READER
-    _SCENE_READER = reader
-
-
 @dataclass
 class Result:
     """Arrays of an analysis on a time grid.
@@ -125,6 +111,12 @@ class Result:
     #: ``{"time": float, "element": str, "kind": str}`` (impact, limit, contact, detach,
     #: stick, slip)
     events: list = field(default_factory=list)
+    #: reads :attr:`scene` into a Mechanism (``reader(text, source=...)``), given by whoever
+    #: knows the scene format: scene parsing lives in :mod:`casmbd.io`, a layer above this one,
+    #: so :func:`casmbd.io.scene.load_result` (``casmbd.load``) and :meth:`attach_scene` (from a
+    #: mechanism read by :func:`casmbd.io.scene.loads_scene`) pass it in; nothing registers it
+    scene_reader: Callable[..., object] | None = field(default=None, repr=False,
+                                                       compare=False)
 
     def __getitem__(self, key: str) -> np.ndarray:
         return self.t if key == "t" else self.arrays[key]
@@ -444,27 +436,39 @@ class Result:
         """Read a result written by :meth:`save` (same as :func:`casmbd.results.load`)."""
         return load(path)
 
-    def mechanism(self):
+    def mechanism(self, reader: Callable[..., object] | None = None):
         """The :class:`~casmbd.model.Mechanism` of the scene text embedded in the result.
+
+        Parameters
+        ----------
+        reader : callable, optional
+            ``reader(text, source=...)`` -> Mechanism, e.g. :func:`casmbd.loads_scene`;
+            default :attr:`scene_reader` (set when the result was read by :func:`casmbd.load`
+            or given a scene-loaded mechanism by :meth:`attach_scene`).
 
         Raises
         ------
         AnalysisError
             When the result holds no scene text (built in Python from a mechanism that did not
-            come from a scene file); pass the mechanism explicitly instead.
+            come from a scene file; pass the mechanism explicitly instead), or when no reader
+            is given nor carried (read with :func:`casmbd.results.load`: pass
+            ``reader=casmbd.loads_scene`` or read it with :func:`casmbd.load`).
         """
         if not self.scene:
             raise AnalysisError(f"this {self.kind} result holds no scene text (the mechanism "
                                 "was not loaded from a scene file); pass the mechanism")
-        if _SCENE_READER is None:  # only when casmbd.io.scene was never imported
-            raise AnalysisError("no scene reader registered: import casmbd.io.scene (import "
-                                "casmbd does) to read the scene embedded in a result")
-        return _SCENE_READER(self.scene, source=f"<scene embedded in the {self.kind} result>")
+        reader = reader if reader is not None else self.scene_reader
+        if reader is None:
+            raise AnalysisError(f"this {self.kind} result carries no scene reader: pass one "
+                                "(result.mechanism(casmbd.loads_scene)) or read the file with "
+                                "casmbd.load")
+        return reader(self.scene, source=f"<scene embedded in the {self.kind} result>")
 
     def attach_scene(self, mechanism) -> Result:
         """Embed the scene text of ``mechanism`` (``mechanism.scene_text``, set by
         :func:`casmbd.load_scene`) so that :meth:`save` stores it; returns ``self``."""
         self.scene = getattr(mechanism, "scene_text", "") or self.scene
+        self.scene_reader = getattr(mechanism, "scene_reader", None) or self.scene_reader
         return self
 
     # ------------------------------------------------------------------ CSV

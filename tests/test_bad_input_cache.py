@@ -438,7 +438,8 @@ def test_a_tampered_modal_file_is_recomputed_not_used(_env):
     bit for bit; the file is replaced by a good one."""
     beam = beam_model(2.0, 6, EA=1e6, EI=50.0, rhoA=1.5, nodes={"root": 0.0, "tip": 2.0})
     flexible_bodies._MODES.clear()
-    first = flexible_bodies.modal_data(beam, "craig_bampton", 3, ["root", "tip"])
+    first = flexible_bodies.modal_data(beam, "craig_bampton", 3, ["root", "tip"],
+                                      store=modal_cache.DISK_STORE)
     path = next(_env.glob("modes_*.npz"))
     data = dict(np.load(path, allow_pickle=False))
     data["stiffness"] = data["stiffness"].copy()
@@ -447,7 +448,8 @@ def test_a_tampered_modal_file_is_recomputed_not_used(_env):
     key = str(data["key"])
     assert modal_cache.load_modes(key) is None
     flexible_bodies._MODES.clear()
-    second = flexible_bodies.modal_data(beam, "craig_bampton", 3, ["root", "tip"])
+    second = flexible_bodies.modal_data(beam, "craig_bampton", 3, ["root", "tip"],
+                                      store=modal_cache.DISK_STORE)
     for name in ("positions", "masses", "phi_t", "phi_r", "mass", "stiffness", "frequencies"):
         assert np.array_equal(getattr(first, name), getattr(second, name)), name
     assert np.array_equal(modal_cache.load_modes(key).stiffness, first.stiffness)

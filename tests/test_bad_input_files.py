@@ -18,8 +18,8 @@ from conftest import private_cache
 from casmbd.analysis.simulate import simulate
 from casmbd.cli import main
 from casmbd.errors import AnalysisError, ResultFileError
+from casmbd.io.scene import load_result as load
 from casmbd.io.scene import loads_scene
-from casmbd.results import load
 
 SCENE = """
 [scene]

@@ -150,3 +150,68 @@ def test_the_checker_sees_violations(tmp_path):
     found = _imports("casmbd.model.m", path)
     assert ("casmbd.model", 1, False) in found and ("casmbd.io.scene", 4, True) in found
     assert layer("casmbd.io.scene") > layer("casmbd.model.m")
+
+
+#: every registry: (the package or module that owns it, the dict within it); a name of each
+#: registry must be there right after that import, in a fresh process (issue 33: registries
+#: complete on import, never filled by a side-effect import of another module)
+REGISTRIES = {
+    "joint kinds": ("casmbd.model", "casmbd.model.registry.JOINT_KINDS"),
+    "force element kinds": ("casmbd.model", "casmbd.model.registry.FORCE_KINDS"),
+    "body kinds": ("casmbd.model", "casmbd.model.registry.BODY_KINDS"),
+    "contact shapes": ("casmbd.model", "casmbd.model.contacts.CONTACT_SHAPES"),
+    "body descriptions": ("casmbd.system", "casmbd.system.descriptions.DESCRIPTIONS"),
+    "formulations": ("casmbd.system.formulations", "casmbd.system.formulations.FORMULATIONS"),
+    "integrators": ("casmbd.analysis.integrators", "casmbd.analysis.integrators.INTEGRATORS"),
+    "numeric right-hand sides": ("casmbd.analysis.numeric_run",
+                                 "casmbd.analysis.numeric_run.RIGHT_HAND_SIDES"),
+    "compiled analyses": ("casmbd.compiled", "casmbd.compiled.model.NEEDS"),
+    "transcriptions": ("casmbd.ocp.methods", "casmbd.ocp.methods.TRANSCRIPTIONS"),
+    "verbs": ("casmbd.cli", "casmbd.cli.VERBS"),
+}
+
+_NAMES = """
+import importlib, json, sys
+def names(path):
+    module, _, attr = path.rpartition(".")
+    reg = getattr(sys.modules[module], attr)
+    return sorted(k if isinstance(k, str) else k.__name__ for k in reg)
+"""
+
+
+def _fresh_json(code: str):
+    out = subprocess.run([sys.executable, "-c", _NAMES + code], capture_output=True,
+                         text=True, timeout=300, cwd=PACKAGE.parent)
+    assert out.returncode == 0, out.stderr[-2000:]
+    return __import__("json").loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_every_registry_is_complete_when_its_package_is_imported():
+    """A fresh interpreter that imports only a registry's own package sees every name that a
+    fresh interpreter importing every casmbd module sees (same names, same count)."""
+    modules = sorted(m for m in MODULES if not m.endswith("__main__"))
+    everything = _fresh_json(
+        f"for m in {modules!r}: importlib.import_module(m)\n"
+        f"print(json.dumps({{k: names(p) for k, (_, p) in {REGISTRIES!r}.items()}}))")
+    for label, (package, path) in REGISTRIES.items():
+        alone = _fresh_json(f"importlib.import_module({package!r})\n"
+                            f"print(json.dumps(names({path!r})))")
+        assert alone == everything[label], (
+            f"{label}: importing {package} gives {len(alone)} names, all of casmbd "
+            f"{len(everything[label])}: missing {sorted(set(everything[label]) - set(alone))}")
+        assert alone, f"{label}: empty registry"
+
+
+def test_a_fresh_command_line_offers_every_formulation_and_integrator():
+    """``casmbd simulate --formulation/--integrator`` list every registered name in a fresh
+    process (issue 33: a fresh CLI process offered 5 of the 7 formulations)."""
+    got = _fresh_json(
+        "import casmbd.cli\n"
+        "p = casmbd.cli.build_parser()\n"
+        "sub = next(a for a in p._actions if a.dest == 'verb').choices['simulate']\n"
+        "ch = {a.dest: sorted(a.choices) for a in sub._actions if a.choices}\n"
+        "import casmbd.system.formulations, casmbd.analysis.integrators\n"
+        "print(json.dumps([ch['formulation'], names('casmbd.system.formulations.FORMULATIONS'),"
+        " ch['integrator'], names('casmbd.analysis.integrators.INTEGRATORS')]))")
+    assert got[0] == got[1] and len(got[0]) == 7
+    assert got[2] == got[3]

@@ -23,7 +23,8 @@ def beam():
 
 def test_second_lookup_reads_the_disk(_cache, beam, monkeypatch):
     flexible_bodies._MODES.clear()
-    first = flexible_bodies.modal_data(beam, "craig_bampton", 3, ["root", "tip"])
+    first = flexible_bodies.modal_data(beam, "craig_bampton", 3, ["root", "tip"],
+                                      store=modal_cache.DISK_STORE)
     files = list(_cache.glob("modes_*.npz"))
     assert len(files) == 1
     flexible_bodies._MODES.clear()  # a new process: only the disk remains
@@ -32,7 +33,8 @@ def test_second_lookup_reads_the_disk(_cache, beam, monkeypatch):
         raise AssertionError("the eigenproblem was solved again")
 
     monkeypatch.setattr(flexible_bodies, "reduce", refuse)
-    second = flexible_bodies.modal_data(beam, "craig_bampton", 3, ["root", "tip"])
+    second = flexible_bodies.modal_data(beam, "craig_bampton", 3, ["root", "tip"],
+                                      store=modal_cache.DISK_STORE)
     for name in ("positions", "masses", "inertias", "phi_t", "phi_r", "mass", "stiffness",
                  "frequencies", "rigid_mass"):
         assert np.array_equal(getattr(first, name), getattr(second, name)), name

@@ -105,8 +105,10 @@ def test_unknown_attribute_is_an_attribute_error():
 
 
 def test_a_saved_result_reads_its_scene_after_a_bare_import(tmp_path):
-    """``Result.mechanism()`` needs the scene reader that :mod:`casmbd.io.scene` registers:
-    ``casmbd.load`` brings it along in a fresh interpreter (nothing else imported)."""
+    """``Result.mechanism()`` needs a scene reader, which :mod:`casmbd.results` (below
+    :mod:`casmbd.io`) cannot import: ``casmbd.load`` (:func:`casmbd.io.scene.load_result`)
+    passes it in, in a fresh interpreter (nothing else imported); a result read by the bare
+    ``casmbd.results.load`` carries none and says how to pass one (nothing registers it)."""
     scene = ('[scene]\nname = "one_body"\n\n[[bodies]]\nname = "b"\nmass = 2.5\n'
              'inertia = 0.1\nposition = [0.0, 0.0]\n')
     path = tmp_path / "r.npz"
@@ -115,3 +117,11 @@ def test_a_saved_result_reads_its_scene_after_a_bare_import(tmp_path):
     code = (f"import casmbd\nmech = casmbd.load({str(path)!r}).mechanism()\n"
             f"print(mech.name, mech.bodies['b'].mass)")
     assert _fresh(code) == "one_body 2.5"
+    code = ("import casmbd.results, casmbd.io.scene\n"
+            f"res = casmbd.results.load({str(path)!r})\n"
+            "try:\n    res.mechanism()\nexcept casmbd.errors.AnalysisError as exc:\n"
+            "    print('refused:', exc)\n"
+            "print(res.mechanism(casmbd.io.scene.loads_scene).bodies['b'].mass)")
+    out = _fresh(code).splitlines()
+    assert out[0].startswith("refused:") and "casmbd.loads_scene" in out[0]
+    assert out[1] == "2.5"

@@ -22,8 +22,8 @@ from conftest import private_cache
 from casmbd import cli
 from casmbd.analysis.sweep import load_sweep, parse_values, sweep
 from casmbd.errors import AnalysisError, ModelError
+from casmbd.io.scene import load_result as load
 from casmbd.io.scene import load_scene, loads_scene
-from casmbd.results import load
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
 SPRING = str(REPO / "tests" / "scenes" / "spring_mass.toml")

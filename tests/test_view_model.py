@@ -558,5 +558,5 @@ def test_a_scene_naming_a_urdf_relative_to_itself_reloads_from_a_result_anywhere
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         again = casmbd.Result("x", np.zeros(1), {}, {"bodies": []}, {},
-                              mech.scene_text).mechanism()
+                              mech.scene_text).mechanism(casmbd.loads_scene)
     assert list(again.bodies) == list(mech.bodies)

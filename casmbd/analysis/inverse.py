@@ -203,5 +203,4 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
     if friction:
         stats["friction_iterations"] = iterations
     stats["solve_seconds"] += time.perf_counter() - t0
-    return Result("inverse_dynamics", grid, arrays, names, stats,
-                  getattr(model.mechanism, "scene_text", "") or "")
+    return Result("inverse_dynamics", grid, arrays, names, stats).attach_scene(model.mechanism)

@@ -242,5 +242,5 @@ def kinematics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.
     stats = {"solve_seconds": solve_seconds, "newton_iterations": newton, "steps": int(steps),
              **plan.stats(), **model.report_dict}
     return Result("kinematics", grid, {"q": qs, "v": vs, "a": as_, **outputs,
-                                       "constraint_violation": violation}, names, stats,
-                  getattr(mech, "scene_text", "") or "")
+                                       "constraint_violation": violation}, names,
+                  stats).attach_scene(mech)

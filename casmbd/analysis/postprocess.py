@@ -313,5 +313,4 @@ class PostProcessing:
                   "actuator_inputs": us, "kinetic_energy": kin, "potential_energy": pot,
                   "total_energy": kin + pot, "constraint_violation": pos_viol,
                   "velocity_violation": vel_viol, "constraint_conditioning": cond}
-        return Result("simulation", grid, arrays, names, stats,
-                      getattr(system.mechanism, "scene_text", "") or "")
+        return Result("simulation", grid, arrays, names, stats).attach_scene(system.mechanism)

@@ -42,6 +42,7 @@ from casmbd.cli.common import (
     _positive_int,
     _UsageError,
 )
+from casmbd.cli.registry import VERB_PARSERS, VERBS, register_verb
 from casmbd.cli.verbs import (
     _add_bench_verb,
     _add_sensitivity_verb,
@@ -75,7 +76,8 @@ def _verb(module: str, name: str):
     return run
 
 
-VERBS = {verb: _verb(*where) for verb, where in _HANDLERS.items()}
+for _name, _where in _HANDLERS.items():  # the shipped verbs (casmbd.cli.registry.VERBS)
+    register_verb(_name, _verb(*_where), builtin=True)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -182,6 +184,14 @@ def build_parser() -> argparse.ArgumentParser:
     _add_sensitivity_verb(sub)
     _add_bench_verb(sub)
     _add_view_verb(sub)
+    for name, spec in VERB_PARSERS.items():  # registered verbs (casmbd.cli.registry)
+        p = sub.add_parser(name, help=spec.help)
+        if spec.scene:
+            common(p)
+        else:
+            _add_output_flags(p)
+        if spec.add_arguments is not None:
+            spec.add_arguments(p)
     for p in sub.choices.values():
         if not any("--verbose" in a.option_strings for a in p._actions):
             p.add_argument("--verbose", action="store_true",

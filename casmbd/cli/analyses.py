@@ -11,8 +11,8 @@ from casmbd.analysis.simulate import simulate
 from casmbd.analysis.statics import static_equilibrium
 from casmbd.cli.common import _load, _range, _save, _state_lines, _summary_table, _timing
 from casmbd.errors import AnalysisError, IntegratorError
+from casmbd.io.scene import load_result
 from casmbd.limits import check_steps
-from casmbd.results import load as load_result
 from casmbd.viz.quantities import effort_units, energy_terms, joint_coordinate_unit
 
 

@@ -14,11 +14,10 @@ from casmbd.analysis.simulate import simulate
 from casmbd.analysis.sweep import parse_values, sweep
 from casmbd.cli.common import _check_not_input, _check_out, _load, scene_files
 from casmbd.errors import AnalysisError, ResultFileError
-from casmbd.io.scene import load_scene
+from casmbd.io.scene import load_result, load_scene, loads_scene
 from casmbd.limits import MAX_FRAMES, check_count
 from casmbd.ocp.solution import OcpSolution
 from casmbd.results import Result
-from casmbd.results import load as load_result
 from casmbd.viz.animation import (
     animate,
     check_animation_file,
@@ -78,7 +77,7 @@ def _cmd_animate(args) -> tuple[dict, str]:
     lines = []
     if Path(args.source).suffix.lower() == ".npz":
         result = load(args.source)
-        mech = result.mechanism()
+        mech = result.mechanism(loads_scene)
         source = f"result {args.source}"
     else:
         mech = load_scene(args.source)

@@ -10,9 +10,9 @@ when it holds the same key, a content hash (``digest``: SHA-256 of every other m
 dtype, shape and bytes) equal to that of what was read — one changed number and the file is
 not used, never half-trusted —, the expected fields with consistent shapes and finite numbers;
 anything else is a miss (the modes are computed again and the file replaced).  The model
-layer cannot import this one: it calls the store through the hook
-:func:`casmbd.model.flexible_bodies.register_modal_store`, set when this module is imported
-(by :mod:`casmbd.compiled`).
+layer cannot import this one: the caller passes :data:`DISK_STORE` to
+:func:`casmbd.model.flexible_bodies.modal_data` (the scene reader gives it to each
+``[[bodies]]`` entry); nothing is registered on import.
 """
 
 from __future__ import annotations
@@ -27,10 +27,9 @@ from casmbd.atomic import atomic_write
 from casmbd.compiled.cache import cache_dir
 from casmbd.errors import CasmbdError
 from casmbd.limits import check_npz
-from casmbd.model.flexible_bodies import register_modal_store
 from casmbd.model.modal import ModalData
 
-__all__ = ["load_modes", "save_modes"]
+__all__ = ["DISK_STORE", "load_modes", "save_modes"]
 
 _ARRAYS = ("positions", "masses", "inertias", "phi_t", "phi_r", "mass", "stiffness",
            "frequencies", "rigid_mass")
@@ -108,4 +107,5 @@ def load_modes(key: str) -> ModalData | None:
                      source=extra["source"], key=extra["modal_key"], **arrays)
 
 
-register_modal_store(load_modes, save_modes)
+#: the on-disk store of modal data, as :func:`casmbd.model.flexible_bodies.modal_data` takes it
+DISK_STORE = (load_modes, save_modes)

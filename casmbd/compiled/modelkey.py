@@ -65,7 +65,7 @@ MODEL_SUFFIX = ".model.json"
 #: tables, whose analysis settings — t_end, steps, tolerances — are the caller's, and a
 #: sweep's points; the results take them from the mechanism at hand; the bodies' visuals for
 #: the 3-D view)
-_SKIPPED = frozenset({"scene_text", "scene_data", "scene_points", "visuals"})
+_SKIPPED = frozenset({"scene_text", "scene_data", "scene_points", "scene_reader", "visuals"})
 _MAX_DEPTH = 12
 
 

@@ -46,7 +46,7 @@ from typing import Any
 
 from casmbd import results
 from casmbd.analysis.events import MAX_EVENTS_LIMIT, SIMULATION_KEYS
-from casmbd.compiled import modal_cache  # noqa: F401 (registers the on-disk store of modes)
+from casmbd.compiled.modal_cache import DISK_STORE
 from casmbd.errors import CasmbdError, ExpressionError, ModelError, SceneError
 from casmbd.io.files import read_text
 from casmbd.io.scene_points import ScenePoints
@@ -59,6 +59,7 @@ from casmbd.limits import (
     check_count,
 )
 from casmbd.model import Mechanism, measures
+from casmbd.model.contacts import CONTACT_SHAPES
 from casmbd.model.expressions import evaluate_number, parse_expression
 from casmbd.model.joint_friction import joint_friction_from_scene
 from casmbd.model.registry import BODY_KINDS, FORCE_KINDS, JOINT_KINDS
@@ -345,6 +346,7 @@ def _build(data: dict, source: str) -> Mechanism:
         out = [_Entry(table, i, item, params) for i, item in enumerate(raw)]
         for entry in out:  # files named by an entry (a flexible body's [bodies.fe]) are
             entry.base_dir = base_dir  # relative to the scene file
+            entry.modal_store = DISK_STORE  # a flexible body's modes, cached on disk
         return out
 
     for e in entries("bodies"):  # each kind reads its own keys (casmbd.model.registry)
@@ -411,24 +413,21 @@ def _build(data: dict, source: str) -> Mechanism:
         e.check_keys({"name", "type", "description"} | force_kind.scene_keys)
         guarded(e, lambda force_kind=force_kind, e=e: force_kind.from_scene(mech, e))
 
-    for e in entries("contacts"):
-        e.check_keys(_CONTACT_KEYS)
+    for e in entries("contacts"):  # each shape reads its own keys (CONTACT_SHAPES)
+        e.check_keys(_CONTACT_KEYS.union(*(getattr(k, "scene_keys", ())
+                                           for k in CONTACT_SHAPES.values())))
         ctype = e.string("type", default="plane")
-        if ctype not in ("plane", "sphere"):
-            raise e.error("type", f"unknown contact type {ctype!r} (allowed: plane, sphere)")
+        if ctype not in CONTACT_SHAPES:
+            raise e.error("type", f"unknown contact type {ctype!r} (allowed: "
+                          f"{', '.join(CONTACT_SHAPES)})")
         compliant = {k: e.number(k) for k in (*_COMPLIANT_KEYS, "rest_velocity")
                      if e.has(k)}
-        if ctype == "plane":  # against a ground plane, or (sphere) another body's sphere
-            other = {"origin": e.vector("origin", dim, default=[0.0] * dim),
-                     "normal": e.vector("normal", dim, required=False)}
-        else:
-            other = {"body2": e.string("body2"), "point2": e.vector("point2", dim),
-                     "radius2": e.number("radius2", 0.0)}
-        guarded(e, lambda e=e, compliant=compliant, other=other: mech.add_contact(
+        other = CONTACT_SHAPES[ctype].scene_args(e, dim)
+        guarded(e, lambda e=e, compliant=compliant, other=other, ctype=ctype: mech.add_contact(
             _name(e), e.string("body"), e.vector("point", dim),
             radius=e.number("radius", 0.0), model=e.string("model", default="impact"),
             restitution=e.value("restitution", 0.0), friction=e.number("friction", 0.0),
-            **other, **compliant))
+            shape=ctype, **other, **compliant))
 
     for e in entries("actuators"):
         e.check_keys(_ACTUATOR_KEYS)
@@ -604,6 +603,7 @@ def loads_scene(text: str, source: str = "<string>") -> Mechanism:
     mech.scene_text = _portable(text, data, source)
     mech.scene_data = data
     mech.scene_points = ScenePoints(text, source, loads_scene)  # sweeps re-read it per point
+    mech.scene_reader = loads_scene  # a Result of this mechanism reads its scene back with it
     return mech
 
 
@@ -621,6 +621,14 @@ def load_scene(path: str | os.PathLike) -> Mechanism:
     return loads_scene(text, source=str(path))
 
 
-# Result.mechanism() parses a result's embedded scene with this module's reader (casmbd.results
-# sits below io and cannot import it)
-results.register_scene_reader(loads_scene)
+def load_result(path: str | os.PathLike) -> results.Result:
+    """Read a result file (:func:`casmbd.results.load`) with this module's scene reader, so
+    that :meth:`~casmbd.results.Result.mechanism` can read the embedded scene (``results`` sits
+    below ``io`` and cannot import it: the reader is passed in, never registered)."""
+    result = results.load(path)
+    result.scene_reader = loads_scene
+    return result
+
+
+#: ``casmbd.load``
+load = load_result

@@ -26,7 +26,7 @@ _TABLE = re.compile(r"^\s*\[")
 _KEY_LINE = re.compile(r"^(\s*)([A-Za-z_][A-Za-z0-9_-]*|\"[^\"]*\")(\s*=\s*)([^#\r\n]*?)"
                        r"(\s*(?:#[^\r\n]*)?)(\r?\n)?$")
 #: attributes of a mechanism that are not load-time numbers
-_SKIP = {"parameters", "scene_text", "scene_data", "scene_points"}
+_SKIP = {"parameters", "scene_text", "scene_data", "scene_points", "scene_reader"}
 
 
 def scene_with(text: str, values: Mapping[str, float], source: str) -> str:

@@ -1,8 +1,17 @@
-"""Modelling layer: the user's description of a mechanism (no analysis imports here)."""
+"""Modelling layer: the user's description of a mechanism (no analysis imports here).
+
+Every element kind registers in :mod:`casmbd.model.registry` in its own module; this package
+imports each of those modules (joints, spatial joints, planar joint, gear; forces, expression
+force, joint friction, contacts; rigid and flexible bodies), so ``JOINT_KINDS``,
+``FORCE_KINDS`` and ``BODY_KINDS`` are complete whenever any ``casmbd.model`` module is
+imported (``tests/test_layers.py`` checks it in a fresh process).
+"""
 
 from casmbd.model.bodies import GROUND, Body, Marker, SpatialBody
+from casmbd.model.contacts import CompliantContact, ContactSlide
 from casmbd.model.drivers import Driver
 from casmbd.model.expression_force import ExpressionForce
+from casmbd.model.flexible_bodies import PlanarFlexibleBody, SpatialFlexibleBody
 from casmbd.model.forces import (
     Actuator,
     ForceElement,
@@ -36,11 +45,9 @@ from casmbd.model.spatial_joints import (
 )
 
 __all__ = ["BODY_KINDS", "FORCE_KINDS", "GROUND", "JOINT_KINDS", "Actuator", "Body",
-           "Cylindrical", "Distance", "Driver", "ExpressionForce",
-           "Fixed", "ForceElement", "Gear", "Joint",
-           "JointFriction", "Marker", "Mechanism", "Planar", "PointForce", "Prismatic", "Revolute",
-           "Rigid",
-           "RotationalSpringDamper", "SpatialBody", "SpatialFixed", "SpatialPrismatic",
-           "SpatialRevolute", "SpatialRigid", "Spherical", "SpringDamper", "Torque", "Universal",
-           "UserForce",
-           "register_body", "register_force", "register_joint"]
+           "CompliantContact", "ContactSlide", "Cylindrical", "Distance", "Driver",
+           "ExpressionForce", "Fixed", "ForceElement", "Gear", "Joint", "JointFriction", "Marker",
+           "Mechanism", "Planar", "PlanarFlexibleBody", "PointForce", "Prismatic", "Revolute",
+           "Rigid", "RotationalSpringDamper", "SpatialBody", "SpatialFixed", "SpatialFlexibleBody",
+           "SpatialPrismatic", "SpatialRevolute", "SpatialRigid", "Spherical", "SpringDamper",
+           "Torque", "Universal", "UserForce", "register_body", "register_force", "register_joint"]

@@ -42,8 +42,10 @@ from casmbd.model.joints import Joint
 from casmbd.model.registry import register_force
 from casmbd.model.values import Value, check_value, numeric, resolve
 
-__all__ = ["CONTACT_MODELS", "CompliantContact", "GapClosure", "JointLimit", "PlaneContact",
-           "RollingClosure", "SphereContact", "Unilateral", "adams_step"]
+__all__ = ["CONTACT_MODELS", "CONTACT_SHAPES", "CompliantContact", "GapClosure", "JointLimit",
+           "PlaneContact",
+           "RollingClosure", "SphereContact", "Unilateral", "adams_step", "contact_shape",
+           "register_contact_shape"]
 
 CONTACT_MODELS = ("impact", "compliant")
 #: default regularisation velocity of compliant friction (m/s)
@@ -157,11 +159,53 @@ class Unilateral:
     def bodies(self) -> tuple[str, ...]:
         return ()
 
+    def spheres(self) -> list[tuple[str, np.ndarray, float]]:
+        """The spheres the 3-D view draws: (body, global point at the design pose, radius)."""
+        return []
 
+
+#: contact shapes by scene ``[[contacts]] type`` (``Mechanism.add_contact(shape=…)``), each a
+#: :class:`Unilateral` subclass with ``shape``, ``scene_args(e, dim)`` (its own keys read from
+#: a scene entry), ``create(name, restitution, friction, model, body, point, radius, dim,
+#: **keys)`` and optionally ``body_keys`` (keys naming another body) and ``scene_keys`` (its
+#: scene keys beyond the shared ones); complete when this module is imported (plane, sphere)
+CONTACT_SHAPES: dict[str, type] = {}
+
+
+def register_contact_shape(cls: type | None = None, *, replace: bool = False):
+    """Register a contact shape class under its ``shape`` (a class decorator, bare or
+    ``@register_contact_shape(replace=True)``); a taken name is a :class:`ModelError` unless
+    ``replace``."""
+    if cls is None:
+        return lambda c: register_contact_shape(c, replace=replace)
+    name = getattr(cls, "shape", "")
+    if not (isinstance(cls, type) and issubclass(cls, Unilateral) and name):
+        raise ModelError(f"a contact shape is a Unilateral subclass with a 'shape' name, got "
+                         f"{cls!r}")
+    if name in CONTACT_SHAPES and not replace:
+        raise ModelError(f"contact shape '{name}' is already registered "
+                         f"({CONTACT_SHAPES[name].__name__}); pass replace=True to replace it")
+    CONTACT_SHAPES[name] = cls
+    return cls
+
+
+def contact_shape(name: str, where: str) -> type:
+    """The registered shape ``name`` (a :class:`ModelError` at ``where`` listing them)."""
+    if name not in CONTACT_SHAPES:
+        raise ModelError(f"{where}: unknown contact shape {name!r} (allowed: "
+                         f"{', '.join(CONTACT_SHAPES)})")
+    return CONTACT_SHAPES[name]
+
+
+@register_contact_shape
 @dataclass
 class PlaneContact(Unilateral):
     """A sphere of radius ``radius`` centred at the global ``point`` (initial pose) on
     ``body`` against the ground plane through ``origin`` with normal ``normal``."""
+
+    shape: ClassVar[str] = "plane"
+    body_keys: ClassVar[tuple[str, ...]] = ()
+    scene_keys: ClassVar[frozenset[str]] = frozenset({"origin", "normal"})
 
     body: str = ""
     point: np.ndarray = field(default_factory=lambda: np.zeros(2))
@@ -180,9 +224,26 @@ class PlaneContact(Unilateral):
         if self.radius < 0.0:
             raise ModelError(f"{where} 'radius': must be >= 0, got {self.radius}")
 
+    @staticmethod
+    def scene_args(e, dim: int) -> dict:
+        return {"origin": e.vector("origin", dim, default=[0.0] * dim),
+                "normal": e.vector("normal", dim, required=False)}
+
+    @classmethod
+    def create(cls, name, restitution, friction, model, body, point, radius, dim,
+               origin=None, normal=None, **ignored) -> PlaneContact:
+        up = [0.0] * dim
+        up[-1] = 1.0
+        return cls(name, restitution, friction, model, body, point, radius,
+                   [0.0] * dim if origin is None else origin, up if normal is None else normal,
+                   dim)
+
     @property
     def bodies(self) -> tuple[str, ...]:
         return (self.body,)
+
+    def spheres(self) -> list[tuple[str, np.ndarray, float]]:
+        return [(self.body, self.point, self.radius)]
 
     def centre(self, ctx) -> ca.SX:
         return ctx.position(self.body, self.point)
@@ -201,10 +262,15 @@ class PlaneContact(Unilateral):
         return ca.mtimes(ca.DM(tangents(self.normal)), vel)
 
 
+@register_contact_shape
 @dataclass
 class SphereContact(Unilateral):
     """Two spheres: radius ``radius1`` at ``point1`` on ``body1``, ``radius2`` at ``point2`` on
     ``body2`` (global points at the initial pose)."""
+
+    shape: ClassVar[str] = "sphere"
+    body_keys: ClassVar[tuple[str, ...]] = ("body2",)
+    scene_keys: ClassVar[frozenset[str]] = frozenset({"body2", "point2", "radius2"})
 
     body1: str = ""
     body2: str = ""
@@ -227,9 +293,26 @@ class SphereContact(Unilateral):
             raise ModelError(f"{where} 'friction': sphere-sphere contacts are frictionless "
                              "in this version")
 
+    @staticmethod
+    def scene_args(e, dim: int) -> dict:
+        return {"body2": e.string("body2"), "point2": e.vector("point2", dim),
+                "radius2": e.number("radius2", 0.0)}
+
+    @classmethod
+    def create(cls, name, restitution, friction, model, body, point, radius, dim,
+               body2=None, point2=None, radius2=0.0, **ignored) -> SphereContact:
+        if body2 is None:
+            raise ModelError(f"contact '{name}' field 'body2': a sphere contact needs body2")
+        return cls(name, restitution, friction, model, body, body2, point,
+                   point2 if point2 is not None else point, radius, radius2, dim)
+
     @property
     def bodies(self) -> tuple[str, ...]:
         return (self.body1, self.body2)
+
+    def spheres(self) -> list[tuple[str, np.ndarray, float]]:
+        return [(self.body1, self.point1, self.radius1),
+                (self.body2, self.point2, self.radius2)]
 
     def gaps(self, ctx) -> ca.SX:
         d = ctx.position(self.body2, self.point2) - ctx.position(self.body1, self.point1)

@@ -59,9 +59,18 @@ from casmbd.model.modal_reduction import ModesError, _model_key, check_units, re
 from casmbd.model.registry import register_body
 from casmbd.model.rotations import euler_zxz_to_quaternion, rotation_matrix
 
-__all__ = ["FLEXIBLE_SCENE_KEYS", "NodeFrame", "PlanarFlexibleBody", "SpatialFlexibleBody",
-           "is_flexible", "modal_data", "named_nodes", "node_attachment",
-           "register_modal_store", "rigidified"]
+__all__ = [
+    "FLEXIBLE_SCENE_KEYS",
+    "ModalStore",
+    "NodeFrame",
+    "PlanarFlexibleBody",
+    "SpatialFlexibleBody",
+    "is_flexible",
+    "modal_data",
+    "named_nodes",
+    "node_attachment",
+    "rigidified",
+]
 
 #: separator of attachment names ``"<body>@<node>"``
 NODE_SEPARATOR = "@"
@@ -80,33 +89,27 @@ _FE_KEYS = {"file"}
 _MODES: dict[str, ModalData] = {}
 
 
-#: (load, save) of the on-disk store of modal data, registered by
-#: :mod:`casmbd.compiled.modal_cache` (the model layer does not import the compiled one)
-_STORE: tuple[Callable, Callable] | None = None
-
-
-def register_modal_store(load: Callable[[str], ModalData | None],
-                         save: Callable[[str, ModalData], None]) -> None:
-    """Set the on-disk store of modal data: ``load(key)`` (None on a miss) and
-    ``save(key, modal)``."""
-    global _STORE
-    _STORE = (load, save)
+#: an on-disk store of modal data: ``(load(key) -> ModalData | None, save(key, modal))``, e.g.
+#: :data:`casmbd.compiled.modal_cache.DISK_STORE`; passed in by the caller (the scene reader
+#: gives it to each ``[[bodies]]`` entry as ``entry.modal_store``): the model layer does not
+#: import the compiled one, and nothing registers it
+ModalStore = tuple[Callable[[str], ModalData | None], Callable[[str, ModalData], None]]
 
 
 def modal_data(model: FEModel, reduction: str, modes: int,
-               interfaces: Sequence[str] = ()) -> ModalData:
+               interfaces: Sequence[str] = (), store: ModalStore | None = None) -> ModalData:
     """The reduced modal data of ``model`` (:func:`casmbd.model.modal_reduction.reduce`),
     computed once for the same FE data, reduction, modes and interfaces: kept for the process
-    and, when the compiled layer is loaded, on disk beside the compiled code
-    (:mod:`casmbd.compiled.modal_cache`)."""
+    and, when a ``store`` is given (:data:`casmbd.compiled.modal_cache.DISK_STORE`), on disk
+    beside the compiled code."""
     check_units(model)  # cheap; also on a hit (a file cached by an older version)
     key = cache_key(_model_key(model), reduction, int(modes), list(interfaces))
     if key not in _MODES:
-        stored = _STORE[0](key) if _STORE is not None else None
+        stored = store[0](key) if store is not None else None
         if stored is None:
             stored = reduce(model, reduction, modes, interfaces)
-            if _STORE is not None:
-                _STORE[1](key, stored)
+            if store is not None:
+                store[1](key, stored)
         _MODES[key] = stored
     return _MODES[key]
 
@@ -245,7 +248,8 @@ def _modal_from_scene(e, dim: int) -> tuple[ModalData, dict]:
     if not isinstance(interfaces, list) or not all(isinstance(n, str) for n in interfaces):
         raise e.error("interfaces", f"expected a list of node names, got {interfaces!r}")
     try:
-        modal = modal_data(model, reduction, modes, interfaces)
+        modal = modal_data(model, reduction, modes, interfaces,
+                           store=getattr(e, "modal_store", None))
     except ModesError as exc:
         raise e.error("modes", str(exc)) from None
     except ModelError as exc:

@@ -23,9 +23,8 @@ from casmbd.limits import MAX_BODIES, MAX_ELEMENTS, check_count
 from casmbd.model.bodies import GROUND, Body, Marker, SpatialBody, check_inertia, scalar, vector
 from casmbd.model.contacts import (
     JointLimit,
-    PlaneContact,
-    SphereContact,
     Unilateral,
+    contact_shape,
     slide_direction_parameters,
     slide_parameters,
     slides,
@@ -526,28 +525,27 @@ class Mechanism:
                     origin: Sequence[float] | None = None, normal: Sequence[float] | None = None,
                     model: str = "impact", restitution: float = 0.0, friction: float = 0.0,
                     body2: str | None = None, point2: Sequence[float] | None = None,
-                    radius2: float = 0.0, **compliant) -> Unilateral:
+                    radius2: float = 0.0, shape: str | None = None, **keys) -> Unilateral:
         """A sphere (``radius``; 0: a point) at the global ``point`` on ``body`` against the
-        ground plane through ``origin`` with ``normal`` or, with ``body2``, against a sphere
-        (``radius2``) at ``point2`` on ``body2``; ``model`` "impact" (events and restitution)
-        or "compliant" (``stiffness``, ``exponent``, ``damping``, ``penetration``,
-        ``friction_velocity``).  See :mod:`casmbd.model.contacts`."""
+        ground plane through ``origin`` with ``normal`` (shape ``"plane"``) or, with ``body2``,
+        against a sphere (``radius2``) at ``point2`` on ``body2`` (``"sphere"``), or any
+        registered ``shape`` (:data:`casmbd.model.contacts.CONTACT_SHAPES`: its own keys
+        among ``keys``); ``model`` "impact" (events and restitution) or "compliant"
+        (``stiffness``, ``exponent``, ``damping``, ``penetration``, ``friction_velocity``).
+        See :mod:`casmbd.model.contacts`."""
         self._unique(self.contacts, "contact", name)
         self._body(body, f"contact '{name}' field 'body'")
-        dim = self.dimension
-        if body2 is None:
-            zeros = [0.0] * dim
-            up = [0.0] * dim
-            up[-1] = 1.0
-            element = PlaneContact(name, restitution, friction, model, body, point, radius,
-                                   zeros if origin is None else origin,
-                                   up if normal is None else normal, dim)
-        else:
-            self._body(body2, f"contact '{name}' field 'body2'")
-            element = SphereContact(name, restitution, friction, model, body, body2, point,
-                                    point2 if point2 is not None else point, radius, radius2,
-                                    dim)
-        return self._unilateral(element, compliant)
+        kind = contact_shape(shape if shape is not None else
+                             "plane" if body2 is None else "sphere", f"contact '{name}'")
+        own = {k: keys.pop(k) for k in list(keys) if k in getattr(kind, "scene_keys", ())}
+        args = {"origin": origin, "normal": normal, "body2": body2, "point2": point2,
+                "radius2": radius2, **own}
+        for key in getattr(kind, "body_keys", ()):
+            if args.get(key) is not None:
+                self._body(args[key], f"contact '{name}' field '{key}'")
+        element = kind.create(name, restitution, friction, model, body, point, radius,
+                              self.dimension, **args)
+        return self._unilateral(element, keys)
 
     def add_joint_limit(self, joint: str, lower: float | None = None,
                         upper: float | None = None, restitution: float = 0.0,

@@ -30,12 +30,12 @@ from casmbd.errors import AnalysisError, ModelError
 from casmbd.limits import MAX_OCP_INTERVALS, MAX_OCP_UNKNOWNS, check_count
 from casmbd.model.expressions import parse_expression
 from casmbd.model.needs import ALL_NEEDS, EVENT_NEEDS, Handling, check
+from casmbd.ocp.methods import transcription_method
 from casmbd.ocp.options import check_solver_options
 from casmbd.ocp.transcription import Transcription
 from casmbd.system.equations import System
 from casmbd.system.quantities import quantities
 
-TRANSCRIPTIONS = ("radau", "legendre", "multiple_shooting")
 OBJECTIVES = ("effort", "time", "energy")
 DYNAMICS = ("auto", "implicit", "explicit")
 GUESSES = ("linear", "simulation", "inverse")
@@ -169,9 +169,7 @@ class Ocp:
               else self.mechanism, HANDLING)
         self.system = (self.mechanism if isinstance(self.mechanism, System)
                        else System(self.mechanism))
-        if self.transcription not in TRANSCRIPTIONS:
-            raise AnalysisError(f"ocp: unknown transcription '{self.transcription}' (known: "
-                                f"{', '.join(TRANSCRIPTIONS)})")
+        transcription_method(self.transcription)  # AnalysisError naming the registered ones
         if not (isinstance(self.intervals, int) and self.intervals >= 1):
             raise AnalysisError(f"ocp: intervals must be an integer >= 1, got {self.intervals!r}")
         if not (isinstance(self.subintervals, int) and self.subintervals >= 1):
@@ -213,8 +211,7 @@ class Ocp:
         intervals × points per interval × (states + inputs), the points being
         subintervals × (degree + 1) for collocation and the RK4 steps for shooting."""
         check_count("ocp: intervals", self.intervals, MAX_OCP_INTERVALS, "use fewer intervals")
-        per_interval = (self.steps if self.transcription == "multiple_shooting"
-                        else self.subintervals * (self.degree + 1))
+        per_interval = transcription_method(self.transcription).points_per_interval(self)
         width = 2 * self.system.nq + len(self.system.mechanism.actuators)
         check_count(f"ocp: unknowns ({self.intervals:,} intervals × {per_interval} points × "
                     f"{width} states and inputs)", self.intervals * per_interval * width,

@@ -1,10 +1,13 @@
 """Transcription of an :class:`~casmbd.ocp.problem.Ocp` into a nonlinear program.
 
-Direct collocation (Radau IIA or Gauss–Legendre points of degree d) on the implicit index-1
-equations of motion with q̈ and λ as variables at every collocation point, the position and
-velocity constraints imposed at every mesh node and per-interval projection multipliers μ, ν
-(:mod:`casmbd.ocp.dynamics`); or multiple shooting with RK4 (exact Hessians) or CVODES (exact
-first-order sensitivities, limited-memory Hessian).  Controls are piecewise constant on the N
+The element equations come from the problem's registered transcription method
+(:mod:`casmbd.ocp.methods`: direct collocation on Radau IIA or Gauss–Legendre points of degree
+d on the implicit index-1 equations of motion with q̈ and λ as variables at every collocation
+point, or multiple shooting with RK4 (exact Hessians) or CVODES (exact first-order
+sensitivities, limited-memory Hessian)); this class adds what every method shares: the
+variables, the position and velocity constraints at every mesh node with per-interval
+projection multipliers μ, ν (:mod:`casmbd.ocp.dynamics`), the boundary conditions, the
+objective and the solve.  Controls are piecewise constant on the N
 intervals.  The NLP is built in MX from element and node functions mapped over the mesh
 (:class:`~casmbd.ocp.structured.MappedCall`); its derivatives are assembled from per-element
 SX derivatives (:mod:`casmbd.ocp.structured`) and it is solved by IPOPT (MUMPS) or any CasADi
@@ -19,13 +22,13 @@ import casadi as ca
 import numpy as np
 
 from casmbd import interrupts, progress
-from casmbd.analysis.integrators import integrator_kind
 from casmbd.analysis.kkt import consistent_state
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, OptimizationError
-from casmbd.ocp.dynamics import choose_dynamics, explicit_accelerations, node_constraints
+from casmbd.ocp.dynamics import choose_dynamics, node_constraints
 from casmbd.ocp.flexible import mesh_check, solver_defaults
 from casmbd.ocp.guess import initial_guess
+from casmbd.ocp.methods import transcription_method
 from casmbd.ocp.options import check_solver_options
 from casmbd.ocp.solution import OcpSolution
 from casmbd.ocp.structured import MappedCall, check_mode, nlp_solver
@@ -137,10 +140,10 @@ class Transcription:
         self.nq, self.nc, self.nu = system.nq, system.nc, len(ocp.controls)
         self.p = ca.DM(system.parameter_values)
         self.N = ocp.intervals
-        shooting_ = ocp.transcription == "multiple_shooting"
-        self.S = 1 if shooting_ else ocp.subintervals
+        #: the registered method (casmbd.ocp.methods.TRANSCRIPTIONS): what it needs and builds
+        self.method = transcription_method(ocp.transcription)
+        self.S = self.method.elements_per_interval(ocp)
         self.M = self.N * self.S   # collocation elements (mesh intervals)
-        shooting = ocp.transcription == "multiple_shooting"
         # MX with the element (interval) equations mapped over the mesh: derivatives built once
         # per element function, compact generated code
         kind = ca.MX
@@ -149,10 +152,7 @@ class Transcription:
         self.structured = True
         self._functions()
         self._variables()
-        if shooting:
-            self._shooting()
-        else:
-            self._collocation()
+        self.method.build(self)
         self._boundary()
         self._objective()
         self.mesh = self._mesh_check()
@@ -160,10 +160,10 @@ class Transcription:
 
     def _mesh_check(self) -> dict:
         """Flexible bodies: the fastest mode against the collocation element
-        (:mod:`casmbd.ocp.flexible`; the threshold is measured for Radau, so multiple shooting
-        is not checked)."""
+        (:mod:`casmbd.ocp.flexible`; the threshold is measured for Radau, so a method that is
+        not collocation, multiple shooting, is not checked: ``checks_mesh``)."""
         ocp = self.ocp
-        if ocp.transcription == "multiple_shooting":
+        if not self.method.checks_mesh:
             return {}
         horizon = ocp.horizon.guess if ocp.free_time else float(ocp.horizon)
         return mesh_check(self.system, horizon / self.M, self.S)
@@ -172,7 +172,7 @@ class Transcription:
     def _functions(self) -> None:
         ocp, system = self.ocp, self.system
         self.explicit, self.dynamics_choice, self.acc, self.res = choose_dynamics(
-            system, ocp.dynamics, ocp.transcription != "multiple_shooting")
+            system, ocp.dynamics, self.method.implicit)
         self.node = node_constraints(system)
         args = [system.q, system.v, system.t, system.u, system.p]
         self.args = args
@@ -235,7 +235,8 @@ class Transcription:
         self.X = [self.Xb[:, e] for e in range(self.M + 1)]
         self.U = [self.Ub[:, k] for k in range(N)]
 
-    def _t(self, k: int, tau: float = 0.0):
+    def mesh_time(self, k: int, tau: float = 0.0):
+        """t₀ + (k + τ) h: the time of mesh node k (plus τ elements)."""
         return self.ocp.t_start + (k + tau) * self.h
 
     def _projection(self, q, mu, nu):
@@ -243,114 +244,17 @@ class Transcription:
         ct = self.node(q, ca.DM.zeros(self.nq), 0.0, self.p)[2]
         return ca.mtimes(ct, mu), ca.mtimes(ct, nu)
 
-    def _collocation(self) -> None:
-        ocp, b, nq, nc, d = self.ocp, self.b, self.nq, self.nc, self.ocp.degree
-        tau = [0.0, *ca.collocation_points(d, ocp.transcription)]
-        C = np.zeros((d + 1, d + 1))
-        D = np.zeros(d + 1)
-        B = np.zeros(d + 1)
-        for j in range(d + 1):
-            coeff = np.poly1d([1.0])
-            for r in range(d + 1):
-                if r != j:
-                    coeff *= np.poly1d([1.0, -tau[r]]) / (tau[j] - tau[r])
-            D[j] = coeff(1.0)
-            deriv = np.polyder(coeff)
-            for r in range(d + 1):
-                C[j, r] = deriv(tau[r])
-            B[j] = np.polyint(coeff)(1.0)
-        self.tau, self.B = tau, B
-        M, nu_ = self.M, self.nu
-        # Radau IIA ends on τ_d = 1: with explicit dynamics the state at the last collocation
-        # point is the next mesh node itself, not a separate variable, and the continuity rows
-        # x_{k+1} = Σ D_r x_r vanish (2 nq M fewer variables and constraints; measured in
-        # docs/ocp.md: cart-pole 26 → 15 ms). Not with the implicit form: exact as well, but
-        # IPOPT's path on the UR5 then takes 258 iterations instead of 72.
-        shared = (self.explicit and ocp.transcription == "radau"
-                  and abs(tau[d] - 1.0) < 1e-14)
-        ncol = d - 1 if shared else d
-        self.shared = shared
-        self.xc_columns = ncol   # collocation states per element held in the XC block
-        xcb, _ = b.var("XC", 2 * nq, ncol * M)
-        na = 0 if self.explicit else nq
-        ab, _ = b.var("A", na, d * M)
-        lamb, _ = b.var("LAM", nc, d * M)
-        mub, _ = b.var("MU", nc, M)
-        nub, _ = b.var("NU", nc, M)
-        slb, _ = b.var("SL", nu_ if self.energy else 0, d * M, 0.0, np.inf)
-        # one element, symbolically
-        xk, xk1 = ca.SX.sym("xk", 2 * nq), ca.SX.sym("xk1", 2 * nq)
-        xc, a_e = ca.SX.sym("xc", 2 * nq, ncol), ca.SX.sym("a", na, d)
-        lam_e, mu, nu = ca.SX.sym("lam", nc, d), ca.SX.sym("mu", nc), ca.SX.sym("nu", nc)
-        sl = ca.SX.sym("sl", nu_ if self.energy else 0, d)
-        u, tk, h = ca.SX.sym("u", nu_), ca.SX.sym("tk"), ca.SX.sym("h")
-        rows, lo, hi, labels = [], [], [], []
-
-        def add(expr, label, lower=0.0, upper=0.0):
-            expr = ca.vec(expr)
-            n = expr.numel()
-            if n:
-                rows.append(expr)
-                lo.append(np.broadcast_to(np.asarray(lower, float), (n,)))
-                hi.append(np.broadcast_to(np.asarray(upper, float), (n,)))
-                labels.extend([label] * n)
-
-        xs = [xk] + [xc[:, j] for j in range(ncol)] + ([xk1] if shared else [])
-        quad = 0.0
-        fn_all, lo_all, hi_all = self.path_fns["all"]
-        for j in range(1, d + 1):
-            x, lam = xs[j], lam_e[:, j - 1]
-            q, v = x[:nq], x[nq:]
-            t = tk + tau[j] * h
-            a = self.acc(q, v, u, t, self.p) if self.explicit else a_e[:, j - 1]
-            xp = sum(C[r, j] * xs[r] for r in range(d + 1))
-            qdot, vdot = v, a
-            if nc:
-                ct = self.node(q, ca.SX.zeros(nq), t, self.p)[2]
-                qdot, vdot = v + ca.mtimes(ct, mu), a + ca.mtimes(ct, nu)
-            add(h * ca.vertcat(qdot, vdot) - xp, f"collocation point {j}")
-            if not self.explicit:
-                dyn, acc = self.res(q, v, a, lam, u, t, self.p)
-                add(dyn, f"equations of motion at point {j}")
-                add(acc, f"acceleration constraints at point {j}")
-            if fn_all.numel_out(0):
-                add(fn_all(q, v, t, u, self.p), f"path constraint at point {j}", lo_all, hi_all)
-            quad += B[j] * h * self.lagrange_fn(q, v, t, u, self.p)
-            if self.energy:
-                power = u * ca.mtimes(self.input_matrix(q, v, t, u, self.p).T, v)
-                add(sl[:, j - 1] - power, f"energy slack + at point {j}", 0.0, np.inf)
-                add(sl[:, j - 1] + power, f"energy slack - at point {j}", 0.0, np.inf)
-                quad += self.energy * B[j] * h * ca.sum1(sl[:, j - 1])
-        if not shared:
-            add(xk1 - sum(D[r] * xs[r] for r in range(d + 1)), "continuity")
-        elem = ca.Function("ocp_element", [xk, xk1, xc, a_e, lam_e, mu, nu, sl, u, tk, h],
-                           [ca.vertcat(*rows), quad])
-        # all elements at once
-        uel = ca.horzcat(*[self.Ub[:, e // self.S] for e in range(M)])
-        tks = ca.horzcat(*[self._t(e) for e in range(M)])
-        el_args = [self.Xb[:, :-1], self.Xb[:, 1:], xcb, ab, lamb, mub, nub, slb, uel, tks,
-                   self.h]
-        g_el, q_el = elem.map(M)(*el_args)
-        n_el = len(labels)
-        block = b.ineq(g_el, [f"element {e}: {lab}" for e in range(M) for lab in labels],
-                       np.tile(np.concatenate(lo), M) if n_el else [],
-                       np.tile(np.concatenate(hi), M) if n_el else [])
-        self.calls.append(MappedCall(elem, M, el_args, block, True))
-        self.quad = ca.sum2(q_el)
-        self.energy_terms = 0.0
-        self._nodes()
-
-    def _nodes(self) -> None:
+    def add_mesh_nodes(self) -> None:
         """C = 0 and C_q q̇ + C_t = 0 at every mesh node, path constraints at the nodes (and at
         the control nodes), all mapped over the nodes.
 
-        With Radau collocation the mesh node k + 1 is the last collocation point of element k
-        (:meth:`_collocation`), where the element already imposes the ``at="all"`` path
-        constraints with the element's control: imposing them at the node again would repeat
-        the same rows (linearly dependent constraints, which cost IPOPT hundreds of iterations
-        on the UR5), so at the nodes they are imposed only where no element point covers
-        them: the initial node, and the first node of each control interval when they depend
-        on the control (whose value changes there)."""
+        With Radau collocation the mesh node k + 1 is the last collocation point of element
+        k (:class:`~casmbd.ocp.methods.DirectCollocation`), where the element already
+        imposes the ``at="all"`` path constraints with the element's control: imposing them
+        at the node again would repeat the same rows (linearly dependent constraints, which
+        cost IPOPT hundreds of iterations on the UR5), so at the nodes they are imposed only
+        where no element point covers them: the initial node, and the first node of each
+        control interval when they depend on the control (whose value changes there)."""
         nq, M, S = self.nq, self.M, self.S
         first = 0 if self.ocp._initial_given else 1  # a fixed consistent start needs none
         x, u, t = ca.SX.sym("x", 2 * nq), ca.SX.sym("u", self.nu), ca.SX.sym("t")
@@ -384,69 +288,18 @@ class Transcription:
             fnode = ca.Function(f"ocp_{what.replace(' ', '_')}", [x, u, t], [ca.vertcat(*exprs)])
             xs = ca.horzcat(*[self.X[k] for k in nodes])
             us = ca.horzcat(*[self.U[min(k // S, self.N - 1)] for k in nodes])
-            ts = ca.horzcat(*[self._t(k) for k in nodes])
+            ts = ca.horzcat(*[self.mesh_time(k) for k in nodes])
             vals = fnode.map(len(nodes))(xs, us, ts)
             block = self.b.ineq(vals, [f"{lab} at {what} {k}" for k in nodes for lab in labels],
                                 np.tile(np.concatenate(lo), len(nodes)),
                                 np.tile(np.concatenate(hi), len(nodes)))
             self.calls.append(MappedCall(fnode, len(nodes), [xs, us, ts], block, False))
 
-    def _shooting(self) -> None:
-        ocp, b, nq, nc, N = self.ocp, self.b, self.nq, self.nc, self.N
-        acc = explicit_accelerations(self.system)
-        x = ca.SX.sym("x", 2 * nq)
-        u = ca.SX.sym("u", self.nu)
-        t = ca.SX.sym("t")
-        ode = ca.vertcat(x[nq:], acc(x[:nq], x[nq:], u, t, self.p))
-        quad = self.lagrange_fn(x[:nq], x[nq:], t, u, self.p)
-        f = ca.Function("ocp_ode", [x, u, t], [ode, quad])
-        # the registered shooting integrator (casmbd.analysis.integrators.INTEGRATORS)
-        step = integrator_kind(ocp.integrator).shooting_step(f, x, u, t, ocp.steps)
-        mub, _ = b.var("MU", nc, N)
-        nub, _ = b.var("NU", nc, N)
-        slb, _ = b.var("SL", self.nu if self.energy else 0, N, 0.0, np.inf)
-        # one interval, mapped over all of them
-        xk, xk1 = (ca.SX.sym("xk", 2 * nq), ca.SX.sym("xk1", 2 * nq)) \
-            if step.is_a("SXFunction") else (step.mx_in(0), ca.MX.sym("xk1", 2 * nq))
-        sym = type(xk)
-        uk, tk, hk = sym.sym("u", self.nu), sym.sym("t"), sym.sym("h")
-        mu, nu = sym.sym("mu", nc), sym.sym("nu", nc)
-        sl = sym.sym("sl", self.nu if self.energy else 0)
-        xend, qk = step(xk, uk, tk, hk)
-        gap = xk1 - xend
-        if nc:
-            ct = self.node(xk1[:nq], sym.zeros(nq), tk + hk, self.p)[2]
-            gap = gap - ca.vertcat(ca.mtimes(ct, mu), ca.mtimes(ct, nu))
-        rows, lo, hi = [gap], [np.zeros(2 * nq)], [np.zeros(2 * nq)]
-        labels = ["continuity"] * (2 * nq)
-        if self.energy:
-            q, v = xk[:nq], xk[nq:]
-            power = uk * ca.mtimes(self.input_matrix(q, v, tk, uk, self.p).T, v)
-            rows += [sl - power, sl + power]
-            lo += [np.zeros(self.nu)] * 2
-            hi += [np.full(self.nu, np.inf)] * 2
-            labels += ["energy slack +"] * self.nu + ["energy slack -"] * self.nu
-            qk = qk + self.energy * hk * ca.sum1(sl)
-        interval = ca.Function("ocp_interval", [xk, xk1, uk, tk, hk, mu, nu, sl],
-                               [ca.vertcat(*rows), qk])
-        tks = ca.horzcat(*[self._t(k) for k in range(N)])
-        int_args = [self.Xb[:, :-1], self.Xb[:, 1:], self.Ub, tks, self.h, mub, nub, slb]
-        g_int, q_int = interval.map(N)(*int_args)
-        block = b.ineq(g_int, [f"interval {k}: {lab}" for k in range(N) for lab in labels],
-                       np.tile(np.concatenate(lo), N), np.tile(np.concatenate(hi), N))
-        if interval.is_a("SXFunction"):
-            self.calls.append(MappedCall(interval, N, int_args, block, True))
-        else:  # an MX integrator (CVODES): no per-interval SX derivatives
-            self.structured = False
-        self.quad = ca.sum2(q_int)
-        self.energy_terms = 0.0
-        self._nodes()
-
     def _boundary(self) -> None:
         ocp, b, nq = self.ocp, self.b, self.nq
         x0, xn = self.X[0], self.X[self.M]
         u0, un = self.U[0], self.U[self.N - 1]
-        t0, tn = self._t(0), self._t(self.M)
+        t0, tn = self.mesh_time(0), self.mesh_time(self.M)
         if ocp._initial_given:
             b.eq(self.initial_fn(x0[:nq], x0[nq:], t0, u0, self.p) - self.initial_values,
                  "initial conditions")
@@ -472,7 +325,7 @@ class Transcription:
             obj = obj + self.effort * self.h * self.S * ca.sumsqr(self.Ub)
         if self.time_weight:
             obj = obj + self.time_weight * self.T
-        obj = obj + self.mayer_fn(x_n[:self.nq], x_n[self.nq:], self._t(self.M),
+        obj = obj + self.mayer_fn(x_n[:self.nq], x_n[self.nq:], self.mesh_time(self.M),
                                   self.U[self.N - 1], self.p)
         self.objective_rest = obj   # all but the mapped quadratures
         self.objective = self.quad + obj
@@ -485,8 +338,7 @@ class Transcription:
         w = ca.vertcat(*[ca.vec(x) for x in b.w])
         opts = dict(IPOPT_DEFAULTS) if ocp.solver == "ipopt" else {}
         opts.update(solver_defaults(self.system, ocp.solver))  # flexible bodies: pivoting
-        sundials = (ocp.transcription == "multiple_shooting"
-                    and not integrator_kind(ocp.integrator).fixed_step)
+        sundials = self.method.quasi_newton(ocp)
         if ocp.solver == "ipopt" and sundials:
             # second-order sensitivities of CVODES are costly: quasi-Newton Hessian
             opts["ipopt.hessian_approximation"] = "limited-memory"
@@ -544,9 +396,9 @@ class Transcription:
                 "variables": int(w.numel()), "constraints": len(b.glabels),
                 "transcription": ocp.transcription, "intervals": self.N,
                 "subintervals": self.S,
-                "degree": ocp.degree if ocp.transcription != "multiple_shooting" else None,
-                "dynamics": "explicit" if self.explicit or ocp.transcription
-                == "multiple_shooting" else "implicit",
+                "degree": self.method.degree(ocp),
+                "dynamics": "explicit" if self.explicit or not self.method.implicit
+                else "implicit",
                 "dynamics_choice": self.dynamics_choice,
                 "solver": ocp.solver, "derivatives": used,
                 "compiled": bool(report and report.mode == "compiled"),

@@ -29,7 +29,6 @@ from casmbd.model.values import resolve
 from casmbd.system.choice import AUTO, choose_coordinates
 from casmbd.system.context import Context
 from casmbd.system.descriptions import COORDINATE_CHOICES, describe
-from casmbd.system.flexible_descriptions import FlexibleDescription  # noqa: F401 (registers)
 from casmbd.system.forces import AppliedForces
 from casmbd.system.outputs import Outputs
 from casmbd.system.reactions import Reactions

@@ -37,7 +37,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from casmbd.errors import AnalysisError, CasmbdError
-from casmbd.io import scene as _scene  # noqa: F401  (registers the reader of Result.mechanism)
+from casmbd.io.scene import loads_scene
 from casmbd.model.bodies import GROUND
 from casmbd.model.contacts import PlaneContact, tangents
 from casmbd.model.flexible_bodies import is_flexible, node_attachment
@@ -233,7 +233,7 @@ def scene_name(result) -> str | None:
     if not result.scene:
         return None
     try:
-        return result.mechanism().name
+        return result.mechanism(loads_scene).name
     except CasmbdError:
         return None
 
@@ -384,7 +384,7 @@ def _place(pos, rot, body: str, u: np.ndarray, n_t: int) -> np.ndarray:
 def _geometry(result, mechanism) -> Geometry:
     if isinstance(mechanism, Geometry):
         return mechanism
-    mech = mechanism if mechanism is not None else result.mechanism()
+    mech = mechanism if mechanism is not None else result.mechanism(loads_scene)
     names = list(mech.bodies)
     if names != list(result.names["bodies"]):
         raise AnalysisError(f"the mechanism's bodies {names} are not the result's "

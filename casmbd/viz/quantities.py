@@ -14,7 +14,7 @@ import numpy as np
 
 from casmbd.analysis.invariants import force_exchange
 from casmbd.errors import CasmbdError
-from casmbd.io import scene as _scene  # noqa: F401  (registers the reader of Result.mechanism)
+from casmbd.io.scene import loads_scene
 
 #: unit of a coordinate by the suffix of its name (``body.x``, ``joint.angle`` …)
 _COORDINATE_UNITS = {"x": "m", "y": "m", "z": "m", "translation": "m", "length": "m",
@@ -35,7 +35,7 @@ def scene_mechanism(result, mechanism=None):
     if mechanism is not None or not getattr(result, "scene", ""):
         return mechanism
     try:
-        return result.mechanism()
+        return result.mechanism(loads_scene)
     except CasmbdError:  # an embedded scene that no longer loads: units stay unknown
         return None
 

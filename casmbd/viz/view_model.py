@@ -45,7 +45,7 @@ from casmbd.analysis.sweep import _statics_result
 from casmbd.analysis.sweep_result import SweepResult
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, AssemblyError, CasmbdError
-from casmbd.io import scene as _scene  # noqa: F401  (registers the reader of Result.mechanism)
+from casmbd.io.scene import loads_scene
 from casmbd.model import Mechanism
 from casmbd.model.measures import result_names
 from casmbd.ocp.solution import OcpSolution
@@ -225,7 +225,7 @@ def _resolve(source, mechanism):
             mechanism = source.ocp.system.mechanism
         source = result
     if isinstance(source, Result):
-        mech = mechanism if mechanism is not None else source.mechanism()
+        mech = mechanism if mechanism is not None else source.mechanism(loads_scene)
         return _with_poses(source, mech), mech
     raise AnalysisError(f"cannot view a {type(source).__name__}: give a Mechanism, a Result, "
                         "a StaticsResult or an OcpSolution")

@@ -28,9 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from casmbd.errors import AnalysisError, ResultFileError
-from casmbd.io.scene import load_scene
+from casmbd.io.scene import load_result, load_scene
 from casmbd.ocp.solution import OcpSolution
-from casmbd.results import load as load_result
 from casmbd.viz.view_html import write_html
 from casmbd.viz.view_model import ViewModel, view_model
 from casmbd.viz.view_scene import (

@@ -34,7 +34,7 @@ import numpy as np
 
 from casmbd.errors import CasmbdError
 from casmbd.model.bodies import GROUND
-from casmbd.model.contacts import PlaneContact, SphereContact
+from casmbd.model.contacts import PlaneContact, Unilateral
 from casmbd.model.inertia import inertia_tensor
 from casmbd.model.rotations import rotation_matrix
 from casmbd.model.spatial_joints import triad
@@ -122,16 +122,14 @@ def _contact_elements(mech) -> list:
     compliant contact forces."""
     out = list(getattr(mech, "contacts", {}).values())
     out += [f.element for f in mech.forces.values()
-            if isinstance(getattr(f, "element", None), PlaneContact | SphereContact)]
+            if isinstance(getattr(f, "element", None), Unilateral)]
     return out
 
 
 def _contact_spheres(mech, length: float) -> list[Shape]:
     out = []
     for c in _contact_elements(mech):
-        pairs = ([(c.body, c.point, c.radius)] if isinstance(c, PlaneContact) else
-                 [(c.body1, c.point1, c.radius1), (c.body2, c.point2, c.radius2)]
-                 if isinstance(c, SphereContact) else [])
+        pairs = c.spheres()  # each contact shape names the spheres it draws
         for k, (body, point, radius) in enumerate(pairs):
             if body != GROUND and body in mech.bodies and _is_flexible(mech.bodies[body]):
                 continue

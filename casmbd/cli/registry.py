@@ -1,0 +1,66 @@
+"""The verbs of the ``casmbd`` command, registered by name.
+
+A verb is one module and its registration: a function ``run(args) -> (JSON object, text)``
+and, for a verb that is not built in, how its parser is made.  :data:`VERBS` maps every verb
+to its ``run``; :data:`VERB_PARSERS` holds the parsers of registered verbs (help, the
+function adding their own arguments, whether they take a scene file with ``--json``,
+``--debug`` and ``--mode``).  :func:`casmbd.cli.build_parser` adds a sub-parser for every
+entry of :data:`VERB_PARSERS` and :func:`casmbd.cli.main` runs ``VERBS[verb](args)`` with the
+one-line errors, ``--json`` contract and exit statuses of every verb.
+
+The shipped verbs are registered by :mod:`casmbd.cli` (their functions are imported when they
+run, so ``casmbd info`` loads neither the OCP nor the plots); their parsers are still written
+out in :func:`casmbd.cli.build_parser`.  How to add one: ``examples/custom_verb.py``
+(``tests/test_custom_registries.py`` runs it).
+"""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable
+from dataclasses import dataclass
+
+from casmbd.errors import ModelError
+
+__all__ = ["VERBS", "VERB_PARSERS", "VerbParser", "register_verb"]
+
+#: verb name -> ``run(args) -> (dict, str)``
+VERBS: dict[str, Callable[[argparse.Namespace], tuple[dict, str]]] = {}
+
+
+@dataclass(frozen=True)
+class VerbParser:
+    """How :func:`casmbd.cli.build_parser` makes the parser of a registered verb."""
+
+    help: str
+    #: adds the verb's own arguments to its sub-parser (None: none)
+    add_arguments: Callable[[argparse.ArgumentParser], None] | None = None
+    #: the verb reads a scene file: positional ``scene``, ``--json``, ``--debug``, ``--mode``
+    scene: bool = True
+
+
+#: verb name -> its parser, for the verbs whose parser is not written in build_parser
+VERB_PARSERS: dict[str, VerbParser] = {}
+
+
+def register_verb(name: str, run: Callable[[argparse.Namespace], tuple[dict, str]], *,
+                  help: str = "", add_arguments=None, scene: bool = True,
+                  builtin: bool = False, replace: bool = False):
+    """Register the verb ``name`` run by ``run(args)``, which returns (JSON object, text).
+
+    ``help``, ``add_arguments`` and ``scene`` make its parser (:class:`VerbParser`);
+    ``builtin`` (the shipped verbs only) says its parser is written in
+    :func:`casmbd.cli.build_parser`.  A taken name is a :class:`ModelError` unless
+    ``replace``.  Returns ``run``.
+    """
+    if not (isinstance(name, str) and name.isidentifier()) or not callable(run):
+        raise ModelError(f"a verb is a name and a function run(args), got {name!r}, {run!r}")
+    if name in VERBS and not replace:
+        raise ModelError(f"verb '{name}' is already registered; pass replace=True to "
+                         "replace it")
+    VERBS[name] = run
+    if builtin:
+        VERB_PARSERS.pop(name, None)
+    else:
+        VERB_PARSERS[name] = VerbParser(help, add_arguments, scene)
+    return run
