@@ -45,7 +45,7 @@ from pathlib import Path
 from typing import Any
 
 from casmbd import results
-from casmbd.analysis.events import MAX_EVENTS_LIMIT, SIMULATION_KEYS
+from casmbd.analysis.events.events import MAX_EVENTS_LIMIT, SIMULATION_KEYS
 from casmbd.compiled import modal_cache  # noqa: F401 (registers the on-disk store of modes)
 from casmbd.errors import CasmbdError, ExpressionError, ModelError, SceneError
 from casmbd.io.files import read_text

@@ -19,8 +19,8 @@ import casadi as ca
 import numpy as np
 
 from casmbd import interrupts, progress
-from casmbd.analysis.integrators import integrator_kind
-from casmbd.analysis.kkt import consistent_state
+from casmbd.analysis.instant.kkt import consistent_state
+from casmbd.analysis.integrators.kinds import integrator_kind
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, OptimizationError
 from casmbd.ocp.dynamics import choose_dynamics, explicit_accelerations, node_constraints
@@ -400,7 +400,7 @@ class Transcription:
         ode = ca.vertcat(x[nq:], acc(x[:nq], x[nq:], u, t, self.p))
         quad = self.lagrange_fn(x[:nq], x[nq:], t, u, self.p)
         f = ca.Function("ocp_ode", [x, u, t], [ode, quad])
-        # the registered shooting integrator (casmbd.analysis.integrators.INTEGRATORS)
+        # the registered shooting integrator (casmbd.analysis.integrators.kinds.INTEGRATORS)
         step = integrator_kind(ocp.integrator).shooting_step(f, x, u, t, ocp.steps)
         mub, _ = b.var("MU", nc, N)
         nub, _ = b.var("NU", nc, N)

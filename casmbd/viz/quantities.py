@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from casmbd.analysis.invariants import force_exchange
+from casmbd.analysis.dynamics.invariants import force_exchange
 from casmbd.errors import CasmbdError
 from casmbd.io import scene as _scene  # noqa: F401  (registers the reader of Result.mechanism)
 
