@@ -38,7 +38,6 @@ from casmbd.analysis.integrators.kinds import (
     IntegratorKind,
     _Buffered,
     fixed_fold,
-    register_integrator,
 )
 from casmbd.compiled.codegen import compile_functions
 from casmbd.errors import IntegratorError
@@ -287,6 +286,3 @@ class DopriKind(IntegratorKind):
         the model's compiled ``functions`` (then ``dyn`` should be the compiled dynamics),
         nothing is generated or compiled."""
         return Dopri(dyn, mode=mode, name=name, block=(functions or {}).get(BLOCK_NAME))
-
-
-register_integrator(DopriKind("dopri5", "Dormand–Prince 5(4)", stiff_alternative="cvodes"))

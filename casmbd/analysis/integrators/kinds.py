@@ -21,7 +21,8 @@ kind, like scipy's ``solve_ivp`` ``METHODS``): what it integrates (ODE, DAE, num
 sides), whether its step is fixed, whether it serves the optimal-control problem's multiple
 shooting, and how it is built.  Simulation, the OCP and the CLI's ``--integrator`` choices read
 the registry; :func:`integrator_kind` raises :class:`~casmbd.errors.UnknownMethodError` for a
-name that is not in it.  Adding an integrator = one :func:`register_integrator` call here.
+name that is not in it.  Adding an integrator = one :func:`register_integrator` call here, or
+in the package :mod:`casmbd.analysis.integrators` for a kind in a module of its own (``dopri5``).
 """
 
 from __future__ import annotations
@@ -632,6 +633,5 @@ register_integrator(FixedStepKind("rk4", "RK4", shooting=True, step_builder=rk4_
                                   evaluations_per_step=4))
 register_integrator(FixedStepKind("abm", "ABM4", step_builder=abm_step, history=3,
                                   evaluations_per_step=2))
-
-# Dormand–Prince 5(4) in compiled blocks (its own module; registers "dopri5" on import)
-from casmbd.analysis.integrators import dopri as _dopri  # noqa: E402,F401
+# Dormand–Prince 5(4) builds on this module (casmbd.analysis.integrators.dopri); the package
+# casmbd.analysis.integrators registers it, so this module imports no other of its room
