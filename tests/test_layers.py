@@ -239,3 +239,20 @@ def test_analysis_import_graph_is_acyclic():
 def test_the_cycle_finder_sees_a_circle():
     assert _cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
     assert _cycle({"a": {"b"}, "b": set(), "c": {"a", "b"}}) == []
+
+
+def test_the_analysis_face_exports_the_verbs():
+    """``casmbd.analysis`` names every analysis verb of the public facade, from the same module,
+    and a fresh ``import casmbd.analysis`` loads no room (the verbs load on first use)."""
+    import casmbd
+    import casmbd.analysis as face
+
+    public = {n: m for n, m in casmbd._LAZY.items() if m.startswith("casmbd.analysis.")}
+    assert public == face.VERBS
+    for name in face.VERBS:
+        assert getattr(face, name) is getattr(casmbd, name)
+    code = ("import sys, casmbd.analysis; "
+            "print(sorted(m for m in sys.modules if m.startswith('casmbd.analysis.')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=300, check=True).stdout.strip()
+    assert out == "[]"
