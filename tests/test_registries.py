@@ -212,7 +212,8 @@ SHIPPED = ("index1", "ggl", "kkt_ode", "augmented_lagrangian", "articulated", "n
 
 def test_formulation_registry_is_complete_on_import_in_a_fresh_process():
     """Importing the registry's package alone registers every shipped formulation, loads no
-    analysis module outside its room, and the CLI's ``--formulation`` choices are exactly the registry
+    analysis module outside its room, and the CLI's ``--formulation`` choices are exactly the
+    registry
     (issue 30, item 4h: nullspace and partitioning used to register by a side-effect import
     of the analysis layer, so a fresh CLI refused them)."""
     code = ("import sys, casmbd.analysis.formulations as f; "

@@ -144,7 +144,7 @@ def plan_redundancy(system: System, formulation: str, option: str = "auto") -> d
     return plan
 
 
-_input_expression = input_expression  # u(t, p) of the actuators (analysis.build_cache)
+_input_expression = input_expression  # u(t, p) of the actuators (dynamics.build_cache)
 
 
 _FLAG = re.compile(r'returned "([A-Z_]+)"')
@@ -174,7 +174,7 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
                  redundancy: str = "auto"):
         t0 = time.perf_counter()
         self._mode, self._solvers = mode, {}
-        # a model record of the same description: no System, no code (analysis.build_cache)
+        # a model record of the same description: no System, no code (dynamics.build_cache)
         if self._from_cache(mechanism, formulation, inputs, mode, formulation_options,
                             redundancy):
             self.build_seconds = time.perf_counter() - t0
@@ -213,7 +213,7 @@ class Simulator(Stepping, PostProcessing, CachedBuild):
         self.system = system
         self.dyn = self.model.function(self.formulation.function.name())
         self.ufun = self.model.function(INPUTS_FUNCTION)
-        self._remember()  # the model record for the next run (analysis.build_cache)
+        self._remember()  # the model record for the next run (dynamics.build_cache)
         self.build_seconds = time.perf_counter() - t0
 
     def _solver(self, key, factory):

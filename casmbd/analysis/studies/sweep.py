@@ -122,7 +122,7 @@ class _Runner:
         #: across points; None: one Simulator run at every point
         self.simulators = None
         #: statics with impact contacts or stops: each point through static_equilibrium of
-        #: the mechanism itself (the active set of closed gaps, analysis.resting)
+        #: the mechanism itself (the active set of closed gaps, statics.resting)
         self.resting = self.analysis == "statics" and has_events(mech)
         self.mode = mode
         if self.analysis == "simulate" and has_events(mech):
