@@ -6,8 +6,7 @@
   closed form t_1 = sqrt(2 h/g),
   t_(k+1) = t_k + 2 e^k sqrt(2 h g)/g, and the same run without the screen (identical events);
 * :func:`~casmbd.analysis.events.events.periodic_overrun` on constructed impact times, and the ball
-  of
-  restitution 1 with t_end far beyond its event bound: stopped early (after
+  of restitution 1 with t_end far beyond its event bound: stopped early (after
   :data:`~casmbd.analysis.events.events.PROJECT_AFTER` events), named, the results kept.
 
 No timing is asserted (the per-event cost is in benchmarks/contact_events.py).  The virtual

@@ -14,8 +14,7 @@ Joint friction is part of Q_e (viscous and regularised Coulomb), so the efforts 
 With reaction-proportional friction (``mu`` > 0) Q_e depends on λ through the transverse
 reaction magnitudes N: λ and N are solved together at each time by the fixed point of
 :func:`casmbd.analysis.instant.joint_friction.solve_normals` (relative 1e-12 in N; the iterations
-are
-``stats["friction_iterations"]``, the largest over the grid).
+are ``stats["friction_iterations"]``, the largest over the grid).
 """
 
 from __future__ import annotations

@@ -81,8 +81,7 @@ def info(mechanism_or_model, mode: str = "auto") -> dict:
     be assembled, ``"assembled"`` is False, ``"assembly_error"`` says why (most likely culprit
     first) and ``"assembly_culprits"`` ranks the elements (dicts of
     :class:`~casmbd.analysis.instant.culprits.Culprit`); the rank and degrees of freedom are then
-    those
-    at the initial guess and ``"rank_reliable"`` is False, and the redundancy analysis is
+    those at the initial guess and ``"rank_reliable"`` is False, and the redundancy analysis is
     skipped (``"redundant_equations"`` empty): at a pose that violates the constraints a
     contradicting element would look "redundant".  Never raises for redundancy or assembly
     (the CLI turns a failed assembly into a non-zero exit status).

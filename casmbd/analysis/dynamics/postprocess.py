@@ -1,8 +1,7 @@
 """A simulation's outputs from its states, and the diagnosis of a failed run.
 
 A mixin of :class:`casmbd.analysis.dynamics.simulate.Simulator`: at every output time q̈ and λ from
-the
-sparse KKT system (a minimum-norm solve at singular points), joint reactions (seed 000, eqs.
+the sparse KKT system (a minimum-norm solve at singular points), joint reactions (seed 000, eqs.
 6.145–6.151), driver efforts (−λ of the driver row), energies, constraint violations and
 conditioning, collected in a :class:`~casmbd.results.Result`; and, where a run failed, the
 rank and conditioning of C_q (or the model value that is not finite) for the error message.

@@ -138,8 +138,7 @@ class Stepping:
 
     def _compiled_run(self, name, grid, x0, rtol, atol, max_steps, project: bool):
         """An adaptive method in compiled blocks (DOPRI5, :mod:`casmbd.analysis.integrators.dopri`)
-        over
-        the output grid, each step clipped to the next output; optional projection (then a
+        over the output grid, each step clipped to the next output; optional projection (then a
         restart with the same step size).  A failure raises an :class:`IntegratorError` that
         keeps the outputs before it."""
         kind = integ.INTEGRATORS[name]

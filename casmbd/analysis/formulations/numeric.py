@@ -4,8 +4,7 @@ The kinds (name, state layout, redundancy policy) are declared here and register
 symbolic ones by :mod:`casmbd.analysis.formulations`, so :data:`FORMULATIONS` is complete as soon
 as that package is imported; their numeric right-hand sides live in the analysis layer
 (:data:`casmbd.analysis.dynamics.numeric_run.RIGHT_HAND_SIDES`, keyed by these classes), which is
-the
-only layer that evaluates them.
+the only layer that evaluates them.
 """
 
 from __future__ import annotations
@@ -26,8 +25,7 @@ class NumericFormulation(FormulationKind):
     (:mod:`casmbd.analysis.formulations.partitioning`,
     :mod:`casmbd.analysis.formulations.nullspace`, looked up by
     :mod:`casmbd.analysis.dynamics.numeric_run`), so the system layer never imports the analysis
-    layer;
-    a user's numeric kind overrides :meth:`right_hand_side`.
+    layer; a user's numeric kind overrides :meth:`right_hand_side`.
     """
 
     kind = "numeric"

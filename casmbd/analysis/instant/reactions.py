@@ -33,8 +33,7 @@ def multiplier_null_space(jacobian, rtol: float = RANK_RTOL) -> np.ndarray:
 
     The rank decision uses the row-equilibrated matrix, as
     :func:`casmbd.analysis.instant.redundancy.rank_report` does; the basis is returned for the
-    original
-    rows (a vector z with C_qᵀ z = 0 stays one after row scaling by D: (D⁻¹ z)).
+    original rows (a vector z with C_qᵀ z = 0 stays one after row scaling by D: (D⁻¹ z)).
     """
     a = jacobian.toarray() if hasattr(jacobian, "toarray") else np.asarray(jacobian, dtype=float)
     a = zero_noise_rows(a)  # rounding noise is no equation (redundancy.ZERO_ROW_RTOL)

@@ -31,8 +31,7 @@ only, not oscillations about a rest position.
 Where.  ``linearize(m)`` expands about the assembled initial configuration at rest,
 ``linearize(m, q=..., v=...)`` about a given state, ``linearize(m, at="equilibrium")`` about
 the static equilibrium that :func:`casmbd.analysis.statics.statics.static_equilibrium` finds from
-the
-initial configuration (at time t, inputs zero), and ``linearize(m, at=result, at_time=T)``
+the initial configuration (at time t, inputs zero), and ``linearize(m, at=result, at_time=T)``
 about the state (q, v, and the stored actuator inputs) a result holds at its output time
 *nearest* T.  Nearest, not interpolated: a stored state satisfies the constraints (to the
 integrator's accuracy), an interpolated one in general does not, and the linearization

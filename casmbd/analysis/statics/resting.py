@@ -32,8 +32,7 @@ def resting_equilibrium(mechanism, t: float, method: str, tol: float, max_iter: 
     carries its weight.  The result's ``contacts`` give each gap's force (0 when open) and
     value.  ``stable`` is handed to every solve (the equilibrium nearest the start, or a
     stable one).  ``solve`` is :func:`casmbd.analysis.statics.statics.static_equilibrium` (handed
-    in: that
-    module calls this one)."""
+    in: that module calls this one)."""
     elements = [c for c in mechanism.contacts.values() if c.model == "impact"]
     gaps = EventRows(System(mechanism), elements)
     p = np.array(list(mechanism.parameters.values()), dtype=float)

@@ -46,8 +46,7 @@ with g = Nᵀ Q_e the net force and K̄ = Nᵀ K N the stiffness (N a basis of k
   potential descent from the same start, and the first note says so.
 * A stable equilibrium (``stable=True``, and the steps above):
   :func:`casmbd.analysis.statics.trust_region.trust_region_step` minimises the quadratic model of
-  the
-  potential energy −gᵀdz + ½ dzᵀ K̄ dz within ‖dz‖ ≤ Δ.  It is Newton's step when K̄ is
+  the potential energy −gᵀdz + ½ dzᵀ K̄ dz within ‖dz‖ ≤ Δ.  It is Newton's step when K̄ is
   positive (semi)definite and the step fits, with a rank cut-off
   (:data:`~casmbd.analysis.statics.trust_region.RANK_RTOL` = 1e-10 relative to the largest
   eigenvalue) in the least-squares fallback.  A step is accepted when the work done by the

@@ -19,10 +19,8 @@ A scene with impact contacts, joint stops or stick-slip friction runs every poin
 :func:`~casmbd.analysis.dynamics.simulate.simulate` itself (the event-driven run, its phase
 simulators
 kept per process in a :class:`~casmbd.analysis.dynamics.simulate.Simulators`), and a statics sweep
-of
-such a scene through :func:`~casmbd.analysis.statics.statics.static_equilibrium` of the mechanism
-(the
-active set of closed gaps): a point is what the verb gives at that value.
+of such a scene through :func:`~casmbd.analysis.statics.statics.static_equilibrium` of the mechanism
+(the active set of closed gaps): a point is what the verb gives at that value.
 
 Parameters that fix *load-time* numbers of the scene (positions, points, axes, initial
 velocities are evaluated when the scene is read, ``docs/scene-format.md``) cannot change at run
@@ -174,8 +172,7 @@ class _Runner:
 
 def _statics_result(res) -> Result:
     """A :class:`~casmbd.analysis.statics.statics.StaticsResult` as a one-time :class:`Result` (so
-    that
-    it is saved, reloaded and reduced like the others)."""
+    that it is saved, reloaded and reduced like the others)."""
     names = {k: list(v) for k, v in res.names.items()}
     eig = np.asarray(res.eigenvalues, float)
     arrays = {"q": np.asarray(res.q, float)[None, :],
