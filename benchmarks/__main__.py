@@ -49,7 +49,7 @@ HARD_CASES = ("andrews", "flyball_governor", "bricard", "n_four_bar", "long_pend
 def _chain_or_fourbar(name: str, coordinates: str, formulation: str, integrator: str,
                       tol: float, step: float | None = None) -> tuple[float, float]:
     from benchmarks.work_precision import problem
-    from casmbd.analysis.simulate import Simulator
+    from casmbd.analysis.dynamics.simulate import Simulator
 
     mech, t_end, error, _ = problem(name, coordinates)
     if coordinates != "absolute":
@@ -61,7 +61,7 @@ def _chain_or_fourbar(name: str, coordinates: str, formulation: str, integrator:
 
 def _andrews() -> tuple[float, float]:
     from benchmarks.andrews import Q_LD, SCENE, T_END, published_angles
-    from casmbd.analysis.simulate import Simulator
+    from casmbd.analysis.dynamics.simulate import Simulator
     from casmbd.io.scene import load_scene
 
     res = Simulator(load_scene(SCENE)).run(T_END, 1, rtol=1e-10)
@@ -71,7 +71,7 @@ def _andrews() -> tuple[float, float]:
 def _n_four_bar() -> tuple[float, float]:
     from benchmarks.n_four_bar import bar_angles, n_four_bar
     from benchmarks.n_four_bar_reference import one_dof_reference
-    from casmbd.analysis.simulate import Simulator
+    from casmbd.analysis.dynamics.simulate import Simulator
 
     res = Simulator(n_four_bar(3)).run(4.0, 400, rtol=1e-10)
     angles = bar_angles(res, 3)
@@ -81,7 +81,7 @@ def _n_four_bar() -> tuple[float, float]:
 
 def _pendulum() -> tuple[float, float]:
     from benchmarks.long_pendulum import exact_position, simple_pendulum
-    from casmbd.analysis.simulate import Simulator
+    from casmbd.analysis.dynamics.simulate import Simulator
 
     res = Simulator(simple_pendulum()).run(100.0, 200, rtol=1e-10)
     err = np.max(np.abs(res.body("bob")["position"] - exact_position(res.t)))

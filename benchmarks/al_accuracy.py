@@ -29,9 +29,9 @@ import casadi as ca
 import numpy as np
 
 from benchmarks.work_precision import problem
+from casmbd.analysis.formulations import build
+from casmbd.analysis.formulations.base import _baumgarte_gamma, _forces
 from casmbd.system.equations import System
-from casmbd.system.formulations import build
-from casmbd.system.formulations.base import _baumgarte_gamma, _forces
 
 CASES = (("fourbar", "absolute"), ("fourbar", "natural"), ("fourbar", "joint"),
          ("chain8", "absolute"), ("chain8", "natural"), ("chain32", "absolute"),

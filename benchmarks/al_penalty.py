@@ -33,7 +33,7 @@ from benchmarks.docs import replace_section
 from benchmarks.n_four_bar import bar_angles, n_four_bar
 from benchmarks.n_four_bar_reference import one_dof_reference
 from benchmarks.work_precision import problem
-from casmbd.analysis.simulate import Simulator
+from casmbd.analysis.dynamics.simulate import Simulator
 
 ROOT = Path(__file__).resolve().parents[1]
 #: (penalty factor on the default, iterations)

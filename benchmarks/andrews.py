@@ -19,7 +19,8 @@ long double by classical RK4 with Richardson extrapolation (:func:`long_double_r
 ``--recompute-reference`` reruns it, about 2 minutes).  The table gives the largest error of the
 seven angles, integrator steps, the solve time (median of ``--repeat`` runs) and the largest
 constraint violation.  The wall time of a default run (``steps = 100`` output intervals, default
-rtol 1e-8) is reported with and without building the :class:`~casmbd.analysis.simulate.Simulator`
+rtol 1e-8) is reported with and without building the
+:class:`~casmbd.analysis.dynamics.simulate.Simulator`
 (from the compile cache, and from an empty cache).
 
 Run ``python -m benchmarks.andrews --update-docs`` (writes the section "## Andrews' squeezing
@@ -225,7 +226,7 @@ def long_double_reference(steps=(4000, 8000, 16000),
 # ---------------------------------------------------------------------------- casmbd runs
 def measure(config, repeat: int) -> list[dict]:
     """Every tolerance of one configuration: errors, steps, median solve time, or failure."""
-    from casmbd.analysis.simulate import Simulator
+    from casmbd.analysis.dynamics.simulate import Simulator
     from casmbd.errors import CasmbdError, IntegratorError
     from casmbd.io.scene import load_scene
 
@@ -270,7 +271,7 @@ def measure(config, repeat: int) -> list[dict]:
 def al_variants() -> list[dict]:
     """The augmented Lagrangian's floor (the scene's absolute coordinates): more iterations,
     other penalties (one run each)."""
-    from casmbd.analysis.simulate import Simulator
+    from casmbd.analysis.dynamics.simulate import Simulator
     from casmbd.io.scene import load_scene
 
     base = Simulator(load_scene(SCENE)).formulation.options["penalty"]
@@ -294,7 +295,7 @@ def default_run_timing(repeat: int) -> dict:
     nothing chosen but the scene's absolute coordinates): the run alone, scene loading +
     Simulator build from the compile cache + run, and the same from an empty cache (code
     generation and C compilation included); medians of ``repeat``."""
-    from casmbd.analysis.simulate import Simulator
+    from casmbd.analysis.dynamics.simulate import Simulator
     from casmbd.io.scene import load_scene
 
     def one(cache: str | None) -> tuple[float, float, float, float, object]:

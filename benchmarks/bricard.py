@@ -107,7 +107,7 @@ def _quiet(fn, *args, **kwargs):
 # ------------------------------------------------------------------------------ Bricard
 def measure(config, repeat: int, slow: float) -> tuple[list[dict], dict]:
     """Every tolerance of one configuration; returns the rows and {rtol: P3 trajectory}."""
-    from casmbd.analysis.simulate import Simulator
+    from casmbd.analysis.dynamics.simulate import Simulator
     from casmbd.errors import CasmbdError, IntegratorError
 
     label, coords, formulation, integrator, option = config
@@ -216,7 +216,7 @@ def truncated_accelerations(model, q, v, t) -> np.ndarray:
 
 def acceleration_errors(t_end: float = 1.0, steps: int = 20) -> dict:
     """Largest error of the reported q̈ per configuration (rtol 1e-12, first second)."""
-    from casmbd.analysis.simulate import Simulator
+    from casmbd.analysis.dynamics.simulate import Simulator
 
     out = {}
     for label, coords, formulation, integrator, option in CONFIGS:

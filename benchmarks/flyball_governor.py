@@ -4,7 +4,7 @@
 
 * the default path: the scene as written, nothing chosen (``coordinates = "auto"`` takes joint
   coordinates for this tree, the articulated-body recursion follows, and the stiffness check
-  of :mod:`casmbd.analysis.simulate` switches to CVODES-BDF); its label says what was used
+  of :mod:`casmbd.analysis.dynamics.simulate` switches to CVODES-BDF); its label says what was used
   (``res.stats``),
 * in absolute coordinates (pinned): ``augmented_lagrangian`` with CVODES-Adams (the default
   before the stiffness switch) and with the integrator left to the default (the switch to
@@ -122,7 +122,7 @@ def finals(res) -> tuple[float, float]:
 
 def measure(config, repeat: int, slow: float) -> list[dict]:
     """Every tolerance of one configuration: finals, steps, median solve time, or the failure."""
-    from casmbd.analysis.simulate import Simulator
+    from casmbd.analysis.dynamics.simulate import Simulator
     from casmbd.errors import CasmbdError, IntegratorError
 
     label, coords, formulation, integrator, loosest, tightest, options = config
@@ -208,7 +208,7 @@ def balances(rtol: float = 1e-11, points_per_second: int = 4000) -> dict:
     lz = angular_momentum_z(res, mech)
     s = res.body("sleeve")["position"][:, 2]
     w = res.body("shaft")["angular_velocity"][:, 2]
-    from casmbd.analysis.linearize import linearize
+    from casmbd.analysis.statics.linearize import linearize
     from casmbd.system.equations import System
 
     joint = mechanism("joint")

@@ -40,9 +40,9 @@ from benchmarks.references import (
     four_bar_rate_squared,
     load_reference,
 )
-from casmbd.analysis.simulate import Simulator
+from casmbd.analysis.dynamics.simulate import Simulator
+from casmbd.analysis.formulations.augmented_lagrangian import REFINE, REFINE_DRIFT
 from casmbd.errors import CasmbdError
-from casmbd.system.formulations.augmented_lagrangian import REFINE, REFINE_DRIFT
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "benchmarks" / "results" / "fourbar_floor.json"

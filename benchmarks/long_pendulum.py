@@ -159,7 +159,7 @@ def _at(values: list[float], t: float) -> float:
 
 def measure(repeat_below: float = 5.0) -> list[dict]:
     """Every configuration for 2 000 s at 4 000 output steps (one Simulator per formulation)."""
-    from casmbd.analysis.simulate import Simulator
+    from casmbd.analysis.dynamics.simulate import Simulator
     from casmbd.errors import CasmbdError
 
     sims: dict = {}
@@ -324,7 +324,7 @@ def markdown(rows: list[dict], command: str) -> str:
 
 def findings(rows: list[dict]) -> list[str]:
     """What the table says, with the numbers taken from it."""
-    from casmbd.analysis.simulate import STIFF_RATE, STIFF_STEPS
+    from casmbd.analysis.dynamics.simulate import STIFF_RATE, STIFF_STEPS
 
     def get(group: str, rtol: float, proj: bool) -> dict | None:
         return next((r for r in rows if r.get("group") == group and r["rtol"] == rtol

@@ -36,7 +36,7 @@ BASE_STEPS = 10
 
 #: the Python API: simulate() and the arrays of its Result
 _API = ("import sys; from casmbd.io.scene import load_scene; "
-        "from casmbd.analysis.simulate import simulate; "
+        "from casmbd.analysis.dynamics.simulate import simulate; "
         "simulate(load_scene(sys.argv[1]), t_end=float(sys.argv[2]), steps=int(sys.argv[3]))")
 #: the command line, run in the same interpreter as ``python -m casmbd``
 _CLI = "import runpy, sys; sys.argv[0] = 'casmbd'; runpy.run_module('casmbd', run_name='__main__')"

@@ -232,7 +232,7 @@ def evaluate(result, n: int) -> dict:
 
 def measure(config, n: int, repeat: int, slow: float) -> list[dict]:
     """Every tolerance of one configuration (build once, run ``repeat`` times each)."""
-    from casmbd.analysis.simulate import Simulator
+    from casmbd.analysis.dynamics.simulate import Simulator
     from casmbd.errors import CasmbdError, IntegratorError
 
     label, coords, formulation, options, integrator, rtols, max_steps = config
@@ -294,8 +294,8 @@ def conditioning_survey(n: int = N_BENCH, rtol: float = 1e-10) -> dict:
     """σ_r/σ_1 of the equilibrated C_q at *every* output step of a run of the augmented
     Lagrangian in absolute coordinates (casmbd's result evaluates a subset for large models)
     and its local minima."""
-    from casmbd.analysis.redundancy import equilibrated_singular_values
-    from casmbd.analysis.simulate import Simulator
+    from casmbd.analysis.dynamics.simulate import Simulator
+    from casmbd.analysis.instant.redundancy import equilibrated_singular_values
 
     mech = n_four_bar(n)
     mech.coordinates = "absolute"  # the rank 6N + 2 below is the absolute description's

@@ -74,7 +74,7 @@ def casmbd_rhs(n: int, spatial: bool):
     """(compiled right-hand side, parameter vector) of casmbd's articulated formulation."""
     from benchmarks.chains import pendulum_chain
     from benchmarks.work_precision import chain_in_space
-    from casmbd.analysis.simulate import Simulator
+    from casmbd.analysis.dynamics.simulate import Simulator
 
     mech = chain_in_space(n, "joint") if spatial else pendulum_chain(n)
     if not spatial:

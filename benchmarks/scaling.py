@@ -139,7 +139,7 @@ def time_per_call(fn, repeat: int = 5, min_seconds: float = 0.05) -> float:
 
 
 def _simulator(n: int, config: str, variant: str):
-    from casmbd.analysis.simulate import Simulator
+    from casmbd.analysis.dynamics.simulate import Simulator
 
     mode, _ = VARIANTS[variant]
     _, formulation = CONFIGS[config]
@@ -258,7 +258,7 @@ def _solve(sim, t_end: float, tol: float, repeat: int) -> tuple[dict, np.ndarray
 def child_run(n: int, config: str, variant: str, jac_budget: float, repeat: int) -> dict:
     """Second run on the same cache: load, evaluation cost, solve time to 1e-6."""
     t0 = time.perf_counter()
-    import casmbd.analysis.simulate  # noqa: F401  (the import is timed apart from the load)
+    import casmbd.analysis.dynamics.simulate  # noqa: F401  (the import is timed apart from the load)
 
     imported = time.perf_counter() - t0
     t0 = time.perf_counter()
@@ -676,10 +676,11 @@ def profile_lines(prof: dict | None) -> list[str]:
              f"Python set-up and post-processing.", ""]
     lines += ["No Python runs inside the integration: CVODES calls the compiled right-hand "
               "side from C in one `Function_call`. Python loops outside it: the stiffness "
-              "probe before the solve (`Simulator.stiffness`, casmbd/analysis/simulate.py, "
-              "2 n_x + 1 Python calls of the compiled Function for n_x ≤ 400, by finite "
+              "probe before the solve (`Simulator.stiffness`, "
+              "casmbd/analysis/dynamics/simulate.py, 2 n_x + 1 Python calls of the compiled "
+              "Function for n_x ≤ 400, by finite "
               "differences) and the post-processing (`_post`; here dominated by one dense "
-              "SVD of C_q in `casmbd/analysis/reactions.py::multiplier_null_space`, O(n_c² "
+              "SVD of C_q in `casmbd/analysis/instant/reactions.py::multiplier_null_space`, O(n_c² "
               "n_q): 0.09 s here against 0.03 s of integration).", ""]
     if integrator_call:
         lines += [f"Largest cumulative entry: `{integrator_call['function']}` "

@@ -1,7 +1,7 @@
 """Statics of the UR5-like and Panda-like arms from their zero pose (issue 18, item 5).
 
 For tests/scenes/ur_like.toml and tests/scenes/panda_like.toml, in absolute, natural and joint
-coordinates and with both methods, :func:`casmbd.analysis.statics.static_equilibrium` is run
+coordinates and with both methods, :func:`casmbd.analysis.statics.statics.static_equilibrium` is run
 from the zero pose asking for a stable equilibrium (``stable=True``: the potential descent to
 the hanging arm; default tolerance 1e-10) and the table reports the iterations (rejected
 trust-region trials included), the force residual max |Q_e − C_qᵀλ| relative to the largest
@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 
 from benchmarks.docs import run_study, study_parser
-from casmbd.analysis.assembly import assemble
-from casmbd.analysis.statics import STATICS_NEEDS, static_equilibrium, statics_functions
+from casmbd.analysis.instant.assembly import assemble
+from casmbd.analysis.statics.statics import STATICS_NEEDS, static_equilibrium, statics_functions
 from casmbd.compiled.model import NumericModel
 from casmbd.io.scene import load_scene
 from casmbd.system.equations import System

@@ -138,7 +138,7 @@ def _run(sim, repeat: int, **kw) -> dict:
 
 def _raw_call(sim, name: str, repeat: int, clock=time.perf_counter) -> dict:
     """The CasADi integrator of the run called directly (no casmbd code around it)."""
-    from casmbd.analysis import integrators as integ
+    from casmbd.analysis.integrators import kinds as integ
 
     solver = integ.sundials(sim.dyn, name, 0.0, [T_END], TOL, TOL, 500_000)
     x0 = np.concatenate([sim.model.initial_coordinates(), sim.model.initial_velocities()])
@@ -150,7 +150,7 @@ def _raw_call(sim, name: str, repeat: int, clock=time.perf_counter) -> dict:
 def _fixed_cpu(sim, repeat: int) -> float:
     """Processor µs per step of the compiled RK4 folds (``FixedStep.advance`` over
     T_END / RK4_STEP steps in one call, what ``Simulator.run`` does with one output)."""
-    from casmbd.analysis import integrators as integ
+    from casmbd.analysis.integrators import kinds as integ
 
     runner = integ.FixedStep(sim.formulation.function, "rk4", mode="auto",
                              name=f"{getattr(sim.model, 'name', 'step_cost')}_rk4")
@@ -166,7 +166,7 @@ def _floor(nx: int, name: str, repeat: int, clock=time.perf_counter) -> dict:
     """CVODES through CasADi on nx / 2 uncoupled oscillators q̈ = −ω² q (ω = 2π·(1 … 2)
     rad/s, a right-hand side of nx multiplications in CasADi's virtual machine): µs per step
     of CasADi's and SUNDIALS' own work."""
-    from casmbd.analysis import integrators as integ
+    from casmbd.analysis.integrators import kinds as integ
 
     m = nx // 2
     q, v, t = ca.SX.sym("q", m), ca.SX.sym("v", m), ca.SX.sym("t")
@@ -182,7 +182,7 @@ def _floor(nx: int, name: str, repeat: int, clock=time.perf_counter) -> dict:
 
 
 def measure(repeat: int = 10) -> dict:
-    from casmbd.analysis.simulate import Simulator
+    from casmbd.analysis.dynamics.simulate import Simulator
 
     rows = []
     for n, coords in CASES:

@@ -32,7 +32,7 @@ HEAD = "## Trees in joint coordinates: KKT path against the articulated-body rec
 
 def measure(n: int, formulation: str, repeat: int, rtol: float) -> dict:
     """One chain, one formulation, in a fresh compile cache."""
-    from casmbd.analysis.simulate import Simulator
+    from casmbd.analysis.dynamics.simulate import Simulator
 
     mech = pendulum_chain(n)
     mech.coordinates = "joint"

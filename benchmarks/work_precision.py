@@ -60,10 +60,10 @@ from benchmarks.work_precision_docs import (  # noqa: F401 (machine: used by oth
     markdown,
     update_docs,
 )
-from casmbd.analysis.simulate import Simulator
+from casmbd.analysis.dynamics.simulate import Simulator
+from casmbd.analysis.formulations import FORMULATIONS
 from casmbd.errors import CasmbdError
 from casmbd.model import Mechanism
-from casmbd.system.formulations import FORMULATIONS
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "benchmarks" / "results"

@@ -32,18 +32,20 @@ from casmbd.errors import (
 #: public name -> the module that defines it, imported when the name is first used (PEP 562):
 #: ``import casmbd`` loads only the error classes, so a script or ``casmbd --version`` starts
 #: without CasADi's compiled layer, scipy, the analyses or the OCP; ``casmbd.simulate`` and
-#: ``from casmbd import simulate`` import :mod:`casmbd.analysis.simulate` on first use
+#: ``from casmbd import simulate`` import :mod:`casmbd.analysis.dynamics.simulate` on first use
 _LAZY = {
-    "accelerations": "casmbd.analysis.assembly", "assemble": "casmbd.analysis.assembly",
-    "velocities": "casmbd.analysis.assembly",
-    "inverse_dynamics": "casmbd.analysis.inverse",
-    "info": "casmbd.analysis.kinematics", "kinematics": "casmbd.analysis.kinematics",
-    "linearize": "casmbd.analysis.linearize",
-    "SensitivityResult": "casmbd.analysis.sensitivity",
-    "sensitivity": "casmbd.analysis.sensitivity",
-    "Simulator": "casmbd.analysis.simulate", "simulate": "casmbd.analysis.simulate",
-    "static_equilibrium": "casmbd.analysis.statics",
-    "SweepResult": "casmbd.analysis.sweep", "sweep": "casmbd.analysis.sweep",
+    "accelerations": "casmbd.analysis.instant.assembly",
+    "assemble": "casmbd.analysis.instant.assembly",
+    "velocities": "casmbd.analysis.instant.assembly",
+    "inverse_dynamics": "casmbd.analysis.driven.inverse",
+    "info": "casmbd.analysis.driven.kinematics", "kinematics": "casmbd.analysis.driven.kinematics",
+    "linearize": "casmbd.analysis.statics.linearize",
+    "SensitivityResult": "casmbd.analysis.studies.sensitivity",
+    "sensitivity": "casmbd.analysis.studies.sensitivity",
+    "Simulator": "casmbd.analysis.dynamics.simulate",
+    "simulate": "casmbd.analysis.dynamics.simulate",
+    "static_equilibrium": "casmbd.analysis.statics.statics",
+    "SweepResult": "casmbd.analysis.studies.sweep", "sweep": "casmbd.analysis.studies.sweep",
     "NumericModel": "casmbd.compiled.model",
     "CompiledModel": "casmbd.compiled.robot", "compile": "casmbd.compiled.robot",
     "load_scene": "casmbd.io.scene", "loads_scene": "casmbd.io.scene",

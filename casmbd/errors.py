@@ -27,7 +27,7 @@ class AssemblyError(CasmbdError):
     """Newton-Raphson could not satisfy the constraints C(q, t) = 0.
 
     ``culprits`` lists the elements most likely at fault, best first
-    (:class:`casmbd.analysis.culprits.Culprit`: kind, element, hint, ...).  The ranking
+    (:class:`casmbd.analysis.instant.culprits.Culprit`: kind, element, hint, ...).  The ranking
     re-solves the assembly once per element, so it is computed on first use — ``str(exc)`` or
     ``exc.culprits`` — by the ``explain`` callable (returning the list and the text appended to
     the message): callers that catch the error and try another step never pay for it.

@@ -107,7 +107,7 @@ class Result:
     names: dict[str, list[str]]
     stats: dict = field(default_factory=dict)
     scene: str = ""
-    #: events of an event-driven run (contacts, joint limits: casmbd.analysis.events), each
+    #: events of an event-driven run (contacts, joint limits: casmbd.analysis.events.events), each
     #: ``{"time": float, "element": str, "kind": str}`` (impact, limit, contact, detach,
     #: stick, slip)
     events: list = field(default_factory=list)

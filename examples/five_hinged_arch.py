@@ -16,8 +16,8 @@ from __future__ import annotations
 import numpy as np
 
 import casmbd
-from casmbd.analysis.linearize import linearize
-from casmbd.analysis.statics import static_equilibrium
+from casmbd.analysis.statics.linearize import linearize
+from casmbd.analysis.statics.statics import static_equilibrium
 
 SPAN = 2.5      # distance between the ground pivots [m]; rods are 1 m, 1 kg
 

@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 import casmbd
-from casmbd.analysis.inverse import inverse_dynamics
-from casmbd.analysis.simulate import Simulator
+from casmbd.analysis.driven.inverse import inverse_dynamics
+from casmbd.analysis.dynamics.simulate import Simulator
 from casmbd.model.values import Samples
 
 T_END = 2.0

@@ -10,12 +10,15 @@ from pathlib import Path
 
 from composition_scenes import KIND_VARIANTS, VARIANTS
 
-from casmbd.analysis import inverse, kinematics, linearize, sensitivity, simulate, statics
-from casmbd.analysis.integrators import INTEGRATORS
+from casmbd.analysis.driven import inverse, kinematics
+from casmbd.analysis.dynamics import simulate
+from casmbd.analysis.formulations import FORMULATIONS
+from casmbd.analysis.integrators.kinds import INTEGRATORS
+from casmbd.analysis.statics import linearize, statics
+from casmbd.analysis.studies import sensitivity
 from casmbd.compiled import robot
 from casmbd.model.needs import ALL_NEEDS, NEEDS, Handling, requirements
 from casmbd.ocp import problem
-from casmbd.system.formulations import FORMULATIONS
 
 #: every analysis and verb with its declaration (sweep: that of the analysis it sweeps)
 ANALYSES: dict[str, Handling] = {

@@ -24,11 +24,11 @@ import pytest
 import casmbd
 from benchmarks.al_accuracy import acceleration, consistent_states
 from benchmarks.references import four_bar_rate_squared, load_reference
-from casmbd.analysis.simulate import Simulator
+from casmbd.analysis.dynamics.simulate import Simulator
+from casmbd.analysis.formulations import build
+from casmbd.analysis.formulations.augmented_lagrangian import REFINE, REFINE_DRIFT, al_solver
 from casmbd.errors import ModelError
 from casmbd.system.equations import System
-from casmbd.system.formulations import build
-from casmbd.system.formulations.augmented_lagrangian import REFINE, REFINE_DRIFT, al_solver
 
 G = 9.81
 

@@ -47,8 +47,8 @@ import pytest
 from conftest import private_cache
 
 from casmbd import info
-from casmbd.analysis.assembly import assemble
-from casmbd.analysis.simulate import Simulator
+from casmbd.analysis.dynamics.simulate import Simulator
+from casmbd.analysis.instant.assembly import assemble
 from casmbd.io.scene import load_scene
 from casmbd.system.equations import System
 

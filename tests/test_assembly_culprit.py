@@ -24,7 +24,7 @@ import pytest
 from conftest import private_cache
 
 from casmbd import cli
-from casmbd.analysis.kinematics import info, kinematics
+from casmbd.analysis.driven.kinematics import info, kinematics
 from casmbd.errors import AssemblyError
 from casmbd.io.scene import loads_scene
 

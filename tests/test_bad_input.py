@@ -13,7 +13,7 @@ import re
 import pytest
 from conftest import private_cache
 
-from casmbd.analysis.kinematics import info, kinematics
+from casmbd.analysis.driven.kinematics import info, kinematics
 from casmbd.errors import (
     AnalysisError,
     AssemblyError,

@@ -34,7 +34,7 @@ import pytest
 from conftest import private_cache
 
 from casmbd import cli
-from casmbd.analysis.simulate import Simulator, simulate
+from casmbd.analysis.dynamics.simulate import Simulator, simulate
 from casmbd.compiled import cache, codegen, modal_cache, modelkey
 from casmbd.errors import CompileError
 from casmbd.io.scene import load_scene

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from conftest import private_cache
 
-from casmbd.analysis.simulate import simulate
+from casmbd.analysis.dynamics.simulate import simulate
 from casmbd.cli import main
 from casmbd.errors import AnalysisError, ResultFileError
 from casmbd.io.scene import load_result as load

@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from casmbd.analysis.option_ranges import check_integrator_options
-from casmbd.analysis.simulate import Simulator, simulate
-from casmbd.analysis.stiffness_culprit import diagnose_stiffness
+from casmbd.analysis.dynamics.simulate import Simulator, simulate
+from casmbd.analysis.integrators.option_ranges import check_integrator_options
+from casmbd.analysis.integrators.stiffness_culprit import diagnose_stiffness
 from casmbd.cli import main
 from casmbd.errors import AnalysisError, CasmbdError, IntegratorError, ModelError, SceneError
 from casmbd.io.scene import loads_scene
@@ -282,7 +282,7 @@ def test_diagnosis_of_a_flexible_body_matches_the_linearized_frequency():
     eigenproblem), 275.9 rad/s, to the 4 printed digits (1e-3)."""
     from pathlib import Path
 
-    from casmbd.analysis.linearize import linearize
+    from casmbd.analysis.statics.linearize import linearize
 
     text = (Path(__file__).resolve().parent.parent / "examples" / "spinup_beam.toml").read_text()
     text = text[:text.index("[[drivers]]")].replace("stiffening = true", "stiffening = false")

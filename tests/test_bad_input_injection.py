@@ -439,7 +439,7 @@ def test_no_code_from_data_in_the_sources():
             if pattern.search(code):
                 hits.append(f"{path.relative_to(ROOT)}:{number}: {line.strip()}")
     assert len(hits) == 1, hits
-    assert hits[0].startswith("casmbd/analysis/sweep.py:"), hits
+    assert hits[0].startswith("casmbd/analysis/studies/sweep.py:"), hits
     assert hits[0].endswith('mech = pickle.loads(spec["mechanism"])'), hits
 
 

@@ -13,11 +13,11 @@ import pytest
 from conftest import private_cache
 from test_bad_input import HEAD, PENDULUM, body, entry, joint
 
-from casmbd.analysis.inverse import inverse_dynamics
-from casmbd.analysis.kinematics import kinematics
-from casmbd.analysis.linearize import linearize
-from casmbd.analysis.simulate import simulate
-from casmbd.analysis.statics import static_equilibrium
+from casmbd.analysis.driven.inverse import inverse_dynamics
+from casmbd.analysis.driven.kinematics import kinematics
+from casmbd.analysis.dynamics.simulate import simulate
+from casmbd.analysis.statics.linearize import linearize
+from casmbd.analysis.statics.statics import static_equilibrium
 from casmbd.cli import main
 from casmbd.errors import AssemblyError, IntegratorError, ModelError, SceneError
 from casmbd.io.scene import loads_scene

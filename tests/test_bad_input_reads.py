@@ -20,7 +20,7 @@ import pytest
 from conftest import private_cache
 from numpy.lib import format as npy_format
 
-from casmbd.analysis.simulate import simulate
+from casmbd.analysis.dynamics.simulate import simulate
 from casmbd.cli import main
 from casmbd.errors import LimitError, ModelError, ResultFileError, SceneError
 from casmbd.io.scene import loads_scene

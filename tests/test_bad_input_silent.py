@@ -32,9 +32,9 @@ import pytest
 from conftest import private_cache
 from test_bad_input import HEAD, PENDULUM, body, entry, joint
 
-from casmbd.analysis.invariants import energy_exchange
-from casmbd.analysis.postprocess import first_non_finite
-from casmbd.analysis.simulate import simulate
+from casmbd.analysis.dynamics.postprocess import first_non_finite
+from casmbd.analysis.dynamics.simulate import simulate
+from casmbd.analysis.integrators.invariants import energy_exchange
 from casmbd.cli import main
 from casmbd.errors import CasmbdError, IntegratorError, ModelError, SceneError
 from casmbd.io.scene import loads_scene

@@ -12,15 +12,15 @@ import numpy as np
 import pytest
 from conftest import private_cache
 
-import casmbd.analysis.kinematics as kinematics_module
-import casmbd.analysis.simulate as simulate_module
+import casmbd.analysis.driven.kinematics as kinematics_module
+import casmbd.analysis.dynamics.simulate as simulate_module
 from benchmarks.info_scaling import chain_scene
 from casmbd import cli
-from casmbd.analysis import assembly
-from casmbd.analysis.kinematics import info, kinematics
-from casmbd.analysis.redundancy import DENSE_MAX_ENTRIES, rank_report
-from casmbd.analysis.simulate import simulate
-from casmbd.analysis.sweep import parse_values, sweep
+from casmbd.analysis.driven.kinematics import info, kinematics
+from casmbd.analysis.dynamics.simulate import simulate
+from casmbd.analysis.instant import assembly
+from casmbd.analysis.instant.redundancy import DENSE_MAX_ENTRIES, rank_report
+from casmbd.analysis.studies.sweep import parse_values, sweep
 from casmbd.cli import workbench as cli_workbench
 from casmbd.compiled import codegen
 from casmbd.errors import AnalysisError, LimitError, SceneError
@@ -306,7 +306,7 @@ def test_sparse_rank_names_the_redundant_joint_of_a_long_chain():
 def test_sparse_and_dense_rank_agree_on_a_redundant_mechanism(coordinates):
     """The triple crank (one redundant loop equation): both methods give the same rank and
     dependent rows at the assembled pose and at a perturbed one (rank regained)."""
-    from casmbd.analysis.assembly import assemble
+    from casmbd.analysis.instant.assembly import assemble
     from casmbd.compiled.model import NumericModel
 
     model = NumericModel(triple_crank(coordinates, name=f"tc_sizes_{coordinates}"), "info",
@@ -359,7 +359,7 @@ def test_large_minimum_norm_assembly_equals_the_dense_one(monkeypatch):
 @pytest.mark.parametrize("integrator, step", [("rk4", 1e-300), ("abm", 5e-324)])
 def test_fixed_step_below_the_floor(integrator, step):
     """``--step 1e-300`` used to run forever; 5e-324 ended in an internal OverflowError; both
-    are below the option's floor of 1 fs (casmbd.analysis.option_ranges)."""
+    are below the option's floor of 1 fs (casmbd.analysis.integrators.option_ranges)."""
     mech = load_scene(PENDULUM)
     with pytest.raises(AnalysisError, match=rf"fixed step \(--step\) {step:g} s is below the "
                                             r"floor of 1e-12 s"):

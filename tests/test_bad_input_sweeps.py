@@ -12,7 +12,7 @@ import pathlib
 import pytest
 from conftest import private_cache
 
-from casmbd.analysis.sweep import sweep
+from casmbd.analysis.studies.sweep import sweep
 from casmbd.cli import main
 from casmbd.errors import AnalysisError
 from casmbd.io.scene import load_scene

@@ -31,7 +31,7 @@ import numpy as np
 import pytest
 
 import casmbd
-from casmbd.analysis.reactions import multiplier_null_space
+from casmbd.analysis.instant.reactions import multiplier_null_space
 from casmbd.io.scene import loads_scene
 
 # the undetermined reactions warn (checked once, in test_simulate_reactions_finite)
@@ -270,7 +270,7 @@ def test_rounding_noise_rows_are_no_equations(method):
     0 and −2.8e-17 (its centre lies on both fixed axes).  Equilibrated to unit norm the noise
     row looked independent and the driver's row was named redundant instead; rows at most
     1e-12 of the largest count as zero, in both sweeps."""
-    from casmbd.analysis.redundancy import rank_report
+    from casmbd.analysis.instant.redundancy import rank_report
 
     cq = np.array([[0.0, 0.0], [0.0, 0.0], [0.0, -2.7755575615628914e-17],
                    [1.0, -0.8660254037844386], [1.0, 0.0]])

@@ -80,7 +80,7 @@ def test_plot_and_animate_write_images(capsys, tmp_path):
 
 
 def test_sweep_and_sensitivity(capsys, tmp_path):
-    from casmbd.analysis.sweep import load_sweep
+    from casmbd.analysis.studies.sweep import load_sweep
 
     data = run_json(capsys, "sweep", SPRING, "--param", "k=50:100:2", "--t-end", "0.2",
                     "--steps", "4", "--out", str(tmp_path / "sw"))

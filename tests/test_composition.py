@@ -37,15 +37,15 @@ from composition_scenes import KIND_VARIANTS, VARIANTS
 from composition_table import ANALYSES, table
 
 import casmbd
-from casmbd.analysis.integrators import INTEGRATORS
-from casmbd.analysis.simulate import simulate_handling
+from casmbd.analysis.dynamics.simulate import simulate_handling
+from casmbd.analysis.formulations import FORMULATIONS
+from casmbd.analysis.integrators.kinds import INTEGRATORS
 from casmbd.errors import CasmbdError, CompositionError
 from casmbd.model.contacts import JointLimit, PlaneContact, SphereContact
 from casmbd.model.drivers import Driver
 from casmbd.model.forces import Actuator
 from casmbd.model.needs import NEEDS
 from casmbd.model.registry import BODY_KINDS, FORCE_KINDS, JOINT_KINDS
-from casmbd.system.formulations import FORMULATIONS
 
 CELLS = [(v, d) for v, (_, dims, _) in VARIANTS.items() for d in dims]
 

@@ -153,9 +153,9 @@ def registries():
     """The kind registries as they were before the test: docs/extending.md and
     docs/dynamics.md register a joint, a body and a formulation of their own, which must not
     leak into the tests that walk every registered kind."""
-    from casmbd.analysis.integrators import INTEGRATORS
+    from casmbd.analysis.formulations.base import FORMULATIONS
+    from casmbd.analysis.integrators.kinds import INTEGRATORS
     from casmbd.model.registry import BODY_KINDS, FORCE_KINDS, JOINT_KINDS
-    from casmbd.system.formulations.base import FORMULATIONS
 
     saved = [(reg, {k: (dict(v) if isinstance(v, dict) else v) for k, v in reg.items()})
              for reg in (INTEGRATORS, BODY_KINDS, FORCE_KINDS, JOINT_KINDS, FORMULATIONS)]

@@ -1,4 +1,4 @@
-"""Dormand–Prince 5(4) in compiled blocks (casmbd.analysis.dopri).
+"""Dormand–Prince 5(4) in compiled blocks (casmbd.analysis.integrators.dopri).
 
 * harmonic oscillator x'' = −ω² x against its closed form cos(ω t): the global error follows
   the tolerance (measured 4.2e-7 at rtol 1e-6, 1.5e-9 at 1e-9 over ω t = 20);
@@ -18,9 +18,9 @@ import numpy as np
 import pytest
 
 import casmbd
-from casmbd.analysis.dopri import Dopri, dopri_step
-from casmbd.analysis.integrators import INTEGRATORS
-from casmbd.analysis.simulate import Simulator, simulate
+from casmbd.analysis.dynamics.simulate import Simulator, simulate
+from casmbd.analysis.integrators.dopri import Dopri, dopri_step
+from casmbd.analysis.integrators.kinds import INTEGRATORS
 from casmbd.errors import AnalysisError, IntegratorError
 
 ROOT = pathlib.Path(__file__).resolve().parents[1]

@@ -17,7 +17,7 @@ from conftest import private_cache
 from flexible_references import spinup_scene
 
 import casmbd
-from casmbd.analysis.postprocess import DRIFT_LIMIT
+from casmbd.analysis.dynamics.postprocess import DRIFT_LIMIT
 from casmbd.cli import main
 from casmbd.errors import ConstraintViolationError, IntegratorError
 

@@ -10,7 +10,7 @@ from conftest import private_cache
 from scipy.special import ellipk
 
 import casmbd
-from casmbd.analysis.simulate import Simulator, simulate
+from casmbd.analysis.dynamics.simulate import Simulator, simulate
 from casmbd.errors import AnalysisError, IntegratorError
 
 G = 9.81
@@ -313,7 +313,7 @@ def test_failure_at_the_start_keeps_the_initial_state():
 
     code = ("import sys; sys.path.insert(0, '.')\n"
             "from benchmarks.work_precision import problem\n"
-            "from casmbd.analysis.simulate import Simulator\n"
+            "from casmbd.analysis.dynamics.simulate import Simulator\n"
             "from casmbd.errors import IntegratorError\n"
             "mech, t_end, _, _ = problem('chain2', 'absolute')\n"
             "try:\n"

@@ -5,9 +5,9 @@
   coarse grid — every bounce inside one sub-interval, the case these serve — against the
   closed form t_1 = sqrt(2 h/g),
   t_(k+1) = t_k + 2 e^k sqrt(2 h g)/g, and the same run without the screen (identical events);
-* :func:`~casmbd.analysis.events.periodic_overrun` on constructed impact times, and the ball of
-  restitution 1 with t_end far beyond its event bound: stopped early (after
-  :data:`~casmbd.analysis.events.PROJECT_AFTER` events), named, the results kept.
+* :func:`~casmbd.analysis.events.events.periodic_overrun` on constructed impact times, and the ball
+  of restitution 1 with t_end far beyond its event bound: stopped early (after
+  :data:`~casmbd.analysis.events.events.PROJECT_AFTER` events), named, the results kept.
 
 No timing is asserted (the per-event cost is in benchmarks/contact_events.py).  The virtual
 machine (``CASMBD_COMPILE=0``).
@@ -23,11 +23,11 @@ import numpy as np
 import pytest
 from conftest import private_cache
 
-from casmbd.analysis import events as ev
-from casmbd.analysis import integrators as integ
-from casmbd.analysis.buffered import Buffered
-from casmbd.analysis.events import PROJECT_AFTER, periodic_overrun
-from casmbd.analysis.simulate import simulate
+from casmbd.analysis.dynamics.simulate import simulate
+from casmbd.analysis.events import events as ev
+from casmbd.analysis.events.buffered import Buffered
+from casmbd.analysis.events.events import PROJECT_AFTER, periodic_overrun
+from casmbd.analysis.integrators import kinds as integ
 from casmbd.errors import IntegratorError
 from casmbd.io.scene import loads_scene
 

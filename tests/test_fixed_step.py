@@ -21,8 +21,8 @@ import pytest
 from conftest import private_cache
 
 import casmbd
-from casmbd.analysis import integrators as integ
-from casmbd.analysis.simulate import Simulator
+from casmbd.analysis.dynamics.simulate import Simulator
+from casmbd.analysis.integrators import kinds as integ
 
 G = 9.81
 #: 4.2 s in 210 steps of 0.02 s: 1, 2, 3, 7, 42 and 210 steps per output interval all divide it

@@ -9,7 +9,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from casmbd.analysis import integrators as integ
+from casmbd.analysis.integrators import kinds as integ
 
 OMEGA2 = 4.0  # x'' = -omega² x
 

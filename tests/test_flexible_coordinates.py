@@ -18,8 +18,8 @@ from conftest import private_cache
 from flexible_references import spinup_scene
 
 import casmbd
+from casmbd.analysis.formulations.base import FORMULATIONS
 from casmbd.system import System
-from casmbd.system.formulations.base import FORMULATIONS
 
 _cache = private_cache(CASMBD_COMPILE="0")
 

@@ -198,7 +198,7 @@ def test_other_suffixes_are_refused_by_name(tmp_path, scene, capsys, name):
 
 
 def test_result_save_and_to_csv_refuse_the_other_suffix(tmp_path):
-    from casmbd.analysis.kinematics import kinematics
+    from casmbd.analysis.driven.kinematics import kinematics
 
     mech = load_scene(ROOT / "examples" / "slider_crank.toml")
     res = kinematics(mech, t_end=0.1, steps=2, mode="vm")

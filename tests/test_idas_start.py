@@ -2,7 +2,7 @@
 
 IDAS integrates F(t, y, ẏ) = (f(t, x, z) − ẋ, g(t, x, z)) = 0 from a start that must satisfy
 it.  casmbd hands IDAS x0 = (q, v) and z0 = (q̈, λ) from the KKT solve at t0 and
-ẋ0 = f(t0, x0, z0) (:class:`casmbd.analysis.integrators.ConsistentStart`), with
+ẋ0 = f(t0, x0, z0) (:class:`casmbd.analysis.integrators.kinds.ConsistentStart`), with
 ``calc_ic = False``: IDAS's own initial-condition calculation — a Newton iteration with a line
 search, which from an already consistent start has only rounding left to reduce and failed
 with IDA_LINESEARCH_FAIL at t = 0 on AMD EPYC — never runs.  The algebraic variables get an
@@ -25,8 +25,8 @@ import pytest
 from conftest import private_cache
 
 import casmbd
-from casmbd.analysis import integrators as integ
-from casmbd.analysis.simulate import Simulator
+from casmbd.analysis.dynamics.simulate import Simulator
+from casmbd.analysis.integrators import kinds as integ
 
 _cache = private_cache("cache_idas_start", scope="module")
 

@@ -10,8 +10,8 @@ import pytest
 from conftest import private_cache
 
 import casmbd
-from casmbd.analysis.inverse import inverse_dynamics
-from casmbd.analysis.simulate import simulate
+from casmbd.analysis.driven.inverse import inverse_dynamics
+from casmbd.analysis.dynamics.simulate import simulate
 
 G = 9.81
 

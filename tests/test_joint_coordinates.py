@@ -283,7 +283,7 @@ def test_default_formulation_for_trees_and_energy_from_twists():
     """Trees without constraint equations default to the articulated-body recursion, loops to
     the augmented Lagrangian; both agree with kkt_ode on the trajectory (1e-9 m) and the
     kinetic energy from the recursive twists equals ½ q̇ᵀ M q̇ (1e-12 relative)."""
-    from casmbd.analysis.simulate import Simulator, default_formulation
+    from casmbd.analysis.dynamics.simulate import Simulator, default_formulation
 
     chain = with_coordinates(pendulum_chain(6), "joint")
     assert default_formulation(System(chain)) == "articulated"

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from casmbd import simulate
-from casmbd.analysis.inverse import inverse_dynamics
+from casmbd.analysis.driven.inverse import inverse_dynamics
 from casmbd.errors import CompositionError, ModelError, SceneError
 from casmbd.io.scene import load_scene, loads_scene
 

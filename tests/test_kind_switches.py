@@ -12,8 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 import pytest
 
-from casmbd.analysis import integrators as integ
-from casmbd.analysis.simulate import Simulator
+from casmbd.analysis.dynamics.simulate import Simulator
+from casmbd.analysis.integrators import kinds as integ
 from casmbd.io.scene import loads_scene
 
 ANALYSIS = pathlib.Path(__file__).resolve().parent.parent / "casmbd" / "analysis"

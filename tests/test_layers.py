@@ -49,6 +49,23 @@ LAYERS = {
     "casmbd.cli": 9, "casmbd": 9, "casmbd.__main__": 9,
 }
 
+#: the rooms of the analysis layer (casmbd/analysis/<room>/), lowest floor first: a module of a
+#: room imports, within the analysis layer, only its own room and the rooms of lower floors
+#: (docs/architecture.md, "The analysis rooms"); ``casmbd.analysis`` itself is the face on top
+ROOMS = {
+    "casmbd.analysis.instant": 0,       # one instant: assembly, KKT, redundancy, checks, ...
+    "casmbd.analysis.integrators": 1,   # integrator kinds and registry, dopri, numeric RHS
+    "casmbd.analysis.formulations": 2,  # every formulation and its registry
+    "casmbd.analysis.events": 2,        # event-driven simulation: contacts, stops, impacts
+    "casmbd.analysis.driven": 3,        # kinematics and inverse dynamics of a driven mechanism
+    "casmbd.analysis.dynamics": 3,      # the simulator, its stepping and post-processing
+    "casmbd.analysis.statics": 3,       # statics, resting contacts, stability, linearize
+    "casmbd.analysis.studies": 4,       # sweeps and sensitivities
+    "casmbd.analysis": 5,               # the face: the verbs, loaded on first use
+}
+#: the most modules (besides __init__) in one room
+ROOM_MAX_MODULES = 9
+
 #: (importing module, imported casmbd module) pairs allowed inside a function, each with the
 #: reason: only to defer a heavy optional dependency (matplotlib, dask, tqdm) that the imported
 #: module pulls in at its top.  None today: casmbd.viz and casmbd.progress import matplotlib
@@ -161,10 +178,10 @@ REGISTRIES = {
     "body kinds": ("casmbd.model", "casmbd.model.registry.BODY_KINDS"),
     "contact shapes": ("casmbd.model", "casmbd.model.contacts.CONTACT_SHAPES"),
     "body descriptions": ("casmbd.system", "casmbd.system.descriptions.DESCRIPTIONS"),
-    "formulations": ("casmbd.system.formulations", "casmbd.system.formulations.FORMULATIONS"),
+    "formulations": ("casmbd.analysis.formulations", "casmbd.analysis.formulations.FORMULATIONS"),
     "integrators": ("casmbd.analysis.integrators", "casmbd.analysis.integrators.INTEGRATORS"),
-    "numeric right-hand sides": ("casmbd.analysis.numeric_run",
-                                 "casmbd.analysis.numeric_run.RIGHT_HAND_SIDES"),
+    "numeric right-hand sides": ("casmbd.analysis.dynamics.numeric_run",
+                                 "casmbd.analysis.dynamics.numeric_run.RIGHT_HAND_SIDES"),
     "compiled analyses": ("casmbd.compiled", "casmbd.compiled.model.NEEDS"),
     "transcriptions": ("casmbd.ocp.methods", "casmbd.ocp.methods.TRANSCRIPTIONS"),
     "verbs": ("casmbd.cli", "casmbd.cli.VERBS"),
@@ -210,8 +227,97 @@ def test_a_fresh_command_line_offers_every_formulation_and_integrator():
         "p = casmbd.cli.build_parser()\n"
         "sub = next(a for a in p._actions if a.dest == 'verb').choices['simulate']\n"
         "ch = {a.dest: sorted(a.choices) for a in sub._actions if a.choices}\n"
-        "import casmbd.system.formulations, casmbd.analysis.integrators\n"
-        "print(json.dumps([ch['formulation'], names('casmbd.system.formulations.FORMULATIONS'),"
+        "import casmbd.analysis.formulations, casmbd.analysis.integrators\n"
+        "print(json.dumps([ch['formulation'], names('casmbd.analysis.formulations.FORMULATIONS'),"
         " ch['integrator'], names('casmbd.analysis.integrators.INTEGRATORS')]))")
     assert got[0] == got[1] and len(got[0]) == 7
     assert got[2] == got[3]
+
+
+def room(module: str) -> str | None:
+    """The analysis room of a module (the longest prefix in ROOMS), None outside the layer."""
+    parts = module.split(".")
+    for k in range(len(parts), 0, -1):
+        name = ".".join(parts[:k])
+        if name in ROOMS:
+            return name
+    return None
+
+
+ANALYSIS = sorted(m for m in MODULES if room(m))
+
+
+def test_every_analysis_module_is_in_a_room():
+    """No module lies loose in casmbd/analysis/ besides the face, and no room is a pile."""
+    loose = [m for m in ANALYSIS if room(m) == "casmbd.analysis" and m != "casmbd.analysis"]
+    assert not loose, f"analysis modules outside a room: {loose}"
+    for name in ROOMS:
+        if name != "casmbd.analysis":
+            members = [m for m in ANALYSIS if m.startswith(name + ".")]
+            assert 0 < len(members) <= ROOM_MAX_MODULES, (name, members)
+
+
+@pytest.mark.parametrize("module", ANALYSIS)
+def test_analysis_rooms_point_down(module):
+    """A room imports its own room and lower floors only (the face imports nothing)."""
+    own = room(module)
+    bad = sorted({f"line {line}: {target} ({room(target)}, floor {ROOMS[room(target)]})"
+                  for target, line, _ in _imports(module, MODULES[module])
+                  if room(target) and room(target) != own
+                  and ROOMS[room(target)] >= ROOMS[own]})
+    assert not bad, f"{module} (floor {ROOMS[own]}) imports a room not below it: {bad}"
+
+
+def _cycle(graph: dict[str, set[str]]) -> list[str]:
+    """One import circle of ``graph`` (module -> imported modules), [] when acyclic."""
+    state: dict[str, int] = {}
+    stack: list[str] = []
+
+    def visit(node):
+        state[node] = 1
+        stack.append(node)
+        for nxt in sorted(graph.get(node, ())):
+            if state.get(nxt) == 1:
+                return [*stack[stack.index(nxt):], nxt]
+            if nxt not in state and (found := visit(nxt)):
+                return found
+        stack.pop()
+        state[node] = 2
+        return []
+
+    for node in sorted(graph):
+        if node not in state and (found := visit(node)):
+            return found
+    return []
+
+
+def test_analysis_import_graph_is_acyclic():
+    """The analysis modules' import graph (module-level imports, a package meaning its
+    ``__init__``) has no circle — the one `integrators` <-> `dopri` held by a bottom-of-file
+    import is gone."""
+    graph = {m: {t for t, _, inside in _imports(m, MODULES[m]) if room(t) and not inside}
+             for m in ANALYSIS}
+    assert len(graph) > 40
+    assert _cycle(graph) == [], f"import circle: {' -> '.join(_cycle(graph))}"
+
+
+def test_the_cycle_finder_sees_a_circle():
+    assert _cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
+    assert _cycle({"a": {"b"}, "b": set(), "c": {"a", "b"}}) == []
+
+
+def test_the_analysis_face_exports_the_verbs():
+    """``casmbd.analysis`` names every analysis verb of the public facade, from the same module,
+    and a fresh ``import casmbd.analysis`` loads no room (the verbs load on first use)."""
+    import casmbd
+    import casmbd.analysis as face
+
+    public = {n: m for n, m in casmbd._LAZY.items() if m.startswith("casmbd.analysis.")}
+    assert public == face.VERBS
+    for name in face.VERBS:
+        assert getattr(face, name) is getattr(casmbd, name)
+    code = ("import sys, casmbd.analysis; "
+            "print(sorted(m for m in sys.modules if m.startswith('casmbd.analysis.')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=300, check=True).stdout.strip()
+    assert out == "[]"

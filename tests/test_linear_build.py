@@ -9,9 +9,9 @@ import numpy as np
 import pytest
 
 from benchmarks.chains import pendulum_chain
+from casmbd.analysis.formulations import formulation_kind, post_processing
 from casmbd.compiled import codegen
 from casmbd.system.equations import System
-from casmbd.system.formulations import formulation_kind, post_processing
 
 
 @pytest.mark.parametrize("formulation", ["articulated", "kkt_ode"])

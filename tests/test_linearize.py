@@ -11,9 +11,9 @@ from conftest import private_cache
 
 import casmbd
 from casmbd import cli
-from casmbd.analysis.assembly import assemble
-from casmbd.analysis.kkt import accelerations_and_multipliers
-from casmbd.analysis.linearize import NEEDED, linearize, null_space_basis
+from casmbd.analysis.instant.assembly import assemble
+from casmbd.analysis.instant.kkt import accelerations_and_multipliers
+from casmbd.analysis.statics.linearize import NEEDED, linearize, null_space_basis
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError
 
@@ -228,8 +228,8 @@ def test_spring_pendulum_frequency_at_the_static_equilibrium():
     −m g (L/2) cos θ*) the small-oscillation frequency is sqrt(V''(θ*) / (m L²/3)) with
     V'' = k − m g (L/2) sin θ* (hand formula), to 1e-9."""
     import casmbd
-    from casmbd.analysis.linearize import linearize
-    from casmbd.analysis.statics import static_equilibrium
+    from casmbd.analysis.statics.linearize import linearize
+    from casmbd.analysis.statics.statics import static_equilibrium
 
     k, m_, length, g = 10.0, 1.0, 1.0, 9.81
     mech = casmbd.Mechanism("spring_pendulum", gravity=(0.0, -g))

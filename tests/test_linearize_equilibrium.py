@@ -1,5 +1,5 @@
 """Issue 19, item 2: linearising at the static equilibrium or a stored state, and ONE
-stability verdict shared by ``statics`` and ``linearize`` (casmbd.analysis.stability).
+stability verdict shared by ``statics`` and ``linearize`` (casmbd.analysis.statics.stability).
 
 Tolerances: matrices of two routes to the same state agree to 1e-9 (relative to the largest
 entry; both routes evaluate the same Functions at states equal to ~1e-13), frequencies match
@@ -18,8 +18,8 @@ from conftest import private_cache
 
 import casmbd
 from casmbd import cli
-from casmbd.analysis.linearize import EQUILIBRIUM_RTOL, NOT_AN_EQUILIBRIUM, linearize
-from casmbd.analysis.statics import static_equilibrium
+from casmbd.analysis.statics.linearize import EQUILIBRIUM_RTOL, NOT_AN_EQUILIBRIUM, linearize
+from casmbd.analysis.statics.statics import static_equilibrium
 from casmbd.errors import AnalysisError, ModelError
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent

@@ -26,7 +26,7 @@ from benchmarks.long_pendulum import (
     pendulum_period,
     simple_pendulum,
 )
-from casmbd.analysis.simulate import simulate
+from casmbd.analysis.dynamics.simulate import simulate
 
 G = 9.81
 T_END = 100.0

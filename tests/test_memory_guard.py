@@ -8,11 +8,11 @@ from pathlib import Path
 
 import pytest
 
-import casmbd.analysis.simulate as simulate_module
+import casmbd.analysis.dynamics.simulate as simulate_module
 from benchmarks.info_scaling import chain_scene
 from benchmarks.memory_guard import growth_per_time
 from casmbd import cli
-from casmbd.analysis.simulate import simulate
+from casmbd.analysis.dynamics.simulate import simulate
 from casmbd.errors import LimitError
 from casmbd.io.scene import load_scene
 from casmbd.limits import check_steps, memory_per_time, result_counts

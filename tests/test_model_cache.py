@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 from conftest import private_cache
 
-from casmbd.analysis.simulate import Simulator
+from casmbd.analysis.dynamics.simulate import Simulator
 from casmbd.compiled import codegen, modelkey
 from casmbd.model import Mechanism
 

@@ -29,7 +29,7 @@ import numpy as np
 import pytest
 
 import casmbd
-from casmbd.analysis.simulate import Simulator
+from casmbd.analysis.dynamics.simulate import Simulator
 from casmbd.compiled.robot import BATCH_CHUNK
 from casmbd.errors import ModelError
 from casmbd.system import System

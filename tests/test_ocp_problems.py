@@ -20,7 +20,7 @@ import pytest
 from conftest import private_cache
 
 import casmbd
-from casmbd.analysis.simulate import Simulator
+from casmbd.analysis.dynamics.simulate import Simulator
 from casmbd.compiled.model import NumericModel
 from casmbd.io.ocp_table import load_ocp
 from casmbd.system.equations import System

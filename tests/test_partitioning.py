@@ -28,9 +28,9 @@ from conftest import private_cache
 from scipy.special import ellipk
 
 from casmbd import Mechanism
-from casmbd.analysis import partitioning as part
-from casmbd.analysis.kkt import accelerations_and_multipliers
-from casmbd.analysis.simulate import Simulator, simulate
+from casmbd.analysis.dynamics.simulate import Simulator, simulate
+from casmbd.analysis.formulations import partitioning as part
+from casmbd.analysis.instant.kkt import accelerations_and_multipliers
 from casmbd.errors import IntegratorError
 
 G = 9.81

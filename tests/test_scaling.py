@@ -16,7 +16,7 @@ import pytest
 from conftest import private_cache
 
 from benchmarks.scaling import mechanism
-from casmbd.analysis.simulate import Simulator
+from casmbd.analysis.dynamics.simulate import Simulator
 from casmbd.compiled import codegen
 
 #: an empty compile cache for a test (so that the first build really compiles)

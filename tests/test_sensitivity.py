@@ -17,8 +17,8 @@ from conftest import private_cache
 
 import casmbd
 from casmbd import Mechanism
-from casmbd.analysis.sensitivity import sensitivity
-from casmbd.analysis.simulate import Simulator
+from casmbd.analysis.dynamics.simulate import Simulator
+from casmbd.analysis.studies.sensitivity import sensitivity
 from casmbd.errors import AnalysisError
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent

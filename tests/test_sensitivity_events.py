@@ -1,7 +1,7 @@
 """Sensitivities across impacts (issue 30, item 2): the jump of the sensitivity at an event.
 
 The forward sensitivity of an event-driven run is propagated phase by phase with the
-saltation jump at each impact (casmbd.analysis.sensitivity_events) and checked against
+saltation jump at each impact (casmbd.analysis.studies.sensitivity_events) and checked against
 
 * central finite differences of whole event-driven ``simulate`` runs (rtol 1e-12, step 1e-5:
   truncation ~1e-10, noise ~1e-12/1e-5 = 1e-7 absolute) — agreement to 1e-6 relative;
@@ -25,8 +25,8 @@ import numpy as np
 import pytest
 from conftest import private_cache
 
-from casmbd.analysis.sensitivity import sensitivity
-from casmbd.analysis.simulate import simulate
+from casmbd.analysis.dynamics.simulate import simulate
+from casmbd.analysis.studies.sensitivity import sensitivity
 from casmbd.errors import AnalysisError
 from casmbd.io.scene import loads_scene
 from casmbd.io.scene_points import scene_with

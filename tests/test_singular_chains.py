@@ -40,7 +40,7 @@ from benchmarks.n_four_bar_reference import (
     one_dof_reference,
     singular_pass_times,
 )
-from casmbd.analysis.simulate import Simulator
+from casmbd.analysis.dynamics.simulate import Simulator
 from casmbd.errors import IntegratorError
 
 T_END = 4.0

@@ -18,13 +18,13 @@ from conftest import private_cache
 
 from benchmarks.n_four_bar import n_four_bar
 from benchmarks.n_four_bar_reference import singular_pass_times
-from casmbd.analysis.redundancy import (
+from casmbd.analysis.dynamics.simulate import Simulator
+from casmbd.analysis.instant.redundancy import (
     conditioning,
     equilibrated_singular_values,
     equilibration,
     near_singular_passes,
 )
-from casmbd.analysis.simulate import Simulator
 
 T_END = 4.0
 STEPS = 400

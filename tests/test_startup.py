@@ -52,7 +52,8 @@ def test_the_cli_loads_no_optimizer_or_plotting():
     verbs' modules are imported when their verb runs, so building the parser loads neither the
     OCP, the simulation, the sweeps nor the animation code."""
     assert _loaded("import casmbd.cli", ("scipy.optimize", "matplotlib", "dask", "casmbd.ocp",
-                                         "casmbd.analysis.simulate", "casmbd.analysis.sweep",
+                                         "casmbd.analysis.dynamics.simulate",
+                                         "casmbd.analysis.studies.sweep",
                                          "casmbd.viz.animation", "casmbd.cli.analyses")) == []
 
 
@@ -94,7 +95,7 @@ def test_every_public_name_resolves_to_its_module_object():
     assert set(casmbd.__all__) <= set(dir(casmbd))
     from casmbd import Mechanism, simulate  # noqa: F401
 
-    assert simulate is sys.modules["casmbd.analysis.simulate"].simulate
+    assert simulate is sys.modules["casmbd.analysis.dynamics.simulate"].simulate
     assert casmbd.ocp.Ocp is sys.modules["casmbd.ocp.problem"].Ocp
 
 

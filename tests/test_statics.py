@@ -10,7 +10,7 @@ from conftest import private_cache
 from scipy.optimize import brentq
 
 import casmbd
-from casmbd.analysis.statics import static_equilibrium
+from casmbd.analysis.statics.statics import static_equilibrium
 from casmbd.cli import main
 from casmbd.errors import AnalysisError
 from casmbd.io.scene import load_scene
@@ -343,7 +343,7 @@ def test_statics_sweep_nearest_and_stable():
     """A statics sweep over the inner rods' mass takes ``stable`` like
     ``static_equilibrium``: the arches (closed form per mass ratio, 1e-10) by default, the
     hanging chains (angles negated) with ``stable=True``."""
-    from casmbd.analysis.sweep import sweep
+    from casmbd.analysis.studies.sweep import sweep
 
     masses = [0.5, 1.0, 2.0]
     expected = np.array([arch_angles(m) for m in masses])
@@ -421,7 +421,7 @@ def test_least_squares_step():
     """The residual step: Newton's step for an indefinite stiffness (towards a saddle) when
     it fits; else on the trust-region boundary, decreasing the model; no step where the
     model is flat (Aᵀb = 0), which the statics iteration leaves by a descent step."""
-    from casmbd.analysis.trust_region import least_squares_step
+    from casmbd.analysis.statics.trust_region import least_squares_step
 
     a, b = np.diag([-2.0, 1.0]), np.array([0.2, 0.1])
     step = least_squares_step(b, a, radius=1.0)

@@ -16,10 +16,10 @@ import pytest
 from conftest import private_cache
 
 import casmbd
-from casmbd.analysis.assembly import assemble
-from casmbd.analysis.stability import STABILITY_RTOL, classify_stability
-from casmbd.analysis.statics import STATICS_NEEDS, static_equilibrium, statics_functions
-from casmbd.analysis.trust_region import trust_region_step
+from casmbd.analysis.instant.assembly import assemble
+from casmbd.analysis.statics.stability import STABILITY_RTOL, classify_stability
+from casmbd.analysis.statics.statics import STATICS_NEEDS, static_equilibrium, statics_functions
+from casmbd.analysis.statics.trust_region import trust_region_step
 from casmbd.cli import main
 from casmbd.compiled.model import NumericModel
 from casmbd.io.scene import load_scene

@@ -1,4 +1,4 @@
-"""Parameter sweeps (casmbd.analysis.sweep, ``casmbd sweep``).
+"""Parameter sweeps (casmbd.analysis.studies.sweep, ``casmbd sweep``).
 
 Acceptance of issue 10 item 5: a 20-point sweep of the spring-mass scene gives the same numbers
 serially, on two local processes and on a local Dask cluster; its one failing point (a negative
@@ -20,7 +20,7 @@ import pytest
 from conftest import private_cache
 
 from casmbd import cli
-from casmbd.analysis.sweep import load_sweep, parse_values, sweep
+from casmbd.analysis.studies.sweep import load_sweep, parse_values, sweep
 from casmbd.errors import AnalysisError, ModelError
 from casmbd.io.scene import load_result as load
 from casmbd.io.scene import load_scene, loads_scene
@@ -164,7 +164,7 @@ def test_runtime_parameters_equal_a_scene_with_those_values(cache):
     """Setting p at run time = loading the scene with the value: the same generated code (a
     cache hit, no compiler run) and the same trajectory to 1e-12 (index-1 DAE, which has no
     numbers computed from the defaults at build time)."""
-    from casmbd.analysis.simulate import simulate
+    from casmbd.analysis.dynamics.simulate import simulate
     from casmbd.io.scene_points import scene_with as _scene_with
 
     res = sweep(load_scene(SPRING), {"k": [90.0, 250.0], "m": [2.0]}, t_end=0.5, steps=10,
@@ -210,7 +210,7 @@ def test_statics_sweep_reads_spatial_body_poses(cache):
     from scipy.optimize import brentq
 
     import casmbd
-    from casmbd.analysis.statics import static_equilibrium
+    from casmbd.analysis.statics.statics import static_equilibrium
 
     mech = casmbd.Mechanism("spatial_spring_rod", gravity=(0.0, 0.0, -9.81))
     mech.add_parameter("k", 20.0)
@@ -238,7 +238,7 @@ def test_statics_sweep_reads_spatial_body_poses(cache):
 def test_kinematics_and_inverse_sweeps_of_the_slider_crank(cache):
     """Slider position r cos θ + sqrt(l² − r² sin² θ) (r = 0.1, l = 0.3, θ = ω t) at the end;
     the inverse sweep's motor torque equals inverse_dynamics on the scene with that ω."""
-    from casmbd.analysis.inverse import inverse_dynamics
+    from casmbd.analysis.driven.inverse import inverse_dynamics
     from casmbd.io.scene_points import scene_with as _scene_with
 
     omegas = [2.0, 5.0, 9.0]

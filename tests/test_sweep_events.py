@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 from conftest import private_cache
 
-from casmbd.analysis.simulate import Simulators, simulate
-from casmbd.analysis.sweep import sweep
+from casmbd.analysis.dynamics.simulate import Simulators, simulate
+from casmbd.analysis.studies.sweep import sweep
 from casmbd.io.scene import loads_scene
 from casmbd.io.scene_points import scene_with
 
@@ -244,7 +244,7 @@ def test_statics_sweep_rests_on_the_floor_and_the_stop(cache):
     pendulum on its stop at −1 rad carrying m g (L/2) cos 1 = 2.650 N m per kg (1e-10), each
     point = static_equilibrium of the scene at that value (1e-12).  Before, the pendulum's
     points hung straight down through the stop (−1.5708 rad, "ok") and the ball's failed."""
-    from casmbd.analysis.statics import static_equilibrium
+    from casmbd.analysis.statics.statics import static_equilibrium
 
     for path, coord, force in ((BALL, "ball.y", lambda m: m * 9.81),
                                (STOPS, "pin.angle",

@@ -31,7 +31,8 @@ import warnings
 from collections.abc import Sequence
 
 from casmbd import __version__, interrupts
-from casmbd.analysis.integrators import INTEGRATORS
+from casmbd.analysis.formulations import FORMULATIONS
+from casmbd.analysis.integrators.kinds import INTEGRATORS
 from casmbd.cli.common import (
     _add_mode,
     _add_output_flags,
@@ -51,7 +52,6 @@ from casmbd.cli.verbs import (
     _add_workbench_verbs,
 )
 from casmbd.errors import CasmbdError
-from casmbd.system.formulations import FORMULATIONS
 
 EXIT_ERROR = 1
 EXIT_USAGE = 2

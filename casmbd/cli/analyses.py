@@ -4,11 +4,11 @@
 
 from __future__ import annotations
 
-from casmbd.analysis.inverse import inverse_dynamics
-from casmbd.analysis.kinematics import kinematics
-from casmbd.analysis.linearize import linearize
-from casmbd.analysis.simulate import simulate
-from casmbd.analysis.statics import static_equilibrium
+from casmbd.analysis.driven.inverse import inverse_dynamics
+from casmbd.analysis.driven.kinematics import kinematics
+from casmbd.analysis.dynamics.simulate import simulate
+from casmbd.analysis.statics.linearize import linearize
+from casmbd.analysis.statics.statics import static_equilibrium
 from casmbd.cli.common import _load, _range, _save, _state_lines, _summary_table, _timing
 from casmbd.errors import AnalysisError, IntegratorError
 from casmbd.io.scene import load_result

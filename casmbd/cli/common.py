@@ -278,7 +278,7 @@ def _output_lines(result) -> list[str]:
 
 def _state_lines(summary: dict) -> list[str]:
     """The tables of the requests and the named nodes at one state (an equilibrium, an
-    operating point): ``state_summary`` of :mod:`casmbd.analysis.statics`."""
+    operating point): ``state_summary`` of :mod:`casmbd.analysis.statics.statics`."""
     outputs = summary.get("outputs", {})
     lines = _table(["output", "value", "unit"],
                    [[name, _number(s["value"]), _unit(s["unit"])]

@@ -4,7 +4,7 @@ module of its own so that ``casmbd info`` loads only what it needs).
 
 from __future__ import annotations
 
-from casmbd.analysis.kinematics import info
+from casmbd.analysis.driven.kinematics import info
 from casmbd.cli.common import _load
 from casmbd.errors import AssemblyError
 

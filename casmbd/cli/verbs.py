@@ -64,7 +64,7 @@ def _add_workbench_verbs(sub) -> None:
 
 
 def _add_sweep_verb(sub) -> None:
-    """The ``sweep`` verb (one analysis at many parameter values, casmbd.analysis.sweep)."""
+    """The ``sweep`` verb (one analysis at many parameter values, casmbd.analysis.studies.sweep)."""
     p = sub.add_parser("sweep", help="parameter sweep: one analysis at many values of the "
                                      "scene's [parameters]")
     p.add_argument("scene", help="scene file (TOML) with a [parameters] table")
@@ -91,7 +91,7 @@ def _add_sweep_verb(sub) -> None:
 
 
 def _add_sensitivity_verb(sub) -> None:
-    """The ``sensitivity`` verb (casmbd.analysis.sensitivity)."""
+    """The ``sensitivity`` verb (casmbd.analysis.studies.sensitivity)."""
     p = sub.add_parser("sensitivity", help="exact derivatives of simulation outputs with "
                                            "respect to scene parameters (IDAS)")
     p.add_argument("scene", help="scene file (TOML) with a [parameters] table")

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from casmbd.analysis.sensitivity import sensitivity
-from casmbd.analysis.simulate import simulate
-from casmbd.analysis.sweep import parse_values, sweep
+from casmbd.analysis.dynamics.simulate import simulate
+from casmbd.analysis.studies.sensitivity import sensitivity
+from casmbd.analysis.studies.sweep import parse_values, sweep
 from casmbd.cli.common import _check_not_input, _check_out, _load, scene_files
 from casmbd.errors import AnalysisError, ResultFileError
 from casmbd.io.scene import load_result, load_scene, loads_scene
@@ -114,7 +114,7 @@ def _cmd_animate(args) -> tuple[dict, str]:
 
 
 def _cmd_sweep(args) -> tuple[dict, str]:
-    """Run the analysis at every point of the --param grid (casmbd.analysis.sweep)."""
+    """Run the analysis at every point of the --param grid (casmbd.analysis.studies.sweep)."""
     params: dict = {}
     for text in args.param:
         name, values = parse_values(text)

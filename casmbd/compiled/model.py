@@ -99,7 +99,8 @@ class NumericModel:
       actuators, initial body poses) — never for parameter values;
     * :attr:`system`, the symbolic equations, only to build *new* CasADi Functions from
       symbolic expressions after a numeric failure (the diagnostics of
-      :mod:`casmbd.analysis.checks` and :mod:`casmbd.analysis.culprits`).  Code that builds
+      :mod:`casmbd.analysis.instant.checks` and :mod:`casmbd.analysis.instant.culprits`).  Code
+      that builds
       Functions as its main job (formulations, statics and linearisation Functions, the OCP
       transcription) takes the :class:`System` explicitly and hands them in as ``extra``.
 

@@ -44,7 +44,7 @@ import math
 import os
 from pathlib import Path
 
-from casmbd.analysis.integrators import DEFAULT_SHOOTING_INTEGRATOR
+from casmbd.analysis.integrators.kinds import DEFAULT_SHOOTING_INTEGRATOR
 from casmbd.errors import CasmbdError, LimitError, SceneError
 from casmbd.io.scene import load_scene
 from casmbd.model.expressions import evaluate_number

@@ -45,7 +45,7 @@ from pathlib import Path
 from typing import Any
 
 from casmbd import results
-from casmbd.analysis.events import MAX_EVENTS_LIMIT, SIMULATION_KEYS
+from casmbd.analysis.events.events import MAX_EVENTS_LIMIT, SIMULATION_KEYS
 from casmbd.compiled.modal_cache import DISK_STORE
 from casmbd.errors import CasmbdError, ExpressionError, ModelError, SceneError
 from casmbd.io.files import read_text

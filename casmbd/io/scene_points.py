@@ -2,7 +2,7 @@
 
 A mechanism read from a scene file carries a :class:`ScenePoints` (``mech.scene_points``, set
 by :func:`casmbd.io.scene.loads_scene`): the scene text, its source name and the reader.  The
-sweep (:mod:`casmbd.analysis.sweep`, a lower layer that never parses scene text) asks it for
+sweep (:mod:`casmbd.analysis.studies.sweep`, a lower layer that never parses scene text) asks it for
 each point's scene — the ``[parameters]`` entries rewritten, comments and layout kept —
 checks that the scene still loads with the point's values, and refuses a parameter that fixes
 *load-time* numbers (positions, points, axes, initial velocities are evaluated when the scene

@@ -120,7 +120,7 @@ def check_positive(body) -> None:
     :data:`MASS_RANGE` and a moment of inertia above :data:`INERTIA_MAX`.  Zero mass and inertia
     are accepted here: whether the mass matrix of the chosen coordinates is positive definite
     is checked at the start of forward dynamics
-    (:func:`casmbd.analysis.checks.check_mass_matrix`)."""
+    (:func:`casmbd.analysis.instant.checks.check_mass_matrix`)."""
     distance = float(np.max(np.abs(np.asarray(body.position, dtype=float))))
     if distance > POSITION_MAX:
         raise ModelError(f"body '{body.name}' field 'position': a coordinate of {distance:g} m "

@@ -16,7 +16,7 @@ Two contact models, chosen per element (``model``):
   *Multibody Dynamics with Unilateral Contacts*, 1996, ch. 6; Glocker, *Set-Valued Force Laws*,
   2001), Coulomb's law at the contact on the impulse level (stick if |P_t| ≤ μ P_n, else slip),
   and a contact that stops bouncing is closed — its gap becomes a bilateral constraint — until
-  its normal force would pull (detach); see :mod:`casmbd.analysis.events`;
+  its normal force would pull (detach); see :mod:`casmbd.analysis.events.events`;
 * ``"compliant"``: a penalty force F_n = k δ^e + c(δ) δ̇ on the penetration δ = −g > 0, with the
   damping c(δ) = STEP(δ, 0, 0, d_max, c) of Adams' IMPACT function (it grows from 0 to c over
   the penetration depth d_max, so the force is continuous at first contact), and regularised
@@ -420,7 +420,8 @@ def tangential_position(element: PlaneContact, ctx) -> ca.SX:
 class TangentClosure(Joint):
     """A stuck frictional plane contact: s(q) − s_stuck = 0 (:func:`tangential_position`,
     s_stuck a parameter); its multiplier is the friction force that holds it.  Not a scene
-    kind: made by :mod:`casmbd.analysis.events` for the phases in which the contact sticks."""
+    kind: made by :mod:`casmbd.analysis.events.events` for the phases in which the contact
+    sticks."""
     #: what it needs from an analysis (casmbd.model.needs): nothing special
     needs: ClassVar[frozenset[str]] = frozenset()
 
@@ -449,7 +450,7 @@ class RollingClosure(Joint):
     ch. 7: the sticking contact as a bilateral constraint on the relative velocity).  Its
     position rows are zero and its velocity rows are :meth:`velocity_equations` (the system
     takes C_q from ∂W/∂v); the multipliers are the friction force that holds it (−λ in the
-    tangent basis).  Not a scene kind: made by :mod:`casmbd.analysis.events` for the phases
+    tangent basis).  Not a scene kind: made by :mod:`casmbd.analysis.events.events` for the phases
     in which the contact sticks."""
 
     def __init__(self, element: PlaneContact):
@@ -541,7 +542,7 @@ class ContactSlide(ForceElement):
 
 class GapClosure(Joint):
     """A closed unilateral gap as a bilateral constraint g_k(q) = 0 (the contact or stop is
-    active); made by :func:`casmbd.analysis.events` for the phase in which the element stays
+    active); made by :func:`casmbd.analysis.events.events` for the phase in which the element stays
     in contact.  Not a scene kind."""
     #: what it needs from an analysis (casmbd.model.needs): nothing special
     needs: ClassVar[frozenset[str]] = frozenset()

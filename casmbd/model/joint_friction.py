@@ -25,7 +25,7 @@ force of a planar revolute; the normal force of a slide).  R_⊥ follows from th
 λ, so the force enters the equations through a symbol N per element that the system replaces
 by |R_⊥(q, λ)| (:mod:`casmbd.system.forces`, ``friction_normals``): Q_e is affine in N,
 Q_e = Q_e|_{N=0} + G N.  Inverse dynamics and the consistent start solve λ and N together by
-a fixed point (:mod:`casmbd.analysis.joint_friction`); the DAE formulations (``index1``,
+a fixed point (:mod:`casmbd.analysis.instant.joint_friction`); the DAE formulations (``index1``,
 ``ggl``) use λ directly; the ODE formulations refuse such an element, naming its joint.
 """
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from casmbd.analysis.simulate import simulate
+from casmbd.analysis.dynamics.simulate import simulate
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, CasmbdError
 from casmbd.ocp.solution import OcpSolution

@@ -24,8 +24,8 @@ from dataclasses import dataclass, field
 
 import casadi as ca
 
-from casmbd.analysis.integrators import DEFAULT_SHOOTING_INTEGRATOR
-from casmbd.analysis.integrators import names as integrator_names
+from casmbd.analysis.integrators.kinds import DEFAULT_SHOOTING_INTEGRATOR
+from casmbd.analysis.integrators.kinds import names as integrator_names
 from casmbd.errors import AnalysisError, ModelError
 from casmbd.limits import MAX_OCP_INTERVALS, MAX_OCP_UNKNOWNS, check_count
 from casmbd.model.expressions import parse_expression
@@ -189,7 +189,7 @@ class Ocp:
         shooting = integrator_names(shooting=True)
         if self.integrator not in shooting:
             raise AnalysisError(f"ocp: integrator must be one of {', '.join(shooting)} "
-                                f"(casmbd.analysis.integrators), got {self.integrator!r}")
+                                f"(casmbd.analysis.integrators.kinds), got {self.integrator!r}")
         if isinstance(self.horizon, FreeTime):
             h = self.horizon
             if not (0 < h.lower <= h.guess <= h.upper and math.isfinite(h.upper)):

@@ -10,8 +10,8 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
-from casmbd.analysis.kkt import accelerations_and_multipliers
-from casmbd.analysis.simulate import Simulator
+from casmbd.analysis.dynamics.simulate import Simulator
+from casmbd.analysis.instant.kkt import accelerations_and_multipliers
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, CasmbdError, IntegratorError, ResultFileError
 from casmbd.interrupts import reraise_interrupt

@@ -22,7 +22,7 @@ import casadi as ca
 import numpy as np
 
 from casmbd import interrupts, progress
-from casmbd.analysis.kkt import consistent_state
+from casmbd.analysis.instant.kkt import consistent_state
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, OptimizationError
 from casmbd.ocp.dynamics import choose_dynamics, node_constraints

@@ -158,8 +158,8 @@ class System(AppliedForces, Outputs, Reactions):
         angular velocities of every body); q̇ minimises the kinetic energy of the difference,
         Σ ½ (m |ṙ_G − v_G⁰|² + (ω − ω⁰)ᵀ A J Aᵀ (ω − ω⁰)), exact when the given velocities are
         compatible with the tree joints.  That is the mass-orthogonal projection absolute
-        coordinates make at the start (:func:`casmbd.analysis.kkt.project_velocities`), so an
-        incompatible initial velocity starts the same motion in either choice (the unweighted
+        coordinates make at the start (:func:`casmbd.analysis.instant.kkt.project_velocities`), so
+        an incompatible initial velocity starts the same motion in either choice (the unweighted
         least squares used before gave a rod pinned at one end, given ṙ_G = (1, 1), 0.4 rad/s
         instead of 1.5).  Without mass (a singular metric) the unweighted least squares is
         used.  ``p``: parameter values (default: the mechanism's, :attr:`parameter_values`).

@@ -3,7 +3,7 @@
 Seed 002 ("Redundant constraint equations"): a revolute joint closing a spatial loop may write
 five equations of which only two are independent; the KKT matrix is then singular and the
 Schur complement C_q M⁻¹ C_qᵀ cannot be factorised.  Removing the dependent rows (found by the
-rank-revealing factorisation of :mod:`casmbd.analysis.redundancy` at the assembled
+rank-revealing factorisation of :mod:`casmbd.analysis.instant.redundancy` at the assembled
 configuration) leaves a full-rank set with the same solution set near that configuration, so the
 formulations that need a regular KKT matrix (``kkt_ode``, ``index1``, ``ggl``) can run.
 
@@ -12,7 +12,7 @@ formulations use and delegates everything else (M, Q_e, Q_v, outputs) to the ful
 :class:`~casmbd.system.equations.System`.  Post-processing keeps working on the full system, so
 results list every equation; the multipliers of the full set are then the minimum-norm ones and
 the reactions that depend on the split are flagged as undetermined
-(:mod:`casmbd.analysis.reactions`).
+(:mod:`casmbd.analysis.instant.reactions`).
 """
 
 from __future__ import annotations

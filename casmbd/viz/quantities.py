@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from casmbd.analysis.invariants import force_exchange
+from casmbd.analysis.integrators.invariants import force_exchange
 from casmbd.errors import CasmbdError
 from casmbd.io.scene import loads_scene
 

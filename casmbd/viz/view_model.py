@@ -20,12 +20,12 @@ Sources.  A :class:`~casmbd.model.Mechanism` alone is shown at its assembled ini
 initial guess; a mechanism that does not assemble is shown at its initial guess with a
 warning), one frame at t = 0.  A :class:`~casmbd.results.Result` of any analysis with body
 poses (kinematics, simulation, inverse dynamics, an OCP's, a statics result saved by a sweep)
-on its own grid; a :class:`~casmbd.analysis.statics.StaticsResult` (the equilibrium, one
+on its own grid; a :class:`~casmbd.analysis.statics.statics.StaticsResult` (the equilibrium, one
 frame; give the mechanism); an :class:`~casmbd.ocp.solution.OcpSolution` through
 :meth:`~casmbd.ocp.solution.OcpSolution.to_result` (as ``casmbd animate`` reads a solution
 file); a result that holds the coordinates q but no body poses (an OCP solution file written
 before issue 30) gets them from the mechanism's output function evaluated at its q.  A
-:class:`~casmbd.analysis.sweep_result.SweepResult` is refused: view one point of it
+:class:`~casmbd.analysis.studies.sweep_result.SweepResult` is refused: view one point of it
 (``sweep.result(i)``).
 
 Shapes (:mod:`casmbd.viz.view_shapes`): URDF ``<visual>`` elements (meshes through
@@ -39,10 +39,10 @@ import warnings
 
 import numpy as np
 
-from casmbd.analysis.assembly import assemble
-from casmbd.analysis.statics import StaticsResult
-from casmbd.analysis.sweep import _statics_result
-from casmbd.analysis.sweep_result import SweepResult
+from casmbd.analysis.instant.assembly import assemble
+from casmbd.analysis.statics.statics import StaticsResult
+from casmbd.analysis.studies.sweep import _statics_result
+from casmbd.analysis.studies.sweep_result import SweepResult
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, AssemblyError, CasmbdError
 from casmbd.io.scene import loads_scene

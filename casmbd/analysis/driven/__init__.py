@@ -1,0 +1,1 @@
+"""Analyses of a kinematically driven mechanism: kinematics and inverse dynamics."""

@@ -1,0 +1,1 @@
+"""Event-driven simulation: contacts, joint stops and stick-slip friction, impacts."""

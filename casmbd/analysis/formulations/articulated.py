@@ -1,0 +1,55 @@
+"""``articulated``: ODE x = (q, v) of a tree in joint coordinates by the articulated-body
+recursion (:mod:`casmbd.system.articulated`), O(N) operations."""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import casadi as ca
+
+from casmbd.analysis.formulations.base import Formulation, FormulationKind, _dyn, _sym_inputs
+from casmbd.system.articulated import articulated_accelerations, supported
+from casmbd.system.equations import System
+
+
+def articulated(system: System, inputs: ca.SX | None = None) -> Formulation:
+    """ODE on (q, v) of a tree in joint coordinates by the articulated-body recursion, O(N)
+    operations (:mod:`casmbd.system.articulated`)."""
+    t, q, v, pu = _sym_inputs(system)
+    acc = articulated_accelerations(system)
+    if system.u.numel():
+        u_expr = ca.SX.zeros(system.u.numel()) if inputs is None else inputs
+        acc = ca.substitute(acc, system.u, u_expr)
+    f = _dyn("dyn_articulated", t, ca.vertcat(q, v), ca.SX(0, 1), pu, ca.vertcat(v, acc),
+             ca.SX(0, 1))
+    return Formulation("articulated", "ode", f, system.nq, 0)
+
+
+class Articulated(FormulationKind):
+    """Articulated-body recursion; the default for trees in joint coordinates without
+    constraint equations (measured faster than the KKT/LDLᵀ path: docs/dynamics.md).
+
+    Its default integrator is DOPRI5 in compiled blocks (:mod:`casmbd.analysis.integrators.dopri`),
+    measured faster than CVODES-Adams at errors 1e-6 and 1e-9 on the pendulum chains
+    (docs/dynamics.md, "Dormand–Prince: compiled adaptive steps"); BDF when the start is stiff.
+    """
+
+    name = "articulated"
+    handles = frozenset({"inputs"})
+    refuses: ClassVar[dict] = {
+        need: "it integrates an unconstrained tree in joint coordinates" for need in
+               ("events", "stick_slip", "contact_friction", "reaction_forces",
+                "modal_coordinates", "drivers")}
+    instead: ClassVar[dict] = {need: "the default formulation" for need in refuses}
+    kind = "ode"
+    default_integrator = "dopri5"
+
+    def equations(self, system: System, inputs: ca.SX | None = None,
+                  **options) -> Formulation:
+        return articulated(system, inputs=inputs, **options)
+
+    def default_reason(self, system: System) -> str:
+        return "default: the articulated-body recursion (a tree in joint coordinates)"
+
+    def preferred_for(self, system: System) -> bool:
+        return system.coordinates == "joint" and supported(system) is None

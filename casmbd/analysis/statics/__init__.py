@@ -1,0 +1,1 @@
+"""Statics and linearisation: static equilibrium, resting contacts, the trust region, stability."""
