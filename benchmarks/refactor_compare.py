@@ -155,8 +155,8 @@ def cases(scenes_root: Path) -> list[dict]:
 
 # ======================================================================== the worker
 def _clean_text(text: str, paths: dict[str, str]) -> str:
-    for path, name in paths.items():
-        text = text.replace(path, name)
+    for path in sorted(paths, key=len, reverse=True):  # /a/b before /a
+        text = text.replace(path, paths[path])
     return text
 
 
@@ -281,7 +281,9 @@ def worker(case_file: Path, out_dir: Path, scenes_root: Path) -> int:
     from casmbd.errors import CasmbdError
 
     package = str(Path(casmbd.__file__).resolve().parent.parent)
-    paths = {str(scenes_root): "<scenes>", package: "<casmbd>"}
+    # the scene root wins where the package is the scenes' own checkout: a scene's path reads
+    # the same whichever checkout runs it
+    paths = {package: "<casmbd>", str(scenes_root): "<scenes>"}
     os.chdir(scenes_root)
     for case in json.loads(case_file.read_text()):
         print(f"start {case['id']}", flush=True)
@@ -506,7 +508,7 @@ def compare_runs(a: dict[str, np.ndarray], b: dict[str, np.ndarray],
     return out
 
 
-def compare(dir_a: Path, dir_b: Path, ignore: list[str]) -> int:
+def compare(dir_a: Path, dir_b: Path, ignore: list[str], details: int = 40) -> int:
     """Compare two records; print the table; 1 on any difference, missing or extra run."""
     ids_a = {p.stem for p in dir_a.glob("*.npz") if not p.name.endswith(".tmp.npz")}
     ids_b = {p.stem for p in dir_b.glob("*.npz") if not p.name.endswith(".tmp.npz")}
@@ -549,7 +551,17 @@ def compare(dir_a: Path, dir_b: Path, ignore: list[str]) -> int:
     print(f"{'total':<22}" + "".join(f"{total[c]:>11}" for c in cols))
     print("identical runs by outcome: " + ", ".join(f"{n} {k}" for k, n in
                                                     sorted(outcome.items())))
-    for run, diffs in different.items():
+    if different:
+        keys = defaultdict(int)
+        for diffs in different.values():
+            for key, _ in diffs:
+                keys[key] += 1
+        print("\ndiffering entries (runs): " + ", ".join(
+            f"{k} ({n})" for k, n in sorted(keys.items(), key=lambda x: -x[1])))
+    for k, (run, diffs) in enumerate(different.items()):
+        if k == details:
+            print(f"\n... {len(different) - details} more differing runs (--details N)")
+            break
         print(f"\n{run}:")
         for key, how in diffs:
             print(f"  {key}: {how}")
@@ -582,6 +594,8 @@ def main(argv: list[str] | None = None) -> int:
                         "of DIR (repeatable)")
     parser.add_argument("--ignore", action="append", default=[], metavar="KEY_GLOB",
                         help="leave out keys matching, e.g. 'text/warnings' (repeatable)")
+    parser.add_argument("--details", type=int, default=40, metavar="N",
+                        help="list the differences of at most N runs (default 40)")
     args = parser.parse_args(argv)
     scenes_root = args.scenes_root.resolve()
     if args.worker:
@@ -595,7 +609,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.record:
         return record(args.record.resolve(), args.repo.resolve(), scenes_root, args.only)
-    return compare(args.compare[0], args.compare[1], args.ignore)
+    return compare(args.compare[0], args.compare[1], args.ignore, args.details)
 
 
 if __name__ == "__main__":

@@ -36,7 +36,8 @@ def _write(directory, run: str, payload: dict) -> None:
 
 
 def test_record_value_keeps_arrays_drops_timings_and_paths():
-    rec = rc.record_value(_result(), {"/somewhere/scenes": "<scenes>"})
+    # the longer path first: /somewhere/scenes is not read as <root>/scenes
+    rec = rc.record_value(_result(), {"/somewhere": "<root>", "/somewhere/scenes": "<scenes>"})
     assert np.array_equal(rec["array/arrays.q"], _result().arrays["q"])
     stats = json.loads(str(rec["text/stats"]))
     assert stats == {"steps": 26, "note": "scene <scenes>/x.toml"}  # seconds, cache_hit out
@@ -54,7 +55,8 @@ def test_one_ulp_change_is_found_with_its_size(tmp_path, capsys):
     _write(tmp_path / "b", "run1", rc.record_value(_result(1.0 + 2.0 ** -52), {}))
     assert rc.compare(tmp_path / "a", tmp_path / "b", []) == 1
     out = capsys.readouterr().out
-    line = next(x for x in out.splitlines() if "array/arrays.q" in x)
+    line = next(x for x in out.splitlines() if x.startswith("  array/arrays.q"))
+    assert "differing entries (runs): array/arrays.q (1)" in out
     # 1 and -0.5 changed by one ulp: 2.2e-16 absolute and relative at most
     assert "max abs 2.22e-16" in line and "max rel 2.22e-16" in line
     assert rc.compare(tmp_path / "a", tmp_path / "b", ["array/arrays.q"]) == 0
