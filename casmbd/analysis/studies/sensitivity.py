@@ -349,7 +349,10 @@ def sensitivity(mechanism, outputs: Sequence[str] | str, parameters: Sequence[st
         return _result(outputs, chosen, val, jac_v, method, idx, p_nom, t_start, t_end, rtol,
                        atol, build, time.perf_counter() - t1, extra, skipped)
     if method == "forward":
-        res = integ(x0=start_fun(p_all), z0=np.concatenate([st.a, st.lam]), p=p_all)
+        lam0 = np.asarray(st.lam, dtype=float)
+        if kept is not None and lam0.size != nc:  # the multipliers of the kept rows only
+            lam0 = lam0[list(kept)]
+        res = integ(x0=start_fun(p_all), z0=np.concatenate([st.a, lam0]), p=p_all)
     else:  # the adjoint through CVODES on the ODE with (q̈, λ) eliminated (index1_ode)
         build_ode = index1_ode(t, x, z, p, ode, alg, dae.get("quad", ca.SX(0, 1)))
         tm, xm, pm = ca.MX.sym("t"), ca.MX.sym("x", x.numel()), ca.MX.sym("p", p.numel())
