@@ -138,9 +138,9 @@ def _run(sim, repeat: int, **kw) -> dict:
 
 def _raw_call(sim, name: str, repeat: int, clock=time.perf_counter) -> dict:
     """The CasADi integrator of the run called directly (no casmbd code around it)."""
-    from casmbd.analysis.integrators import kinds as integ
+    from casmbd.analysis.integrators import sundials as sun
 
-    solver = integ.sundials(sim.dyn, name, 0.0, [T_END], TOL, TOL, 500_000)
+    solver = sun.sundials(sim.dyn, name, 0.0, [T_END], TOL, TOL, 500_000)
     x0 = np.concatenate([sim.model.initial_coordinates(), sim.model.initial_velocities()])
     z0, p = np.zeros(sim.dyn.nnz_in(2)), sim.model.p
     seconds = _fastest(lambda: solver(x0=x0, z0=z0, p=p), repeat, 0.0, clock)
@@ -150,9 +150,9 @@ def _raw_call(sim, name: str, repeat: int, clock=time.perf_counter) -> dict:
 def _fixed_cpu(sim, repeat: int) -> float:
     """Processor µs per step of the compiled RK4 folds (``FixedStep.advance`` over
     T_END / RK4_STEP steps in one call, what ``Simulator.run`` does with one output)."""
-    from casmbd.analysis.integrators import kinds as integ
+    from casmbd.analysis.integrators import fixed_step as fixed
 
-    runner = integ.FixedStep(sim.formulation.function, "rk4", mode="auto",
+    runner = fixed.FixedStep(sim.formulation.function, "rk4", mode="auto",
                              name=f"{getattr(sim.model, 'name', 'step_cost')}_rk4")
     x0 = np.concatenate([sim.model.initial_coordinates(), sim.model.initial_velocities()])
     p, count = sim.model.p, round(T_END / RK4_STEP)

@@ -27,7 +27,7 @@ from casmbd.analysis.dynamics.simulate import simulate
 from casmbd.analysis.events import events as ev
 from casmbd.analysis.events.buffered import Buffered
 from casmbd.analysis.events.events import PROJECT_AFTER, periodic_overrun
-from casmbd.analysis.integrators import kinds as integ
+from casmbd.analysis.integrators import sundials as sun
 from casmbd.errors import IntegratorError
 from casmbd.io.scene import loads_scene
 
@@ -86,7 +86,7 @@ def test_buffered_integrator_equals_the_function_call():
     f = ca.Function("f", [s, x, ca.MX.sym("z", 0), p, ca.MX.sym("u", 0)],
                     [p[-1] * ca.vertcat(x[1], -G * ca.cos(x[0])), ca.MX(0, 1), ca.MX(0, 1),
                      ca.MX(0, 1)], ca.dyn_in(), ca.dyn_out())
-    solver = integ.sundials(f, "adams", 0.0, [0.25, 0.5, 1.0], 1e-10, 1e-10, 10_000)
+    solver = sun.sundials(f, "adams", 0.0, [0.25, 0.5, 1.0], 1e-10, 1e-10, 10_000)
     args = {"x0": [0.3, -1.0], "p": [0.0, 0.0, 2.0]}
     direct = solver(**args)
     steps = solver.stats()["nsteps"]

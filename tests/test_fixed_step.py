@@ -22,7 +22,7 @@ from conftest import private_cache
 
 import casmbd
 from casmbd.analysis.dynamics.simulate import Simulator
-from casmbd.analysis.integrators import kinds as integ
+from casmbd.analysis.integrators import fixed_step as fixed
 
 G = 9.81
 #: 4.2 s in 210 steps of 0.02 s: 1, 2, 3, 7, 42 and 210 steps per output interval all divide it
@@ -140,7 +140,7 @@ def test_statistics_count_the_steps_taken(sim, method, steps):
     (1.0, 1.0 / 3.0, 3),
 ])
 def test_substeps_for_shortens_a_step_that_does_not_divide(interval, step, n_sub):
-    assert integ.substeps_for(interval, step) == n_sub
+    assert fixed.substeps_for(interval, step) == n_sub
 
 
 @pytest.mark.parametrize("method", ["rk4", "abm"])
@@ -179,7 +179,7 @@ def test_projection_restarts_abm_at_every_output(sim, reference, n_sub):
 def test_negative_step_count_is_refused(sim):
     """The guard behind the bug: ``advance`` with a negative count raises instead of taking
     ``divmod``'s extra steps."""
-    runner = integ.FixedStep(sim.formulation.function, "abm")
+    runner = fixed.FixedStep(sim.formulation.function, "abm")
     start = runner.start(np.zeros(runner.nx), 0.0, sim.model.p)
     with pytest.raises(ValueError, match="negative step count -1"):
         runner.advance(start, sim.model.p, 0.1, -1)

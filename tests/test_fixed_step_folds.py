@@ -9,7 +9,7 @@ import casadi as ca
 import numpy as np
 import pytest
 
-from casmbd.analysis.integrators import kinds as integ
+from casmbd.analysis.integrators import fixed_step as fixed
 
 OMEGA2 = 4.0  # x'' = -omega² x
 
@@ -26,7 +26,7 @@ def _oscillator() -> ca.Function:
 @pytest.mark.parametrize("method", ["rk4", "abm"])
 def test_one_advance_equals_single_steps_bit_for_bit(method):
     """343 = 256 + 64 + 16 + 4 + 3 × 1 steps: every fold size is used once."""
-    runner = integ.FixedStep(_oscillator(), method, mode="vm")
+    runner = fixed.FixedStep(_oscillator(), method, mode="vm")
     p, h, count = np.array([OMEGA2]), 0.01, 343
     start = runner.start([1.0, 0.0], 0.0, p)
     whole = runner.advance(start, p, h, count)
@@ -44,7 +44,7 @@ def test_against_the_closed_form(method, bound):
     """x(t) = cos(ω t), v = −ω sin(ω t) after 500 steps of 0.01 s (ω = 2): the phase error
     of RK4 is ≈ t ω⁵ h⁴ / 120 = 1.3e-8 rad (v: ω times that), of ABM4's PECE corrector
     ≈ t ω⁵ h⁴ · 19/720 ≈ 4e-8 rad; the bounds are about twice the v error."""
-    runner = integ.FixedStep(_oscillator(), method, mode="vm")
+    runner = fixed.FixedStep(_oscillator(), method, mode="vm")
     p, h, count = np.array([OMEGA2]), 0.01, 500
     end = runner.advance(runner.start([1.0, 0.0], 0.0, p), p, h, count)
     omega, t = np.sqrt(OMEGA2), count * h
@@ -55,7 +55,7 @@ def test_against_the_closed_form(method, bound):
 def test_rk4_is_its_stability_polynomial():
     """On a linear ODE x' = A x one RK4 step is x ← R(hA) x with R(Z) = I + Z + Z²/2 + Z³/6
     + Z⁴/24 (an independent formulation of the same method): 500 steps agree to rounding."""
-    runner = integ.FixedStep(_oscillator(), "rk4", mode="vm")
+    runner = fixed.FixedStep(_oscillator(), "rk4", mode="vm")
     p, h, count = np.array([OMEGA2]), 0.01, 500
     end = runner.advance(runner.start([1.0, 0.0], 0.0, p), p, h, count)
     z = h * np.array([[0.0, 1.0], [-OMEGA2, 0.0]])
@@ -70,6 +70,6 @@ def test_compiled_folds_agree_with_the_virtual_machine(tmp_path, monkeypatch):
     p, h, count = np.array([OMEGA2]), 0.01, 343
     ends = {}
     for mode in ("vm", "compiled"):
-        runner = integ.FixedStep(_oscillator(), "rk4", mode=mode, name="test_folds_rk4")
+        runner = fixed.FixedStep(_oscillator(), "rk4", mode=mode, name="test_folds_rk4")
         ends[mode] = runner.advance(runner.start([1.0, 0.0], 0.0, p), p, h, count).s
     np.testing.assert_allclose(ends["compiled"], ends["vm"], rtol=1e-13, atol=1e-14)

@@ -2,7 +2,7 @@
 
 IDAS integrates F(t, y, ẏ) = (f(t, x, z) − ẋ, g(t, x, z)) = 0 from a start that must satisfy
 it.  casmbd hands IDAS x0 = (q, v) and z0 = (q̈, λ) from the KKT solve at t0 and
-ẋ0 = f(t0, x0, z0) (:class:`casmbd.analysis.integrators.kinds.ConsistentStart`), with
+ẋ0 = f(t0, x0, z0) (:class:`casmbd.analysis.integrators.sundials.ConsistentStart`), with
 ``calc_ic = False``: IDAS's own initial-condition calculation — a Newton iteration with a line
 search, which from an already consistent start has only rounding left to reduce and failed
 with IDA_LINESEARCH_FAIL at t = 0 on AMD EPYC — never runs.  The algebraic variables get an
@@ -26,7 +26,7 @@ from conftest import private_cache
 
 import casmbd
 from casmbd.analysis.dynamics.simulate import Simulator
-from casmbd.analysis.integrators import kinds as integ
+from casmbd.analysis.integrators import sundials as sun
 
 _cache = private_cache("cache_idas_start", scope="module")
 
@@ -143,16 +143,16 @@ def test_algebraic_tolerance_sits_above_the_rounding_and_follows_the_scale():
     """max(atol, 1e-9 (1 + ‖z0‖∞)) — 1e-5 for an index-2 DAE: the algebraic variables'
     absolute tolerance; the differential states keep atol."""
     sim = Simulator(_chain8(), "index1")
-    start = integ.sundials(sim.dyn, "idas", 0.0, [1.0], 1e-11, 1e-11, 1000)
-    assert isinstance(start, integ.ConsistentStart)
+    start = sun.sundials(sim.dyn, "idas", 0.0, [1.0], 1e-11, 1e-11, 1000)
+    assert isinstance(start, sun.ConsistentStart)
     assert start.algebraic_tolerance(np.zeros(8)) == pytest.approx(1e-9)
     assert start.algebraic_tolerance(np.full(8, -99.0)) == pytest.approx(1e-7)
-    loose = integ.sundials(sim.dyn, "idas", 0.0, [1.0], 1e-6, 1e-6, 1000)
+    loose = sun.sundials(sim.dyn, "idas", 0.0, [1.0], 1e-6, 1e-6, 1000)
     assert loose.algebraic_tolerance(np.zeros(8)) == 1e-6
     # GGL is of index 2 (C = 0 and C_q v + C_t = 0 do not contain z): the looser floor
     mech = casmbd.load_scene("examples/four_bar.toml")
     mech.coordinates = "absolute"
     ggl = Simulator(mech, "ggl")
-    start = integ.sundials(ggl.dyn, "idas", 0.0, [1.0], 1e-8, 1e-8, 1000)
-    assert start.floor == integ.ConsistentStart.INDEX2_ALGEBRAIC_FLOOR == 1e-5
+    start = sun.sundials(ggl.dyn, "idas", 0.0, [1.0], 1e-8, 1e-8, 1000)
+    assert start.floor == sun.ConsistentStart.INDEX2_ALGEBRAIC_FLOOR == 1e-5
     assert start.algebraic_tolerance(np.ones(27)) == pytest.approx(2e-5)

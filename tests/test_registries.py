@@ -28,7 +28,10 @@ from casmbd.analysis.formulations import (
     register_formulation,
 )
 from casmbd.analysis.integrators import kinds as integ
-from casmbd.analysis.integrators.kinds import INTEGRATORS, FixedStepKind, SundialsKind, rk4_step
+from casmbd.analysis.integrators import sundials as sun
+from casmbd.analysis.integrators.fixed_step import FixedStepKind, rk4_step
+from casmbd.analysis.integrators.kinds import INTEGRATORS
+from casmbd.analysis.integrators.sundials import SundialsKind
 from casmbd.errors import AnalysisError, ModelError, UnknownMethodError
 from casmbd.ocp import Ocp
 from casmbd.system import System
@@ -123,7 +126,7 @@ def test_unknown_integrator_names_the_choices():
     assert str(info.value) == ("unknown integrator 'rk5' (known: idas, cvodes, adams, rk4, "
                                "abm, dopri5)")
     with pytest.raises(UnknownMethodError, match=r"unknown integrator 'lsoda'"):
-        integ.sundials(Simulator(pendulum(), "kkt_ode", mode="vm").dyn, "lsoda", 0.0, [1.0],
+        sun.sundials(Simulator(pendulum(), "kkt_ode", mode="vm").dyn, "lsoda", 0.0, [1.0],
                        1e-8, 1e-8, 100)
 
 

@@ -42,6 +42,7 @@ from casmbd.analysis.instant.checks import (
 from casmbd.analysis.instant.independent import find_redundant
 from casmbd.analysis.instant.kkt import accelerations_and_multipliers, consistent_state
 from casmbd.analysis.integrators import kinds as integ
+from casmbd.analysis.integrators import sundials as sun
 from casmbd.analysis.integrators.option_ranges import check_integrator_options
 from casmbd.analysis.integrators.stiffness_culprit import (
     check_plausible_elements,
@@ -335,7 +336,7 @@ class Simulator(Stepping, CachedBuild):
         self._setup_seconds = 0.0
         t0 = time.perf_counter()
         failure = None
-        captured = integ.CapturedOutput()
+        captured = sun.CapturedOutput()
         try:
             with captured:
                 xs, solver_stats = self._integrate(name, grid, x0, z0, rtol, atol, projection,
@@ -360,7 +361,7 @@ class Simulator(Stepping, CachedBuild):
                 raise  # no SUNDIALS re-run: a --step limit, a --projection AssemblyError
             failure = exc
         if failure is not None:
-            with integ.CapturedOutput():
+            with sun.CapturedOutput():
                 xs, solver_stats = self.kind.keep_partial(self, name, grid, x0, z0, rtol,
                                                           atol, step, max_steps,
                                                           captured.text, projection)
@@ -493,7 +494,7 @@ class Simulator(Stepping, CachedBuild):
                 return xs, self._solver_stats(solver.stats())
         solver = self._solver(
             (name, tuple(grid), rtol, atol, max_steps),
-            lambda: integ.sundials(self.dyn, name, grid[0], grid[1:], rtol, atol, max_steps))
+            lambda: sun.sundials(self.dyn, name, grid[0], grid[1:], rtol, atol, max_steps))
         res = solver(x0=x0, z0=z0, p=self.model.p)
         xs = np.vstack([x0, np.asarray(res["xf"]).T])
         return xs, self._solver_stats(solver.stats())

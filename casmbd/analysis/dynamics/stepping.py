@@ -14,7 +14,9 @@ import numpy as np
 from casmbd import progress
 from casmbd.analysis.instant.assembly import assemble
 from casmbd.analysis.instant.kkt import project_velocities
+from casmbd.analysis.integrators import fixed_step as fixed
 from casmbd.analysis.integrators import kinds as integ
+from casmbd.analysis.integrators import sundials as sun
 from casmbd.compiled.model import _c_name
 from casmbd.errors import IntegratorError
 from casmbd.interrupts import reraise_interrupt
@@ -35,7 +37,7 @@ class Stepping:
         if clocked is None:
             return None
         dyn, clock = clocked
-        return integ.sundials(dyn, name, grid[0], grid[1:], rtol, atol, max_steps), clock
+        return sun.sundials(dyn, name, grid[0], grid[1:], rtol, atol, max_steps), clock
 
     @staticmethod
     def _solver_stats(st: dict) -> dict:
@@ -53,7 +55,7 @@ class Stepping:
         shifted = self._solver("shifted", lambda: integ.shifted(self.dyn))
         solver = self._solver(
             (name, "interval", interval, rtol, atol, max_steps),
-            lambda: integ.sundials(shifted, name, 0.0, [interval], rtol, atol, max_steps))
+            lambda: sun.sundials(shifted, name, 0.0, [interval], rtol, atol, max_steps))
 
         def advance(x, z, t_k):
             r = solver(x0=x, z0=z, p=self._params(t_k))
@@ -92,9 +94,9 @@ class Stepping:
         output grid.  With projection ABM4 restarts at every output.
         """
         interval = grid[1] - grid[0]
-        n_sub = integ.substeps_for(interval, step, len(grid) - 1)
+        n_sub = fixed.substeps_for(interval, step, len(grid) - 1)
         h = interval / n_sub
-        runner = self._solver((name, "fixed"), lambda: integ.FixedStep(
+        runner = self._solver((name, "fixed"), lambda: fixed.FixedStep(
             self.formulation.function, name, mode=self._mode,
             name=f"{_c_name(self.model.name)}_{name}"))
         p = self.model.p
@@ -186,7 +188,7 @@ class Stepping:
             if len(kept) <= 1:  # failed in the first interval (or at its start)
                 return np.asarray(x0, float)[None, :], {}
             try:
-                solver = integ.sundials(self.dyn, name, grid[0], kept[1:], rtol, atol,
+                solver = sun.sundials(self.dyn, name, grid[0], kept[1:], rtol, atol,
                                         max_steps)
                 res = solver(x0=x0, z0=z0, p=self.model.p)
                 return np.vstack([x0, np.asarray(res["xf"]).T]), {}
@@ -197,7 +199,7 @@ class Stepping:
         xs = [np.asarray(x0, float)]
         x, z = xs[0], z0
         stats: dict = {}
-        solver = integ.sundials(shifted, name, 0.0, [interval], rtol, atol, max_steps)
+        solver = sun.sundials(shifted, name, 0.0, [interval], rtol, atol, max_steps)
         for k in range(len(grid) - 1):
             try:
                 r = solver(x0=x, z0=z, p=self._params(grid[k]))

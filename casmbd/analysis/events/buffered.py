@@ -32,7 +32,7 @@ class Buffered:
     @classmethod
     def of(cls, f):
         """``f`` buffered when it is a CasADi Function with dense inputs and outputs, else
-        ``f`` itself (a :class:`~casmbd.analysis.integrators.kinds.ConsistentStart`)."""
+        ``f`` itself (a :class:`~casmbd.analysis.integrators.sundials.ConsistentStart`)."""
         if isinstance(f, ca.Function) and \
                 all(f.sparsity_in(i).is_dense() for i in range(f.n_in())) and \
                 all(f.sparsity_out(i).is_dense() for i in range(f.n_out())):

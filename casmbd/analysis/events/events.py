@@ -57,6 +57,7 @@ from casmbd.analysis.instant.checks import check_mass_matrix, check_start, diagn
 from casmbd.analysis.instant.joint_friction import has_reaction_friction
 from casmbd.analysis.instant.kkt import accelerations_and_multipliers, consistent_state
 from casmbd.analysis.integrators import kinds as integ
+from casmbd.analysis.integrators import sundials as sun
 from casmbd.analysis.integrators.stiffness_culprit import diagnose_stiffness
 from casmbd.errors import AnalysisError, CasmbdError, IntegratorError
 from casmbd.interrupts import reraise_interrupt
@@ -244,7 +245,7 @@ def _solve(solver, x, z, p) -> tuple[np.ndarray, np.ndarray]:
     """(xf, zf) of one integrator call, as arrays (columns: output times): a
     :class:`Buffered` CasADi integrator, a CasADi integrator (called with a dict: its
     keyword call costs ~80 µs more), or a
-    :class:`~casmbd.analysis.integrators.kinds.ConsistentStart` called by keywords."""
+    :class:`~casmbd.analysis.integrators.sundials.ConsistentStart` called by keywords."""
     if isinstance(solver, Buffered):
         out = solver(x0=x, z0=z, p=p)
         return out[0], out[1]
@@ -274,7 +275,7 @@ class _Phase:
         self._many: dict[tuple, object] = {}
         self._mapped: bool | None = None  # the post-processing serves λ (no N-friction)
         self._post_maps: dict[int, ca.Function] = {}
-        self.integrator = Buffered.of(integ.sundials(self._scaled, name, 0.0, [1.0], rtol,
+        self.integrator = Buffered.of(sun.sundials(self._scaled, name, 0.0, [1.0], rtol,
                                                      atol, max_steps))
         self._dyadic = None  # outputs at h 2⁻ᵏ, k = DYADIC … 1 (:meth:`advance_dyadic`)
         #: integrator steps and right-hand sides over every call (root finding included)
@@ -293,7 +294,7 @@ class _Phase:
             # a window after an event has output times of its own (the event inside a
             # sub-interval), used once: called as built (a buffer costs more than it saves
             # on one call); a window of the uniform grid is used again: buffered then
-            solver = self._many[rel] = integ.sundials(self._scaled, self.name, 0.0,
+            solver = self._many[rel] = sun.sundials(self._scaled, self.name, 0.0,
                                                       list(rel), self.rtol, self.atol,
                                                       self.max_steps)
         elif isinstance(solver, ca.Function):
@@ -343,7 +344,7 @@ class _Phase:
         in one integrator call (one integrator per phase, built once): the trial times of
         :func:`_inside`, screened at once instead of one integrator call each."""
         if self._dyadic is None:
-            self._dyadic = Buffered.of(integ.sundials(
+            self._dyadic = Buffered.of(sun.sundials(
                 self._scaled, self.name, 0.0, [2.0 ** -k for k in range(DYADIC, 0, -1)],
                 self.rtol, self.atol, self.max_steps))
         xf, zf = _solve(self._dyadic, x, z, np.concatenate([self.sim.model.p, [t0, h]]))
@@ -544,7 +545,7 @@ def simulate_events(mechanism, t_end: float, steps: int, *, simulator_factory,
     # SUNDIALS' own lines ("At t = …, mxstep steps taken") are part of the error, not stray
     # lines on the terminal: captured, and passed on (all of it after a good run, the
     # warnings after a failure)
-    captured = integ.CapturedOutput()
+    captured = sun.CapturedOutput()
     try:
         with captured:
             result = _march(mechanism, t_end, steps, simulator_factory=simulator_factory,

@@ -17,7 +17,7 @@ import numpy as np
 import scipy.linalg as sla
 
 from casmbd.analysis.instant.joint_friction import has_reaction_friction
-from casmbd.analysis.integrators import kinds as integ
+from casmbd.analysis.integrators import sundials as sun
 
 
 class RhsError(Exception):
@@ -83,7 +83,7 @@ def callback_integrator(callback: RhsCallback, nx: int, name: str, interval: flo
     empty = ca.MX(0, 1)
     dae = ca.Function("numeric_ode", [t, x, z, p, u], [callback(t, x, p), empty, empty, empty],
                       ca.dyn_in(), ca.dyn_out())
-    return integ.sundials(dae, name, 0.0, [interval], rtol, atol, max_steps)
+    return sun.sundials(dae, name, 0.0, [interval], rtol, atol, max_steps)
 
 
 # ---------------------------------------------------------------------------- equations

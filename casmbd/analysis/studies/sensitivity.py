@@ -38,8 +38,8 @@ import numpy as np
 from casmbd.analysis.dynamics.simulate import Simulator, _input_expression
 from casmbd.analysis.events.events import has_events
 from casmbd.analysis.instant.kkt import consistent_state
-from casmbd.analysis.integrators.kinds import CapturedOutput
 from casmbd.analysis.integrators.option_ranges import check_integrator_options
+from casmbd.analysis.integrators.sundials import CapturedOutput
 from casmbd.analysis.studies.sensitivity_events import (
     ADJOINT_OPTIONS,
     check_event_elements,

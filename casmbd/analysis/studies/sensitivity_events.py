@@ -55,7 +55,7 @@ from casmbd.analysis.dynamics.simulate import Simulator, simulate
 from casmbd.analysis.events.event_rows import EventRows, closure
 from casmbd.analysis.instant.joint_friction import has_reaction_friction
 from casmbd.analysis.instant.kkt import accelerations_and_multipliers
-from casmbd.analysis.integrators.kinds import CapturedOutput
+from casmbd.analysis.integrators.sundials import CapturedOutput
 from casmbd.errors import AnalysisError, IntegratorError
 from casmbd.interrupts import reraise_interrupt
 from casmbd.model.contacts import slides
