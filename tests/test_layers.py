@@ -330,22 +330,6 @@ def test_the_analysis_face_exports_the_verbs():
 PRIVATE_IMPORT_DEBT: set[str] = {
     "casmbd.analysis.dynamics.build_cache: casmbd.compiled.model._c_name",
     "casmbd.analysis.dynamics.stepping: casmbd.compiled.model._c_name",
-    "casmbd.analysis.formulations.articulated: casmbd.analysis.formulations.base._dyn",
-    "casmbd.analysis.formulations.articulated: casmbd.analysis.formulations.base._sym_inputs",
-    "casmbd.analysis.formulations.augmented_lagrangian: casmbd.analysis.formulations.base._baumgarte_gamma",  # noqa: E501
-    "casmbd.analysis.formulations.augmented_lagrangian: casmbd.analysis.formulations.base._dyn",
-    "casmbd.analysis.formulations.augmented_lagrangian: casmbd.analysis.formulations.base._forces",
-    "casmbd.analysis.formulations.augmented_lagrangian: casmbd.analysis.formulations.base._sym_inputs",  # noqa: E501
-    "casmbd.analysis.formulations.dae: casmbd.analysis.formulations.base._baumgarte_gamma",
-    "casmbd.analysis.formulations.dae: casmbd.analysis.formulations.base._dyn",
-    "casmbd.analysis.formulations.dae: casmbd.analysis.formulations.base._forces",
-    "casmbd.analysis.formulations.dae: casmbd.analysis.formulations.base._sym_inputs",
-    "casmbd.analysis.formulations.kkt_ode: casmbd.analysis.formulations.base._baumgarte_gamma",
-    "casmbd.analysis.formulations.kkt_ode: casmbd.analysis.formulations.base._dyn",
-    "casmbd.analysis.formulations.kkt_ode: casmbd.analysis.formulations.base._forces",
-    "casmbd.analysis.formulations.kkt_ode: casmbd.analysis.formulations.base._sym_inputs",
-    "casmbd.analysis.formulations.post: casmbd.analysis.formulations.base._forces",
-    "casmbd.analysis.formulations.post: casmbd.analysis.formulations.base._sym_inputs",
     "casmbd.analysis.integrators.dopri: casmbd.analysis.integrators.kinds._Buffered",
     "casmbd.analysis.studies.sensitivity: casmbd.analysis.dynamics.simulate._input_expression",
     "casmbd.analysis.studies.sweep: casmbd.analysis.studies.sweep_result._table",
