@@ -328,8 +328,6 @@ def test_the_analysis_face_exports_the_verbs():
 #: cross-module uses of a private name not yet given a public one (issue 33 item 6): each is
 #: "importer: source.name"; the list may only shrink (a stale entry fails too)
 PRIVATE_IMPORT_DEBT: set[str] = {
-    "casmbd.analysis.dynamics.build_cache: casmbd.compiled.model._c_name",
-    "casmbd.analysis.dynamics.stepping: casmbd.compiled.model._c_name",
     "casmbd.analysis.integrators.dopri: casmbd.analysis.integrators.kinds._Buffered",
     "casmbd.analysis.studies.sensitivity: casmbd.analysis.dynamics.simulate._input_expression",
     "casmbd.analysis.studies.sweep: casmbd.analysis.studies.sweep_result._table",
