@@ -14,7 +14,7 @@ import numpy as np
 from casmbd.errors import AnalysisError
 from casmbd.io.scene import load_scene
 from casmbd.limits import MAX_STEPS
-from casmbd.results import _json_default
+from casmbd.results import json_default
 from casmbd.viz.quantities import joint_units
 
 
@@ -291,7 +291,7 @@ def _state_lines(summary: dict) -> list[str]:
 
 
 def _finite_json(obj):
-    """``obj`` with numpy values as Python ones (:func:`casmbd.results._json_default`) and
+    """``obj`` with numpy values as Python ones (:func:`casmbd.results.json_default`) and
     NaN/inf (e.g. reactions that cannot be determined) as null: strict JSON.
 
     A list or dict whose items need no change is returned itself, not copied: a result's
@@ -311,5 +311,5 @@ def _finite_json(obj):
             return obj  # a row of finite floats (tolist): the common case, no copy
         out = [_finite_json(v) for v in obj]
         return obj if isinstance(obj, list) and all(a is b for a, b in zip(out, obj)) else out
-    return _finite_json(_json_default(obj))  # numpy arrays and scalars; others: TypeError
+    return _finite_json(json_default(obj))  # numpy arrays and scalars; others: TypeError
 

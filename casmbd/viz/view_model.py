@@ -41,7 +41,7 @@ import numpy as np
 
 from casmbd.analysis.instant.assembly import assemble
 from casmbd.analysis.statics.statics import StaticsResult
-from casmbd.analysis.studies.sweep import _statics_result
+from casmbd.analysis.studies.sweep import statics_as_result
 from casmbd.analysis.studies.sweep_result import SweepResult
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, AssemblyError, CasmbdError
@@ -218,7 +218,7 @@ def _resolve(source, mechanism):
         if mechanism is None:
             raise AnalysisError("a StaticsResult holds no scene: pass its mechanism "
                                 "(view_model(result, mechanism))")
-        return _statics_result(source), mechanism
+        return statics_as_result(source), mechanism
     if isinstance(source, OcpSolution):
         result = source.to_result()
         if mechanism is None and source.ocp is not None:
