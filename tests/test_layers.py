@@ -361,9 +361,6 @@ PRIVATE_IMPORT_DEBT: set[str] = {
     "casmbd.cli: casmbd.cli.verbs._add_sweep_verb",
     "casmbd.cli: casmbd.cli.verbs._add_view_verb",
     "casmbd.cli: casmbd.cli.verbs._add_workbench_verbs",
-    "casmbd.compiled.robot: casmbd.system.articulated._transport",
-    "casmbd.model.expression_force: casmbd.model.forces._coordinate_unit",
-    "casmbd.model.expression_force: casmbd.model.forces._point",
     "casmbd.model.expressions: casmbd.model.expression_rules._BINARY_OPERATORS",
     "casmbd.model.expressions: casmbd.model.expression_rules._Value",
     "casmbd.model.expressions: casmbd.model.expression_rules._check_tree",
@@ -373,14 +370,6 @@ PRIVATE_IMPORT_DEBT: set[str] = {
     "casmbd.model.expressions: casmbd.model.expression_rules._normalize_symbols",
     "casmbd.model.expressions: casmbd.model.expression_rules._parse",
     "casmbd.model.expressions: casmbd.model.expression_rules._shorten",
-    "casmbd.model.fe_import: casmbd.model.modal._check_layout",
-    "casmbd.model.flexible_bodies: casmbd.model.modal_reduction._model_key",
-    "casmbd.model.joint_friction: casmbd.model.forces._nonzero",
-    "casmbd.model.planar_joint: casmbd.model.spatial_joints._AxisJoint",
-    "casmbd.viz.animation: casmbd.viz.geometry._geometry",
-    "casmbd.viz.animation: casmbd.viz.geometry._place",
-    "casmbd.viz.view_model: casmbd.viz.geometry._place",
-    "casmbd.viz.view_shapes: casmbd.viz.geometry._place",
 }
 
 
