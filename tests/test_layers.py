@@ -361,15 +361,6 @@ PRIVATE_IMPORT_DEBT: set[str] = {
     "casmbd.cli: casmbd.cli.verbs._add_sweep_verb",
     "casmbd.cli: casmbd.cli.verbs._add_view_verb",
     "casmbd.cli: casmbd.cli.verbs._add_workbench_verbs",
-    "casmbd.model.expressions: casmbd.model.expression_rules._BINARY_OPERATORS",
-    "casmbd.model.expressions: casmbd.model.expression_rules._Value",
-    "casmbd.model.expressions: casmbd.model.expression_rules._check_tree",
-    "casmbd.model.expressions: casmbd.model.expression_rules._fail",
-    "casmbd.model.expressions: casmbd.model.expression_rules._is_real_number",
-    "casmbd.model.expressions: casmbd.model.expression_rules._max_bracket_depth",
-    "casmbd.model.expressions: casmbd.model.expression_rules._normalize_symbols",
-    "casmbd.model.expressions: casmbd.model.expression_rules._parse",
-    "casmbd.model.expressions: casmbd.model.expression_rules._shorten",
 }
 
 
