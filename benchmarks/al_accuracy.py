@@ -30,7 +30,7 @@ import numpy as np
 
 from benchmarks.work_precision import problem
 from casmbd.analysis.formulations import build
-from casmbd.analysis.formulations.base import _baumgarte_gamma, _forces
+from casmbd.analysis.formulations.base import baumgarte_acceleration_rhs, generalized_forces
 from casmbd.system.equations import System
 
 CASES = (("fourbar", "absolute"), ("fourbar", "natural"), ("fourbar", "joint"),
@@ -87,8 +87,9 @@ def exact_acceleration(system: System, q, v, baumgarte: float) -> np.ndarray:
     """q̈ of the dense KKT system [M C_qᵀ; C_q 0] [q̈; λ] = [Q; γ_b] (least squares, then three
     refinement steps with the residual accumulated in extended precision)."""
     f = ca.Function("kkt", [system.q, system.v, system.t, system.p],
-                    [system.mass_matrix, _forces(system, None), system.constraint_jacobian,
-                     _baumgarte_gamma(system, baumgarte, baumgarte)])
+                    [system.mass_matrix, generalized_forces(system, None),
+                     system.constraint_jacobian,
+                     baumgarte_acceleration_rhs(system, baumgarte, baumgarte)])
     m, forces, cq, gamma = (np.asarray(x) for x in f(q, v, 0.0, system.parameter_values))
     nc = system.nc
     kkt = np.block([[m, cq.reshape(nc, -1).T], [cq.reshape(nc, -1), np.zeros((nc, nc))]])

@@ -409,7 +409,7 @@ class Result:
         payload = {"t": self.t, **{f"array/{k}": v for k, v in self.arrays.items()}}
         payload["meta"] = np.array(json.dumps({"kind": self.kind, "names": self.names,
                                                "stats": self.stats, "events": self.events,
-                                               **meta}, default=_json_default))
+                                               **meta}, default=json_default))
         payload["scene"] = np.array(self.scene)
         return payload
 
@@ -575,7 +575,8 @@ class Result:
         return atomic_write(path, write)
 
 
-def _json_default(obj):
+def json_default(obj):
+    """``json.dumps`` hook: numpy arrays as lists, numpy scalars as Python numbers."""
     if isinstance(obj, np.ndarray):
         return obj.tolist()
     if isinstance(obj, (np.floating, np.integer, np.bool_)):

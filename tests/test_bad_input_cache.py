@@ -46,7 +46,7 @@ ROOT = TESTS.parent
 SCENE = TESTS / "scenes" / "spring_mass.toml"
 NAME = "badcache"
 
-pytestmark = pytest.mark.skipif(codegen._find_compiler() is None, reason="no C compiler")
+pytestmark = pytest.mark.skipif(codegen.find_compiler() is None, reason="no C compiler")
 
 
 def tiny_functions(variant: int = 0) -> list[ca.Function]:

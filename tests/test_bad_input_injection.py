@@ -381,7 +381,7 @@ def test_expression_payload_in_an_ocp_expression(tmp_path):
 def test_scene_names_never_leave_the_cache_directory(tmp_path, monkeypatch, name):
     """The scene name prefixes the cached library's file name and C symbols; path separators,
     dots and shell characters are replaced, so every file stays in the cache directory."""
-    if codegen._find_compiler() is None:
+    if codegen.find_compiler() is None:
         pytest.skip("no C compiler")
     monkeypatch.setenv("CASMBD_COMPILE", "1")
     cache = tmp_path / "cache"

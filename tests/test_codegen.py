@@ -22,7 +22,7 @@ REPO_ROOT = pathlib.Path(__file__).resolve().parent.parent
 TESTS_DIR = pathlib.Path(__file__).resolve().parent
 
 needs_compiler = pytest.mark.skipif(
-    codegen._find_compiler() is None, reason="no C compiler available"
+    codegen.find_compiler() is None, reason="no C compiler available"
 )
 
 
@@ -251,9 +251,9 @@ def test_missing_compiler(monkeypatch, how):
     if how == "environment":
         monkeypatch.setenv("CC", "/nonexistent/bin/no-such-cc")
         monkeypatch.setenv("PATH", "")
-        assert codegen._find_compiler() is None
+        assert codegen.find_compiler() is None
     else:
-        monkeypatch.setattr(codegen, "_find_compiler", lambda: None)
+        monkeypatch.setattr(codegen, "find_compiler", lambda: None)
     functions = make_functions()
     count = codegen.COMPILE_COUNT
     with pytest.warns(RuntimeWarning, match="no C compiler"):

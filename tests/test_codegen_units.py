@@ -11,7 +11,7 @@ import pytest
 from casmbd.compiled import codegen, units
 from casmbd.errors import CompileError
 
-needs_compiler = pytest.mark.skipif(codegen._find_compiler() is None,
+needs_compiler = pytest.mark.skipif(codegen.find_compiler() is None,
                                     reason="no C compiler available")
 
 
@@ -67,7 +67,7 @@ def test_a_failing_unit_names_its_command(tmp_path):
     good.write_text("int f(void) { return 1; }\n")
     bad = tmp_path / "bad.c"
     bad.write_text("int g(void) { return syntax error; }\n")
-    cc = codegen._find_compiler()
+    cc = codegen.find_compiler()
     commands = [[*cc, "-c", str(src), "-o", str(src.with_suffix(".o"))] for src in (good, bad)]
     logs = [src.with_suffix(".log") for src in (good, bad)]
     with pytest.raises(CompileError, match=r"bad\.c"):

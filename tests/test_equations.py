@@ -37,7 +37,7 @@ REPO = pathlib.Path(__file__).resolve().parent.parent
 EXAMPLES = REPO / "examples"
 N_STATES = 5
 
-needs_compiler = pytest.mark.skipif(codegen._find_compiler() is None,
+needs_compiler = pytest.mark.skipif(codegen.find_compiler() is None,
                                     reason="no C compiler available")
 
 

@@ -19,7 +19,7 @@ from casmbd.analysis.dynamics.simulate import Simulator
 from casmbd.compiled import codegen, modelkey
 from casmbd.model import Mechanism
 
-needs_compiler = pytest.mark.skipif(codegen._find_compiler() is None,
+needs_compiler = pytest.mark.skipif(codegen.find_compiler() is None,
                                     reason="no C compiler available")
 
 

@@ -34,22 +34,22 @@ from casmbd import __version__, interrupts
 from casmbd.analysis.formulations import FORMULATIONS
 from casmbd.analysis.integrators.kinds import INTEGRATORS
 from casmbd.cli.common import (
-    _add_mode,
-    _add_output_flags,
-    _finite_json,
-    _nonnegative_float,
-    _Parser,
-    _positive_float,
-    _positive_int,
-    _UsageError,
+    CommandParser,
+    UsageError,
+    add_mode_flag,
+    add_output_flags,
+    finite_json,
+    nonnegative_float,
+    positive_float,
+    positive_int,
 )
 from casmbd.cli.registry import VERB_PARSERS, VERBS, register_verb
 from casmbd.cli.verbs import (
-    _add_bench_verb,
-    _add_sensitivity_verb,
-    _add_sweep_verb,
-    _add_view_verb,
-    _add_workbench_verbs,
+    add_bench_verb,
+    add_sensitivity_verb,
+    add_sweep_verb,
+    add_view_verb,
+    add_workbench_verbs,
 )
 from casmbd.errors import CasmbdError
 
@@ -82,18 +82,19 @@ for _name, _where in _HANDLERS.items():  # the shipped verbs (casmbd.cli.registr
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``casmbd`` command."""
-    parser = _Parser(prog="casmbd", description="Dynamics of constrained mechanisms on CasADi.")
+    parser = CommandParser(prog="casmbd",
+                           description="Dynamics of constrained mechanisms on CasADi.")
     parser.add_argument("--version", action="store_true", help="print the version and exit")
-    sub = parser.add_subparsers(dest="verb", parser_class=_Parser)
+    sub = parser.add_subparsers(dest="verb", parser_class=CommandParser)
 
     def common(p):
         p.add_argument("scene", help="scene file (TOML)")
-        _add_output_flags(p)
-        _add_mode(p)
+        add_output_flags(p)
+        add_mode_flag(p)
 
     def grid(p):
-        p.add_argument("--t-end", type=_positive_float, required=True, help="final time [s]")
-        p.add_argument("--steps", type=_positive_int, required=True,
+        p.add_argument("--t-end", type=positive_float, required=True, help="final time [s]")
+        p.add_argument("--steps", type=positive_int, required=True,
                        help="number of output intervals (N + 1 output times from 0 to T)")
         p.add_argument("--out", help="save every array to this .npz file, or one column per "
                                      "scalar series to this .csv file (the suffix decides)")
@@ -127,8 +128,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("simulate", help="forward dynamics")
     common(p)
     grid(p)
-    p.add_argument("--rtol", type=_positive_float, default=1e-8, help="relative tolerance")
-    p.add_argument("--atol", type=_positive_float, default=None,
+    p.add_argument("--rtol", type=positive_float, default=1e-8, help="relative tolerance")
+    p.add_argument("--atol", type=positive_float, default=None,
                    help="absolute tolerance (default: rtol)")
     p.add_argument("--formulation", choices=FORMULATIONS, default=None,
                    help="equations of motion (default augmented_lagrangian; articulated for "
@@ -140,15 +141,15 @@ def build_parser() -> argparse.ArgumentParser:
                    help="time integrator (default per formulation)")
     p.add_argument("--projection", action="store_true",
                    help="project positions and velocities onto the constraints at every output")
-    p.add_argument("--step", type=_positive_float, default=None,
+    p.add_argument("--step", type=positive_float, default=None,
                    help="step size of the fixed-step integrators rk4/abm")
-    p.add_argument("--max-steps", type=_positive_int, default=None,
+    p.add_argument("--max-steps", type=positive_int, default=None,
                    help="most steps per output interval of the variable-step integrators "
                         "(default 500000; 20000 for partitioning/nullspace)")
-    p.add_argument("--max-events", type=_positive_int, default=None,
+    p.add_argument("--max-events", type=positive_int, default=None,
                    help="with impacts: stop (keeping the results) after this many events "
                         "(default: the scene's [simulation] max_events, else 10000)")
-    p.add_argument("--rest-velocity", type=_nonnegative_float, default=None, metavar="M/S",
+    p.add_argument("--rest-velocity", type=nonnegative_float, default=None, metavar="M/S",
                    help="with impacts: a rebound slower than this closes the contact "
                         "(default: [simulation] rest_velocity, else sqrt(2 g 1e-9 m))")
     p = sub.add_parser("linearize", help="natural frequencies, linearized equations and "
@@ -172,24 +173,24 @@ def build_parser() -> argparse.ArgumentParser:
     common(p)
     p.add_argument("--out", help="save the solution (t, q, v, u, statistics) to this .npz "
                                  "file, or its result on the mesh nodes to this .csv file")
-    p.add_argument("--intervals", type=_positive_int, default=None,
+    p.add_argument("--intervals", type=positive_int, default=None,
                    help="number of control intervals (overrides the table)")
     p.add_argument("--transcription", choices=("radau", "legendre", "multiple_shooting"),
                    default=None, help="overrides the table")
     p.add_argument("--no-replay", action="store_true",
                    help="skip the forward replay of the optimal controls")
     p.add_argument("--plot", default=None, help="save a figure of coordinates and controls")
-    _add_workbench_verbs(sub)
-    _add_sweep_verb(sub)
-    _add_sensitivity_verb(sub)
-    _add_bench_verb(sub)
-    _add_view_verb(sub)
+    add_workbench_verbs(sub)
+    add_sweep_verb(sub)
+    add_sensitivity_verb(sub)
+    add_bench_verb(sub)
+    add_view_verb(sub)
     for name, spec in VERB_PARSERS.items():  # registered verbs (casmbd.cli.registry)
         p = sub.add_parser(name, help=spec.help)
         if spec.scene:
             common(p)
         else:
-            _add_output_flags(p)
+            add_output_flags(p)
         if spec.add_arguments is not None:
             spec.add_arguments(p)
     for p in sub.choices.values():
@@ -304,7 +305,7 @@ def _run(argv: list[str]) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
-    except _UsageError as exc:
+    except UsageError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_USAGE
     if args.version:
@@ -356,7 +357,7 @@ def _print_output(args, data: dict, text: str) -> None:
         if args.json:
             # numpy -> builtins, NaN -> null, without copying the result's lists; the text
             # and its newline written apart (no third copy of the text)
-            sys.stdout.write(json.dumps(_finite_json(data), allow_nan=False))
+            sys.stdout.write(json.dumps(finite_json(data), allow_nan=False))
             sys.stdout.write("\n")
         else:
             if text:

@@ -9,7 +9,14 @@ from casmbd.analysis.driven.kinematics import kinematics
 from casmbd.analysis.dynamics.simulate import simulate
 from casmbd.analysis.statics.linearize import linearize
 from casmbd.analysis.statics.statics import static_equilibrium
-from casmbd.cli.common import _load, _range, _save, _state_lines, _summary_table, _timing
+from casmbd.cli.common import (
+    load_scene_for,
+    range_line,
+    save_result,
+    state_lines,
+    summary_table,
+    timing_line,
+)
 from casmbd.errors import AnalysisError, IntegratorError
 from casmbd.io.scene import load_result
 from casmbd.limits import check_steps
@@ -37,27 +44,27 @@ def _check_memory(args, mech, what: str) -> None:
 
 
 def _cmd_kinematics(args) -> tuple[dict, str]:
-    mech = _load(args)
+    mech = load_scene_for(args)
     _check_memory(args, mech, "kinematics")
     result = kinematics(mech, t_end=args.t_end, steps=args.steps, mode=args.mode,
                         redundancy=args.redundancy)
     result.scene = getattr(mech, "scene_text", "")
     if args.out:
-        _save(result, args.out)
+        save_result(result, args.out)
     data = result.to_json()
     s = result.stats
     lines = [f"kinematics of '{mech.name}': {len(result.t)} times from {result.t[0]:g} to "
              f"{result.t[-1]:g} s",
-             *_summary_table(result, mech),
+             *summary_table(result, mech),
              f"  max constraint violation {data['constraint_violation']:.3g}",
-             *_redundancy_lines(s), _timing(s)]
+             *_redundancy_lines(s), timing_line(s)]
     if args.out:
         lines.append(f"  saved {args.out}")
     return data, "\n".join(lines)
 
 
 def _cmd_simulate(args) -> tuple[dict, str]:
-    mech = _load(args)
+    mech = load_scene_for(args)
     _check_memory(args, mech, "simulation")
     try:
         result = simulate(mech, t_end=args.t_end, steps=args.steps, formulation=args.formulation,
@@ -69,26 +76,26 @@ def _cmd_simulate(args) -> tuple[dict, str]:
         if args.out and exc.partial is not None:
             exc.partial.scene = getattr(mech, "scene_text", "")
             exc.partial.stats["failure"] = str(exc)
-            _save(exc.partial, args.out)
+            save_result(exc.partial, args.out)
             raise IntegratorError(f"{exc} (partial results saved to {args.out})", exc.time,
                                   exc.flag, exc.partial) from None
         raise
     result.scene = getattr(mech, "scene_text", "")
     if args.out:
-        _save(result, args.out)
+        save_result(result, args.out)
     data = result.to_json()
     s = result.stats
     energy = result["total_energy"]
     lines = [f"simulation of '{mech.name}': {len(result.t)} times from {result.t[0]:g} to "
              f"{result.t[-1]:g} s, {s['formulation']} on {s['integrator']}",
-             *_summary_table(result, mech),
+             *summary_table(result, mech),
              f"  energy: start {energy[0]:.6g} J, end {energy[-1]:.6g} J "
              f"({_energy_change(result, mech)})",
              f"  max constraint violation: position {data['constraint_violation']:.3g}, "
              f"velocity {data['velocity_violation']:.3g}",
              *([_events_line(result)] if result.events else []),
              f"  steps {s.get('steps', 0)}, rhs evaluations {s.get('rhs_evaluations', 0)}",
-             _timing(s, 4)]
+             timing_line(s, 4)]
     if s.get("start_position_change", 0) > 1e-12 or s.get("start_velocity_change", 0) > 1e-12:
         lines.append(f"  consistent start changed q by {s['start_position_change']:.3g} and v by "
                      f"{s['start_velocity_change']:.3g}")
@@ -128,32 +135,32 @@ def _energy_change(result, mech) -> str:
 
 
 def _cmd_inverse(args) -> tuple[dict, str]:
-    mech = _load(args)
+    mech = load_scene_for(args)
     _check_memory(args, mech, "inverse dynamics")
     result = inverse_dynamics(mech, t_end=args.t_end, steps=args.steps, mode=args.mode,
                               redundancy=args.redundancy)
     result.scene = getattr(mech, "scene_text", "")
     if args.out:
-        _save(result, args.out)
+        save_result(result, args.out)
     data = result.to_json()
     lines = [f"inverse dynamics of '{mech.name}': {len(result.t)} times from {result.t[0]:g} "
-             f"to {result.t[-1]:g} s", *_summary_table(result, mech)]
+             f"to {result.t[-1]:g} s", *summary_table(result, mech)]
     for group, key, width in (("drivers", "driver_efforts", 12),
                               ("actuators", "actuator_efforts", 10)):
         units = effort_units(result, group, mech)
         for k, name in enumerate(result.names.get(group, [])):
             eff = result[key][:, k]
-            lines.append(f"  {group[:-1]} {name:<{width}} {_range('effort', eff, units[k])}")
+            lines.append(f"  {group[:-1]} {name:<{width}} {range_line('effort', eff, units[k])}")
     s = result.stats
     lines += _redundancy_lines(s)
-    lines.append(_timing(s))
+    lines.append(timing_line(s))
     if args.out:
         lines.append(f"  saved {args.out}")
     return data, "\n".join(lines)
 
 
 def _cmd_statics(args) -> tuple[dict, str]:
-    mech = _load(args)
+    mech = load_scene_for(args)
     result = static_equilibrium(mech, method=args.method, mode=args.mode,
                                 redundancy=args.redundancy,
                                 stable=getattr(args, "stable", False))
@@ -183,12 +190,12 @@ def _cmd_statics(args) -> tuple[dict, str]:
         reaction = "  ".join(f"{label} {x + 0.0:+.6g} {'N' if label[0] == 'F' else 'N m'}"
                              for label, x in zip(labels, j["reaction"]))  # no "-0"
         lines.append(f"  joint {name:<13} {coords}reaction {reaction}")
-    lines += _state_lines(data.get("summary", {}))  # requests and nodes at the equilibrium
+    lines += state_lines(data.get("summary", {}))  # requests and nodes at the equilibrium
     eig = ", ".join(f"{e:.4g}" for e in result.eigenvalues) or "none (no degrees of freedom)"
     lines.append(f"  stiffness eigenvalues: {eig}")
     s = result.stats
     lines += _redundancy_lines(s)
-    lines.append(_timing(s))
+    lines.append(timing_line(s))
     return data, "\n".join(lines)
 
 
@@ -204,7 +211,7 @@ def _cmd_linearize(args) -> tuple[dict, str]:
         raise AnalysisError("linearize: --from RESULT.npz and --time T go together")
     if getattr(args, "stable", False) and not args.at_equilibrium:
         raise AnalysisError("linearize: --stable goes with --at-equilibrium")
-    mech = _load(args)
+    mech = load_scene_for(args)
     if args.at_equilibrium:
         lin = linearize(mech, mode=args.mode, at="equilibrium", redundancy=args.redundancy,
                         stable=getattr(args, "stable", False))
@@ -239,7 +246,7 @@ def _cmd_linearize(args) -> tuple[dict, str]:
                                         lin.damped_frequencies_hz, lin.damping_ratios)):
         lines.append(f"  mode {k + 1:<3} natural frequency {fn:.6g} Hz  damped frequency "
                      f"{fd:.6g} Hz  damping ratio {z + 0.0:.4g}")  # no "-0"
-    lines += _state_lines(data.get("summary", {}))  # requests and nodes at that state
+    lines += state_lines(data.get("summary", {}))  # requests and nodes at that state
     if lin.stability is not None:
         eig = ", ".join(f"{e:.4g}" for e in lin.stability.eigenvalues)
         lines.append(f"  stiffness eigenvalues: {eig or 'none (no degrees of freedom)'}")
@@ -248,6 +255,6 @@ def _cmd_linearize(args) -> tuple[dict, str]:
                      "verdict, the modes describe perturbations about this state only; "
                      "--at-equilibrium linearizes at the static equilibrium")
     lines += _redundancy_lines(s)
-    lines.append(_timing(s))
+    lines.append(timing_line(s))
     return data, "\n".join(lines)
 

@@ -14,22 +14,22 @@ import numpy as np
 from casmbd.errors import AnalysisError
 from casmbd.io.scene import load_scene
 from casmbd.limits import MAX_STEPS
-from casmbd.results import _json_default
+from casmbd.results import json_default
 from casmbd.viz.quantities import joint_units
 
 
-class _UsageError(Exception):
-    pass
+class UsageError(Exception):
+    """A command line the parser refuses (one ``error: …`` line, the usage exit status)."""
 
 
-class _Parser(argparse.ArgumentParser):
+class CommandParser(argparse.ArgumentParser):
     """ArgumentParser that reports one ``error: …`` line instead of usage + exit."""
 
     def error(self, message: str):
-        raise _UsageError(message)
+        raise UsageError(message)
 
 
-def _positive_int(text: str) -> int:
+def positive_int(text: str) -> int:
     try:
         val = int(text)
     except ValueError:
@@ -39,7 +39,7 @@ def _positive_int(text: str) -> int:
     return val
 
 
-def _positive_float(text: str) -> float:
+def positive_float(text: str) -> float:
     try:
         val = float(text)
     except ValueError:
@@ -49,7 +49,7 @@ def _positive_float(text: str) -> float:
     return val
 
 
-def _nonnegative_float(text: str) -> float:
+def nonnegative_float(text: str) -> float:
     try:
         val = float(text)
     except ValueError:
@@ -59,21 +59,21 @@ def _nonnegative_float(text: str) -> float:
     return val
 
 
-def _add_output_flags(p: argparse.ArgumentParser) -> None:
+def add_output_flags(p: argparse.ArgumentParser) -> None:
     """``--json`` and ``--debug``, which every verb takes."""
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.add_argument("--debug", action="store_true", help="show tracebacks on errors")
 
 
-def _add_mode(p: argparse.ArgumentParser) -> None:
+def add_mode_flag(p: argparse.ArgumentParser) -> None:
     """``--mode``: equations compiled to C or evaluated by CasADi's virtual machine."""
     p.add_argument("--mode", choices=("auto", "compiled", "vm"), default="auto",
                    help="compile equations to C (default auto) or use CasADi's VM")
 
 
-def _add_dpi(p: argparse.ArgumentParser, default: float) -> None:
+def add_dpi_flag(p: argparse.ArgumentParser, default: float) -> None:
     """``--dpi`` of a figure or an animation."""
-    p.add_argument("--dpi", type=_positive_float, default=default,
+    p.add_argument("--dpi", type=positive_float, default=default,
                    help=f"resolution (default {default:g})")
 
 
@@ -102,7 +102,7 @@ def _outputs(args) -> list[tuple[str, str]]:
                                         ("--html", getattr(args, "html", None))) if val]
 
 
-def _check_not_input(args, inputs) -> None:
+def check_not_input(args, inputs) -> None:
     """Refuse an output file that is one of the ``inputs`` ``(what, path)`` (the scene, its URDF
     or FE files, a result read) or the other output: it would be replaced."""
     outs = _outputs(args)
@@ -115,10 +115,10 @@ def _check_not_input(args, inputs) -> None:
         raise AnalysisError(f"--out and --plot name the same file '{outs[0][1]}'")
 
 
-def _check_out(args) -> None:
+def check_out_path(args) -> None:
     """Fail before the analysis when ``--out`` cannot be written, would replace a file given
     on the command line, or has a suffix the verb cannot write (``.npz`` or ``.csv``)."""
-    _check_not_input(args, [(what, getattr(args, key, None)) for key, what in
+    check_not_input(args, [(what, getattr(args, key, None)) for key, what in
                             (("scene", "scene file"), ("result", "result file"),
                              ("source", "input file"), ("from_result", "result file"))])
     out = getattr(args, "out", None)
@@ -152,7 +152,7 @@ def scene_files(mech, scene: str) -> list[tuple[str, str]]:
     return files
 
 
-def _save(result, out: str) -> None:
+def save_result(result, out: str) -> None:
     """Write ``result`` to ``--out``: ``.csv`` by ``to_csv``, else the npz file."""
     try:
         if Path(out).suffix.lower() == ".csv":
@@ -163,27 +163,30 @@ def _save(result, out: str) -> None:
         raise AnalysisError(f"cannot write --out '{out}': {exc.strerror or exc}") from None
 
 
-def _load(args):
-    _check_out(args)
+def load_scene_for(args):
+    """The Mechanism of ``args.scene``, after checking that ``--out`` (and the other outputs)
+    can be written and replace none of the scene's files."""
+    check_out_path(args)
     mech = load_scene(args.scene)
     if _outputs(args):
-        _check_not_input(args, scene_files(mech, args.scene))
+        check_not_input(args, scene_files(mech, args.scene))
     return mech
 
 
-def _timing(stats: dict, digits: int = 3) -> str:
+def timing_line(stats: dict, digits: int = 3) -> str:
     """The build/solve line every verb prints."""
     origin = "cache hit" if stats.get("cache_hit") else stats.get("mode", "")
     return (f"  build {stats['build_seconds']:.3f} s ({origin}), "
             f"solve {stats['solve_seconds']:.{digits}f} s")
 
 
-def _range(label: str, values: np.ndarray, unit: str = "") -> str:
+def range_line(label: str, values: np.ndarray, unit: str = "") -> str:
+    """``label [min, max] unit`` of ``values`` (4 significant digits)."""
     unit = f" {unit}" if unit else ""
     return f"{label} [{values.min():+.4g}, {values.max():+.4g}]{unit}"
 
 
-def _summary_table(result, mech=None) -> list[str]:
+def summary_table(result, mech=None) -> list[str]:
     """One line per body (coordinate ranges of the centre of mass in m, and the angle range
     in rad in the plane or the final quaternion in space), per joint coordinate (m or
     rad, from the joint's kind), per named node of a flexible body (its deflection) and per
@@ -193,17 +196,17 @@ def _summary_table(result, mech=None) -> list[str]:
     for name in result.names["bodies"]:
         b = result.body(name)
         pos = b["position"]
-        parts = [_range(axis, pos[:, k], "m") for k, axis in enumerate("xyz"[:pos.shape[1]])]
+        parts = [range_line(axis, pos[:, k], "m") for k, axis in enumerate("xyz"[:pos.shape[1]])]
         if spatial and "quaternion" in b and len(b["quaternion"]):
             quat = ", ".join(f"{x:+.4f}" for x in b["quaternion"][-1])
             parts.append(f"final quaternion [{quat}]")
         elif "angle" in b:
-            parts.append(_range("angle", b["angle"], "rad"))
+            parts.append(range_line("angle", b["angle"], "rad"))
         lines.append(f"  body {name:<14} " + "  ".join(parts))
     units = joint_units(result, mech) if result.names["joints"] else []
     for name, unit in zip(result.names["joints"], units):
         c = result["joint_positions"][:, result.names["joints"].index(name)]
-        lines.append(f"  joint {name:<13} {_range('coordinate', c, unit)}")
+        lines.append(f"  joint {name:<13} {range_line('coordinate', c, unit)}")
     return lines + _node_lines(result) + _output_lines(result)
 
 
@@ -276,7 +279,7 @@ def _output_lines(result) -> list[str]:
                   rows, "--json 'summary' / --out")
 
 
-def _state_lines(summary: dict) -> list[str]:
+def state_lines(summary: dict) -> list[str]:
     """The tables of the requests and the named nodes at one state (an equilibrium, an
     operating point): ``state_summary`` of :mod:`casmbd.analysis.statics.statics`."""
     outputs = summary.get("outputs", {})
@@ -290,8 +293,8 @@ def _state_lines(summary: dict) -> list[str]:
                           "--json 'summary'")
 
 
-def _finite_json(obj):
-    """``obj`` with numpy values as Python ones (:func:`casmbd.results._json_default`) and
+def finite_json(obj):
+    """``obj`` with numpy values as Python ones (:func:`casmbd.results.json_default`) and
     NaN/inf (e.g. reactions that cannot be determined) as null: strict JSON.
 
     A list or dict whose items need no change is returned itself, not copied: a result's
@@ -304,12 +307,12 @@ def _finite_json(obj):
     if isinstance(obj, (str, int, bool)) or obj is None:
         return obj
     if isinstance(obj, dict):
-        out = {k: _finite_json(v) for k, v in obj.items()}
+        out = {k: finite_json(v) for k, v in obj.items()}
         return obj if all(out[k] is v for k, v in obj.items()) else out
     if isinstance(obj, (list, tuple)):
         if all(type(v) is float for v in obj) and all(map(math.isfinite, obj)):
             return obj  # a row of finite floats (tolist): the common case, no copy
-        out = [_finite_json(v) for v in obj]
+        out = [finite_json(v) for v in obj]
         return obj if isinstance(obj, list) and all(a is b for a, b in zip(out, obj)) else out
-    return _finite_json(_json_default(obj))  # numpy arrays and scalars; others: TypeError
+    return finite_json(json_default(obj))  # numpy arrays and scalars; others: TypeError
 

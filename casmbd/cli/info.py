@@ -5,12 +5,12 @@ module of its own so that ``casmbd info`` loads only what it needs).
 from __future__ import annotations
 
 from casmbd.analysis.driven.kinematics import info
-from casmbd.cli.common import _load
+from casmbd.cli.common import load_scene_for
 from casmbd.errors import AssemblyError
 
 
 def _cmd_info(args) -> tuple[dict, str]:
-    mech = _load(args)
+    mech = load_scene_for(args)
     data = info(mech, mode=args.mode)
     data.setdefault("coordinate_choice", mech.coordinates)
     kind = "planar" if data.get("dimension", 2) == 2 else "spatial"

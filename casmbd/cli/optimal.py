@@ -9,7 +9,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from casmbd.cli.common import _load, _save
+from casmbd.cli.common import load_scene_for, save_result
 from casmbd.errors import AnalysisError, OptimizationError, SceneError
 from casmbd.io.ocp_table import ocp_from_scene
 from casmbd.viz.plots import plot_result
@@ -17,7 +17,7 @@ from casmbd.viz.plots import plot_result
 
 def _cmd_ocp(args) -> tuple[dict, str]:
     """Solve the scene's ``[ocp]`` table; replay the controls with the forward simulator."""
-    mech = _load(args)
+    mech = load_scene_for(args)
     if "ocp" not in getattr(mech, "scene_data", {}):  # --intervals alone is no problem
         raise SceneError(f"{args.scene}: no [ocp] table: the ocp verb solves the scene's "
                          "[ocp] table (see docs/ocp.md)")
@@ -66,7 +66,7 @@ def _save_solution(sol, out: str) -> None:
     """``--out``: the solution file (``.npz``, with the controls per interval) or the CSV of its
     result on the mesh nodes (``.csv``, :meth:`~casmbd.results.Result.to_csv`)."""
     if Path(out).suffix.lower() == ".csv":
-        _save(sol.to_result(), out)
+        save_result(sol.to_result(), out)
     else:
         try:
             sol.save(out)

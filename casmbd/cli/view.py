@@ -12,7 +12,7 @@ from __future__ import annotations
 import sys
 import webbrowser
 
-from casmbd.cli.common import _check_not_input, _check_out, scene_files
+from casmbd.cli.common import check_not_input, check_out_path, scene_files
 from casmbd.model import Mechanism
 from casmbd.viz.view_html import check_html_file, write_html
 from casmbd.viz.view_scene import require_viser, view_summary
@@ -22,12 +22,12 @@ from casmbd.viz.view_server import load_source, make_view_model, serve
 def _cmd_view(args) -> tuple[dict, str]:
     """Serve the view of ``args.source`` until Ctrl-C, or write it to ``--html``."""
     require_viser()  # before reading anything: the one missing-extra message
-    _check_out(args)  # --html is not the source file
+    check_out_path(args)  # --html is not the source file
     if args.html:
         check_html_file(args.html)
     source = load_source(args.source)
     if isinstance(source, Mechanism):
-        _check_not_input(args, scene_files(source, args.source))
+        check_not_input(args, scene_files(source, args.source))
     options = dict(deformation_scale=args.deformation_scale, forces=args.forces,
                    max_frames=args.max_frames)
     vm = make_view_model(source, **options)

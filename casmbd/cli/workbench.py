@@ -12,7 +12,7 @@ from pathlib import Path
 from casmbd.analysis.dynamics.simulate import simulate
 from casmbd.analysis.studies.sensitivity import sensitivity
 from casmbd.analysis.studies.sweep import parse_values, sweep
-from casmbd.cli.common import _check_not_input, _check_out, _load, scene_files
+from casmbd.cli.common import check_not_input, check_out_path, load_scene_for, scene_files
 from casmbd.errors import AnalysisError, ResultFileError
 from casmbd.io.scene import load_result, load_scene, loads_scene
 from casmbd.limits import MAX_FRAMES, check_count
@@ -43,7 +43,7 @@ def load(path: str) -> Result:
 
 def _cmd_plot(args) -> tuple[dict, str]:
     """Figure of a saved result: one panel per kind against time."""
-    _check_out(args)
+    check_out_path(args)
     check_figure_size(dpi=args.dpi, what=f"--out '{args.out}'")  # before reading the result
     result = load(args.result)
     kinds = [k.strip() for text in args.kind for k in text.split(",") if k.strip()] \
@@ -60,7 +60,7 @@ def _cmd_plot(args) -> tuple[dict, str]:
 
 def _cmd_animate(args) -> tuple[dict, str]:
     """Animate a result file, or simulate a scene (default simulator) and animate it."""
-    _check_out(args)
+    check_out_path(args)
     suffix = Path(args.out).suffix.lower()
     if suffix not in (".gif", ".mp4", ".png", ".pdf", ".svg"):
         raise AnalysisError(f"--out '{args.out}': unknown suffix '{suffix}' (use .gif, .mp4 "
@@ -81,7 +81,7 @@ def _cmd_animate(args) -> tuple[dict, str]:
         source = f"result {args.source}"
     else:
         mech = load_scene(args.source)
-        _check_not_input(args, scene_files(mech, args.source))  # its URDF, its FE files
+        check_not_input(args, scene_files(mech, args.source))  # its URDF, its FE files
         result = simulate(mech, t_end=args.t_end, steps=args.steps, mode=args.mode)
         result.attach_scene(mech)
         source = f"simulation of '{mech.name}'"
@@ -161,7 +161,7 @@ def _cmd_sweep(args) -> tuple[dict, str]:
 
 def _cmd_sensitivity(args) -> tuple[dict, str]:
     """Derivatives of the --output expressions with respect to the --param parameters."""
-    mech = _load(args)
+    mech = load_scene_for(args)
     res = sensitivity(mech, args.output, args.param, args.t_end, method=args.method,
                       rtol=args.rtol)
     data = res.to_json()

@@ -114,7 +114,7 @@ class BuildReport:
     libraries: tuple[str, ...] = ()
 
 
-def _find_compiler() -> list[str] | None:
+def find_compiler() -> list[str] | None:
     """Return the compiler command (absolute executable first) or None if there is none.
 
     ``$CC`` may hold a command with arguments (e.g. ``"ccache gcc"``); when it is unset or its
@@ -137,7 +137,7 @@ def _find_compiler() -> list[str] | None:
     return None
 
 
-def _resolve_flags(flags: Sequence[str] | None) -> list[str]:
+def resolve_flags(flags: Sequence[str] | None) -> list[str]:
     """Return the optimisation flags: ``flags``, else ``$CASMBD_CFLAGS``, else ``-O2``."""
     if flags is not None:
         if isinstance(flags, str):
@@ -149,7 +149,7 @@ def _resolve_flags(flags: Sequence[str] | None) -> list[str]:
     return list(DEFAULT_FLAGS)
 
 
-def _platform_tag() -> str:
+def platform_tag() -> str:
     """Return a description of the platform that determines binary compatibility."""
     return f"{sys.platform}-{platform.machine()}-{platform.system()}"
 
@@ -163,7 +163,7 @@ def _compute_key(template: str, name: str, compiler: list[str], flags: list[str]
         "\x1f".join(compiler),
         "\x1f".join([*flags, *SHARED_FLAGS, *LINK_LIBS]),
         casadi.__version__,
-        _platform_tag(),
+        platform_tag(),
         repr(sorted(_CODEGEN_OPTIONS.items())),
     ]
     for part in parts:
@@ -200,7 +200,7 @@ def _rebuild_warning(library: pathlib.Path, reason: str, stacklevel: int) -> Non
                   "it", RuntimeWarning, stacklevel=stacklevel + 1)
 
 
-def _load_verified(names: list[str], library: pathlib.Path, expected: dict[str, dict]
+def load_verified(names: list[str], library: pathlib.Path, expected: dict[str, dict]
                    ) -> tuple[dict[str, casadi.Function] | None, str | None]:
     """Load ``library`` and compare the loaded signatures with ``expected``: (functions,
     None), or (None, why they are not used)."""
@@ -304,13 +304,13 @@ def _build(
     """Generate, compile (unless cached) and load; raise CompileError on any failure.  The
     functions go into the translation units of :func:`casmbd.compiled.units.plan`, compiled
     in parallel and linked into one library."""
-    compiler = _find_compiler()
+    compiler = find_compiler()
     if compiler is None:
         raise CompileError(
             "no C compiler found: set $CC or install cc, gcc or clang (checked $CC="
             f"{os.environ.get('CC', '')!r} and PATH)"
         )
-    resolved_flags = _resolve_flags(flags)
+    resolved_flags = resolve_flags(flags)
     chosen = resolved_flags if flags is not None or os.environ.get("CASMBD_CFLAGS", "").strip() \
         else None
 
@@ -338,7 +338,7 @@ def _build(
         reason = cache.check_entry(library, key, expected)
         loaded = None
         if reason is None:
-            loaded, reason = _load_verified(names, library, expected)
+            loaded, reason = load_verified(names, library, expected)
         if reason is not None:
             _rebuild_warning(library, reason, 4)  # the caller of compile_functions
         else:
@@ -380,7 +380,7 @@ def _build(
         cache.write_atomic(kept_source, "\n".join(sources))
 
     start = time.perf_counter()
-    loaded, reason = _load_verified(names, library, expected)
+    loaded, reason = load_verified(names, library, expected)
     if reason is not None:  # e.g. this process still holds an older copy of that path
         raise CompileError(f"compiled library {library} is not usable: {reason}")
     report = BuildReport(
@@ -534,8 +534,8 @@ def compile_nlp_solver(problem: dict, plugin: str, options: dict, name: str = "c
     """
     if not isinstance(name, str) or not _NAME_RE.match(name):
         raise ValueError(f"NLP name must be a C identifier, got {name!r}")
-    compiler = _find_compiler()
-    flags_ = _resolve_flags(flags)
+    compiler = find_compiler()
+    flags_ = resolve_flags(flags)
     start = time.perf_counter()
     if compiler is None or os.environ.get("CASMBD_COMPILE", "1") == "0":
         return casadi.nlpsol(name, plugin, problem, options), _vm_report()

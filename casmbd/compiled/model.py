@@ -60,7 +60,9 @@ class _Functions(dict):
         return function
 
 
-def _c_name(name: str) -> str:
+def c_symbol_name(name: str) -> str:
+    """The C identifier prefix of a mechanism's generated code: ``casmbd_`` and the first 40
+    characters of ``name`` with every character outside [A-Za-z0-9_] replaced by ``_``."""
     out = re.sub(r"[^A-Za-z0-9_]", "_", name)
     return "casmbd_" + out[:40]
 
@@ -121,7 +123,7 @@ class NumericModel:
         symbolic = [system.function(n) for n in names] + list(extra)
         t1 = time.perf_counter()
         functions, self.report = compile_functions(
-            symbolic, name=_c_name(system.mechanism.name), mode=mode,
+            symbolic, name=c_symbol_name(system.mechanism.name), mode=mode,
             hot=None if hot is None else set(hot))
         self.functions = _Functions(functions, self)
         t2 = time.perf_counter()

@@ -133,7 +133,7 @@ def model_key(mechanism, purpose: str, options: Mapping) -> str | None:
     ``options`` (formulation, its options, inputs, …), casmbd's sources, CasADi's version,
     compiler, flags and platform; None when the description has no exact canonical form
     (:class:`UnkeyableError`) or no compiler is found."""
-    compiler = codegen._find_compiler()
+    compiler = codegen.find_compiler()
     if compiler is None:
         return None
     try:
@@ -142,8 +142,8 @@ def model_key(mechanism, purpose: str, options: Mapping) -> str | None:
     except UnkeyableError:
         return None
     text = json.dumps(["casmbd-model-v1", purpose, described, opts, source_digest(),
-                       casadi.__version__, compiler, codegen._resolve_flags(None),
-                       os.environ.get("CASMBD_CFLAGS", ""), codegen._platform_tag()],
+                       casadi.__version__, compiler, codegen.resolve_flags(None),
+                       os.environ.get("CASMBD_CFLAGS", ""), codegen.platform_tag()],
                       separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()
 
@@ -224,7 +224,7 @@ def load(name: str, key: str, stacklevel: int = 2
         if reason is None and cache.read_record(library).get("sha256") != lib_sha:
             reason = "its SHA-256 differs from the model record's (another build's library)"
         if reason is None:
-            loaded, reason = codegen._load_verified(list(expected), library, expected)
+            loaded, reason = codegen.load_verified(list(expected), library, expected)
         if reason is not None:
             reason = f"library {library.name}: {reason}"
             break

@@ -54,7 +54,7 @@ from casmbd.compiled.workspace import buffered
 from casmbd.errors import ModelError
 from casmbd.model.bodies import GROUND
 from casmbd.model.needs import Handling, check
-from casmbd.system.articulated import _transport, supported
+from casmbd.system.articulated import motion_transform, supported
 from casmbd.system.equations import System
 
 __all__ = ["BATCH_CHUNK", "CompiledModel", "compile"]
@@ -120,7 +120,8 @@ def newton_euler(system: System, a: ca.SX) -> ca.SX:
         if parent == GROUND:
             acc[name] = step
         else:
-            xform[name] = _transport(ctx.centre_of_mass(name) - ctx.centre_of_mass(parent), dim)
+            xform[name] = motion_transform(ctx.centre_of_mass(name) - ctx.centre_of_mass(parent),
+                                           dim)
             acc[name] = step + ca.mtimes(xform[name], acc[parent] - tk.bias[parent])
         mass, tensor = system._mass_inertia(system.mechanism.bodies[name])
         if dim == 2:

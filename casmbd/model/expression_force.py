@@ -30,7 +30,7 @@ import numpy as np
 
 from casmbd.errors import ModelError
 from casmbd.model.bodies import GROUND
-from casmbd.model.forces import FRAMES, ForceElement, _coordinate_unit, _point
+from casmbd.model.forces import FRAMES, ForceElement, coordinate_force_unit, point_vector
 from casmbd.model.measures import check, expression
 from casmbd.model.registry import register_force
 
@@ -124,7 +124,7 @@ class ExpressionForce(ForceElement):
 
     def __post_init__(self):
         if self.point is not None:
-            self.point = _point(self.point, f"force '{self.name}' field 'point'")
+            self.point = point_vector(self.point, f"force '{self.name}' field 'point'")
         if self.frame not in FRAMES:
             raise ModelError(f"force '{self.name}' field 'frame': expected 'global' or "
                              f"'body', got {self.frame!r}")
@@ -171,7 +171,7 @@ class ExpressionForce(ForceElement):
         the global force components ``fx``, ``fy`` (, ``fz``) [N] and the torque ``torque``
         [N m] in the plane (``tx``, ``ty``, ``tz`` in space)."""
         if self.joint is not None:
-            return (("value", _coordinate_unit(self.coordinate)),)
+            return (("value", coordinate_force_unit(self.coordinate)),)
         out = []
         if self.expressions:
             out += [(f"f{a}", "N") for a in _AXES[:dimension]]

@@ -95,7 +95,7 @@ MEASURE_ARITY: dict[str, int] = {
     "angle_of": 1, "omega_of": 1,
 }
 
-_BINARY_OPERATORS: dict[type, Callable[[Any, Any], Any]] = {
+BINARY_OPERATORS: dict[type, Callable[[Any, Any], Any]] = {
     ast.Add: casadi.plus,
     ast.Sub: casadi.minus,
     ast.Mult: casadi.times,
@@ -143,15 +143,16 @@ _FORBIDDEN_NODES: dict[type, str] = {
 
 _FRAGMENT_LENGTH = 60
 
-_Value = casadi.SX | casadi.MX | float
+#: what a symbol of an expression stands for: a CasADi symbol or a number
+ExpressionValue = casadi.SX | casadi.MX | float
 
 
-def _shorten(text: str, limit: int = _FRAGMENT_LENGTH) -> str:
+def shorten(text: str, limit: int = _FRAGMENT_LENGTH) -> str:
     """Return ``text`` cut to at most ``limit`` characters, marked with ``...`` when cut."""
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
-def _fail(where: str, fragment: str, why: str) -> ExpressionError:
+def expression_error(where: str, fragment: str, why: str) -> ExpressionError:
     """Build the error for ``fragment`` of the expression at ``where``.
 
     Parameters
@@ -168,7 +169,7 @@ def _fail(where: str, fragment: str, why: str) -> ExpressionError:
     ExpressionError
         The error, to be raised by the caller.
     """
-    return ExpressionError(f"{where}: {why} (in {_shorten(fragment)!r})")
+    return ExpressionError(f"{where}: {why} (in {shorten(fragment)!r})")
 
 
 def _fragment(source: str, node: ast.AST) -> str:
@@ -182,12 +183,12 @@ def _fragment(source: str, node: ast.AST) -> str:
     return segment
 
 
-def _is_real_number(value: object) -> bool:
+def is_real_number(value: object) -> bool:
     """Tell whether ``value`` is a real number (booleans are not numbers here)."""
     return isinstance(value, numbers.Real) and not isinstance(value, bool)
 
 
-def _normalize_symbols(symbols: Mapping[str, Any], where: str) -> dict[str, _Value]:
+def normalize_symbols(symbols: Mapping[str, Any], where: str) -> dict[str, ExpressionValue]:
     """Check the symbol table and convert plain numbers to ``float``.
 
     Parameters
@@ -207,14 +208,14 @@ def _normalize_symbols(symbols: Mapping[str, Any], where: str) -> dict[str, _Val
     ExpressionError
         If a value is neither a CasADi SX/MX expression nor a real number.
     """
-    table: dict[str, _Value] = {}
+    table: dict[str, ExpressionValue] = {}
     for name, value in symbols.items():
         if isinstance(value, (casadi.SX, casadi.MX)):
             table[name] = value
-        elif (isinstance(value, casadi.DM) and value.is_scalar()) or _is_real_number(value):
+        elif (isinstance(value, casadi.DM) and value.is_scalar()) or is_real_number(value):
             table[name] = float(value)
         else:
-            raise _fail(
+            raise expression_error(
                 where,
                 str(name),
                 f"symbol {name!r} has a value of unsupported type {type(value).__name__}",
@@ -229,7 +230,7 @@ def _allowed_names(symbols: Mapping[str, Any]) -> str:
     return ", ".join(names) if names else "(none)"
 
 
-def _max_bracket_depth(text: str) -> int:
+def max_bracket_depth(text: str) -> int:
     """Return the deepest nesting of ``()``, ``[]`` and ``{}`` in ``text``."""
     depth = deepest = 0
     for char in text:
@@ -241,7 +242,7 @@ def _max_bracket_depth(text: str) -> int:
     return deepest
 
 
-def _parse(text: str, where: str) -> ast.Expression:
+def parse_to_ast(text: str, where: str) -> ast.Expression:
     """Parse ``text`` into a syntax tree, turning every parser failure into an error.
 
     Parameters
@@ -267,48 +268,49 @@ def _parse(text: str, where: str) -> ast.Expression:
         detail = error.msg or "invalid syntax"
         if error.offset is not None:
             detail += f" at column {error.offset}"
-        raise _fail(where, text, f"syntax error: {detail}") from None
+        raise expression_error(where, text, f"syntax error: {detail}") from None
     except (RecursionError, MemoryError):
-        raise _fail(where, text, "expression is too deeply nested or too complex") from None
+        raise expression_error(where, text,
+                               "expression is too deeply nested or too complex") from None
     except ValueError as error:  # e.g. null bytes on some Python versions
-        raise _fail(where, text, f"invalid expression text: {error}") from None
+        raise expression_error(where, text, f"invalid expression text: {error}") from None
 
 
 def _check_constant(node: ast.Constant, source: str, where: str) -> None:
     """Accept only finite int/float literals."""
     value = node.value
     if isinstance(value, bool):
-        raise _fail(where, _fragment(source, node), "booleans are not allowed")
+        raise expression_error(where, _fragment(source, node), "booleans are not allowed")
     if isinstance(value, (str, bytes)):
-        raise _fail(where, _fragment(source, node), "strings are not allowed")
+        raise expression_error(where, _fragment(source, node), "strings are not allowed")
     if isinstance(value, complex):
-        raise _fail(where, _fragment(source, node), "complex numbers are not allowed")
+        raise expression_error(where, _fragment(source, node), "complex numbers are not allowed")
     if not isinstance(value, (int, float)):
-        raise _fail(where, _fragment(source, node), f"{value!r} is not allowed")
+        raise expression_error(where, _fragment(source, node), f"{value!r} is not allowed")
     try:
         number = float(value)
     except OverflowError:
-        raise _fail(where, _fragment(source, node), "number is too large") from None
+        raise expression_error(where, _fragment(source, node), "number is too large") from None
     if not math.isfinite(number):
-        raise _fail(where, _fragment(source, node), "number is not finite")
+        raise expression_error(where, _fragment(source, node), "number is not finite")
 
 
 def _check_name(node: ast.Name, source: str, symbols: Mapping[str, Any], where: str) -> None:
     """Accept only names of symbols and constants (never names starting with ``_``)."""
     name = node.id
     if name.startswith("_"):
-        raise _fail(
+        raise expression_error(
             where, _fragment(source, node), f"names beginning with '_' are not allowed: {name!r}"
         )
     if name in symbols or name in CONSTANTS:
         return
     if name in ALLOWED_FUNCTIONS:
-        raise _fail(
+        raise expression_error(
             where,
             _fragment(source, node),
             f"{name!r} is a function; call it like {name}(...)",
         )
-    raise _fail(
+    raise expression_error(
         where,
         _fragment(source, node),
         f"unknown name {name!r}; allowed names are: {_allowed_names(symbols)}",
@@ -334,17 +336,18 @@ def _check_call(node: ast.Call, source: str, where: str,
     """
     func = node.func
     if isinstance(func, ast.Attribute):
-        raise _fail(
+        raise expression_error(
             where,
             _fragment(source, node),
             f"attribute access is not allowed: cannot call {_fragment(source, func)!r}",
         )
     if not isinstance(func, ast.Name):
-        raise _fail(where, _fragment(source, node), "only allowed functions can be called, by name")
+        raise expression_error(where, _fragment(source, node),
+                               "only allowed functions can be called, by name")
     if node.keywords:
         keyword = node.keywords[0]
         shown = "**" if keyword.arg is None else f"{keyword.arg}="
-        raise _fail(
+        raise expression_error(
             where,
             _fragment(source, node),
             f"keyword arguments are not allowed (got {shown!r}); pass arguments by position",
@@ -352,24 +355,25 @@ def _check_call(node: ast.Call, source: str, where: str,
     name = func.id
     for argument in node.args:
         if isinstance(argument, ast.Starred):
-            raise _fail(where, _fragment(source, node), "argument unpacking ('*') is not allowed")
+            raise expression_error(where, _fragment(source, node),
+                                   "argument unpacking ('*') is not allowed")
     if calls is not None and name in calls:
         expected = calls[name][0]
         plural = "" if expected == 1 else "s"
         if len(node.args) != expected:
-            raise _fail(where, _fragment(source, node),
+            raise expression_error(where, _fragment(source, node),
                         f"measure {name!r} takes {expected} quoted name{plural}, "
                         f"got {len(node.args)} argument(s)")
         for argument in node.args:
             if not (isinstance(argument, ast.Constant) and isinstance(argument.value, str)
                     and argument.value.strip()):
-                raise _fail(where, _fragment(source, node),
+                raise expression_error(where, _fragment(source, node),
                             f"measure {name!r} takes {expected} quoted name{plural} (a joint, "
                             f"marker or body, e.g. {name}(\"J1\")), got "
                             f"{_fragment(source, argument)!r}")
         return True
     if name in MEASURE_ARITY and name not in ALLOWED_FUNCTIONS:
-        raise _fail(
+        raise expression_error(
             where,
             _fragment(source, node),
             f"measure {name!r} depends on the state of the mechanism; it is allowed only in "
@@ -379,14 +383,14 @@ def _check_call(node: ast.Call, source: str, where: str,
     expected = _function_arity(name)
     if expected is None:
         known = sorted([*ALLOWED_FUNCTIONS, *HELPER_FUNCTIONS, *(calls or {})])
-        raise _fail(
+        raise expression_error(
             where,
             _fragment(source, node),
             f"unknown function {name!r}; allowed functions are: " + ", ".join(known),
         )
     if len(node.args) != expected:
         plural = "" if expected == 1 else "s"
-        raise _fail(
+        raise expression_error(
             where,
             _fragment(source, node),
             f"function {name!r} takes {expected} argument{plural}, got {len(node.args)}",
@@ -404,10 +408,10 @@ def _check_operator(op: ast.AST, node: ast.AST, source: str, where: str) -> None
         why += "; use '**' for powers (e.g. 2**3)"
     else:
         why += "; allowed operators are + - * / **"
-    raise _fail(where, _fragment(source, node), why)
+    raise expression_error(where, _fragment(source, node), why)
 
 
-def _check_tree(tree: ast.Expression, source: str, symbols: Mapping[str, Any], where: str,
+def check_tree(tree: ast.Expression, source: str, symbols: Mapping[str, Any], where: str,
                 calls: Mapping[str, Any] | None = None) -> None:
     """Walk the tree iteratively, rejecting anything not whitelisted or nested too deeply.
 
@@ -437,7 +441,7 @@ def _check_tree(tree: ast.Expression, source: str, symbols: Mapping[str, Any], w
     while stack:
         node, depth = stack.pop()
         if depth > MAX_DEPTH:
-            raise _fail(
+            raise expression_error(
                 where, source, f"expression is too deeply nested (more than {MAX_DEPTH} levels)"
             )
         if isinstance(node, ast.Constant):
@@ -457,4 +461,4 @@ def _check_tree(tree: ast.Expression, source: str, symbols: Mapping[str, Any], w
                 stack.extend((argument, depth + 1) for argument in reversed(node.args))
         else:
             why = _FORBIDDEN_NODES.get(type(node), f"{type(node).__name__} is not allowed")
-            raise _fail(where, _fragment(source, node), why)
+            raise expression_error(where, _fragment(source, node), why)

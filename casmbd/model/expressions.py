@@ -37,8 +37,8 @@ import casadi
 
 from casmbd.errors import ModelError
 from casmbd.model.expression_rules import (
-    _BINARY_OPERATORS,
     ALLOWED_FUNCTIONS,
+    BINARY_OPERATORS,
     CONSTANTS,
     FUNCTION_ARITY,
     HELPER_ARITY,
@@ -46,14 +46,14 @@ from casmbd.model.expression_rules import (
     MAX_DEPTH,
     MAX_LENGTH,
     MEASURE_ARITY,
-    _check_tree,
-    _fail,
-    _is_real_number,
-    _max_bracket_depth,
-    _normalize_symbols,
-    _parse,
-    _shorten,
-    _Value,
+    ExpressionValue,
+    check_tree,
+    expression_error,
+    is_real_number,
+    max_bracket_depth,
+    normalize_symbols,
+    parse_to_ast,
+    shorten,
 )
 
 __all__ = [
@@ -94,7 +94,7 @@ def _children(node: ast.AST, calls: Mapping[str, Any] = _NO_CALLS) -> list[ast.A
 def _apply(node: ast.AST, operands: list[Any]) -> Any:
     """Apply the operation of a checked node to its evaluated operands."""
     if isinstance(node, ast.BinOp):
-        return _BINARY_OPERATORS[type(node.op)](operands[0], operands[1])
+        return BINARY_OPERATORS[type(node.op)](operands[0], operands[1])
     if isinstance(node, ast.UnaryOp):
         return -operands[0] if isinstance(node.op, ast.USub) else operands[0]
     assert isinstance(node, ast.Call) and isinstance(node.func, ast.Name)
@@ -111,10 +111,11 @@ def _measure(node: ast.Call, calls: Mapping[str, Any], source: str, where: str) 
     try:
         return calls[node.func.id][1](*names)
     except ModelError as error:
-        raise _fail(where, ast.get_source_segment(source, node) or source, str(error)) from None
+        raise expression_error(where, ast.get_source_segment(source, node) or source,
+                               str(error)) from None
 
 
-def _evaluate(tree: ast.Expression, symbols: Mapping[str, _Value],
+def _evaluate(tree: ast.Expression, symbols: Mapping[str, ExpressionValue],
               calls: Mapping[str, Any] = _NO_CALLS, source: str = "",
               where: str = "expression") -> Any:
     """Evaluate a checked tree without recursion (post-order with an explicit stack)."""
@@ -196,20 +197,21 @@ def parse_expression(
     1.5
     """
     if isinstance(text, bool):
-        raise _fail(where, repr(text), "booleans are not allowed; expected a number or expression")
-    if _is_real_number(text):
+        raise expression_error(where, repr(text),
+                               "booleans are not allowed; expected a number or expression")
+    if is_real_number(text):
         number = float(text)
         if not math.isfinite(number):
-            raise _fail(where, repr(text), "number is not finite")
+            raise expression_error(where, repr(text), "number is not finite")
         return number
     if not isinstance(text, str):
-        raise _fail(
+        raise expression_error(
             where,
-            _shorten(repr(text)),
+            shorten(repr(text)),
             f"expected an expression string or a number, got {type(text).__name__}",
         )
     if len(text) > MAX_LENGTH:
-        raise _fail(
+        raise expression_error(
             where,
             text,
             f"expression is too long ({len(text)} characters, at most {MAX_LENGTH} allowed)",
@@ -217,23 +219,23 @@ def parse_expression(
     # Line breaks (TOML multi-line strings) are plain white space in an expression.
     source = text.replace("\r", " ").replace("\n", " ").replace("\t", " ").strip()
     if not source:
-        raise _fail(where, text, "expression is empty")
-    if _max_bracket_depth(source) > MAX_DEPTH:
-        raise _fail(
+        raise expression_error(where, text, "expression is empty")
+    if max_bracket_depth(source) > MAX_DEPTH:
+        raise expression_error(
             where,
             source,
             f"expression is too deeply nested (more than {MAX_DEPTH} levels of brackets)",
         )
-    table = _normalize_symbols(symbols, where)
-    tree = _parse(source, where)
-    _check_tree(tree, source, table, where, calls)
+    table = normalize_symbols(symbols, where)
+    tree = parse_to_ast(source, where)
+    check_tree(tree, source, table, where, calls)
     try:
         result = _evaluate(tree, table, calls or _NO_CALLS, source, where)
     except (RuntimeError, TypeError, ValueError, NotImplementedError, ArithmeticError) as error:
-        raise _fail(where, source, f"cannot evaluate expression: {error}") from None
+        raise expression_error(where, source, f"cannot evaluate expression: {error}") from None
     if isinstance(result, casadi.DM):
         return float(result) if result.is_scalar() else result
-    if _is_real_number(result):
+    if is_real_number(result):
         return float(result)
     return result
 
@@ -272,19 +274,19 @@ def evaluate_number(
     """
     numeric: dict[str, float] = {}
     for name, value in values.items():
-        if not _is_real_number(value):
-            raise _fail(
+        if not is_real_number(value):
+            raise expression_error(
                 where,
                 str(name),
                 f"value of {name!r} must be a real number, got {type(value).__name__}",
             )
         numeric[name] = float(value)
     result = parse_expression(text, numeric, where)
-    if not _is_real_number(result):  # pragma: no cover - only numbers were supplied
-        raise _fail(where, str(text), "expression does not evaluate to a number")
+    if not is_real_number(result):  # pragma: no cover - only numbers were supplied
+        raise expression_error(where, str(text), "expression does not evaluate to a number")
     number = float(result)
     if not math.isfinite(number):
-        raise _fail(
+        raise expression_error(
             where,
             str(text),
             f"expression evaluates to {number}, which is not a finite number",
@@ -314,6 +316,6 @@ def depends_on(expr: casadi.SX | casadi.MX | float, sym: casadi.SX | casadi.MX) 
     >>> depends_on(parse_expression("2*t", {"t": t}), t), depends_on(1.0, t)
     (True, False)
     """
-    if _is_real_number(expr) or isinstance(expr, casadi.DM):
+    if is_real_number(expr) or isinstance(expr, casadi.DM):
         return False
     return bool(casadi.depends_on(expr, sym))

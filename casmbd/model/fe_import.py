@@ -51,7 +51,7 @@ from casmbd.limits import (
     check_npz,
     check_regular_file,
 )
-from casmbd.model.modal import FEModel, _check_layout, rotational_dofs
+from casmbd.model.modal import FEModel, check_node_layout, rotational_dofs
 
 __all__ = ["load_fe_npz", "save_fe_npz"]
 
@@ -222,7 +222,7 @@ def load_fe_npz(path: str | os.PathLike, *, name: str | None = None) -> FEModel:
                          f"{dpn.shape}")
     d = int(dpn.reshape(-1)[0])
     dim = nodes.shape[1]
-    _check_layout(dim, d, where)
+    check_node_layout(dim, d, where)
     n = nodes.shape[0]
     check_count(f"{where}: degrees of freedom (nodes × dofs_per_node)", n * d, MAX_FE_DOFS,
                 "use a coarser mesh or reduce the model before import")

@@ -55,7 +55,7 @@ from casmbd.model.bodies import rotation, scalar, unit_quaternion, vector
 from casmbd.model.fe_beam import beam_model
 from casmbd.model.fe_import import load_fe_npz
 from casmbd.model.modal import FEModel, ModalData, cache_key
-from casmbd.model.modal_reduction import ModesError, _model_key, check_units, reduce
+from casmbd.model.modal_reduction import ModesError, check_units, fe_model_key, reduce
 from casmbd.model.registry import register_body
 from casmbd.model.rotations import euler_zxz_to_quaternion, rotation_matrix
 
@@ -103,7 +103,7 @@ def modal_data(model: FEModel, reduction: str, modes: int,
     and, when a ``store`` is given (:data:`casmbd.compiled.modal_cache.DISK_STORE`), on disk
     beside the compiled code."""
     check_units(model)  # cheap; also on a hit (a file cached by an older version)
-    key = cache_key(_model_key(model), reduction, int(modes), list(interfaces))
+    key = cache_key(fe_model_key(model), reduction, int(modes), list(interfaces))
     if key not in _MODES:
         stored = store[0](key) if store is not None else None
         if stored is None:

@@ -95,7 +95,7 @@ class ForceElement:
         (:mod:`casmbd.system.requests`; ``force_outputs``).  Default: an element acting on one
         joint coordinate (``joint`` and ``coordinate`` fields, e.g. joint friction) reports
         ``force``, the generalized force it applies along that coordinate; others nothing."""
-        return (("force", _coordinate_unit(self.coordinate)),) if _on_coordinate(self) else ()
+        return (("force", coordinate_force_unit(self.coordinate)),) if _on_coordinate(self) else ()
 
     def reports(self, kit) -> list[ca.SX]:
         """The values of :meth:`report_names`, written with ``kit.ctx`` (default: the sum of
@@ -115,12 +115,12 @@ def _on_coordinate(force) -> bool:
             and (reaction is None or reaction() is None))
 
 
-def _coordinate_unit(coordinate: str | None) -> str:
+def coordinate_force_unit(coordinate: str | None) -> str:
     """Unit of a generalized force along a joint coordinate: N m on an angle, else N."""
     return "N m" if str(coordinate).startswith("angle") else "N"
 
 
-def _nonzero(value: Value) -> bool:
+def may_be_nonzero(value: Value) -> bool:
     """Whether a value may differ from zero (an expression or a parameter may)."""
     return not (isinstance(value, (int, float)) and not isinstance(value, bool) and value == 0)
 
@@ -128,12 +128,12 @@ def _nonzero(value: Value) -> bool:
 def _spring_exchange(force) -> str | None:
     """:meth:`ForceElement.energy_exchange` of a spring-damper-actuator: its spring is in V,
     its damper dissipates, its actuator does work."""
-    if _nonzero(force.damping):
+    if may_be_nonzero(force.damping):
         return "damper"
-    return "force" if _nonzero(force.actuator) else None
+    return "force" if may_be_nonzero(force.actuator) else None
 
 
-def _point(value, where: str) -> np.ndarray:
+def point_vector(value, where: str) -> np.ndarray:
     """A point of 2 (plane) or 3 (space) numbers; the mechanism checks which."""
     size = len(value) if hasattr(value, "__len__") and len(value) in (2, 3) else 2
     return vector(value, where, size)
@@ -192,7 +192,7 @@ class PointForce(ForceElement):
                              f"components, got {self.value!r}")
         self.value = tuple(check_value(v, f"{where} field 'value'") for v in self.value)
         if self.point is not None:
-            self.point = _point(self.point, f"{where} field 'point'")
+            self.point = point_vector(self.point, f"{where} field 'point'")
         if self.frame not in FRAMES:
             raise ModelError(f"{where} field 'frame': expected 'global' or 'body', "
                              f"got {self.frame!r}")
@@ -355,8 +355,8 @@ class SpringDamper(ForceElement):
 
     def __post_init__(self):
         where = f"force '{self.name}'"
-        self.point1 = _point(self.point1, f"{where} field 'point1'")
-        self.point2 = _point(self.point2, f"{where} field 'point2'")
+        self.point1 = point_vector(self.point1, f"{where} field 'point1'")
+        self.point2 = point_vector(self.point2, f"{where} field 'point2'")
         if self.free_length is None:
             self.free_length = float(np.linalg.norm(self.point2 - self.point1))
         if np.allclose(self.point1, self.point2):
@@ -489,7 +489,7 @@ class UserForce(ForceElement):
         if not callable(self.function):
             raise ModelError(f"force '{self.name}' field 'function': expected a callable")
         if self.point is not None:
-            self.point = _point(self.point, f"force '{self.name}' field 'point'")
+            self.point = point_vector(self.point, f"force '{self.name}' field 'point'")
 
 
 @dataclass

@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import casadi as ca
 
 from casmbd.errors import ModelError
-from casmbd.model.forces import ForceElement, _nonzero
+from casmbd.model.forces import ForceElement, may_be_nonzero
 from casmbd.model.registry import register_force
 from casmbd.model.values import Value, check_value
 
@@ -113,7 +113,7 @@ class JointFriction(ForceElement):
             if not isinstance(stick_slip, bool):
                 raise ModelError(f"force '{name}' field 'stick_slip': expected true or false")
             level = check_value(friction, f"force '{name}' field 'friction'")
-            if not (isinstance(level, float) and level > 0.0) or _nonzero(mu):
+            if not (isinstance(level, float) and level > 0.0) or may_be_nonzero(mu):
                 raise ModelError(f"force '{name}' field 'stick_slip': the exact Coulomb law "
                                  "needs a constant level 'friction' > 0 (no 'mu')")
             for param in stick_slip_parameters(name):
@@ -134,16 +134,16 @@ class JointFriction(ForceElement):
     def reaction_joint(self) -> str | None:
         """The joint whose transverse reaction sets the Coulomb level (``mu`` > 0), else
         None (read by :mod:`casmbd.system.forces`)."""
-        return self.joint if _nonzero(self.mu) else None
+        return self.joint if may_be_nonzero(self.mu) else None
 
     def terms(self, kit, ctx):
         base, where = kit.ctx, f"force '{self.name}' field"
         joint = base.mechanism.joints[self.joint]
         rate = ca.jtimes(joint.coordinate(base, self.coordinate), base.q, base.v)
         resist = kit.value(self.damping, f"{where} 'damping'") * rate
-        level = kit.value(self.friction, f"{where} 'friction'") if _nonzero(self.friction) \
+        level = kit.value(self.friction, f"{where} 'friction'") if may_be_nonzero(self.friction) \
             else None
-        if _nonzero(self.mu):  # μ r N, N the symbol the system sets to |R_⊥(q, λ)|
+        if may_be_nonzero(self.mu):  # μ r N, N the symbol the system sets to |R_⊥(q, λ)|
             arm = 1.0 if self.radius is None else kit.value(self.radius, f"{where} 'radius'")
             slip = kit.value(self.mu, f"{where} 'mu'") * arm * kit.normal(self.name)
             level = slip if level is None else level + slip
@@ -162,7 +162,7 @@ class JointFriction(ForceElement):
                                            f"force '{self.name}' field '{key}'"))
 
     def energy_exchange(self) -> str | None:
-        return "damper" if any(_nonzero(v) for v in (self.damping, self.friction, self.mu)) \
+        return "damper" if any(may_be_nonzero(v) for v in (self.damping, self.friction, self.mu)) \
             else None
 
 
@@ -177,7 +177,7 @@ def _check_reaction(name: str, joint, coordinate: str, mu: Value, radius: Value 
     """Where the Coulomb level follows the reaction: a revolute, prismatic or cylindrical
     joint; a radius (> 0) for an angle, none for a translation."""
     where = f"force '{name}'"
-    if not _nonzero(mu):
+    if not may_be_nonzero(mu):
         if radius is not None:
             raise ModelError(f"{where} field 'radius': only used with 'mu' > 0")
         return

@@ -57,7 +57,9 @@ def rotational_dofs(dimension: int, dofs_per_node: int) -> tuple[int, ...]:
     return (3, 4, 5) if dofs_per_node == 6 else ()
 
 
-def _check_layout(dimension: int, dofs_per_node: int, where: str) -> None:
+def check_node_layout(dimension: int, dofs_per_node: int, where: str) -> None:
+    """Refuse node coordinates that are not 2 (plane) or 3 (space) columns, or a count of
+    degrees of freedom per node that does not fit them (ModelError naming ``where``)."""
     allowed = {2: (2, 3), 3: (3, 6)}
     if dimension not in allowed:
         raise ModelError(f"{where}: node coordinates must have 2 (plane) or 3 (space) columns, "

@@ -201,7 +201,9 @@ def _finish(model: FEModel, Phi: np.ndarray, reduction: str, reference: int | No
                      rigid_mass=0.5 * (rigid + rigid.T), source=model.source, key=key)
 
 
-def _model_key(model: FEModel):
+def fe_model_key(model: FEModel):
+    """What identifies an FE model in the reduction cache key: its input files, else its
+    matrices, node positions, masses, inertias and node names."""
     if model.inputs:
         return model.inputs
     return {"M": model.mass_matrix, "K": model.stiffness_matrix, "x": model.positions,
@@ -436,7 +438,7 @@ def craig_bampton(model: FEModel, modes: int, interfaces: Sequence[str | int], *
             raise ModelError(f"{src}: the Craig–Bampton basis has {int(zero.sum())} "
                              "zero-energy modes that are not rigid-body motions (a mechanism)")
         Q = Q[:, ~zero]
-    key = cache_key("craig_bampton", _model_key(model), int(modes), nodes)
+    key = cache_key("craig_bampton", fe_model_key(model), int(modes), nodes)
     return _finish(model, T @ Q, "craig_bampton", ref, key)
 
 
@@ -493,7 +495,7 @@ def free_modes(model: FEModel, modes: int, *, rigid_tolerance: float = 1e-8) -> 
         MR = M @ R
         Phi = Phi - R @ np.linalg.solve(R.T @ MR, MR.T @ Phi)
         Phi = Phi / np.sqrt(np.einsum("ij,ij->j", Phi, M @ Phi))
-    key = cache_key("free", _model_key(model), int(modes), float(rigid_tolerance))
+    key = cache_key("free", fe_model_key(model), int(modes), float(rigid_tolerance))
     return _finish(model, Phi, "free", None, key)
 
 

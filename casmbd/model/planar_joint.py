@@ -34,12 +34,12 @@ import numpy as np
 
 from casmbd.model.joints import axis_from_scene
 from casmbd.model.registry import register_joint
-from casmbd.model.spatial_joints import _AxisJoint, body_point, body_vector
+from casmbd.model.spatial_joints import AxisJoint, body_point, body_vector
 
 
 @register_joint
 @dataclass
-class Planar(_AxisJoint):
+class Planar(AxisJoint):
     """Planar joint: body2 slides in body1's plane through ``point`` normal to ``axis`` and
     turns about the axis (3 equations, 3 degrees of freedom).
 

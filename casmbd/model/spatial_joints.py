@@ -110,7 +110,9 @@ class _PointJoint(Joint):
 
 
 @dataclass
-class _AxisJoint(_PointJoint):
+class AxisJoint(_PointJoint):
+    """A joint at a point with a unit axis (the base of revolute, cylindrical, in-line and
+    planar joints)."""
     axis: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
 
     def __post_init__(self):
@@ -172,7 +174,7 @@ class Spherical(_PointJoint):
 
 @register_joint
 @dataclass
-class SpatialRevolute(_AxisJoint):
+class SpatialRevolute(AxisJoint):
     """Revolute joint: a common point and a common axis (5 equations).
 
     Coordinate ``angle``: the rotation of body2 relative to body1 about the axis since the
@@ -219,7 +221,7 @@ class SpatialRevolute(_AxisJoint):
 
 @register_joint
 @dataclass
-class Cylindrical(_AxisJoint):
+class Cylindrical(AxisJoint):
     """Cylindrical joint: body2 slides along and turns about the axis of body1 (4 equations).
 
     Coordinates ``translation`` (along the axis, zero at the initial pose) and ``angle``.
@@ -348,7 +350,7 @@ class Universal(_PointJoint):
 
 @register_joint
 @dataclass
-class InLine(_AxisJoint):
+class InLine(AxisJoint):
     """In-line (point-on-line) joint: the point of body2 stays on the line of body1 through
     ``point`` along ``axis`` (2 equations, dot-2 (f1, d) and dot-2 (g1, d) with d = r_P2 − r_P1;
     seed 001, "Spatial joints").

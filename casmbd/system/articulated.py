@@ -48,7 +48,7 @@ def supported(system) -> str | None:
     return None
 
 
-def _transport(d: ca.SX, dim: int) -> ca.SX:
+def motion_transform(d: ca.SX, dim: int) -> ca.SX:
     """X mapping (ω, ṙ) at a point to (ω, ṙ + ω × d) at the point displaced by d."""
     if dim == 2:
         return ca.vertcat(ca.horzcat(1, 0, 0), ca.horzcat(-d[1], 1, 0),
@@ -94,7 +94,7 @@ def articulated_accelerations(system, applied: bool = True) -> ca.SX:
             bias_acc[name] = tk.bias[name]
         else:
             d = r_g - ctx.centre_of_mass(parent)
-            xform[name] = _transport(d, dim)
+            xform[name] = motion_transform(d, dim)
             bias_acc[name] = tk.bias[name] - ca.mtimes(xform[name], tk.bias[parent])
         motion[name] = tk.motion[name]
         mass, tensor = system._mass_inertia(system.mechanism.bodies[name])

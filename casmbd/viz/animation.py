@@ -36,11 +36,11 @@ from casmbd.limits import MAX_FPS, MAX_FRAMES, check_count
 from casmbd.results import atomic_write
 from casmbd.viz.geometry import (
     Geometry,
-    _geometry,
-    _place,
     flexible_nodes,
     flexible_states,
     frame_poses,
+    geometry_of,
+    point_trajectory,
     scene_name,
 )
 from casmbd.viz.playback import FPS_CAP, FRAME_BUDGET, GIF_MAX_FPS, FramePlan, plan_frames
@@ -55,7 +55,7 @@ class _Drawing:
         from matplotlib import colormaps
 
         self.result = result
-        self.geo: Geometry = _geometry(result, mechanism)
+        self.geo: Geometry = geometry_of(result, mechanism)
         self.dim = self.geo.dimension
         if result.dimension != self.dim:
             raise AnalysisError(f"the mechanism is {self.dim}-D but the result "
@@ -70,11 +70,13 @@ class _Drawing:
         for b, nodes in self.nodes.items():  # the deformed centre of mass (lumped masses)
             m = self.geo.flexible[b].masses
             self.com[b] = np.einsum("i,kia->ka", m, nodes) / m.sum()
-        self.pts = {b: [_place(pos, rot, f, u, n_t) for (_, u), f in zip(p, self.geo.frames[b])]
+        self.pts = {b: [point_trajectory(pos, rot, f, u, n_t)
+                        for (_, u), f in zip(p, self.geo.frames[b])]
                     for b, p in self.geo.points.items()}
-        self.links = [(_place(pos, rot, b1, u1, n_t), _place(pos, rot, b2, u2, n_t), kind)
+        self.links = [(point_trajectory(pos, rot, b1, u1, n_t),
+                       point_trajectory(pos, rot, b2, u2, n_t), kind)
                       for _, b1, u1, b2, u2, kind in self.geo.links]
-        self.joint_xy = [_place(pos, rot, b, u, n_t) for b, u in self.geo.joints.values()]
+        self.joint_xy = [point_trajectory(pos, rot, b, u, n_t) for b, u in self.geo.joints.values()]
         markers = list(result.names.get("markers", []))
         if trace in (None, False):
             trace = []

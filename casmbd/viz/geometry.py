@@ -374,14 +374,16 @@ def frame_poses(result, geo: Geometry, scale: float = 1.0,
     return pos, rot
 
 
-def _place(pos, rot, body: str, u: np.ndarray, n_t: int) -> np.ndarray:
+def point_trajectory(pos, rot, body: str, u: np.ndarray, n_t: int) -> np.ndarray:
     """r_G + A u on the grid, (n_t, dim); a ground point stays where it is."""
     if body == GROUND:
         return np.broadcast_to(np.asarray(u, float), (n_t, len(u))).copy()
     return pos[body] + np.einsum("kij,j->ki", rot[body], u)
 
 
-def _geometry(result, mechanism) -> Geometry:
+def geometry_of(result, mechanism) -> Geometry:
+    """The drawing geometry of ``mechanism`` (a Mechanism, a Geometry, or None for the
+    result's embedded scene)."""
     if isinstance(mechanism, Geometry):
         return mechanism
     mech = mechanism if mechanism is not None else result.mechanism(loads_scene)
@@ -402,10 +404,10 @@ def body_points(result, mechanism=None) -> dict[str, np.ndarray]:
     mechanism : Mechanism or Geometry, optional
         Default: the scene embedded in the result (:meth:`Result.mechanism`).
     """
-    geo = _geometry(result, mechanism)
+    geo = geometry_of(result, mechanism)
     pos, rot = frame_poses(result, geo)
     n_t = len(result.t)
-    return {body: (np.stack([_place(pos, rot, frame, u, n_t)
+    return {body: (np.stack([point_trajectory(pos, rot, frame, u, n_t)
                              for (_, u), frame in zip(pts, geo.frames[body])], axis=1)
                    if pts else np.empty((n_t, 0, geo.dimension)))
             for body, pts in geo.points.items()}
@@ -424,7 +426,7 @@ def deformed_nodes(result, mechanism=None, *, scale: float = 1.0) -> dict[str, n
     scale : float
         Deformation scale s (1: the computed deformation).
     """
-    geo = _geometry(result, mechanism)
+    geo = geometry_of(result, mechanism)
     return flexible_nodes(result, geo, scale)
 
 
@@ -433,7 +435,7 @@ def joint_points(result, mechanism=None) -> dict[str, np.ndarray]:
     second body (its first when the second is the ground; the node frame's position and
     rotation for a joint at a node of a flexible body); for a distance link the point on that
     body."""
-    geo = _geometry(result, mechanism)
+    geo = geometry_of(result, mechanism)
     pos, rot = frame_poses(result, geo)
-    return {name: _place(pos, rot, body, u, len(result.t))
+    return {name: point_trajectory(pos, rot, body, u, len(result.t))
             for name, (body, u) in geo.joints.items()}

@@ -41,7 +41,7 @@ import numpy as np
 
 from casmbd.analysis.instant.assembly import assemble
 from casmbd.analysis.statics.statics import StaticsResult
-from casmbd.analysis.studies.sweep import _statics_result
+from casmbd.analysis.studies.sweep import statics_as_result
 from casmbd.analysis.studies.sweep_result import SweepResult
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, AssemblyError, CasmbdError
@@ -54,10 +54,10 @@ from casmbd.system import System
 from casmbd.viz import view_shapes
 from casmbd.viz.geometry import (
     Geometry,
-    _place,
     flexible_nodes,
     flexible_states,
     frame_poses,
+    point_trajectory,
 )
 from casmbd.viz.quantities import effort_units, joint_coordinate_unit
 from casmbd.viz.view_types import Frame, Plane, Series, Shape, ViewModel
@@ -218,7 +218,7 @@ def _resolve(source, mechanism):
         if mechanism is None:
             raise AnalysisError("a StaticsResult holds no scene: pass its mechanism "
                                 "(view_model(result, mechanism))")
-        return _statics_result(source), mechanism
+        return statics_as_result(source), mechanism
     if isinstance(source, OcpSolution):
         result = source.to_result()
         if mechanism is None and source.ocp is not None:
@@ -335,8 +335,8 @@ def view_model(source, mechanism=None, *, deformation_scale: float = 1.0,
                          else np.zeros((0, 2), int) for b, n in nodes.items()}
     vm.traces = _traces(result, mech)
     n_t = len(result.t)
-    vm.links = {name: np.stack([_pad3(_place(pos, rot, b1, u1, n_t)),
-                                _pad3(_place(pos, rot, b2, u2, n_t))], axis=1)
+    vm.links = {name: np.stack([_pad3(point_trajectory(pos, rot, b1, u1, n_t)),
+                                _pad3(point_trajectory(pos, rot, b2, u2, n_t))], axis=1)
                 for name, b1, u1, b2, u2, _ in geo.links}
     vm.length_scale = _length_scale(vm, geo)
     vm.shapes = view_shapes.shapes(mech, geo, vm)

@@ -39,7 +39,7 @@ from casmbd.model.inertia import inertia_tensor
 from casmbd.model.rotations import rotation_matrix
 from casmbd.model.spatial_joints import triad
 from casmbd.model.values import numeric
-from casmbd.viz.geometry import Geometry, _place
+from casmbd.viz.geometry import Geometry, point_trajectory
 from casmbd.viz.meshes import load_mesh
 from casmbd.viz.view_types import Frame, Plane, Shape
 
@@ -352,7 +352,7 @@ def force_arrows(result, mech, geo: Geometry, pos: dict, rot: dict,
             point = getattr(force, "point", None)
             u = np.zeros(dim) if point is None else _frame(mech, body).local(
                 np.asarray(point, float))
-            where = _place(pos, rot, body, u, n_t)
+            where = point_trajectory(pos, rot, body, u, n_t)
             vec = values[:, [column[c] for c in comps]]
             out[name] = (_pad3(where), _pad3(vec))
             continue
@@ -361,7 +361,8 @@ def force_arrows(result, mech, geo: Geometry, pos: dict, rot: dict,
             link = next((lk for lk in geo.links if lk[0] == name), None)
             if link is not None:
                 _, b1, u1, b2, u2, _ = link
-                r1, r2 = _place(pos, rot, b1, u1, n_t), _place(pos, rot, b2, u2, n_t)
+                r1 = point_trajectory(pos, rot, b1, u1, n_t)
+                r2 = point_trajectory(pos, rot, b2, u2, n_t)
                 d = r2 - r1
                 dist = np.linalg.norm(d, axis=1, keepdims=True)
                 unit = np.divide(d, dist, out=np.zeros_like(d), where=dist > 0)
@@ -400,7 +401,7 @@ def _contact_arrows(result, mech, pos, rot, column, values, out) -> set[str]:
         else:
             continue
         n = np.asarray(c.normal, float)
-        centre = _place(pos, rot, c.body, mech.bodies[c.body].local(c.point), n_t)
+        centre = point_trajectory(pos, rot, c.body, mech.bodies[c.body].local(c.point), n_t)
         out[c.name] = (_pad3(centre - float(c.radius) * n),
                        _pad3(normal_force[:, None] * n[None, :]))
     return shown

@@ -29,7 +29,7 @@ import numpy as np
 
 from casmbd.analysis.formulations import FORMULATIONS, formulation_kind
 from casmbd.compiled import modelkey
-from casmbd.compiled.model import NumericModel, _c_name
+from casmbd.compiled.model import NumericModel, c_symbol_name
 from casmbd.errors import AnalysisError, CasmbdError
 from casmbd.model.mechanism import Mechanism
 from casmbd.model.values import resolve
@@ -151,7 +151,7 @@ class CachedBuild:
         if key is None:
             return False
         self._cache_key = key
-        found = modelkey.load(_c_name(mechanism.name), key, stacklevel=4)
+        found = modelkey.load(c_symbol_name(mechanism.name), key, stacklevel=4)
         if found is None:
             return False
         functions, meta, report = found
@@ -183,4 +183,4 @@ class CachedBuild:
                 "redundancy": _json_ready(self.redundancy), "dyn": self.dyn.name(),
                 "formulation_kind": self.formulation.kind,
                 "attributes": {k: getattr(self, k) for k in self._RECORDED if hasattr(self, k)}}
-        modelkey.store(_c_name(self.model.mechanism.name), key, self.model.report, meta)
+        modelkey.store(c_symbol_name(self.model.mechanism.name), key, self.model.report, meta)

@@ -144,7 +144,6 @@ def plan_redundancy(system: System, formulation: str, option: str = "auto") -> d
     return plan
 
 
-_input_expression = input_expression  # u(t, p) of the actuators (dynamics.build_cache)
 
 
 _FLAG = re.compile(r'returned "([A-Z_]+)"')
@@ -189,7 +188,7 @@ class Simulator(Stepping, CachedBuild):
         self.formulation_reason = "given" if formulation else \
             self.kind.default_reason(system)
         self.redundancy = plan_redundancy(system, self.kind, redundancy)
-        u_expr = _input_expression(system, inputs)
+        u_expr = input_expression(system, inputs)
         self.ufun = ca.Function(INPUTS_FUNCTION, [system.t, system.p], [u_expr],
                                 ["t", "p"], ["u"])
         keep = self.redundancy.get("kept_rows")

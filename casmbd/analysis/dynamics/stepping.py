@@ -17,7 +17,7 @@ from casmbd.analysis.instant.kkt import project_velocities
 from casmbd.analysis.integrators import fixed_step as fixed
 from casmbd.analysis.integrators import kinds as integ
 from casmbd.analysis.integrators import sundials as sun
-from casmbd.compiled.model import _c_name
+from casmbd.compiled.model import c_symbol_name
 from casmbd.errors import IntegratorError
 from casmbd.interrupts import reraise_interrupt
 
@@ -98,7 +98,7 @@ class Stepping:
         h = interval / n_sub
         runner = self._solver((name, "fixed"), lambda: fixed.FixedStep(
             self.formulation.function, name, mode=self._mode,
-            name=f"{_c_name(self.model.name)}_{name}"))
+            name=f"{c_symbol_name(self.model.name)}_{name}"))
         p = self.model.p
         nq, nx = self.model.nq, len(x0)
         state = runner.start(x0, grid[0], p)
@@ -147,7 +147,7 @@ class Stepping:
                     if n in self.model.functions}
         runner = self._solver((name, "compiled"), lambda: kind.runner(
             self.dyn if prebuilt else self.formulation.function, self._mode,
-            f"{_c_name(self.model.name)}_{name}", prebuilt))
+            f"{c_symbol_name(self.model.name)}_{name}", prebuilt))
         p, nq = self.model.p, self.model.nq
         xs = [np.asarray(x0, float)]
         k = 0

@@ -7,7 +7,12 @@ from typing import ClassVar
 
 import casadi as ca
 
-from casmbd.analysis.formulations.base import Formulation, FormulationKind, _dyn, _sym_inputs
+from casmbd.analysis.formulations.base import (
+    Formulation,
+    FormulationKind,
+    dae_function,
+    symbolic_arguments,
+)
 from casmbd.system.articulated import articulated_accelerations, supported
 from casmbd.system.equations import System
 
@@ -15,12 +20,12 @@ from casmbd.system.equations import System
 def articulated(system: System, inputs: ca.SX | None = None) -> Formulation:
     """ODE on (q, v) of a tree in joint coordinates by the articulated-body recursion, O(N)
     operations (:mod:`casmbd.system.articulated`)."""
-    t, q, v, pu = _sym_inputs(system)
+    t, q, v, pu = symbolic_arguments(system)
     acc = articulated_accelerations(system)
     if system.u.numel():
         u_expr = ca.SX.zeros(system.u.numel()) if inputs is None else inputs
         acc = ca.substitute(acc, system.u, u_expr)
-    f = _dyn("dyn_articulated", t, ca.vertcat(q, v), ca.SX(0, 1), pu, ca.vertcat(v, acc),
+    f = dae_function("dyn_articulated", t, ca.vertcat(q, v), ca.SX(0, 1), pu, ca.vertcat(v, acc),
              ca.SX(0, 1))
     return Formulation("articulated", "ode", f, system.nq, 0)
 

@@ -27,10 +27,10 @@ import numpy as np
 from casmbd.analysis.formulations.base import (
     Formulation,
     FormulationKind,
-    _baumgarte_gamma,
-    _dyn,
-    _forces,
-    _sym_inputs,
+    baumgarte_acceleration_rhs,
+    dae_function,
+    generalized_forces,
+    symbolic_arguments,
 )
 from casmbd.analysis.formulations.kkt_ode import kkt_ode
 from casmbd.errors import ModelError
@@ -85,7 +85,7 @@ def augmented_lagrangian(system: System, penalty: float | None = None,
         For a penalty that is not a positive finite number, ``iterations`` < 1,
         ``refine`` < 0 or a ``refine_drift`` that is not a positive number.
     """
-    t, q, v, pu = _sym_inputs(system)
+    t, q, v, pu = symbolic_arguments(system)
     if system.nc == 0:
         return kkt_ode(system, inputs=inputs)
     cq = system.constraint_jacobian
@@ -104,11 +104,12 @@ def augmented_lagrangian(system: System, penalty: float | None = None,
                                      and np.isfinite(refine_drift) and refine_drift > 0)):
         raise ModelError(f"augmented_lagrangian: refine_drift must be a number > 0 or None, "
                          f"got {refine_drift!r}")
-    gamma_b = _baumgarte_gamma(system, alpha, beta)
+    gamma_b = baumgarte_acceleration_rhs(system, alpha, beta)
     cdot = ca.mtimes(cq, system.v) + system.constraint_time_derivative
     drift = ca.fmax(ca.norm_inf(system.constraints), ca.norm_inf(cdot) / (2.0 * alpha + 1.0))
     parts = ca.Function("al_parts", [t, q, v, pu],
-                        [system.mass_matrix, _forces(system, inputs), cq, gamma_b, drift])
+                        [system.mass_matrix, generalized_forces(system, inputs), cq, gamma_b,
+                          drift])
     tm, qm, vm, pm = (ca.MX.sym(n, s.sparsity()) for n, s in
                       (("t", t), ("q", q), ("v", v), ("p", pu)))
     solver = al_solver(system.mass_matrix.sparsity(), cq.sparsity(), penalty, iterations,
@@ -116,7 +117,7 @@ def augmented_lagrangian(system: System, penalty: float | None = None,
     iterations, refine, refine_drift = solver.iterations, solver.refine, solver.refine_drift
     pieces = parts(tm, qm, vm, pm)
     acc = solver(*pieces[:solver.n_in()])
-    f = _dyn("dyn_augmented_lagrangian", tm, ca.vertcat(qm, vm), ca.MX(0, 1), pm,
+    f = dae_function("dyn_augmented_lagrangian", tm, ca.vertcat(qm, vm), ca.MX(0, 1), pm,
              ca.vertcat(vm, acc), ca.MX(0, 1))
     return Formulation("augmented_lagrangian", "ode", f, system.nq, 0, [],
                        {"penalty": penalty, "iterations": iterations, "refine": refine,

@@ -217,11 +217,14 @@ def formulation_kind(name: str) -> FormulationKind:
 
 
 # ---------------------------------------------------------------------------- shared pieces
-def _sym_inputs(system: System):
+def symbolic_arguments(system: System) -> tuple[ca.SX, ca.SX, ca.SX, ca.SX]:
+    """The symbols (t, q, v, p) of the system's equations, in that order."""
     return system.t, system.q, system.v, system.p
 
 
-def _baumgarte_gamma(system: System, alpha: float, beta: float) -> ca.SX:
+def baumgarte_acceleration_rhs(system: System, alpha: float, beta: float) -> ca.SX:
+    """Right-hand side of the acceleration constraints with Baumgarte stabilisation,
+    γ − 2α Ċ − β² C with Ċ = C_q v + C_t (Baumgarte 1972; seed 000); γ itself when α = β = 0."""
     gamma = system.acceleration_rhs
     if alpha == 0.0 and beta == 0.0:
         return gamma
@@ -229,7 +232,7 @@ def _baumgarte_gamma(system: System, alpha: float, beta: float) -> ca.SX:
     return gamma - 2.0 * alpha * cdot - beta**2 * system.constraints
 
 
-def _forces(system: System, inputs: ca.SX | None, lam: ca.SX | None = None) -> ca.SX:
+def generalized_forces(system: System, inputs: ca.SX | None, lam: ca.SX | None = None) -> ca.SX:
     """Q_e + Q_v with the actuator inputs u replaced by their expressions of (t, p).
 
     With reaction-proportional joint friction, Q_e = Q_e(N = 0) + G N(q, λ) needs the
@@ -247,7 +250,9 @@ def _forces(system: System, inputs: ca.SX | None, lam: ca.SX | None = None) -> c
     return ca.substitute(forces, system.u, u_expr)
 
 
-def _dyn(name: str, t, x, z, p, ode, alg) -> ca.Function:
+def dae_function(name: str, t, x, z, p, ode, alg) -> ca.Function:
+    """The DAE as a CasADi integrator Function (``dyn_in``/``dyn_out``: t, x, z, p, u ->
+    ode, alg, quad, zero): ẋ = ode(t, x, z, p), 0 = alg(t, x, z, p), no controls."""
     u = ca.SX(0, 1) if isinstance(x, ca.SX) else ca.MX(0, 1)
     empty = ca.SX(0, 1) if isinstance(x, ca.SX) else ca.MX(0, 1)
     return ca.Function(name, [t, x, z, p, u], [ode, alg, empty, empty],

@@ -17,10 +17,10 @@ import numpy as np
 from casmbd.analysis.formulations.base import (
     Formulation,
     FormulationKind,
-    _baumgarte_gamma,
-    _dyn,
-    _forces,
-    _sym_inputs,
+    baumgarte_acceleration_rhs,
+    dae_function,
+    generalized_forces,
+    symbolic_arguments,
 )
 from casmbd.errors import AnalysisError
 from casmbd.model.needs import ALL_NEEDS, EVENT_NEEDS
@@ -30,31 +30,33 @@ from casmbd.system.equations import System
 def index1(system: System, alpha: float = 0.0, beta: float = 0.0,
            inputs: ca.SX | None = None) -> Formulation:
     """Semi-explicit index-1 DAE: x = (q, v), z = (q̈, λ)."""
-    t, q, v, pu = _sym_inputs(system)
+    t, q, v, pu = symbolic_arguments(system)
     a = ca.SX.sym("a", system.nq)
     lam = ca.SX.sym("lambda", system.nc)
     alg = ca.vertcat(
         ca.mtimes(system.mass_matrix, a) + ca.mtimes(system.constraint_jacobian.T, lam)
-        - _forces(system, inputs, lam),
-        ca.mtimes(system.constraint_jacobian, a) - _baumgarte_gamma(system, alpha, beta))
-    f = _dyn("dyn_index1", t, ca.vertcat(q, v), ca.vertcat(a, lam), pu, ca.vertcat(v, a), alg)
+        - generalized_forces(system, inputs, lam),
+        ca.mtimes(system.constraint_jacobian, a) - baumgarte_acceleration_rhs(system, alpha, beta))
+    f = dae_function("dyn_index1", t, ca.vertcat(q, v), ca.vertcat(a, lam), pu,
+                     ca.vertcat(v, a), alg)
     return Formulation("index1", "dae", f, system.nq, system.nq + system.nc, [f.jacobian()],
                        {"alpha": alpha, "beta": beta})
 
 
 def ggl(system: System, inputs: ca.SX | None = None) -> Formulation:
     """Gear–Gupta–Leimkuhler index-2 DAE: x = (q, v), z = (q̈, λ, μ)."""
-    t, q, v, pu = _sym_inputs(system)
+    t, q, v, pu = symbolic_arguments(system)
     a = ca.SX.sym("a", system.nq)
     lam = ca.SX.sym("lambda", system.nc)
     mu = ca.SX.sym("mu", system.nc)
     cq = system.constraint_jacobian
     alg = ca.vertcat(
-        ca.mtimes(system.mass_matrix, a) + ca.mtimes(cq.T, lam) - _forces(system, inputs, lam),
+        ca.mtimes(system.mass_matrix, a) + ca.mtimes(cq.T, lam)
+        - generalized_forces(system, inputs, lam),
         system.constraints,
         ca.mtimes(cq, v) + system.constraint_time_derivative)
     ode = ca.vertcat(v - ca.mtimes(cq.T, mu), a)
-    f = _dyn("dyn_ggl", t, ca.vertcat(q, v), ca.vertcat(a, lam, mu), pu, ode, alg)
+    f = dae_function("dyn_ggl", t, ca.vertcat(q, v), ca.vertcat(a, lam, mu), pu, ode, alg)
     return Formulation("ggl", "dae", f, system.nq, system.nq + 2 * system.nc, [f.jacobian()])
 
 

@@ -13,10 +13,10 @@ import casadi as ca
 from casmbd.analysis.formulations.base import (
     Formulation,
     FormulationKind,
-    _baumgarte_gamma,
-    _dyn,
-    _forces,
-    _sym_inputs,
+    baumgarte_acceleration_rhs,
+    dae_function,
+    generalized_forces,
+    symbolic_arguments,
 )
 from casmbd.model.needs import ALL_NEEDS
 from casmbd.system.equations import System
@@ -47,21 +47,21 @@ def _flexible(system: System) -> bool:
 def kkt_ode(system: System, alpha: float = 0.0, beta: float = 0.0,
             inputs: ca.SX | None = None) -> Formulation:
     """ODE on (q, v) with λ from the sparse Schur complement and an LDLᵀ solve."""
-    t, q, v, pu = _sym_inputs(system)
+    t, q, v, pu = symbolic_arguments(system)
     q_dot = v
     if not system.local or _flexible(system):
         return _kkt_ode_coupled(system, alpha, beta, inputs)
     if system.nc == 0:
-        a = ca.mtimes(_block_inverse(system), _forces(system, inputs))
-        f = _dyn("dyn_kkt_ode", t, ca.vertcat(q, v), ca.SX(0, 1), pu, ca.vertcat(q_dot, a),
+        a = ca.mtimes(_block_inverse(system), generalized_forces(system, inputs))
+        f = dae_function("dyn_kkt_ode", t, ca.vertcat(q, v), ca.SX(0, 1), pu, ca.vertcat(q_dot, a),
                  ca.SX(0, 1))
         return Formulation("kkt_ode", "ode", f, system.nq, 0)
     minv = _block_inverse(system)
     cq = system.constraint_jacobian
-    minv_q = ca.mtimes(minv, _forces(system, inputs))
+    minv_q = ca.mtimes(minv, generalized_forces(system, inputs))
     minv_ct = ca.mtimes(minv, cq.T)
     schur = ca.mtimes(cq, minv_ct)
-    rhs = ca.mtimes(cq, minv_q) - _baumgarte_gamma(system, alpha, beta)
+    rhs = ca.mtimes(cq, minv_q) - baumgarte_acceleration_rhs(system, alpha, beta)
     parts = ca.Function("kkt_parts", [t, q, v, pu], [schur, rhs, minv_q, minv_ct])
     tm, qm, vm, pm = (ca.MX.sym(n, s.sparsity()) for n, s in
                       (("t", t), ("q", q), ("v", v), ("p", pu)))
@@ -69,7 +69,7 @@ def kkt_ode(system: System, alpha: float = 0.0, beta: float = 0.0,
     solver = ca.Linsol("kkt_ldl", "ldl", schur.sparsity())
     lam = solver.solve(s_x, r_x)
     acc = mq_x - ca.mtimes(mc_x, lam)
-    f = _dyn("dyn_kkt_ode", tm, ca.vertcat(qm, vm), ca.MX(0, 1), pm, ca.vertcat(vm, acc),
+    f = dae_function("dyn_kkt_ode", tm, ca.vertcat(qm, vm), ca.MX(0, 1), pm, ca.vertcat(vm, acc),
              ca.MX(0, 1))
     return Formulation("kkt_ode", "ode", f, system.nq, 0, [], {"alpha": alpha, "beta": beta})
 
@@ -78,12 +78,12 @@ def _kkt_ode_coupled(system: System, alpha: float, beta: float,
                      inputs: ca.SX | None) -> Formulation:
     """KKT ODE for a coupled (joint-coordinate) mass matrix: M⁻¹ [Q, C_qᵀ] by a sparse LDLᵀ of
     the symmetric positive definite M, then the Schur complement C_q M⁻¹ C_qᵀ for λ."""
-    t, q, v, pu = _sym_inputs(system)
+    t, q, v, pu = symbolic_arguments(system)
     nc = system.nc
     cq = system.constraint_jacobian
-    outs = [system.mass_matrix, _forces(system, inputs)]
+    outs = [system.mass_matrix, generalized_forces(system, inputs)]
     if nc:
-        outs += [cq, _baumgarte_gamma(system, alpha, beta)]
+        outs += [cq, baumgarte_acceleration_rhs(system, alpha, beta)]
     parts = ca.Function("kkt_coupled_parts", [t, q, v, pu], outs)
     tm, qm, vm, pm = (ca.MX.sym(n, s.sparsity()) for n, s in
                       (("t", t), ("q", q), ("v", v), ("p", pu)))
@@ -99,7 +99,7 @@ def _kkt_ode_coupled(system: System, alpha: float, beta: float,
         acc = minv_q - ca.mtimes(minv_ct, lam)
     else:
         acc = solver.solve(m_x, f_x)
-    f = _dyn("dyn_kkt_ode", tm, ca.vertcat(qm, vm), ca.MX(0, 1), pm, ca.vertcat(vm, acc),
+    f = dae_function("dyn_kkt_ode", tm, ca.vertcat(qm, vm), ca.MX(0, 1), pm, ca.vertcat(vm, acc),
              ca.MX(0, 1))
     return Formulation("kkt_ode", "ode", f, system.nq, 0, [], {"alpha": alpha, "beta": beta})
 

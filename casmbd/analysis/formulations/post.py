@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-from casmbd.analysis.formulations.base import _forces, _sym_inputs
+from casmbd.analysis.formulations.base import generalized_forces, symbolic_arguments
 from casmbd.system.equations import System
 
 
@@ -26,12 +26,12 @@ def post_processing(system: System, inputs: ca.SX | None = None,
     """
     if dynamics is not None and system.nc == 0:
         return _post_from_dynamics(system, dynamics)
-    t, q, v, p = _sym_inputs(system)
+    t, q, v, p = symbolic_arguments(system)
     # reaction-proportional joint friction: Q_e at N = 0 here and a NaN residual, so that
     # every output time is recomputed by the numeric fixed point of λ and N
     # (casmbd.analysis.instant.kkt.accelerations_and_multipliers)
     friction = bool(system.friction_normal_symbols)
-    forces = _forces(system, inputs, ca.SX.zeros(system.nc) if friction else None)
+    forces = generalized_forces(system, inputs, ca.SX.zeros(system.nc) if friction else None)
     m_mat = system.mass_matrix
     cq = system.constraint_jacobian
     n, m = system.nq, system.nc
@@ -60,7 +60,7 @@ def post_processing(system: System, inputs: ca.SX | None = None,
 
 def _post_from_dynamics(system: System, dynamics: ca.Function) -> ca.Function:
     """``post`` of an unconstrained system with q̈ from its ODE right-hand side."""
-    t, q, v, p = _sym_inputs(system)
+    t, q, v, p = symbolic_arguments(system)
     parts = ca.Function("post_parts", [q, v, t, p],
                         [system.kinetic_energy, system.potential_energy])
     qm, vm, tm, pm = (ca.MX.sym(name, s.sparsity()) for name, s in

@@ -35,7 +35,8 @@ from dataclasses import dataclass, field
 import casadi as ca
 import numpy as np
 
-from casmbd.analysis.dynamics.simulate import Simulator, _input_expression
+from casmbd.analysis.dynamics.build_cache import input_expression
+from casmbd.analysis.dynamics.simulate import Simulator
 from casmbd.analysis.events.events import has_events
 from casmbd.analysis.instant.kkt import consistent_state
 from casmbd.analysis.integrators.option_ranges import check_integrator_options
@@ -267,7 +268,7 @@ def sensitivity(mechanism, outputs: Sequence[str] | str, parameters: Sequence[st
     if not chosen:
         raise AnalysisError("sensitivity: no parameters given")
     _check_runtime(mechanism, chosen)
-    u_expr = _input_expression(system, inputs)
+    u_expr = input_expression(system, inputs)
     kept = sim.redundancy.get("kept_rows")
 
     # --- the DAE with its quadratures, in SX

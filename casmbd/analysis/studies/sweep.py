@@ -59,14 +59,14 @@ from casmbd.analysis.dynamics.simulate import (
 from casmbd.analysis.events.events import compliant_events, has_events
 from casmbd.analysis.statics.statics import HANDLING as STATICS
 from casmbd.analysis.statics.statics import STATICS_NEEDS, static_equilibrium, statics_functions
-from casmbd.analysis.studies.sweep_result import SweepResult, _table, load_sweep
+from casmbd.analysis.studies.sweep_result import SweepResult, load_sweep, structured_table
 from casmbd.analysis.studies.sweep_values import (
     REDUCTIONS,
-    _check_output_names,
-    _check_outputs,
-    _evaluate_outputs,
-    _points,
+    check_output_names,
+    check_outputs,
+    evaluate_outputs,
     parse_values,
+    sweep_points,
 )
 from casmbd.compiled import codegen
 from casmbd.compiled.model import NEEDS, NumericModel
@@ -166,11 +166,11 @@ class _Runner:
             return inverse_dynamics(self.model, t_end=t_end, steps=steps, **opts)
         if self.resting:  # the same entry as the statics verb, at these values
             self.mechanism.parameters = p
-            return _statics_result(static_equilibrium(self.mechanism, mode=self.mode, **opts))
-        return _statics_result(static_equilibrium(self.model, **opts))
+            return statics_as_result(static_equilibrium(self.mechanism, mode=self.mode, **opts))
+        return statics_as_result(static_equilibrium(self.model, **opts))
 
 
-def _statics_result(res) -> Result:
+def statics_as_result(res) -> Result:
     """A :class:`~casmbd.analysis.statics.statics.StaticsResult` as a one-time :class:`Result` (so
     that it is saved, reloaded and reduced like the others)."""
     names = {k: list(v) for k, v in res.names.items()}
@@ -247,7 +247,7 @@ def _evaluate(spec: dict, index: int, values: dict[str, float], scene: str | Non
             if partial is not None and spec["out_dir"]:
                 _save_point(partial, spec, index, values, scene, failure=str(exc))
             raise
-        rec["outputs"] = _evaluate_outputs(spec["outputs"], result, spec["analysis"])
+        rec["outputs"] = evaluate_outputs(spec["outputs"], result, spec["analysis"])
         if spec["out_dir"]:
             rec["file"] = _save_point(result, spec, index, values, scene)
         rec["solve_seconds"] = float(result.stats.get("solve_seconds", math.nan))
@@ -477,8 +477,8 @@ def sweep(mechanism, params: Mapping[str, Iterable[float]] | None = None, *,
             raise AnalysisError(f"sweep: steps must be an integer >= 1, got {steps!r}")
         if not (math.isfinite(t_end) and t_end > options.get("t_start", 0.0)):
             raise AnalysisError(f"sweep: t_end must be finite and > t_start, got {t_end!r}")
-    _check_outputs(outputs)
-    pts = _points(params, points)
+    check_outputs(outputs)
+    pts = sweep_points(params, points)
     if isinstance(executor, str) and executor not in ("serial", "processes"):
         _require_dask(executor)
 
@@ -535,7 +535,7 @@ def sweep(mechanism, params: Mapping[str, Iterable[float]] | None = None, *,
     runner, _ = _runner(spec)
     parent_build = dict(runner.report)
     if outputs is not None and not callable(outputs):
-        _check_output_names(runner, spec, pts[0])  # before any point runs or file is written
+        check_output_names(runner, spec, pts[0])  # before any point runs or file is written
     if out_dir is not None:
         Path(out_dir).mkdir(parents=True, exist_ok=True)
 
@@ -590,8 +590,8 @@ def sweep(mechanism, params: Mapping[str, Iterable[float]] | None = None, *,
     point_stats = [{k: r.get(k) for k in ("index", "worker", "seconds", "runner_built",
                                            "build", "compiler_runs", "solve_seconds")}
                    for r in records]
-    res = SweepResult(analysis, _table(list(pts[0]), pts), _table(out_names, [r["outputs"]
-                                                                              for r in records]),
+    res = SweepResult(analysis, structured_table(list(pts[0]), pts),
+                      structured_table(out_names, [r["outputs"] for r in records]),
                       status, [r["error"] for r in records], [r["file"] for r in records],
                       stats, point_stats, None if out_dir is None else str(out_dir))
     stats["wall_seconds"] = time.perf_counter() - t_wall

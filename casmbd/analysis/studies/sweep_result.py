@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from casmbd.errors import AnalysisError, ResultFileError
-from casmbd.results import Result, _json_default, atomic_write, load, read_npz
+from casmbd.results import Result, atomic_write, json_default, load, read_npz
 
 
 # ====================================================================== the result
@@ -135,7 +135,7 @@ class SweepResult:
                 "stats": self.stats, "point_stats": self.point_stats, "out_dir": self.out_dir}
         payload = {"parameters": self.parameters, "outputs": self.outputs,
                    "status": np.asarray(self.status, dtype=str),
-                   "meta": np.array(json.dumps(meta, default=_json_default))}
+                   "meta": np.array(json.dumps(meta, default=json_default))}
 
         def write(tmp: str) -> None:
             with open(tmp, "wb") as fh:
@@ -203,7 +203,9 @@ def load_sweep(path: str | os.PathLike) -> SweepResult:
                               f"{exc})") from None
 
 
-def _table(names: list[str], rows: list[dict]) -> np.ndarray:
+def structured_table(names: list[str], rows: list[dict]) -> np.ndarray:
+    """The rows as a structured array with one float field per name (NaN where a row has no
+    value for it)."""
     arr = np.full(len(rows), np.nan, dtype=[(n, float) for n in names])
     for i, row in enumerate(rows):
         for n in names:

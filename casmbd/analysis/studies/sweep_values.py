@@ -59,8 +59,8 @@ def parse_values(text: str) -> tuple[str, list[float]]:
     return name, values
 
 
-def _points(params: Mapping[str, Iterable[float]] | None,
-            points: Sequence[Mapping[str, float]] | None) -> list[dict[str, float]]:
+def sweep_points(params: Mapping[str, Iterable[float]] | None,
+                 points: Sequence[Mapping[str, float]] | None) -> list[dict[str, float]]:
     """The grid product of ``params`` (first name slowest) or the given ``points``."""
     if (params is None) == (points is None):
         raise AnalysisError("sweep: give either params={name: values} (grid product) or "
@@ -101,7 +101,9 @@ def _points(params: Mapping[str, Iterable[float]] | None,
 _BODY = re.compile(r"^(body|marker|joint)\.([^.]+)\.([A-Za-z_]+)(?:\.([A-Za-z0-9_]+))?$")
 
 
-def _check_outputs(outputs) -> None:
+def check_outputs(outputs) -> None:
+    """Refuse an ``outputs`` that is neither None, a callable nor a list of known output
+    names (:class:`~casmbd.errors.AnalysisError` naming the output)."""
     if outputs is None or callable(outputs):
         return
     if isinstance(outputs, str) or not all(isinstance(o, str) for o in outputs):
@@ -188,7 +190,7 @@ def _absolute_alias(result: Result, column: str) -> np.ndarray | None:
     return arr[:, _ALIASES[coord]] if _ALIASES[coord] < arr.shape[1] else None
 
 
-def _check_output_names(runner, spec: dict, values: Mapping[str, float]) -> None:
+def check_output_names(runner, spec: dict, values: Mapping[str, float]) -> None:
     """Evaluate the named outputs on a probe run at the first point — one output step over
     1e-6 of the time span (statics: the point itself) — so that an unknown column, body or
     joint is an :class:`~casmbd.errors.AnalysisError` naming the output before any point
@@ -202,7 +204,7 @@ def _check_output_names(runner, spec: dict, values: Mapping[str, float]) -> None
         probe = runner.run(values, t_end, 1)
     except CasmbdError:
         return
-    _evaluate_outputs(spec["outputs"], probe, spec["analysis"])
+    evaluate_outputs(spec["outputs"], probe, spec["analysis"])
 
 
 def _default_outputs(result: Result, analysis: str) -> list[str]:
@@ -217,7 +219,8 @@ def _default_outputs(result: Result, analysis: str) -> list[str]:
     return names
 
 
-def _evaluate_outputs(outputs, result: Result, analysis: str) -> dict[str, float]:
+def evaluate_outputs(outputs, result: Result, analysis: str) -> dict[str, float]:
+    """The named outputs (or the callable's) of one point's ``result`` as floats."""
     if callable(outputs):
         raw = outputs(result)
         if not isinstance(raw, Mapping):
