@@ -35,8 +35,8 @@ import casadi as ca
 import numpy as np
 
 from casmbd.analysis.integrators.kinds import (
+    BufferedFunction,
     IntegratorKind,
-    _Buffered,
     fixed_fold,
 )
 from casmbd.compiled.codegen import compile_functions
@@ -182,16 +182,16 @@ class Dopri:
                  block: ca.Function | None = None):
         self.nx = dyn.size1_in("x")
         t, x, p = ca.MX.sym("t"), ca.MX.sym("x", self.nx), ca.MX.sym("p", dyn.size1_in("p"))
-        self._f = _Buffered(ca.Function("rhs", [t, x, p], [dyn(t=t, x=x, p=p)["ode"]]))
+        self._f = BufferedFunction(ca.Function("rhs", [t, x, p], [dyn(t=t, x=x, p=p)["ode"]]))
         self.report = None
         if block is not None:  # compiled with the model (DopriKind.model_functions)
-            self._block = _Buffered(block)
+            self._block = BufferedFunction(block)
             return
         block = dopri_block(dyn)
         if mode != "vm":
             compiled, self.report = compile_functions([block], name=name, mode=mode)
             block = compiled[block.name()]
-        self._block = _Buffered(block)
+        self._block = BufferedFunction(block)
 
     def start(self, x0, t0: float, t_end: float, p, rtol: float, atol: float,
               after: DopriState | None = None) -> DopriState:

@@ -22,8 +22,8 @@ import numpy as np
 
 from casmbd.analysis.integrators.invariants import check_energy
 from casmbd.analysis.integrators.kinds import (
+    BufferedFunction,
     IntegratorKind,
-    _Buffered,
     fixed_fold,
     integrator_kind,
     names,
@@ -114,8 +114,8 @@ class FixedStep:
             funcs = [compiled[f.name()] for f in funcs]
         self.rk, self.f = funcs[0], funcs[1]
         # every call through arrays bound once: ~1 µs instead of 50-150 µs of conversion
-        self._rk, self._f = _Buffered(self.rk), _Buffered(self.f)
-        self._folds = {k: _Buffered(f) for k, f in zip(self.FOLDS, funcs[2:])}
+        self._rk, self._f = BufferedFunction(self.rk), BufferedFunction(self.f)
+        self._folds = {k: BufferedFunction(f) for k, f in zip(self.FOLDS, funcs[2:])}
 
     def start(self, x0, t0: float, p, after: FixedState | None = None) -> FixedState:
         """The state at (``x0``, ``t0``) before any step, ABM4's history still empty.

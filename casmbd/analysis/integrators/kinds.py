@@ -5,7 +5,7 @@ Every integrator is built once for a uniform output interval ``h`` on shifted ti
 the dynamics receive the interval start t_k as an extra parameter (:func:`shifted`), so the
 same object integrates any interval (used by projection and by the error path that keeps
 partial results).  Compiled step sequences are folds of a step (:func:`fixed_fold`) called on
-arrays bound once (:class:`_Buffered`).
+arrays bound once (:class:`BufferedFunction`).
 
 Each integrator is an :class:`IntegratorKind` in the registry :data:`INTEGRATORS` (name ->
 kind, like scipy's ``solve_ivp`` ``METHODS``): what it integrates (ODE, DAE, numeric right-hand
@@ -61,7 +61,7 @@ def fixed_fold(step: ca.Function, count: int, name: str) -> ca.Function:
     return ca.Function(name, [s, p, h], [out], ["s", "p", "h"], ["s_next"])
 
 
-class _Buffered:
+class BufferedFunction:
     """A Function called on numpy arrays bound once (``Function.buffer()``): the arguments
     are copied into the bound arrays, and the first output is returned as a new array."""
 
