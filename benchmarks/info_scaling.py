@@ -95,11 +95,17 @@ def markdown(data: dict) -> str:
             "assembled, dense least-squares Newton steps (70 s for a driven 500-rod chain; now "
             "a sparse augmented system, 2.3 s). What is left grows linearly: reading the "
             "scene, building the expressions, the CasADi Functions.")
-    out = [HEAD, "", *textwrap.wrap(text, 95), "",
+    return before_now_table(HEAD, text, data["rows"], BEFORE)
+
+
+def before_now_table(head: str, text: str, rows: list[dict], before: dict) -> str:
+    """A docs section: ``head``, the wrapped ``text`` and a table of N, the time before (from
+    ``before``, N -> s) and now, and the degrees of freedom of each row."""
+    out = [head, "", *textwrap.wrap(text, 95), "",
            "| N | before [s] | now [s] | degrees of freedom |", "|---:|---:|---:|---:|"]
-    for row in data["rows"]:
-        before = BEFORE.get(row["n"])
-        out.append(f"| {row['n']} | {before if before is not None else '–'} | "
+    for row in rows:
+        then = before.get(row["n"])
+        out.append(f"| {row['n']} | {then if then is not None else '–'} | "
                    f"{row['seconds']:.1f} | {row['dof']} |")
     out.append("")
     return "\n".join(out) + "\n"

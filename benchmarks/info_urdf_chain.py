@@ -16,11 +16,11 @@ import os
 import subprocess
 import sys
 import tempfile
-import textwrap
 import time
 from pathlib import Path
 
 from benchmarks.docs import run_study, study_parser
+from benchmarks.info_scaling import before_now_table
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "benchmarks" / "results" / "info_urdf_chain.json"
@@ -82,14 +82,7 @@ def markdown(data: dict) -> str:
             "an incidence list), validation built CasADi symbols for every plain number, and "
             "the check whether the articulated recursion applies wrote every body's gravity "
             "term; what is left is reading the URDF and building the mechanism.")
-    out = [HEAD, "", *textwrap.wrap(text, 95), "",
-           "| N | before [s] | now [s] | degrees of freedom |", "|---:|---:|---:|---:|"]
-    for row in data["rows"]:
-        before = BEFORE.get(row["n"])
-        out.append(f"| {row['n']} | {before if before is not None else '–'} | "
-                   f"{row['seconds']:.1f} | {row['dof']} |")
-    out.append("")
-    return "\n".join(out) + "\n"
+    return before_now_table(HEAD, text, data["rows"], BEFORE)
 
 
 def main(argv=None) -> int:
