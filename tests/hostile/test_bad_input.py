@@ -12,6 +12,7 @@ import re
 
 import pytest
 from conftest import private_cache
+from scene_builders import HEAD, PENDULUM, PIVOT, body, entry, joint
 
 from casmbd.analysis.driven.kinematics import info, kinematics
 from casmbd.errors import (
@@ -30,34 +31,6 @@ EXAMPLES = REPO_ROOT / "examples"
 
 
 _cache = private_cache("casmbd_cache_bad_input", scope="module", CASMBD_COMPILE="0")
-
-
-# ---------------------------------------------------------------------- scene builders
-HEAD = '[scene]\nname = "bad"\ngravity = [0.0, -9.81]\n'
-
-
-def body(name: str, x: float = 0.5, y: float = 0.0, **fields: str) -> str:
-    """A [[bodies]] entry; ``fields`` override or add keys (values are TOML text)."""
-    keys = {"name": f'"{name}"', "mass": "1.0", "inertia": "0.1", "position": f"[{x}, {y}]"}
-    keys.update(fields)
-    return "\n[[bodies]]\n" + "".join(f"{k} = {v}\n" for k, v in keys.items() if v is not None)
-
-
-def joint(name: str, jtype: str, body1: str = "ground", body2: str = "rod", **fields: str) -> str:
-    """A [[joints]] entry (values of ``fields`` are TOML text)."""
-    keys = {"name": f'"{name}"', "type": f'"{jtype}"', "body1": f'"{body1}"',
-            "body2": f'"{body2}"'}
-    keys.update(fields)
-    return "\n[[joints]]\n" + "".join(f"{k} = {v}\n" for k, v in keys.items() if v is not None)
-
-
-def entry(table: str, **fields: str) -> str:
-    """Any array-of-tables entry (values are TOML text)."""
-    return f"\n[[{table}]]\n" + "".join(f"{k} = {v}\n" for k, v in fields.items())
-
-
-PIVOT = joint("pivot", "revolute", point="[0.0, 0.0]")
-PENDULUM = HEAD + body("rod") + PIVOT
 
 
 def driver_scene(position_toml: str) -> str:

@@ -14,6 +14,7 @@ import zipfile
 import numpy as np
 import pytest
 from conftest import private_cache
+from scene_builders import scene_text
 
 from casmbd.analysis.dynamics.simulate import simulate
 from casmbd.cli import main
@@ -21,24 +22,7 @@ from casmbd.errors import AnalysisError, ResultFileError
 from casmbd.io.scene import load_result as load
 from casmbd.io.scene import loads_scene
 
-SCENE = """
-[scene]
-name = "pendulum"
-gravity = [0.0, -9.81]
-
-[[bodies]]
-name = "rod"
-mass = 1.0
-inertia = 0.1
-position = [0.5, 0.0]
-
-[[joints]]
-name = "pivot"
-type = "revolute"
-body1 = "ground"
-body2 = "rod"
-point = [0.0, 0.0]
-"""
+SCENE = scene_text("pinned_rod")
 
 
 _vm = private_cache("cache_files", CASMBD_COMPILE="0")

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from conftest import private_cache
-from test_bad_input import HEAD, PENDULUM, body, entry, joint
+from scene_builders import HEAD, PENDULUM, body, entry, joint
 
 from casmbd.analysis.driven.inverse import inverse_dynamics
 from casmbd.analysis.driven.kinematics import kinematics

@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 from conftest import private_cache
 from numpy.lib import format as npy_format
+from scene_builders import scene_text
 
 from casmbd.analysis.dynamics.simulate import simulate
 from casmbd.cli import main
@@ -29,24 +30,7 @@ from casmbd.results import load
 
 _vm = private_cache("cache_reads", CASMBD_COMPILE="0")
 
-PENDULUM = """
-[scene]
-name = "pendulum"
-gravity = [0.0, -9.81]
-
-[[bodies]]
-name = "rod"
-mass = 1.0
-inertia = 0.1
-position = [0.5, 0.0]
-
-[[joints]]
-name = "pivot"
-type = "revolute"
-body1 = "ground"
-body2 = "rod"
-point = [0.0, 0.0]
-"""
+PENDULUM = scene_text("pinned_rod")
 
 URDF_SCENE = """
 [scene]

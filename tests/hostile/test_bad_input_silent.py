@@ -30,7 +30,7 @@ import pathlib
 import numpy as np
 import pytest
 from conftest import private_cache
-from test_bad_input import HEAD, PENDULUM, body, entry, joint
+from scene_builders import HEAD, PENDULUM, body, entry, joint
 
 from casmbd.analysis.dynamics.postprocess import first_non_finite
 from casmbd.analysis.dynamics.simulate import simulate
