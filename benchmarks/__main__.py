@@ -126,7 +126,7 @@ def _peer(which: str) -> Callable[[], tuple[float, float] | None]:
 #: --json``, issue 18, on the 2-core CI machine, compiled and CASMBD_COMPILE=0 alike; the
 #: peers with mujoco 3.3.7 and exudyn 1.13.6): tight enough that a regression of an order of
 #: magnitude fails, loose enough for another BLAS or compiler.  A check whose quantity is an
-#: integer has bound 0 (exact).  tests/test_bench_quick.py keeps every bound ≤ 30× the error.
+#: integer has bound 0 (exact).  tests/peers/test_bench_quick.py keeps every bound ≤ 30× the error.
 QUICK: tuple = (
     # measured 6.47e-8: bound 9.3×
     ("chain2 joint articulated/adams 1e-8", "tip vs minimal-coordinate reference [m]", 6e-7,

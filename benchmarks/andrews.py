@@ -392,7 +392,8 @@ def markdown(rows: list[dict], timing: dict, variants: list[dict], command: str)
         "gravity only m r² + I enters); the directions in the scene are our choice and do "
         "not change the motion. The published multipliers λ1…λ6 are the forces of body 2 "
         "on bodies 3, 4, 6 at E (joint reactions E23, E24, E26).", "",
-        "**Checks** (tests/test_andrews.py): the assembly from a perturbed guess with β held "
+        "**Checks** (tests/analysis/dynamics/test_andrews.py): the assembly from a perturbed guess "
+        "with β held "
         "returns the published initial angles to 1e-12 rad; the initial accelerations "
         "(β̈ = 14222.44…, Θ̈ = −10666.83…, the rest 0) and multipliers (98.567…, −6.123…) "
         "equal the published ones to 1e-9 relative; at t = 0.03 the angles, angular "

@@ -328,7 +328,7 @@ def markdown(rows: list[dict], mot: dict, ranks: dict, crank: dict, command: str
         "gravity −y). **No published number** was found: the reference solution is a time "
         "history of P3 shown only as a plot; the checks here are self-convergence across "
         "formulations and descriptions, the energy and the period "
-        "(tests/test_crankshaft_bricard.py).", "",
+        "(tests/analysis/instant/test_crankshaft_bricard.py).", "",
         f"**Mobility from the rank.** Grübler's count is 6 × 5 − 5 × 6 = 0. In absolute "
         f"coordinates C_q is {a['n_constraints']} × {a['n_coordinates']} (30 joint equations, "
         f"5 Euler-parameter normalisations) of rank {a['rank']}: "
@@ -474,7 +474,8 @@ def findings(rows: list[dict], ref: dict, accel: dict | None = None) -> list[str
             + " m/s² (rad/s²). After integration the redundant row is only nearly dependent "
             "(σ_min/σ_max ≈ 1e-12); the post-processing re-solves every output step by a "
             "truncated minimum-norm KKT solve, so the row's inconsistency is not amplified "
-            "(tests/test_crankshaft_bricard.py::test_bricard_reported_accelerations, 1e-8; "
+            "(tests/analysis/instant/test_crankshaft_bricard.py::"
+            "test_bricard_reported_accelerations, 1e-8; "
             "before that fix the compiled QR of the singular KKT matrix returned |λ| ~ 1e16 "
             "and the accelerations were 1e-6 off).")
     return lines

@@ -268,7 +268,8 @@ def markdown(rows: list[dict], bal: dict, command: str) -> str:
         "centre-of-mass speed 5.60155553 m/s equals ours). **No published number** (s or ω at "
         "a final time) was found: the benchmark's reference solution is a time history of s, "
         "shown only as a plot (MBS-BOS, first 3 s); so the checks here are self-convergence, "
-        "an independent set of coordinates and balance laws (tests/test_flyball_governor.py).",
+        "an independent set of coordinates and balance laws "
+        "(tests/analysis/dynamics/test_flyball_governor.py).",
         "",
         "**Choices where the sources are silent or disagree.** Simulated time 10 s (MBS-BOS "
         "text and Exudyn; MBS-BOS's parameter file says 350 s). The arm prisms' inertia about "

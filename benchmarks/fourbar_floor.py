@@ -202,7 +202,8 @@ def markdown(data: dict) -> str:
     lines += ["", "**Findings.**", "",
               "* The reference is exact to ~1e-11 rad; the floor is in casmbd.",
               "* Absolute coordinates: the right-hand side is exact to ≈ 1e-13 relative through "
-              "the passes (the singular direction carries no load there: tests/test_al_accuracy"
+              "the passes (the singular direction carries no load there: "
+              "tests/analysis/formulations/test_al_accuracy"
               ".py, benchmarks/al_accuracy.py) and RK4 and DOPRI5 converge cleanly (DOPRI5 "
               "below 1e-9 from rtol 1e-11); with Adams the error is 1e2–1e4 × rtol, made at the "
               "passes, and falls below 1e-9 only from rtol 1e-13 — the work-precision sweep "
@@ -215,7 +216,8 @@ def markdown(data: dict) -> str:
               f"{REFINE} more corrections where the last two say the iteration is not done and "
               f"the drift is ≤ {REFINE_DRIFT:g}; idle and bit-identical at regular poses) "
               "narrows the window (δ = 1e-3: 3e-3 → 0; δ = 1e-4: 2.4e-3 → 1.2e-3) and the "
-              "default path reaches 1e-9 from rtol 1e-12 (tests/test_al_refine.py).",
+              "default path reaches 1e-9 from rtol 1e-12 "
+              "(tests/analysis/formulations/test_al_refine.py).",
               "* The drift gate keeps loose tolerances as they were: refined at any state, the "
               "narrower window is a sharper feature for the integrator and states that far off "
               "the constraints get resolved along the unconverged direction (last table).",

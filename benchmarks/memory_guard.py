@@ -162,7 +162,7 @@ def markdown(rows: list[dict]) -> str:
              "(`ru_maxrss` of a fresh process) at the steps given minus that at a quarter of "
              "them, per added output time (from a tiny baseline the first output times fill "
              "memory freed after the build, 10–40 MB, and the growth looks smaller).  "
-             "`tests/test_memory_guard.py` keeps the measured growth "
+             "`tests/analysis/dynamics/test_memory_guard.py` keeps the measured growth "
              "within 1.5× of the estimate (both ways).", "",
              "| case | steps | output | measured [KB/time] | estimate [KB/time] | "
              "estimate / measured |",

@@ -506,7 +506,8 @@ def findings(rows: list[dict], ref: dict, survey: dict) -> list[str]:
             "rounding-noise floor of regular chains at tight tolerances (docs/dynamics.md, "
             "\"Choosing the augmented-Lagrangian penalty\", `python -m benchmarks.al_penalty`), "
             "so the default penalty stays and the tighter setting is an option "
-            "(tests/test_singular_chains.py follows chains of 1, 3 and 5 windows).")
+            "(tests/analysis/formulations/test_singular_chains.py follows chains of 1, 3 and 5 "
+            "windows).")
     if failed:
         times = [float(r["message"].split(" at t = ")[1].split(" s")[0]) for r in failed
                  if " at t = " in r["message"]]

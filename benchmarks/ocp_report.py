@@ -428,8 +428,8 @@ def update_ocp_doc(rows: list[Row], command: str) -> None:
             "ran on the 2-core machine. Set-up cold / cached: first process in an empty "
             "`CASMBD_CACHE_DIR` / second process (only the compiled variants have anything "
             f"to cache); a script is run {SCRIPT_RUNS} times. Checked in "
-            "`tests/test_ocp_core.py`, `tests/test_ocp_problems.py`, "
-            "`tests/test_ocp_structured.py` and `tests/test_ocp_bench.py`.")
+            "`tests/ocp/test_ocp_core.py`, `tests/ocp/test_ocp_problems.py`, "
+            "`tests/ocp/test_ocp_structured.py` and `tests/peers/test_ocp_bench.py`.")
     table = ocp_table(rows)
     if start < 0:
         text = text.rstrip() + f"\n\n{OCP_DOC_SECTION}\n\n{table}\n\n{note}\n"

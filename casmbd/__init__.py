@@ -10,8 +10,8 @@ The layers, each importing only the ones before it:
 * :mod:`casmbd.ocp` — trajectory optimisation over the same model (collocation, shooting, IPOPT);
 * :mod:`casmbd.io`, :mod:`casmbd.viz`, :mod:`casmbd.cli` — scene files, plots, the CLI.
 
-``errors``, ``interrupts``, ``limits`` and ``progress`` sit below all; tests/test_layers.py
-checks the rule.
+``errors``, ``interrupts``, ``limits`` and ``progress`` sit below all;
+tests/architecture/test_layers.py checks the rule.
 """
 
 import importlib

@@ -130,7 +130,7 @@ def integrator_clock(dyn: ca.Function, tout) -> tuple[ca.Function, _OutputClock]
     counted, by about one step in eight; with few, the bar catches up at the next call.
     Quadratures stay out of SUNDIALS' error test (CasADi's ``quad_err_con`` is false by
     default) and no derivative of the callback is needed, so the states, the steps and the
-    statistics are those of ``dyn`` — bit for bit (tests/test_progress.py).  Keep the clock
+    statistics are those of ``dyn`` — bit for bit (tests/cli/test_progress.py).  Keep the clock
     referenced while the integrator lives: CasADi does not own it.
 
     Returns

@@ -14,7 +14,8 @@ every shape.
 
 The demonstration: a ball dropped onto the top of a dome, from Python and from a scene.
 
-Run it with ``python examples/custom_contact.py``; ``tests/test_custom_registries.py`` runs it.
+Run it with ``python examples/custom_contact.py``;
+``tests/architecture/test_custom_registries.py`` runs it.
 """
 
 from __future__ import annotations

@@ -13,7 +13,7 @@ connecting rod pinned to the crank, its far end on the horizontal line y = 0 —
 rest under gravity, built once from Python (``Mechanism.add``) and once from a scene string,
 in every coordinate choice.
 
-Run it with ``python examples/custom_joint.py``; ``tests/test_custom_kind.py`` runs it too.
+Run it with ``python examples/custom_joint.py``; ``tests/model/test_custom_kind.py`` runs it too.
 """
 
 from __future__ import annotations

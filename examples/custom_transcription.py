@@ -16,8 +16,8 @@ the boundary conditions, the objective and the solve are the transcription's
 The demonstration: the cart-pole swing-up of ``ocp/cart_pole.toml`` (hand-written CasADi
 reference 53.66) with 40 intervals, solved by this method and by Radau collocation.
 
-Run it with ``python examples/custom_transcription.py``; ``tests/test_custom_registries.py``
-runs it too.
+Run it with ``python examples/custom_transcription.py``;
+``tests/architecture/test_custom_registries.py`` runs it too.
 """
 
 from __future__ import annotations

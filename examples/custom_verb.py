@@ -10,7 +10,7 @@ object on stdout), ``--debug``, the one-line errors and the exit statuses are th
 (:func:`mass_properties` below).
 
 Run it with ``python examples/custom_verb.py SCENE [--json] [--body NAME ...]``;
-``tests/test_custom_registries.py`` runs it too.
+``tests/architecture/test_custom_registries.py`` runs it too.
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Headless Chromium driving the pages of ``casmbd view`` (tests/test_view_browser.py and
+"""Headless Chromium driving the pages of ``casmbd view`` (tests/viz/test_view_browser.py and
 benchmarks/view_cost.py): open a page, read back the three.js scene, move the time slider.
 
 viser's three.js objects carry no names; the page is opened with an init script that

@@ -5,7 +5,7 @@ unilateral elements and of joint friction has a builder here, keyed by its varia
 builder returns a planar or spatial Mechanism with the element under test on a pendulum
 (``link`` on the revolute ``pin``, 1 m, 1 kg) or on its own small mechanism, and
 ``driven=True`` adds a driver for every degree of freedom (for kinematics and inverse
-dynamics).  ``tests/test_composition.py`` fails for a registered kind with no builder.
+dynamics).  ``tests/architecture/test_composition.py`` fails for a registered kind with no builder.
 """
 
 from __future__ import annotations

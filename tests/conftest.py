@@ -1,11 +1,21 @@
-"""Make the repository root importable for the tests; the private compiled-code cache."""
+"""Make the repository root and the shared test helpers importable; the private compiled-code
+cache.
+
+The tests live in folders that mirror the package (tests/README.md); the helpers they share
+(``mechanisms``, ``flexible_references``, ``symbolic_checks``, ``composition_scenes``, this
+module's :func:`private_cache`, the scenes of ``tests/scenes/``) stay at ``tests/``, which is on
+``sys.path`` for every folder.
+"""
 
 import pathlib
 import sys
 
 import pytest
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent.parent))
+TESTS = pathlib.Path(__file__).resolve().parent
+sys.path.insert(0, str(TESTS.parent))
+if str(TESTS) not in sys.path:
+    sys.path.insert(1, str(TESTS))
 
 
 def private_cache(name: str | None = None, *, scope: str = "function", autouse: bool = True,

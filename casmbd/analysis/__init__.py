@@ -2,7 +2,7 @@
 
 This module is the face of the layer: the verbs below, each loaded from its room on first use
 (PEP 562), so ``import casmbd.analysis`` alone imports no room.  The rooms, lowest floor first
-(a room imports only its own and lower floors; tests/test_layers.py):
+(a room imports only its own and lower floors; tests/architecture/test_layers.py):
 
 * :mod:`.instant` — one instant: assembly, KKT, redundancy, independent equations, culprits,
   first-evaluation checks, reactions, joint friction;

@@ -11,7 +11,7 @@ one-line errors, ``--json`` contract and exit statuses of every verb.
 The shipped verbs are registered by :mod:`casmbd.cli` (their functions are imported when they
 run, so ``casmbd info`` loads neither the OCP nor the plots); their parsers are still written
 out in :func:`casmbd.cli.build_parser`.  How to add one: ``examples/custom_verb.py``
-(``tests/test_custom_registries.py`` runs it).
+(``tests/architecture/test_custom_registries.py`` runs it).
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ Every element kind registers in :mod:`casmbd.model.registry` in its own module; 
 imports each of those modules (joints, spatial joints, planar joint, gear; forces, expression
 force, joint friction, contacts; rigid and flexible bodies), so ``JOINT_KINDS``,
 ``FORCE_KINDS`` and ``BODY_KINDS`` are complete whenever any ``casmbd.model`` module is
-imported (``tests/test_layers.py`` checks it in a fresh process).
+imported (``tests/architecture/test_layers.py`` checks it in a fresh process).
 """
 
 from casmbd.model.bodies import GROUND, Body, Marker, SpatialBody

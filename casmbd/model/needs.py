@@ -5,7 +5,8 @@ Every element kind — body, joint, driver, actuator, force element, unilateral 
 meet, as a frozenset of the names of :data:`NEEDS` (``needs``; a property where it depends on
 the element's own fields, as a contact's ``model``).  A kind that needs nothing special
 (holonomic constraint equations written through the context, smooth applied forces, a rigid
-body) declares the empty set, explicitly: ``tests/test_composition.py`` checks that every
+body) declares the empty set, explicitly:
+``tests/architecture/test_composition.py`` checks that every
 kind casmbd registers declares it in its own class, so a new kind cannot fall silently through
 the analyses.  Each analysis declares what it handles (:mod:`casmbd.analysis.composition`),
 and one check compares the two before any work.

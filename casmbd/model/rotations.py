@@ -21,7 +21,7 @@ The seed covers direction cosines, orthogonality (eq. 18), Euler angles (eqs. 28
 angular-velocity relations (eqs. 38–53, 70 and 80–83) and the inertia tensor (eqs. 102–105);
 it defers Euler parameters to "the following chapter", so the Euler-parameter formulas here
 (``A(p)``, ``E``, ``G``) are the standard ones (Nikravesh; Shabana, ch. 7) and are verified in
-``tests/test_rotations.py`` against the seed's relations (orthogonality, ``ω̃ = Ȧ Aᵀ``).
+``tests/model/test_rotations.py`` against the seed's relations (orthogonality, ``ω̃ = Ȧ Aᵀ``).
 """
 
 from __future__ import annotations

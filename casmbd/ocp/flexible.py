@@ -4,7 +4,7 @@ IPOPT's pivot tolerance.
 A flexible body (:mod:`casmbd.model.flexible_bodies`) brings elastic modes into the equations
 of motion, and when the body is driven through a joint at a node its fastest mode is that of
 the *coupled* system, far above the body's own (fixed-interface) frequencies: the hub-driven
-beam of ``tests/test_ocp_flexible.py`` (10 m, EI = 1.4e4 N m², ρA = 1.2 kg/m, two
+beam of ``tests/ocp/test_ocp_flexible.py`` (10 m, EI = 1.4e4 N m², ρA = 1.2 kg/m, two
 Craig–Bampton modes at 3.7 and 22 rad/s) has coupled modes at 15.6 and 71.9 rad/s.  Two things
 then go wrong in a collocation transcription (measured on that problem, T = 4 s, 40 intervals,
 minimum effort weighted 1e-4):

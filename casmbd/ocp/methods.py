@@ -17,8 +17,8 @@ Registered here, so :data:`TRANSCRIPTIONS` is complete when this module is impor
   sensitivities and a limited-memory Hessian).
 
 How to add one: a subclass with ``name`` and :meth:`~TranscriptionMethod.build`, registered
-with :func:`register_transcription` (``tests/test_ocp_methods.py`` adds trapezoidal
-collocation from a test).
+with :func:`register_transcription` (``tests/architecture/test_custom_registries.py`` adds
+trapezoidal collocation from ``examples/custom_transcription.py``).
 """
 
 from __future__ import annotations

@@ -179,7 +179,7 @@ class OcpSolution:
         integrator fails at a tolerance below :data:`REPLAY_FALLBACK_RTOL` the replay is
         repeated at that tolerance and ``stats["replay_rtol"]`` says so: IDAS's corrector
         stops converging near round-off on fast elastic modes (the hub-driven flexible beam
-        of ``tests/test_ocp_flexible.py``, 72 rad/s with modal rates of 54/s: IDA_CONV_FAIL
+        of ``tests/ocp/test_ocp_flexible.py``, 72 rad/s with modal rates of 54/s: IDA_CONV_FAIL
         with h ≈ 1e-22 at 1e-12; 1e-11 and 1e-10 replay it to the same 1.56e-2).
         """
         if self.ocp is None:

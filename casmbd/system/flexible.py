@@ -58,7 +58,7 @@ x × y becomes the scalar x_x y_y − x_y y_x and u⊥ = ẑ × u:
 
 which are Lagrange's M = ∂²T/∂q̇² and Q_v = ∂T/∂q − Ṁ q̇ for q = (R, θ, η).  In space w is not a
 coordinate rate: with ω̄ = B(q) q̇ for a rotation parametrisation q, M_q = Bᵀ M B and
-Q_v,q = Bᵀ (Q_v − M Ḃ q̇) (checked in tests/test_ffrf.py with Euler angles).  For Euler
+Q_v,q = Bᵀ (Q_v − M Ḃ q̇) (checked in tests/system/test_ffrf.py with Euler angles).  For Euler
 parameters (ω̄ = 2 G(p) ṗ, B = diag(1, 2G, 1)) Ḃ q̇ = 0 (G(ṗ) ṗ = 0): on |p| = 1, Bᵀ M B equals
 the Hessian of T(A(p), 2 G ṗ) exactly, and Bᵀ Q_v differs from AD's ∂T/∂q − Ṁ q̇ only along p,
 which the normalisation constraint's multiplier absorbs (also checked in the tests).

@@ -58,7 +58,8 @@ def augmented_lagrangian(system: System, penalty: float | None = None,
     direction with singular value σ of C_q converges at the rate 1/(1 + α σ²/m) per
     iteration; ``iterations`` defaults to 10 when K is factorised once (one factorisation,
     then cheap corrections: the module docstring), which converges every benchmark problem at
-    regular poses to the exact KKT q̈ within ≈ 1e-15 relative (tests/test_al_accuracy.py; the
+    regular poses to the exact KKT q̈ within ≈ 1e-15 relative
+    (tests/analysis/formulations/test_al_accuracy.py; the
     spatial 8-rod chain, whose slowest direction has α σ²/m ≈ 26, was still 1e-6 off with 4),
     and to 4 when K is too large for the straight-line factorisation and every solve
     re-factorises it (:data:`SYMBOLIC_LIMIT`).  Near a singular pose
@@ -77,7 +78,8 @@ def augmented_lagrangian(system: System, penalty: float | None = None,
     right-hand side and loose-tolerance runs leave their accuracy (median crank error at
     rtol 1e-6 over eight runs: 1.6 rad against 2.6e-2 unrefined, 1.8e-2 gated), since a
     state that far off the constraints carries errors the unconverged direction must not
-    resolve.  At regular poses the switch is idle and q̈ bit-identical (tests/test_al_refine.py).
+    resolve.  At regular poses the switch is idle and q̈ bit-identical
+    (tests/analysis/formulations/test_al_refine.py).
 
     Raises
     ------
