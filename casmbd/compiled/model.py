@@ -295,47 +295,47 @@ class NumericModel:
     _sparse = sparse
 
     # ------------------------------------------------------------------ equations
+    # evaluated through the model's own workspace :attr:`data`; an analysis takes its own
+    # (:meth:`workspace`) and calls the same-named methods of that
     def constraints(self, q, t: float) -> np.ndarray:
         """C(q, t)."""
-        return self._vector("constraints", q, t, self.p)
+        return self.data.constraints(q, t)
 
     def constraint_jacobian(self, q, t: float) -> sp.csc_matrix:
         """C_q(q, t) as a sparse matrix."""
-        return self._sparse("constraint_jacobian", q, t, self.p)
+        return self.data.constraint_jacobian(q, t)
 
     def constraint_time_derivative(self, q, t: float) -> np.ndarray:
         """C_t(q, t)."""
-        return self._vector("constraint_time_derivative", q, t, self.p)
+        return self.data.constraint_time_derivative(q, t)
 
     def acceleration_rhs(self, q, v, t: float) -> np.ndarray:
         """γ(q, v, t) with C_q q̈ = γ."""
-        return self._vector("acceleration_rhs", q, v, t, self.p)
+        return self.data.acceleration_rhs(q, v, t)
 
     def mass_matrix(self, q) -> sp.csc_matrix:
         """M(q) as a sparse matrix."""
-        return self._sparse("mass_matrix", q, self.p)
+        return self.data.mass_matrix(q)
 
     def applied_forces(self, q, v, t: float, u=None) -> np.ndarray:
         """Q_e(q, v, t, u)."""
-        u = np.zeros(self.nu) if u is None else u
-        return self._vector("applied_forces", q, v, t, u, self.p)
+        return self.data.applied_forces(q, v, t, u)
 
     def input_matrix(self, q, v, t: float, u=None) -> sp.csc_matrix:
         """B = ∂Q_e/∂u (n_q × n_u)."""
-        u = np.zeros(self.nu) if u is None else u
-        return self._sparse("input_matrix", q, v, t, u, self.p)
+        return self.data.input_matrix(q, v, t, u)
 
     def kinetic_energy(self, q, v) -> float:
         """T = ½ vᵀ M v."""
-        return float(self._vector("kinetic_energy", q, v, self.p)[0])
+        return self.data.kinetic_energy(q, v)
 
     def potential_energy(self, q, t: float) -> float:
         """V(q, t) of gravity and springs."""
-        return float(self._vector("potential_energy", q, t, self.p)[0])
+        return self.data.potential_energy(q, t)
 
     def quadratic_velocity_forces(self, q, v) -> np.ndarray:
         """Q_v(q, v)."""
-        return self._vector("quadratic_velocity_forces", q, v, self.p)
+        return self.data.quadratic_velocity_forces(q, v)
 
     def outputs(self, q: np.ndarray, v: np.ndarray, a: np.ndarray, t: np.ndarray) -> dict:
         """Body, marker and joint outputs at many time points in one mapped call.

@@ -29,6 +29,7 @@ from casmbd.analysis.instant.checks import diagnose
 from casmbd.analysis.instant.independent import find_redundant, minimum_norm, scatter
 from casmbd.analysis.instant.joint_friction import has_reaction_friction, solve_normals
 from casmbd.analysis.instant.reactions import flag_undetermined
+from casmbd.compiled.build import compile_model
 from casmbd.compiled.model import NEEDS, NumericModel
 from casmbd.errors import AnalysisError, ModelError, SingularConfigurationError
 from casmbd.interrupts import reraise_interrupt
@@ -139,7 +140,7 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
         model = mechanism_or_model
     else:
         # flexible bodies move rigidly: η = 0 (kinematics.py, _model)
-        model = NumericModel(rigidified(mechanism_or_model), NEEDS["dynamics"], mode=mode)
+        model = compile_model(rigidified(mechanism_or_model), NEEDS["dynamics"], mode=mode)
     kin = kinematics(model, t_end, steps, t_start=t_start, redundancy=redundancy)
     t0 = time.perf_counter()
     grid, qs, vs, acc = kin.t, kin["q"], kin["v"], kin["a"]

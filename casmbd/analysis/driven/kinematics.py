@@ -22,6 +22,7 @@ from casmbd.analysis.instant.independent import (
 )
 from casmbd.analysis.instant.redundancy import rank_report
 from casmbd.analysis.integrators.kinds import INTEGRATORS
+from casmbd.compiled.build import compile_model
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, AssemblyError, CasmbdError, RedundantConstraintError
 from casmbd.limits import check_steps
@@ -38,7 +39,7 @@ def _model(mechanism_or_model, analysis: str, mode: str, rigid: bool = True) -> 
     if isinstance(mechanism_or_model, NumericModel):
         return mechanism_or_model
     mech = rigidified(mechanism_or_model) if rigid else mechanism_or_model
-    return NumericModel(mech, analysis, mode=mode)
+    return compile_model(mech, analysis, mode=mode)
 
 
 def check_result_size(mechanism_or_model, steps: int, what: str) -> None:

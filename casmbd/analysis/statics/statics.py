@@ -108,6 +108,7 @@ from casmbd.analysis.instant.redundancy import null_space_basis
 from casmbd.analysis.statics.resting import resting_equilibrium
 from casmbd.analysis.statics.stability import STABILITY_RTOL, Stability, classify_stability
 from casmbd.analysis.statics.trust_region import RANK_RTOL, least_squares_step, trust_region_step
+from casmbd.compiled.build import compile_model
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, AssemblyError
 from casmbd.model.forces import ForceElement
@@ -457,7 +458,7 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
         model = mechanism
     else:
         system = System(mechanism)
-        model = NumericModel(system, STATICS_NEEDS, mode=mode, extra=statics_functions(system))
+        model = compile_model(system, STATICS_NEEDS, mode=mode, extra=statics_functions(system))
     t0 = time.perf_counter()
     prob = _Problem(model, t)
     mech = model.mechanism
