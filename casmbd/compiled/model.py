@@ -216,6 +216,10 @@ class NumericModel:
 
     def __getattr__(self, name: str):
         # only reached when the attribute is missing: a model from a record builds its System
+        # (a model with its own data (:meth:`with_data`) takes it from the model it views)
+        origin = self.__dict__.get("_origin")
+        if origin is not None and name in NumericModel._LAZY:
+            return getattr(origin, name)
         if name in NumericModel._LAZY and "mechanism" in self.__dict__:
             system = self.__dict__.get("system")
             if system is None:  # the mechanism's own choice, then checked
@@ -249,7 +253,34 @@ class NumericModel:
 
     def workspace(self) -> Workspace:
         """A new :class:`~casmbd.compiled.workspace.Workspace` (buffers) for this model."""
-        return Workspace(self)
+        return Workspace(self.__dict__.get("_origin", self))
+
+    def with_data(self, data: Workspace | None = None) -> NumericModel:
+        """This model evaluating through ``data`` (default: a new :meth:`workspace`).
+
+        A shallow copy that shares every fixed part — the Functions, sizes, names, the
+        mechanism and the parameter array :attr:`p` itself (a change of a parameter applies to
+        both) — and has ``data`` as its :attr:`data`.  An analysis takes one at its entry
+        (``model = model.with_data(data)``) and hands it to the instant solvers it calls
+        (assembly, KKT, projections), so that every evaluation of the run writes its own
+        buffers: two analyses of one model never share them (Pinocchio's ``aba(model, data,
+        …)`` with the data carried by the model the solvers receive).
+
+        Raises
+        ------
+        ModelError
+            When ``data`` is the workspace of another model.
+        """
+        origin = self.__dict__.get("_origin", self)
+        if data is None:
+            data = Workspace(origin)
+        elif data.model is not origin:
+            raise ModelError(f"with_data: the workspace belongs to another model than "
+                             f"'{self.name}' (take one from model.workspace())")
+        view = object.__new__(type(self))
+        view.__dict__.update(self.__dict__)
+        view._origin, view.data = origin, data
+        return view
 
     @property
     def parameters(self) -> dict[str, float]:
