@@ -55,6 +55,11 @@ class Workspace:
             self._entries[name] = entry
         return entry
 
+    @property
+    def evaluated(self) -> list[str]:
+        """Names of the Functions evaluated through this workspace (their buffers made)."""
+        return list(self._entries)
+
     def nonzeros(self, name: str, *args) -> np.ndarray:
         """Non-zeros of output 0 of Function ``name`` at ``args`` (a copy)."""
         return self._entry(name)[0](*args)
