@@ -106,9 +106,13 @@ class NumericModel:
       Functions as its main job (formulations, statics and linearisation Functions, the OCP
       transcription) takes the :class:`System` explicitly and hands them in as ``extra``.
 
-    Evaluations go through :attr:`data`, a :class:`~casmbd.compiled.workspace.Workspace`
-    made with the model; a caller that must not share buffers with others takes its own from
-    :meth:`workspace`.
+    Build one with :func:`casmbd.compiled.build.compile_model` (the one compile entry;
+    nothing outside :mod:`casmbd.compiled` calls this constructor).  Evaluations go through
+    :attr:`data`, a :class:`~casmbd.compiled.workspace.Workspace` made with the model, which
+    has the same equation methods; a caller that must not share buffers with others takes
+    its own from :meth:`workspace`, and an analysis runs on :meth:`with_data` (this model
+    evaluating through that workspace), so that two analyses of one model never write each
+    other's buffers.
     """
 
     def __init__(self, system, functions: Iterable[str] | str = "kinematics",

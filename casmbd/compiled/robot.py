@@ -4,10 +4,10 @@ Like Pinocchio's ``aba``/``rnea``/``crba`` on a ``Model`` and its ``Data``, a
 :class:`CompiledModel` evaluates the dynamics of one mechanism at one state per call, numpy in
 and numpy out, with no CasADi conversion on the way: every method owns a compiled CasADi
 Function whose inputs and outputs are bound once, through ``Function.buffer()``, to numpy
-arrays allocated when the model is built (:func:`~casmbd.compiled.workspace.buffered`).  A call
-copies its arguments into those arrays, runs the compiled C code and returns a *copy* of the
-result, so a caller cannot alias the buffers; a model serves one caller at a time (take one
-per thread).
+arrays allocated when the model is built
+(:class:`~casmbd.compiled.buffered.BufferedFunction`).  A call copies its arguments into
+those arrays, runs the compiled C code and returns a *copy* of the result, so a caller
+cannot alias the buffers; a model serves one caller at a time (take one per thread).
 
 Conventions (n_q coordinates, joint coordinates by default):
 

@@ -3,9 +3,14 @@
 Like Pinocchio's ``Data`` next to its ``Model`` and MuJoCo's ``mjData`` next to ``mjModel``,
 a :class:`Workspace` holds what changes while an analysis runs — the numpy arrays bound to the
 inputs and outputs of each Function — and :class:`~casmbd.compiled.model.NumericModel` holds
-what is fixed (Functions, sizes, names, parameter values).  Two runs that must not share
-buffers (two threads, or a run nested in another) each take their own workspace from
-:meth:`NumericModel.workspace <casmbd.compiled.model.NumericModel.workspace>`.
+what is fixed (Functions, sizes, names, parameter values).  The equations are evaluated
+here, Pinocchio style (``data.mass_matrix(q)`` at the model's ``p``, as ``aba(model, data,
+…)``); the model's same-named methods evaluate through its own workspace
+:attr:`NumericModel.data <casmbd.compiled.model.NumericModel.data>`.  Two runs that must not
+share buffers (two analyses of one model, two threads) each take their own workspace from
+:meth:`NumericModel.workspace <casmbd.compiled.model.NumericModel.workspace>`; an analysis
+runs on :meth:`NumericModel.with_data <casmbd.compiled.model.NumericModel.with_data>` (the
+model evaluating through it), which the analyses given a NumericModel do at their entry.
 """
 
 from __future__ import annotations
@@ -33,10 +38,12 @@ class Workspace:
 
     Notes
     -----
-    ``Function.buffer()`` binds numpy arrays to the inputs and outputs, which avoids the
-    conversion of every argument to a CasADi matrix (50–150 µs a call from Python against
+    Each Function is called through a :class:`~casmbd.compiled.buffered.BufferedFunction`
+    (``Function.buffer()``: numpy arrays bound to the inputs and outputs, which avoids the
+    conversion of every argument to a CasADi matrix, 50–150 µs a call from Python against
     0.1–3 µs for the compiled code itself; docs/performance.md).  The arrays are reused from
-    call to call, so a workspace serves one caller at a time.
+    call to call, so a workspace serves one caller at a time; what it returns are copies,
+    valid after the next call.
     """
 
     def __init__(self, model: NumericModel):
