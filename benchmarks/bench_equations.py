@@ -46,8 +46,8 @@ import numpy as np
 
 from benchmarks.chains import pendulum_chain
 from casmbd.compiled import codegen
+from casmbd.compiled.buffered import BufferedFunction
 from casmbd.compiled.codegen import compile_functions
-from casmbd.compiled.workspace import buffered
 from casmbd.system import System
 
 REPO_ROOT = pathlib.Path(__file__).resolve().parent.parent
@@ -172,8 +172,13 @@ def time_per_call(fn: Callable[[], object], repeat: int, min_seconds: float = 0.
     return 1e6 * statistics.median(runs) / number
 
 
-#: zero-copy evaluation through ``Function.buffer()``: the library's own helper
-buffer_evaluator = buffered
+def buffer_evaluator(function: casadi.Function, args: list[np.ndarray]) -> tuple:
+    """Zero-copy evaluation through ``Function.buffer()`` with the library's own wrapper
+    (:class:`~casmbd.compiled.buffered.BufferedFunction`): ``args`` bound to the inputs;
+    returns ``(trigger, outputs)``, the trigger keeping the buffer alive."""
+    bound = BufferedFunction(function, args)
+    bound.evaluate.buffer_owner = bound
+    return bound.evaluate, bound.outputs
 
 
 def nonzeros(result) -> list[np.ndarray]:

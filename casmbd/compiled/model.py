@@ -106,9 +106,13 @@ class NumericModel:
       Functions as its main job (formulations, statics and linearisation Functions, the OCP
       transcription) takes the :class:`System` explicitly and hands them in as ``extra``.
 
-    Evaluations go through :attr:`data`, a :class:`~casmbd.compiled.workspace.Workspace`
-    made with the model; a caller that must not share buffers with others takes its own from
-    :meth:`workspace`.
+    Build one with :func:`casmbd.compiled.build.compile_model` (the one compile entry;
+    nothing outside :mod:`casmbd.compiled` calls this constructor).  Evaluations go through
+    :attr:`data`, a :class:`~casmbd.compiled.workspace.Workspace` made with the model, which
+    has the same equation methods; a caller that must not share buffers with others takes
+    its own from :meth:`workspace`, and an analysis runs on :meth:`with_data` (this model
+    evaluating through that workspace), so that two analyses of one model never write each
+    other's buffers.
     """
 
     def __init__(self, system, functions: Iterable[str] | str = "kinematics",
@@ -216,6 +220,10 @@ class NumericModel:
 
     def __getattr__(self, name: str):
         # only reached when the attribute is missing: a model from a record builds its System
+        # (a model with its own data (:meth:`with_data`) takes it from the model it views)
+        origin = self.__dict__.get("_origin")
+        if origin is not None and name in NumericModel._LAZY:
+            return getattr(origin, name)
         if name in NumericModel._LAZY and "mechanism" in self.__dict__:
             system = self.__dict__.get("system")
             if system is None:  # the mechanism's own choice, then checked
@@ -249,7 +257,34 @@ class NumericModel:
 
     def workspace(self) -> Workspace:
         """A new :class:`~casmbd.compiled.workspace.Workspace` (buffers) for this model."""
-        return Workspace(self)
+        return Workspace(self.__dict__.get("_origin", self))
+
+    def with_data(self, data: Workspace | None = None) -> NumericModel:
+        """This model evaluating through ``data`` (default: a new :meth:`workspace`).
+
+        A shallow copy that shares every fixed part — the Functions, sizes, names, the
+        mechanism and the parameter array :attr:`p` itself (a change of a parameter applies to
+        both) — and has ``data`` as its :attr:`data`.  An analysis takes one at its entry
+        (``model = model.with_data(data)``) and hands it to the instant solvers it calls
+        (assembly, KKT, projections), so that every evaluation of the run writes its own
+        buffers: two analyses of one model never share them (Pinocchio's ``aba(model, data,
+        …)`` with the data carried by the model the solvers receive).
+
+        Raises
+        ------
+        ModelError
+            When ``data`` is the workspace of another model.
+        """
+        origin = self.__dict__.get("_origin", self)
+        if data is None:
+            data = Workspace(origin)
+        elif data.model is not origin:
+            raise ModelError(f"with_data: the workspace belongs to another model than "
+                             f"'{self.name}' (take one from model.workspace())")
+        view = object.__new__(type(self))
+        view.__dict__.update(self.__dict__)
+        view._origin, view.data = origin, data
+        return view
 
     @property
     def parameters(self) -> dict[str, float]:
@@ -295,47 +330,47 @@ class NumericModel:
     _sparse = sparse
 
     # ------------------------------------------------------------------ equations
+    # evaluated through the model's own workspace :attr:`data`; an analysis takes its own
+    # (:meth:`workspace`) and calls the same-named methods of that
     def constraints(self, q, t: float) -> np.ndarray:
         """C(q, t)."""
-        return self._vector("constraints", q, t, self.p)
+        return self.data.constraints(q, t)
 
     def constraint_jacobian(self, q, t: float) -> sp.csc_matrix:
         """C_q(q, t) as a sparse matrix."""
-        return self._sparse("constraint_jacobian", q, t, self.p)
+        return self.data.constraint_jacobian(q, t)
 
     def constraint_time_derivative(self, q, t: float) -> np.ndarray:
         """C_t(q, t)."""
-        return self._vector("constraint_time_derivative", q, t, self.p)
+        return self.data.constraint_time_derivative(q, t)
 
     def acceleration_rhs(self, q, v, t: float) -> np.ndarray:
         """γ(q, v, t) with C_q q̈ = γ."""
-        return self._vector("acceleration_rhs", q, v, t, self.p)
+        return self.data.acceleration_rhs(q, v, t)
 
     def mass_matrix(self, q) -> sp.csc_matrix:
         """M(q) as a sparse matrix."""
-        return self._sparse("mass_matrix", q, self.p)
+        return self.data.mass_matrix(q)
 
     def applied_forces(self, q, v, t: float, u=None) -> np.ndarray:
         """Q_e(q, v, t, u)."""
-        u = np.zeros(self.nu) if u is None else u
-        return self._vector("applied_forces", q, v, t, u, self.p)
+        return self.data.applied_forces(q, v, t, u)
 
     def input_matrix(self, q, v, t: float, u=None) -> sp.csc_matrix:
         """B = ∂Q_e/∂u (n_q × n_u)."""
-        u = np.zeros(self.nu) if u is None else u
-        return self._sparse("input_matrix", q, v, t, u, self.p)
+        return self.data.input_matrix(q, v, t, u)
 
     def kinetic_energy(self, q, v) -> float:
         """T = ½ vᵀ M v."""
-        return float(self._vector("kinetic_energy", q, v, self.p)[0])
+        return self.data.kinetic_energy(q, v)
 
     def potential_energy(self, q, t: float) -> float:
         """V(q, t) of gravity and springs."""
-        return float(self._vector("potential_energy", q, t, self.p)[0])
+        return self.data.potential_energy(q, t)
 
     def quadratic_velocity_forces(self, q, v) -> np.ndarray:
         """Q_v(q, v)."""
-        return self._vector("quadratic_velocity_forces", q, v, self.p)
+        return self.data.quadratic_velocity_forces(q, v)
 
     def outputs(self, q: np.ndarray, v: np.ndarray, a: np.ndarray, t: np.ndarray) -> dict:
         """Body, marker and joint outputs at many time points in one mapped call.

@@ -4,10 +4,10 @@ Like Pinocchio's ``aba``/``rnea``/``crba`` on a ``Model`` and its ``Data``, a
 :class:`CompiledModel` evaluates the dynamics of one mechanism at one state per call, numpy in
 and numpy out, with no CasADi conversion on the way: every method owns a compiled CasADi
 Function whose inputs and outputs are bound once, through ``Function.buffer()``, to numpy
-arrays allocated when the model is built (:func:`~casmbd.compiled.workspace.buffered`).  A call
-copies its arguments into those arrays, runs the compiled C code and returns a *copy* of the
-result, so a caller cannot alias the buffers; a model serves one caller at a time (take one
-per thread).
+arrays allocated when the model is built
+(:class:`~casmbd.compiled.buffered.BufferedFunction`).  A call copies its arguments into
+those arrays, runs the compiled C code and returns a *copy* of the result, so a caller
+cannot alias the buffers; a model serves one caller at a time (take one per thread).
 
 Conventions (n_q coordinates, joint coordinates by default):
 
@@ -49,8 +49,8 @@ from collections.abc import Sequence
 import casadi as ca
 import numpy as np
 
-from casmbd.compiled.model import NumericModel
-from casmbd.compiled.workspace import buffered
+from casmbd.compiled.buffered import BufferedFunction
+from casmbd.compiled.build import compile_model
 from casmbd.errors import ModelError
 from casmbd.model.bodies import GROUND
 from casmbd.model.needs import Handling, check
@@ -154,13 +154,13 @@ class _Call:
     """One compiled Function bound to numpy buffers: fill ``a0, a1, a2``, ``trigger()``, read
     ``outs`` (``view``: output 0 in the shape the method returns)."""
 
-    __slots__ = ("a0", "a1", "a2", "ins", "outs", "trigger", "view")
+    __slots__ = ("a0", "a1", "a2", "buffered", "ins", "outs", "trigger", "view")
 
     def __init__(self, f: ca.Function, p: np.ndarray, shape=None):
-        args = [np.zeros(f.nnz_in(i)) for i in range(f.n_in())]
-        args[-1] = p  # the model's parameter vector itself: set_parameters applies at once
-        self.trigger, self.outs = buffered(f, args)
-        self.ins = args
+        # the model's parameter vector itself bound to p: set_parameters applies at once
+        self.buffered = BufferedFunction(f, [None] * (f.n_in() - 1) + [p])
+        self.trigger, self.outs = self.buffered.evaluate, self.buffered.outputs
+        args = self.ins = self.buffered.inputs
         self.a0, self.a1, self.a2 = [*args[:-1], None, None, None][:3]
         self.view = self.outs[0] if shape is None else shape(self.outs[0])
 
@@ -254,7 +254,7 @@ class CompiledModel:
             fns.append(ca.Function(f"robot_jacobian_{k}", [q, p],
                                    [ca.densify(ca.vertcat(lin, ang))], ["q", "p"], ["J"]))
         #: the compiled library: sizes, names, parameter values ``numeric.p``
-        self.numeric = NumericModel(system, (), mode=mode, extra=fns)
+        self.numeric = compile_model(system, (), mode=mode, extra=fns)
         self.coordinate_names: list[str] = self.numeric.coordinate_names
         self.p = self.numeric.p
         nw, d = (1 if dim == 2 else 3), dim

@@ -7,7 +7,7 @@ import casadi as ca
 import numpy as np
 
 from casmbd.analysis.dynamics.simulate import simulate
-from casmbd.compiled.model import NumericModel
+from casmbd.compiled.build import compile_model
 from casmbd.errors import AnalysisError, CasmbdError
 from casmbd.ocp.solution import OcpSolution
 
@@ -224,7 +224,7 @@ def _simulated(tr, x_start, T):
 def _inverse(tr, state, T):
     """u(s), λ(s) from [B  −C_qᵀ] [u; λ] = M q̈ − Q along the guessed path (least squares):
     gravity compensation for a linear path."""
-    model = NumericModel(tr.system, "dynamics", mode="vm")
+    model = compile_model(tr.system, "dynamics", mode="vm")
     nq, nc = tr.nq, tr.nc
     samples = np.linspace(0.0, 1.0, 2 * tr.N + 1)
     us, lams = [], []

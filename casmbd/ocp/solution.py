@@ -12,7 +12,7 @@ import numpy as np
 
 from casmbd.analysis.dynamics.simulate import Simulator
 from casmbd.analysis.instant.kkt import accelerations_and_multipliers
-from casmbd.compiled.model import NumericModel
+from casmbd.compiled.build import compile_model
 from casmbd.errors import AnalysisError, CasmbdError, IntegratorError, ResultFileError
 from casmbd.interrupts import reraise_interrupt
 from casmbd.model.measures import result_names
@@ -255,7 +255,7 @@ class OcpSolution:
             return Result("ocp", self.t.copy(), arrays, names, stats, self.scene)
         system = self.ocp.system
         mech = system.mechanism
-        model = NumericModel(system, "dynamics", mode="vm")
+        model = compile_model(system, "dynamics", mode="vm")
         n = len(self.t)
         acc, lam = np.zeros((n, model.nq)), np.zeros((n, model.nc))
         violation = np.zeros(n)

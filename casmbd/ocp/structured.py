@@ -23,7 +23,7 @@ where the remainder (f_r, g_r: boundary conditions, Mayer, effort and time terms
 and differentiated in SX as a whole.  These are passed to ``nlpsol`` as its ``grad_f``,
 ``jac_g`` and ``hess_lag`` functions.  The derivative functions are the only large
 expressions, of the size of one element: they run in CasADi's virtual machine, or are
-compiled to C (small translation units) and cached (:func:`compile_functions`).
+compiled to C (small translation units) and cached (:func:`compile_blocks`).
 """
 
 from __future__ import annotations
@@ -40,7 +40,8 @@ import casadi as ca
 import numpy as np
 
 from casmbd.compiled import cache
-from casmbd.compiled.codegen import BuildReport, compile_functions, compile_nlp_solver
+from casmbd.compiled.build import compile_blocks
+from casmbd.compiled.codegen import BuildReport, compile_nlp_solver
 from casmbd.errors import AnalysisError
 
 __all__ = ["MODES", "MappedCall", "check_mode", "derivative_functions", "nlp_solver",
@@ -309,11 +310,11 @@ def _load_indexed(name: str, key: str, names: list[str]) -> dict | None:
 
 def _compiled_derivatives(calls: list, name: str, key: str, derivatives: list,
                           flags: list[str] | None = None):
-    """(derivatives compiled by :func:`compile_functions` with ``flags`` and loaded, report,
+    """(derivatives compiled by :func:`compile_blocks` with ``flags`` and loaded, report,
     compiled?); the libraries are then indexed under the element ``key``
     (:func:`_load_indexed`)."""
     flat = [f for group in derivatives for f in group]
-    loaded, report = compile_functions(flat, f"{name}_el", flags=flags)
+    loaded, report = compile_blocks(flat, f"{name}_el", flags=flags)
     if report.mode != "compiled":
         return derivatives, report, False
     entries = []
@@ -336,7 +337,7 @@ def nlp_solver(name: str, plugin: str, w: ca.MX, objective, objective_rest, g_bl
     ``mode`` (:data:`MODES`): False — derivatives assembled from the per-element SX
     derivative functions (:func:`structured_nlp_functions`) in CasADi's virtual machine;
     True/``"elements"`` — the same with those functions compiled to C and cached
-    (:func:`casmbd.compiled.codegen.compile_functions`, indexed under the element functions'
+    (:func:`casmbd.compiled.build.compile_blocks`, indexed under the element functions'
     serialization so that a later process loads them without differentiating);
     ``"auto"`` — compiled when already cached or small (:data:`AUTO_COMPILE_INSTRUCTIONS`,
     at ``-O0`` up to :data:`AUTO_COMPILE_O0_INSTRUCTIONS`), else in the virtual machine;

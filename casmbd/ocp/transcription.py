@@ -23,7 +23,7 @@ import numpy as np
 
 from casmbd import interrupts, progress
 from casmbd.analysis.instant.kkt import consistent_state
-from casmbd.compiled.model import NumericModel
+from casmbd.compiled.build import compile_model
 from casmbd.errors import AnalysisError, OptimizationError
 from casmbd.ocp.dynamics import choose_dynamics, node_constraints
 from casmbd.ocp.flexible import mesh_check, solver_defaults
@@ -312,7 +312,7 @@ class Transcription:
                  "final conditions")
 
     def _scene_start(self) -> np.ndarray:
-        model = NumericModel(self.system, "dynamics", mode="vm")
+        model = compile_model(self.system, "dynamics", mode="vm")
         st = consistent_state(model, self.system.initial_coordinates(),
                               self.system.initial_velocities(), self.ocp.t_start,
                               np.zeros(self.nu))

@@ -43,7 +43,7 @@ from casmbd.analysis.instant.assembly import assemble
 from casmbd.analysis.statics.statics import StaticsResult
 from casmbd.analysis.studies.sweep import statics_as_result
 from casmbd.analysis.studies.sweep_result import SweepResult
-from casmbd.compiled.model import NumericModel
+from casmbd.compiled.build import compile_model
 from casmbd.errors import AnalysisError, AssemblyError, CasmbdError
 from casmbd.io.scene import loads_scene
 from casmbd.model import Mechanism
@@ -148,7 +148,7 @@ def _rotation3(rot: np.ndarray) -> np.ndarray:
 # ---------------------------------------------------------------------- sources
 def _initial_result(mech) -> Result:
     """The mechanism at its assembled initial pose as a one-time Result (t = 0)."""
-    model = NumericModel(mech, "info", mode="vm")
+    model = compile_model(mech, "info", mode="vm")
     q = model.initial_coordinates()
     try:
         q = assemble(model, q, 0.0).q
@@ -194,7 +194,7 @@ def _with_poses(result: Result, mech) -> Result:
         except CasmbdError:
             continue
         if list(system.coordinate_names) == names:
-            model = NumericModel(system, "outputs", mode="vm")
+            model = compile_model(system, "outputs", mode="vm")
             v = result.arrays.get("v", np.zeros_like(q))
             out = _outputs_result(result.kind, model, mech, q, v, result.t)
             arrays = {**out.arrays, **result.arrays}

@@ -29,7 +29,9 @@ from casmbd.analysis.instant.checks import diagnose
 from casmbd.analysis.instant.independent import find_redundant, minimum_norm, scatter
 from casmbd.analysis.instant.joint_friction import has_reaction_friction, solve_normals
 from casmbd.analysis.instant.reactions import flag_undetermined
+from casmbd.compiled.build import compile_model
 from casmbd.compiled.model import NEEDS, NumericModel
+from casmbd.compiled.workspace import Workspace
 from casmbd.errors import AnalysisError, ModelError, SingularConfigurationError
 from casmbd.interrupts import reraise_interrupt
 from casmbd.model.flexible_bodies import rigidified
@@ -102,7 +104,8 @@ HANDLING = Handling(
 
 
 def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.0,
-                     mode: str = "auto", redundancy: str = "auto") -> Result:
+                     mode: str = "auto", redundancy: str = "auto", *,
+                     data: Workspace | None = None) -> Result:
     """Driver efforts and joint reactions along the motion prescribed by the drivers.
 
     Redundant constraint equations are removed as in :func:`kinematics` (named in ``stats``):
@@ -119,6 +122,8 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
         ``steps + 1`` output times from ``t_start`` to ``t_end`` inclusive.
     redundancy : {"auto", "remove"}
         As :func:`kinematics`.
+    data : Workspace, optional
+        As :func:`kinematics` (the kinematic pass and the efforts share it).
 
     Returns
     -------
@@ -136,11 +141,13 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
     if isinstance(steps, (int, np.integer)) and steps >= 1:  # kinematics checks the rest
         check_result_size(mechanism_or_model, steps, "inverse dynamics")
     if isinstance(mechanism_or_model, NumericModel):
-        model = mechanism_or_model
+        model = mechanism_or_model.with_data(data)  # its own buffers (or those given)
     else:
         # flexible bodies move rigidly: η = 0 (kinematics.py, _model)
-        model = NumericModel(rigidified(mechanism_or_model), NEEDS["dynamics"], mode=mode)
-    kin = kinematics(model, t_end, steps, t_start=t_start, redundancy=redundancy)
+        model = compile_model(rigidified(mechanism_or_model), NEEDS["dynamics"], mode=mode)
+        model = model if data is None else model.with_data(data)  # raises: another model's
+    kin = kinematics(model, t_end, steps, t_start=t_start, redundancy=redundancy,
+                     data=model.data)
     t0 = time.perf_counter()
     grid, qs, vs, acc = kin.t, kin["q"], kin["v"], kin["a"]
     n = len(grid)

@@ -22,7 +22,9 @@ from casmbd.analysis.instant.independent import (
 )
 from casmbd.analysis.instant.redundancy import rank_report
 from casmbd.analysis.integrators.kinds import INTEGRATORS
+from casmbd.compiled.build import compile_model
 from casmbd.compiled.model import NumericModel
+from casmbd.compiled.workspace import Workspace
 from casmbd.errors import AnalysisError, AssemblyError, CasmbdError, RedundantConstraintError
 from casmbd.limits import check_steps
 from casmbd.model.flexible_bodies import rigidified
@@ -31,14 +33,17 @@ from casmbd.model.needs import ALL_NEEDS, Handling, check
 from casmbd.results import Result
 
 
-def _model(mechanism_or_model, analysis: str, mode: str, rigid: bool = True) -> NumericModel:
+def _model(mechanism_or_model, analysis: str, mode: str, rigid: bool = True,
+           data: Workspace | None = None) -> NumericModel:
     """The numeric model of a mechanism (with ``rigid``, its flexible bodies rigidified:
     kinematics prescribes the rigid motion, :func:`casmbd.model.flexible_bodies.rigidified`)
-    or the model given."""
+    or the model given, evaluating through ``data`` (default: a workspace of its own, so that
+    the run shares no buffers with other users of the model)."""
     if isinstance(mechanism_or_model, NumericModel):
-        return mechanism_or_model
+        return mechanism_or_model.with_data(data)
     mech = rigidified(mechanism_or_model) if rigid else mechanism_or_model
-    return NumericModel(mech, analysis, mode=mode)
+    model = compile_model(mech, analysis, mode=mode)  # its own: its data is the run's
+    return model if data is None else model.with_data(data)  # raises: another model's
 
 
 def check_result_size(mechanism_or_model, steps: int, what: str) -> None:
@@ -74,7 +79,7 @@ def check_rank(model: NumericModel, q: np.ndarray, t: float):
     return rep
 
 
-def info(mechanism_or_model, mode: str = "auto") -> dict:
+def info(mechanism_or_model, mode: str = "auto", *, data: Workspace | None = None) -> dict:
     """Coordinates, constraints, degrees of freedom and dependent equations of a mechanism.
 
     The rank is evaluated at the assembled initial configuration.  If the mechanism cannot
@@ -89,7 +94,8 @@ def info(mechanism_or_model, mode: str = "auto") -> dict:
     of times, and compiling them costs far more (25 s for a 500-body chain) than it saves.
     """
     # the mechanism as it moves: a flexible body's modes are degrees of freedom here
-    model = _model(mechanism_or_model, "info", "vm" if mode == "auto" else mode, rigid=False)
+    model = _model(mechanism_or_model, "info", "vm" if mode == "auto" else mode, rigid=False,
+                   data=data)
     mech = model.mechanism
     q = model.initial_coordinates()
     out: dict = {"name": mech.name, "dimension": mech.dimension}
@@ -156,7 +162,8 @@ HANDLING = Handling(
 
 
 def kinematics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.0,
-               mode: str = "auto", tol: float = 1e-12, redundancy: str = "auto") -> Result:
+               mode: str = "auto", tol: float = 1e-12, redundancy: str = "auto", *,
+               data: Workspace | None = None) -> Result:
     """Positions, velocities and accelerations of a fully driven mechanism on a time grid.
 
     Redundant constraint equations (rows of C_q that depend on earlier ones at the assembled
@@ -176,6 +183,9 @@ def kinematics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.
         Compilation mode of the equations ("auto", "compiled", "vm").
     redundancy : {"auto", "remove"}
         Both remove the redundant equations ("minimum_norm" is simulate's and is refused).
+    data : Workspace, optional
+        The buffers the run evaluates in (``model.workspace()`` of the NumericModel given);
+        default: a workspace of its own.
 
     Raises
     ------
@@ -197,7 +207,7 @@ def kinematics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.
     check(mechanism_or_model, HANDLING)
     check_option(redundancy, "kinematics")
     check_result_size(mechanism_or_model, steps, "kinematics")
-    full = _model(mechanism_or_model, "kinematics", mode)
+    full = _model(mechanism_or_model, "kinematics", mode, data=data)
     mech = full.mechanism
     t0 = time.perf_counter()
     grid = np.linspace(t_start, t_end, int(steps) + 1)

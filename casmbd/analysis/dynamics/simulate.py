@@ -48,7 +48,7 @@ from casmbd.analysis.integrators.stiffness_culprit import (
     check_plausible_elements,
     diagnose_stiffness,
 )
-from casmbd.compiled.model import NumericModel
+from casmbd.compiled.build import compile_model
 from casmbd.errors import AnalysisError, CasmbdError, IntegratorError, UnknownMethodError
 from casmbd.interrupts import reraise_interrupt
 from casmbd.limits import check_steps
@@ -114,7 +114,7 @@ def plan_redundancy(system: System, formulation: str, option: str = "auto") -> d
     if system.nc * system.nq > RANK_CHECK_MAX_ENTRIES:
         plan["redundancy"] = "not checked (C_q too large for the dense rank check)"
         return plan
-    probe = NumericModel(system, "info", mode="vm")
+    probe = compile_model(system, "info", mode="vm")
     q = system.initial_coordinates()
     try:
         q = assemble(probe, q, 0.0).q
@@ -205,10 +205,10 @@ class Simulator(Stepping, CachedBuild):
         hot = [f.name() for f in [*self.formulation.functions, *steps]]
         # q̈ of an unconstrained ODE from its own right-hand side: no M, Q_e, Q_v compiled
         needs = "ode_dynamics" if ode is not None and system.nc == 0 else "dynamics"
-        self.model = NumericModel(system, needs, mode=mode,
-                                  extra=[*self.formulation.functions, *steps,
-                                         post_processing(system, u_expr, ode), self.ufun],
-                                  hot=self.kind.hot_functions(hot))  # per step: -O2
+        self.model = compile_model(system, needs, mode=mode,
+                                   extra=[*self.formulation.functions, *steps,
+                                          post_processing(system, u_expr, ode), self.ufun],
+                                   hot=self.kind.hot_functions(hot))  # per step: -O2
         self.system = system
         self.dyn = self.model.function(self.formulation.function.name())
         self.ufun = self.model.function(INPUTS_FUNCTION)

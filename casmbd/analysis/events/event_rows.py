@@ -13,7 +13,7 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from casmbd.analysis.events.buffered import Buffered
+from casmbd.compiled.buffered import BufferedFunction
 from casmbd.model.bodies import GROUND
 from casmbd.model.contacts import (
     GapClosure,
@@ -137,7 +137,7 @@ class EventRows:
         rest = [element.restitution_at(ctx) if hasattr(element, "restitution_at")
                 else ca.SX(element.restitution) for element, _ in self.rows]
         rest = ca.vertcat(*rest) if rest else ca.SX(0, 1)
-        self._restitution = Buffered.of(ca.Function("restitution", [system.t, system.p],
+        self._restitution = BufferedFunction.of(ca.Function("restitution", [system.t, system.p],
                                                     [ca.densify(rest)]))
         #: ∂e/∂p of every row (a restitution given by a parameter; sensitivities)
         self.restitution_jacobian = ca.Function("restitution_jacobian", [system.t, system.p],
@@ -146,20 +146,20 @@ class EventRows:
                                [ca.densify(g), ca.densify(ca.jacobian(pos, system.q)),
                                 ca.densify(ca.jacobian(vt, system.v)), ca.densify(pos)])
         #: the same, called through its buffer (per event: impacts, projections, engage)
-        self._fun = Buffered.of(self.fun)
+        self._fun = BufferedFunction.of(self.fun)
         #: the open-state values alone (the root finding's per-trial evaluation)
-        self._values = Buffered.of(ca.Function(
+        self._values = BufferedFunction.of(ca.Function(
             "gap_values", [system.q, system.v, system.t, system.p], [ca.densify(g)]))
 
     def __call__(self, q, v, t, p):
-        g, gq, tv, _ = self._fun(q, v, t, p)
+        g, gq, tv, _ = self._fun.all(q, v, t, p)
         return (np.asarray(g, float).ravel(), np.asarray(gq, float),
                 np.asarray(tv, float))
 
     def values(self, q, v, t, p) -> np.ndarray:
         """The open-state values at one state (the first output of :meth:`__call__`), by
         the Function's buffer (a few µs instead of the wrapper's ~85)."""
-        return np.asarray(self._values(q, v, t, p)[0], float).ravel()
+        return np.asarray(self._values.all(q, v, t, p)[0], float).ravel()
 
     def values_many(self, qs: np.ndarray, vs: np.ndarray, ts: np.ndarray,
                     p: np.ndarray) -> np.ndarray:
@@ -172,11 +172,11 @@ class EventRows:
 
     def restitution(self, i: int, t: float, p) -> float:
         """Newton's restitution e of row i at the parameters ``p``."""
-        return float(np.asarray(self._restitution(t, p)[0], float).ravel()[i])
+        return float(np.asarray(self._restitution.all(t, p)[0], float).ravel()[i])
 
     def positions(self, q, v, t, p) -> np.ndarray:
         """The closure equations' values (a stick row: q_j − q_stuck)."""
-        return np.asarray(self._fun(q, v, t, p)[3], float).ravel()
+        return np.asarray(self._fun.all(q, v, t, p)[3], float).ravel()
 
     def closed_value(self, i: int, lams: dict) -> float:
         """What must stay ≥ 0 while row i is closed (``lams``: the multipliers of the closed

@@ -49,7 +49,6 @@ import warnings
 import casadi as ca
 import numpy as np
 
-from casmbd.analysis.events.buffered import Buffered
 from casmbd.analysis.events.event_rows import EventRows, SlideRow, StickRow, closure
 from casmbd.analysis.events.impulses import impact, project
 from casmbd.analysis.instant.assembly import assemble
@@ -59,6 +58,7 @@ from casmbd.analysis.instant.kkt import accelerations_and_multipliers, consisten
 from casmbd.analysis.integrators import kinds as integ
 from casmbd.analysis.integrators import sundials as sun
 from casmbd.analysis.integrators.stiffness_culprit import diagnose_stiffness
+from casmbd.compiled.buffered import BufferedFunction
 from casmbd.errors import AnalysisError, CasmbdError, IntegratorError
 from casmbd.interrupts import reraise_interrupt
 from casmbd.model.contacts import SLIP_VELOCITY, ContactSlide, slides
@@ -242,12 +242,12 @@ def _progress(stats: dict, t0: float, h: float, x, end: float = 1.0) -> None:
 
 
 def _solve(solver, x, z, p) -> tuple[np.ndarray, np.ndarray]:
-    """(xf, zf) of one integrator call, as arrays (columns: output times): a
-    :class:`Buffered` CasADi integrator, a CasADi integrator (called with a dict: its
-    keyword call costs ~80 µs more), or a
+    """(xf, zf) of one integrator call, as arrays (columns: output times): a CasADi
+    integrator as a :class:`~casmbd.compiled.buffered.BufferedFunction`, a CasADi integrator
+    (called with a dict: its keyword call costs ~80 µs more), or a
     :class:`~casmbd.analysis.integrators.sundials.ConsistentStart` called by keywords."""
-    if isinstance(solver, Buffered):
-        out = solver(x0=x, z0=z, p=p)
+    if isinstance(solver, BufferedFunction):
+        out = solver.all(x0=x, z0=z, p=p)
         return out[0], out[1]
     if isinstance(solver, ca.Function):
         r = solver.call({"x0": x, "z0": z, "p": p})
@@ -275,7 +275,7 @@ class _Phase:
         self._many: dict[tuple, object] = {}
         self._mapped: bool | None = None  # the post-processing serves λ (no N-friction)
         self._post_maps: dict[int, ca.Function] = {}
-        self.integrator = Buffered.of(sun.sundials(self._scaled, name, 0.0, [1.0], rtol,
+        self.integrator = BufferedFunction.of(sun.sundials(self._scaled, name, 0.0, [1.0], rtol,
                                                      atol, max_steps))
         self._dyadic = None  # outputs at h 2⁻ᵏ, k = DYADIC … 1 (:meth:`advance_dyadic`)
         #: integrator steps and right-hand sides over every call (root finding included)
@@ -298,7 +298,7 @@ class _Phase:
                                                       list(rel), self.rtol, self.atol,
                                                       self.max_steps)
         elif isinstance(solver, ca.Function):
-            solver = self._many[rel] = Buffered.of(solver)
+            solver = self._many[rel] = BufferedFunction.of(solver)
         try:
             xf, zf = _solve(solver, x, z, np.concatenate([self.sim.model.p, [t0, span]]))
         except RuntimeError as exc:
@@ -344,7 +344,7 @@ class _Phase:
         in one integrator call (one integrator per phase, built once): the trial times of
         :func:`_inside`, screened at once instead of one integrator call each."""
         if self._dyadic is None:
-            self._dyadic = Buffered.of(sun.sundials(
+            self._dyadic = BufferedFunction.of(sun.sundials(
                 self._scaled, self.name, 0.0, [2.0 ** -k for k in range(DYADIC, 0, -1)],
                 self.rtol, self.atol, self.max_steps))
         xf, zf = _solve(self._dyadic, x, z, np.concatenate([self.sim.model.p, [t0, h]]))

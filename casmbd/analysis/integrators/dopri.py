@@ -35,11 +35,11 @@ import casadi as ca
 import numpy as np
 
 from casmbd.analysis.integrators.kinds import (
-    BufferedFunction,
     IntegratorKind,
     fixed_fold,
 )
-from casmbd.compiled.codegen import compile_functions
+from casmbd.compiled.buffered import BufferedFunction
+from casmbd.compiled.build import compile_blocks
 from casmbd.errors import IntegratorError
 
 # Butcher tableau of DOPRI5 (HNW I, table 5.2)
@@ -173,7 +173,7 @@ class Dopri:
         The ODE formulation's dynamics (inputs t, x, p; output ode).
     mode : {"vm", "auto", "compiled"}
         ``"vm"`` runs the blocks in CasADi's virtual machine; otherwise they are compiled with
-        :func:`casmbd.compiled.codegen.compile_functions` (cached on disk).
+        :func:`casmbd.compiled.build.compile_blocks` (cached on disk).
     name : str
         Library name (a C identifier).
     """
@@ -189,7 +189,7 @@ class Dopri:
             return
         block = dopri_block(dyn)
         if mode != "vm":
-            compiled, self.report = compile_functions([block], name=name, mode=mode)
+            compiled, self.report = compile_blocks([block], name, mode=mode)
             block = compiled[block.name()]
         self._block = BufferedFunction(block)
 

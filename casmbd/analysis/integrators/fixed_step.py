@@ -22,13 +22,13 @@ import numpy as np
 
 from casmbd.analysis.integrators.invariants import check_energy
 from casmbd.analysis.integrators.kinds import (
-    BufferedFunction,
     IntegratorKind,
     fixed_fold,
     integrator_kind,
     names,
 )
-from casmbd.compiled.codegen import compile_functions
+from casmbd.compiled.buffered import BufferedFunction
+from casmbd.compiled.build import compile_blocks
 from casmbd.errors import CasmbdError, LimitError, ModelError
 from casmbd.limits import MAX_FIXED_STEPS
 
@@ -110,7 +110,7 @@ class FixedStep:
         funcs = [_renamed(rk, "rk4_single"), rhs, *folds]
         self.report = None
         if mode != "vm":
-            compiled, self.report = compile_functions(funcs, name=name, mode=mode)
+            compiled, self.report = compile_blocks(funcs, name, mode=mode)
             funcs = [compiled[f.name()] for f in funcs]
         self.rk, self.f = funcs[0], funcs[1]
         # every call through arrays bound once: ~1 µs instead of 50-150 µs of conversion

@@ -5,7 +5,7 @@ Every integrator is built once for a uniform output interval ``h`` on shifted ti
 the dynamics receive the interval start t_k as an extra parameter (:func:`shifted`), so the
 same object integrates any interval (used by projection and by the error path that keeps
 partial results).  Compiled step sequences are folds of a step (:func:`fixed_fold`) called on
-arrays bound once (:class:`BufferedFunction`).
+arrays bound once (:class:`~casmbd.compiled.buffered.BufferedFunction`).
 
 Each integrator is an :class:`IntegratorKind` in the registry :data:`INTEGRATORS` (name ->
 kind, like scipy's ``solve_ivp`` ``METHODS``): what it integrates (ODE, DAE, numeric right-hand
@@ -26,10 +26,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import casadi as ca
-import numpy as np
 
 from casmbd.analysis.integrators.invariants import check_energy_blowup
-from casmbd.compiled.workspace import buffered
 from casmbd.errors import ModelError, UnknownMethodError
 from casmbd.model.needs import ALL_NEEDS, EVENT_NEEDS
 
@@ -59,21 +57,6 @@ def fixed_fold(step: ca.Function, count: int, name: str) -> ca.Function:
         ca.MX.sym("h", step.sparsity_in(2))  # a column of step controls (DOPRI5) or h
     out = step.fold(count)(s, ca.repmat(p, 1, count), ca.repmat(h, 1, count))
     return ca.Function(name, [s, p, h], [out], ["s", "p", "h"], ["s_next"])
-
-
-class BufferedFunction:
-    """A Function called on numpy arrays bound once (``Function.buffer()``): the arguments
-    are copied into the bound arrays, and the first output is returned as a new array."""
-
-    def __init__(self, f: ca.Function):
-        self._args = [np.zeros(f.nnz_in(i)) for i in range(f.n_in())]
-        self._trigger, self._outs = buffered(f, self._args)
-
-    def __call__(self, *args) -> np.ndarray:
-        for bound, val in zip(self._args, args):
-            bound[...] = val
-        self._trigger()
-        return self._outs[0].copy()
 
 
 # ---------------------------------------------------------------------------- registry

@@ -18,6 +18,7 @@ import scipy.linalg as sla
 
 from casmbd.analysis.instant.joint_friction import has_reaction_friction
 from casmbd.analysis.integrators import sundials as sun
+from casmbd.compiled.buffered import BufferedFunction
 
 
 class RhsError(Exception):
@@ -110,54 +111,33 @@ class Equations:
         out = [f("constraints")(q, t, p),
                ca.vec(f("constraint_jacobian")(q, t, p)),
                f("constraint_time_derivative")(q, t, p)]
-        self._kin = Buffered(ca.Function("partitioning_kinematics", [w],
-                                          [ca.densify(ca.vertcat(*out))]))
+        self._kin = BufferedFunction(ca.Function("partitioning_kinematics", [w],
+                                                  [ca.densify(ca.vertcat(*out))]))
         w = ca.MX.sym("w", 2 * nq + 1 + n_p)
         q, v, t, p = w[:nq], w[nq:2 * nq], w[2 * nq], w[2 * nq + 1:]
         u = sim.ufun(t, p)
         force = f("applied_forces")(q, v, t, u, p) + f("quadratic_velocity_forces")(q, v, p)
         out = [ca.vec(f("mass_matrix")(q, p)), force, f("acceleration_rhs")(q, v, t, p),
                ca.vec(f("constraint_jacobian")(q, t, p))]
-        self._dyn = Buffered(ca.Function("partitioning_dynamics", [w],
-                                          [ca.densify(ca.vertcat(*out))]))
+        self._dyn = BufferedFunction(ca.Function("partitioning_dynamics", [w],
+                                                  [ca.densify(ca.vertcat(*out))]))
 
     def kinematics(self, q: np.ndarray, t: float):
         """C, C_q (dense), C_t at (q, t)."""
         nq, nc = self.nq, self.nc
-        out = self._kin(q, (t,), self.model.p)
+        out = self._kin.stacked(q, (t,), self.model.p)
         return (out[:nc], out[nc:nc + nc * nq].reshape((nc, nq), order="F"),
                 out[nc + nc * nq:])
 
     def dynamics(self, q: np.ndarray, v: np.ndarray, t: float):
         """M (dense), Q_e + Q_v, γ, C_q (dense) at (q, v, t)."""
         nq, nc = self.nq, self.nc
-        out = self._dyn(q, v, (t,), self.model.p)
+        out = self._dyn.stacked(q, v, (t,), self.model.p)
         m_mat = out[:nq * nq].reshape((nq, nq), order="F")
         k = nq * nq
         force, gamma = out[k:k + nq], out[k + nq:k + nq + nc]
         cq = out[k + nq + nc:].reshape((nc, nq), order="F")
         return m_mat, force, gamma, cq
-
-
-class Buffered:
-    """A one-input, one-output dense Function called through ``Function.buffer``."""
-
-    def __init__(self, function: ca.Function):
-        self.function = function
-        self._arg = np.zeros(function.nnz_in(0))
-        self._res = np.zeros(function.nnz_out(0))
-        self._buffer, self._trigger = function.buffer()
-        self._buffer.set_arg(0, memoryview(self._arg))
-        self._buffer.set_res(0, memoryview(self._res))
-
-    def __call__(self, *pieces) -> np.ndarray:
-        k = 0
-        for piece in pieces:
-            n = len(piece)
-            self._arg[k:k + n] = piece
-            k += n
-        self._trigger()
-        return self._res.copy()
 
 
 def solve_dense(matrix: np.ndarray, rhs: np.ndarray, what: str, t: float) -> np.ndarray:

@@ -97,6 +97,7 @@ from casmbd.analysis.statics.statics import (
     static_equilibrium,
     statics_functions,
 )
+from casmbd.compiled.build import compile_model
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, CompositionError, ModelError, SingularConfigurationError
 from casmbd.model.measures import result_names
@@ -464,7 +465,7 @@ def _at_equilibrium(mechanism, system: System, t: float, mode: str, stable: bool
         return eq.q, {"about": "equilibrium", "statics_iterations": int(eq.iterations),
                       "statics_residual": float(eq.residual),
                       "statics_verdict": eq.stability.verdict if eq.stability else None}
-    statics = NumericModel(system, STATICS_NEEDS, mode=mode, extra=statics_functions(system))
+    statics = compile_model(system, STATICS_NEEDS, mode=mode, extra=statics_functions(system))
     if isinstance(mechanism, NumericModel):
         statics.p[:] = mechanism.p
     eq = static_equilibrium(statics, t=t, mode=mode, stable=stable)
@@ -559,8 +560,8 @@ def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "au
     if stable and not (isinstance(at, str) and at == "equilibrium"):
         raise ModelError("linearize: stable=True goes with at='equilibrium'")
     lin_fun = _linearization_function(system)
-    model = NumericModel(system, NEEDED, mode=mode,
-                         extra=[lin_fun, _joint_jacobian_function(system)])
+    model = compile_model(system, NEEDED, mode=mode,
+                          extra=[lin_fun, _joint_jacobian_function(system)])
     if isinstance(mechanism, NumericModel):
         model.p[:] = mechanism.p
     t_build = time.perf_counter() - t0

@@ -108,7 +108,9 @@ from casmbd.analysis.instant.redundancy import null_space_basis
 from casmbd.analysis.statics.resting import resting_equilibrium
 from casmbd.analysis.statics.stability import STABILITY_RTOL, Stability, classify_stability
 from casmbd.analysis.statics.trust_region import RANK_RTOL, least_squares_step, trust_region_step
+from casmbd.compiled.build import compile_model
 from casmbd.compiled.model import NumericModel
+from casmbd.compiled.workspace import Workspace
 from casmbd.errors import AnalysisError, AssemblyError
 from casmbd.model.forces import ForceElement
 from casmbd.model.measures import result_names
@@ -397,7 +399,8 @@ HANDLING = Handling(
 
 def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol: float = 1e-10,
                        max_iter: int = 100, mode: str = "auto",
-                       redundancy: str = "auto", *, stable: bool = False) -> StaticsResult:
+                       redundancy: str = "auto", *, stable: bool = False,
+                       data: Workspace | None = None) -> StaticsResult:
     """Static equilibrium configuration, multipliers, reactions and stability.
 
     Parameters
@@ -428,6 +431,10 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
         stable one (the search descends the potential energy; an unstable equilibrium it
         reaches is left along its downhill eigenvector and the descent continues); the
         result's ``notes`` say so if it still ends at an unstable one.
+    data : Workspace, optional, keyword-only
+        The buffers the run evaluates in (``model.workspace()`` of the NumericModel given);
+        default: a workspace of its own, so that the run shares none with other users of the
+        model.
 
     Example: a rod (mass m, length L) pinned at one end at the origin, with a torsional spring
     k at the pivot and gravity −g ŷ, angle θ counter-clockwise from +x: V = m g (L/2) sin θ +
@@ -454,10 +461,11 @@ def static_equilibrium(mechanism, t: float = 0.0, method: str = "augmented", tol
         return resting_equilibrium(mechanism, t, method, tol, max_iter, mode,
                                    solve=static_equilibrium, stable=stable)
     if isinstance(mechanism, NumericModel):
-        model = mechanism
+        model = mechanism.with_data(data)  # its own buffers (or those given)
     else:
         system = System(mechanism)
-        model = NumericModel(system, STATICS_NEEDS, mode=mode, extra=statics_functions(system))
+        model = compile_model(system, STATICS_NEEDS, mode=mode, extra=statics_functions(system))
+        model = model if data is None else model.with_data(data)  # raises: another model's
     t0 = time.perf_counter()
     prob = _Problem(model, t)
     mech = model.mechanism

@@ -69,7 +69,8 @@ from casmbd.analysis.studies.sweep_values import (
     sweep_points,
 )
 from casmbd.compiled import codegen
-from casmbd.compiled.model import NEEDS, NumericModel
+from casmbd.compiled.build import compile_model
+from casmbd.compiled.model import NEEDS
 from casmbd.errors import (
     AnalysisError,
     CasmbdError,
@@ -135,13 +136,13 @@ class _Runner:
             self.engine = Simulator(mech, mode=mode, **build)
             self.model = self.engine.model
         elif self.analysis == "kinematics":
-            self.model = NumericModel(mech, "kinematics", mode=mode)
+            self.model = compile_model(mech, "kinematics", mode=mode)
         elif self.analysis == "inverse":
-            self.model = NumericModel(mech, NEEDS["dynamics"], mode=mode)
+            self.model = compile_model(mech, NEEDS["dynamics"], mode=mode)
         else:
             system = System(mech)
-            self.model = NumericModel(system, STATICS_NEEDS, mode=mode,
-                                      extra=statics_functions(system))
+            self.model = compile_model(system, STATICS_NEEDS, mode=mode,
+                                       extra=statics_functions(system))
         self.report = {k: v for k, v in self.model.report_dict.items()
                        if k in ("compiled", "cache_hit", "mode")}
         self.report["compiler_runs"] = codegen.COMPILE_COUNT - before

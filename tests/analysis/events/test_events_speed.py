@@ -25,9 +25,9 @@ from conftest import private_cache
 
 from casmbd.analysis.dynamics.simulate import simulate
 from casmbd.analysis.events import events as ev
-from casmbd.analysis.events.buffered import Buffered
 from casmbd.analysis.events.events import PROJECT_AFTER, periodic_overrun
 from casmbd.analysis.integrators import sundials as sun
+from casmbd.compiled.buffered import BufferedFunction
 from casmbd.errors import IntegratorError
 from casmbd.io.scene import loads_scene
 
@@ -91,12 +91,12 @@ def test_buffered_integrator_equals_the_function_call():
     args = {"x0": [0.3, -1.0], "p": [0.0, 0.0, 2.0]}
     direct = solver(**args)
     steps = solver.stats()["nsteps"]
-    wrapped = Buffered.of(solver)
-    buffered = wrapped(**args)
+    wrapped = BufferedFunction.of(solver)
+    buffered = wrapped.all(**args)
     np.testing.assert_array_equal(buffered[0], np.asarray(direct["xf"]))  # exact: same code
     assert buffered[0].shape == (2, 3)
     assert wrapped.stats()["nsteps"] == steps > 10  # the statistics of its own call
-    wrapped(x0=[0.3, -1.0], p=[0.0, 0.0, 0.5])  # a quarter of the span: fewer steps
+    wrapped.all(x0=[0.3, -1.0], p=[0.0, 0.0, 0.5])  # a quarter of the span: fewer steps
     assert 0 < wrapped.stats()["nsteps"] < steps
 
 
