@@ -9,7 +9,7 @@ and Pinocchio's ``buildModel``, :func:`compile_model` turns a scene (a
 Pinocchio's ``aba(model, data, …)``).  :func:`compile_blocks` compiles Functions that are not
 equations of a model (an integrator's fused step blocks, the OCP's element derivatives) into
 a cached library of their own.  No other module of casmbd constructs a NumericModel or calls
-the code generator (``tests/test_one_compile.py``).
+the code generator (``tests/compiled/test_one_compile.py``).
 """
 
 from __future__ import annotations

@@ -31,7 +31,7 @@ from casmbd.errors import ModelError
 from casmbd.io.scene import load_scene
 from casmbd.system import System
 
-REPO = pathlib.Path(__file__).resolve().parent.parent
+REPO = pathlib.Path(__file__).resolve().parents[2]
 PACKAGE = REPO / "casmbd"
 EXAMPLES = REPO / "examples"
 #: a construction of the model or a call of the code generator, also through a module
