@@ -175,7 +175,7 @@ class Friction:
         """After an event.  Slide rows of frictional contacts that just closed: stick or
         slide; of contacts that opened: released (σ = 0).  Sliding stick-slip joints whose
         velocity an impact reversed: σ follows (``slip``).  Friction rows whose slip the
-        closed rows fix (:func:`held`: a joint on its closed stop, a pinned rod's tip on the
+        closed rows fix (:meth:`held`: a joint on its closed stop, a pinned rod's tip on the
         floor): σ = 0; released: stick or slide."""
         gaps, p, pnames, events = self.gaps, self.p, self.pnames, self.events
         for i in range(self.n_gaps):
