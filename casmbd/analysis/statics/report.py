@@ -214,7 +214,8 @@ def equilibrium_result(model, prob, plan, q, lam, f: np.ndarray, it: int, histor
         lams = np.asarray(lam, dtype=float)[None, :].copy()
         reactions, flags = flag_undetermined(model, q[None, :], zero[None, :], zero[None, :],
                                              np.array([t]), u0[None, :], lams,
-                                             reactions[None], steps=[0])
+                                             reactions[None], steps=[0],
+                                             stacklevel=4)  # static_equilibrium's caller
         reactions, lam = reactions[0], lams[0]
         flags.pop("redundant_steps", None)
         flags.pop("undetermined_rows", None)
