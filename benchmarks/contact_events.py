@@ -15,7 +15,7 @@ the closed form, the time the wall-clock solve time (``stats["solve_seconds"]``,
 And the **cost per event** (issue 31): the ball with e = 1 on a coarse grid (t_end 1e6 s, 100
 outputs: every bounce inside one sub-interval, each event located by re-integration), stopped
 by ``max_events`` = 900 (below the projection of
-:func:`casmbd.analysis.events.events.periodic_overrun`),
+:func:`casmbd.analysis.events.guards.periodic_overrun`),
 solve seconds per event on the virtual machine and compiled.
 
     python -m benchmarks.contact_events [--repeat 3] [--update-docs]

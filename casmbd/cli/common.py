@@ -281,7 +281,7 @@ def _output_lines(result) -> list[str]:
 
 def state_lines(summary: dict) -> list[str]:
     """The tables of the requests and the named nodes at one state (an equilibrium, an
-    operating point): ``state_summary`` of :mod:`casmbd.analysis.statics.statics`."""
+    operating point): ``state_summary`` of :mod:`casmbd.analysis.statics.report`."""
     outputs = summary.get("outputs", {})
     lines = _table(["output", "value", "unit"],
                    [[name, _number(s["value"]), _unit(s["unit"])]

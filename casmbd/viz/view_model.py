@@ -20,7 +20,7 @@ Sources.  A :class:`~casmbd.model.Mechanism` alone is shown at its assembled ini
 initial guess; a mechanism that does not assemble is shown at its initial guess with a
 warning), one frame at t = 0.  A :class:`~casmbd.results.Result` of any analysis with body
 poses (kinematics, simulation, inverse dynamics, an OCP's, a statics result saved by a sweep)
-on its own grid; a :class:`~casmbd.analysis.statics.statics.StaticsResult` (the equilibrium, one
+on its own grid; a :class:`~casmbd.analysis.statics.report.StaticsResult` (the equilibrium, one
 frame; give the mechanism); an :class:`~casmbd.ocp.solution.OcpSolution` through
 :meth:`~casmbd.ocp.solution.OcpSolution.to_result` (as ``casmbd animate`` reads a solution
 file); a result that holds the coordinates q but no body poses (an OCP solution file written
@@ -40,7 +40,7 @@ import warnings
 import numpy as np
 
 from casmbd.analysis.instant.assembly import assemble
-from casmbd.analysis.statics.statics import StaticsResult
+from casmbd.analysis.statics.report import StaticsResult
 from casmbd.analysis.studies.sweep import statics_as_result
 from casmbd.analysis.studies.sweep_result import SweepResult
 from casmbd.compiled.build import compile_model

@@ -19,7 +19,7 @@ import pytest
 from conftest import private_cache
 
 from casmbd.analysis.dynamics.simulate import simulate
-from casmbd.analysis.events.events import zeno_guard
+from casmbd.analysis.events.guards import zeno_guard
 from casmbd.cli import main
 from casmbd.errors import CasmbdError, IntegratorError, ModelError, SceneError
 from casmbd.io.scene import loads_scene

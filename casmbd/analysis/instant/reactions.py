@@ -78,7 +78,7 @@ def undetermined_mask(reaction, lam: np.ndarray, null: np.ndarray) -> np.ndarray
 
 
 def flag_undetermined(model, qs, vs, acc, grid, us, lam, reactions: np.ndarray,
-                      steps=None) -> tuple[np.ndarray, dict]:
+                      steps=None, stacklevel: int = 3) -> tuple[np.ndarray, dict]:
     """Make λ minimum-norm where C_q is rank deficient, recompute the reactions from it, and
     name the components that are not determined.
 
@@ -100,6 +100,8 @@ def flag_undetermined(model, qs, vs, acc, grid, us, lam, reactions: np.ndarray,
     steps : iterable of int, optional
         Output steps to check.  Default: every step when C_q is rank deficient at the first
         one (redundant equations persist), otherwise none.
+    stacklevel : int
+        Of the warning naming the undetermined components (3: the caller's caller).
 
     Returns
     -------
@@ -149,5 +151,5 @@ def flag_undetermined(model, qs, vs, acc, grid, us, lam, reactions: np.ndarray,
         detail = "; ".join(f"'{j}' components {sorted(c)}" for j, c in flagged.items())
         warnings.warn(f"joint reactions cannot be determined (redundant constraint equations "
                       f"or a singular pose; the minimum-norm distribution is reported): "
-                      f"{detail}", RuntimeWarning, stacklevel=3)
+                      f"{detail}", RuntimeWarning, stacklevel=stacklevel)
     return out, info

@@ -89,14 +89,9 @@ from casmbd.analysis.instant.independent import (
 )
 from casmbd.analysis.instant.kkt import accelerations_and_multipliers, project_velocities
 from casmbd.analysis.instant.redundancy import RANK_RTOL, null_space_basis
+from casmbd.analysis.statics.report import state_reports, state_summary
 from casmbd.analysis.statics.stability import STABILITY_RTOL, Stability, classify_stability
-from casmbd.analysis.statics.statics import (
-    STATICS_NEEDS,
-    state_reports,
-    state_summary,
-    static_equilibrium,
-    statics_functions,
-)
+from casmbd.analysis.statics.statics import STATICS_NEEDS, static_equilibrium, statics_functions
 from casmbd.compiled.build import compile_model
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, CompositionError, ModelError, SingularConfigurationError
@@ -212,7 +207,7 @@ class LinearModel:
     #: "forces", "nodes"), as statics gives them at its equilibrium
     reports: dict = field(default_factory=dict)
     #: the text summary's values at the state
-    #: (:func:`casmbd.analysis.statics.statics.state_summary`)
+    #: (:func:`casmbd.analysis.statics.report.state_summary`)
     summary: dict = field(default_factory=dict)
 
     @property
@@ -644,7 +639,7 @@ def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "au
 
 def _state_reports(model: NumericModel, mech, q, v, acc, t: float) -> tuple[dict, dict]:
     """The requests (``[[outputs]]``), force reports and named nodes at the operating point
-    (q, v, q̈, t), and their summary (:func:`casmbd.analysis.statics.statics.state_summary`); the
+    (q, v, q̈, t), and their summary (:func:`casmbd.analysis.statics.report.state_summary`); the
     outputs Function is evaluated only when the mechanism has requests or named nodes."""
     names = result_names(mech)
     if not ("outputs" in names or "nodes" in names):

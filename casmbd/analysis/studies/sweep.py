@@ -172,7 +172,7 @@ class _Runner:
 
 
 def statics_as_result(res) -> Result:
-    """A :class:`~casmbd.analysis.statics.statics.StaticsResult` as a one-time :class:`Result` (so
+    """A :class:`~casmbd.analysis.statics.report.StaticsResult` as a one-time :class:`Result` (so
     that it is saved, reloaded and reduced like the others)."""
     names = {k: list(v) for k, v in res.names.items()}
     eig = np.asarray(res.eigenvalues, float)

@@ -5,9 +5,9 @@
   coarse grid — every bounce inside one sub-interval, the case these serve — against the
   closed form t_1 = sqrt(2 h/g),
   t_(k+1) = t_k + 2 e^k sqrt(2 h g)/g, and the same run without the screen (identical events);
-* :func:`~casmbd.analysis.events.events.periodic_overrun` on constructed impact times, and the ball
+* :func:`~casmbd.analysis.events.guards.periodic_overrun` on constructed impact times, and the ball
   of restitution 1 with t_end far beyond its event bound: stopped early (after
-  :data:`~casmbd.analysis.events.events.PROJECT_AFTER` events), named, the results kept.
+  :data:`~casmbd.analysis.events.guards.PROJECT_AFTER` events), named, the results kept.
 
 No timing is asserted (the per-event cost is in benchmarks/contact_events.py).  The virtual
 machine (``CASMBD_COMPILE=0``).
@@ -24,8 +24,8 @@ import pytest
 from conftest import private_cache
 
 from casmbd.analysis.dynamics.simulate import simulate
-from casmbd.analysis.events import events as ev
-from casmbd.analysis.events.events import PROJECT_AFTER, periodic_overrun
+from casmbd.analysis.events.guards import PROJECT_AFTER, periodic_overrun
+from casmbd.analysis.events.phases import Phase
 from casmbd.analysis.integrators import sundials as sun
 from casmbd.compiled.buffered import BufferedFunction
 from casmbd.errors import IntegratorError
@@ -73,7 +73,7 @@ def test_screen_changes_no_event(coarse, monkeypatch):
     def refuse(*args, **kwargs):
         raise RuntimeError("screen off")
 
-    monkeypatch.setattr(ev._Phase, "advance_dyadic", refuse)
+    monkeypatch.setattr(Phase, "advance_dyadic", refuse)
     plain = simulate(loads_scene(BALL), t_end=5.0, steps=1, rtol=1e-13, mode="vm")
     assert [(e["time"], e["kind"]) for e in plain.events] == \
         [(e["time"], e["kind"]) for e in coarse.events]
