@@ -20,6 +20,8 @@ import argparse
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from casmbd import analysis
+from casmbd.analysis.studies.sweep_registry import Sweepable, register_sweepable
 from casmbd.errors import ModelError
 
 __all__ = ["VERBS", "VERB_PARSERS", "VerbParser", "register_verb"]
@@ -48,18 +50,27 @@ VERB_PARSERS: dict[str, VerbParser] = {}
 
 def register_verb(name: str, run: Callable[[argparse.Namespace], tuple[dict, str]], *,
                   help: str = "", add_arguments=None, scene: bool = True,
-                  shared: bool = True, replace: bool = False):
+                  shared: bool = True, python: Callable | None = None,
+                  sweep: Sweepable | None = None, replace: bool = False):
     """Register the verb ``name`` run by ``run(args)``, which returns (JSON object, text).
 
     ``help``, ``add_arguments``, ``scene`` and ``shared`` make its parser
-    (:class:`VerbParser`).  A taken name is a :class:`ModelError` unless ``replace``.
-    Returns ``run``.
+    (:class:`VerbParser`).  An analysis verb also names its Python function, ``python``
+    (registered in the analysis face: ``casmbd.NAME``, :func:`casmbd.analysis.register_verb`),
+    and, if a parameter sweep runs it, its ``sweep``
+    (:class:`~casmbd.analysis.studies.sweep_registry.Sweepable`: ``casmbd sweep --analysis
+    NAME``, ``casmbd.sweep(..., analysis=NAME)``).  A taken name is a :class:`ModelError`
+    unless ``replace``.  Returns ``run``.
     """
     if not (isinstance(name, str) and name.isidentifier()) or not callable(run):
         raise ModelError(f"a verb is a name and a function run(args), got {name!r}, {run!r}")
     if name in VERBS and not replace:
         raise ModelError(f"verb '{name}' is already registered; pass replace=True to "
                          "replace it")
+    if python is not None:
+        analysis.register_verb(name, python, replace=replace)
+    if sweep is not None:
+        register_sweepable(name, sweep, replace=replace)
     VERBS[name] = run
     VERB_PARSERS[name] = VerbParser(help, add_arguments, scene, shared)
     return run

@@ -15,6 +15,7 @@ import argparse
 
 from casmbd.analysis.formulations import FORMULATIONS
 from casmbd.analysis.integrators.kinds import INTEGRATORS
+from casmbd.analysis.studies.sweep_registry import SWEEPABLE
 from casmbd.cli.common import (
     add_dpi_flag,
     add_mode_flag,
@@ -169,7 +170,7 @@ def sweep_arguments(p) -> None:
     p.add_argument("--param", action="append", required=True, metavar="NAME=VALUES",
                    help="NAME=A:B:N (N values from A to B inclusive), NAME=A,B,C or NAME=A; "
                         "repeat for a grid product")
-    p.add_argument("--analysis", choices=("simulate", "kinematics", "inverse", "statics"),
+    p.add_argument("--analysis", choices=tuple(SWEEPABLE),  # the sweep's registry
                    default="simulate", help="analysis run at every point (default simulate)")
     p.add_argument("--t-end", type=positive_float, default=None, help="final time [s]")
     p.add_argument("--steps", type=positive_int, default=None,
