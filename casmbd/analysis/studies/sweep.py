@@ -96,8 +96,8 @@ class _Runner:
         self.run_options = {k: opts[k] for k in self.kind.run_options if k in opts}
         self.engine: Engine = self.kind.build(mech, spec["mode"], **build)
         self.model = self.engine.model
-        report = self.model.report_dict if self.model is not None else {"compiled": False,
-                                                                        "cache_hit": False}
+        report = self.model.report_dict if self.model is not None else {
+            "compiled": False, "cache_hit": False, "mode": "nothing compiled"}
         self.report = {k: v for k, v in report.items()
                        if k in ("compiled", "cache_hit", "mode")}
         self.report["compiler_runs"] = codegen.COMPILE_COUNT - before
