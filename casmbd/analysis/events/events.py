@@ -61,6 +61,7 @@ from casmbd.analysis.integrators import sundials as sun
 from casmbd.analysis.integrators.stiffness_culprit import diagnose_stiffness
 from casmbd.errors import AnalysisError, CasmbdError, IntegratorError
 from casmbd.interrupts import reraise_interrupt
+from casmbd.model.contact_models import CONTACT_MODELS, acts_at_events
 from casmbd.model.contacts import SLIP_VELOCITY, ContactSlide, slides
 from casmbd.model.needs import EVENT_NEEDS, requirements
 from casmbd.results import Result
@@ -196,7 +197,7 @@ def compliant_events(result: Result, mechanism) -> None:
         return
     found = []
     for c in getattr(mechanism, "contacts", {}).values():
-        if c.model != "compliant":
+        if CONTACT_MODELS[c.model].force is None:  # no force element reporting its gaps
             continue
         prefix = f"{c.name}.force."
         for k, col in enumerate(names):
@@ -641,7 +642,7 @@ def _march(mechanism, t_end: float, steps: int, *, simulator_factory, integrator
     atol = rtol if atol is None else atol
     if not (isinstance(substeps, int) and substeps >= 1):
         raise AnalysisError(f"substeps must be an integer >= 1, got {substeps!r}")
-    elements = [c for c in mechanism.contacts.values() if c.model == "impact"]
+    elements = [c for c in mechanism.contacts.values() if acts_at_events(c)]
     elements += [StickRow(f) for f in mechanism.forces.values()
                  if getattr(f, "stick_slip", False)]
     elements += [SlideRow(c) for c in mechanism.contacts.values() if slides(c)]
