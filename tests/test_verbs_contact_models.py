@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from composition_scenes import VARIANTS
 
 import casmbd
 from casmbd.errors import CompositionError, ModelError
@@ -15,7 +16,6 @@ from casmbd.model import contact_models
 from casmbd.model.contact_models import CONTACT_MODELS, ContactModel, register_contact_model
 from casmbd.model.needs import NEEDS
 from casmbd.model.registry import FORCE_KINDS
-from composition_scenes import VARIANTS
 
 
 def test_every_model_declares_needs_and_has_canonical_scenes():
