@@ -46,6 +46,7 @@ VERBS = {
     "SensitivityResult": "casmbd.analysis.studies.sensitivity",
 }
 
+
 def register_verb(name: str, function, *, replace: bool = False):
     """Register the analysis verb ``name``: ``function`` becomes ``casmbd.analysis.NAME`` and
     ``casmbd.NAME``.  A taken name is a :class:`~casmbd.errors.ModelError` unless
@@ -81,4 +82,4 @@ def __dir__() -> list[str]:
     return sorted(set(globals()) | set(VERBS))
 
 
-__all__ = sorted(VERBS)  # the shipped verbs (those of user code are added by register_verb)
+__all__ = sorted(VERBS)  # the shipped verbs (those of user code are reached by name)
