@@ -16,36 +16,25 @@ tests/architecture/test_layers.py checks the rule.
 
 import importlib
 
-from casmbd.errors import (
-    AnalysisError,
-    AssemblyError,
-    CasmbdError,
-    CompileError,
-    ExpressionError,
-    IntegratorError,
-    ModelError,
-    RedundantConstraintError,
-    SceneError,
-    SingularConfigurationError,
-)
+# the error classes, re-exported (the rest of ``__all__``: :data:`_LAZY` and the analysis verbs)
+from casmbd.errors import AnalysisError as AnalysisError
+from casmbd.errors import AssemblyError as AssemblyError
+from casmbd.errors import CasmbdError as CasmbdError
+from casmbd.errors import CompileError as CompileError
+from casmbd.errors import ExpressionError as ExpressionError
+from casmbd.errors import IntegratorError as IntegratorError
+from casmbd.errors import ModelError as ModelError
+from casmbd.errors import RedundantConstraintError as RedundantConstraintError
+from casmbd.errors import SceneError as SceneError
+from casmbd.errors import SingularConfigurationError as SingularConfigurationError
 
 #: public name -> the module that defines it, imported when the name is first used (PEP 562):
 #: ``import casmbd`` loads only the error classes, so a script or ``casmbd --version`` starts
-#: without CasADi's compiled layer, scipy, the analyses or the OCP; ``casmbd.simulate`` and
-#: ``from casmbd import simulate`` import :mod:`casmbd.analysis.dynamics.simulate` on first use
+#: without CasADi's compiled layer, scipy, the analyses or the OCP.  The analysis verbs
+#: (``casmbd.simulate``, ``from casmbd import sweep`` …) are not listed here: they are those of
+#: the analysis face's registry, :data:`casmbd.analysis.VERBS` (read on first use, a verb's
+#: module imported on its first use), so that a verb registered there is ``casmbd.NAME`` too
 _LAZY = {
-    "accelerations": "casmbd.analysis.instant.assembly",
-    "assemble": "casmbd.analysis.instant.assembly",
-    "velocities": "casmbd.analysis.instant.assembly",
-    "inverse_dynamics": "casmbd.analysis.driven.inverse",
-    "info": "casmbd.analysis.driven.kinematics", "kinematics": "casmbd.analysis.driven.kinematics",
-    "linearize": "casmbd.analysis.statics.linearize",
-    "SensitivityResult": "casmbd.analysis.studies.sensitivity",
-    "sensitivity": "casmbd.analysis.studies.sensitivity",
-    "Simulator": "casmbd.analysis.dynamics.simulate",
-    "simulate": "casmbd.analysis.dynamics.simulate",
-    "static_equilibrium": "casmbd.analysis.statics.statics",
-    "SweepResult": "casmbd.analysis.studies.sweep", "sweep": "casmbd.analysis.studies.sweep",
     "NumericModel": "casmbd.compiled.model",
     "CompiledModel": "casmbd.compiled.robot", "compile": "casmbd.compiled.robot",
     "load_scene": "casmbd.io.scene", "loads_scene": "casmbd.io.scene",
@@ -59,16 +48,29 @@ _LAZY = {
 _SUBMODULES = ("analysis", "cli", "compiled", "io", "model", "ocp", "results", "system", "viz")
 
 
+def _analysis_verbs() -> dict:
+    """The analysis face's registry of verbs, :data:`casmbd.analysis.VERBS` (its module
+    imports no room)."""
+    return importlib.import_module("casmbd.analysis").VERBS
+
+
 def __getattr__(name: str):
     """Import the module of a public name on first use (PEP 562) and keep the value.
 
     ``load``/``load_result`` are :func:`casmbd.io.scene.load_result`: the result they read
     carries the scene reader :meth:`Result.mechanism` uses (passed in, never registered).
+    ``__all__`` is computed (the analysis verbs are the face's registry's).
     """
     if name in _LAZY:
         value = getattr(importlib.import_module(_LAZY[name]), name)
     elif name in _SUBMODULES:
         value = importlib.import_module(f"casmbd.{name}")
+    elif name == "__all__":
+        return sorted({*_ERRORS, *_LAZY, *_analysis_verbs()})
+    elif not name.startswith("__") and name in _analysis_verbs():
+        value = getattr(importlib.import_module("casmbd.analysis"), name)
+        if not isinstance(_analysis_verbs()[name], str):  # registered from user code: it
+            return value                                  # may be replaced, not kept here
     else:
         raise AttributeError(f"module 'casmbd' has no attribute {name!r}")
     globals()[name] = value
@@ -76,47 +78,12 @@ def __getattr__(name: str):
 
 
 def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_LAZY) | set(_SUBMODULES))
+    return sorted(set(globals()) | set(_LAZY) | set(_SUBMODULES) | set(_analysis_verbs()))
 
 
 __version__ = "0.1.0"
 
-__all__ = [
-    "AnalysisError",
-    "AssemblyError",
-    "CasmbdError",
-    "CompileError",
-    "CompiledModel",
-    "ExpressionError",
-    "IntegratorError",
-    "Mechanism",
-    "ModelError",
-    "NumericModel",
-    "RedundantConstraintError",
-    "Result",
-    "SceneError",
-    "SensitivityResult",
-    "Simulator",
-    "SingularConfigurationError",
-    "SweepResult",
-    "System",
-    "accelerations",
-    "assemble",
-    "compile",
-    "info",
-    "inverse_dynamics",
-    "kinematics",
-    "linearize",
-    "load",
-    "load_result",
-    "load_scene",
-    "load_urdf",
-    "loads_scene",
-    "loads_urdf",
-    "sensitivity",
-    "simulate",
-    "static_equilibrium",
-    "sweep",
-    "velocities",
-    "view",
-]
+#: the error classes
+_ERRORS = ("AnalysisError", "AssemblyError", "CasmbdError", "CompileError", "ExpressionError",
+           "IntegratorError", "ModelError", "RedundantConstraintError", "SceneError",
+           "SingularConfigurationError")

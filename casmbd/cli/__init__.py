@@ -12,9 +12,10 @@ every array.  Errors end with a non-zero exit status and one ``error: …`` line
 The package: this module holds the parser and :func:`main`; the verbs live in
 :mod:`casmbd.cli.info`, :mod:`casmbd.cli.analyses` (kinematics … linearize),
 :mod:`casmbd.cli.workbench` (plot, animate, sweep, sensitivity) and :mod:`casmbd.cli.optimal`
-(ocp, bench) and are imported when their verb runs (:data:`VERBS`); the parsers of the last
-two in :mod:`casmbd.cli.verbs`, the shared helpers in :mod:`casmbd.cli.common`.  The CLI is
-the top layer: it loads scene files (casmbd.io) and hands Mechanisms to the analyses.
+(ocp, bench) and are imported when their verb runs (:data:`VERBS`); every verb is registered
+here with its help and its arguments (:mod:`casmbd.cli.verbs`,
+:func:`casmbd.cli.registry.register_verb`), the shared helpers in :mod:`casmbd.cli.common`.
+The CLI is the top layer: it loads scene files (casmbd.io) and hands Mechanisms to the analyses.
 """
 
 from __future__ import annotations
@@ -31,165 +32,92 @@ import warnings
 from collections.abc import Sequence
 
 from casmbd import __version__, interrupts
-from casmbd.analysis.formulations import FORMULATIONS
-from casmbd.analysis.integrators.kinds import INTEGRATORS
+from casmbd.cli import verbs
 from casmbd.cli.common import (
     CommandParser,
     UsageError,
     add_mode_flag,
     add_output_flags,
     finite_json,
-    nonnegative_float,
-    positive_float,
-    positive_int,
 )
 from casmbd.cli.registry import VERB_PARSERS, VERBS, register_verb
-from casmbd.cli.verbs import (
-    add_bench_verb,
-    add_sensitivity_verb,
-    add_sweep_verb,
-    add_view_verb,
-    add_workbench_verbs,
-)
 from casmbd.errors import CasmbdError
 
 EXIT_ERROR = 1
 EXIT_USAGE = 2
 EXIT_INTERRUPTED = 130  # 128 + SIGINT
 
-#: verb -> (module, function): the module is imported when its verb runs (lazy loading, as
-#: in ``casmbd/__init__``), so ``casmbd info`` loads neither the OCP, the sweeps nor the plots
-_HANDLERS = {"info": ("info", "_cmd_info"), "kinematics": ("analyses", "_cmd_kinematics"),
-             "simulate": ("analyses", "_cmd_simulate"), "inverse": ("analyses", "_cmd_inverse"),
-             "statics": ("analyses", "_cmd_statics"),
-             "linearize": ("analyses", "_cmd_linearize"), "ocp": ("optimal", "_cmd_ocp"),
-             "plot": ("workbench", "_cmd_plot"), "sensitivity": ("workbench", "_cmd_sensitivity"),
-             "bench": ("optimal", "_cmd_bench"), "animate": ("workbench", "_cmd_animate"),
-             "sweep": ("workbench", "_cmd_sweep"), "view": ("view", "_cmd_view")}
-
 
 def _verb(module: str, name: str):
-    """The function ``name`` of ``casmbd.cli.<module>``, imported on its first call."""
+    """The function ``name`` of ``casmbd.cli.<module>``, imported on its first call (lazy
+    loading, as in ``casmbd/__init__``: ``casmbd info`` loads neither the OCP, the sweeps nor
+    the plots)."""
     def run(args):
         return getattr(importlib.import_module(f"casmbd.cli.{module}"), name)(args)
     run.__name__ = run.__qualname__ = name
+    run.handler = (f"casmbd.cli.{module}", name)  # where it lives (test_startup.py)
     return run
 
 
-for _name, _where in _HANDLERS.items():  # the shipped verbs (casmbd.cli.registry.VERBS)
-    register_verb(_name, _verb(*_where), builtin=True)
+# the shipped verbs, in the order of ``casmbd --help``: each one its handler (imported when it
+# runs), its help and its arguments (casmbd.cli.verbs)
+register_verb("info", _verb("info", "_cmd_info"),
+              help="coordinates, constraints, degrees of freedom")
+register_verb("kinematics", _verb("analyses", "_cmd_kinematics"),
+              help="kinematic analysis of a driven mechanism",
+              add_arguments=verbs.kinematics_arguments)
+register_verb("inverse", _verb("analyses", "_cmd_inverse"),
+              help="inverse dynamics: driver efforts and reactions",
+              add_arguments=verbs.kinematics_arguments)
+register_verb("statics", _verb("analyses", "_cmd_statics"),
+              help="static equilibrium, reactions and stability",
+              add_arguments=verbs.statics_arguments)
+register_verb("simulate", _verb("analyses", "_cmd_simulate"), help="forward dynamics",
+              add_arguments=verbs.simulate_arguments)
+register_verb("linearize", _verb("analyses", "_cmd_linearize"),
+              help="natural frequencies, linearized equations and stability about the initial "
+                   "configuration, the static equilibrium or a stored state",
+              add_arguments=verbs.linearize_arguments)
+register_verb("ocp", _verb("optimal", "_cmd_ocp"),
+              help="trajectory optimisation: the scene's [ocp] table",
+              add_arguments=verbs.ocp_arguments)
+register_verb("plot", _verb("workbench", "_cmd_plot"),
+              help="figures of a saved result against time",
+              add_arguments=verbs.plot_arguments, shared=False)
+register_verb("animate", _verb("workbench", "_cmd_animate"),
+              help="animation (.gif, .mp4 with ffmpeg) or still frame (.png) of a scene or a "
+                   "saved result",
+              add_arguments=verbs.animate_arguments, shared=False)
+register_verb("sweep", _verb("workbench", "_cmd_sweep"),
+              help="parameter sweep: one analysis at many values of the scene's [parameters]",
+              add_arguments=verbs.sweep_arguments, shared=False)
+register_verb("sensitivity", _verb("workbench", "_cmd_sensitivity"),
+              help="exact derivatives of simulation outputs with respect to scene parameters "
+                   "(IDAS)",
+              add_arguments=verbs.sensitivity_arguments, shared=False)
+register_verb("bench", _verb("optimal", "_cmd_bench"),
+              help="run the benchmark suite of a casmbd checkout (python -m benchmarks)",
+              add_arguments=verbs.bench_arguments, shared=False)
+register_verb("view", _verb("view", "_cmd_view"),
+              help="3-D view of a scene, result or OCP solution in the browser (live server "
+                   "on 127.0.0.1, or --html FILE)",
+              add_arguments=verbs.view_arguments, shared=False)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The argument parser of the ``casmbd`` command."""
+    """The argument parser of the ``casmbd`` command: one sub-parser per registered verb
+    (:data:`casmbd.cli.registry.VERB_PARSERS`), in registration order."""
     parser = CommandParser(prog="casmbd",
                            description="Dynamics of constrained mechanisms on CasADi.")
     parser.add_argument("--version", action="store_true", help="print the version and exit")
     sub = parser.add_subparsers(dest="verb", parser_class=CommandParser)
-
-    def common(p):
-        p.add_argument("scene", help="scene file (TOML)")
-        add_output_flags(p)
-        add_mode_flag(p)
-
-    def grid(p):
-        p.add_argument("--t-end", type=positive_float, required=True, help="final time [s]")
-        p.add_argument("--steps", type=positive_int, required=True,
-                       help="number of output intervals (N + 1 output times from 0 to T)")
-        p.add_argument("--out", help="save every array to this .npz file, or one column per "
-                                     "scalar series to this .csv file (the suffix decides)")
-
-    p = sub.add_parser("info", help="coordinates, constraints, degrees of freedom")
-    common(p)
-    def redundancy(p):  # simulate's option; "minimum_norm" (keep every row) is simulate's
-        p.add_argument("--redundancy", choices=("auto", "remove"), default="auto",
-                       help="redundant constraint equations: removed and named (both choices; "
-                            "reactions they leave undetermined are the minimum-norm ones)")
-
-    p = sub.add_parser("kinematics", help="kinematic analysis of a driven mechanism")
-    common(p)
-    grid(p)
-    redundancy(p)
-
-    p = sub.add_parser("inverse", help="inverse dynamics: driver efforts and reactions")
-    common(p)
-    grid(p)
-    redundancy(p)
-
-    p = sub.add_parser("statics", help="static equilibrium, reactions and stability")
-    common(p)
-    redundancy(p)
-    p.add_argument("--method", choices=("augmented", "reduced"), default="augmented",
-                   help="Newton on (q, lambda) (default) or on the independent coordinates")
-    p.add_argument("--stable", action="store_true",
-                   help="find a stable equilibrium (descend the potential energy) instead of "
-                        "the one nearest the initial configuration, stable or not")
-
-    p = sub.add_parser("simulate", help="forward dynamics")
-    common(p)
-    grid(p)
-    p.add_argument("--rtol", type=positive_float, default=1e-8, help="relative tolerance")
-    p.add_argument("--atol", type=positive_float, default=None,
-                   help="absolute tolerance (default: rtol)")
-    p.add_argument("--formulation", choices=FORMULATIONS, default=None,
-                   help="equations of motion (default augmented_lagrangian; articulated for "
-                        "constraint-free trees in joint coordinates)")
-    p.add_argument("--redundancy", choices=("auto", "remove", "minimum_norm"), default="auto",
-                   help="redundant constraint equations: remove the dependent rows or keep them "
-                        "with minimum-norm multipliers (default: by formulation)")
-    p.add_argument("--integrator", choices=INTEGRATORS, default=None,
-                   help="time integrator (default per formulation)")
-    p.add_argument("--projection", action="store_true",
-                   help="project positions and velocities onto the constraints at every output")
-    p.add_argument("--step", type=positive_float, default=None,
-                   help="step size of the fixed-step integrators rk4/abm")
-    p.add_argument("--max-steps", type=positive_int, default=None,
-                   help="most steps per output interval of the variable-step integrators "
-                        "(default 500000; 20000 for partitioning/nullspace)")
-    p.add_argument("--max-events", type=positive_int, default=None,
-                   help="with impacts: stop (keeping the results) after this many events "
-                        "(default: the scene's [simulation] max_events, else 10000)")
-    p.add_argument("--rest-velocity", type=nonnegative_float, default=None, metavar="M/S",
-                   help="with impacts: a rebound slower than this closes the contact "
-                        "(default: [simulation] rest_velocity, else sqrt(2 g 1e-9 m))")
-    p = sub.add_parser("linearize", help="natural frequencies, linearized equations and "
-                                         "stability about the initial configuration, the "
-                                         "static equilibrium or a stored state")
-    common(p)
-    redundancy(p)
-    where = p.add_mutually_exclusive_group()
-    where.add_argument("--at-equilibrium", action="store_true",
-                       help="find the static equilibrium (as the statics verb) and linearize "
-                            "there")
-    where.add_argument("--from", dest="from_result", metavar="RESULT.npz", default=None,
-                       help="linearize about the state stored in this result (of the same "
-                            "scene) at the output time nearest --time")
-    p.add_argument("--time", type=float, default=None,
-                   help="with --from: the time of the stored state (nearest output time)")
-    p.add_argument("--stable", action="store_true",
-                   help="with --at-equilibrium: about a stable equilibrium (as statics "
-                        "--stable) instead of the one nearest the initial configuration")
-    p = sub.add_parser("ocp", help="trajectory optimisation: the scene's [ocp] table")
-    common(p)
-    p.add_argument("--out", help="save the solution (t, q, v, u, statistics) to this .npz "
-                                 "file, or its result on the mesh nodes to this .csv file")
-    p.add_argument("--intervals", type=positive_int, default=None,
-                   help="number of control intervals (overrides the table)")
-    p.add_argument("--transcription", choices=("radau", "legendre", "multiple_shooting"),
-                   default=None, help="overrides the table")
-    p.add_argument("--no-replay", action="store_true",
-                   help="skip the forward replay of the optimal controls")
-    p.add_argument("--plot", default=None, help="save a figure of coordinates and controls")
-    add_workbench_verbs(sub)
-    add_sweep_verb(sub)
-    add_sensitivity_verb(sub)
-    add_bench_verb(sub)
-    add_view_verb(sub)
-    for name, spec in VERB_PARSERS.items():  # registered verbs (casmbd.cli.registry)
+    for name, spec in VERB_PARSERS.items():
         p = sub.add_parser(name, help=spec.help)
-        if spec.scene:
-            common(p)
-        else:
+        if spec.shared and spec.scene:
+            p.add_argument("scene", help="scene file (TOML)")
+            add_output_flags(p)
+            add_mode_flag(p)
+        elif spec.shared:
             add_output_flags(p)
         if spec.add_arguments is not None:
             spec.add_arguments(p)

@@ -1,26 +1,126 @@
-"""The command-line parsers of the verbs defined outside :mod:`casmbd.cli` itself (``plot``,
-``animate``, ``sweep``, ``sensitivity``, ``bench``): building the parser needs only these, not
-the verbs' modules, so that ``casmbd info`` does not load the plots, the sweeps or the OCP (the
-handlers are imported when their verb runs: ``casmbd.cli.VERBS``).
+"""The arguments of every shipped verb of the ``casmbd`` command: one function per verb, named
+in its registration (:mod:`casmbd.cli`, :func:`casmbd.cli.registry.register_verb`).  Building
+the parser needs only these, not the verbs' modules, so that ``casmbd info`` does not load the
+simulation, the plots, the sweeps or the OCP (the handlers are imported when their verb runs:
+``casmbd.cli.registry.VERBS``).
+
+The verbs that read a scene file get its positional ``scene``, ``--json``, ``--debug`` and
+``--mode`` from the command (``shared=True``); ``plot`` … ``view`` add every argument
+themselves, in their own order (``shared=False``).
 """
 
 from __future__ import annotations
 
 import argparse
 
+from casmbd.analysis.formulations import FORMULATIONS
+from casmbd.analysis.integrators.kinds import INTEGRATORS
+from casmbd.analysis.studies.sweep_registry import SWEEPABLE
 from casmbd.cli.common import (
     add_dpi_flag,
     add_mode_flag,
     add_output_flags,
+    nonnegative_float,
     positive_float,
     positive_int,
 )
 from casmbd.viz.plots import KINDS
 
 
-def add_workbench_verbs(sub) -> None:
-    """The ``plot`` and ``animate`` verbs (figures and animations of results)."""
-    p = sub.add_parser("plot", help="figures of a saved result against time")
+def _grid(p) -> None:
+    """The output time grid of the time-domain verbs, and their ``--out``."""
+    p.add_argument("--t-end", type=positive_float, required=True, help="final time [s]")
+    p.add_argument("--steps", type=positive_int, required=True,
+                   help="number of output intervals (N + 1 output times from 0 to T)")
+    p.add_argument("--out", help="save every array to this .npz file, or one column per "
+                                 "scalar series to this .csv file (the suffix decides)")
+
+
+def _redundancy(p) -> None:
+    """``--redundancy`` of the one-instant verbs ("minimum_norm", keep every row, is
+    simulate's)."""
+    p.add_argument("--redundancy", choices=("auto", "remove"), default="auto",
+                   help="redundant constraint equations: removed and named (both choices; "
+                        "reactions they leave undetermined are the minimum-norm ones)")
+
+
+def kinematics_arguments(p) -> None:
+    """``kinematics`` and ``inverse``: the time grid and ``--redundancy``."""
+    _grid(p)
+    _redundancy(p)
+
+
+def statics_arguments(p) -> None:
+    """``statics``: ``--redundancy``, ``--method``, ``--stable``."""
+    _redundancy(p)
+    p.add_argument("--method", choices=("augmented", "reduced"), default="augmented",
+                   help="Newton on (q, lambda) (default) or on the independent coordinates")
+    p.add_argument("--stable", action="store_true",
+                   help="find a stable equilibrium (descend the potential energy) instead of "
+                        "the one nearest the initial configuration, stable or not")
+
+
+def simulate_arguments(p) -> None:
+    """``simulate``: the time grid, the formulation, the integrator and their options."""
+    _grid(p)
+    p.add_argument("--rtol", type=positive_float, default=1e-8, help="relative tolerance")
+    p.add_argument("--atol", type=positive_float, default=None,
+                   help="absolute tolerance (default: rtol)")
+    p.add_argument("--formulation", choices=FORMULATIONS, default=None,
+                   help="equations of motion (default augmented_lagrangian; articulated for "
+                        "constraint-free trees in joint coordinates)")
+    p.add_argument("--redundancy", choices=("auto", "remove", "minimum_norm"), default="auto",
+                   help="redundant constraint equations: remove the dependent rows or keep them "
+                        "with minimum-norm multipliers (default: by formulation)")
+    p.add_argument("--integrator", choices=INTEGRATORS, default=None,
+                   help="time integrator (default per formulation)")
+    p.add_argument("--projection", action="store_true",
+                   help="project positions and velocities onto the constraints at every output")
+    p.add_argument("--step", type=positive_float, default=None,
+                   help="step size of the fixed-step integrators rk4/abm")
+    p.add_argument("--max-steps", type=positive_int, default=None,
+                   help="most steps per output interval of the variable-step integrators "
+                        "(default 500000; 20000 for partitioning/nullspace)")
+    p.add_argument("--max-events", type=positive_int, default=None,
+                   help="with impacts: stop (keeping the results) after this many events "
+                        "(default: the scene's [simulation] max_events, else 10000)")
+    p.add_argument("--rest-velocity", type=nonnegative_float, default=None, metavar="M/S",
+                   help="with impacts: a rebound slower than this closes the contact "
+                        "(default: [simulation] rest_velocity, else sqrt(2 g 1e-9 m))")
+
+
+def linearize_arguments(p) -> None:
+    """``linearize``: where to linearize (initial pose, equilibrium, a stored state)."""
+    _redundancy(p)
+    where = p.add_mutually_exclusive_group()
+    where.add_argument("--at-equilibrium", action="store_true",
+                       help="find the static equilibrium (as the statics verb) and linearize "
+                            "there")
+    where.add_argument("--from", dest="from_result", metavar="RESULT.npz", default=None,
+                       help="linearize about the state stored in this result (of the same "
+                            "scene) at the output time nearest --time")
+    p.add_argument("--time", type=float, default=None,
+                   help="with --from: the time of the stored state (nearest output time)")
+    p.add_argument("--stable", action="store_true",
+                   help="with --at-equilibrium: about a stable equilibrium (as statics "
+                        "--stable) instead of the one nearest the initial configuration")
+
+
+def ocp_arguments(p) -> None:
+    """``ocp``: the solution file, the mesh, the transcription, the replay and a figure."""
+    p.add_argument("--out", help="save the solution (t, q, v, u, statistics) to this .npz "
+                                 "file, or its result on the mesh nodes to this .csv file")
+    p.add_argument("--intervals", type=positive_int, default=None,
+                   help="number of control intervals (overrides the table)")
+    p.add_argument("--transcription", choices=("radau", "legendre", "multiple_shooting"),
+                   default=None, help="overrides the table")
+    p.add_argument("--no-replay", action="store_true",
+                   help="skip the forward replay of the optimal controls")
+    p.add_argument("--plot", default=None, help="save a figure of coordinates and controls")
+
+
+def plot_arguments(p) -> None:
+    """``plot``: figures of a saved result."""
     p.add_argument("result", help="result file (.npz) written with --out")
     p.add_argument("--what", "--kind", dest="kind", action="append", default=None,
                    metavar="KIND",
@@ -37,8 +137,9 @@ def add_workbench_verbs(sub) -> None:
     add_dpi_flag(p, 100.0)
     add_output_flags(p)
 
-    p = sub.add_parser("animate", help="animation (.gif, .mp4 with ffmpeg) or still frame "
-                                       "(.png) of a scene or a saved result")
+
+def animate_arguments(p) -> None:
+    """``animate``: an animation or a still frame of a scene or a saved result."""
     p.add_argument("source", help="scene file (TOML; simulated first) or result file (.npz)")
     p.add_argument("--out", required=True,
                    help=".gif (Pillow), .mp4 (needs ffmpeg) or .png/.pdf/.svg (a still frame "
@@ -63,15 +164,13 @@ def add_workbench_verbs(sub) -> None:
     add_output_flags(p)
 
 
-def add_sweep_verb(sub) -> None:
-    """The ``sweep`` verb (one analysis at many parameter values, casmbd.analysis.studies.sweep)."""
-    p = sub.add_parser("sweep", help="parameter sweep: one analysis at many values of the "
-                                     "scene's [parameters]")
+def sweep_arguments(p) -> None:
+    """``sweep``: one analysis at many parameter values (casmbd.analysis.studies.sweep)."""
     p.add_argument("scene", help="scene file (TOML) with a [parameters] table")
     p.add_argument("--param", action="append", required=True, metavar="NAME=VALUES",
                    help="NAME=A:B:N (N values from A to B inclusive), NAME=A,B,C or NAME=A; "
                         "repeat for a grid product")
-    p.add_argument("--analysis", choices=("simulate", "kinematics", "inverse", "statics"),
+    p.add_argument("--analysis", choices=tuple(SWEEPABLE),  # the sweep's registry
                    default="simulate", help="analysis run at every point (default simulate)")
     p.add_argument("--t-end", type=positive_float, default=None, help="final time [s]")
     p.add_argument("--steps", type=positive_int, default=None,
@@ -90,10 +189,8 @@ def add_sweep_verb(sub) -> None:
     add_mode_flag(p)
 
 
-def add_sensitivity_verb(sub) -> None:
-    """The ``sensitivity`` verb (casmbd.analysis.studies.sensitivity)."""
-    p = sub.add_parser("sensitivity", help="exact derivatives of simulation outputs with "
-                                           "respect to scene parameters (IDAS)")
+def sensitivity_arguments(p) -> None:
+    """``sensitivity``: exact derivatives of outputs (casmbd.analysis.studies.sensitivity)."""
     p.add_argument("scene", help="scene file (TOML) with a [parameters] table")
     p.add_argument("--output", action="append", required=True, metavar="EXPR",
                    help="output: an expression at t_end (e.g. tip_x) or 'integral: EXPR' "
@@ -107,10 +204,8 @@ def add_sensitivity_verb(sub) -> None:
     add_output_flags(p)
 
 
-def add_bench_verb(sub) -> None:
-    """The ``bench`` verb: the benchmark suite of a source checkout (``python -m benchmarks``)."""
-    p = sub.add_parser("bench", help="run the benchmark suite of a casmbd checkout "
-                                     "(python -m benchmarks)")
+def bench_arguments(p) -> None:
+    """``bench``: the benchmark suite of a source checkout (``python -m benchmarks``)."""
     p.add_argument("--quick", action="store_true",
                    help="a few minutes: check the printed errors against their bounds")
     p.add_argument("--update-docs", action="store_true",
@@ -118,10 +213,8 @@ def add_bench_verb(sub) -> None:
     add_output_flags(p)
 
 
-def add_view_verb(sub) -> None:
-    """The ``view`` verb: 3-D view in the browser (casmbd.cli.view; needs casmbd[view])."""
-    p = sub.add_parser("view", help="3-D view of a scene, result or OCP solution in the "
-                                    "browser (live server on 127.0.0.1, or --html FILE)")
+def view_arguments(p) -> None:
+    """``view``: 3-D view in the browser (casmbd.cli.view; needs casmbd[view])."""
     p.add_argument("source", help="scene file (TOML/URDF: the initial pose), result file or "
                                   "OCP solution file (.npz: the motion)")
     p.add_argument("--port", type=_port, default=None,

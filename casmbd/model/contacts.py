@@ -8,7 +8,8 @@ Each element measures one or more *gaps* g_k(q) that must stay non-negative:
 * :class:`SphereContact` — two spheres on two bodies: g = |r_1 − r_2| − (r_1 + r_2);
 * :class:`JointLimit` — stops on a joint coordinate q_j: g = q_j − lower and g = upper − q_j.
 
-Two contact models, chosen per element (``model``):
+Two contact models, chosen per element (``model``; registered in
+:mod:`casmbd.model.contact_models`, which says what each needs and how it acts):
 
 * ``"impact"`` (non-smooth, event-driven): the integrator stops where a gap reaches zero (root
   finding on g), the velocities jump by Newton's restitution law G v⁺ = −e G v⁻ with impulses
@@ -37,6 +38,7 @@ import numpy as np
 
 from casmbd.errors import ModelError
 from casmbd.model.bodies import GROUND, scalar, vector
+from casmbd.model.contact_models import CONTACT_MODELS, acts_at_events, contact_model
 from casmbd.model.forces import ForceElement
 from casmbd.model.joints import Joint
 from casmbd.model.registry import register_force
@@ -47,7 +49,6 @@ __all__ = ["CONTACT_MODELS", "CONTACT_SHAPES", "CompliantContact", "GapClosure",
            "RollingClosure", "SphereContact", "Unilateral", "adams_step", "contact_shape",
            "register_contact_shape"]
 
-CONTACT_MODELS = ("impact", "compliant")
 #: default regularisation velocity of compliant friction (m/s)
 FRICTION_VELOCITY = 1e-4
 
@@ -113,9 +114,7 @@ class Unilateral:
         self.friction = scalar(self.friction, f"{where} field 'friction'")
         if self.friction < 0.0:
             raise ModelError(f"{where} field 'friction': must be >= 0, got {self.friction}")
-        if self.model not in CONTACT_MODELS:
-            raise ModelError(f"{where} field 'model': expected one of {CONTACT_MODELS}, got "
-                             f"{self.model!r}")
+        contact_model(self.model, where)  # a registered model, or a ModelError naming it
 
     @property
     def labels(self) -> tuple[str, ...]:
@@ -123,12 +122,12 @@ class Unilateral:
 
     @property
     def needs(self) -> frozenset[str]:
-        """What it needs from an analysis (:mod:`casmbd.model.needs`): the impact model acts
-        at events (and, with friction at a closed contact, switches sliding and sticking);
-        the compliant model is a force element (``"<name>.force"``) and needs nothing."""
-        if self.model != "impact":
-            return frozenset()
-        return frozenset({"events", "contact_friction"} if slides(self) else {"events"})
+        """What it needs from an analysis (:mod:`casmbd.model.needs`): its model's
+        (:class:`~casmbd.model.contact_models.ContactModel`): the impact model acts at events
+        (and, with friction at a closed contact, switches sliding and sticking); the compliant
+        model is a force element (``"<name>.force"``) and needs nothing."""
+        model = CONTACT_MODELS[self.model]
+        return model.needs | model.sliding_needs if slides(self) else model.needs
 
     def gaps(self, ctx) -> ca.SX:
         raise NotImplementedError
@@ -405,7 +404,7 @@ def slides(element) -> bool:
     """True for a plane contact with friction whose closed phases carry Coulomb friction:
     sliding (−μ N along the slip) or stuck (its tangential position held in the plane, the
     touching point's velocity held at zero in space)."""
-    return (isinstance(element, PlaneContact) and element.model == "impact"
+    return (isinstance(element, PlaneContact) and acts_at_events(element)
             and element.friction > 0.0)
 
 

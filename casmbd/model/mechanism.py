@@ -21,6 +21,7 @@ import numpy as np
 from casmbd.errors import ModelError
 from casmbd.limits import MAX_BODIES, MAX_ELEMENTS, check_count
 from casmbd.model.bodies import GROUND, Body, Marker, SpatialBody, check_inertia, scalar, vector
+from casmbd.model.contact_models import CONTACT_MODELS, acts_at_events, models_where
 from casmbd.model.contacts import (
     JointLimit,
     Unilateral,
@@ -566,16 +567,17 @@ class Mechanism:
         if rest is not None:  # the element's own rest velocity (events; m/s)
             where = f"contact '{element.name}' field 'rest_velocity'"
             rest = scalar(rest, where)
-            if rest < 0.0 or element.model != "impact":
+            if rest < 0.0 or not acts_at_events(element):
                 raise ModelError(f"{where}: must be >= 0, got {rest}" if rest < 0.0 else
-                                 f"{where}: applies to model = 'impact'")
+                                 f"{where}: applies to model = "
+                                 f"{models_where(lambda m: m.events)}")
             element.rest_velocity = rest
-        if element.model == "compliant":
-            self.add("compliant_contact", self._generate(f"{element.name}.force"), element,
-                     **compliant)
+        force = CONTACT_MODELS[element.model].force  # how the model enters the equations
+        if force is not None:
+            self.add(force, self._generate(f"{element.name}.force"), element, **compliant)
         elif compliant:
             raise ModelError(f"contact '{element.name}': {', '.join(compliant)} apply to "
-                             "model = 'compliant'")
+                             f"model = {models_where(lambda m: m.force is not None)}")
         if slides(element):  # its closed phases: sliding sign and stuck position
             for param in slide_parameters(element.name):
                 self.add_parameter(param, 0.0)

@@ -3,7 +3,8 @@
 
 * a transcription method, ``examples/custom_transcription.py`` (trapezoidal collocation,
   :func:`casmbd.ocp.methods.register_transcription`);
-* a command-line verb, ``examples/custom_verb.py`` (``casmbd mass_properties``,
+* an analysis verb, ``examples/custom_verb.py`` (``casmbd mass_properties``,
+  ``casmbd.mass_properties``, swept by ``casmbd sweep --analysis mass_properties``: one
   :func:`casmbd.cli.registry.register_verb`);
 * a contact shape, ``examples/custom_contact.py`` (a sphere against a fixed dome,
   :func:`casmbd.model.contacts.register_contact_shape`);
@@ -22,7 +23,8 @@ import numpy as np
 import pytest
 
 import casmbd
-from casmbd import cli
+from casmbd import analysis, cli
+from casmbd.analysis.studies import sweep_registry
 from casmbd.cli import registry
 from casmbd.errors import AnalysisError, ModelError
 from casmbd.model import contacts
@@ -73,6 +75,8 @@ def mass_verb():
     yield space
     registry.VERBS.pop("mass_properties")
     registry.VERB_PARSERS.pop("mass_properties")
+    analysis.unregister_verb("mass_properties")
+    sweep_registry.unregister_sweepable("mass_properties")
 
 
 SCENE = """[scene]
@@ -126,6 +130,52 @@ def test_a_verb_is_one_function_and_its_registration(mass_verb, tmp_path, capsys
     assert "mass_properties" in cli.build_parser().format_help()
     with pytest.raises(ModelError, match="already registered"):
         registry.register_verb("mass_properties", mass_verb["_run"])
+
+
+def _closed_form(k: float) -> tuple[float, np.ndarray]:
+    """m = 1 + 2k + 2 and r_G = (2k·(1, 2, 0) + 2·(0, −1, 4)) / m for SCENE's bodies."""
+    m = 3.0 + 2.0 * k
+    return m, (2.0 * k * np.array([1.0, 2.0, 0.0]) + 2.0 * np.array([0.0, -1.0, 4.0])) / m
+
+
+def test_a_verb_is_also_its_python_name_and_sweepable(mass_verb, tmp_path, capsys):
+    """The same registration makes ``casmbd.mass_properties`` (the example's function) and a
+    sweepable analysis: ``sweep(mech, {"k": [0.5, 1.5, 3, 7]}, analysis="mass_properties")``
+    gives at every point what calling the function at that k gives (1e-14 relative: the same
+    arithmetic) and the closed form m = 3 + 2k, r_G = (2k, 4k − 2, 8) / m (1e-12); the CLI's
+    ``casmbd sweep --analysis mass_properties --json`` prints the same numbers, and a name
+    the verb does not offer is refused before any point runs."""
+    scene = tmp_path / "three.toml"
+    scene.write_text(SCENE)
+    assert casmbd.mass_properties is mass_verb["mass_properties"]
+    assert casmbd.analysis.mass_properties is mass_verb["mass_properties"]
+    assert "mass_properties" in casmbd.__all__
+    mech = casmbd.load_scene(scene)
+    ks = [0.5, 1.5, 3.0, 7.0]
+    res = casmbd.sweep(mech, {"k": ks}, analysis="mass_properties")
+    assert res.analysis == "mass_properties" and res.failed == []
+    assert res.output_names == list(mass_verb["OUTPUTS"])
+    for i, k in enumerate(ks):
+        one = casmbd.load_scene(scene)
+        one.parameters["k"] = k
+        direct = mass_verb["mass_properties"](one)
+        assert res["mass"][i] == pytest.approx(direct["mass"], rel=1e-14)
+        swept = [res[f"centre_of_mass_{a}"][i] for a in "xyz"]
+        assert swept == pytest.approx(direct["centre_of_mass"], rel=1e-14, abs=1e-15)
+        m, com = _closed_form(k)
+        assert res["mass"][i] == pytest.approx(m, abs=1e-12)
+        assert swept == pytest.approx(com, abs=1e-12)
+    assert mech.parameters == {"k": 1.5}  # the caller's values stay
+    assert cli.main(["sweep", str(scene), "--param", "k=0.5,7", "--analysis",
+                     "mass_properties", "--output", "mass", "--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["analysis"] == "mass_properties" and data["outputs"] == ["mass"]
+    assert [pt["outputs"]["mass"] for pt in data["points"]] == pytest.approx([4.0, 17.0],
+                                                                             abs=1e-12)
+    with pytest.raises(AnalysisError, match="output 'energy'"):
+        casmbd.sweep(mech, {"k": ks}, analysis="mass_properties", outputs=["energy"])
+    with pytest.raises(AnalysisError, match=r"unknown analysis 'bogus'.*mass_properties"):
+        casmbd.sweep(mech, {"k": ks}, analysis="bogus")
 
 
 @pytest.fixture(scope="module")

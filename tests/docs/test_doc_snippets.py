@@ -40,6 +40,12 @@ SKIPPED: dict[str, dict[str, str]] = {
         "def equations(self, ctx): ...":
             "a pattern with an elided body ('...'): its runnable form is "
             "examples/custom_joint.py (run by tests/model/test_custom_kind.py)",
+        'register_verb("mass_properties", _run,':
+            "the registration of examples/custom_verb.py, quoted (run by "
+            "tests/architecture/test_custom_registries.py)",
+        'ContactModel("soft", force="my_penalty_force")':
+            "a pattern (a force kind of the reader's own); its runnable form is "
+            "tests/model/test_contact_models.py",
     },
 }
 #: shell commands not run: a prefix -> why

@@ -64,6 +64,7 @@ from casmbd.analysis.integrators import sundials as sun
 from casmbd.analysis.integrators.stiffness_culprit import diagnose_stiffness
 from casmbd.errors import AnalysisError, CasmbdError, IntegratorError
 from casmbd.interrupts import reraise_interrupt
+from casmbd.model.contact_models import CONTACT_MODELS
 from casmbd.model.needs import EVENT_NEEDS, requirements
 from casmbd.results import Result
 
@@ -117,7 +118,7 @@ def compliant_events(result: Result, mechanism) -> None:
         return
     found = []
     for c in getattr(mechanism, "contacts", {}).values():
-        if c.model != "compliant":
+        if CONTACT_MODELS[c.model].force is None:  # no force element reporting its gaps
             continue
         prefix = f"{c.name}.force."
         for k, col in enumerate(names):

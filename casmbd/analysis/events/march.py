@@ -35,6 +35,7 @@ from casmbd.analysis.instant.checks import check_mass_matrix, check_start
 from casmbd.analysis.instant.kkt import consistent_state
 from casmbd.analysis.integrators import kinds as integ
 from casmbd.errors import AnalysisError, IntegratorError
+from casmbd.model.contact_models import acts_at_events
 from casmbd.model.contacts import slides
 from casmbd.model.needs import EVENT_NEEDS
 from casmbd.system import System
@@ -85,7 +86,7 @@ class March:
     def _build(self, simulator_factory, integrator) -> None:
         """The base simulator (no gap closed), the integrator's name and the event rows."""
         mechanism = self.mechanism
-        elements = [c for c in mechanism.contacts.values() if c.model == "impact"]
+        elements = [c for c in mechanism.contacts.values() if acts_at_events(c)]
         elements += [StickRow(f) for f in mechanism.forces.values()
                      if getattr(f, "stick_slip", False)]
         elements += [SlideRow(c) for c in mechanism.contacts.values() if slides(c)]

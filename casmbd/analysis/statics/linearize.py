@@ -95,6 +95,7 @@ from casmbd.analysis.statics.statics import STATICS_NEEDS, static_equilibrium, s
 from casmbd.compiled.build import compile_model
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, CompositionError, ModelError, SingularConfigurationError
+from casmbd.model.contact_models import acts_at_events
 from casmbd.model.measures import result_names
 from casmbd.model.needs import ALL_NEEDS, Handling, check
 from casmbd.system.equations import System
@@ -437,7 +438,7 @@ HANDLING = Handling(
 def _closed_gaps(system: System, q: np.ndarray, v: np.ndarray, t: float, p) -> None:
     """Refuse an operating point at which a gap of an impact-model element is closed (a
     resting contact acts on small motions one-sidedly: no linear model exists)."""
-    elements = [c for c in system.mechanism.contacts.values() if c.model == "impact"]
+    elements = [c for c in system.mechanism.contacts.values() if acts_at_events(c)]
     if not elements:
         return
     rows = EventRows(system, elements)

@@ -17,6 +17,7 @@ import numpy as np
 
 from casmbd.analysis.events.event_rows import EventRows, closure
 from casmbd.errors import AnalysisError
+from casmbd.model.contact_models import acts_at_events
 from casmbd.system import System
 
 __all__ = ["resting_equilibrium"]
@@ -33,7 +34,7 @@ def resting_equilibrium(mechanism, t: float, method: str, tol: float, max_iter: 
     value.  ``stable`` is handed to every solve (the equilibrium nearest the start, or a
     stable one).  ``solve`` is :func:`casmbd.analysis.statics.statics.static_equilibrium` (handed
     in: that module calls this one)."""
-    elements = [c for c in mechanism.contacts.values() if c.model == "impact"]
+    elements = [c for c in mechanism.contacts.values() if acts_at_events(c)]
     gaps = EventRows(System(mechanism), elements)
     p = np.array(list(mechanism.parameters.values()), dtype=float)
     q0 = System(mechanism).initial_coordinates()

@@ -49,6 +49,7 @@ from casmbd.analysis.studies.sensitivity_events import (
 )
 from casmbd.errors import AnalysisError, IntegratorError
 from casmbd.interrupts import reraise_interrupt
+from casmbd.model.contact_models import CONTACT_MODELS
 from casmbd.model.expressions import parse_expression
 from casmbd.model.needs import ALL_NEEDS, Handling, check
 from casmbd.system.quantities import identifier, quantities
@@ -309,7 +310,8 @@ def sensitivity(mechanism, outputs: Sequence[str] | str, parameters: Sequence[st
     # ∂(∫ y dt)/∂F of a pushed ball over 0.3 s came out −0.005122 instead of −T³/6 = −0.0045
     # Only there: elsewhere the test on (q̈, λ) keeps the values at the tolerance (the crane of
     # the tutorial: 1.9e-8 relative off at rtol 1e-10 without it, 2.8e-10 with it)
-    compliant = any(c.model == "compliant" for c in system.mechanism.contacts.values())
+    compliant = any(CONTACT_MODELS[c.model].force is not None  # a penalty force
+                    for c in system.mechanism.contacts.values())
     opts = {"reltol": rtol, "abstol": atol, "max_num_steps": max_steps, "calc_ic": True,
             "fsens_err_con": True, "quad_err_con": True, "suppress_algebraic": compliant,
             "print_stats": False, "show_eval_warnings": False,

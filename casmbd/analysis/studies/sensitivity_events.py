@@ -58,6 +58,7 @@ from casmbd.analysis.instant.kkt import accelerations_and_multipliers
 from casmbd.analysis.integrators.sundials import CapturedOutput
 from casmbd.errors import AnalysisError, IntegratorError
 from casmbd.interrupts import reraise_interrupt
+from casmbd.model.contact_models import acts_at_events
 from casmbd.model.contacts import slides
 
 __all__ = ["EVENT_KINDS", "EVENT_STEPS", "check_event_elements", "event_sensitivity"]
@@ -85,7 +86,7 @@ def check_event_elements(mechanism) -> None:
     # stick-slip joint friction and sliding contacts: refused by the composition check
     # (casmbd.model.needs) before this is called
     for contact in getattr(mechanism, "contacts", {}).values():
-        if contact.model == "impact" and contact.friction > 0.0:
+        if acts_at_events(contact) and contact.friction > 0.0:
             kind = "sliding contact" if slides(contact) else "contact with friction"
             raise AnalysisError(
                 f"sensitivity: contact '{contact.name}' ({kind}, friction {contact.friction:g}) "
@@ -323,7 +324,7 @@ def event_sensitivity(mechanism, sim, system, dsys, finals: list, integrals: lis
     run = simulate(mechanism, t_end, EVENT_STEPS, formulation="index1", rtol=rtol, atol=atol,
                    t_start=t_start, inputs=inputs, max_steps=max_steps)
     events = list(run.events)
-    elements = [c for c in mechanism.contacts.values() if c.model == "impact"]
+    elements = [c for c in mechanism.contacts.values() if acts_at_events(c)]
     rows = EventRows(system, elements)
     tol_t = 1e-9 * (1.0 + abs(t_end))
     steps = _steps(events, rows, p_nom, t_start, tol_t)

@@ -45,20 +45,8 @@ from pathlib import Path
 import numpy as np
 
 from casmbd import interrupts
-from casmbd.analysis.driven.inverse import HANDLING as INVERSE
-from casmbd.analysis.driven.inverse import inverse_dynamics
-from casmbd.analysis.driven.kinematics import HANDLING as KINEMATICS
-from casmbd.analysis.driven.kinematics import kinematics
-from casmbd.analysis.dynamics.simulate import (
-    Simulator,
-    Simulators,
-    event_formulation,
-    simulate,
-    simulate_handling,
-)
-from casmbd.analysis.events.events import compliant_events, has_events
-from casmbd.analysis.statics.statics import HANDLING as STATICS
-from casmbd.analysis.statics.statics import STATICS_NEEDS, static_equilibrium, statics_functions
+from casmbd.analysis.studies.sweep_analyses import statics_as_result
+from casmbd.analysis.studies.sweep_registry import SWEEPABLE, Engine, Sweepable, sweepable
 from casmbd.analysis.studies.sweep_result import SweepResult, load_sweep, structured_table
 from casmbd.analysis.studies.sweep_values import (
     REDUCTIONS,
@@ -69,8 +57,6 @@ from casmbd.analysis.studies.sweep_values import (
     sweep_points,
 )
 from casmbd.compiled import codegen
-from casmbd.compiled.build import compile_model
-from casmbd.compiled.model import NEEDS
 from casmbd.errors import (
     AnalysisError,
     CasmbdError,
@@ -78,26 +64,17 @@ from casmbd.errors import (
 )
 from casmbd.limits import check_steps
 from casmbd.model import Mechanism
-from casmbd.model.needs import Handling, check
+from casmbd.model.needs import check
 from casmbd.results import Result
-from casmbd.system.equations import System
 
-__all__ = ["ANALYSES", "REDUCTIONS", "SweepResult", "load_sweep", "parse_values", "sweep"]
-
-#: analyses a sweep can run
-ANALYSES = ("simulate", "kinematics", "inverse", "statics")
-
-#: options of each analysis given when its engine is built (the rest go to each run)
-_BUILD_OPTIONS = {"simulate": ("formulation", "inputs", "formulation_options", "redundancy")}
-_RUN_OPTIONS = {"simulate": ("integrator", "rtol", "atol", "t_start", "projection", "step",
-                             "max_steps"),
-                "kinematics": ("t_start",), "inverse": ("t_start",),
-                "statics": ("t", "method", "tol", "max_iter", "stable")}
+__all__ = ["REDUCTIONS", "SWEEPABLE", "SweepResult", "load_sweep", "parse_values",
+           "statics_as_result", "sweep"]
 
 
 # ====================================================================== the worker side
 class _Runner:
-    """One analysis of one mechanism, built once per process and run at many p."""
+    """One analysis of one mechanism, built once per process and run at many p (its
+    :class:`~casmbd.analysis.studies.sweep_registry.Sweepable`, ``spec["sweepable"]``)."""
 
     def __init__(self, spec: dict, mechanism=None):
         before = codegen.COMPILE_COUNT
@@ -113,37 +90,15 @@ class _Runner:
         self.names = list(mech.parameters)
         self.defaults = dict(mech.parameters)
         self.analysis = spec["analysis"]
+        self.kind: Sweepable = spec["sweepable"]
         opts = spec["options"]
-        build = {k: opts[k] for k in _BUILD_OPTIONS.get(self.analysis, ()) if k in opts}
-        self.run_options = {k: opts[k] for k in _RUN_OPTIONS[self.analysis] if k in opts}
-        mode = spec["mode"]
-        #: the event-driven run's simulators (impact contacts, stops, stick-slip), kept
-        #: across points; None: one Simulator run at every point
-        self.simulators = None
-        #: statics with impact contacts or stops: each point through static_equilibrium of
-        #: the mechanism itself (the active set of closed gaps, statics.resting)
-        self.resting = self.analysis == "statics" and has_events(mech)
-        self.mode = mode
-        if self.analysis == "simulate" and has_events(mech):
-            # every point through simulate() itself: phase by phase with its events
-            self.simulators = Simulators(event_formulation(mech, build.get("formulation")),
-                                         build.get("inputs"), mode,
-                                         build.get("formulation_options"),
-                                         build.get("redundancy", "auto"))
-            self.engine = self.simulators(mech)  # the base phase, built here
-            self.model = self.engine.model
-        elif self.analysis == "simulate":
-            self.engine = Simulator(mech, mode=mode, **build)
-            self.model = self.engine.model
-        elif self.analysis == "kinematics":
-            self.model = compile_model(mech, "kinematics", mode=mode)
-        elif self.analysis == "inverse":
-            self.model = compile_model(mech, NEEDS["dynamics"], mode=mode)
-        else:
-            system = System(mech)
-            self.model = compile_model(system, STATICS_NEEDS, mode=mode,
-                                       extra=statics_functions(system))
-        self.report = {k: v for k, v in self.model.report_dict.items()
+        build = {k: opts[k] for k in self.kind.build_options if k in opts}
+        self.run_options = {k: opts[k] for k in self.kind.run_options if k in opts}
+        self.engine: Engine = self.kind.build(mech, spec["mode"], **build)
+        self.model = self.engine.model
+        report = self.model.report_dict if self.model is not None else {
+            "compiled": False, "cache_hit": False, "mode": "nothing compiled"}
+        self.report = {k: v for k, v in report.items()
                        if k in ("compiled", "cache_hit", "mode")}
         self.report["compiler_runs"] = codegen.COMPILE_COUNT - before
         self.report["build_seconds"] = time.perf_counter() - t0
@@ -152,66 +107,9 @@ class _Runner:
         p = {**self.defaults, **values}
         # the runtime inputs of every Function: NumericModel.p is the one source of truth
         # (initial velocities in joint coordinates are evaluated at it too)
-        self.model.p[:] = [p[n] for n in self.names]
-        opts = self.run_options
-        if self.simulators is not None:  # the same entry as simulate(), at these values
-            self.mechanism.parameters = p
-            return simulate(self.mechanism, t_end, steps, simulators=self.simulators, **opts)
-        if self.analysis == "simulate":
-            result = self.engine.run(t_end, steps, **opts)
-            compliant_events(result, self.mechanism)  # as simulate() does
-            return result
-        if self.analysis == "kinematics":
-            return kinematics(self.model, t_end=t_end, steps=steps, **opts)
-        if self.analysis == "inverse":
-            return inverse_dynamics(self.model, t_end=t_end, steps=steps, **opts)
-        if self.resting:  # the same entry as the statics verb, at these values
-            self.mechanism.parameters = p
-            return statics_as_result(static_equilibrium(self.mechanism, mode=self.mode, **opts))
-        return statics_as_result(static_equilibrium(self.model, **opts))
-
-
-def statics_as_result(res) -> Result:
-    """A :class:`~casmbd.analysis.statics.report.StaticsResult` as a one-time :class:`Result` (so
-    that it is saved, reloaded and reduced like the others)."""
-    names = {k: list(v) for k, v in res.names.items()}
-    eig = np.asarray(res.eigenvalues, float)
-    arrays = {"q": np.asarray(res.q, float)[None, :],
-              "lambda": np.asarray(res.lagrange_multipliers, float)[None, :],
-              "joint_reactions": np.asarray(res.joint_reactions, float)[None, :, :],
-              "potential_energy": np.array([res.potential_energy]),
-              "stiffness_eigenvalues": eig[None, :],
-              # the bodies' poses, so that body.NAME.… outputs and the absolute-coordinate
-              # names q[NAME.x] … read them whatever coordinates were chosen
-              "body_positions": np.asarray(res.body_positions, float).reshape(1, -1),
-              "marker_positions": np.asarray(res.marker_positions, float).reshape(1, -1)}
-    nodes = res.reports.get("nodes", {})  # flexible bodies' named nodes (statics.state_reports)
-    for key in ("position", "deflection", "rotation") if nodes else ():
-        arrays[f"node_{key}s"] = np.concatenate(
-            [np.ravel(node[key]) for node in nodes.values()]).reshape(1, -1)
-    if res.contacts:  # closed contacts and stops: their normal forces (0 when open)
-        names["contacts"] = list(res.contacts)
-        arrays["contact_forces"] = np.array([[c["normal_force"] for c in res.contacts.values()]])
-    if len(res.body_quaternions):
-        arrays["rotation_matrices"] = _rotation_rows(np.asarray(res.body_quaternions, float))
-    else:
-        arrays["angle_positions"] = np.asarray(res.body_angles, float)[None, :]
-    stats = {**res.stats, "iterations": int(res.iterations), "residual": float(res.residual),
-             "stable": res.stable, "method": res.method,
-             "min_stiffness_eigenvalue": float(eig.min()) if eig.size else math.nan}
-    return Result("statics", np.array([float(res.t)]), arrays, names, stats)
-
-
-def _rotation_rows(quats: np.ndarray) -> np.ndarray:
-    """(1, 9 n) rotation matrices, row by row, of n unit quaternions [w, x, y, z]:
-    A = (w² − eᵀe) I + 2 e eᵀ + 2 w ẽ (seed 001, Euler parameters)."""
-    w, e = quats[:, 0], quats[:, 1:]
-    skew = np.zeros((len(quats), 3, 3))
-    skew[:, 0, 1], skew[:, 0, 2], skew[:, 1, 2] = -e[:, 2], e[:, 1], -e[:, 0]
-    skew -= skew.transpose(0, 2, 1)
-    mats = ((w**2 - np.sum(e * e, axis=1))[:, None, None] * np.eye(3)
-            + 2.0 * e[:, :, None] * e[:, None, :] + 2.0 * w[:, None, None] * skew)
-    return mats.reshape(1, -1)
+        if self.model is not None:
+            self.model.p[:] = [p[n] for n in self.names]
+        return self.kind.run(self.engine, p, t_end, steps, **self.run_options)
 
 
 #: most runners (compiled engines) kept per process
@@ -248,7 +146,7 @@ def _evaluate(spec: dict, index: int, values: dict[str, float], scene: str | Non
             if partial is not None and spec["out_dir"]:
                 _save_point(partial, spec, index, values, scene, failure=str(exc))
             raise
-        rec["outputs"] = evaluate_outputs(spec["outputs"], result, spec["analysis"])
+        rec["outputs"] = evaluate_outputs(spec["outputs"], result, spec["sweepable"])
         if spec["out_dir"]:
             rec["file"] = _save_point(result, spec, index, values, scene)
         rec["solve_seconds"] = float(result.stats.get("solve_seconds", math.nan))
@@ -394,15 +292,6 @@ def _run_dask(spec, tasks, executor, bar) -> list[dict]:
 
 
 # ====================================================================== entry point
-def handling(analysis: str, options: Mapping) -> Handling:
-    """What a sweep of ``analysis`` with ``options`` handles: that of the analysis each point
-    runs (:mod:`casmbd.model.needs`)."""
-    if analysis == "simulate":
-        return simulate_handling(options.get("formulation"), options.get("integrator"),
-                                 options.get("projection", False), options.get("step"))
-    return {"kinematics": KINEMATICS, "inverse": INVERSE, "statics": STATICS}[analysis]
-
-
 def sweep(mechanism, params: Mapping[str, Iterable[float]] | None = None, *,
           points: Sequence[Mapping[str, float]] | None = None, analysis: str = "simulate",
           t_end: float | None = None, steps: int | None = None,
@@ -422,7 +311,9 @@ def sweep(mechanism, params: Mapping[str, Iterable[float]] | None = None, *,
         Grid product of the values (the first name varies slowest).
     points : sequence of mappings name -> value, optional
         The points themselves (instead of ``params``).
-    analysis : {"simulate", "kinematics", "inverse", "statics"}
+    analysis : str
+        A verb of :data:`~casmbd.analysis.studies.sweep_registry.SWEEPABLE`: "simulate",
+        "kinematics", "inverse", "statics" or one registered from user code.
     t_end, steps : float, int
         Output grid of the time-domain analyses (``steps + 1`` times).
     outputs : list of str or callable, optional
@@ -463,22 +354,21 @@ def sweep(mechanism, params: Mapping[str, Iterable[float]] | None = None, *,
         dask.distributed for a scheduler address.
     """
     t_wall = time.perf_counter()
-    if analysis not in ANALYSES:
-        raise AnalysisError(f"sweep: unknown analysis {analysis!r} (known: {', '.join(ANALYSES)})")
-    check(mechanism, handling(analysis, options))
-    allowed = set(_BUILD_OPTIONS.get(analysis, ())) | set(_RUN_OPTIONS[analysis])
+    kind = sweepable(analysis)  # an unknown analysis: AnalysisError naming the known ones
+    check(mechanism, kind.handling(options))
+    allowed = set(kind.build_options) | set(kind.run_options)
     unknown = sorted(set(options) - allowed)
     if unknown:
         raise AnalysisError(f"sweep: option(s) {', '.join(unknown)} do not apply to "
                             f"{analysis} (allowed: {', '.join(sorted(allowed)) or 'none'})")
-    if analysis != "statics":
+    if kind.time_grid:
         if t_end is None or steps is None:
             raise AnalysisError(f"sweep: the {analysis} analysis needs t_end and steps")
         if not (isinstance(steps, (int, np.integer)) and steps >= 1):
             raise AnalysisError(f"sweep: steps must be an integer >= 1, got {steps!r}")
         if not (math.isfinite(t_end) and t_end > options.get("t_start", 0.0)):
             raise AnalysisError(f"sweep: t_end must be finite and > t_start, got {t_end!r}")
-    check_outputs(outputs)
+    check_outputs(outputs, kind.outputs)
     pts = sweep_points(params, points)
     if isinstance(executor, str) and executor not in ("serial", "processes"):
         _require_dask(executor)
@@ -492,7 +382,7 @@ def sweep(mechanism, params: Mapping[str, Iterable[float]] | None = None, *,
     if scenes is not None and not scenes.describes(mech):  # changed in Python since it was
         scenes = None                                      # read: the points run that object
     text = scenes.text if scenes is not None else None
-    if analysis != "statics":  # one point's result must fit (LimitError before any build)
+    if kind.time_grid:  # one point's result must fit (LimitError before any build)
         check_steps(f"sweep ({analysis}) at each point", int(steps), mech)
     known = list(mech.parameters)
     for name in pts[0]:
@@ -520,7 +410,7 @@ def sweep(mechanism, params: Mapping[str, Iterable[float]] | None = None, *,
                                     "scene file or use executor='serial'") from None
             mech_bytes = None
         key_src = hashlib.sha256(mech_bytes).hexdigest() if mech_bytes else f"id{id(mech)}"
-    spec = {"scenes": scenes, "mechanism": mech_bytes, "analysis": analysis,
+    spec = {"scenes": scenes, "mechanism": mech_bytes, "analysis": analysis, "sweepable": kind,
             "options": dict(options), "mode": mode, "t_end": t_end, "steps": steps,
             "outputs": outputs, "out_dir": None if out_dir is None else str(out_dir),
             "digits": digits}

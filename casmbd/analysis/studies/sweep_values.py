@@ -101,23 +101,25 @@ def sweep_points(params: Mapping[str, Iterable[float]] | None,
 _BODY = re.compile(r"^(body|marker|joint)\.([^.]+)\.([A-Za-z_]+)(?:\.([A-Za-z0-9_]+))?$")
 
 
-def check_outputs(outputs) -> None:
+def check_outputs(outputs, named: Sequence[str] = ()) -> None:
     """Refuse an ``outputs`` that is neither None, a callable nor a list of known output
-    names (:class:`~casmbd.errors.AnalysisError` naming the output)."""
+    names (:class:`~casmbd.errors.AnalysisError` naming the output); ``named`` are the
+    analysis's own scalar outputs (:attr:`Sweepable.outputs
+    <casmbd.analysis.studies.sweep_registry.Sweepable.outputs>`)."""
     if outputs is None or callable(outputs):
         return
     if isinstance(outputs, str) or not all(isinstance(o, str) for o in outputs):
         raise AnalysisError("sweep: outputs must be a list of names such as "
                             "'final:q[crank.angle]', or a callable result -> {name: number}")
     for name in outputs:
-        if name in SPECIAL_OUTPUTS:
+        if name in SPECIAL_OUTPUTS or name in named:
             continue
         red, sep, col = name.partition(":")
         if not sep or red not in REDUCTIONS or not col:
             raise AnalysisError(f"sweep: output {name!r}: expected REDUCTION:COLUMN with "
                                 f"REDUCTION one of {', '.join(REDUCTIONS)} (e.g. "
                                 f"'final:q[crank.angle]', 'max:body.crank.angle'), or one of "
-                                f"{', '.join(SPECIAL_OUTPUTS)}")
+                                f"{', '.join((*SPECIAL_OUTPUTS, *named))}")
 
 
 def _series(result: Result, column: str, where: str) -> np.ndarray:
@@ -197,30 +199,20 @@ def check_output_names(runner, spec: dict, values: Mapping[str, float]) -> None:
     runs.  A probe run that fails leaves the check to the points (their failure is
     recorded)."""
     t_end = spec["t_end"]
-    if spec["analysis"] != "statics":
+    if spec["sweepable"].time_grid:
         t_start = runner.run_options.get("t_start", 0.0)
         t_end = t_start + 1e-6 * (t_end - t_start)
     try:
         probe = runner.run(values, t_end, 1)
     except CasmbdError:
         return
-    evaluate_outputs(spec["outputs"], probe, spec["analysis"])
+    evaluate_outputs(spec["outputs"], probe, spec["sweepable"])
 
 
-def _default_outputs(result: Result, analysis: str) -> list[str]:
-    names = [f"final:q[{c}]" for c in result.names.get("coordinates", [])]
-    if analysis == "statics":
-        return [*names, "residual", "min_stiffness_eigenvalue"]
-    names.append("max_constraint_violation")
-    if analysis == "simulate":
-        names.append("energy_drift")
-    if analysis == "inverse":
-        names += [f"max_abs:driver_efforts[{d}.effort]" for d in result.names.get("drivers", [])]
-    return names
-
-
-def evaluate_outputs(outputs, result: Result, analysis: str) -> dict[str, float]:
-    """The named outputs (or the callable's) of one point's ``result`` as floats."""
+def evaluate_outputs(outputs, result: Result, kind) -> dict[str, float]:
+    """The named outputs (or the callable's) of one point's ``result`` as floats; ``kind`` is
+    the analysis's :class:`~casmbd.analysis.studies.sweep_registry.Sweepable` (its default
+    outputs and its own named outputs, read from ``result.stats``)."""
     if callable(outputs):
         raw = outputs(result)
         if not isinstance(raw, Mapping):
@@ -234,7 +226,7 @@ def evaluate_outputs(outputs, result: Result, analysis: str) -> dict[str, float]
                                     f"(shape {arr.shape})")
             out[str(key)] = float(arr.reshape(()))
         return out
-    names = _default_outputs(result, analysis) if outputs is None else list(outputs)
+    names = kind.default_outputs(result) if outputs is None else list(outputs)
     out = {}
     for name in names:
         where = f"sweep: output {name!r}"
@@ -246,7 +238,7 @@ def evaluate_outputs(outputs, result: Result, analysis: str) -> dict[str, float]
         elif name == "max_constraint_violation":
             cv = result.arrays.get("constraint_violation", np.zeros(1))
             out[name] = float(np.max(cv)) if cv.size else 0.0
-        elif name in ("residual", "min_stiffness_eigenvalue") and analysis == "statics":
+        elif name in kind.outputs:
             out[name] = float(result.stats.get(name, math.nan))
         else:
             red, _, col = name.partition(":")
