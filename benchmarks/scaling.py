@@ -680,7 +680,8 @@ def profile_lines(prof: dict | None) -> list[str]:
               "casmbd/analysis/dynamics/simulate.py, 2 n_x + 1 Python calls of the compiled "
               "Function for n_x ≤ 400, by finite "
               "differences) and the post-processing (`_post`; here dominated by one dense "
-              "SVD of C_q in `casmbd/analysis/instant/reactions.py::multiplier_null_space`, O(n_c² "
+              "SVD of C_q in "
+              "`casmbd/analysis/instant/undetermined_reactions.py::multiplier_null_space`, O(n_c² "
               "n_q): 0.09 s here against 0.03 s of integration).", ""]
     if integrator_call:
         lines += [f"Largest cumulative entry: `{integrator_call['function']}` "

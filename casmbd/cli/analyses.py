@@ -20,7 +20,7 @@ from casmbd.cli.common import (
 from casmbd.errors import AnalysisError, IntegratorError
 from casmbd.io.scene import load_result
 from casmbd.limits import check_steps
-from casmbd.viz.quantities import effort_units, energy_terms, joint_coordinate_unit
+from casmbd.viz.column_units import effort_units, energy_terms, joint_coordinate_unit
 
 
 def _redundancy_lines(s: dict) -> list[str]:
@@ -123,7 +123,8 @@ def _events_line(result) -> str:
 def _energy_change(result, mech) -> str:
     """total − total(0): "drift" for a conservative mechanism, else what changes it (work of
     dampers, drivers, actuators and forces, friction work, impact losses; not a conservation
-    error), the phrases of the plots' energy panel (:func:`casmbd.viz.quantities.energy_terms`)."""
+    error), the phrases of the plots' energy panel
+    (:func:`casmbd.viz.column_units.energy_terms`)."""
     energy = result["total_energy"]
     delta = f"{energy[-1] - energy[0]:+.3g} J"
     terms = energy_terms(result, mech)

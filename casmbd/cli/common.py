@@ -15,7 +15,7 @@ from casmbd.errors import AnalysisError
 from casmbd.io.scene import load_scene
 from casmbd.limits import MAX_STEPS
 from casmbd.results import json_default
-from casmbd.viz.quantities import joint_units
+from casmbd.viz.column_units import joint_units
 
 
 class UsageError(Exception):

@@ -54,7 +54,7 @@ from casmbd.compiled.build import compile_model
 from casmbd.errors import ModelError
 from casmbd.model.bodies import GROUND
 from casmbd.model.needs import Handling, check
-from casmbd.system.articulated import motion_transform, supported
+from casmbd.system.articulated_body import motion_transform, supported
 from casmbd.system.equations import System
 
 __all__ = ["BATCH_CHUNK", "CompiledModel", "compile"]
@@ -95,7 +95,7 @@ def newton_euler(system: System, a: ca.SX) -> ca.SX:
     """Σ_i J_iᵀ (I_i A_i + (ω_i × I_i ω_i, 0)) of a tree in joint coordinates, recursively.
 
     The recursive Newton–Euler algorithm (Featherstone, Rigid Body Dynamics Algorithms, §5.3)
-    in the articulated recursion's conventions (:mod:`casmbd.system.articulated`: twists
+    in the articulated recursion's conventions (:mod:`casmbd.system.articulated_body`: twists
     (ω, ṙ_G) at the centres of mass, global components): outward A_i = X_i A_P + S_i a_i
     + c_i with c_i = J̇_i q̇ − X_i J̇_P q̇, body wrench F_i = (I_G α + ω × I_G ω, m a_G);
     inward F_P += X_iᵀ F_i and τ_i = S_iᵀ F_i.  This is M a − Q_v; the caller subtracts the

@@ -34,7 +34,7 @@
     [ocp.solver_options]
     "ipopt.max_iter" = 500
 
-Names are those of :mod:`casmbd.system.quantities`; values may be expressions of the scene's
+Names are those of :mod:`casmbd.system.named_quantities`; values may be expressions of the scene's
 parameters.
 """
 

@@ -478,7 +478,7 @@ class RollingClosure(Joint):
 class ContactSlide(ForceElement):
     """Coulomb friction of a closed, sliding plane contact: −μ N σ along the tangential
     velocity v_t of the touching point, N the contact's normal force — the multiplier of its
-    closure ``closure`` (reaction-proportional: the symbol N of :mod:`casmbd.system.forces`,
+    closure ``closure`` (reaction-proportional: the symbol N of :mod:`casmbd.system.applied_forces`,
     solved with λ by the DAE formulations) — and σ = ±1 the sliding direction (a parameter set
     per phase by the event-driven integrator).  Not a scene kind."""
 

@@ -8,7 +8,7 @@ ch. 5).  The model layer holds what the body *is*: its modal data
 or an ``.npz`` file read by :mod:`casmbd.model.fe_import`, reduced by
 :mod:`casmbd.model.modal_reduction`), its initial pose, damping and stiffening options, and
 its named nodes.  The equations (lumped-mass invariants) are written by the system layer
-(:mod:`casmbd.system.flexible`, :mod:`casmbd.system.flexible_descriptions`).
+(:mod:`casmbd.system.floating_frame`, :mod:`casmbd.system.flexible_descriptions`).
 
 Node frames.  Joints, forces, drivers and markers attach to a named node of a flexible body
 through the *attachment name* ``"<body>@<node>"`` (scene files: ``body1 = "beam"`` with

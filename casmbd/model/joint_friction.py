@@ -23,9 +23,9 @@ with F_0 the constant level (``friction``; the scene's ``coulomb`` or ``preload`
 pin/bearing ``radius`` and R_⊥ the joint's constraint force transverse to its axis (the whole
 force of a planar revolute; the normal force of a slide).  R_⊥ follows from the multipliers
 λ, so the force enters the equations through a symbol N per element that the system replaces
-by |R_⊥(q, λ)| (:mod:`casmbd.system.forces`, ``friction_normals``): Q_e is affine in N,
+by |R_⊥(q, λ)| (:mod:`casmbd.system.applied_forces`, ``friction_normals``): Q_e is affine in N,
 Q_e = Q_e|_{N=0} + G N.  Inverse dynamics and the consistent start solve λ and N together by
-a fixed point (:mod:`casmbd.analysis.instant.joint_friction`); the DAE formulations (``index1``,
+a fixed point (:mod:`casmbd.analysis.instant.reaction_friction`); the DAE formulations (``index1``,
 ``ggl``) use λ directly; the ODE formulations refuse such an element, naming its joint.
 """
 
@@ -133,7 +133,7 @@ class JointFriction(ForceElement):
 
     def reaction_joint(self) -> str | None:
         """The joint whose transverse reaction sets the Coulomb level (``mu`` > 0), else
-        None (read by :mod:`casmbd.system.forces`)."""
+        None (read by :mod:`casmbd.system.applied_forces`)."""
         return self.joint if may_be_nonzero(self.mu) else None
 
     def terms(self, kit, ctx):

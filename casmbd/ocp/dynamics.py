@@ -21,7 +21,7 @@ from __future__ import annotations
 import casadi as ca
 
 from casmbd.errors import AnalysisError
-from casmbd.system.articulated import articulated_accelerations, supported
+from casmbd.system.articulated_body import articulated_accelerations, supported
 
 
 def implicit_residual(system) -> ca.Function:

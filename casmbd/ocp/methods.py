@@ -44,7 +44,7 @@ class TranscriptionMethod:
     #: collocation; False: explicit accelerations (shooting integrates an ODE)
     implicit: bool = True
     #: the flexible-body check of the mesh against the fastest mode
-    #: (:func:`casmbd.ocp.flexible.mesh_check`, measured for collocation) applies
+    #: (:func:`casmbd.ocp.flexible_mesh.mesh_check`, measured for collocation) applies
     checks_mesh: bool = True
 
     def elements_per_interval(self, ocp) -> int:

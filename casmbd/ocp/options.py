@@ -113,7 +113,7 @@ _IPOPT = {
     "ipopt.recalc_y": _YESNO,
     "ipopt.print_timing_statistics": _YESNO,
     # MUMPS' pivot tolerance (0, 1): larger pivots for ill-conditioned KKT systems (flexible
-    # bodies: casmbd/ocp/flexible.py sets 1e-4)
+    # bodies: casmbd/ocp/flexible_mesh.py sets 1e-4)
     "ipopt.mumps_pivtol": _real(0.0, 1.0),
     "print_time": _BOOL,
 }

@@ -12,8 +12,8 @@ point, a result object)::
     sol = ocp.solve()                                   # OcpSolution
 
 Every expression is a string (or a callable of the quantity dict) over the names of
-:mod:`casmbd.system.quantities`.  The states are the model's (q, q̇) and the controls its actuator
-inputs u; the closed-loop constraints C(q, t) = 0 and C_q q̇ + C_t = 0 hold at every node.
+:mod:`casmbd.system.named_quantities`.  The states are the model's (q, q̇) and the controls its
+actuator inputs u; the closed-loop constraints C(q, t) = 0 and C_q q̇ + C_t = 0 hold at every node.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ from casmbd.ocp.methods import transcription_method
 from casmbd.ocp.options import check_solver_options
 from casmbd.ocp.transcription import Transcription
 from casmbd.system.equations import System
-from casmbd.system.quantities import quantities
+from casmbd.system.named_quantities import quantities
 
 OBJECTIVES = ("effort", "time", "energy")
 DYNAMICS = ("auto", "implicit", "explicit")

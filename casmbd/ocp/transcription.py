@@ -26,7 +26,7 @@ from casmbd.analysis.instant.kkt import consistent_state
 from casmbd.compiled.build import compile_model
 from casmbd.errors import AnalysisError, OptimizationError
 from casmbd.ocp.dynamics import choose_dynamics, node_constraints
-from casmbd.ocp.flexible import mesh_check, solver_defaults
+from casmbd.ocp.flexible_mesh import mesh_check, solver_defaults
 from casmbd.ocp.guess import initial_guess
 from casmbd.ocp.methods import transcription_method
 from casmbd.ocp.options import check_solver_options
@@ -160,7 +160,7 @@ class Transcription:
 
     def _mesh_check(self) -> dict:
         """Flexible bodies: the fastest mode against the collocation element
-        (:mod:`casmbd.ocp.flexible`; the threshold is measured for Radau, so a method that is
+        (:mod:`casmbd.ocp.flexible_mesh`; the threshold is measured for Radau, so a method that is
         not collocation, multiple shooting, is not checked: ``checks_mesh``)."""
         ocp = self.ocp
         if not self.method.checks_mesh:

@@ -26,12 +26,12 @@ import numpy as np
 from casmbd.errors import ModelError
 from casmbd.model.bodies import GROUND
 from casmbd.model.values import resolve
+from casmbd.system.applied_forces import AppliedForces
 from casmbd.system.choice import AUTO, choose_coordinates
 from casmbd.system.context import Context
 from casmbd.system.descriptions import COORDINATE_CHOICES, describe
-from casmbd.system.forces import AppliedForces
+from casmbd.system.joint_reactions import Reactions
 from casmbd.system.outputs import Outputs
-from casmbd.system.reactions import Reactions
 from casmbd.system.tree import TreeKinematics, tree_descriptions
 
 
@@ -59,7 +59,7 @@ SIGNATURES: dict[str, tuple[tuple[str, ...], str]] = {
     "kinetic_energy": (("q", "v", "p"), "T"),
     "potential_energy": (("q", "t", "p"), "V"),
     "input_matrix": (("q", "v", "t", "u", "p"), "B"),
-    # reaction-proportional joint friction: Q_e = Q_e(N = 0) + G N (system/forces.py)
+    # reaction-proportional joint friction: Q_e = Q_e(N = 0) + G N (system/applied_forces.py)
     "friction_directions": (("q", "v", "t", "u", "p"), "G"),
 }
 
@@ -69,8 +69,8 @@ class System(AppliedForces, Outputs, Reactions):
 
     This class keeps the core — coordinates and symbols, constraints C, C_q, C_t, γ, and the
     inertia terms M, Q_v, T — and takes one job from each mixin: applied forces, virtual work
-    and potential (:mod:`casmbd.system.forces`), outputs (:mod:`casmbd.system.outputs`) and
-    joint reactions from the multipliers (:mod:`casmbd.system.reactions`).
+    and potential (:mod:`casmbd.system.applied_forces`), outputs (:mod:`casmbd.system.outputs`) and
+    joint reactions from the multipliers (:mod:`casmbd.system.joint_reactions`).
 
     Parameters
     ----------

@@ -8,7 +8,7 @@ A flexible body (:mod:`casmbd.model.flexible_bodies`) owns the block
   (normalisation ½ (pᵀp − 1) = 0 as the body's own constraint) and η.
 
 Its kinetic energy is T = ½ wᵀ M(A, η) w with w = (Ṙ, ω̄, η̇) and M built from the lumped-mass
-invariants of seed 002 (eqs. 5–29 to 5–34; :class:`casmbd.system.flexible.FlexibleBody`);
+invariants of seed 002 (eqs. 5–29 to 5–34; :class:`casmbd.system.floating_frame.FlexibleBody`);
 in the plane ω̄ = θ̇, in space ω̄ = 2 G(p) ṗ (seed 001, eqs. 80–83) and, as for a rigid body
 in Euler parameters (:class:`casmbd.system.descriptions.SpatialAbsolute`), the term
 ½ c (pᵀṗ)² with c = (4/3) tr J (J the undeformed inertia about the centre of mass) makes the
@@ -37,7 +37,7 @@ from casmbd.system.descriptions import (
     SpatialNatural,
     register_description,
 )
-from casmbd.system.flexible import FlexibleBody, invariants
+from casmbd.system.floating_frame import FlexibleBody, invariants
 
 __all__ = ["PlanarFlexible", "PlanarFlexibleNatural", "SpatialFlexible",
            "SpatialFlexibleNatural"]

@@ -12,7 +12,7 @@ formulations use and delegates everything else (M, Q_e, Q_v, outputs) to the ful
 :class:`~casmbd.system.equations.System`.  Post-processing keeps working on the full system, so
 results list every equation; the multipliers of the full set are then the minimum-norm ones and
 the reactions that depend on the split are flagged as undetermined
-(:mod:`casmbd.analysis.instant.reactions`).
+(:mod:`casmbd.analysis.instant.undetermined_reactions`).
 """
 
 from __future__ import annotations

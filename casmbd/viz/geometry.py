@@ -26,7 +26,7 @@ s ≠ 1 magnifies the elastic displacements for a picture).  A point attached to
 (``"<body>@<node>"``: joints, forces, the node markers) moves with the node frame: position
 r_i and rotation A A(s ψ_i), ψ_i = Ψ_i η the node's small rotation (plane: the angle θ + s ψ_i;
 space: A times the rotation of the Euler parameters (1, s ψ_i/2)/|(1, s ψ_i/2)|, the exact
-form of :meth:`casmbd.system.flexible.FlexibleBody.node_rotation`).  A point attached to a
+form of :meth:`casmbd.system.floating_frame.FlexibleBody.node_rotation`).  A point attached to a
 flexible body itself (not to a node) follows its undeformed frame, as in the model.
 """
 

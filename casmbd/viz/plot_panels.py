@@ -11,7 +11,7 @@ one (``positions [m]``, ``angles [rad]``, ``forces [N]``, ``torques [N m]`` …)
 * ``reactions`` — joint reaction forces [N] and moments [N m];
 * ``energy`` — kinetic, potential and total energy [J], then total − total(0) [J], labelled
   numerical drift only for a conservative mechanism (else the work of the named dampers,
-  drivers, actuators and forces, :func:`casmbd.viz.quantities.energy_change_label`);
+  drivers, actuators and forces, :func:`casmbd.viz.column_units.energy_change_label`);
 * ``drift`` — max |C| and max |C_q v + C_t| (log scale; mixed units of the equations);
 * ``outputs`` — the requests (``[[outputs]]``, by their ``unit``) and what every force element
   reports (a spring's length [m], rate [m/s] and force [N], …), one panel per unit named by
@@ -31,7 +31,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from casmbd.errors import AnalysisError
-from casmbd.viz.quantities import coordinate_unit, effort_units, energy_change_label, joint_units
+from casmbd.viz.column_units import coordinate_unit, effort_units, energy_change_label, joint_units
 
 #: Euler-angle sequences offered (:meth:`casmbd.results.Result.euler_angles`)
 EULER_SEQUENCES = ("xyz", "zxz")
@@ -236,7 +236,7 @@ def reactions(result, elements=None, mechanism=None) -> list[Panel]:
 def energy(result, elements=None, mechanism=None) -> list[Panel]:
     """Kinetic, potential and total energy [J]; then total − total(0) [J], named drift only
     for a conservative mechanism (else the work, friction work and impact losses that change
-    it, :func:`casmbd.viz.quantities.energy_change_label`)."""
+    it, :func:`casmbd.viz.column_units.energy_change_label`)."""
     total = result.arrays["total_energy"]
     first = Panel("energy [J]", [Line(key, result.arrays[f"{key}_energy"], k, 0)
                                  for k, key in enumerate(("kinetic", "potential", "total"))],

@@ -38,8 +38,8 @@ from casmbd.limits import (
 )
 from casmbd.results import atomic_write
 from casmbd.viz import plot_panels, plot_select
+from casmbd.viz.column_units import joint_units, scene_mechanism
 from casmbd.viz.geometry import scene_name
-from casmbd.viz.quantities import joint_units, scene_mechanism
 
 
 def check_figure_size(figsize=None, dpi: float | None = None, what: str = "figure") -> None:

@@ -52,6 +52,7 @@ from casmbd.ocp.solution import OcpSolution
 from casmbd.results import Result
 from casmbd.system import System
 from casmbd.viz import view_shapes
+from casmbd.viz.column_units import effort_units, joint_coordinate_unit
 from casmbd.viz.geometry import (
     Geometry,
     flexible_nodes,
@@ -59,7 +60,6 @@ from casmbd.viz.geometry import (
     frame_poses,
     point_trajectory,
 )
-from casmbd.viz.quantities import effort_units, joint_coordinate_unit
 from casmbd.viz.view_types import Frame, Plane, Series, Shape, ViewModel
 
 __all__ = ["Frame", "Plane", "Series", "Shape", "ViewModel", "quaternions_from_rotations",

@@ -398,7 +398,7 @@ def test_sensitivity_equals_finite_differences_of_whole_runs(variant, dim):
     impacts: the jump at each) =
     central differences of two whole ``simulate`` runs (h = 1e-4, rtol 1e-11): 1e-5
     relative to max(1, |dq/dtau|)."""
-    from casmbd.system.quantities import identifier
+    from casmbd.system.named_quantities import identifier
     mech = _probed(variant, dim, 0.3)
     name = identifier(casmbd.System(mech).coordinate_names[-1])
     res = casmbd.sensitivity(mech, [name], ["tau"], t_end=0.6)

@@ -23,7 +23,7 @@ machine and compiled):
   interval (ω_max h = 0.90); the modal coordinates at the end ≤ 1e-5, their rates ≤ 5e-4.
 * **The problem as first posed** (one element per interval, ω_max h = 7.2) stalled in IPOPT
   for thousands of iterations (dual infeasibility 1.82e-5): MUMPS's pivot tolerance
-  (:data:`casmbd.ocp.flexible.FLEXIBLE_MUMPS_PIVTOL`) now lets it converge in 8 iterations,
+  (:data:`casmbd.ocp.flexible_mesh.FLEXIBLE_MUMPS_PIVTOL`) now lets it converge in 8 iterations,
   and the transcription warns that the mesh does not resolve the 72 rad/s mode — its replay
   is 17 off.
 """
@@ -39,7 +39,7 @@ import scipy.linalg
 
 import casmbd
 from casmbd.ocp import Ocp
-from casmbd.ocp.flexible import FLEXIBLE_MUMPS_PIVTOL, fastest_mode, solver_defaults
+from casmbd.ocp.flexible_mesh import FLEXIBLE_MUMPS_PIVTOL, fastest_mode, solver_defaults
 from casmbd.system.equations import System
 
 SCENE = """

@@ -1,4 +1,4 @@
-"""Floating-frame equations of a modally reduced flexible body (casmbd.system.flexible).
+"""Floating-frame equations of a modally reduced flexible body (casmbd.system.floating_frame).
 
 Every check is against an independent computation written here: the direct sum over the lumped
 nodes T = ½ Σ m_i |ṙ_i|² + ½ Σ (ω̄ + Ψ_i η̇)ᵀ J_i (ω̄ + Ψ_i η̇) differentiated by AD (Lagrange's
@@ -21,7 +21,7 @@ from casmbd.model.modal import ModalData
 from casmbd.model.modal_reduction import craig_bampton
 from casmbd.model.rotations import G_matrix, rotation_matrix
 from casmbd.system.equations import System
-from casmbd.system.flexible import FlexibleBody, invariants, planar_rotation
+from casmbd.system.floating_frame import FlexibleBody, invariants, planar_rotation
 
 RTOL = 1e-12  # relative agreement of two exact formulations (rounding only)
 

@@ -261,7 +261,7 @@ def test_articulated_body_recursion_equals_mass_matrix_solve():
     M at random states of the forced 6R arm and a planar chain (1e-10 relative)."""
     import casadi as ca
 
-    from casmbd.system.articulated import articulated_accelerations
+    from casmbd.system.articulated_body import articulated_accelerations
 
     rng = np.random.default_rng(3)
     for mech in (_forced_arm(), with_coordinates(pendulum_chain(5), "joint")):

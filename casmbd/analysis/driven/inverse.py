@@ -13,7 +13,7 @@ increasing coordinate); the joint rows give the reactions (eqs. 6.145–6.151).
 Joint friction is part of Q_e (viscous and regularised Coulomb), so the efforts include it.
 With reaction-proportional friction (``mu`` > 0) Q_e depends on λ through the transverse
 reaction magnitudes N: λ and N are solved together at each time by the fixed point of
-:func:`casmbd.analysis.instant.joint_friction.solve_normals` (relative 1e-12 in N; the iterations
+:func:`casmbd.analysis.instant.reaction_friction.solve_normals` (relative 1e-12 in N; the iterations
 are ``stats["friction_iterations"]``, the largest over the grid).
 """
 
@@ -27,8 +27,8 @@ import scipy.sparse.linalg as spla
 from casmbd.analysis.driven.kinematics import check_result_size, kinematics
 from casmbd.analysis.instant.checks import diagnose
 from casmbd.analysis.instant.independent import find_redundant, minimum_norm, scatter
-from casmbd.analysis.instant.joint_friction import has_reaction_friction, solve_normals
-from casmbd.analysis.instant.reactions import flag_undetermined
+from casmbd.analysis.instant.reaction_friction import has_reaction_friction, solve_normals
+from casmbd.analysis.instant.undetermined_reactions import flag_undetermined
 from casmbd.compiled.build import compile_model
 from casmbd.compiled.model import NEEDS, NumericModel
 from casmbd.compiled.workspace import Workspace

@@ -25,7 +25,6 @@ import numpy as np
 from casmbd.analysis.instant.assembly import assemble
 from casmbd.analysis.instant.checks import diagnose_failure
 from casmbd.analysis.instant.kkt import accelerations_and_multipliers
-from casmbd.analysis.instant.reactions import flag_undetermined, multiplier_null_space
 from casmbd.analysis.instant.redundancy import (
     NEAR_SINGULAR,
     conditioning,
@@ -34,6 +33,7 @@ from casmbd.analysis.instant.redundancy import (
     rank_report,
     reference_equilibration,
 )
+from casmbd.analysis.instant.undetermined_reactions import flag_undetermined, multiplier_null_space
 from casmbd.errors import (
     AssemblyError,
     CasmbdError,

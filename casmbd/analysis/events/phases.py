@@ -19,8 +19,8 @@ import casadi as ca
 import numpy as np
 
 from casmbd.analysis.events.event_rows import SlideRow, closure
-from casmbd.analysis.instant.joint_friction import has_reaction_friction
 from casmbd.analysis.instant.kkt import accelerations_and_multipliers
+from casmbd.analysis.instant.reaction_friction import has_reaction_friction
 from casmbd.analysis.integrators import sundials as sun
 from casmbd.compiled.buffered import BufferedFunction
 from casmbd.interrupts import reraise_interrupt

@@ -1,5 +1,5 @@
 """``articulated``: ODE x = (q, v) of a tree in joint coordinates by the articulated-body
-recursion (:mod:`casmbd.system.articulated`), O(N) operations."""
+recursion (:mod:`casmbd.system.articulated_body`), O(N) operations."""
 
 from __future__ import annotations
 
@@ -13,13 +13,13 @@ from casmbd.analysis.formulations.base import (
     dae_function,
     symbolic_arguments,
 )
-from casmbd.system.articulated import articulated_accelerations, supported
+from casmbd.system.articulated_body import articulated_accelerations, supported
 from casmbd.system.equations import System
 
 
 def articulated(system: System, inputs: ca.SX | None = None) -> Formulation:
     """ODE on (q, v) of a tree in joint coordinates by the articulated-body recursion, O(N)
-    operations (:mod:`casmbd.system.articulated`)."""
+    operations (:mod:`casmbd.system.articulated_body`)."""
     t, q, v, pu = symbolic_arguments(system)
     acc = articulated_accelerations(system)
     if system.u.numel():

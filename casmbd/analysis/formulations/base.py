@@ -237,7 +237,7 @@ def generalized_forces(system: System, inputs: ca.SX | None, lam: ca.SX | None =
 
     With reaction-proportional joint friction, Q_e = Q_e(N = 0) + G N(q, λ) needs the
     multipliers ``lam`` (a DAE's algebraic variables); an ODE formulation (``lam`` None) is
-    refused naming the joints (:meth:`~casmbd.system.forces.AppliedForces.
+    refused naming the joints (:meth:`~casmbd.system.applied_forces.AppliedForces.
     refuse_reaction_friction`)."""
     forces = system.applied_forces + system.quadratic_velocity_forces
     if system.friction_normal_symbols:

@@ -20,7 +20,8 @@ The analyses that solve with C_q (kinematics, inverse dynamics, statics, lineari
    C_qᵀ λ = f; so does every λ + N z (C_qᵀ N = 0), and λ − N Nᵀ λ is the one of least norm
    (seed 002's orthogonalisation).  The reaction components N cannot change are determined
    and come out exactly; the others are the minimum-norm distribution of the self-stress
-   (:func:`casmbd.analysis.instant.reactions.flag_undetermined`, ``stats["reactions"]``).
+   (:func:`casmbd.analysis.instant.undetermined_reactions.flag_undetermined`,
+   ``stats["reactions"]``).
 
 Options (``redundancy=``), as for :func:`casmbd.analysis.dynamics.simulate.plan_redundancy`:
 ``"auto"`` and ``"remove"`` remove the dependent rows (these analyses solve with a regular
@@ -34,8 +35,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from casmbd.analysis.instant.reactions import multiplier_null_space
 from casmbd.analysis.instant.redundancy import rank_report
+from casmbd.analysis.instant.undetermined_reactions import multiplier_null_space
 from casmbd.errors import AnalysisError, RedundantConstraintError
 
 __all__ = ["REDUNDANCY_OPTIONS", "IndependentRows", "RowPlan", "check_option",
@@ -157,8 +158,8 @@ def scatter(values: np.ndarray, rows, size: int) -> np.ndarray:
 
 def minimum_norm(jacobian, lam: np.ndarray) -> np.ndarray:
     """λ − N Nᵀ λ: the multipliers of least norm among λ + N z, C_qᵀ N = 0 (N orthonormal,
-    :func:`casmbd.analysis.instant.reactions.multiplier_null_space`).  Equal to λ when C_q has full
-    row rank."""
+    :func:`casmbd.analysis.instant.undetermined_reactions.multiplier_null_space`).  Equal to λ
+    when C_q has full row rank."""
     null = multiplier_null_space(jacobian)
     lam = np.asarray(lam, dtype=float)
     return lam - null @ (null.T @ lam) if null.shape[1] else lam.copy()

@@ -22,7 +22,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from casmbd.analysis.instant.assembly import assemble
-from casmbd.analysis.instant.joint_friction import has_reaction_friction, solve_normals
+from casmbd.analysis.instant.reaction_friction import has_reaction_friction, solve_normals
 
 #: relative singular-value cut of the minimum-norm KKT solve with redundant equations
 TRUNCATE_RTOL = 1e-10

@@ -16,7 +16,7 @@ import casadi as ca
 import numpy as np
 import scipy.linalg as sla
 
-from casmbd.analysis.instant.joint_friction import has_reaction_friction
+from casmbd.analysis.instant.reaction_friction import has_reaction_friction
 from casmbd.analysis.integrators import sundials as sun
 from casmbd.compiled.buffered import BufferedFunction
 

@@ -11,7 +11,7 @@ II*, IV.2), and a stiff one needs Newton iterations that converge.
 For each force element (springs, dampers, expression and user forces, compliant contacts,
 torques) and each flexible body's elastic and damping forces it forms, by CasADi's algorithmic
 differentiation of the element's generalized force Q_e(q, v, t) (the virtual-work terms of
-:mod:`casmbd.system.forces`),
+:mod:`casmbd.system.applied_forces`),
 
     K_e = −∂Q_e/∂q,   C_e = −∂Q_e/∂v,
 

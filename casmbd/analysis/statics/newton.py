@@ -18,7 +18,12 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from casmbd.analysis.instant.assembly import assemble
-from casmbd.analysis.statics.problem import Iterate, StaticsProblem, null_space, principal_range
+from casmbd.analysis.statics.equilibrium_problem import (
+    Iterate,
+    StaticsProblem,
+    null_space,
+    principal_range,
+)
 from casmbd.analysis.statics.stability import Stability, classify_stability
 from casmbd.analysis.statics.trust_region import RANK_RTOL, least_squares_step, trust_region_step
 from casmbd.errors import AnalysisError, AssemblyError

@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from casmbd.analysis.instant.independent import check_removed, minimum_norm, scatter
-from casmbd.analysis.instant.reactions import flag_undetermined
-from casmbd.analysis.statics.problem import wrap
+from casmbd.analysis.instant.undetermined_reactions import flag_undetermined
+from casmbd.analysis.statics.equilibrium_problem import wrap
 from casmbd.analysis.statics.stability import Stability
 from casmbd.model.measures import result_names
 from casmbd.system.descriptions import quaternions_from_matrices

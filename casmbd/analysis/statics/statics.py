@@ -82,7 +82,8 @@ orthonormal basis of ker C_q (unscaled, so the eigenvalues keep their meaning), 
 directions of a neutral equilibrium named by the joint coordinates (or the generalized ones
 when the mechanism has none).  A mechanism without degrees of freedom is reported stable.
 
-The room, one job a module: :mod:`~casmbd.analysis.statics.problem` (the equations on a model),
+The room, one job a module:
+:mod:`~casmbd.analysis.statics.equilibrium_problem` (the equations on a model),
 :mod:`~casmbd.analysis.statics.newton` (the search), :mod:`~casmbd.analysis.statics.trust_region`
 (its steps), :mod:`~casmbd.analysis.statics.stability` (the verdict),
 :mod:`~casmbd.analysis.statics.report` (the result and the reports at a state),
@@ -101,8 +102,8 @@ from casmbd.analysis.events.events import has_events
 from casmbd.analysis.instant.assembly import assemble
 from casmbd.analysis.instant.checks import check_start
 from casmbd.analysis.instant.independent import check_option, find_redundant
+from casmbd.analysis.statics.equilibrium_problem import StaticsProblem
 from casmbd.analysis.statics.newton import search
-from casmbd.analysis.statics.problem import StaticsProblem
 from casmbd.analysis.statics.report import StaticsResult, equilibrium_result
 from casmbd.analysis.statics.resting import resting_equilibrium
 from casmbd.compiled.build import compile_model

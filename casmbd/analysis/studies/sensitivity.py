@@ -52,7 +52,7 @@ from casmbd.interrupts import reraise_interrupt
 from casmbd.model.contact_models import CONTACT_MODELS
 from casmbd.model.expressions import parse_expression
 from casmbd.model.needs import ALL_NEEDS, Handling, check
-from casmbd.system.quantities import identifier, quantities
+from casmbd.system.named_quantities import identifier, quantities
 
 METHODS = ("forward", "adjoint")
 _AXES = ("x", "y", "z")
@@ -108,7 +108,7 @@ def output_names(system, a: ca.SX, lam: ca.SX, u: ca.SX,
                  kept_rows: Sequence[int] | None = None) -> dict[str, ca.SX]:
     """Names usable in sensitivity outputs, as SX of (q, v, t, p, a, λ).
 
-    Everything of :func:`casmbd.system.quantities.quantities` (joint coordinates and rates,
+    Everything of :func:`casmbd.system.named_quantities.quantities` (joint coordinates and rates,
     marker and body positions and velocities, generalized coordinates, parameters, ``t``,
     actuator inputs), plus ``<coordinate>_ddot`` (q̈), the joint reactions
     ``<joint>_Fx``, ``_Fy`` (``_Fz``), ``_M`` in the plane or ``_Mx``, ``_My``, ``_Mz`` in

@@ -53,8 +53,8 @@ import numpy as np
 
 from casmbd.analysis.dynamics.simulate import Simulator, simulate
 from casmbd.analysis.events.event_rows import EventRows, closure
-from casmbd.analysis.instant.joint_friction import has_reaction_friction
 from casmbd.analysis.instant.kkt import accelerations_and_multipliers
+from casmbd.analysis.instant.reaction_friction import has_reaction_friction
 from casmbd.analysis.integrators.sundials import CapturedOutput
 from casmbd.errors import AnalysisError, IntegratorError
 from casmbd.interrupts import reraise_interrupt

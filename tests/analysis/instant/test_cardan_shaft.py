@@ -31,7 +31,7 @@ import numpy as np
 import pytest
 
 import casmbd
-from casmbd.analysis.instant.reactions import multiplier_null_space
+from casmbd.analysis.instant.undetermined_reactions import multiplier_null_space
 from casmbd.io.scene import loads_scene
 
 # the undetermined reactions warn (checked once, in test_simulate_reactions_finite)

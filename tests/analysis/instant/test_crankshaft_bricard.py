@@ -235,7 +235,7 @@ def test_bricard_reactions_are_undetermined(bricard_runs):
     assert flagged["O"] == [0, 1, 2, 3, 5] and flagged["E"] == [0, 1, 2, 4, 5]
     reac = res["joint_reactions"][1:]
     assert res.stats["reactions"] == "minimum_norm" and np.all(np.isfinite(reac))
-    from casmbd.analysis.instant.reactions import multiplier_null_space
+    from casmbd.analysis.instant.undetermined_reactions import multiplier_null_space
     from casmbd.compiled.model import NumericModel
 
     model = NumericModel(bricard("absolute"), "info", mode="vm")

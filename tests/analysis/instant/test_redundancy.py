@@ -75,7 +75,7 @@ def test_refused_combinations_fail_clearly():
 
 def test_minimum_norm_multipliers(reference):
     """The reported λ satisfies C_qᵀ λ = Q − M q̈ and has no component in null(C_qᵀ)."""
-    from casmbd.analysis.instant.reactions import multiplier_null_space
+    from casmbd.analysis.instant.undetermined_reactions import multiplier_null_space
     from casmbd.compiled.model import NumericModel
 
     model = NumericModel(triple_crank(), "dynamics")

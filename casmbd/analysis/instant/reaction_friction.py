@@ -3,8 +3,8 @@
 A joint friction element with ``mu`` > 0 (:mod:`casmbd.model.joint_friction`) has the Coulomb
 level F_c = F_0 + μ r |R_⊥|, R_⊥ the joint's constraint force transverse to its axis, a linear
 function of the multipliers λ.  The applied forces are affine in the magnitudes N
-(:mod:`casmbd.system.forces`): Q_e = Q_e(N = 0) + G(q, v) N.  Every linear solve of an analysis
-at one state (inverse dynamics: C_qᵀ λ = Q − M q̈; the consistent start: the KKT system) is
+(:mod:`casmbd.system.applied_forces`): Q_e = Q_e(N = 0) + G(q, v) N.  Every linear solve of an
+analysis at one state (inverse dynamics: C_qᵀ λ = Q − M q̈; the consistent start: the KKT system) is
 then affine in N, x(N) = x_0 + X N, with x_0 = S(Q_0) and the columns of X = S(G e_k) − x_0
 from n_f + 1 solves with the same factors, and N is the solution of
 

@@ -4,7 +4,7 @@ Every force contributes by virtual work (seed 000, eqs. 6.40–6.48): a term act
 along a measure s(q) gives Q = (∂s/∂q)ᵀ w, a torque T on a body gives Q = (∂ω/∂q̇)ᵀ T.  Force
 element kinds write their own terms (:class:`casmbd.model.forces.ForceElement`); this module
 collects them with gravity, user forces and actuators.  The reactions
-(:mod:`casmbd.system.reactions`) reuse the same terms written with a perturbed context.
+(:mod:`casmbd.system.joint_reactions`) reuse the same terms written with a perturbed context.
 
 Reaction-proportional joint friction (:mod:`casmbd.model.joint_friction`, ``mu`` > 0) writes
 its Coulomb level with a symbol N_f per element (``kit.normal``).  Q_e is affine in N, so
@@ -12,7 +12,7 @@ its Coulomb level with a symbol N_f per element (``kit.normal``).  Q_e is affine
 friction_directions` is G = ∂Q_e/∂N: Q_e(N) = Q_e(0) + G N.  :attr:`AppliedForces.
 friction_normals` is N = |R_⊥(q, λ)| per element, the joint's constraint force transverse to
 its axis, −(∂C_j/∂e)ᵀ λ_j on body2 (body1 when body2 is the ground) as in
-:meth:`~casmbd.system.reactions.Reactions.reactions_function`.  Analyses that do not solve for
+:meth:`~casmbd.system.joint_reactions.Reactions.reactions_function`.  Analyses that do not solve for
 N call :meth:`AppliedForces.refuse_reaction_friction`.
 
 :class:`AppliedForces` is a mixin of :class:`~casmbd.system.equations.System`: it reads the

@@ -7,7 +7,7 @@ eqs. 6.145–6.151); tree joints of joint coordinates: Newton–Euler from the l
 :class:`Reactions` is a mixin of :class:`~casmbd.system.equations.System`: it reads the system's
 symbols and context, its constraints (``constraint_labels``, ``joint_rows``, ``nc``,
 ``_driver_residual``), its inertia (``_mass_inertia``, ``tree_kinematics``, ``local``) and the
-applied-force terms (``_force_terms`` of :mod:`casmbd.system.forces`).
+applied-force terms (``_force_terms`` of :mod:`casmbd.system.applied_forces`).
 """
 
 from __future__ import annotations
