@@ -61,6 +61,7 @@ import numpy as np
 
 from casmbd.errors import CasmbdError, LimitError, SceneError
 from casmbd.io.files import read_text
+from casmbd.io.urdf_checks import check_built, check_inertias, prepare
 from casmbd.io.urdf_tree import MOVING, Robot, merge, parse_urdf
 from casmbd.limits import MAX_SCENE_BYTES, format_bytes
 from casmbd.model import Mechanism
@@ -203,8 +204,12 @@ def _couple(robot: Robot, mimic_of: dict, locked: dict, start: dict) -> None:
 def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | None = None,
                     initial: Mapping | None = None, damping: bool = False,
                     gravity: Sequence[float] = GRAVITY, name: str | None = None,
-                    friction: bool = False) -> Mechanism:
+                    friction: bool = False, inertia: str = "check",
+                    links: Mapping | None = None,
+                    ignore_mimic: bool | Sequence[str] = False) -> Mechanism:
     """The :class:`Mechanism` of a parsed URDF (see :func:`load_urdf`)."""
+    robot = prepare(robot, inertia, links, ignore_mimic)  # overrides, mimic, 'ground'
+
     locked = dict(locked or {})
     initial = dict(initial or {})
     _check_names(robot, locked, "locked")
@@ -227,6 +232,7 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
     _couple(robot, mimic_of, locked, start)
     group = _groups(robot, locked)
     design = robot.frames(locked)  # the design pose: URDF zero, locked joints at their value
+    robot = check_inertias(robot, group, design, inertia)  # on the merged bodies
     mech = Mechanism(name or robot.name, gravity=gravity, dimension=3, coordinates=coordinates)
     values = {**locked, **{k: p for k, (p, _) in start.items()}}
     at_start = robot.frames(values)
@@ -295,6 +301,7 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
     if damping or friction:
         _add_damping(robot, mech, locked, damping, friction)
     mech.visuals = _body_visuals(robot, group, design, frames)
+    check_built(robot, mech, locked, design)  # a moving body; massless end links
     return mech
 
 
@@ -377,7 +384,9 @@ def load_urdf(path: str | os.PathLike, coordinates: str = "joint",
               locked: Mapping[str, float] | None = None,
               initial: Mapping[str, float | Sequence[float]] | None = None,
               damping: bool = False, gravity: Sequence[float] = GRAVITY,
-              name: str | None = None, friction: bool = False) -> Mechanism:
+              name: str | None = None, friction: bool = False, inertia: str = "check",
+              links: Mapping[str, Mapping] | None = None,
+              ignore_mimic: bool | Sequence[str] = False) -> Mechanism:
     """Build a spatial :class:`Mechanism` from a URDF file.
 
     Parameters
@@ -402,6 +411,18 @@ def load_urdf(path: str | os.PathLike, coordinates: str = "joint",
     friction : bool
         Apply ``<dynamics friction>`` as smooth Coulomb joint forces −F_c tanh(q̇ / v_s),
         v_s = 1e-3 rad/s or m/s (:mod:`casmbd.model.joint_friction`).
+    inertia : {"check", "repair"}
+        A link inertia that no rigid body has (not positive semi-definite, or violating the
+        triangle inequalities): refused (``"check"``) or replaced by the nearest physical
+        tensor with a warning naming the change (``"repair"``;
+        :func:`casmbd.io.urdf_checks.nearest_physical_inertia`).
+    links : dict, optional
+        Link name → ``{"mass": kg, "com": [x, y, z], "inertia": [Ixx, Iyy, Izz(, Ixy, Ixz,
+        Iyz)]}`` replacing the file's ``<inertial>`` values (centre of mass in the link frame,
+        inertia about it in the link axes); keys left out keep the file's values.
+    ignore_mimic : bool or list of str
+        Ignore every ``<mimic>`` (True) or those of the named follower joints: each becomes an
+        independent joint, with a warning.
 
     Raises
     ------
@@ -409,13 +430,21 @@ def load_urdf(path: str | os.PathLike, coordinates: str = "joint",
         Unreadable or malformed files, unknown or malformed content (naming link/joint and
         attribute), unsupported features (``initial``/``locked`` values of planar or floating
         joints), a mimic follower given alone or inconsistent with its leader (naming both
-        joints and the values).
+        joints and the values), an impossible inertia (naming the link), a ``<mimic>`` of an
+        unknown joint, no moving body (:mod:`casmbd.io.urdf_checks`).
+
+    Warns
+    -----
+    RuntimeWarning
+        A repaired inertia, an ignored ``<mimic>``, a link renamed from ``ground``, a revolute
+        joint without ``<limit>``, massless end links (:mod:`casmbd.io.urdf_checks`).
     """
     path = Path(path)
     text = read_text(path, "URDF")
     return loads_urdf(text, str(path), coordinates=coordinates, locked=locked,
                       initial=initial, damping=damping, gravity=gravity, name=name,
-                      friction=friction)
+                      friction=friction, inertia=inertia, links=links,
+                      ignore_mimic=ignore_mimic)
 
 
 def urdf_scene(data: dict, source: str, name: str, coordinates: str, gravity) -> Mechanism:
