@@ -79,7 +79,8 @@ _COMPLIANT_KEYS = ("stiffness", "exponent", "damping", "penetration", "friction_
 _LIMIT_KEYS = {"lower", "upper", "restitution", "limit_model", "limit_stiffness",
                "limit_exponent", "limit_damping", "limit_penetration"}
 _SCENE_KEYS = {"name", "dimension", "gravity", "format", "description", "coordinates",
-               "tree", "urdf", "initial", "locked", "damping", "friction"}
+               "tree", "urdf", "initial", "locked", "damping", "friction", "inertia",
+               "links", "ignore_mimic"}
 _COORDINATES = ("auto", "absolute", "natural", "joint")
 _MARKER_KEYS = {"name", "body", "point", "description", "orientation", "euler_zxz", "angle"}
 _DRIVER_KEYS = {"name", "joint", "body", "coordinate", "position", "description"}
@@ -312,9 +313,11 @@ def _build(data: dict, source: str) -> Mechanism:
         mech = urdf_scene(scene.data, source, name, coords, scene.vector("gravity", 3, default=[
             0.0, 0.0, -9.81]) if dim == 3 else None)
     else:
-        if any(key in scene.data for key in ("initial", "locked", "damping", "friction")):
-            raise scene.error("initial", "'initial', 'locked' and 'damping' need 'urdf' (so "
-                              "does 'friction')")
+        urdf_only = [k for k in ("initial", "locked", "damping", "friction", "inertia",
+                                 "links", "ignore_mimic") if k in scene.data]
+        if urdf_only:
+            raise scene.error(urdf_only[0], "'initial', 'locked' and 'damping' need 'urdf' (so "
+                              "do 'friction', 'inertia', 'links' and 'ignore_mimic')")
         gravity = scene.vector("gravity", dim, default=[0.0] * dim)
         try:
             mech = Mechanism(name, gravity=gravity, dimension=dim, coordinates=coords)

@@ -449,8 +449,9 @@ def load_urdf(path: str | os.PathLike, coordinates: str = "joint",
 
 def urdf_scene(data: dict, source: str, name: str, coordinates: str, gravity) -> Mechanism:
     """The mechanism of a scene's ``[scene] urdf = "path"`` (relative to the scene file) with
-    optional ``[scene.initial]``, ``[scene.locked]`` (joint name = value), ``damping`` and
-    ``friction``."""
+    optional ``[scene.initial]``, ``[scene.locked]`` (joint name = value), ``damping``,
+    ``friction``, ``inertia`` ("check" or "repair"), ``ignore_mimic`` (true or a list of joint
+    names) and ``[scene.links.NAME]`` (``mass``, ``com``, ``inertia``: :func:`load_urdf`)."""
     if gravity is None:
         raise SceneError("[scene] key 'dimension': a scene with 'urdf' is spatial "
                          "(dimension = 3)")
@@ -470,9 +471,15 @@ def urdf_scene(data: dict, source: str, name: str, coordinates: str, gravity) ->
         if not isinstance(switches[key], bool):
             raise SceneError(f"[scene] key '{key}': expected true or false, got "
                              f"{switches[key]!r}")
+    links = data.get("links", {})
+    if not isinstance(links, dict):
+        raise SceneError("[scene.links]: expected tables [scene.links.NAME] of mass, com, "
+                         "inertia")
     try:
         return load_urdf(base / rel, coordinates=coordinates, locked=tables["locked"],
                          initial=tables["initial"], damping=switches["damping"],
-                         gravity=gravity, name=name, friction=switches["friction"])
+                         gravity=gravity, name=name, friction=switches["friction"],
+                         inertia=data.get("inertia", "check"), links=links,
+                         ignore_mimic=data.get("ignore_mimic", False))
     except SceneError as exc:
         raise SceneError(f"[scene] key 'urdf' ('{rel}'): {exc}") from None
