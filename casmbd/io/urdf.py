@@ -210,8 +210,9 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
     """The :class:`Mechanism` of a parsed URDF (see :func:`load_urdf`)."""
     robot = prepare(robot, inertia, links, ignore_mimic)  # overrides, mimic, 'ground'
 
-    locked = dict(locked or {})
-    initial = dict(initial or {})
+    renamed = getattr(robot, "renamed", {})  # reserved names (io/urdf_checks.py)
+    locked = {renamed.get(k, k): v for k, v in (locked or {}).items()}
+    initial = {renamed.get(k, k): v for k, v in (initial or {}).items()}
     _check_names(robot, locked, "locked")
     _check_names(robot, initial, "initial")
     locked = {k: _state(v, k, "locked")[0] for k, v in locked.items()}

@@ -24,9 +24,11 @@ joint and the attribute, every repair a ``RuntimeWarning`` naming the change.
 * **Mimic joints.**  ``ignore_mimic = True`` (every ``<mimic>``) or a list of follower joints:
   the follower becomes an independent joint, with a warning.  A ``<mimic>`` naming an unknown
   joint is refused, suggesting ``ignore_mimic``.
-* **The reserved name ``ground``.**  casmbd's fixed frame is the body ``ground``; a link of that
-  name is renamed ``ground_link`` (``ground_link_2``, … if taken) with a warning, so that its
-  frame stays a marker (root or welded link) or a body (moving link) under that name.
+* **Reserved names.**  casmbd's fixed frame is the body ``ground``; a link of that name is
+  renamed ``ground_link`` (``ground_link_2``, … if taken) with a warning, so that its frame
+  stays a marker (root or welded link) or a body (moving link) under that name.  Link and joint
+  names with ``.`` or ``@`` (allegro's ``link_8.0``; casmbd reserves them for generated parts
+  and node attachments) get ``_`` instead.  ``locked`` and ``initial`` accept either name.
 * **No moving body** (every link welded to the ground, as a bare quadrotor file): refused at
   load naming the robot, suggesting ``floating_base = true``.
 * **Massless end links.**  A moving joint whose subtree has no mass (prismatic) or no inertia
@@ -48,6 +50,7 @@ import numpy as np
 from casmbd.errors import ModelError, SceneError
 from casmbd.io.urdf_tree import MOVING, Robot, merge
 from casmbd.model.bodies import GROUND, INERTIA_ROUNDING, check_inertia
+from casmbd.model.mechanism import RESERVED_CHARACTERS
 
 #: the ``inertia`` option: refuse an impossible inertia, or project it to the nearest physical one
 INERTIA_MODES = ("check", "repair")
@@ -236,31 +239,52 @@ def _mimics(robot: Robot, ignore) -> None:
                              "independent joint)")
 
 
-def _rename_ground(robot: Robot) -> None:
-    """Give a link named ``ground`` the name :data:`GROUND_LINK` (module docstring)."""
-    if GROUND not in robot.links:
-        return
-    new, k = GROUND_LINK, 1
-    while new in robot.links or new in robot.joints:
+def _free_name(name: str, taken) -> str:
+    new, k = name, 1
+    while new in taken:
         k += 1
-        new = f"{GROUND_LINK}_{k}"
-    robot.links = {(new if n == GROUND else n): (dataclasses.replace(link, name=new)
-                                                 if n == GROUND else link)
+        new = f"{name}_{k}"
+    return new
+
+
+def rename_reserved(robot: Robot) -> dict[str, str]:
+    """Rename (in place) the links and joints whose names casmbd reserves: a link ``ground``
+    becomes :data:`GROUND_LINK`, the characters of
+    :data:`casmbd.model.mechanism.RESERVED_CHARACTERS` (``.``, ``@``) become ``_`` (a suffix
+    ``_2``, … if the name is taken), with one warning.  Returns old → new names."""
+    taken = set(robot.links) | set(robot.joints)
+    renamed: dict[str, str] = {}
+    for table in (robot.links, robot.joints):
+        for name in table:
+            new = GROUND_LINK if table is robot.links and name == GROUND else name
+            for char in RESERVED_CHARACTERS:
+                new = new.replace(char, "_")
+            if new != name:
+                renamed[name] = _free_name(new, taken)
+                taken.add(renamed[name])
+    if not renamed:
+        return renamed
+    robot.links = {renamed.get(n, n): dataclasses.replace(link, name=renamed.get(n, n))
                    for n, link in robot.links.items()}
-    robot.joints = {n: dataclasses.replace(
-        j, parent=new if j.parent == GROUND else j.parent,
-        child=new if j.child == GROUND else j.child) for n, j in robot.joints.items()}
-    if robot.root == GROUND:
-        robot.root = new
-    warnings.warn(f"URDF '{robot.name}': link '{GROUND}' is named '{new}' ('{GROUND}' is "
-                  "casmbd's fixed frame)", RuntimeWarning, stacklevel=4)
+    robot.joints = {renamed.get(n, n): dataclasses.replace(
+        j, name=renamed.get(n, n), parent=renamed.get(j.parent, j.parent),
+        child=renamed.get(j.child, j.child),
+        mimic=None if j.mimic is None else (renamed.get(j.mimic[0], j.mimic[0]), *j.mimic[1:]))
+        for n, j in robot.joints.items()}
+    robot.root = renamed.get(robot.root, robot.root)
+    text = ", ".join(f"'{a}' -> '{b}'" for a, b in list(renamed.items())[:8])
+    warnings.warn(f"URDF '{robot.name}': names casmbd reserves renamed: {text}"
+                  + (f" and {len(renamed) - 8} more" if len(renamed) > 8 else "")
+                  + f" ('{GROUND}' is the fixed frame; '.' and '@' separate generated parts)",
+                  RuntimeWarning, stacklevel=4)
+    return renamed
 
 
 def prepare(robot: Robot, inertia: str = "check", links: Mapping | None = None,
             ignore_mimic: bool | Sequence[str] = False) -> Robot:
     """A copy of the parsed robot with the overrides applied, the ignored ``<mimic>`` dropped
-    and a link ``ground`` renamed (module docstring); the inertias are checked on the merged
-    bodies (:func:`check_inertias`).
+    and reserved names renamed (:func:`rename_reserved`, old → new in ``robot.renamed``); the
+    inertias are checked on the merged bodies (:func:`check_inertias`).
 
     Raises
     ------
@@ -275,7 +299,7 @@ def prepare(robot: Robot, inertia: str = "check", links: Mapping | None = None,
     if links:
         _override(robot, links)
     _mimics(robot, ignore_mimic)
-    _rename_ground(robot)
+    robot.renamed = rename_reserved(robot)  # locked and initial accept either name
     return robot
 
 

@@ -219,7 +219,8 @@ def test_link_named_ground_keeps_its_frame_and_moves():
     with the link named x (1e-14)."""
     root = _robot('<link name="ground"/>', _link("b", com="0.3 0 0"),
                   _joint("j", "ground", "b", axis="0 0 1"))
-    with pytest.warns(RuntimeWarning, match="link 'ground' is named 'ground_link'"):
+    with pytest.warns(RuntimeWarning, match="names casmbd reserves renamed: 'ground' -> "
+                                            "'ground_link'"):
         mech = loads_urdf(root, "t.urdf")
     assert mech.markers["ground_link"].body == "ground"
     fk, _ = casmbd.compile(mech).forward_kinematics([0.4])
@@ -227,7 +228,7 @@ def test_link_named_ground_keeps_its_frame_and_moves():
     moving = _robot('<link name="a"/>', _link("ground", com="0.3 0 0"), _link("c", com="0 0.2 0"),
                     _joint("j", "a", "ground", axis="0 0 1"),
                     _joint("k", "ground", "c", xyz="0.5 0 0", axis="0 0 1"))
-    with pytest.warns(RuntimeWarning, match="link 'ground' is named 'ground_link'"):
+    with pytest.warns(RuntimeWarning, match="'ground' -> 'ground_link'"):
         mech = loads_urdf(moving, "t.urdf")
     assert set(mech.bodies) == {"ground_link", "c"}
     same = _quiet(moving.replace('"ground"', '"x"'))
@@ -235,6 +236,25 @@ def test_link_named_ground_keeps_its_frame_and_moves():
     m1 = casmbd.compile(mech).mass_matrix(q)
     m2 = casmbd.compile(same).mass_matrix(q)
     assert np.allclose(m1, m2, rtol=1e-14, atol=1e-14) and m1[0, 0] > 1.0
+
+
+def test_names_with_reserved_characters_are_renamed():
+    """allegro's link_8.0 and joint_8.0: '.' becomes '_' (a suffix if taken), the <mimic>
+    leader and the locked and initial keys follow (either name); the start angle of the
+    renamed joint is its tree coordinate."""
+    text = _robot(_link("a"), _link("l.1", com="0.2 0 0"), _link("l_1", com="0.2 0 0"),
+                  _link("c@2", com="0.1 0 0"),
+                  _joint("j.1", "a", "l.1"), _joint("k", "a", "l_1", xyz="1 0 0"),
+                  _joint("m", "l.1", "c@2", xyz="0.5 0 0", extra='<mimic joint="j.1"/>'))
+    with pytest.warns(RuntimeWarning, match=r"'l.1' -> 'l_1_2', 'c@2' -> 'c_2', 'j.1' -> "
+                                            r"'j_1'"):
+        mech = loads_urdf(text, "t.urdf", initial={"j.1": 0.25})
+    assert set(mech.bodies) == {"l_1_2", "l_1", "c_2"} and "m_mimic" in mech.joints
+    model = casmbd.compile(mech)
+    assert model.coordinate_names[:2] == ["j_1.angle", "k.angle"]
+    assert abs(mech.joints["j_1"].tree_initial()[0] - 0.25) < 1e-15
+    locked = _quiet(text, locked={"j_1": 0.1})
+    assert "j_1" not in locked.joints and "l_1_2" not in locked.bodies
 
 
 def test_revolute_without_limit_loads_with_a_warning():
