@@ -313,11 +313,12 @@ def _build(data: dict, source: str) -> Mechanism:
         mech = urdf_scene(scene.data, source, name, coords, scene.vector("gravity", 3, default=[
             0.0, 0.0, -9.81]) if dim == 3 else None)
     else:
-        urdf_only = [k for k in ("initial", "locked", "damping", "friction", "inertia",
-                                 "links", "ignore_mimic") if k in scene.data]
-        if urdf_only:
-            raise scene.error(urdf_only[0], "'initial', 'locked' and 'damping' need 'urdf' (so "
-                              "do 'friction', 'inertia', 'links' and 'ignore_mimic')")
+        if any(key in scene.data for key in ("initial", "locked", "damping", "friction")):
+            raise scene.error("initial", "'initial', 'locked' and 'damping' need 'urdf' (so "
+                              "does 'friction')")
+        for key in ("inertia", "links", "ignore_mimic"):  # URDF model options (urdf_checks)
+            if key in scene.data:
+                raise scene.error(key, "needs 'urdf' (an option of the URDF import)")
         gravity = scene.vector("gravity", dim, default=[0.0] * dim)
         try:
             mech = Mechanism(name, gravity=gravity, dimension=dim, coordinates=coords)

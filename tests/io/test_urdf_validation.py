@@ -351,7 +351,7 @@ def test_scene_keys_inertia_links_ignore_mimic(tmp_path):
     assert abs(np.linalg.eigvalsh(_tensor(mech.bodies["b"]))[2] - (0.3 - 0.1 / 3)) < 1e-12
     with pytest.raises(SceneError, match=r"\[scene\] key 'urdf' \('r.urdf'\): links.c.mass"):
         loads_scene(scene.replace("mass = 1.0", "mass = -1.0"), str(tmp_path / "s.toml"))
-    with pytest.raises(SceneError, match="need 'urdf'"):
+    with pytest.raises(SceneError, match="key 'inertia': needs 'urdf'"):
         loads_scene('[scene]\ndimension = 3\ninertia = "repair"\n', "s.toml")
 
 
