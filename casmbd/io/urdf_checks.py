@@ -282,9 +282,10 @@ def rename_reserved(robot: Robot) -> dict[str, str]:
 
 def prepare(robot: Robot, inertia: str = "check", links: Mapping | None = None,
             ignore_mimic: bool | Sequence[str] = False) -> Robot:
-    """A copy of the parsed robot with the overrides applied, the ignored ``<mimic>`` dropped
-    and reserved names renamed (:func:`rename_reserved`, old → new in ``robot.renamed``); the
-    inertias are checked on the merged bodies (:func:`check_inertias`).
+    """A copy of the parsed robot with reserved names renamed (:func:`rename_reserved`, old →
+    new in ``robot.renamed``; ``links`` and ``ignore_mimic`` take either name), the overrides
+    applied and the ignored ``<mimic>`` dropped; the inertias are checked on the merged bodies
+    (:func:`check_inertias`).
 
     Raises
     ------
@@ -296,10 +297,13 @@ def prepare(robot: Robot, inertia: str = "check", links: Mapping | None = None,
         raise SceneError(f"inertia: expected one of {', '.join(map(repr, INERTIA_MODES))}, got "
                          f"{inertia!r}")
     robot = dataclasses.replace(robot, links=dict(robot.links), joints=dict(robot.joints))
+    robot.renamed = new = rename_reserved(robot)  # every option accepts either name
     if links:
-        _override(robot, links)
+        _override(robot, {new.get(k, k): v for k, v in links.items()}
+                  if isinstance(links, Mapping) else links)
+    if isinstance(ignore_mimic, (list, tuple)):
+        ignore_mimic = [new.get(n, n) if isinstance(n, str) else n for n in ignore_mimic]
     _mimics(robot, ignore_mimic)
-    robot.renamed = rename_reserved(robot)  # locked and initial accept either name
     return robot
 
 
@@ -353,7 +357,7 @@ def check_built(robot: Robot, mech, locked: Mapping, design: dict) -> None:
             + (f"joints of type {', '.join(kinds)}" if kinds else "no joints")
             + (f", locked {', '.join(locked)}" if locked else "")
             + "); a free-flying or legged robot (a quadrotor) needs a free root: load it with "
-              "floating_base = true")
+              "floating_base = true ([scene]; load_urdf(..., floating_base=True))")
     found = massless_joints(robot, locked, design)
     if found:
         text = "; ".join(f"joint '{j}' moves only {', '.join(links[:4])}"

@@ -255,6 +255,10 @@ def test_names_with_reserved_characters_are_renamed():
     assert abs(mech.joints["j_1"].tree_initial()[0] - 0.25) < 1e-15
     locked = _quiet(text, locked={"j_1": 0.1})
     assert "j_1" not in locked.joints and "l_1_2" not in locked.bodies
+    for key in ("l.1", "l_1_2"):  # an override by either name
+        assert _quiet(text, links={key: {"mass": 3.0}}).bodies["l_1_2"].mass == 3.0
+    for key in ("m", ["m"]):
+        assert "m_mimic" not in _quiet(text, ignore_mimic=True if key == "m" else key).joints
 
 
 def test_revolute_without_limit_loads_with_a_warning():
