@@ -303,6 +303,7 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
         _add_damping(robot, mech, locked, damping, friction)
     mech.visuals = _body_visuals(robot, group, design, frames)
     check_built(robot, mech, locked, design)  # a moving body; massless end links
+    mech.urdf_renamed = dict(renamed)  # URDF name → casmbd name of reserved names
     return mech
 
 
