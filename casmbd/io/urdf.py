@@ -46,6 +46,11 @@ u = A₀ᵀ (p_l + R_l p_v − c) with axes A₀ᵀ R_l R_v.  A mesh's filename 
 (:func:`resolve_mesh`: relative to the URDF file, ``file://`` paths, ``package://NAME/…`` by
 searching the URDF's folder and its parents for the package folder ``NAME``); the file is read
 only by the view (:mod:`casmbd.viz.meshes`, bounded).  ``<collision>`` elements are not used.
+
+Model checks run here, at load (:mod:`casmbd.io.urdf_checks`): impossible inertias of the
+merged bodies (refused, or ``inertia="repair"``), per-link overrides (``links``), ignored
+``<mimic>`` (``ignore_mimic``), reserved names renamed (``mech.urdf_renamed``), no moving body
+(refused), massless end links (a warning).
 """
 
 from __future__ import annotations
