@@ -89,13 +89,15 @@ def robots_dir() -> Path | None:
     return None
 
 
-def _pin_configuration(pm, names: list[str]):
-    """q ↦ Pinocchio's q and the permutation casmbd → Pinocchio for v, a, τ."""
+def _pin_configuration(pm, names: list[str], renamed: dict | None = None):
+    """q ↦ Pinocchio's q and the permutation casmbd → Pinocchio for v, a, τ (``renamed``:
+    URDF → casmbd names of the reserved ones, ``Mechanism.urdf_renamed``)."""
     index = {name.rpartition(".")[0] or name: k for k, name in enumerate(names)}
-    missing = [pm.names[j] for j in range(1, pm.njoints) if pm.names[j] not in index]
+    pin_names = [(renamed or {}).get(n, n) for n in pm.names]
+    missing = [pin_names[j] for j in range(1, pm.njoints) if pin_names[j] not in index]
     if missing or pm.njoints - 1 != len(names):
         raise KeyError(f"joints differ: Pinocchio-only {missing}, casmbd {names}")
-    order = [(index[pm.names[j]], pm.joints[j].nq) for j in range(1, pm.njoints)]
+    order = [(index[pin_names[j]], pm.joints[j].nq) for j in range(1, pm.njoints)]
 
     def convert(q):
         out = []
@@ -151,6 +153,7 @@ def check_robot(path: str | Path, states: int = 3, seed: int = 0, mode: str = "v
             warnings.simplefilter("ignore")
             mech = casmbd.load_urdf(path, locked=dict.fromkeys(leaders, 0.0))
             ours = casmbd.compile(mech, mode=mode)
+            ours.urdf_renamed = getattr(mech, "urdf_renamed", {})  # allegro's link_8.0
     except Exception as exc:
         rec.update(casmbd=False, error=f"{type(exc).__name__}: {exc}".splitlines()[0][:300])
         return rec
@@ -160,7 +163,7 @@ def check_robot(path: str | Path, states: int = 3, seed: int = 0, mode: str = "v
                    "(mimic coupling or closed chain): M, τ are not Pinocchio's")
         return rec
     try:
-        to_pin, perm = _pin_configuration(pm, list(ours.coordinate_names))
+        to_pin, perm = _pin_configuration(pm, list(ours.coordinate_names), ours.urdf_renamed)
     except KeyError as exc:
         rec.update(compared=False, error=str(exc)[:300])
         return rec
@@ -300,7 +303,9 @@ def _frame_errors(worst: dict, ours, fk, pm, data, qp) -> None:
     pin.updateFramePlacements(pm, data)
     pos, rot = fk
     n_body = len(ours.numeric.body_names)
-    frames = {f.name: k for k, f in enumerate(pm.frames) if f.type == pin.FrameType.BODY}
+    renamed = getattr(ours, "urdf_renamed", {})
+    frames = {renamed.get(f.name, f.name): k for k, f in enumerate(pm.frames)
+              if f.type == pin.FrameType.BODY}
     shared = [(i, name) for i, name in enumerate(ours.frame_names) if name in frames]
     for i, name in shared:
         frame = pm.frames[frames[name]]

@@ -72,6 +72,18 @@ class SingularConfigurationError(CasmbdError):
     """A linear system of the analysis (Jacobian, KKT matrix) is singular at some time."""
 
 
+class SingularMassMatrixError(SingularConfigurationError):
+    """The mass matrix is singular at a state: motions without kinetic energy (a massless end
+    link).  ``coordinates`` and ``bodies`` name them, largest share first."""
+
+    def __init__(self, message: str, coordinates=(), bodies=()):
+        super().__init__(message)
+        self.coordinates, self.bodies = list(coordinates), list(bodies)
+
+    def __reduce__(self):
+        return (type(self), (self.args[0], self.coordinates, self.bodies))
+
+
 class LimitError(CasmbdError):
     """An input exceeds a stated size limit of :mod:`casmbd.limits` (bodies, steps × state
     size against the memory budget, grid points, intervals, frames, dpi, ...); the message

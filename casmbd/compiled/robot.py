@@ -44,6 +44,7 @@ Conventions (n_q coordinates, joint coordinates by default):
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import casadi as ca
@@ -51,7 +52,7 @@ import numpy as np
 
 from casmbd.compiled.buffered import BufferedFunction
 from casmbd.compiled.build import compile_model
-from casmbd.errors import ModelError
+from casmbd.errors import ModelError, SingularConfigurationError, SingularMassMatrixError
 from casmbd.model.bodies import GROUND
 from casmbd.model.needs import Handling, check
 from casmbd.system.articulated_body import motion_transform, supported
@@ -220,7 +221,9 @@ class CompiledModel:
                ca.Function("robot_bias", [q, v, p], [bias], ["q", "v", "p"], ["b"])]
         if self.nc == 0:
             qdd = ca.densify(ldl_solve(mass, tau - bias))
-            fd = ca.Function("robot_fd", [q, v, tau, p], [qdd], ["q", "v", "tau", "p"], ["a"])
+            # Σ q̈ᵢ, finite iff q̈ is (a zero pivot gives inf or nan): the per-call test
+            fd = ca.Function("robot_fd", [q, v, tau, p], [qdd, ca.sum1(qdd)],
+                             ["q", "v", "tau", "p"], ["a", "sum"])
             ind = ca.Function("robot_id", [q, v, a, p], [ca.densify(inverse)],
                               ["q", "v", "a", "p"], ["tau"])
             fns += [fd, ind, fd.map("robot_fd_batch", "serial", BATCH_CHUNK, [3], []),
@@ -275,6 +278,10 @@ class CompiledModel:
         self.actuated: list[str] = self._actuated(actuated)
         self._selection = np.array([self.coordinate_names.index(c) for c in self.actuated],
                                    dtype=int)
+        #: the body of each coordinate, for the named error of a singular mass matrix
+        self._coordinate_bodies = [b for b, d in system.descriptions.items()
+                                   for _ in range(d.size)]
+        self._body_inertia = {b: (body.mass, body.inertia) for b, body in mech.bodies.items()}
 
     # ------------------------------------------------------------------ helpers
     def _shape_error(self, what: str, *args) -> ModelError:
@@ -296,6 +303,48 @@ class CompiledModel:
         except (ValueError, TypeError):
             raise self._shape_error(what, *(x for x in (q, v, w) if x is not None)) from None
         c.trigger()
+
+    def _singular(self, q, what: str, cq: np.ndarray | None = None) -> None:
+        """Raise naming the coordinates and bodies of a singular mass matrix at ``q``
+        (with ``cq``: on the null space of C_q), else return (the caller's result stands).
+
+        Called only when a result is not finite (or the KKT solve failed), so the per-call
+        path costs one finiteness test.  As :func:`casmbd.analysis.instant.checks.
+        check_mass_matrix`: N an orthonormal basis of null(C_q) (the identity for a tree), the
+        eigenvectors x = N y of the eigenvalues of Nᵀ M N at most 1e-12 of the largest are
+        motions without kinetic energy; the coordinates carrying ≥ 10 % of the largest share
+        of |x|² are named with their bodies' mass and inertia.
+        """
+        self._load(self._m, what, q)
+        m = 0.5 * (self._m.view + self._m.view.T)
+        basis = np.eye(self.nq)
+        if cq is not None and cq.size:
+            _, sv, vt = np.linalg.svd(cq)
+            tol = max(cq.shape) * np.finfo(float).eps * (sv[0] if sv.size else 0.0)
+            basis = vt[int(np.sum(sv > tol)):].T
+        if not np.all(np.isfinite(m)) or basis.shape[1] == 0:
+            return
+        eig, vec = np.linalg.eigh(basis.T @ m @ basis)
+        tol = 1e-12 * max(float(np.max(np.abs(eig))), np.finfo(float).tiny)
+        if eig[0] > tol:
+            return
+        share = np.sum((basis @ vec[:, eig <= tol]) ** 2, axis=1)
+        named = [k for k in np.argsort(-share, kind="stable") if share[k] >= 0.1 * share.max()]
+        parts = []
+        for k in named[:4]:
+            body = self._coordinate_bodies[k]
+            mass, inertia = self._body_inertia.get(body, ("?", "?"))
+            parts.append(f"'{self.coordinate_names[k]}' (body '{body}': mass {mass}, inertia "
+                         f"{inertia})")
+        raise SingularMassMatrixError(
+            f"{what}: the mass matrix is singular at this q (smallest eigenvalue {eig[0]:.3g} "
+            f"of {eig[-1]:.3g}"
+            + (", on the null space of the constraint Jacobian" if cq is not None else "")
+            + "): a motion of " + ", ".join(parts) + " has no inertia (a massless end link);"
+            " give the link mass and inertia (load_urdf(..., links={NAME: {'mass': ..., "
+            "'inertia': [...]}})) or lock its joint",
+            coordinates=[self.coordinate_names[k] for k in named],
+            bodies=list(dict.fromkeys(self._coordinate_bodies[k] for k in named)))
 
     def _actuated(self, names) -> list[str]:
         if names is None:
@@ -329,6 +378,8 @@ class CompiledModel:
         c = self._fd
         self._load(c, "forward_dynamics", q, v, tau)
         if not self.nc:
+            if not math.isfinite(c.outs[1][0]):  # a zero pivot: named (else q̈ stands)
+                self._singular(q, "forward_dynamics")
             return c.view.copy()
         m, r, cq, gamma = c.outs
         nq, nc = self.nq, self.nc
@@ -337,7 +388,16 @@ class CompiledModel:
         jac = cq.reshape(nc, nq, order="F")
         kkt[nq:, :nq] = jac
         kkt[:nq, nq:] = jac.T
-        return np.linalg.solve(kkt, np.concatenate([r, gamma]))[:nq]
+        try:
+            return np.linalg.solve(kkt, np.concatenate([r, gamma]))[:nq]
+        except np.linalg.LinAlgError:
+            jac = jac.copy()
+            self._singular(q, "forward_dynamics", jac)
+            raise SingularConfigurationError(
+                f"forward_dynamics: the KKT matrix [M C_qᵀ; C_q 0] is singular at this q with "
+                f"M regular on the constraint manifold: the constraint equations are redundant "
+                f"here (rank {np.linalg.matrix_rank(jac)} of {nc}: "
+                f"{', '.join(self.constraint_labels[:6])})") from None
 
     def inverse_dynamics(self, q, v, a, return_multipliers: bool = False, tol: float = 1e-8):
         """τ = M(q) a + b(q, v) of a tree (Pinocchio's ``rnea``); with constraint equations,
@@ -468,7 +528,11 @@ class CompiledModel:
         if self.nc:
             return np.array([self.forward_dynamics(*s) for s in zip(Q, V, TAU)]).reshape(
                 -1, self.nq)
-        return self._batch("robot_fd_batch", (Q, V, TAU))
+        out = self._batch("robot_fd_batch", (Q, V, TAU))
+        if not math.isfinite(float(np.sum(out))):  # name the first state with a zero pivot
+            for k in np.flatnonzero(~np.all(np.isfinite(out), axis=1)):
+                self._singular(np.asarray(Q, float)[k], f"forward_dynamics_batch (state {k})")
+        return out
 
     def inverse_dynamics_batch(self, Q, V, A) -> np.ndarray:
         """:meth:`inverse_dynamics` at N states, arrays of shape (N, n_q) in and out.

@@ -46,6 +46,11 @@ u = A₀ᵀ (p_l + R_l p_v − c) with axes A₀ᵀ R_l R_v.  A mesh's filename 
 (:func:`resolve_mesh`: relative to the URDF file, ``file://`` paths, ``package://NAME/…`` by
 searching the URDF's folder and its parents for the package folder ``NAME``); the file is read
 only by the view (:mod:`casmbd.viz.meshes`, bounded).  ``<collision>`` elements are not used.
+
+Model checks run here, at load (:mod:`casmbd.io.urdf_checks`): impossible inertias of the
+merged bodies (refused, or ``inertia="repair"``), per-link overrides (``links``), ignored
+``<mimic>`` (``ignore_mimic``), reserved names renamed (``mech.urdf_renamed``), no moving body
+(refused), massless end links (a warning).
 """
 
 from __future__ import annotations
@@ -61,6 +66,7 @@ import numpy as np
 
 from casmbd.errors import CasmbdError, LimitError, SceneError
 from casmbd.io.files import read_text
+from casmbd.io.urdf_checks import check_built, check_inertias, prepare
 from casmbd.io.urdf_tree import MOVING, Robot, merge, parse_urdf
 from casmbd.limits import MAX_SCENE_BYTES, format_bytes
 from casmbd.model import Mechanism
@@ -203,10 +209,15 @@ def _couple(robot: Robot, mimic_of: dict, locked: dict, start: dict) -> None:
 def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | None = None,
                     initial: Mapping | None = None, damping: bool = False,
                     gravity: Sequence[float] = GRAVITY, name: str | None = None,
-                    friction: bool = False) -> Mechanism:
+                    friction: bool = False, inertia: str = "check",
+                    links: Mapping | None = None,
+                    ignore_mimic: bool | Sequence[str] = False) -> Mechanism:
     """The :class:`Mechanism` of a parsed URDF (see :func:`load_urdf`)."""
-    locked = dict(locked or {})
-    initial = dict(initial or {})
+    robot = prepare(robot, inertia, links, ignore_mimic)  # overrides, mimic, 'ground'
+
+    renamed = getattr(robot, "renamed", {})  # reserved names (io/urdf_checks.py)
+    locked = {renamed.get(k, k): v for k, v in (locked or {}).items()}
+    initial = {renamed.get(k, k): v for k, v in (initial or {}).items()}
     _check_names(robot, locked, "locked")
     _check_names(robot, initial, "initial")
     locked = {k: _state(v, k, "locked")[0] for k, v in locked.items()}
@@ -227,6 +238,7 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
     _couple(robot, mimic_of, locked, start)
     group = _groups(robot, locked)
     design = robot.frames(locked)  # the design pose: URDF zero, locked joints at their value
+    robot = check_inertias(robot, group, design, inertia)  # on the merged bodies
     mech = Mechanism(name or robot.name, gravity=gravity, dimension=3, coordinates=coordinates)
     values = {**locked, **{k: p for k, (p, _) in start.items()}}
     at_start = robot.frames(values)
@@ -295,6 +307,8 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
     if damping or friction:
         _add_damping(robot, mech, locked, damping, friction)
     mech.visuals = _body_visuals(robot, group, design, frames)
+    check_built(robot, mech, locked, design)  # a moving body; massless end links
+    mech.urdf_renamed = dict(renamed)  # URDF name → casmbd name of reserved names
     return mech
 
 
@@ -377,7 +391,9 @@ def load_urdf(path: str | os.PathLike, coordinates: str = "joint",
               locked: Mapping[str, float] | None = None,
               initial: Mapping[str, float | Sequence[float]] | None = None,
               damping: bool = False, gravity: Sequence[float] = GRAVITY,
-              name: str | None = None, friction: bool = False) -> Mechanism:
+              name: str | None = None, friction: bool = False, inertia: str = "check",
+              links: Mapping[str, Mapping] | None = None,
+              ignore_mimic: bool | Sequence[str] = False) -> Mechanism:
     """Build a spatial :class:`Mechanism` from a URDF file.
 
     Parameters
@@ -402,6 +418,18 @@ def load_urdf(path: str | os.PathLike, coordinates: str = "joint",
     friction : bool
         Apply ``<dynamics friction>`` as smooth Coulomb joint forces −F_c tanh(q̇ / v_s),
         v_s = 1e-3 rad/s or m/s (:mod:`casmbd.model.joint_friction`).
+    inertia : {"check", "repair"}
+        A link inertia that no rigid body has (not positive semi-definite, or violating the
+        triangle inequalities): refused (``"check"``) or replaced by the nearest physical
+        tensor with a warning naming the change (``"repair"``;
+        :func:`casmbd.io.urdf_checks.nearest_physical_inertia`).
+    links : dict, optional
+        Link name → ``{"mass": kg, "com": [x, y, z], "inertia": [Ixx, Iyy, Izz(, Ixy, Ixz,
+        Iyz)]}`` replacing the file's ``<inertial>`` values (centre of mass in the link frame,
+        inertia about it in the link axes); keys left out keep the file's values.
+    ignore_mimic : bool or list of str
+        Ignore every ``<mimic>`` (True) or those of the named follower joints: each becomes an
+        independent joint, with a warning.
 
     Raises
     ------
@@ -409,19 +437,28 @@ def load_urdf(path: str | os.PathLike, coordinates: str = "joint",
         Unreadable or malformed files, unknown or malformed content (naming link/joint and
         attribute), unsupported features (``initial``/``locked`` values of planar or floating
         joints), a mimic follower given alone or inconsistent with its leader (naming both
-        joints and the values).
+        joints and the values), an impossible inertia (naming the link), a ``<mimic>`` of an
+        unknown joint, no moving body (:mod:`casmbd.io.urdf_checks`).
+
+    Warns
+    -----
+    RuntimeWarning
+        A repaired inertia, an ignored ``<mimic>``, a link renamed from ``ground``, a revolute
+        joint without ``<limit>``, massless end links (:mod:`casmbd.io.urdf_checks`).
     """
     path = Path(path)
     text = read_text(path, "URDF")
     return loads_urdf(text, str(path), coordinates=coordinates, locked=locked,
                       initial=initial, damping=damping, gravity=gravity, name=name,
-                      friction=friction)
+                      friction=friction, inertia=inertia, links=links,
+                      ignore_mimic=ignore_mimic)
 
 
 def urdf_scene(data: dict, source: str, name: str, coordinates: str, gravity) -> Mechanism:
     """The mechanism of a scene's ``[scene] urdf = "path"`` (relative to the scene file) with
-    optional ``[scene.initial]``, ``[scene.locked]`` (joint name = value), ``damping`` and
-    ``friction``."""
+    optional ``[scene.initial]``, ``[scene.locked]`` (joint name = value), ``damping``,
+    ``friction``, ``inertia`` ("check" or "repair"), ``ignore_mimic`` (true or a list of joint
+    names) and ``[scene.links.NAME]`` (``mass``, ``com``, ``inertia``: :func:`load_urdf`)."""
     if gravity is None:
         raise SceneError("[scene] key 'dimension': a scene with 'urdf' is spatial "
                          "(dimension = 3)")
@@ -441,9 +478,15 @@ def urdf_scene(data: dict, source: str, name: str, coordinates: str, gravity) ->
         if not isinstance(switches[key], bool):
             raise SceneError(f"[scene] key '{key}': expected true or false, got "
                              f"{switches[key]!r}")
+    links = data.get("links", {})
+    if not isinstance(links, dict):
+        raise SceneError("[scene.links]: expected tables [scene.links.NAME] of mass, com, "
+                         "inertia")
     try:
         return load_urdf(base / rel, coordinates=coordinates, locked=tables["locked"],
                          initial=tables["initial"], damping=switches["damping"],
-                         gravity=gravity, name=name, friction=switches["friction"])
+                         gravity=gravity, name=name, friction=switches["friction"],
+                         inertia=data.get("inertia", "check"), links=links,
+                         ignore_mimic=data.get("ignore_mimic", False))
     except SceneError as exc:
         raise SceneError(f"[scene] key 'urdf' ('{rel}'): {exc}") from None

@@ -300,9 +300,10 @@ def _joint(elem, index: int, links: dict) -> UrdfJoint:
     if lim is not None:
         limits = {k: _number(lim, k, f"{where} <limit>", 0.0)
                   for k in ("lower", "upper", "effort", "velocity") if k in lim.attrib}
-    if kind == "revolute" and lim is None:
-        raise SceneError(f"{where}: a revolute joint needs <limit> (URDF specification; "
-                         "use type 'continuous' for an unlimited one)")
+    if kind == "revolute" and lim is None:  # as Pinocchio: loaded, unlimited
+        warnings.warn(f"URDF: {where}: a revolute joint without <limit> (the URDF "
+                      "specification requires one) is loaded without limits, like "
+                      "'continuous'", RuntimeWarning, stacklevel=4)
     dyn = elem.find("dynamics")
     if dyn is not None:
         dynamics = {k: _number(dyn, k, f"{where} <dynamics>") for k in ("damping", "friction")
@@ -377,11 +378,7 @@ def parse_urdf(text: str, source: str) -> Robot:
     if len(reached) != len(links):
         lost = sorted(set(links) - reached)
         raise SceneError(f"{source}: the joints form a cycle through link '{lost[0]}'")
-    for joint in joints.values():
-        if joint.mimic is not None and joint.mimic[0] not in joints:
-            raise SceneError(f"joint '{joint.name}' <mimic> attribute 'joint': unknown joint "
-                             f"'{joint.mimic[0]}'")
-    return robot
+    return robot  # a <mimic> of an unknown joint: casmbd.io.urdf_checks (ignore_mimic)
 
 
 # ---------------------------------------------------------------------- merging

@@ -376,9 +376,9 @@ def test_rounding_in_published_inertias_and_mimic_of_fixed_joints():
     assert np.linalg.eigvalsh([[1e-20, 1e-19, 0], [1e-19, 1e-20, 0], [0, 0, 1e-20]])[0] < 0
     loads_urdf(tiny, "t.urdf").validate()  # the check every analysis runs first
     bad = tiny.replace('ixy="1e-19"', 'ixy="1e-6"')
-    with pytest.raises(casmbd.errors.ModelError,
-                       match=r"body 'b' field 'inertia'.*not positive semi-definite"):
-        loads_urdf(bad, "t.urdf").validate()
+    with pytest.raises(SceneError,  # at load (casmbd.io.urdf_checks), naming the link
+                       match=r"link 'b' <inertia>.*not positive semi-definite"):
+        loads_urdf(bad, "t.urdf")
     fixed = (_TWO.format(_J.format(t="revolute", p="a", c="b", xyz="0 0 0")
                          + '<link name="c"/><joint name="f" type="fixed"><parent link="b"/>'
                          '<child link="c"/><mimic joint="j" multiplier="1"/></joint>'))
