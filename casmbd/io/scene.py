@@ -79,7 +79,8 @@ _COMPLIANT_KEYS = ("stiffness", "exponent", "damping", "penetration", "friction_
 _LIMIT_KEYS = {"lower", "upper", "restitution", "limit_model", "limit_stiffness",
                "limit_exponent", "limit_damping", "limit_penetration"}
 _SCENE_KEYS = {"name", "dimension", "gravity", "format", "description", "coordinates",
-               "tree", "urdf", "initial", "locked", "damping", "friction"}
+               "tree", "urdf", "initial", "locked", "damping", "friction",
+               "floating_base"}
 _COORDINATES = ("auto", "absolute", "natural", "joint")
 _MARKER_KEYS = {"name", "body", "point", "description", "orientation", "euler_zxz", "angle"}
 _DRIVER_KEYS = {"name", "joint", "body", "coordinate", "position", "description"}
@@ -315,6 +316,9 @@ def _build(data: dict, source: str) -> Mechanism:
         if any(key in scene.data for key in ("initial", "locked", "damping", "friction")):
             raise scene.error("initial", "'initial', 'locked' and 'damping' need 'urdf' (so "
                               "does 'friction')")
+        if "floating_base" in scene.data:
+            raise scene.error("floating_base", "'floating_base' needs 'urdf' (a scene's own "
+                              "bodies float when no joint holds them)")
         gravity = scene.vector("gravity", dim, default=[0.0] * dim)
         try:
             mech = Mechanism(name, gravity=gravity, dimension=dim, coordinates=coords)

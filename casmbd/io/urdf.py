@@ -203,7 +203,7 @@ def _couple(robot: Robot, mimic_of: dict, locked: dict, start: dict) -> None:
 def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | None = None,
                     initial: Mapping | None = None, damping: bool = False,
                     gravity: Sequence[float] = GRAVITY, name: str | None = None,
-                    friction: bool = False) -> Mechanism:
+                    friction: bool = False, floating_base: bool = False) -> Mechanism:
     """The :class:`Mechanism` of a parsed URDF (see :func:`load_urdf`)."""
     locked = dict(locked or {})
     initial = dict(initial or {})
@@ -226,6 +226,8 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
                              "continuous or prismatic")
     _couple(robot, mimic_of, locked, start)
     group = _groups(robot, locked)
+    if floating_base:  # the root's group is a free body named like the root link
+        group = {k: robot.root if g == GROUND else g for k, g in group.items()}
     design = robot.frames(locked)  # the design pose: URDF zero, locked joints at their value
     mech = Mechanism(name or robot.name, gravity=gravity, dimension=3, coordinates=coordinates)
     values = {**locked, **{k: p for k, (p, _) in start.items()}}
@@ -250,20 +252,26 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
     frames = {GROUND: (np.eye(3), np.zeros(3))}  # body frames: rotation, centre of mass
     for body in dict.fromkeys(g for g in group.values() if g != GROUND):
         mass, com, tensor = merge(parts[body])
+        if mass <= 0.0 and body == robot.root:
+            raise SceneError(f"URDF '{robot.name}': floating_base: the root link '{body}' "
+                             "(with the links fixed to it) has no mass; a free body needs one")
         if mass <= 0.0:  # a massless link: its frame origin (forward dynamics checks M)
             com, tensor = design[body][1], sum(part[2] for part in parts[body])
         rot = design[body][0]
+        # a floating base's coordinates are its root link frame (origin and axes), as the
+        # free-flyer of Pinocchio: reference point s = Aᵀ (origin − centre of mass)
+        ref = rot.T @ (design[body][1] - com) if body == robot.root else np.zeros(3)
         frames[body] = (rot, com)
         local = rot.T @ tensor @ rot
         omega, vel0 = twists[body]
         com_start = at_start[body][0] @ (rot.T @ (com - design[body][1])) + at_start[body][1]
         vel = vel0 + np.cross(omega, com_start - at_start[body][1])
         made = guarded(f"link '{body}'", lambda body=body, mass=mass, com=com, local=local,
-                       rot=rot, vel=vel, omega=omega: mech.add_body(
+                       rot=rot, vel=vel, omega=omega, ref=ref: mech.add_body(
                            body, mass, [local[0, 0], local[1, 1], local[2, 2], local[0, 1],
                                         local[0, 2], local[1, 2]], com,
                            orientation=quaternion_from_matrix(rot), velocity=vel,
-                           angular_velocity=omega))
+                           angular_velocity=omega, reference_point=ref))
         if moved:  # absolute and natural coordinates start here (joint: tree_initial)
             made.set_start(com_start, quaternion_from_matrix(at_start[body][0]))
     for lname in robot.links:
@@ -377,7 +385,8 @@ def load_urdf(path: str | os.PathLike, coordinates: str = "joint",
               locked: Mapping[str, float] | None = None,
               initial: Mapping[str, float | Sequence[float]] | None = None,
               damping: bool = False, gravity: Sequence[float] = GRAVITY,
-              name: str | None = None, friction: bool = False) -> Mechanism:
+              name: str | None = None, friction: bool = False,
+              floating_base: bool = False) -> Mechanism:
     """Build a spatial :class:`Mechanism` from a URDF file.
 
     Parameters
@@ -402,6 +411,12 @@ def load_urdf(path: str | os.PathLike, coordinates: str = "joint",
     friction : bool
         Apply ``<dynamics friction>`` as smooth Coulomb joint forces −F_c tanh(q̇ / v_s),
         v_s = 1e-3 rad/s or m/s (:mod:`casmbd.model.joint_friction`).
+    floating_base : bool
+        The root link (with the links fixed to it) is a free body instead of being welded to
+        the ground: its coordinates are the position of the root link frame's origin and the
+        unit quaternion [w, x, y, z] of its axes (a floating root in joint coordinates; the
+        per-call API's free-flyer velocity, :mod:`casmbd.compiled.free_flyer`), starting at
+        the URDF's world frame.
 
     Raises
     ------
@@ -415,13 +430,13 @@ def load_urdf(path: str | os.PathLike, coordinates: str = "joint",
     text = read_text(path, "URDF")
     return loads_urdf(text, str(path), coordinates=coordinates, locked=locked,
                       initial=initial, damping=damping, gravity=gravity, name=name,
-                      friction=friction)
+                      friction=friction, floating_base=floating_base)
 
 
 def urdf_scene(data: dict, source: str, name: str, coordinates: str, gravity) -> Mechanism:
     """The mechanism of a scene's ``[scene] urdf = "path"`` (relative to the scene file) with
-    optional ``[scene.initial]``, ``[scene.locked]`` (joint name = value), ``damping`` and
-    ``friction``."""
+    optional ``[scene.initial]``, ``[scene.locked]`` (joint name = value), ``damping``,
+    ``friction`` and ``floating_base``."""
     if gravity is None:
         raise SceneError("[scene] key 'dimension': a scene with 'urdf' is spatial "
                          "(dimension = 3)")
@@ -436,7 +451,7 @@ def urdf_scene(data: dict, source: str, name: str, coordinates: str, gravity) ->
             raise SceneError(f"[scene.{key}]: expected a table of joint name = value")
         tables[key] = table
     switches = {}
-    for key in ("damping", "friction"):
+    for key in ("damping", "friction", "floating_base"):
         switches[key] = data.get(key, False)
         if not isinstance(switches[key], bool):
             raise SceneError(f"[scene] key '{key}': expected true or false, got "
@@ -444,6 +459,7 @@ def urdf_scene(data: dict, source: str, name: str, coordinates: str, gravity) ->
     try:
         return load_urdf(base / rel, coordinates=coordinates, locked=tables["locked"],
                          initial=tables["initial"], damping=switches["damping"],
-                         gravity=gravity, name=name, friction=switches["friction"])
+                         gravity=gravity, name=name, friction=switches["friction"],
+                         floating_base=switches["floating_base"])
     except SceneError as exc:
         raise SceneError(f"[scene] key 'urdf' ('{rel}'): {exc}") from None
