@@ -50,8 +50,9 @@ from casmbd.system.descriptions import SpatialAbsolute
 __all__ = ["FloatingBlock", "VelocityMap", "difference_blocks", "integrate_blocks",
            "velocity_functions"]
 
-#: below this rotation angle (rad) the series forms of V(φ) and V(φ)⁻¹ are used
-SMALL_ANGLE = 1e-4
+#: below this rotation angle (rad) the series forms are used (truncation below 1e-18; the
+#: closed forms lose digits to cancellation at small angles)
+SMALL_ANGLE = 1e-2
 
 
 @dataclass(frozen=True)
@@ -174,8 +175,9 @@ def exp_so3_quaternion(phi: np.ndarray) -> np.ndarray:
     """Unit quaternion of the rotation by the vector φ: (cos θ/2, sin θ/2 φ/θ)."""
     theta = float(np.linalg.norm(phi))
     half = 0.5 * theta
-    # sin(θ/2)/θ, series 1/2 − θ²/48 below SMALL_ANGLE
-    k = 0.5 - theta * theta / 48.0 if theta < SMALL_ANGLE else np.sin(half) / theta
+    # sin(θ/2)/θ, series 1/2 − θ²/48 + θ⁴/3840 below SMALL_ANGLE
+    t2 = theta * theta
+    k = 0.5 - t2 / 48.0 + t2 * t2 / 3840.0 if theta < SMALL_ANGLE else np.sin(half) / theta
     return np.concatenate([[np.cos(half)], k * phi])
 
 
@@ -185,8 +187,10 @@ def log_so3_quaternion(p: np.ndarray) -> np.ndarray:
         p = -p
     s = float(np.linalg.norm(p[1:]))
     theta = 2.0 * np.arctan2(s, p[0])
-    # θ / sin(θ/2), series 2 + θ²/12 below SMALL_ANGLE
-    k = 2.0 + theta * theta / 12.0 if theta < SMALL_ANGLE else theta / np.sin(0.5 * theta)
+    # θ / sin(θ/2), series 2 + θ²/12 + 7 θ⁴/2880 below SMALL_ANGLE
+    t2 = theta * theta
+    k = (2.0 + t2 / 12.0 + 7.0 * t2 * t2 / 2880.0 if theta < SMALL_ANGLE
+         else theta / np.sin(0.5 * theta))
     return k * p[1:]
 
 
@@ -195,21 +199,25 @@ def left_jacobian(phi: np.ndarray) -> np.ndarray:
     theta2 = float(phi @ phi)
     theta = np.sqrt(theta2)
     if theta < SMALL_ANGLE:
-        a, b = 0.5 - theta2 / 24.0, 1.0 / 6.0 - theta2 / 120.0
-    else:
-        a, b = (1.0 - np.cos(theta)) / theta2, (theta - np.sin(theta)) / (theta2 * theta)
+        a = 0.5 - theta2 / 24.0 + theta2 * theta2 / 720.0
+        b = 1.0 / 6.0 - theta2 / 120.0 + theta2 * theta2 / 5040.0
+    else:  # 1 − cos θ = 2 sin²(θ/2) without cancellation
+        a = 2.0 * np.sin(0.5 * theta) ** 2 / theta2
+        b = (theta - np.sin(theta)) / (theta2 * theta)
     w = _skew(phi)
     return np.eye(3) + a * w + b * (w @ w)
 
 
 def left_jacobian_inverse(phi: np.ndarray) -> np.ndarray:
-    """V(φ)⁻¹ = I − ½ [φ] + (1 − θ sin θ / (2 (1 − cos θ)))/θ² [φ]²."""
+    """V(φ)⁻¹ = I − ½ [φ] + (1 − θ sin θ / (2 (1 − cos θ)))/θ² [φ]², the coefficient as
+    (1 − (θ/2) cot(θ/2))/θ² (series 1/12 + θ²/720 + θ⁴/30240 at small θ)."""
     theta2 = float(phi @ phi)
     theta = np.sqrt(theta2)
     if theta < SMALL_ANGLE:
-        c = 1.0 / 12.0 + theta2 / 720.0
+        c = 1.0 / 12.0 + theta2 / 720.0 + theta2 * theta2 / 30240.0
     else:
-        c = (1.0 - theta * np.sin(theta) / (2.0 * (1.0 - np.cos(theta)))) / theta2
+        half = 0.5 * theta
+        c = (1.0 - half * np.cos(half) / np.sin(half)) / theta2
     w = _skew(phi)
     return np.eye(3) - 0.5 * w + c * (w @ w)
 

@@ -22,9 +22,8 @@ import pytest
 
 pin = pytest.importorskip("pinocchio")
 
-from benchmarks.robots_vs_pinocchio import _frame_errors, robots_dir
-
-import casmbd
+import casmbd  # noqa: E402
+from benchmarks.robots_vs_pinocchio import _frame_errors, robots_dir  # noqa: E402
 
 ROOT = robots_dir()
 pytestmark = pytest.mark.skipif(ROOT is None, reason="example-robot-data is not installed")
