@@ -209,3 +209,22 @@ def test_quadrotor_free_fall_and_angular_momentum():
     assert np.max(np.abs(momentum - h0)) < 1e-6 * np.linalg.norm(h0)
     # the spin is not trivial: the angular velocity itself precesses
     assert np.max(np.abs(motion["angular_velocity"][-1] - w0)) > 1e-2
+
+
+def test_bare_urdf_floating_base_flag(tmp_path, capsys):
+    """Every verb reading a scene takes a bare .urdf; ``--floating-base`` floats its root."""
+    import json
+
+    from casmbd.cli import main
+
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text(ARM)
+    for flags, dof in (([], 1), (["--floating-base"], 7)):
+        assert main(["info", str(urdf), "--json", *flags]) == 0
+        out = json.loads(capsys.readouterr().out)
+        assert out["degrees_of_freedom"] == dof
+    assert casmbd.load_scene(urdf, floating_base=True).bodies.keys() == {"base", "link1"}
+    scene = tmp_path / "s.toml"
+    scene.write_text('[scene]\nurdf = "arm.urdf"\n')
+    assert main(["info", str(scene), "--floating-base"]) != 0
+    assert "--floating-base applies to a bare .urdf" in capsys.readouterr().err
