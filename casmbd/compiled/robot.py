@@ -39,7 +39,12 @@ Conventions (n_q coordinates, joint coordinates by default):
   matrix J with
   ``(ṙ, ω) = J v``: rows the linear velocity of the frame's point then the angular velocity,
   global components — Pinocchio's ``LOCAL_WORLD_ALIGNED`` convention (not ``WORLD``, whose
-  linear part is the velocity of the body point at the world origin).
+  linear part is the velocity of the body point at the world origin);
+* a floating base (a spatial body without a tree joint in joint coordinates, e.g.
+  ``load_urdf(path, floating_base=True)``) takes Pinocchio's free-flyer velocity: v and τ have
+  n_v = n_q − 1 entries per floating root (the root's linear and angular velocity in its own
+  axes, q̇ = G(q) v), M is n_v × n_v, and :meth:`CompiledModel.integrate` /
+  :meth:`CompiledModel.difference` move on SE(3) (:mod:`casmbd.compiled.free_flyer`).
 """
 
 from __future__ import annotations
