@@ -133,6 +133,46 @@ class VelocityMap:
         return ca.jacobian(self.rates(q, v), v)
 
     # ------------------------------------------------------------------ numeric
+    def _conversions(self) -> ca.Function:
+        """(q, v, a, q̇) ↦ (G v, G a + Ġ v, v of q̇), compiled once (CasADi's VM)."""
+        if getattr(self, "_convert", None) is None:
+            q, v, a = (ca.SX.sym(n, k) for n, k in (("q", self.nq), ("v", self.nv),
+                                                    ("a", self.nv)))
+            qd = ca.SX.sym("qd", self.nq)
+            rates = self.rates(q, v)
+            acc = ca.mtimes(ca.jacobian(rates, v), a) + ca.jtimes(rates, q, rates)
+            back = [None] * self.nv
+            for i, j in zip(self._scalar_q, self._scalar_v):
+                back[int(j)] = qd[int(i)]
+            for b in self.blocks:
+                p, pd = q[b.q + 3:b.q + 7], qd[b.q + 3:b.q + 7]
+                lin = ca.mtimes(rotation_matrix(p).T, qd[b.q:b.q + 3])
+                ang = 2.0 * ca.mtimes(G_matrix(p), pd)  # ω' = 2 G(p) ṗ
+                for k in range(3):
+                    back[b.v + k], back[b.v + 3 + k] = lin[k], ang[k]
+            self._convert = ca.Function("free_flyer_conversions", [q, v, a, qd],
+                                        [rates, acc, ca.vertcat(*back)])
+        return self._convert
+
+    def rates_from_velocity(self, q, v) -> np.ndarray:
+        """q̇ = G(q) v: the coordinate rates the analyses integrate (``simulate``'s v)."""
+        q, v = self._check(q, self.nq, "q"), self._check(v, self.nv, "v")
+        return np.asarray(self._conversions()(q, v, np.zeros(self.nv), np.zeros(self.nq))[0],
+                          float).ravel()
+
+    def velocity_from_rates(self, q, qdot) -> np.ndarray:
+        """v from q̇ (v = Aᵀ ṙ, ω' = 2 G(p) ṗ on a floating block; exact when q̇ is tangent,
+        pᵀṗ = 0)."""
+        q, qdot = self._check(q, self.nq, "q"), self._check(qdot, self.nq, "qdot")
+        return np.asarray(self._conversions()(q, np.zeros(self.nv), np.zeros(self.nv),
+                                              qdot)[2], float).ravel()
+
+    def rate_accelerations(self, q, v, a) -> np.ndarray:
+        """q̈ = G(q) a + Ġ v from the velocity v and its rate a = v̇."""
+        q = self._check(q, self.nq, "q")
+        v, a = self._check(v, self.nv, "v"), self._check(a, self.nv, "a")
+        return np.asarray(self._conversions()(q, v, a, np.zeros(self.nq))[1], float).ravel()
+
     def integrate(self, q, v, dt: float = 1.0) -> np.ndarray:
         """q ⊕ v Δt (module docstring)."""
         q, v = self._check(q, self.nq, "q"), self._check(v, self.nv, "v")

@@ -126,3 +126,18 @@ def test_floating_base_agrees_with_pinocchio_free_flyer(robot):
     assert worst["frames"] >= 5
     for key, tol in TOL.items():
         assert worst[key] <= tol, (key, worst)
+
+
+def test_the_comparison_sees_the_velocity_convention():
+    """The check can fail: the base velocity given in world axes (LOCAL_WORLD_ALIGNED)
+    instead of Pinocchio's LOCAL body axes changes τ far beyond the tolerance."""
+    pm, ours = _models(ROOT / ROBOTS[0])
+    to_pin, perm = _mapping(pm, ours)
+    data = pm.createData()
+    q, v, a = _random_state(np.random.default_rng(7), ours)
+    rot = pin.Quaternion(*to_pin(q)[[6, 3, 4, 5]]).toRotationMatrix()
+    world = v.copy()
+    world[0:3], world[3:6] = rot @ v[0:3], rot @ v[3:6]
+    tau = ours.inverse_dynamics(q, v, a)[perm]
+    assert _rel(tau, pin.rnea(pm, data, to_pin(q), v[perm], a[perm])) <= TOL["rnea"]
+    assert _rel(tau, pin.rnea(pm, data, to_pin(q), world[perm], a[perm])) > 1e-3
