@@ -262,3 +262,27 @@ def test_per_call_forward_dynamics_equals_the_simulation_start(tmp_path):
     assert np.max(np.abs(nu[3:6])) > 0.1 and abs(nu[6]) > 0.1  # the base spins, j1 moves
     acc = vmap.rate_accelerations(q0, nu, model.forward_dynamics(q0, nu, np.zeros(7)))
     assert np.max(np.abs(acc - sim["a"][0])) < 1e-8 * max(1.0, np.max(np.abs(acc)))
+
+
+TWO = ('<robot name="two">' + LINK.format(name="base", m=2.0, c="0 0 0", i=(0.3, 0.4, 0.5))
+       + LINK.format(name="rotor", m=1.0, c="0 0 0", i=(0.1, 0.1, 0.2))
+       + '<joint name="j" type="continuous"><parent link="base"/><child link="rotor"/>'
+       '<axis xyz="0 0 1"/></joint></robot>')
+
+
+def test_linearize_and_statics_of_a_free_base():
+    """Base and rotor on a spring k about their common axis through both centres of mass,
+    no gravity: six rigid-body modes at 0 Hz and ω² = k (1/I_b + 1/I_r) (the free-free
+    torsional pair, 1e-9); statics finds the equilibrium; under gravity it has none and says
+    so naming the base coordinate."""
+    k, i_base, i_rotor = 3.0, 0.5, 0.2
+    mech = loads_urdf(TWO, floating_base=True, gravity=(0, 0, 0))
+    mech.add("rotational_spring_damper", "spring", joint="j", stiffness=k)
+    lin = casmbd.linearize(mech, mode="vm")
+    freqs = np.sort(np.asarray(lin.frequencies_hz))
+    assert lin.n_dof == 7 and np.max(np.abs(freqs[:6])) < 1e-9
+    expected = np.sqrt(k * (1 / i_base + 1 / i_rotor)) / (2 * np.pi)
+    assert freqs[6] == pytest.approx(expected, rel=1e-9)
+    assert np.max(np.abs(casmbd.static_equilibrium(mech, mode="vm").residual)) < 1e-9
+    with pytest.raises(casmbd.AnalysisError, match="coordinate 'base.z'"):
+        casmbd.static_equilibrium(loads_urdf(TWO, floating_base=True), mode="vm")
