@@ -253,8 +253,12 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
     for body in dict.fromkeys(g for g in group.values() if g != GROUND):
         mass, com, tensor = merge(parts[body])
         if mass <= 0.0 and body == robot.root:
+            freed = [j.name for j in robot.joints.values()
+                     if j.type == "floating" and j.parent == body]
+            hint = (f"; its floating joint '{freed[0]}' already frees the robot: load it "
+                    "without floating_base" if freed else "; a free body needs one")
             raise SceneError(f"URDF '{robot.name}': floating_base: the root link '{body}' "
-                             "(with the links fixed to it) has no mass; a free body needs one")
+                             f"(with the links fixed to it) has no mass{hint}")
         if mass <= 0.0:  # a massless link: its frame origin (forward dynamics checks M)
             com, tensor = design[body][1], sum(part[2] for part in parts[body])
         rot = design[body][0]

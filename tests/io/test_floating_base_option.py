@@ -181,6 +181,12 @@ def test_scene_key(tmp_path):
     massless = ARM.replace('<mass value="3.0"/>', '<mass value="0"/>')
     with pytest.raises(SceneError, match=r"root link 'base'.*has no mass"):
         loads_urdf(massless, floating_base=True)
+    held = ('<robot name="h"><link name="world"/><joint name="free" type="floating">'
+            '<parent link="world"/><child link="b"/></joint>'
+            + LINK.format(name="b", m=1.0, c="0 0 0", i=(1, 1, 1)) + '</robot>')
+    with pytest.raises(SceneError, match=r"floating joint 'free' already frees the robot"):
+        loads_urdf(held, floating_base=True)
+    assert list(loads_urdf(held).bodies) == ["b"]  # the file's own floating joint
 
 
 def _quadrotor():
