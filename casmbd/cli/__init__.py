@@ -115,6 +115,9 @@ def build_parser() -> argparse.ArgumentParser:
         p = sub.add_parser(name, help=spec.help)
         if spec.shared and spec.scene:
             p.add_argument("scene", help="scene file (TOML)")
+            p.add_argument("--floating-base", action="store_true",
+                           help="a bare .urdf: its root link floats free (as [scene] "
+                                "floating_base = true)")
             add_output_flags(p)
             add_mode_flag(p)
         elif spec.shared:

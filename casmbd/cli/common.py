@@ -167,7 +167,7 @@ def load_scene_for(args):
     """The Mechanism of ``args.scene``, after checking that ``--out`` (and the other outputs)
     can be written and replace none of the scene's files."""
     check_out_path(args)
-    mech = load_scene(args.scene)
+    mech = load_scene(args.scene, floating_base=getattr(args, "floating_base", False))
     if _outputs(args):
         check_not_input(args, scene_files(mech, args.scene))
     return mech

@@ -39,7 +39,12 @@ Conventions (n_q coordinates, joint coordinates by default):
   matrix J with
   ``(ṙ, ω) = J v``: rows the linear velocity of the frame's point then the angular velocity,
   global components — Pinocchio's ``LOCAL_WORLD_ALIGNED`` convention (not ``WORLD``, whose
-  linear part is the velocity of the body point at the world origin).
+  linear part is the velocity of the body point at the world origin);
+* a floating base (a spatial body without a tree joint in joint coordinates, e.g.
+  ``load_urdf(path, floating_base=True)``) takes Pinocchio's free-flyer velocity: v and τ have
+  n_v = n_q − 1 entries per floating root (the root's linear and angular velocity in its own
+  axes, q̇ = G(q) v), M is n_v × n_v, and :meth:`CompiledModel.integrate` /
+  :meth:`CompiledModel.difference` move on SE(3) (:mod:`casmbd.compiled.free_flyer`).
 """
 
 from __future__ import annotations
@@ -52,6 +57,7 @@ import numpy as np
 
 from casmbd.compiled.buffered import BufferedFunction
 from casmbd.compiled.build import compile_model
+from casmbd.compiled.free_flyer import VelocityMap, is_normalization, velocity_functions
 from casmbd.errors import ModelError, SingularConfigurationError, SingularMassMatrixError
 from casmbd.model.bodies import GROUND
 from casmbd.model.needs import Handling, check
@@ -197,6 +203,10 @@ class CompiledModel:
                   else System(mechanism, coordinates=coordinates))
         self.dimension = dim = system.dimension
         self.nq, self.nc = system.nq, system.nc
+        #: q̇ = G(q) v: v of size n_v (free-flyer velocities of floating bases,
+        #: :mod:`casmbd.compiled.free_flyer`), n_v = n_q without one
+        self.velocity_map = vmap = VelocityMap(system)
+        self.nv = vmap.nv
         q, v, p, nq = system.q, system.v, system.p, system.nq
         tau = ca.SX.sym("tau", nq)
         a = ca.SX.sym("a", nq)
@@ -256,9 +266,15 @@ class CompiledModel:
             ang = ca.jacobian(ctx.angular_velocity(body), v)
             fns.append(ca.Function(f"robot_jacobian_{k}", [q, p],
                                    [ca.densify(ca.vertcat(lin, ang))], ["q", "p"], ["J"]))
+        rows = list(range(self.nc))
+        if not vmap.identity:  # floating bases: every Function in the velocities v (n_v)
+            fns, rows = velocity_functions(system, vmap, fns, BATCH_CHUNK, ldl_solve)
+            self.nc, nq = len(rows), vmap.nv
         #: the compiled library: sizes, names, parameter values ``numeric.p``
         self.numeric = compile_model(system, (), mode=mode, extra=fns)
         self.coordinate_names: list[str] = self.numeric.coordinate_names
+        #: names of the entries of v, τ and a (the coordinate names unless a base floats)
+        self.velocity_names: list[str] = vmap.velocity_names(self.coordinate_names)
         self.p = self.numeric.p
         nw, d = (1 if dim == 2 else 3), dim
         shapes = {"robot_mass_matrix": lambda x: x.reshape(nq, nq),  # symmetric: order moot
@@ -273,27 +289,32 @@ class CompiledModel:
         self._jac = [self._calls[f"robot_jacobian_{k}"] for k in range(len(frames))]
         self._fd = self._calls.get("robot_fd", self._calls.get("robot_kkt"))
         self._id = self._calls.get("robot_id", self._calls.get("robot_id_terms"))
-        self.constraint_labels: list[str] = [str(lab) for lab in
-                                             self.numeric.constraint_labels]
+        self.constraint_labels: list[str] = [
+            str(lab) for lab in self.numeric.constraint_labels
+            if not is_normalization(lab, vmap.bodies)]
         self.actuated: list[str] = self._actuated(actuated)
-        self._selection = np.array([self.coordinate_names.index(c) for c in self.actuated],
+        self._selection = np.array([self.velocity_names.index(c) for c in self.actuated],
                                    dtype=int)
         #: the body of each coordinate, for the named error of a singular mass matrix
         self._coordinate_bodies = [b for b, d in system.descriptions.items()
                                    for _ in range(d.size)]
+        for blk in reversed(vmap.blocks):  # v: a floating block's 7 coordinates are 6 entries
+            self._coordinate_bodies[blk.q:blk.q + 7] = [blk.body] * 6
         self._body_inertia = {b: (body.mass, body.inertia) for b, body in mech.bodies.items()}
 
     # ------------------------------------------------------------------ helpers
     def _shape_error(self, what: str, *args) -> ModelError:
-        return ModelError(f"{what}: arguments must be vectors of length n_q = {self.nq}, got "
+        sizes = (f"n_q = {self.nq}" if self.nv == self.nq else
+                 f"n_q = {self.nq} (q), n_v = {self.nv} (v, a, τ)")
+        return ModelError(f"{what}: arguments must be vectors of length {sizes}, got "
                           f"shapes {[np.shape(x) for x in args]}")
 
     def _load(self, c: _Call, what: str, q, v=None, w=None) -> None:
         """Copy the arguments into the bound buffers (checked lengths), then evaluate."""
-        n = self.nq
+        n, nv = self.nq, self.nv
         try:
-            if len(q) != n or (v is not None and len(v) != n) or (
-                    w is not None and len(w) != n):
+            if len(q) != n or (v is not None and len(v) != nv) or (
+                    w is not None and len(w) != nv):
                 raise ValueError
             c.a0[...] = q
             if v is not None:
@@ -317,7 +338,7 @@ class CompiledModel:
         """
         self._load(self._m, what, q)
         m = 0.5 * (self._m.view + self._m.view.T)
-        basis = np.eye(self.nq)
+        basis = np.eye(self.nv)  # M acts on v (n_v entries)
         if cq is not None and cq.size:
             _, sv, vt = np.linalg.svd(cq)
             tol = max(cq.shape) * np.finfo(float).eps * (sv[0] if sv.size else 0.0)
@@ -334,7 +355,7 @@ class CompiledModel:
         for k in named[:4]:
             body = self._coordinate_bodies[k]
             mass, inertia = self._body_inertia.get(body, ("?", "?"))
-            parts.append(f"'{self.coordinate_names[k]}' (body '{body}': mass {mass}, inertia "
+            parts.append(f"'{self.velocity_names[k]}' (body '{body}': mass {mass}, inertia "
                          f"{inertia})")
         raise SingularMassMatrixError(
             f"{what}: the mass matrix is singular at this q (smallest eigenvalue {eig[0]:.3g} "
@@ -343,19 +364,19 @@ class CompiledModel:
             + "): a motion of " + ", ".join(parts) + " has no inertia (a massless end link);"
             " give the link mass and inertia (load_urdf(..., links={NAME: {'mass': ..., "
             "'inertia': [...]}})) or lock its joint",
-            coordinates=[self.coordinate_names[k] for k in named],
+            coordinates=[self.velocity_names[k] for k in named],
             bodies=list(dict.fromkeys(self._coordinate_bodies[k] for k in named)))
 
     def _actuated(self, names) -> list[str]:
         if names is None:
-            return list(self.coordinate_names)
+            return list(self.velocity_names)
         if isinstance(names, str):
             names = [names]
         names = list(names)
         for name in names:
-            if name not in self.coordinate_names:
+            if name not in self.velocity_names:
                 raise ModelError(f"compile: actuated coordinate '{name}' unknown (coordinates: "
-                                 f"{', '.join(self.coordinate_names)})")
+                                 f"{', '.join(self.velocity_names)})")
         if len(set(names)) != len(names):
             raise ModelError(f"compile: actuated coordinates repeated: {names}")
         return names
@@ -382,7 +403,7 @@ class CompiledModel:
                 self._singular(q, "forward_dynamics")
             return c.view.copy()
         m, r, cq, gamma = c.outs
-        nq, nc = self.nq, self.nc
+        nq, nc = self.nv, self.nc  # the size of v
         kkt = np.zeros((nq + nc, nq + nc))
         kkt[:nq, :nq] = m.reshape(nq, nq)
         jac = cq.reshape(nc, nq, order="F")
@@ -431,14 +452,14 @@ class CompiledModel:
         """
         c = self._id
         self._load(c, "inverse_dynamics", q, v, a)
-        if not self.nc and len(self.actuated) == self.nq:
+        if not self.nc and len(self.actuated) == self.nv:
             tau = c.view.copy()
             return (tau, np.zeros(0)) if return_multipliers else tau
         return self._constrained_efforts(c, np.asarray(a, float), return_multipliers, tol)
 
     def _constrained_efforts(self, c, a, return_multipliers: bool, tol: float):
         """[S  −C_qᵀ] [τ_a; λ] = f with f = M a + b (module docstring)."""
-        nq, nc = self.nq, self.nc
+        nq, nc = self.nv, self.nc  # the size of v
         f = c.outs[0].copy()
         if nc:
             jac = c.outs[1].reshape(nc, nq, order="F").copy()
@@ -498,17 +519,29 @@ class CompiledModel:
         self._load(c, "jacobian", q)
         return c.view.copy()
 
+    def integrate(self, q, v, dt: float = 1.0) -> np.ndarray:
+        """q ⊕ v Δt: the coordinates reached from q at constant velocity v (n_v) after Δt —
+        q + v Δt, exactly on SE(3) for a floating base (Pinocchio's ``integrate``;
+        :mod:`casmbd.compiled.free_flyer`)."""
+        return self.velocity_map.integrate(q, v, dt)
+
+    def difference(self, q0, q1) -> np.ndarray:
+        """v (n_v) with q1 = integrate(q0, v, 1) (Pinocchio's ``difference``)."""
+        return self.velocity_map.difference(q0, q1)
+
     # ------------------------------------------------------------------ many states
     def _batch(self, name: str, arrays) -> np.ndarray:
         mats = [np.asarray(x, dtype=float) for x in arrays]
         n = mats[0].shape[0] if mats[0].ndim == 2 else -1
-        if any(x.shape != (n, self.nq) for x in mats):
+        widths = [self.nq] + [self.nv] * (len(mats) - 1)  # q, then v and τ or a
+        if any(x.shape != (n, w) for x, w in zip(mats, widths)):
             raise ModelError(f"{name.removeprefix('robot_')}: arguments must be arrays of "
-                             f"shape (N, n_q = {self.nq}), got {[x.shape for x in mats]}")
+                             f"shape (N, n_q = {self.nq}) (q) and (N, n_v = {self.nv}) (v, "
+                             f"τ, a), got {[x.shape for x in mats]}")
         call, c = self._calls[name], BATCH_CHUNK
-        views = [buf.reshape(c, self.nq) for buf in call.ins[:-1]]  # column-major nq × c
-        res = call.outs[0].reshape(c, self.nq)
-        out = np.empty((n, self.nq))
+        views = [buf.reshape(c, w) for buf, w in zip(call.ins[:-1], widths)]  # column-major
+        res = call.outs[0].reshape(c, self.nv)
+        out = np.empty((n, self.nv))
         for start in range(0, n, c):
             m = min(c, n - start)
             for view, x in zip(views, mats):
@@ -527,7 +560,7 @@ class CompiledModel:
         """
         if self.nc:
             return np.array([self.forward_dynamics(*s) for s in zip(Q, V, TAU)]).reshape(
-                -1, self.nq)
+                -1, self.nv)
         out = self._batch("robot_fd_batch", (Q, V, TAU))
         if not math.isfinite(float(np.sum(out))):  # name the first state with a zero pivot
             for k in np.flatnonzero(~np.all(np.isfinite(out), axis=1)):
@@ -540,9 +573,9 @@ class CompiledModel:
         Trees with every coordinate actuated: compiled ``Function.map``; otherwise a loop of
         single calls.
         """
-        if self.nc or len(self.actuated) != self.nq:
+        if self.nc or len(self.actuated) != self.nv:
             return np.array([self.inverse_dynamics(*s) for s in zip(Q, V, A)]).reshape(
-                -1, self.nq)
+                -1, self.nv)
         return self._batch("robot_id_batch", (Q, V, A))
 
 

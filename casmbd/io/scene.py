@@ -80,7 +80,7 @@ _LIMIT_KEYS = {"lower", "upper", "restitution", "limit_model", "limit_stiffness"
                "limit_exponent", "limit_damping", "limit_penetration"}
 _SCENE_KEYS = {"name", "dimension", "gravity", "format", "description", "coordinates",
                "tree", "urdf", "initial", "locked", "damping", "friction", "inertia",
-               "links", "ignore_mimic"}
+               "links", "ignore_mimic", "floating_base"}
 _COORDINATES = ("auto", "absolute", "natural", "joint")
 _MARKER_KEYS = {"name", "body", "point", "description", "orientation", "euler_zxz", "angle"}
 _DRIVER_KEYS = {"name", "joint", "body", "coordinate", "position", "description"}
@@ -319,6 +319,9 @@ def _build(data: dict, source: str) -> Mechanism:
         for key in ("inertia", "links", "ignore_mimic"):  # URDF model options (urdf_checks)
             if key in scene.data:
                 raise scene.error(key, "needs 'urdf' (an option of the URDF import)")
+        if "floating_base" in scene.data:
+            raise scene.error("floating_base", "'floating_base' needs 'urdf' (a scene's own "
+                              "bodies float when no joint holds them)")
         gravity = scene.vector("gravity", dim, default=[0.0] * dim)
         try:
             mech = Mechanism(name, gravity=gravity, dimension=dim, coordinates=coords)
@@ -611,16 +614,23 @@ def loads_scene(text: str, source: str = "<string>") -> Mechanism:
     return mech
 
 
-def load_scene(path: str | os.PathLike) -> Mechanism:
+def load_scene(path: str | os.PathLike, floating_base: bool = False) -> Mechanism:
     """Read a scene file and build its :class:`Mechanism` (see :func:`loads_scene`).
 
     A ``.urdf`` file is read as the scene ``[scene] urdf = "<file>"`` with joint coordinates
-    (:mod:`casmbd.io.urdf`), so results keep a scene text that reloads it."""
+    (:mod:`casmbd.io.urdf`), so results keep a scene text that reloads it; with
+    ``floating_base`` (the verbs' ``--floating-base``) the scene also says
+    ``floating_base = true``.  A scene file states that itself (then ``floating_base`` here
+    is an error naming the file)."""
     path = Path(path)
     if path.suffix.lower() == ".urdf":
         text = (f"[scene]\nname = {json.dumps(path.stem)}\ndimension = 3\n"
-                f"coordinates = \"joint\"\nurdf = {json.dumps(str(path.resolve()))}\n")
+                f"coordinates = \"joint\"\nurdf = {json.dumps(str(path.resolve()))}\n"
+                + ("floating_base = true\n" if floating_base else ""))
         return loads_scene(text, source=str(path))
+    if floating_base:
+        raise SceneError(f"{path}: --floating-base applies to a bare .urdf file; a scene "
+                         "says [scene] floating_base = true next to its 'urdf'")
     text = read_text(path, "scene")
     return loads_scene(text, source=str(path))
 

@@ -211,7 +211,8 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
                     gravity: Sequence[float] = GRAVITY, name: str | None = None,
                     friction: bool = False, inertia: str = "check",
                     links: Mapping | None = None,
-                    ignore_mimic: bool | Sequence[str] = False) -> Mechanism:
+                    ignore_mimic: bool | Sequence[str] = False,
+                    floating_base: bool = False) -> Mechanism:
     """The :class:`Mechanism` of a parsed URDF (see :func:`load_urdf`)."""
     robot = prepare(robot, inertia, links, ignore_mimic)  # overrides, mimic, 'ground'
 
@@ -237,6 +238,8 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
                              "continuous or prismatic")
     _couple(robot, mimic_of, locked, start)
     group = _groups(robot, locked)
+    if floating_base:  # the root's group is a free body named like the root link
+        group = {k: robot.root if g == GROUND else g for k, g in group.items()}
     design = robot.frames(locked)  # the design pose: URDF zero, locked joints at their value
     robot = check_inertias(robot, group, design, inertia)  # on the merged bodies
     mech = Mechanism(name or robot.name, gravity=gravity, dimension=3, coordinates=coordinates)
@@ -262,20 +265,30 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
     frames = {GROUND: (np.eye(3), np.zeros(3))}  # body frames: rotation, centre of mass
     for body in dict.fromkeys(g for g in group.values() if g != GROUND):
         mass, com, tensor = merge(parts[body])
+        if mass <= 0.0 and body == robot.root:
+            freed = [j.name for j in robot.joints.values()
+                     if j.type == "floating" and j.parent == body]
+            hint = (f"; its floating joint '{freed[0]}' already frees the robot: load it "
+                    "without floating_base" if freed else "; a free body needs one")
+            raise SceneError(f"URDF '{robot.name}': floating_base: the root link '{body}' "
+                             f"(with the links fixed to it) has no mass{hint}")
         if mass <= 0.0:  # a massless link: its frame origin (forward dynamics checks M)
             com, tensor = design[body][1], sum(part[2] for part in parts[body])
         rot = design[body][0]
+        # a floating base's coordinates are its root link frame (origin and axes), as the
+        # free-flyer of Pinocchio: reference point s = Aᵀ (origin − centre of mass)
+        ref = rot.T @ (design[body][1] - com) if body == robot.root else np.zeros(3)
         frames[body] = (rot, com)
         local = rot.T @ tensor @ rot
         omega, vel0 = twists[body]
         com_start = at_start[body][0] @ (rot.T @ (com - design[body][1])) + at_start[body][1]
         vel = vel0 + np.cross(omega, com_start - at_start[body][1])
         made = guarded(f"link '{body}'", lambda body=body, mass=mass, com=com, local=local,
-                       rot=rot, vel=vel, omega=omega: mech.add_body(
+                       rot=rot, vel=vel, omega=omega, ref=ref: mech.add_body(
                            body, mass, [local[0, 0], local[1, 1], local[2, 2], local[0, 1],
                                         local[0, 2], local[1, 2]], com,
                            orientation=quaternion_from_matrix(rot), velocity=vel,
-                           angular_velocity=omega))
+                           angular_velocity=omega, reference_point=ref))
         if moved:  # absolute and natural coordinates start here (joint: tree_initial)
             made.set_start(com_start, quaternion_from_matrix(at_start[body][0]))
     for lname in robot.links:
@@ -393,7 +406,8 @@ def load_urdf(path: str | os.PathLike, coordinates: str = "joint",
               damping: bool = False, gravity: Sequence[float] = GRAVITY,
               name: str | None = None, friction: bool = False, inertia: str = "check",
               links: Mapping[str, Mapping] | None = None,
-              ignore_mimic: bool | Sequence[str] = False) -> Mechanism:
+              ignore_mimic: bool | Sequence[str] = False,
+              floating_base: bool = False) -> Mechanism:
     """Build a spatial :class:`Mechanism` from a URDF file.
 
     Parameters
@@ -430,6 +444,12 @@ def load_urdf(path: str | os.PathLike, coordinates: str = "joint",
     ignore_mimic : bool or list of str
         Ignore every ``<mimic>`` (True) or those of the named follower joints: each becomes an
         independent joint, with a warning.
+    floating_base : bool
+        The root link (with the links fixed to it) is a free body instead of being welded to
+        the ground: its coordinates are the position of the root link frame's origin and the
+        unit quaternion [w, x, y, z] of its axes (a floating root in joint coordinates; the
+        per-call API's free-flyer velocity, :mod:`casmbd.compiled.free_flyer`), starting at
+        the URDF's world frame.
 
     Raises
     ------
@@ -451,14 +471,15 @@ def load_urdf(path: str | os.PathLike, coordinates: str = "joint",
     return loads_urdf(text, str(path), coordinates=coordinates, locked=locked,
                       initial=initial, damping=damping, gravity=gravity, name=name,
                       friction=friction, inertia=inertia, links=links,
-                      ignore_mimic=ignore_mimic)
+                      ignore_mimic=ignore_mimic, floating_base=floating_base)
 
 
 def urdf_scene(data: dict, source: str, name: str, coordinates: str, gravity) -> Mechanism:
     """The mechanism of a scene's ``[scene] urdf = "path"`` (relative to the scene file) with
     optional ``[scene.initial]``, ``[scene.locked]`` (joint name = value), ``damping``,
     ``friction``, ``inertia`` ("check" or "repair"), ``ignore_mimic`` (true or a list of joint
-    names) and ``[scene.links.NAME]`` (``mass``, ``com``, ``inertia``: :func:`load_urdf`)."""
+    names), ``floating_base`` and ``[scene.links.NAME]`` (``mass``, ``com``, ``inertia``:
+    :func:`load_urdf`)."""
     if gravity is None:
         raise SceneError("[scene] key 'dimension': a scene with 'urdf' is spatial "
                          "(dimension = 3)")
@@ -473,7 +494,7 @@ def urdf_scene(data: dict, source: str, name: str, coordinates: str, gravity) ->
             raise SceneError(f"[scene.{key}]: expected a table of joint name = value")
         tables[key] = table
     switches = {}
-    for key in ("damping", "friction"):
+    for key in ("damping", "friction", "floating_base"):
         switches[key] = data.get(key, False)
         if not isinstance(switches[key], bool):
             raise SceneError(f"[scene] key '{key}': expected true or false, got "
@@ -487,6 +508,7 @@ def urdf_scene(data: dict, source: str, name: str, coordinates: str, gravity) ->
                          initial=tables["initial"], damping=switches["damping"],
                          gravity=gravity, name=name, friction=switches["friction"],
                          inertia=data.get("inertia", "check"), links=links,
-                         ignore_mimic=data.get("ignore_mimic", False))
+                         ignore_mimic=data.get("ignore_mimic", False),
+                         floating_base=switches["floating_base"])
     except SceneError as exc:
         raise SceneError(f"[scene] key 'urdf' ('{rel}'): {exc}") from None

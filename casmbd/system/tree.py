@@ -326,7 +326,8 @@ def tree_descriptions(mechanism, tree=None) -> tuple[dict[str, Description], lis
         body, edge = mechanism.bodies[name], by_child[name]
         if edge.joint is None:  # a floating root: the description its kind names
             desc = describe(body, "joint")
-            desc.offset = np.zeros(body.dimension)
+            # its coordinates locate the body's reference point, as in absolute coordinates
+            # (a URDF floating base: the root link frame's origin, casmbd.io.urdf)
             desc.prefix = name
             out[name] = desc
         else:
