@@ -329,8 +329,10 @@ def velocity_functions(system, vmap: VelocityMap, fns: list, chunk: int, solve):
         force_q = by["robot_id_terms"](q, qd, qdd, p)[0]
     force = ca.densify(ca.mtimes(g.T, force_q))
     if not rows:
-        fd = ca.Function("robot_fd", [q, vel, tau, p], [ca.densify(solve(mass, tau - bias))],
-                         ["q", "v", "tau", "p"], ["a"])
+        qdd = ca.densify(solve(mass, tau - bias))
+        # Σ v̇ᵢ, finite iff v̇ is (a zero pivot: the per-call named error, robot.py)
+        fd = ca.Function("robot_fd", [q, vel, tau, p], [qdd, ca.sum1(qdd)],
+                         ["q", "v", "tau", "p"], ["a", "sum"])
         ind = ca.Function("robot_id", [q, vel, acc, p], [force], ["q", "v", "a", "p"],
                           ["tau"])
         out += [fd, ind, fd.map("robot_fd_batch", "serial", chunk, [3], []),
