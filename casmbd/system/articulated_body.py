@@ -41,6 +41,9 @@ def supported(system) -> str | None:
             return f"body '{name}' floats (no tree joint)"
         if desc.joint.euler_parameters:
             return f"ball joint '{desc.joint.name}' (Euler parameters)"
+        if getattr(desc, "mimic", None) is not None:
+            return (f"joint '{desc.joint.name}' follows another joint (gear '{desc.mimic[0]}' "
+                    "substituted): its motion subspace is on its leader's coordinate")
     # gravity and actuators give measure terms: only the force elements can be generalized
     if any(term.kind == "generalized" for force in system.mechanism.forces.values()
            for term in system._element_terms(force, system.ctx)):

@@ -250,5 +250,68 @@ class Reactions:
                 at_point = at_point * float("nan")
             joint_wrench[name] = at_point
             out[joint.name] = at_point if joint.body2 == name else -at_point
+        if any(getattr(d, "mimic", None) for d in self.descriptions.values()):
+            self._split_mimic_reactions(out)
         return out
+
+    def _axial(self, joint, wrench: ca.SX) -> tuple[ca.SX, ca.SX]:
+        """(τ, w_τ): the component τ of a joint-point wrench (F, M) along the motion of a
+        revolute (τ = n·M) or prismatic (τ = n·F) joint carrying its ``body2``, and the pure
+        wrench τ n (a moment, or a force) that carries it."""
+        dim, body = self.dimension, joint.body2
+        revolute = joint.kind == "revolute"
+        if dim == 2 and revolute:
+            return wrench[2], ca.vertcat(0.0, 0.0, wrench[2])
+        axis = ca.DM([0.0, 0.0, 1.0]) if dim == 2 else None
+        if axis is None or not revolute:
+            axis = self.ctx.direction(body, self.ctx.local_direction(body, joint.axis))
+        part = wrench[dim:] if revolute else wrench[:dim]
+        tau = ca.dot(axis, part)
+        zero = ca.SX.zeros(dim)
+        return tau, (ca.vertcat(zero, tau * axis) if revolute else
+                     ca.vertcat(tau * axis, ca.SX.zeros(wrench.numel() - dim)))
+
+    def _split_mimic_reactions(self, out: dict[str, ca.SX]) -> None:
+        """Reactions with substituted gears (mimic joints, :mod:`casmbd.system.tree`): a tree
+        joint's reaction carries no component along its own motion (the equation of motion of
+        its coordinate), so the component τ_J = S_Jᵀ w of the reaction of each joint of a
+        substituted gear is the gears' action on its body.  The gear's column is its action on
+        the follower's body, a pure moment (force) a_g along the follower's axis with
+        a_g = τ_f − Σ_h (−r_h a_h) over the gears h led by that follower; on the leader's
+        body it acts with −r_g a_g (the multiplier form: −λ and +r λ, :mod:`casmbd.model.gear`).
+        The joints' columns keep the rest, as in the constrained form."""
+        mech = self.mechanism
+        gears = {d.mimic[0]: mech.joints[d.mimic[0]] for d in self.descriptions.values()
+                 if getattr(d, "mimic", None)}
+        involved = dict.fromkeys(n for g in gears.values() for n in (g.joint1, g.joint2))
+        axial = {name: self._axial(mech.joints[name], out[name]) for name in involved}
+        action: dict[str, ca.SX] = {}
+
+        def on_follower(gear_name: str) -> ca.SX:
+            if gear_name not in action:
+                gear = gears[gear_name]
+                value = axial[gear.joint2][0]
+                for other, led in gears.items():
+                    if led.joint1 == gear.joint2:
+                        value = value + led.ratio * on_follower(other)
+                action[gear_name] = value
+            return action[gear_name]
+
+        for gear_name, gear in gears.items():
+            joint = mech.joints[gear.joint2]
+            _, unit = self._axial(joint, self._unit_wrench(joint))  # the axis, as a wrench
+            out[gear_name] = on_follower(gear_name) * unit
+        for name in involved:
+            out[name] = out[name] - axial[name][1]
+
+    def _unit_wrench(self, joint) -> ca.SX:
+        """A joint-point wrench whose component along the joint's motion is 1."""
+        dim = self.dimension
+        if dim == 2 and joint.kind == "revolute":
+            return ca.vertcat(0.0, 0.0, 1.0)
+        axis = self.ctx.direction(joint.body2, self.ctx.local_direction(joint.body2,
+                                                                        joint.axis))
+        zero = ca.SX.zeros(dim)
+        return ca.vertcat(zero, axis) if joint.kind == "revolute" else \
+            ca.vertcat(axis, ca.SX.zeros(1 if dim == 2 else 3))
 
