@@ -396,8 +396,9 @@ def substitute_mimics(mechanism, descriptions: dict) -> list[str]:
     if not getattr(mechanism, "substitute_gears", True):
         return []
     for joint in mechanism.joints.values():
-        if getattr(joint, "kind", None) != "gear" or joint.coordinate1 or joint.coordinate2:
-            continue
+        if getattr(joint, "kind", None) != "gear" or joint.coordinate1 or joint.coordinate2 \
+                or not all(isinstance(x, (int, float)) for x in (joint.ratio, joint.offset)):
+            continue  # a ratio given as an expression keeps the equation
         lead = _carrier(mechanism, descriptions, joint.joint1)
         follow = _carrier(mechanism, descriptions, joint.joint2)
         if lead is None or follow is None or follow.body.name in links \
