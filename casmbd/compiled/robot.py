@@ -208,7 +208,8 @@ class CompiledModel:
 
         mass = ca.densify(system.mass_matrix)
         applied = at_rest(system.applied_forces)
-        recursive = supported(system) is None  # a tree in joint coordinates: Newton–Euler
+        # a tree in joint coordinates (mimic followers substituted too): Newton–Euler
+        recursive = supported(system, mimic=True) is None
         if recursive:
             inverse = newton_euler(system, a) - applied
             bias = ca.densify(ca.substitute(inverse, a, ca.SX.zeros(nq)))
