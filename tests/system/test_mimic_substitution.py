@@ -178,3 +178,38 @@ def test_statics_linearize_and_simulation_agree():
     r_con = casmbd.simulate(con, 0.3, 6, rtol=1e-10, mode="vm")
     _close(r_sub["joint_positions"], r_con["joint_positions"], 1e-7)
     _close(r_sub["body_positions"], r_con["body_positions"], 1e-7)
+
+
+def test_leader_below_its_follower():
+    """j1 (at the root) follows the prismatic j3 two links below it, θ₁ = 0.7 s₃ + 0.2: the
+    follower's pose depends on a descendant's coordinate; M, τ, q̈ through G to 1e-12 and the
+    reactions and driver efforts of a driven motion to 1e-10."""
+    urdf = ('<robot name="below"><link name="base"/>'
+            + _link("l1", "0.1 0 0.05", 1.5, (0.02, 0.03, 0.025, 0.001, 0, 0.002))
+            + _link("l2", "0.05 0.1 0", 1.0, (0.03, 0.02, 0.04, 0.002, 0.001, 0),
+                    "0.1 0.2 0.3")
+            + _link("l3", "0 0.1 0.02", 0.7, (0.01, 0.012, 0.008, 0, 0, 0))
+            + _joint("j1", "revolute", "base", "l1", "0 0 0.1", "0 0 0", "0 0 1",
+                     '<mimic joint="j3" multiplier="0.7" offset="0.2"/>')
+            + _joint("j2", "revolute", "l1", "l2", "0.4 0 0", "0.2 0 0", "0 1 0")
+            + _joint("j3", "prismatic", "l2", "l3", "0.3 0 0", "0 0 0", "1 0 0")
+            + "</robot>")
+    sub, con = loads_urdf(urdf), loads_urdf(urdf)
+    con.substitute_gears = False
+    m_sub, m_con = casmbd.compile(sub, mode="vm"), casmbd.compile(con, mode="vm")
+    assert [n.split(".")[0] for n in m_sub.coordinate_names] == ["j2", "j3"]
+    g, o = np.array([[0.0, 0.7], [1.0, 0.0], [0.0, 1.0]]), np.array([0.2, 0.0, 0.0])
+    rng = np.random.default_rng(11)
+    for _ in range(3):
+        q, v, w = (rng.uniform(-1, 1, 2) for _ in range(3))
+        qf, vf = g @ q + o, g @ v
+        m_f, b_f = m_con.mass_matrix(qf), m_con.bias_forces(qf, vf)
+        _close(m_sub.mass_matrix(q), g.T @ m_f @ g)
+        _close(m_sub.inverse_dynamics(q, v, w), g.T @ (m_f @ g @ w + b_f))
+        _close(g @ m_sub.forward_dynamics(q, v, w), m_con.forward_dynamics(qf, vf, np.r_[0, w]))
+    for mech in (sub, con):
+        mech.add_driver("d2", "0.3*sin(t)", joint="j2")
+        mech.add_driver("d3", "0.1*sin(2*t)", joint="j3")
+    r_sub, r_con = (casmbd.inverse_dynamics(m, 1.0, 3, mode="vm") for m in (sub, con))
+    _close(r_sub["joint_reactions"], r_con["joint_reactions"], 1e-10)
+    _close(r_sub["driver_efforts"], r_con["driver_efforts"], 1e-10)
