@@ -255,21 +255,25 @@ class Reactions:
         return out
 
     def _axial(self, joint, wrench: ca.SX) -> tuple[ca.SX, ca.SX]:
-        """(τ, w_τ): the component τ of a joint-point wrench (F, M) along the motion of a
-        revolute (τ = n·M) or prismatic (τ = n·F) joint carrying its ``body2``, and the pure
-        wrench τ n (a moment, or a force) that carries it."""
+        """(τ, u): the component τ = Sᵀ w of a joint-point wrench w = (F, M) along the
+        joint's own motion S (the twist of its coordinate at the joint point P: (ω_S, v_P)
+        with v_P = v_G + ω_S × (P − G) from the tree's motion subspace at the centre of mass
+        G), and the wrench u = (v_P, ω_S) / (|ω_S|² + |v_P|²) with Sᵀ u = 1 that carries a
+        unit component: a moment about a revolute axis (v_P = 0), a force along a prismatic
+        one (ω_S = 0)."""
         dim, body = self.dimension, joint.body2
-        revolute = joint.kind == "revolute"
-        if dim == 2 and revolute:
-            return wrench[2], ca.vertcat(0.0, 0.0, wrench[2])
-        axis = ca.DM([0.0, 0.0, 1.0]) if dim == 2 else None
-        if axis is None or not revolute:
-            axis = self.ctx.direction(body, self.ctx.local_direction(body, joint.axis))
-        part = wrench[dim:] if revolute else wrench[:dim]
-        tau = ca.dot(axis, part)
-        zero = ca.SX.zeros(dim)
-        return tau, (ca.vertcat(zero, tau * axis) if revolute else
-                     ca.vertcat(tau * axis, ca.SX.zeros(wrench.numel() - dim)))
+        nw = 1 if dim == 2 else 3
+        tk, desc = self.tree_kinematics, self.descriptions[body]
+        motion = tk.motion[body]
+        if desc.mimic is not None:  # S' = r S_f e_kᵀ on the leader's block
+            motion = motion[:, desc.mimic[2]] / desc.mimic[3]
+        omega, vel = motion[:nw, 0], motion[nw:, 0]
+        arm = self._reaction_point(joint, body) - self.ctx.centre_of_mass(body)
+        vel = vel + (ca.vertcat(-omega[0] * arm[1], omega[0] * arm[0]) if dim == 2
+                     else ca.cross(omega, arm))
+        tau = ca.dot(vel, wrench[:dim]) + ca.dot(omega, wrench[dim:])
+        unit = ca.vertcat(vel, omega) / (ca.dot(omega, omega) + ca.dot(vel, vel))
+        return tau, unit
 
     def _split_mimic_reactions(self, out: dict[str, ca.SX]) -> None:
         """Reactions with substituted gears (mimic joints, :mod:`casmbd.system.tree`): a tree
@@ -298,20 +302,8 @@ class Reactions:
             return action[gear_name]
 
         for gear_name, gear in gears.items():
-            joint = mech.joints[gear.joint2]
-            _, unit = self._axial(joint, self._unit_wrench(joint))  # the axis, as a wrench
-            out[gear_name] = on_follower(gear_name) * unit
+            out[gear_name] = on_follower(gear_name) * axial[gear.joint2][1]
         for name in involved:
-            out[name] = out[name] - axial[name][1]
-
-    def _unit_wrench(self, joint) -> ca.SX:
-        """A joint-point wrench whose component along the joint's motion is 1."""
-        dim = self.dimension
-        if dim == 2 and joint.kind == "revolute":
-            return ca.vertcat(0.0, 0.0, 1.0)
-        axis = self.ctx.direction(joint.body2, self.ctx.local_direction(joint.body2,
-                                                                        joint.axis))
-        zero = ca.SX.zeros(dim)
-        return ca.vertcat(zero, axis) if joint.kind == "revolute" else \
-            ca.vertcat(axis, ca.SX.zeros(1 if dim == 2 else 3))
+            tau, unit = axial[name]
+            out[name] = out[name] - tau * unit
 

@@ -381,17 +381,12 @@ def tree_descriptions(mechanism, tree=None) -> tuple[dict[str, Description], lis
     return {name: out[name] for name in mechanism.bodies}, absorbed
 
 
-#: joint kinds whose tree coordinate is their joint coordinate c − c⁰ (angle about the axis,
-#: translation along it, both zero at the design pose) when the joint carries its ``body2``
-SUBSTITUTABLE = frozenset({"revolute", "prismatic"})
-
-
 def _carrier(mechanism, descriptions, joint_name: str):
     """The tree description of the body a single-coordinate joint carries as its ``body2``
     (None when the joint is not such a tree joint)."""
     joint = mechanism.joints.get(joint_name)
-    if joint is None or getattr(joint, "kind", None) not in SUBSTITUTABLE:
-        return None
+    if joint is None or not getattr(joint, "gear_substitutable", False):
+        return None  # the kind says whether its tree coordinate is its coordinate c − c⁰
     desc = descriptions.get(joint.body2)
     if not isinstance(desc, TreeJointDescription) or desc.joint is not joint \
             or desc.own_size != 1 or len(joint.coordinate_names) != 1:
