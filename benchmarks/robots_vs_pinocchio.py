@@ -27,8 +27,11 @@ two arms (UR5, Panda).  ``<mimic>`` pairs are locked at 0 in both models
 
 Robots with ``<mimic>`` pairs are then also compared *coupled* (``check_coupled``): Pinocchio's
 ``buildModelFromUrdf(path, mimic=True)`` (``JointModelMimic``, θ_f = multiplier θ_l + offset,
-no coordinate of its own) against casmbd's gear couplings in joint coordinates (every follower
-keeps its tree coordinate, one gear equation each).  With G the map from the independent
+no coordinate of its own) against casmbd's gear couplings in joint coordinates.  Where casmbd
+substitutes the followers (two single-coordinate tree joints: ``casmbd.system.tree``, no
+follower coordinate, no gear equation) its q is Pinocchio's independent q (G = I below);
+where a gear stays a constraint equation, every follower keeps its tree coordinate, and
+with G the map from the independent
 coordinates to casmbd's (q = G q_i + o, from the URDF's multipliers and offsets): the frames,
 Gᵀ M G against ``crba``, Gᵀ τ with τ casmbd's least-norm ``inverse_dynamics`` at
 (G q_i + o, G v_i, G a_i) (it checks C_q a = γ) against ``rnea``, and the independent part of
@@ -242,7 +245,12 @@ def check_coupled(path, states: int, seed: int, mode: str) -> dict:
     names = [n.rpartition(".")[0] or n for n in ours.coordinate_names]
     index = {n: k for k, n in enumerate(names)}
     free = [k for k, n in enumerate(names) if n not in table]
-    if ours.nc != len(table) or set(table) - set(index):
+    # joint coordinates substitute the followers (casmbd.system.tree): no follower coordinate,
+    # no gear equation, q is already independent (G = I); else every follower keeps its own
+    substituted = not set(table) & set(index)
+    out["substituted"] = substituted
+    if (ours.nc != (0 if substituted else len(table))
+            or (not substituted and set(table) - set(index))):
         return {**out, "error": f"{ours.nc} constraint equations for {len(table)} couplings"}
     g, o = np.zeros((ours.nq, len(free))), np.zeros(ours.nq)
     g[free, range(len(free))] = 1.0
@@ -253,7 +261,7 @@ def check_coupled(path, states: int, seed: int, mode: str) -> dict:
         leader, ratio, offset = table[name]
         row, off = resolve(leader)
         return ratio * row, ratio * off + offset
-    for name in table:
+    for name in table if not substituted else ():
         g[index[name]], o[index[name]] = resolve(name)
     joints = sorted((pm.joints[j].idx_q, j) for j in range(1, pm.njoints)
                     if pm.joints[j].nq > 0)
@@ -501,12 +509,14 @@ def markdown(data: dict) -> str:
         lines += ["", "**Mimic couplings, coupled** (not locked): Pinocchio's "
                   "`buildModelFromUrdf(path, mimic=True)` (`JointModelMimic`: the follower has no "
                   "coordinate, θ_f = multiplier θ_l + offset) against casmbd's gear couplings "
-                  "(`<follower>_mimic`, one equation each; every follower keeps its tree "
-                  "coordinate). With G the map of the independent coordinates to casmbd's "
-                  "(q = G q_i + o): frames; Gᵀ M G against `crba`; Gᵀ τ, τ casmbd's "
-                  "`inverse_dynamics` at (G q_i + o, G v_i, G a_i), against `rnea`; the "
-                  "independent accelerations of casmbd's constrained `forward_dynamics` (KKT "
-                  "with the gear equations) against M⁻¹ (τ − b) from Pinocchio's `crba` and "
+                  "(`<follower>_mimic`) in joint coordinates. A follower casmbd substitutes "
+                  "(a revolute or prismatic pair in the tree: no coordinate, no equation, "
+                  "n_c = 0 below) is compared directly (G = I); a gear kept as an equation "
+                  "keeps the follower's tree coordinate, with G the map of the independent "
+                  "coordinates to casmbd's (q = G q_i + o): frames; Gᵀ M G against `crba`; "
+                  "Gᵀ τ, τ casmbd's `inverse_dynamics` at (G q_i + o, G v_i, G a_i), against "
+                  "`rnea`; the independent accelerations of casmbd's `forward_dynamics` (KKT "
+                  "with any gear equations) against M⁻¹ (τ − b) from Pinocchio's `crba` and "
                   "`nonLinearEffects`, because Pinocchio's `aba` refuses mimic joints (\"This "
                   "algorithm does not support Joint Mimic type in the model\"). Same tolerances "
                   f"as above. **{len(good)} of {len(done)} compared robots pass**; "

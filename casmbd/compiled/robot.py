@@ -123,7 +123,7 @@ def newton_euler(system: System, a: ca.SX) -> ca.SX:
     acc, force, xform = {}, {}, {}
     for name in order:
         parent = desc[name].parent
-        step = tk.bias[name] + ca.mtimes(tk.motion[name], system.body_part(a, name))
+        step = tk.bias[name] + ca.mtimes(tk.motion[name], system.body_part(a, tk.owner[name]))
         if parent == GROUND:
             acc[name] = step
         else:
@@ -139,9 +139,10 @@ def newton_euler(system: System, a: ca.SX) -> ca.SX:
             moment = ca.mtimes(tensor, acc[name][:3]) + ca.cross(omega,
                                                                  ca.mtimes(tensor, omega))
         force[name] = ca.vertcat(moment, mass * acc[name][nw:])
-    tau = {}
-    for name in reversed(order):
-        tau[name] = ca.mtimes(tk.motion[name].T, force[name])
+    tau = {name: ca.SX.zeros(system.body_part(a, name).numel(), 1) for name in order}
+    for name in reversed(order):  # a mimic follower's torque adds into its leader's (r S_fᵀ F)
+        owner = tk.owner[name]
+        tau[owner] = tau[owner] + ca.mtimes(tk.motion[name].T, force[name])
         if desc[name].parent != GROUND:
             parent = desc[name].parent
             force[parent] = force[parent] + ca.mtimes(xform[name].T, force[name])
@@ -218,7 +219,8 @@ class CompiledModel:
 
         mass = ca.densify(system.mass_matrix)
         applied = at_rest(system.applied_forces)
-        recursive = supported(system) is None  # a tree in joint coordinates: Newton–Euler
+        # a tree in joint coordinates (mimic followers substituted too): Newton–Euler
+        recursive = supported(system, mimic=True) is None
         if recursive:
             inverse = newton_euler(system, a) - applied
             bias = ca.densify(ca.substitute(inverse, a, ca.SX.zeros(nq)))

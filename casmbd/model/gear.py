@@ -6,7 +6,10 @@ the joints' own coordinates (:meth:`casmbd.model.joints.Joint.coordinate`), meas
 values at the design pose c⁰ (:meth:`~casmbd.model.joints.Joint.initial_coordinate`), so one
 equation serves every coordinate choice: absolute and natural coordinates write it on the
 bodies' coordinates, joint coordinates on the tree coordinates (where it closes a loop like a
-loop joint; it is never a tree joint itself).
+loop joint; it is never a tree joint itself) — unless both joints are single-coordinate tree
+joints (revolute or prismatic, ratio and offset numbers): joint coordinates then substitute the
+second joint's coordinate, r (c₁ − c₁⁰) + δ, and write no equation
+(:func:`casmbd.system.tree.substitute_mimics`; ``mechanism.substitute_gears = False`` keeps it).
 
 The offset δ (default 0; URDF ``<mimic offset>``, θ_follower = multiplier θ_leader + offset) is
 the value of c₂ − c₂⁰ when c₁ = c₁⁰.  With δ ≠ 0 the design pose violates the equation: a

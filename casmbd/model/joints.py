@@ -67,6 +67,10 @@ class Joint:
     title: ClassVar[str] = ""
     #: mechanism dimensions the class serves
     dimensions: ClassVar[tuple[int, ...]] = (2,)
+    #: its one tree coordinate is its coordinate c − c⁰ (same sense, zero at the design pose)
+    #: when it carries its ``body2``: joint coordinates substitute a gear on it
+    #: (:func:`casmbd.system.tree.substitute_mimics`)
+    gear_substitutable: ClassVar[bool] = False
     #: scene keys every entry of the kind takes, and those of the kind itself
     scene_common: ClassVar[frozenset[str]] = frozenset({"name", "type", "body1", "body2",
                                                         "description"})
@@ -239,6 +243,7 @@ class Revolute(Joint):
     dimensions = (2,)
     scene_keys = frozenset({"point", "axis"})
     tree_joint = True
+    gear_substitutable = True
     from_scene = classmethod(revolute_from_scene)
 
     def __post_init__(self):
@@ -301,6 +306,7 @@ class Prismatic(Joint):
     scene_keys = frozenset({"point", "axis"})
     drawing = "slide"
     tree_joint = True
+    gear_substitutable = True
     from_scene = classmethod(axis_from_scene)
 
     @classmethod

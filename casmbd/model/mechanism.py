@@ -94,6 +94,10 @@ class Mechanism:
         self.coordinates = coordinates
         #: joints that must belong to the spanning tree of joint coordinates (optional)
         self.tree: list[str] = []
+        #: in joint coordinates, substitute the follower of a gear between two single-
+        #: coordinate tree joints (q_f = r q_l + δ, casmbd.system.tree); False keeps every
+        #: gear a constraint equation
+        self.substitute_gears: bool = True
         gravity = np.zeros(self.dimension) if gravity is None else gravity
         self.gravity = vector(gravity, "mechanism field 'gravity'", self.dimension)
         if float(np.max(np.abs(self.gravity), initial=0.0)) > GRAVITY_MAX:

@@ -188,6 +188,7 @@ class SpatialRevolute(AxisJoint):
     kind = "revolute"
     scene_keys = frozenset({"point", "axis"})
     tree_joint = True
+    gear_substitutable = True
     from_scene = classmethod(revolute_from_scene)
 
     @classmethod
@@ -273,6 +274,7 @@ class SpatialPrismatic(Cylindrical):
     coordinate_names: tuple[str, ...] = ("translation",)
 
     kind = "prismatic"
+    gear_substitutable = True
 
     def tree_layout(self):
         return ("translation",), (True,)

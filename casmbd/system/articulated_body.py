@@ -30,8 +30,12 @@ from casmbd.errors import ModelError
 from casmbd.model.bodies import GROUND
 
 
-def supported(system) -> str | None:
-    """None when the articulated-body recursion applies to ``system``, else the reason."""
+def supported(system, mimic: bool = False) -> str | None:
+    """None when the articulated-body recursion applies to ``system``, else the reason.
+
+    ``mimic=True``: the caller's recursion takes substituted mimic followers (a motion
+    subspace on the leader's coordinate: Newton–Euler and the composite-body recursions do,
+    the articulated-body recursion does not)."""
     if system.local or system.coordinates != "joint":
         return "the recursion needs joint coordinates"
     if system.nc:
@@ -41,6 +45,9 @@ def supported(system) -> str | None:
             return f"body '{name}' floats (no tree joint)"
         if desc.joint.euler_parameters:
             return f"ball joint '{desc.joint.name}' (Euler parameters)"
+        if getattr(desc, "mimic", None) is not None and not mimic:
+            return (f"joint '{desc.joint.name}' follows another joint (gear '{desc.mimic[0]}' "
+                    "substituted): its motion subspace is on its leader's coordinate")
     # gravity and actuators give measure terms: only the force elements can be generalized
     if any(term.kind == "generalized" for force in system.mechanism.forces.values()
            for term in system._element_terms(force, system.ctx)):

@@ -56,11 +56,18 @@ class Context:
         return slice(i, i + self.descriptions[body].size)
 
     def coordinates(self, body: str) -> ca.SX:
-        """q_i of a moving body."""
+        """q_i of a moving body (a substituted mimic follower: r q_l + δ from its leader's
+        block, :mod:`casmbd.system.tree`)."""
+        desc = self.descriptions[body]
+        if getattr(desc, "mimic", None) is not None:
+            return desc.followed(self.coordinates(desc.mimic[1]))
         return self.q[self.block(body)]
 
     def rates(self, body: str) -> ca.SX:
-        """v_i = q̇_i of a moving body."""
+        """v_i = q̇_i of a moving body (a substituted mimic follower: r q̇_l)."""
+        desc = self.descriptions[body]
+        if getattr(desc, "mimic", None) is not None:
+            return desc.followed(self.rates(desc.mimic[1]), rate=True)
         return self.v[self.block(body)]
 
     def _frame(self, body: str) -> tuple[ca.SX, ca.SX]:

@@ -445,10 +445,10 @@ class System(AppliedForces, Outputs, Reactions):
                     vals.append(block[i, j])
 
         for name in order:
-            s_i = tk.motion[name]
+            s_i = tk.motion[name]  # a mimic follower's on its leader's block (tree.py)
             if not s_i.size2():
                 continue
-            rows_i = self.body_slice(name)
+            rows_i = self.body_slice(tk.owner[name])
             f_mat = ca.mtimes(composite[name], s_i)
             put(rows_i, rows_i, ca.mtimes(s_i.T, f_mat))
             node = name
@@ -458,8 +458,8 @@ class System(AppliedForces, Outputs, Reactions):
                 s_j = tk.motion[node]
                 if s_j.size2():
                     block = ca.mtimes(s_j.T, f_mat)
-                    put(self.body_slice(node), rows_i, block)
-                    put(rows_i, self.body_slice(node), block.T)
+                    put(self.body_slice(tk.owner[node]), rows_i, block)
+                    put(rows_i, self.body_slice(tk.owner[node]), block.T)
         for idx, c, p, _ in self._normalization():
             put(slice(idx[0], idx[-1] + 1), slice(idx[0], idx[-1] + 1), c * ca.mtimes(p, p.T))
         return _from_triplets(self.nq, rows, cols, vals)
@@ -471,17 +471,17 @@ class System(AppliedForces, Outputs, Reactions):
         _, weights = self._kane
         order, _, children, carry = self._tree_links()
         force = {}
-        parts = [ca.SX(0, 1)] * len(order)
-        slot = {name: k for k, name in enumerate(self.body_names)}
+        parts = {name: ca.SX(self.body_slice(name).stop - self.body_slice(name).start, 1)
+                 for name in self.body_names}
         for name in reversed(order):
             f = weights[name]
             for child in children[name]:
                 f = f + ca.mtimes(carry[child], force[child])
             force[name] = f
-            s_i = tk.motion[name]
-            parts[slot[name]] = -ca.mtimes(s_i.T, f) if s_i.size2() else \
-                ca.SX(self.body_slice(name).stop - self.body_slice(name).start, 1)
-        qv = ca.vertcat(*parts)
+            s_i = tk.motion[name]  # a mimic follower's adds into its leader's rows
+            if s_i.size2():
+                parts[tk.owner[name]] = parts[tk.owner[name]] - ca.mtimes(s_i.T, f)
+        qv = ca.vertcat(*[parts[name] for name in self.body_names])
         for idx, c, p, pdot in self._normalization():
             qv[idx] = qv[idx] - c * ca.dot(pdot, pdot) * p
         return qv

@@ -250,5 +250,60 @@ class Reactions:
                 at_point = at_point * float("nan")
             joint_wrench[name] = at_point
             out[joint.name] = at_point if joint.body2 == name else -at_point
+        if any(getattr(d, "mimic", None) for d in self.descriptions.values()):
+            self._split_mimic_reactions(out)
         return out
+
+    def _axial(self, joint, wrench: ca.SX) -> tuple[ca.SX, ca.SX]:
+        """(τ, u): the component τ = Sᵀ w of a joint-point wrench w = (F, M) along the
+        joint's own motion S (the twist of its coordinate at the joint point P: (ω_S, v_P)
+        with v_P = v_G + ω_S × (P − G) from the tree's motion subspace at the centre of mass
+        G), and the wrench u = (v_P, ω_S) / (|ω_S|² + |v_P|²) with Sᵀ u = 1 that carries a
+        unit component: a moment about a revolute axis (v_P = 0), a force along a prismatic
+        one (ω_S = 0)."""
+        dim, body = self.dimension, joint.body2
+        nw = 1 if dim == 2 else 3
+        tk, desc = self.tree_kinematics, self.descriptions[body]
+        motion = tk.motion[body]
+        if desc.mimic is not None:  # S' = r S_f e_kᵀ on the leader's block
+            motion = motion[:, desc.mimic[2]] / desc.mimic[3]
+        omega, vel = motion[:nw, 0], motion[nw:, 0]
+        arm = self._reaction_point(joint, body) - self.ctx.centre_of_mass(body)
+        vel = vel + (ca.vertcat(-omega[0] * arm[1], omega[0] * arm[0]) if dim == 2
+                     else ca.cross(omega, arm))
+        tau = ca.dot(vel, wrench[:dim]) + ca.dot(omega, wrench[dim:])
+        unit = ca.vertcat(vel, omega) / (ca.dot(omega, omega) + ca.dot(vel, vel))
+        return tau, unit
+
+    def _split_mimic_reactions(self, out: dict[str, ca.SX]) -> None:
+        """Reactions with substituted gears (mimic joints, :mod:`casmbd.system.tree`): a tree
+        joint's reaction carries no component along its own motion (the equation of motion of
+        its coordinate), so the component τ_J = S_Jᵀ w of the reaction of each joint of a
+        substituted gear is the gears' action on its body.  The gear's column is its action on
+        the follower's body, a pure moment (force) a_g along the follower's axis with
+        a_g = τ_f − Σ_h (−r_h a_h) over the gears h led by that follower; on the leader's
+        body it acts with −r_g a_g (the multiplier form: −λ and +r λ, :mod:`casmbd.model.gear`).
+        The joints' columns keep the rest, as in the constrained form."""
+        mech = self.mechanism
+        gears = {d.mimic[0]: mech.joints[d.mimic[0]] for d in self.descriptions.values()
+                 if getattr(d, "mimic", None)}
+        involved = dict.fromkeys(n for g in gears.values() for n in (g.joint1, g.joint2))
+        axial = {name: self._axial(mech.joints[name], out[name]) for name in involved}
+        action: dict[str, ca.SX] = {}
+
+        def on_follower(gear_name: str) -> ca.SX:
+            if gear_name not in action:
+                gear = gears[gear_name]
+                value = axial[gear.joint2][0]
+                for other, led in gears.items():
+                    if led.joint1 == gear.joint2:
+                        value = value + led.ratio * on_follower(other)
+                action[gear_name] = value
+            return action[gear_name]
+
+        for gear_name, gear in gears.items():
+            out[gear_name] = on_follower(gear_name) * axial[gear.joint2][1]
+        for name in involved:
+            tau, unit = axial[name]
+            out[name] = out[name] - tau * unit
 

@@ -19,6 +19,18 @@ translation, both functions of the joint coordinates), carried along with the pa
 with ω_rel the angular velocity of ΔR in the design frame.  A body with no tree joint to a
 parent is a floating root: its block is an absolute description (x, y, θ in the plane; position
 and Euler parameters in space).
+
+A gear (:mod:`casmbd.model.gear`, a URDF ``<mimic>``) between two single-coordinate tree
+joints (revolute or prismatic, each carrying its ``body2``) is *substituted* rather than kept
+as a loop equation: the follower's tree coordinate is q_f = r q_l + δ (q̇_f = r q̇_l, q̈_f = r q̈_l;
+a leader that itself follows is resolved to its own leader, ratios and offsets composed), so
+the follower's body owns no coordinate and its joint moves with the leader's (as Pinocchio's
+``JointModelMimic``).  With G = ∂q_full/∂q (constant) the equations are those of the full tree
+projected exactly: M = Gᵀ M_f G, Q = Gᵀ Q_f; the recursions below do this body by body — the
+follower's motion subspace is written on its leader's coordinate, S' = r S_f e_kᵀ
+(:attr:`TreeKinematics.owner`), so the composite-body, Newton–Euler and bias recursions add
+its column into the leader's row.  The gear is absorbed (it writes no equation); its reaction
+is the follower joint's axial share of the tree reaction (:mod:`casmbd.system.joint_reactions`).
 """
 
 from __future__ import annotations
@@ -166,8 +178,23 @@ def spanning_tree(mechanism, tree=None) -> tuple[list[TreeEdge], list[str]]:
     return [parent_of[b] for b in order], loops
 
 
+#: entries of a design-pose constant (a unit axis, a rotation matrix) below this are
+#: rounding of an exact zero (cos π/2 = 6.1e-17 in a URDF's rpy) and written as 0: the
+#: generated code keeps the structural zeros (the Panda's inverse dynamics: 4819 → fewer
+#: instructions), the model moves by less than 1e-16
+ROUNDING_ZERO = 1e-15
+
+
+def snap(values) -> np.ndarray:
+    """``values`` with entries of magnitude below :data:`ROUNDING_ZERO` set to 0."""
+    out = np.array(values, dtype=float)
+    out[np.abs(out) < ROUNDING_ZERO] = 0.0
+    return out
+
+
 def rodrigues(axis: np.ndarray, angle: ca.SX) -> ca.SX:
     """Rotation by ``angle`` about the unit ``axis``: I + sin φ h̃ + (1 − cos φ) h̃²."""
+    axis = snap(axis)
     skew = ca.DM([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
     return ca.DM.eye(3) + ca.sin(angle) * skew + (1 - ca.cos(angle)) * ca.mtimes(skew, skew)
 
@@ -202,14 +229,18 @@ class TreeJointDescription(Description):
         parent_body = mechanism.bodies.get(edge.parent)
         rot_p0 = np.eye(dim) if parent_body is None else parent_body.initial_rotation
         pos_p0 = np.zeros(dim) if parent_body is None else np.asarray(parent_body.position)
-        self.rot_p0_t = rot_p0.T
+        self.rot_p0_t = snap(rot_p0.T)
         self.pos_p0 = pos_p0
-        self.rot_c0 = body.initial_rotation
+        self.rot_c0 = snap(body.initial_rotation)
         self.pos_c0 = np.asarray(body.position, float)
         point = getattr(joint, "point", None)
         self.point = self.pos_c0.copy() if point is None else np.asarray(point, float)
         self.kind_name = type(joint).__name__
         self.names, self.lengths = self._layout()
+        #: a substituted gear (mimic) follower: (gear, leader body, index in the leader's
+        #: block, ratio r, offset δ) with q_f = r q_l + δ; None for an independent joint
+        self.mimic: tuple[str, str, int, float, float] | None = None
+        self.own_size = len(self.names)
         if dim == 2:
             self.has_angle = True
             angle_p0 = 0.0 if parent_body is None else parent_body.angle
@@ -219,7 +250,21 @@ class TreeJointDescription(Description):
     def _layout(self) -> tuple[tuple[str, ...], tuple[bool, ...]]:
         return self.joint.tree_layout()
 
+    def follow(self, gear: str, leader: str, index: int, ratio: float, offset: float) -> None:
+        """Make this joint a substituted follower: q = ratio q_leader[index] + offset; the
+        body then owns no coordinate (module docstring)."""
+        self.mimic = (gear, leader, index, float(ratio), float(offset))
+        self.names, self.lengths = (), ()
+
+    def followed(self, q_leader: ca.SX, rate: bool = False) -> ca.SX:
+        """The follower's own tree coordinate r q_l + δ (its rate r q̇_l with ``rate``) from
+        the leader's block."""
+        _, _, k, ratio, offset = self.mimic
+        return ratio * q_leader[k] + (0.0 if rate else offset)
+
     def initial(self) -> np.ndarray:
+        if self.mimic is not None:
+            return np.zeros(0)
         return self.joint.tree_initial()
 
     def initial_rates(self) -> np.ndarray:
@@ -286,7 +331,7 @@ class TreeJointDescription(Description):
         return None
 
     def constraints(self, q):
-        if self.joint.euler_parameters:
+        if self.joint.euler_parameters and self.mimic is None:
             return 0.5 * (ca.dot(q, q) - 1.0), ("normalization",)
         return ca.SX(0, 1), ()
 
@@ -333,7 +378,64 @@ def tree_descriptions(mechanism, tree=None) -> tuple[dict[str, Description], lis
         else:
             out[name] = TreeJointDescription(body, edge, mechanism.joints[edge.joint], mechanism)
     absorbed = [e.joint for e in edges if e.joint]
+    absorbed += substitute_mimics(mechanism, out)
     return {name: out[name] for name in mechanism.bodies}, absorbed
+
+
+def _carrier(mechanism, descriptions, joint_name: str):
+    """The tree description of the body a single-coordinate joint carries as its ``body2``
+    (None when the joint is not such a tree joint)."""
+    joint = mechanism.joints.get(joint_name)
+    if joint is None or not getattr(joint, "gear_substitutable", False):
+        return None  # the kind says whether its tree coordinate is its coordinate c − c⁰
+    desc = descriptions.get(joint.body2)
+    if not isinstance(desc, TreeJointDescription) or desc.joint is not joint \
+            or desc.own_size != 1 or len(joint.coordinate_names) != 1:
+        return None
+    return desc
+
+
+def substitute_mimics(mechanism, descriptions: dict) -> list[str]:
+    """Substitute every gear between two single-coordinate tree joints (module docstring):
+    the follower's description takes q_f = r q_l + δ, resolved to an independent leader.
+
+    Gears are taken in declaration order; a joint followed twice, a gear whose leader chain
+    returns to its follower, or a gear on other joint kinds keeps its constraint equation.
+    Returns the names of the substituted gears (absorbed like tree joints).
+    """
+    links: dict[str, tuple[str, str, float, float]] = {}  # follower body -> gear, leader…
+    if not getattr(mechanism, "substitute_gears", True):
+        return []
+    for joint in mechanism.joints.values():
+        if getattr(joint, "kind", None) != "gear" or joint.coordinate1 or joint.coordinate2 \
+                or not all(isinstance(x, (int, float)) for x in (joint.ratio, joint.offset)):
+            continue  # a ratio given as an expression keeps the equation
+        lead = _carrier(mechanism, descriptions, joint.joint1)
+        follow = _carrier(mechanism, descriptions, joint.joint2)
+        if lead is None or follow is None or follow.body.name in links \
+                or lead is follow:
+            continue
+        body, leader = follow.body.name, lead.body.name
+        seen = {body}
+        while leader in links and leader not in seen:  # a cycle keeps the gear a constraint
+            seen.add(leader)
+            leader = links[leader][1]
+        if leader in seen:
+            continue
+        links[body] = (joint.name, lead.body.name, float(joint.ratio), float(joint.offset))
+
+    def resolve(body: str) -> tuple[str, float, float]:
+        """(independent leader, ratio, offset) of a follower through its chain."""
+        _, leader, ratio, offset = links[body]
+        if leader not in links:
+            return leader, ratio, offset
+        root, r2, d2 = resolve(leader)
+        return root, ratio * r2, ratio * d2 + offset
+
+    for body in links:
+        root, ratio, offset = resolve(body)
+        descriptions[body].follow(links[body][0], root, 0, ratio, offset)
+    return [links[b][0] for b in links]
 
 
 def _spin(omega: ca.SX, dim: int) -> ca.SX:
@@ -358,14 +460,18 @@ class TreeKinematics:
     Attributes (dicts by body name)
     -------------------------------
     twist : (ω, ṙ_G), linear in q̇.
-    motion : S = ∂twist/∂q̇_i, the joint's motion subspace (global components).
+    motion : S = ∂twist/∂q̇_i, the joint's motion subspace (global components); for a
+        substituted mimic follower S' = r S_f e_kᵀ on its leader's block.
     bias : (ω̇, r̈_G) at q̈ = 0, the velocity-product acceleration J̇ q̇.
+    owner : the body whose block of q̇ the motion subspace multiplies (the body itself, or a
+        follower's independent leader).
     """
 
     def __init__(self, system):
         ctx, dim = system.ctx, system.dimension
         self.system = system
         self.twist, self.motion, self.bias = {}, {}, {}
+        self.owner: dict[str, str] = {}
         self.order = []
         for name in system.body_names:
             self._visit(name)
@@ -373,6 +479,8 @@ class TreeKinematics:
         for name in self.order:
             desc = system.descriptions[name]
             q_c, v_c = ctx.coordinates(name), ctx.rates(name)
+            mimic = getattr(desc, "mimic", None)
+            self.owner[name] = name if mimic is None else mimic[1]
             if desc.joint is None:  # floating root: its own block
                 vel = ca.jtimes(ctx.centre_of_mass(name), q_c, v_c)
                 twist = ca.vertcat(ctx.angular_velocity(name), vel)
@@ -389,7 +497,7 @@ class TreeKinematics:
                 r_p, a_p = ctx.centre_of_mass(parent), ctx.rotation(parent)
                 w_p, dr_p = self.twist[parent][:nw], self.twist[parent][nw:]
                 alpha_p, ddr_p = self.bias[parent][:nw], self.bias[parent][nw:]
-            k = desc.size
+            k = desc.own_size
             sym = {key: ca.SX.sym(key, *shape) for key, shape in (
                 ("rp", (dim, 1)), ("ap", (dim, dim)), ("qc", (k, 1)), ("rpd", (dim, 1)),
                 ("apd", (dim, dim)), ("vc", (k, 1)), ("wp", (nw, 1)), ("rpdd", (dim, 1)),
@@ -413,6 +521,11 @@ class TreeKinematics:
             twist, motion, bias = ca.substitute(
                 [twist, motion, bias], [ca.vec(sym[key]) for key in keys],
                 [ca.densify(ca.vec(ca.SX(values[key]))) for key in keys])
+            if mimic is not None:  # S' = r S_f e_kᵀ on the leader's block
+                lead = system.descriptions[mimic[1]].size
+                cols = [ca.SX.zeros(motion.size1(), 1)] * lead
+                cols[mimic[2]] = mimic[3] * motion
+                motion = ca.horzcat(*cols)
             self.twist[name], self.motion[name], self.bias[name] = twist, motion, bias
 
     def _visit(self, name: str) -> None:
@@ -431,7 +544,8 @@ class TreeKinematics:
         out: dict[str, ca.SX] = {}
         for name in self.order:
             desc = self.system.descriptions[name]
-            acc = self.bias[name] + ca.mtimes(self.motion[name], self.system.body_part(a, name))
+            acc = self.bias[name] + ca.mtimes(self.motion[name],
+                                              self.system.body_part(a, self.owner[name]))
             if desc.parent != GROUND:
                 extra = out[desc.parent] - self.bias[desc.parent]
                 d = ctx.centre_of_mass(name) - ctx.centre_of_mass(desc.parent)

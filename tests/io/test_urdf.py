@@ -165,16 +165,25 @@ def test_inverse_dynamics_and_frames_match_newton_euler(path, locked):
     model = casmbd.NumericModel(mech, functions=["mass_matrix", "applied_forces",
                                                  "quadratic_velocity_forces", "outputs"])
     names = _joint_names(model)
+    # the <mimic> follower (ratio 1, offset 0 in this file) is substituted in joint
+    # coordinates: it moves with its leader, and its torque adds to the leader's
+    follows = {j.joint2: j.joint1 for j in mech.joints.values() if j.kind == "gear"}
+    assert not set(follows) & set(names)
     rng = np.random.default_rng(3)
     for _ in range(3):
         q, v, a = (rng.uniform(-1.5, 1.5, len(names)) for _ in range(3))
         if path == ARM7:
             q[names.index("panda_finger_joint1")] = 0.02
+
+        def full(x):
+            values = dict(zip(names, x))
+            return {**values, **{f: values[lead] for f, lead in follows.items()}}
+
         tau = model.mass_matrix(q) @ a - model.applied_forces(q, v, 0.0) \
             - model.quadratic_velocity_forces(q, v)
-        ref, frames = rnea(path, {**locked, **dict(zip(names, q))}, dict(zip(names, v)),
-                           dict(zip(names, a)))
-        expect = np.array([ref[n] for n in names])
+        ref, frames = rnea(path, {**locked, **full(q)}, full(v), full(a))
+        expect = np.array([ref[n] + sum(ref[f] for f, lead in follows.items() if lead == n)
+                           for n in names])
         assert np.max(np.abs(tau - expect)) <= 1e-10 * np.max(np.abs(expect))
         out = model.outputs(q[None], v[None], a[None], np.zeros(1))
         for k, body in enumerate(model.body_names):
@@ -281,9 +290,17 @@ def test_mimic_gear_limits_damping_locked_initial():
     q0, v0 = model.initial_coordinates(), model.initial_velocities()
     names = _joint_names(model)
     assert q0[names.index("panda_joint2")] == 0.4
-    assert q0[names.index("panda_finger_joint2")] == 0.01  # follows its leader
+    assert "panda_finger_joint2" not in names  # substituted: it follows its leader
+    out = model.outputs(q0[None], v0[None], 0.0 * v0[None], np.zeros(1))["joint_positions"]
+    assert abs(out[0, list(model.joint_coordinate_names).index("panda_finger_joint2")]
+               - 0.01) < 1e-15  # the output, measured from the bodies' poses
     assert abs(v0[names.index("panda_joint2")] - 0.5) < 1e-12
     assert np.max(np.abs(np.delete(v0, names.index("panda_joint2")))) < 1e-12
+    assert model.constraints(q0, 0.0).size == 0  # no gear row left
+    mech.substitute_gears = False  # the gear as a constraint: C = 0 at the start
+    model = casmbd.NumericModel(mech, functions=["constraints"])
+    q0, names = model.initial_coordinates(), _joint_names(model)
+    assert q0[names.index("panda_finger_joint2")] == 0.01
     assert np.max(np.abs(model.constraints(q0, 0.0))) < 1e-14
     ur = load(UR5)
     assert ur.joints["shoulder_pan_joint"].urdf_dynamics == {"damping": 0.5, "friction": 0.1}
@@ -540,6 +557,7 @@ def test_mimic_offset_inverse_dynamics_match_newton_euler(tmp_path):
     mech = load(path, initial={"j1": (0.4, 0.7)})
     gear = mech.joints["j2_mimic"]
     assert (gear.ratio, gear.offset) == (MIMIC_R, MIMIC_D)
+    mech.substitute_gears = False  # the gear as a constraint (substituted: test_mimic_subst…)
     model = casmbd.NumericModel(mech, functions=["constraints"])
     q0, v0 = model.initial_coordinates(), model.initial_velocities()
     names = _joint_names(model)

@@ -145,12 +145,15 @@ def test_static_reaction_of_the_gear(dim, coordinates):
     assert res.stable is True
     sx = casmbd.System(mech)
     names = [str(lab) for lab in sx.constraint_labels]
-    row = next(i for i, n in enumerate(names) if "gear" in n)
+    row = next((i for i, n in enumerate(names) if "gear" in n), None)
     moment = M2 * G * l2 * math.sin(RATIO * phi)
     gear = res.joint_reactions[list(mech.joints).index("gear")]
     assert np.max(np.abs(gear[:-1 if dim == 2 else 3])) < 1e-9  # no force
     assert abs(gear[-1] - moment) < 1e-9
-    assert abs(res.lagrange_multipliers[row] + moment) < 1e-9
+    if coordinates == "joint":  # substituted (system/tree.py): no gear row, no multiplier
+        assert row is None and sx.nq == 1
+    else:
+        assert abs(res.lagrange_multipliers[row] + moment) < 1e-9
     # rod 1 at φ (its centre of mass at l1 (sin φ, −cos φ)), rod 2 at rφ
     pos = res.body_positions.reshape(2, -1)
     assert np.max(np.abs(pos[0, :2] - l1 * np.array([math.sin(phi), -math.cos(phi)]))) < 1e-9
