@@ -326,15 +326,25 @@ def test_massless_end_link_warns_at_load_and_forward_dynamics_names_it():
 
 
 def test_massless_mimic_pair_names_the_singular_motion():
-    """Two massless links coupled by <mimic> (romeo's fingers): forward dynamics goes through
-    the KKT solve, which numpy finds singular; the error names the coordinates."""
+    """Two massless links coupled by <mimic> (romeo's fingers).  In joint coordinates the
+    follower is substituted (a tree: the compiled LDLᵀ meets a zero pivot); with the gear kept
+    as a constraint (``substitute_gears = False``) forward dynamics goes through the KKT solve,
+    which numpy finds singular.  Both errors name the leader's coordinate."""
     text = _robot(_link("a"), _link("b", com="0.2 0 0"), '<link name="c"/>', '<link name="d"/>',
                   _joint("j", "a", "b"), _joint("k", "b", "c", xyz="0.4 0 0"),
                   _joint("f", "b", "d", xyz="0 0.4 0", extra='<mimic joint="k"/>'))
     with pytest.warns(RuntimeWarning, match="joint 'k' moves only c"):
-        model = casmbd.compile(loads_urdf(text, "t.urdf"))
+        mech = loads_urdf(text, "t.urdf")
+    model = casmbd.compile(mech)
+    assert model.nc == 0 and "f.angle" not in model.coordinate_names  # substituted
+    zero = np.zeros(model.nq)
+    with pytest.raises(SingularMassMatrixError, match="has no inertia") as err:
+        model.forward_dynamics(zero, zero, zero)
+    assert set(err.value.coordinates) == {"k.angle"}
+    mech.substitute_gears = False  # the gear as a constraint equation: the KKT path
+    model = casmbd.compile(mech)
     assert model.nc == 1
-    zero = np.zeros(3)
+    zero = np.zeros(model.nq)
     with pytest.raises(SingularMassMatrixError, match="on the null space of the constraint "
                                                       "Jacobian") as err:
         model.forward_dynamics(zero, zero, zero)
