@@ -50,6 +50,7 @@ from casmbd.compiled.modal_cache import DISK_STORE
 from casmbd.errors import CasmbdError, ExpressionError, ModelError, SceneError
 from casmbd.io.files import read_text
 from casmbd.io.scene_points import ScenePoints
+from casmbd.io.mjcf import mjcf_scene
 from casmbd.io.urdf import urdf_scene
 from casmbd.limits import (
     MAX_BODIES,
@@ -79,7 +80,7 @@ _COMPLIANT_KEYS = ("stiffness", "exponent", "damping", "penetration", "friction_
 _LIMIT_KEYS = {"lower", "upper", "restitution", "limit_model", "limit_stiffness",
                "limit_exponent", "limit_damping", "limit_penetration"}
 _SCENE_KEYS = {"name", "dimension", "gravity", "format", "description", "coordinates",
-               "tree", "urdf", "initial", "locked", "damping", "friction"}
+               "tree", "urdf", "initial", "locked", "damping", "friction", "mjcf"}
 _COORDINATES = ("auto", "absolute", "natural", "joint")
 _MARKER_KEYS = {"name", "body", "point", "description", "orientation", "euler_zxz", "angle"}
 _DRIVER_KEYS = {"name", "joint", "body", "coordinate", "position", "description"}
@@ -294,7 +295,7 @@ def _build(data: dict, source: str) -> Mechanism:
     fmt = scene.data.get("format", FORMAT)
     if isinstance(fmt, bool) or fmt != FORMAT:
         raise scene.error("format", f"unsupported format {fmt!r} (this casmbd reads {FORMAT})")
-    dim = scene.data.get("dimension", 3 if "urdf" in scene.data else 2)
+    dim = scene.data.get("dimension", 3 if "urdf" in scene.data or "mjcf" in scene.data else 2)
     if isinstance(dim, bool) or dim not in (2, 3):
         raise scene.error("dimension", f"unsupported dimension {dim!r} (2: planar, 3: spatial)")
     dim = int(dim)
@@ -308,7 +309,12 @@ def _build(data: dict, source: str) -> Mechanism:
         raise scene.error("gravity", f"expected a list of {dim} numbers with 'dimension' = "
                           f"{dim}, got {gravity!r} (planar scenes: dimension = 2, spatial "
                           "scenes: dimension = 3)")
-    if "urdf" in scene.data:  # the robot's bodies and joints from a URDF file (io/urdf.py)
+    if "mjcf" in scene.data:  # the robot from an MJCF file, compiled by MuJoCo (io/mjcf.py)
+        if dim != 3:
+            raise scene.error("dimension", "a scene with 'mjcf' is spatial (dimension = 3)")
+        mech = mjcf_scene(scene.data, source, name, coords, scene.vector("gravity", 3)
+                          if "gravity" in scene.data else None)
+    elif "urdf" in scene.data:  # the robot's bodies and joints from a URDF file (io/urdf.py)
         mech = urdf_scene(scene.data, source, name, coords, scene.vector("gravity", 3, default=[
             0.0, 0.0, -9.81]) if dim == 3 else None)
     else:
@@ -456,7 +462,7 @@ def _build(data: dict, source: str) -> Mechanism:
 
     if not mech.bodies:
         raise SceneError(f"{source}: the scene has no [[bodies]]")
-    tree = scene.data.get("tree", [])
+    tree = scene.data.get("tree", list(getattr(mech, "tree", None) or []))  # mjcf: its own
     if not isinstance(tree, list) or not all(isinstance(j, str) for j in tree):
         raise scene.error("tree", f"expected a list of joint names, got {tree!r}")
     unknown = [j for j in tree if j not in mech.joints]
@@ -539,8 +545,9 @@ def _file_keys(data: dict) -> list[tuple[tuple, str]]:
     ``[bodies.fe] file``."""
     out = []
     scene = data.get("scene")
-    if isinstance(scene, dict) and isinstance(scene.get("urdf"), str):
-        out.append((("scene", "urdf"), scene["urdf"]))
+    for key in ("urdf", "mjcf"):
+        if isinstance(scene, dict) and isinstance(scene.get(key), str):
+            out.append((("scene", key), scene[key]))
     bodies = data.get("bodies")
     for i, body in enumerate(bodies if isinstance(bodies, list) else []):
         fe = body.get("fe") if isinstance(body, dict) else None
@@ -611,11 +618,13 @@ def load_scene(path: str | os.PathLike) -> Mechanism:
     """Read a scene file and build its :class:`Mechanism` (see :func:`loads_scene`).
 
     A ``.urdf`` file is read as the scene ``[scene] urdf = "<file>"`` with joint coordinates
-    (:mod:`casmbd.io.urdf`), so results keep a scene text that reloads it."""
+    (:mod:`casmbd.io.urdf`), an ``.xml`` file as ``[scene] mjcf = "<file>"``
+    (:mod:`casmbd.io.mjcf`), so results keep a scene text that reloads it."""
     path = Path(path)
-    if path.suffix.lower() == ".urdf":
+    if path.suffix.lower() in (".urdf", ".xml"):  # a robot file: URDF or MJCF (io/mjcf.py)
+        key = "urdf" if path.suffix.lower() == ".urdf" else "mjcf"
         text = (f"[scene]\nname = {json.dumps(path.stem)}\ndimension = 3\n"
-                f"coordinates = \"joint\"\nurdf = {json.dumps(str(path.resolve()))}\n")
+                f"coordinates = \"joint\"\n{key} = {json.dumps(str(path.resolve()))}\n")
         return loads_scene(text, source=str(path))
     text = read_text(path, "scene")
     return loads_scene(text, source=str(path))
