@@ -170,9 +170,9 @@ def build_mjcf(model, mujoco, source: str = "<model>", coordinates: str = "joint
     mech = Mechanism(name or Path(source).stem or "mjcf", gravity=grav, dimension=3,
                      coordinates=coordinates)
 
-    def guarded(where: str, action):
+    def guarded(where: str, action, *args, **kwargs):
         try:
-            return action()
+            return action(*args, **kwargs)
         except SceneError:
             raise
         except CasmbdError as exc:
@@ -209,25 +209,24 @@ def build_mjcf(model, mujoco, source: str = "<model>", coordinates: str = "joint
                 raise SceneError(f"MJCF body '{bname}': the frame name '{fname}' of its "
                                  f"joint '{names['joint'][j]}' is taken")
             taken.add(fname)
-            guarded(f"body '{bname}'", lambda f=fname: mech.add_body(
-                f, 0.0, [0.0] * 6, origin, orientation=quaternion_from_matrix(rot)))
+            guarded(f"body '{bname}'", mech.add_body, fname, 0.0, [0.0] * 6, origin,
+                    orientation=quaternion_from_matrix(rot))
             frames.append(fname)
-        guarded(f"body '{bname}'", lambda: mech.add_body(
-            bname, mass, [local[0, 0], local[1, 1], local[2, 2], local[0, 1], local[0, 2],
-                          local[1, 2]], com, orientation=quaternion_from_matrix(rot)))
+        guarded(f"body '{bname}'", mech.add_body, bname, mass,
+                [local[0, 0], local[1, 1], local[2, 2], local[0, 1], local[0, 2], local[1, 2]],
+                com, orientation=quaternion_from_matrix(rot))
         chains[b] = [*frames, bname]
     for b in range(1, model.nbody):
         if group[b] != names["body"][b]:
             bname = names["body"][b]
-            guarded(f"body '{bname}'", lambda b=b, bname=bname: mech.add_marker(
-                bname, group[b], data.xpos[b].copy(),
-                orientation=data.xquat[b].copy()))
+            guarded(f"body '{bname}'", mech.add_marker, bname, group[b], data.xpos[b].copy(),
+                    orientation=data.xquat[b].copy())
     for s in range(model.nsite):
         sname = _name(model, obj.mjOBJ_SITE, s, "site", mujoco)
         body = int(model.site_bodyid[s])
-        guarded(f"site '{sname}'", lambda s=s, sname=sname, body=body: mech.add_marker(
-            sname, group[body], data.site_xpos[s].copy(),
-            orientation=quaternion_from_matrix(data.site_xmat[s].reshape(3, 3))))
+        guarded(f"site '{sname}'", mech.add_marker, sname, group[body],
+                data.site_xpos[s].copy(),
+                orientation=quaternion_from_matrix(data.site_xmat[s].reshape(3, 3)))
 
     mech.mjcf_joints = {}  # MuJoCo joint name -> MjcfJoint, in MuJoCo's joint order
     for b, chain in chains.items():
@@ -251,19 +250,19 @@ def build_mjcf(model, mujoco, source: str = "<model>", coordinates: str = "joint
                 continue
             point, axis = data.xanchor[j].copy(), data.xaxis[j].copy()
             if kind == "ball":
-                made = guarded(f"joint '{jname}'", lambda: mech.add(
-                    "spherical", jname, body1, chain[k], point))
+                made = guarded(f"joint '{jname}'", mech.add, "spherical", jname, body1,
+                               chain[k], point)
             else:
-                made = guarded(f"joint '{jname}'", lambda: mech.add(
-                    "revolute" if kind == "hinge" else "prismatic", jname, body1, chain[k],
-                    point, axis=axis))
+                made = guarded(f"joint '{jname}'", mech.add,
+                               "revolute" if kind == "hinge" else "prismatic", jname, body1,
+                               chain[k], point, axis=axis)
                 if model.jnt_limited[j]:
                     made.mjcf_range = tuple(float(x) for x in model.jnt_range[j])
                 dof = int(model.jnt_dofadr[j])
                 if damping and model.dof_damping[dof] > 0.0:
-                    guarded(f"joint '{jname}' attribute 'damping'", lambda: mech.add(
-                        "joint_friction", f"{jname}_damping", jname,
-                        damping=float(model.dof_damping[dof])))
+                    guarded(f"joint '{jname}' attribute 'damping'", mech.add,
+                            "joint_friction", f"{jname}_damping", jname,
+                            damping=float(model.dof_damping[dof]))
             made.mjcf_type = kind
     # MuJoCo's kinematic tree is the spanning tree (an equality always closes a loop)
     mech.tree = [e.joint for e in mech.mjcf_joints.values() if e.joint is not None]
@@ -303,7 +302,7 @@ def _equalities(model, mujoco, data, mech, group, names, guarded) -> None:
                                  f"'{names['body'][b1]}' and '{names['body'][b2]}' are "
                                  f"{gap:.3g} m apart at qpos0; casmbd closes loops in the "
                                  "design pose (assemble the model at qpos0)")
-            guarded(f"equality '{ename}'", lambda: mech.add("spherical", ename, g1, g2, p1))
+            guarded(f"equality '{ename}'", mech.add, "spherical", ename, g1, g2, p1)
         else:
             # weld: body2's frame relative to body1's is (relpose pos, quat) = d[3:6], d[6:10]
             rel_rot = _quat_matrix(d[6:10])
@@ -318,8 +317,8 @@ def _equalities(model, mujoco, data, mech, group, names, guarded) -> None:
             if float(d[10]) != 1.0:
                 raise _refuse(f"equality '{ename}' attribute 'torquescale'",
                               "a weld with torquescale other than 1")
-            guarded(f"equality '{ename}'", lambda: mech.add(
-                "fixed", ename, g1, g2, pos1 + rot1 @ d[0:3]))
+            guarded(f"equality '{ename}'", mech.add, "fixed", ename, g1, g2,
+                    pos1 + rot1 @ d[0:3])
 
 
 def _quat_matrix(quat) -> np.ndarray:
@@ -363,7 +362,7 @@ def _actuators(model, mujoco, mech, names, guarded) -> None:
             flo, fhi = float(model.actuator_gear[a, 0]) * model.actuator_forcerange[a]
             flo, fhi = sorted((flo, fhi))
             lo, hi = max(lo, flo), min(hi, fhi)
-        made = guarded(where, lambda: mech.add_actuator(aname, jname))
+        made = guarded(where, mech.add_actuator, aname, jname)
         made.bounds = (float(lo), float(hi))
         made.mjcf_gear = ratio
 

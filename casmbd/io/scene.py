@@ -49,8 +49,8 @@ from casmbd.analysis.events.events import MAX_EVENTS_LIMIT, SIMULATION_KEYS
 from casmbd.compiled.modal_cache import DISK_STORE
 from casmbd.errors import CasmbdError, ExpressionError, ModelError, SceneError
 from casmbd.io.files import read_text
-from casmbd.io.scene_points import ScenePoints
 from casmbd.io.mjcf import mjcf_scene
+from casmbd.io.scene_points import ScenePoints
 from casmbd.io.urdf import urdf_scene
 from casmbd.limits import (
     MAX_BODIES,
