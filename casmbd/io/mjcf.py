@@ -28,11 +28,12 @@ Mapping (see docs/robots.md, "MJCF"):
   root (position of the centre of mass and Euler parameters of the body frame, global).  A body
   with k > 1 joints gets k − 1 massless frames ``<body>__<joint>`` chained in MuJoCo's order
   (each later joint's axis turns with the earlier ones, as in MuJoCo's ``mj_kinematics``);
-* ``<equality connect>`` → a ``spherical`` joint at the anchor (a loop closure), ``<equality
-  weld>`` → a ``fixed`` joint; both must hold at ``qpos0`` (gap ≤ :data:`CLOSURE_TOLERANCE`),
-  else they are refused with the gap: casmbd joints are defined in the design pose, MuJoCo's
-  soft equalities pull a model together over time.  Inactive equalities (``active="false"``)
-  are left out with a warning;
+* ``<equality connect>`` → a ``spherical`` joint at the anchor, ``<equality weld>`` → a
+  ``rigid`` joint (a weld of two bodies), both loop closures (never joints of the spanning
+  tree: MuJoCo's tree is casmbd's); both must hold at ``qpos0`` (gap ≤
+  :data:`CLOSURE_TOLERANCE`), else they are refused with the gap: casmbd joints are defined
+  in the design pose, MuJoCo's soft equalities pull a model together over time.  Inactive
+  equalities (``active="false"``) are left out with a warning;
 * ``damping`` → a ``joint_friction`` element ``<joint>_damping`` (Q = −d q̇);
 * an actuator on a hinge or slide joint with a fixed gain and no bias or activation dynamics
   (``motor``, ``general`` with ``gainprm``) → an actuator on that joint; its input u is the
@@ -302,23 +303,25 @@ def _equalities(model, mujoco, data, mech, group, names, guarded) -> None:
                                  f"'{names['body'][b1]}' and '{names['body'][b2]}' are "
                                  f"{gap:.3g} m apart at qpos0; casmbd closes loops in the "
                                  "design pose (assemble the model at qpos0)")
-            guarded(f"equality '{ename}'", mech.add, "spherical", ename, g1, g2, p1)
+            made = guarded(f"equality '{ename}'", mech.add, "spherical", ename, g1, g2, p1)
         else:
-            # weld: body2's frame relative to body1's is (relpose pos, quat) = d[3:6], d[6:10]
-            rel_rot = _quat_matrix(d[6:10])
-            want_rot, want_pos = rot1 @ rel_rot, pos1 + rot1 @ d[3:6]
-            gap = max(float(np.linalg.norm(want_pos - pos2)),
-                      float(np.linalg.norm(want_rot - rot2)))
+            # weld (MuJoCo's mj_instantiateEquality): the anchor d[0:3] in body2's frame sits
+            # at d[3:6] in body1's frame, and body2's orientation is body1's times d[6:10]
+            point = pos2 + rot2 @ d[0:3]
+            gap = max(float(np.linalg.norm(pos1 + rot1 @ d[3:6] - point)),
+                      float(np.linalg.norm(rot1 @ _quat_matrix(d[6:10]) - rot2)))
             if gap > CLOSURE_TOLERANCE:
                 raise SceneError(f"MJCF equality '{ename}' (weld): body "
                                  f"'{names['body'][b2]}' is {gap:.3g} (m or rad) off its "
-                                 f"relative pose to '{names['body'][b1]}' at qpos0; casmbd "
-                                 "closes loops in the design pose")
-            if float(d[10]) != 1.0:
+                                 f"relative pose to '{names['body'][b1]}' (relpose) at qpos0; "
+                                 "casmbd closes loops in the design pose")
+            if float(d[10]) != 1.0:  # torquescale
                 raise _refuse(f"equality '{ename}' attribute 'torquescale'",
                               "a weld with torquescale other than 1")
-            guarded(f"equality '{ename}'", mech.add, "fixed", ename, g1, g2,
-                    pos1 + rot1 @ d[0:3])
+            made = guarded(f"equality '{ename}'", mech.add, "rigid", ename, g1, g2,
+                           point=point)
+        made.tree_joint = False  # a loop closure, as in MuJoCo: never a joint of the tree
+        made.mjcf_type = "connect" if etype == eq.mjEQ_CONNECT else "weld"
 
 
 def _quat_matrix(quat) -> np.ndarray:
