@@ -35,6 +35,12 @@ Mapping (see docs/robots.md, "MJCF"):
   in the design pose, MuJoCo's soft equalities pull a model together over time.  Inactive
   equalities (``active="false"``) are left out with a warning;
 * ``damping`` → a ``joint_friction`` element ``<joint>_damping`` (Q = −d q̇);
+* ``armature`` a of a hinge or slide (MuJoCo adds a to the diagonal of qM: T += ½ a q̇²) → a
+  rotor ``<joint>__rotor`` (mass 0, inertia (a, a/2, a/2)) turning on the ground about the
+  global x axis (revolute ``<joint>__rotor_axle``), geared 1:1 to the joint (gear
+  ``<joint>__armature``): its kinetic energy is ½ a q̇² exactly, with no gravity or gyroscopic
+  term (:func:`_armature`).  casmbd has no mass-matrix element kind; this uses existing
+  kinds, at the price of one coordinate and one gear equation per joint with armature;
 * an actuator on a hinge or slide joint with a fixed gain and no bias or activation dynamics
   (``motor``, ``general`` with ``gainprm``) → an actuator on that joint; its input u is the
   joint force gear·gain·ctrl (casmbd actuators are generalized forces), the ratio kept as
@@ -43,7 +49,8 @@ Mapping (see docs/robots.md, "MJCF"):
 Anything else that changes the dynamics is refused by name, the element and the attribute:
 tendons, flex, composites (compiled into tendons or flex), site-, body-, tendon- and
 slider-crank-transmission actuators, servo actuators (``position``, ``velocity``: a bias),
-activation dynamics, joint ``armature``, ``stiffness`` and ``frictionloss``, gravity
+activation dynamics, ``armature`` of ball and free joints, joint ``stiffness`` and
+``frictionloss``, gravity
 compensation, mocap bodies, fluid forces (``density``, ``viscosity``), plugins, and other
 equality types.  Geoms only give mass and inertia (MuJoCo's compiler); contacts, joint limits
 (kept as ``joint.mjcf_range``) and solver parameters are MuJoCo's constraint solver and are not
@@ -84,6 +91,7 @@ class MjcfJoint:
     qpos0: np.ndarray
     frame: np.ndarray
     offset: np.ndarray
+    rotor: str | None = None
 
 
 def _mujoco():
@@ -129,8 +137,8 @@ def _check_model(model, mujoco, names: dict) -> None:
         dof = int(model.jnt_dofadr[j])
         ndof = {0: 6, 1: 3}.get(int(model.jnt_type[j]), 1)
         where = f"joint '{names['joint'][j]}' attribute"
-        if np.any(model.dof_armature[dof:dof + ndof] != 0.0):
-            raise _refuse(f"{where} 'armature'", "a rotor inertia on the joint (armature)")
+        if ndof > 1 and np.any(model.dof_armature[dof:dof + ndof] != 0.0):
+            raise _refuse(f"{where} 'armature'", "armature on a ball or free joint")
         if np.any(model.dof_frictionloss[dof:dof + ndof] != 0.0):
             raise _refuse(f"{where} 'frictionloss'", "dry friction (a MuJoCo constraint)")
         if float(model.jnt_stiffness[j]) != 0.0:
@@ -190,7 +198,7 @@ def build_mjcf(model, mujoco, source: str = "<model>", coordinates: str = "joint
         parts.setdefault(group[b], []).append(
             (float(model.body_mass[b]), data.xipos[b].copy(),
              rot_i @ np.diag(model.body_inertia[b]) @ rot_i.T))
-    taken = set(names["body"])
+    taken = set(names["body"]) | set(names["joint"])
     chains: dict[int, list[str]] = {}  # body id -> casmbd bodies its joints connect
     for b in range(1, model.nbody):
         if model.body_jntnum[b] == 0:
@@ -264,12 +272,38 @@ def build_mjcf(model, mujoco, source: str = "<model>", coordinates: str = "joint
                     guarded(f"joint '{jname}' attribute 'damping'", mech.add,
                             "joint_friction", f"{jname}_damping", jname,
                             damping=float(model.dof_damping[dof]))
+                if model.dof_armature[dof] > 0.0:
+                    entry.rotor = _armature(mech, jname, float(model.dof_armature[dof]),
+                                            guarded, taken)
             made.mjcf_type = kind
     # MuJoCo's kinematic tree is the spanning tree (an equality always closes a loop)
-    mech.tree = [e.joint for e in mech.mjcf_joints.values() if e.joint is not None]
+    mech.tree = [j for e in mech.mjcf_joints.values() for j in (e.joint, e.rotor)
+                 if j is not None]
     _equalities(model, mujoco, data, mech, group, names, guarded)
     _actuators(model, mujoco, mech, names, guarded)
     return mech
+
+
+def _armature(mech, joint: str, armature: float, guarded, taken: set) -> str:
+    """MuJoCo's joint armature a (T += ½ a q̇², M_jj += a) as a rotor: a body
+    ``<joint>__rotor`` of mass 0 turning on the ground about the global x axis through the
+    origin (revolute joint ``<joint>__rotor_axle``), inertia (a, a/2, a/2) about its centre
+    (a disc), geared 1:1 to the joint's coordinate (gear ``<joint>__armature``).  Its angular
+    velocity is q̇ x̂ and its centre does not move, so its kinetic energy is ½ a q̇² exactly
+    and it adds no gravity and no gyroscopic term.  Returns the rotor's joint."""
+    rotor, axle = f"{joint}__rotor", f"{joint}__rotor_axle"
+    for made in (rotor, axle, f"{joint}__armature"):
+        if made in taken:
+            raise SceneError(f"MJCF joint '{joint}' attribute 'armature': the name '{made}' "
+                             "of its rotor is taken")
+        taken.add(made)
+    where = f"joint '{joint}' attribute 'armature'"
+    guarded(where, mech.add_body, rotor, 0.0, [armature, armature / 2, armature / 2],
+            [0.0, 0.0, 0.0])
+    guarded(where, mech.add, "revolute", axle, GROUND, rotor, [0.0, 0.0, 0.0],
+            axis=[1.0, 0.0, 0.0])
+    guarded(where, mech.add_gear, f"{joint}__armature", joint, axle, ratio=1.0)
+    return axle
 
 
 def _equalities(model, mujoco, data, mech, group, names, guarded) -> None:
@@ -466,6 +500,9 @@ def from_mujoco(mech: Mechanism, coordinate_names: Sequence[str], qpos, qvel):
         if e.kind in ("hinge", "slide"):
             i = index[f"{e.joint}.{'angle' if e.kind == 'hinge' else 'translation'}"]
             q[i], bmat[i, d] = qpos[a] - e.qpos0[0], 1.0
+            if e.rotor is not None:  # the armature's rotor turns with the joint (gear 1:1)
+                i = index[f"{e.rotor}.angle"]
+                q[i], bmat[i, d] = qpos[a] - e.qpos0[0], 1.0
             continue
         if e.kind == "ball":
             quat = qpos[a:a + 4] / np.linalg.norm(qpos[a:a + 4])

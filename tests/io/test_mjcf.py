@@ -256,15 +256,20 @@ def test_actuators_keep_mujocos_joint_force(loaded):
 
 def test_mapping_of_the_arm():
     """Multi-joint bodies become chained massless frames; a joint-less body merges into its
-    parent and stays a marker; dampers become joint_friction elements."""
+    parent and stays a marker; dampers become joint_friction elements; armature a rotor of
+    inertia a about its axle, geared 1:1 to the joint (its share of qM is checked above)."""
     mech = load_mjcf(HERE / "arm7.xml")
     assert list(mech.bodies) == ["base", "shoulder", "upper", "elbow", "forearm__j5",
-                                 "forearm", "wrist__j6", "wrist"]
+                                 "forearm", "wrist__j6", "wrist", "j2__rotor", "extend__rotor",
+                                 "j6__rotor", "j7__rotor"]  # armature: rotors geared 1:1
     assert mech.bodies["forearm__j5"].mass == 0.0
     assert {"tool", "wrist_site", "tcp"} <= set(mech.markers)
     assert mech.forces["extend_damping"].damping == 2.0
     assert mech.forces["j6_damping"].damping == 0.05  # the 'wrist' default class
     assert mech.joints["j1"].mjcf_range == (-3.0, 3.0)
+    assert tuple(mech.bodies["j6__rotor"].inertia) == (0.02, 0.01, 0.01)  # class "wrist"
+    gear = mech.joints["extend__armature"]
+    assert (gear.joint1, gear.joint2, gear.ratio) == ("extend", "extend__rotor_axle", 1.0)
     wrist = mujoco.MjModel.from_xml_path(str(HERE / "arm7.xml"))
     wid, tid = wrist.body("wrist").id, wrist.body("tool").id
     assert mech.bodies["wrist"].mass == pytest.approx(
@@ -275,7 +280,7 @@ def test_mapping_of_the_arm():
 _REFUSED = {
     "tendon": ("<tendon><fixed name='t'><joint joint='a' coef='1'/></fixed></tendon>",
                "tendon 't'"),
-    "armature": ("", "joint 'a' attribute 'armature'", "armature='0.1'"),
+    "armature": ("", "joint 'a' attribute 'armature'", "type='ball' armature='0.1'"),
     "frictionloss": ("", "joint 'a' attribute 'frictionloss'", "frictionloss='0.1'"),
     "stiffness": ("", "joint 'a' attribute 'stiffness'", "stiffness='3'"),
     "servo": ("<actuator><position name='p' joint='a' kp='10'/></actuator>",
