@@ -36,11 +36,12 @@ Mapping (see docs/robots.md, "MJCF"):
   equalities (``active="false"``) are left out with a warning;
 * ``damping`` → a ``joint_friction`` element ``<joint>_damping`` (Q = −d q̇);
 * ``armature`` a of a hinge or slide (MuJoCo adds a to the diagonal of qM: T += ½ a q̇²) → a
-  rotor ``<joint>__rotor`` (mass 0, inertia (a, a/2, a/2)) turning on the ground about the
-  global x axis (revolute ``<joint>__rotor_axle``), geared 1:1 to the joint (gear
-  ``<joint>__armature``): its kinetic energy is ½ a q̇² exactly, with no gravity or gyroscopic
-  term (:func:`_armature`).  casmbd has no mass-matrix element kind; this uses existing
-  kinds, at the price of one coordinate and one gear equation per joint with armature;
+  rotor ``<joint>__rotor`` on the ground geared 1:1 to the joint (gear ``<joint>__armature``,
+  joint ``<joint>__rotor_joint``): a disc of inertia (a, a/2, a/2) about the global x axis
+  for a hinge, a point mass a sliding normal to gravity for a slide, so its kinetic energy is
+  ½ a q̇² exactly, with no gravity or gyroscopic term (:func:`_armature`).  casmbd has no
+  mass-matrix element kind; this uses existing kinds, at the price of one coordinate and one
+  gear equation per joint with armature;
 * an actuator on a hinge or slide joint with a fixed gain and no bias or activation dynamics
   (``motor``, ``general`` with ``gainprm``) → an actuator on that joint; its input u is the
   joint force gear·gain·ctrl (casmbd actuators are generalized forces), the ratio kept as
@@ -91,6 +92,7 @@ class MjcfJoint:
     qpos0: np.ndarray
     frame: np.ndarray
     offset: np.ndarray
+    #: the coordinate of its armature's rotor (hinge, slide), geared 1:1 to the joint
     rotor: str | None = None
 
 
@@ -273,37 +275,49 @@ def build_mjcf(model, mujoco, source: str = "<model>", coordinates: str = "joint
                             "joint_friction", f"{jname}_damping", jname,
                             damping=float(model.dof_damping[dof]))
                 if model.dof_armature[dof] > 0.0:
-                    entry.rotor = _armature(mech, jname, float(model.dof_armature[dof]),
+                    entry.rotor = _armature(mech, jname, kind, float(model.dof_armature[dof]),
                                             guarded, taken)
             made.mjcf_type = kind
     # MuJoCo's kinematic tree is the spanning tree (an equality always closes a loop)
-    mech.tree = [j for e in mech.mjcf_joints.values() for j in (e.joint, e.rotor)
-                 if j is not None]
+    mech.tree = [j for e in mech.mjcf_joints.values()
+                 for j in (e.joint, e.rotor and e.rotor.split(".")[0]) if j is not None]
     _equalities(model, mujoco, data, mech, group, names, guarded)
     _actuators(model, mujoco, mech, names, guarded)
     return mech
 
 
-def _armature(mech, joint: str, armature: float, guarded, taken: set) -> str:
-    """MuJoCo's joint armature a (T += ½ a q̇², M_jj += a) as a rotor: a body
-    ``<joint>__rotor`` of mass 0 turning on the ground about the global x axis through the
-    origin (revolute joint ``<joint>__rotor_axle``), inertia (a, a/2, a/2) about its centre
-    (a disc), geared 1:1 to the joint's coordinate (gear ``<joint>__armature``).  Its angular
-    velocity is q̇ x̂ and its centre does not move, so its kinetic energy is ½ a q̇² exactly
-    and it adds no gravity and no gyroscopic term.  Returns the rotor's joint."""
-    rotor, axle = f"{joint}__rotor", f"{joint}__rotor_axle"
-    for made in (rotor, axle, f"{joint}__armature"):
+def _armature(mech, joint: str, kind: str, armature: float, guarded, taken: set) -> str:
+    """MuJoCo's armature a of a hinge or slide (T += ½ a q̇², M_jj += a) from existing kinds:
+    a body ``<joint>__rotor`` on the ground geared 1:1 to the joint (gear
+    ``<joint>__armature``).  A hinge's rotor turns about the global x axis through the origin
+    (revolute ``<joint>__rotor_joint``), mass 0 and inertia (a, a/2, a/2): its centre does not
+    move and it spins about a principal axis, so T = ½ a q̇² with no gravity or gyroscopic
+    term.  A slide's is a point mass a sliding along a fixed axis normal to gravity (prismatic
+    ``<joint>__rotor_joint``): T = ½ a q̇², and its weight does no work.  Returns the rotor's
+    coordinate name (``<joint>__rotor_joint.angle`` or ``.translation``)."""
+    rotor, guide = f"{joint}__rotor", f"{joint}__rotor_joint"
+    for made in (rotor, guide, f"{joint}__armature"):
         if made in taken:
             raise SceneError(f"MJCF joint '{joint}' attribute 'armature': the name '{made}' "
                              "of its rotor is taken")
         taken.add(made)
     where = f"joint '{joint}' attribute 'armature'"
-    guarded(where, mech.add_body, rotor, 0.0, [armature, armature / 2, armature / 2],
-            [0.0, 0.0, 0.0])
-    guarded(where, mech.add, "revolute", axle, GROUND, rotor, [0.0, 0.0, 0.0],
-            axis=[1.0, 0.0, 0.0])
-    guarded(where, mech.add_gear, f"{joint}__armature", joint, axle, ratio=1.0)
-    return axle
+    origin = [0.0, 0.0, 0.0]
+    if kind == "hinge":
+        guarded(where, mech.add_body, rotor, 0.0, [armature, armature / 2, armature / 2],
+                origin)
+        guarded(where, mech.add, "revolute", guide, GROUND, rotor, origin, axis=[1, 0, 0])
+    else:
+        gravity = np.asarray(mech.gravity, float)
+        axis = np.cross(gravity, [1.0, 0.0, 0.0]) if np.any(gravity) else np.array([1.0, 0, 0])
+        if np.linalg.norm(axis) < 1e-9 * max(1.0, np.linalg.norm(gravity)):
+            axis = np.cross(gravity, [0.0, 1.0, 0.0])
+        guarded(where, mech.add_body, rotor, armature, [0.0, 0.0, 0.0], origin)
+        guarded(where, mech.add, "prismatic", guide, GROUND, rotor, origin,
+                axis=axis / np.linalg.norm(axis))
+    guarded(where, mech.add_gear, f"{joint}__armature", joint, guide, ratio=1.0)
+    coordinate = mech.joints[guide].coordinate_names[0]
+    return f"{guide}.{coordinate}"
 
 
 def _equalities(model, mujoco, data, mech, group, names, guarded) -> None:
@@ -501,7 +515,7 @@ def from_mujoco(mech: Mechanism, coordinate_names: Sequence[str], qpos, qvel):
             i = index[f"{e.joint}.{'angle' if e.kind == 'hinge' else 'translation'}"]
             q[i], bmat[i, d] = qpos[a] - e.qpos0[0], 1.0
             if e.rotor is not None:  # the armature's rotor turns with the joint (gear 1:1)
-                i = index[f"{e.rotor}.angle"]
+                i = index[e.rotor]
                 q[i], bmat[i, d] = qpos[a] - e.qpos0[0], 1.0
             continue
         if e.kind == "ball":

@@ -269,7 +269,9 @@ def test_mapping_of_the_arm():
     assert mech.joints["j1"].mjcf_range == (-3.0, 3.0)
     assert tuple(mech.bodies["j6__rotor"].inertia) == (0.02, 0.01, 0.01)  # class "wrist"
     gear = mech.joints["extend__armature"]
-    assert (gear.joint1, gear.joint2, gear.ratio) == ("extend", "extend__rotor_axle", 1.0)
+    assert (gear.joint1, gear.joint2, gear.ratio) == ("extend", "extend__rotor_joint", 1.0)
+    assert mech.bodies["extend__rotor"].mass == 0.5  # a slide's: a point mass normal to g
+    assert abs(mech.joints["extend__rotor_joint"].axis @ mech.gravity) <= 1e-15
     wrist = mujoco.MjModel.from_xml_path(str(HERE / "arm7.xml"))
     wid, tid = wrist.body("wrist").id, wrist.body("tool").id
     assert mech.bodies["wrist"].mass == pytest.approx(
