@@ -68,7 +68,7 @@ from pathlib import Path
 
 import numpy as np
 
-from casmbd.errors import CasmbdError, SceneError
+from casmbd.errors import CasmbdError, ModelError, SceneError
 from casmbd.io.urdf_tree import merge
 from casmbd.model import Mechanism
 from casmbd.model.bodies import GROUND
@@ -504,12 +504,25 @@ def from_mujoco(mech: Mechanism, coordinate_names: Sequence[str], qpos, qvel):
 
     ``coordinate_names``: the compiled model's (``CompiledModel.coordinate_names``).
     """
-    qpos, qvel = np.asarray(qpos, float), np.asarray(qvel, float)
+    joints = getattr(mech, "mjcf_joints", None)
+    if joints is None:
+        raise ModelError(f"from_mujoco: mechanism '{mech.name}' was not loaded from MJCF")
+    qpos, qvel = np.asarray(qpos, float).ravel(), np.asarray(qvel, float).ravel()
+    nq = sum({"free": 7, "ball": 4}.get(e.kind, 1) for e in joints.values())
+    nv = sum({"free": 6, "ball": 3}.get(e.kind, 1) for e in joints.values())
+    if qpos.size != nq or qvel.size != nv:
+        raise ModelError(f"from_mujoco: expected qpos of length nq = {nq} and qvel of length "
+                         f"nv = {nv}, got {qpos.size} and {qvel.size}")
     index = {n: i for i, n in enumerate(coordinate_names)}
     n = len(coordinate_names)
-    nv = sum({"free": 6, "ball": 3}.get(e.kind, 1) for e in mech.mjcf_joints.values())
+    want = [f"{e.joint}.{'angle' if e.kind == 'hinge' else 'translation'}"
+            for e in joints.values() if e.kind in ("hinge", "slide")]
+    missing = [c for c in want if c not in index]
+    if missing:
+        raise ModelError(f"from_mujoco: coordinate '{missing[0]}' is not among the model's "
+                         "(compile the mechanism in joint coordinates)")
     q, bmat, c = np.zeros(n), np.zeros((n, nv)), np.zeros(n)
-    for e in mech.mjcf_joints.values():
+    for e in joints.values():
         a, d = e.qposadr, e.dofadr
         if e.kind in ("hinge", "slide"):
             i = index[f"{e.joint}.{'angle' if e.kind == 'hinge' else 'translation'}"]

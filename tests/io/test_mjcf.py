@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from casmbd.errors import SceneError
+from casmbd.errors import ModelError, SceneError
 
 mujoco = pytest.importorskip("mujoco")
 
@@ -308,7 +308,7 @@ def test_unmappable_parts_are_refused_by_name(tmp_path, case):
         load_mjcf(path)
 
 
-def test_bad_files_get_named_errors(tmp_path, monkeypatch):
+def test_bad_files_get_named_errors(loaded, tmp_path, monkeypatch):
     with pytest.raises(SceneError, match="not found"):
         load_mjcf(tmp_path / "missing.xml")
     (tmp_path / "bad.xml").write_text("<mujoco><worldbody><body>")
@@ -318,6 +318,11 @@ def test_bad_files_get_named_errors(tmp_path, monkeypatch):
                                     "<geom size='.1'/></body></worldbody></mujoco>")
     with pytest.raises(SceneError, match=r"body 'ground'.*reserved"):
         load_mjcf(tmp_path / "g.xml")
+    mech, arm, _ = loaded["double_pendulum"]
+    with pytest.raises(ModelError, match="nq = 2 and qvel of length nv = 2, got 3 and 2"):
+        from_mujoco(mech, arm.coordinate_names, [0.0] * 3, [0.0] * 2)
+    with pytest.raises(ModelError, match="joint coordinates"):
+        from_mujoco(mech, ["link1.x"], [0.0] * 2, [0.0] * 2)
     monkeypatch.setitem(sys.modules, "mujoco", None)
     with pytest.raises(SceneError, match=r"casmbd\[mjcf\]"):
         load_mjcf(HERE / "arm7.xml")
