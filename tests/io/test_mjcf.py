@@ -291,15 +291,18 @@ _REFUSED = {
              "actuator 's' attribute 'site'"),
     "joint_equality": ("<equality><joint name='e' joint1='a' joint2='b'/></equality>",
                        "equality 'e'"),
+    "nested_free": ("", "m.xml': Error: free joint can only be used on top level\nElement "
+                    "name 'l3'", "",  # MuJoCo's own message
+                    "<body name='l3'><freejoint name='f'/><geom size='0.1'/></body>"),
 }
 
 
 @pytest.mark.parametrize("case", sorted(_REFUSED))
 def test_unmappable_parts_are_refused_by_name(tmp_path, case):
-    extra, match, *attr = _REFUSED[case]
-    attr = attr[0] if attr else ""
+    extra, match, *more = _REFUSED[case]
+    attr, child = (*more, "", "")[:2]
     xml = (f"<mujoco><worldbody><body name='l1'><joint name='a' axis='0 1 0' {attr}/>"
-           "<geom size='0.1' mass='1'/><site name='s'/><body name='l2' pos='0 0 -1'>"
+           f"<geom size='0.1' mass='1'/><site name='s'/>{child}<body name='l2' pos='0 0 -1'>"
            "<joint name='b' axis='0 1 0'/><geom size='0.1' mass='1'/></body></body>"
            f"</worldbody>{extra}</mujoco>")
     path = tmp_path / "m.xml"
@@ -326,6 +329,24 @@ def test_bad_files_get_named_errors(loaded, tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "mujoco", None)
     with pytest.raises(SceneError, match=r"casmbd\[mjcf\]"):
         load_mjcf(HERE / "arm7.xml")
+
+
+def test_equalities_must_hold_in_the_design_pose(tmp_path):
+    """A weld whose relpose is not met at qpos0 is refused with the gap; an inactive equality
+    is left out with a warning."""
+    arm = ("<mujoco><worldbody><body name='a'><joint name='j' axis='0 1 0'/>"
+           "<geom size='0.1' mass='1'/></body><body name='b' pos='1 0 0'><joint name='k' "
+           "axis='0 1 0'/><geom size='0.1' mass='1'/></body></worldbody><equality>{}"
+           "</equality></mujoco>")
+    path = tmp_path / "w.xml"
+    path.write_text(arm.format("<weld name='w' body1='a' body2='b' relpose='0.5 0 0 1 0 0 0'/>"))
+    with pytest.raises(SceneError, match=r"equality 'w' \(weld\): body 'b' is 0\.5 "):
+        load_mjcf(path)
+    path.write_text(arm.format("<connect name='c' body1='a' body2='b' anchor='1 0 0' "
+                               "active='false'/>"))
+    with pytest.warns(RuntimeWarning, match="equality 'c' is inactive"):
+        mech = load_mjcf(path)
+    assert "c" not in mech.joints
 
 
 # ---------------------------------------------------------------- scene files and CLI
