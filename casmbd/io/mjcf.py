@@ -53,7 +53,8 @@ slider-crank-transmission actuators, servo actuators (``position``, ``velocity``
 activation dynamics, ``armature`` of ball and free joints, joint ``stiffness`` and
 ``frictionloss``, gravity
 compensation, mocap bodies, fluid forces (``density``, ``viscosity``), plugins, and other
-equality types.  Geoms only give mass and inertia (MuJoCo's compiler); contacts, joint limits
+equality types.  Geoms give mass and inertia (MuJoCo's compiler) and the visuals of the 3-D
+view (:func:`_geom_visuals`), no contact; contacts, joint limits
 (kept as ``joint.mjcf_range``) and solver parameters are MuJoCo's constraint solver and are not
 modelled.
 """
@@ -73,6 +74,7 @@ from casmbd.io.urdf_tree import merge
 from casmbd.model import Mechanism
 from casmbd.model.bodies import GROUND
 from casmbd.model.rotations import quaternion_from_matrix
+from casmbd.model.visuals import Visual
 
 #: how closely an equality's two sides must meet at ``qpos0`` (m, and rad for a weld)
 CLOSURE_TOLERANCE = 1e-9
@@ -202,6 +204,7 @@ def build_mjcf(model, mujoco, source: str = "<model>", coordinates: str = "joint
              rot_i @ np.diag(model.body_inertia[b]) @ rot_i.T))
     taken = set(names["body"]) | set(names["joint"])
     chains: dict[int, list[str]] = {}  # body id -> casmbd bodies its joints connect
+    poses = {GROUND: (np.eye(3), np.zeros(3))}  # casmbd body -> rotation, centre of mass
     for b in range(1, model.nbody):
         if model.body_jntnum[b] == 0:
             continue
@@ -227,6 +230,7 @@ def build_mjcf(model, mujoco, source: str = "<model>", coordinates: str = "joint
                 [local[0, 0], local[1, 1], local[2, 2], local[0, 1], local[0, 2], local[1, 2]],
                 com, orientation=quaternion_from_matrix(rot))
         chains[b] = [*frames, bname]
+        poses[bname] = (rot, com)
     for b in range(1, model.nbody):
         if group[b] != names["body"][b]:
             bname = names["body"][b]
@@ -239,6 +243,7 @@ def build_mjcf(model, mujoco, source: str = "<model>", coordinates: str = "joint
                 data.site_xpos[s].copy(),
                 orientation=quaternion_from_matrix(data.site_xmat[s].reshape(3, 3)))
 
+    mech.visuals = _geom_visuals(model, mujoco, data, group, poses)
     mech.mjcf_joints = {}  # MuJoCo joint name -> MjcfJoint, in MuJoCo's joint order
     for b, chain in chains.items():
         parent = group[int(model.body_parentid[b])]
@@ -284,6 +289,41 @@ def build_mjcf(model, mujoco, source: str = "<model>", coordinates: str = "joint
     _equalities(model, mujoco, data, mech, group, names, guarded)
     _actuators(model, mujoco, mech, names, guarded)
     return mech
+
+
+#: MuJoCo geom type -> (visual kind, size from MuJoCo's size: half-sizes, radius, half-length)
+_GEOM_VISUALS = {
+    "SPHERE": ("sphere", lambda z: (z[0],)),
+    "BOX": ("box", lambda z: (2 * z[0], 2 * z[1], 2 * z[2])),
+    "CYLINDER": ("cylinder", lambda z: (z[0], 2 * z[1])),
+    "CAPSULE": ("cylinder", lambda z: (z[0], 2 * (z[1] + z[0]))),  # drawn as its hull
+    "ELLIPSOID": ("box", lambda z: (2 * z[0], 2 * z[1], 2 * z[2])),  # drawn as its box
+}
+
+
+def _geom_visuals(model, mujoco, data, group, poses) -> dict:
+    """Geoms as visuals for the 3-D view (body name or ``"ground"`` → tuple of
+    :class:`~casmbd.model.visuals.Visual`), posed in the body frame at ``qpos0``:
+    u = Aᵀ (``geom_xpos`` − r_G), axes Aᵀ ``geom_xmat``.  Spheres, boxes and cylinders as they
+    are; a capsule as the cylinder that holds it, an ellipsoid as its box; planes, meshes,
+    height fields and SDFs are not drawn.  Geoms change nothing computed (MuJoCo's compiler
+    already folded their mass into the bodies)."""
+    out: dict[str, list] = {}
+    for g in range(model.ngeom):
+        kind = mujoco.mjtGeom(int(model.geom_type[g])).name.removeprefix("mjGEOM_")
+        if kind not in _GEOM_VISUALS:
+            continue
+        body = group[int(model.geom_bodyid[g])]
+        rot, com = poses[body]
+        shape, size = _GEOM_VISUALS[kind]
+        gname = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or f"geom{g}"
+        out.setdefault(body, []).append(Visual(
+            shape, tuple(float(x) for x in size(model.geom_size[g])),
+            rot.T @ (data.geom_xpos[g] - com), rot.T @ data.geom_xmat[g].reshape(3, 3),
+            None, "", np.ones(3), tuple(float(c) for c in model.geom_rgba[g]), gname,
+            mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_BODY,
+                              int(model.geom_bodyid[g])) or GROUND))
+    return {body: tuple(v) for body, v in out.items()}
 
 
 def _armature(mech, joint: str, kind: str, armature: float, guarded, taken: set) -> str:

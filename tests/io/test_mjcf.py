@@ -9,8 +9,9 @@ with ``mj_forward`` run with contacts and the constraint solver disabled:
 * bias         Bᵀ (M c + b) = qfrc_bias − qfrc_passive          1e-10 relative (b holds the
   joint dampers, which MuJoCo counts as passive forces, so both sides carry them once);
 * acceleration B⁺ (q̈ − c) = qacc (τ = 0)                       1e-9 relative to max |qacc|;
-* every body's centre of mass and frame and every site against ``xipos``, ``xmat``,
-  ``site_xpos``, ``site_xmat``                                  1e-12.
+* every body's centre of mass and frame, every site and every geom drawn as a visual
+  against ``xipos``, ``xmat``, ``site_xpos``, ``site_xmat``, ``geom_xpos``, ``geom_xmat``
+                                                                1e-12.
 
 The closed loop (``<equality connect>``): MuJoCo's equality is soft (solref/solimp, and it is
 a constraint of its solver), casmbd's is exact.  So the tree parts are compared as above, the
@@ -126,6 +127,15 @@ def test_frames_and_sites_agree_with_mujoco(loaded, name):
             <= 1e-12
         if body in mech.markers:  # a welded body: its frame origin
             assert np.abs(pos[row[body]] - data.xpos[b]).max() <= 1e-12
+    drawn = {v.name: (body, v) for body, vs in mech.visuals.items() for v in vs}
+    assert len(drawn) == sum(model.geom_type != mujoco.mjtGeom.mjGEOM_PLANE)
+    for g in range(model.ngeom):  # geoms drawn: placed by the body, r_G + A u, axes A R_v
+        if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_PLANE:
+            continue
+        body, vis = drawn[model.geom(g).name or f"geom{g}"]
+        axes = rot[row[body]].reshape(3, 3)
+        assert np.abs(pos[row[body]] + axes @ vis.position - data.geom_xpos[g]).max() <= 1e-12
+        assert np.abs(axes @ vis.rotation - data.geom_xmat[g].reshape(3, 3)).max() <= 1e-12
     for s in range(model.nsite):
         site = model.site(s).name
         assert np.abs(pos[row[site]] - data.site_xpos[s]).max() <= 1e-12
