@@ -114,7 +114,7 @@ def build_parser() -> argparse.ArgumentParser:
     for name, spec in VERB_PARSERS.items():
         p = sub.add_parser(name, help=spec.help)
         if spec.shared and spec.scene:
-            p.add_argument("scene", help="scene file (TOML), or a robot file (.urdf, MJCF .xml)")
+            p.add_argument("scene", help="scene file (TOML)")
             add_output_flags(p)
             add_mode_flag(p)
         elif spec.shared:
