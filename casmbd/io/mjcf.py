@@ -231,6 +231,9 @@ def build_mjcf(model, mujoco, source: str = "<model>", coordinates: str = "joint
                 com, orientation=quaternion_from_matrix(rot))
         chains[b] = [*frames, bname]
         poses[bname] = (rot, com)
+    if not mech.bodies:
+        raise SceneError(f"MJCF file '{source}': no body moves (every body is welded to the "
+                         "world: give one a joint or a <freejoint>)")
     for b in range(1, model.nbody):
         if group[b] != names["body"][b]:
             bname = names["body"][b]
