@@ -331,7 +331,7 @@ def test_bad_files_get_named_errors(loaded, tmp_path, monkeypatch):
         load_mjcf(tmp_path / "g.xml")
     (tmp_path / "still.xml").write_text("<mujoco><worldbody><body name='b'><geom size='.1'/>"
                                         "</body></worldbody></mujoco>")
-    with pytest.raises(SceneError, match="still.xml': no body moves"):
+    with pytest.raises(SceneError, match=r"still\.xml': no body moves"):
         load_mjcf(tmp_path / "still.xml")
     mech, arm, _ = loaded["double_pendulum"]
     with pytest.raises(ModelError, match="nq = 2 and qvel of length nv = 2, got 3 and 2"):
