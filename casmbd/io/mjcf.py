@@ -179,7 +179,11 @@ def build_mjcf(model, mujoco, source: str = "<model>", coordinates: str = "joint
                              "reserved for casmbd's ground (MuJoCo's worldbody)")
     _check_model(model, mujoco, names)
     data = _design_pose(model, mujoco)
-    grav = tuple(float(g) for g in (model.opt.gravity if gravity is None else gravity))
+    off = mujoco.mjtDisableBit  # <option><flag gravity="disable" damper="disable"/>
+    file_gravity = (np.zeros(3) if model.opt.disableflags & off.mjDSBL_GRAVITY
+                    else model.opt.gravity)
+    damping = damping and not model.opt.disableflags & off.mjDSBL_DAMPER
+    grav = tuple(float(g) for g in (file_gravity if gravity is None else gravity))
     mech = Mechanism(name or Path(source).stem or "mjcf", gravity=grav, dimension=3,
                      coordinates=coordinates)
 
@@ -475,9 +479,11 @@ def load_mjcf(path: str | os.PathLike, coordinates: str = "joint", damping: bool
     coordinates : {"joint", "absolute", "natural"}
         The mechanism's default coordinates.
     damping : bool
-        Apply the joints' ``damping`` as viscous joint forces (default True, as MuJoCo does).
+        Apply the joints' ``damping`` as viscous joint forces (default True, as MuJoCo does
+        unless the file's ``<flag damper="disable">``).
     gravity : 3 floats, optional
-        Default: the file's ``<option gravity>`` (MuJoCo's default (0, 0, −9.81)).
+        Default: the file's ``<option gravity>`` (MuJoCo's default (0, 0, −9.81); zero with
+        ``<flag gravity="disable">``).
     name : str, optional
         Mechanism name, default the file's stem.
 

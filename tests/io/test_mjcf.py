@@ -319,7 +319,7 @@ def test_unmappable_parts_are_refused_by_name(tmp_path, case):
         load_mjcf(path)
 
 
-def test_bad_files_get_named_errors(loaded, tmp_path, monkeypatch):
+def test_bad_files_and_flags(loaded, tmp_path, monkeypatch):
     with pytest.raises(SceneError, match="not found"):
         load_mjcf(tmp_path / "missing.xml")
     (tmp_path / "bad.xml").write_text("<mujoco><worldbody><body>")
@@ -333,6 +333,12 @@ def test_bad_files_get_named_errors(loaded, tmp_path, monkeypatch):
                                         "</body></worldbody></mujoco>")
     with pytest.raises(SceneError, match=r"still\.xml': no body moves"):
         load_mjcf(tmp_path / "still.xml")
+    flags = (HERE / "double_pendulum.xml").read_text().replace(
+        '<option gravity="0 0 -9.81"/>',
+        '<option gravity="0 0 -9.81"><flag gravity="disable" damper="disable"/></option>')
+    (tmp_path / "flags.xml").write_text(flags)
+    off = load_mjcf(tmp_path / "flags.xml")
+    assert tuple(off.gravity) == (0.0, 0.0, 0.0) and not off.forces
     mech, arm, _ = loaded["double_pendulum"]
     with pytest.raises(ModelError, match="nq = 2 and qvel of length nv = 2, got 3 and 2"):
         from_mujoco(mech, arm.coordinate_names, [0.0] * 3, [0.0] * 2)
