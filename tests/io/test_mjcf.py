@@ -9,6 +9,7 @@ with ``mj_forward`` run with contacts and the constraint solver disabled:
 * bias         Bᵀ (M c + b) = qfrc_bias − qfrc_passive          1e-10 relative (b holds the
   joint dampers, which MuJoCo counts as passive forces, so both sides carry them once);
 * acceleration B⁺ (q̈ − c) = qacc (τ = 0)                       1e-9 relative to max |qacc|;
+* inverse dynamics Bᵀ τ = qfrc_inverse (``mj_inverse``)           1e-10 relative;
 * every body's centre of mass and frame, every site and every geom drawn as a visual
   against ``xipos``, ``xmat``, ``site_xpos``, ``site_xmat``, ``geom_xpos``, ``geom_xmat``
                                                                 1e-12.
@@ -100,6 +101,24 @@ def test_rigid_body_dynamics_agree_with_mujoco(loaded, name):
         qdd = arm.forward_dynamics(q, v, np.zeros(arm.nq))
         qacc = np.linalg.lstsq(bmat, qdd - c, rcond=None)[0]
         assert np.abs(qacc - data.qacc).max() <= 1e-9 * max(1.0, np.abs(data.qacc).max())
+
+
+@pytest.mark.parametrize("name", [m for m in MODELS if m not in LOOPS])
+def test_inverse_dynamics_agree_with_mj_inverse(loaded, name):
+    """Bᵀ τ = qfrc_inverse (``mj_inverse``, constraints off) at a random (q, v, qacc): casmbd's
+    τ = M a + b − C_qᵀ λ with a = B qacc + c, and C_q B = 0 for the Euler-parameter
+    normalisations and the armature gears, so Bᵀ τ = Bᵀ (M a + b); 1e-10 relative."""
+    mech, arm, model = loaded[name]
+    rng = np.random.default_rng(3)
+    qpos, qvel = _random_state(model, rng)
+    qacc = rng.standard_normal(model.nv)
+    data = mujoco.MjData(model)
+    data.qpos[:], data.qvel[:], data.qacc[:] = qpos, qvel, qacc
+    mujoco.mj_inverse(model, data)
+    q, v, bmat, c = from_mujoco(mech, arm.coordinate_names, qpos, qvel)
+    tau = arm.inverse_dynamics(q, v, bmat @ qacc + c)
+    want = data.qfrc_inverse
+    assert np.abs(bmat.T @ tau - want).max() <= 1e-10 * max(1.0, np.abs(want).max())
 
 
 def _head(model, body: int) -> int:
