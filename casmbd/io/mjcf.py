@@ -380,7 +380,8 @@ def _equalities(model, mujoco, data, mech, group, names, guarded) -> None:
             warnings.warn(f"MJCF equality '{ename}' is inactive (active=\"false\"): left out",
                           RuntimeWarning, stacklevel=4)
             continue
-        if int(model.eq_objtype[e]) != obj.mjOBJ_BODY:
+        objtype = getattr(model, "eq_objtype", None)  # MuJoCo ≥ 3.1: bodies or sites
+        if objtype is not None and int(objtype[e]) != obj.mjOBJ_BODY:
             raise _refuse(f"equality '{ename}' attribute 'site1'", "an equality between sites")
         b1, b2 = int(model.eq_obj1id[e]), int(model.eq_obj2id[e])
         g1, g2 = group[b1], group[b2]

@@ -78,7 +78,10 @@ def _mujoco_at(model, qpos, qvel):
     data.qpos[:], data.qvel[:] = qpos, qvel
     mujoco.mj_forward(model, data)
     full = np.zeros((model.nv, model.nv))
-    mujoco.mj_fullM(model, data, full)
+    try:
+        mujoco.mj_fullM(model, data, full)  # MuJoCo 4: (m, d, dst)
+    except TypeError:
+        mujoco.mj_fullM(model, full, data.qM)  # MuJoCo 3: (m, dst, M)
     return data, full
 
 
