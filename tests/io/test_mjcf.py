@@ -395,9 +395,11 @@ def test_scene_key_and_bare_xml(tmp_path):
     (tmp_path / "robot" / "dp.xml").write_text((HERE / "double_pendulum.xml").read_text())
     scene = tmp_path / "s.toml"
     scene.write_text('[scene]\nmjcf = "robot/dp.xml"\ncoordinates = "joint"\n'
-                     'gravity = [0, 0, -3.0]\ndamping = false\n')
-    mech = casmbd.load_scene(scene)
+                     'gravity = [0, 0, -3.0]\ndamping = false\n'
+                     '[[drivers]]\nname = "bend"\njoint = "elbow"\nposition = "0.2*t"\n')
+    mech = casmbd.load_scene(scene)  # the other tables name the file's joints and bodies
     assert list(mech.joints) == ["shoulder", "elbow"] and not mech.forces
+    assert mech.drivers["bend"].joint == "elbow" and mech.tree == ["shoulder", "elbow"]
     assert tuple(mech.gravity) == (0.0, 0.0, -3.0)
     bare = casmbd.load_scene(HERE / "double_pendulum.xml")
     assert "shoulder_damping" in bare.forces and tuple(bare.gravity) == (0.0, 0.0, -9.81)
