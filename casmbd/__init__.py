@@ -39,6 +39,7 @@ _LAZY = {
     "CompiledModel": "casmbd.compiled.robot", "compile": "casmbd.compiled.robot",
     "load_scene": "casmbd.io.scene", "loads_scene": "casmbd.io.scene",
     "load_urdf": "casmbd.io.urdf", "loads_urdf": "casmbd.io.urdf",
+    "load_mjcf": "casmbd.io.mjcf",
     "Mechanism": "casmbd.model",
     "Result": "casmbd.results", "load": "casmbd.io.scene", "load_result": "casmbd.io.scene",
     "System": "casmbd.system",

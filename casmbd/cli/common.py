@@ -145,6 +145,9 @@ def scene_files(mech, scene: str) -> list[tuple[str, str]]:
     urdf = (data.get("scene") or {}).get("urdf") if isinstance(data.get("scene"), dict) else None
     if isinstance(urdf, str) and urdf:
         files.append(("URDF file", str(base / urdf)))
+    mjcf = (data.get("scene") or {}).get("mjcf") if isinstance(data.get("scene"), dict) else None
+    if isinstance(mjcf, str) and mjcf:
+        files.append(("MJCF file", str(base / mjcf)))
     for body in data.get("bodies") or []:
         fe = body.get("fe") if isinstance(body, dict) else None
         if isinstance(fe, dict) and isinstance(fe.get("file"), str):

@@ -49,6 +49,7 @@ from casmbd.analysis.events.events import MAX_EVENTS_LIMIT, SIMULATION_KEYS
 from casmbd.compiled.modal_cache import DISK_STORE
 from casmbd.errors import CasmbdError, ExpressionError, ModelError, SceneError
 from casmbd.io.files import read_text
+from casmbd.io.mjcf import mjcf_scene
 from casmbd.io.scene_points import ScenePoints
 from casmbd.io.urdf import urdf_scene
 from casmbd.limits import (
@@ -80,7 +81,7 @@ _LIMIT_KEYS = {"lower", "upper", "restitution", "limit_model", "limit_stiffness"
                "limit_exponent", "limit_damping", "limit_penetration"}
 _SCENE_KEYS = {"name", "dimension", "gravity", "format", "description", "coordinates",
                "tree", "urdf", "initial", "locked", "damping", "friction", "inertia",
-               "links", "ignore_mimic", "floating_base"}
+               "links", "ignore_mimic", "floating_base", "mjcf"}
 _COORDINATES = ("auto", "absolute", "natural", "joint")
 _MARKER_KEYS = {"name", "body", "point", "description", "orientation", "euler_zxz", "angle"}
 _DRIVER_KEYS = {"name", "joint", "body", "coordinate", "position", "description"}
@@ -295,7 +296,7 @@ def _build(data: dict, source: str) -> Mechanism:
     fmt = scene.data.get("format", FORMAT)
     if isinstance(fmt, bool) or fmt != FORMAT:
         raise scene.error("format", f"unsupported format {fmt!r} (this casmbd reads {FORMAT})")
-    dim = scene.data.get("dimension", 3 if "urdf" in scene.data else 2)
+    dim = scene.data.get("dimension", 3 if "urdf" in scene.data or "mjcf" in scene.data else 2)
     if isinstance(dim, bool) or dim not in (2, 3):
         raise scene.error("dimension", f"unsupported dimension {dim!r} (2: planar, 3: spatial)")
     dim = int(dim)
@@ -309,7 +310,12 @@ def _build(data: dict, source: str) -> Mechanism:
         raise scene.error("gravity", f"expected a list of {dim} numbers with 'dimension' = "
                           f"{dim}, got {gravity!r} (planar scenes: dimension = 2, spatial "
                           "scenes: dimension = 3)")
-    if "urdf" in scene.data:  # the robot's bodies and joints from a URDF file (io/urdf.py)
+    if "mjcf" in scene.data:  # the robot from an MJCF file, compiled by MuJoCo (io/mjcf.py)
+        if dim != 3:
+            raise scene.error("dimension", "a scene with 'mjcf' is spatial (dimension = 3)")
+        mech = mjcf_scene(scene.data, source, name, coords, scene.vector("gravity", 3)
+                          if "gravity" in scene.data else None)
+    elif "urdf" in scene.data:  # the robot's bodies and joints from a URDF file (io/urdf.py)
         mech = urdf_scene(scene.data, source, name, coords, scene.vector("gravity", 3, default=[
             0.0, 0.0, -9.81]) if dim == 3 else None)
     else:
@@ -463,7 +469,7 @@ def _build(data: dict, source: str) -> Mechanism:
 
     if not mech.bodies:
         raise SceneError(f"{source}: the scene has no [[bodies]]")
-    tree = scene.data.get("tree", [])
+    tree = scene.data.get("tree", list(getattr(mech, "tree", None) or []))  # mjcf: its own
     if not isinstance(tree, list) or not all(isinstance(j, str) for j in tree):
         raise scene.error("tree", f"expected a list of joint names, got {tree!r}")
     unknown = [j for j in tree if j not in mech.joints]
@@ -546,8 +552,9 @@ def _file_keys(data: dict) -> list[tuple[tuple, str]]:
     ``[bodies.fe] file``."""
     out = []
     scene = data.get("scene")
-    if isinstance(scene, dict) and isinstance(scene.get("urdf"), str):
-        out.append((("scene", "urdf"), scene["urdf"]))
+    for key in ("urdf", "mjcf"):
+        if isinstance(scene, dict) and isinstance(scene.get(key), str):
+            out.append((("scene", key), scene[key]))
     bodies = data.get("bodies")
     for i, body in enumerate(bodies if isinstance(bodies, list) else []):
         fe = body.get("fe") if isinstance(body, dict) else None
@@ -618,14 +625,16 @@ def load_scene(path: str | os.PathLike, floating_base: bool = False) -> Mechanis
     """Read a scene file and build its :class:`Mechanism` (see :func:`loads_scene`).
 
     A ``.urdf`` file is read as the scene ``[scene] urdf = "<file>"`` with joint coordinates
-    (:mod:`casmbd.io.urdf`), so results keep a scene text that reloads it; with
-    ``floating_base`` (the verbs' ``--floating-base``) the scene also says
+    (:mod:`casmbd.io.urdf`), an ``.xml`` file as ``[scene] mjcf = "<file>"``
+    (:mod:`casmbd.io.mjcf`), so results keep a scene text that reloads it; with
+    ``floating_base`` (the verbs' ``--floating-base``, URDF only) the scene also says
     ``floating_base = true``.  A scene file states that itself (then ``floating_base`` here
     is an error naming the file)."""
     path = Path(path)
-    if path.suffix.lower() == ".urdf":
+    if path.suffix.lower() in (".urdf", ".xml"):  # a robot file: URDF or MJCF (io/mjcf.py)
+        key = "urdf" if path.suffix.lower() == ".urdf" else "mjcf"
         text = (f"[scene]\nname = {json.dumps(path.stem)}\ndimension = 3\n"
-                f"coordinates = \"joint\"\nurdf = {json.dumps(str(path.resolve()))}\n"
+                f"coordinates = \"joint\"\n{key} = {json.dumps(str(path.resolve()))}\n"
                 + ("floating_base = true\n" if floating_base else ""))
         return loads_scene(text, source=str(path))
     if floating_base:
