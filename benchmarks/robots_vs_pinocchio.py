@@ -1,4 +1,4 @@
-"""casmbd against Pinocchio on every URDF of ``example-robot-data`` (issue 21, item 5).
+"""casmbd against Pinocchio on every URDF of ``example-robot-data`` (issues 21 and 34).
 
 Every ``*.urdf`` of the package that ``pinocchio.buildModelFromUrdf`` loads (fixed base, as the
 file says) is read by :func:`casmbd.load_urdf` in joint coordinates and compiled by
@@ -10,13 +10,21 @@ a uniform in [-2, 2]) the four quantities are compared with Pinocchio's:
   inertia and ``oMf`` of the link frame; casmbd's markers (links merged by fixed joints,
   frame-only links) against ``oMf`` of the link — position error in m (≤ 1e-12), rotation
   error max |ΔR| (≤ 1e-12);
+* the Jacobian (ṙ, ω) of every such frame against ``getFrameJacobian(…,
+  LOCAL_WORLD_ALIGNED)`` moved to the frame's point, max |ΔJ| (entries in m and 1; ≤ 1e-12);
 * the mass matrix against ``pin.crba`` (upper triangle mirrored), max |ΔM| / max |M| ≤ 1e-12;
 * inverse dynamics against ``pin.rnea``, max |Δτ| / max |τ| ≤ 1e-10;
-* forward dynamics against ``pin.aba`` (τ as input), max |Δq̈| / max |q̈| ≤ 1e-9.
+* forward dynamics against ``pin.aba`` (τ as input), the condition-scaled error
+  (max |Δq̈| / max |q̈|) / max(1, κ₂(M) / 10⁶) ≤ 1e-9 (:func:`condition_scaled`; the raw
+  relative error and κ₂(M) are recorded too).
 
 Then the same robot in absolute coordinates (``check_absolute``: the state mapped from the
 joint coordinates; frames, Tᵀ M_a T against ``crba``, body accelerations of the KKT forward
-dynamics against Pinocchio's after ``aba``; ``--joint-only`` skips it).
+dynamics against Pinocchio's after ``aba``; ``--coordinates joint`` skips it).  With
+``--base floating`` (``check_floating``) the robot on a free-flyer base too:
+``load_urdf(path, floating_base=True)`` against ``JointModelFreeFlyer`` in joint coordinates
+(and absolute ones, the state mapped the same way), recorded as "not available" where this
+casmbd's ``load_urdf`` has no ``floating_base``.
 
 Joints are matched by name (casmbd's coordinate ``joint.angle`` ↔ Pinocchio's
 ``model.names``); a continuous joint is (cos θ, sin θ) in Pinocchio's q (nq = 2, nv = 1).
@@ -28,7 +36,8 @@ two arms (UR5, Panda).  ``<mimic>`` pairs are locked at 0 in both models
 Robots with ``<mimic>`` pairs are then also compared *coupled* (``check_coupled``): Pinocchio's
 ``buildModelFromUrdf(path, mimic=True)`` (``JointModelMimic``, θ_f = multiplier θ_l + offset,
 no coordinate of its own) against casmbd's gear couplings in joint coordinates (every follower
-keeps its tree coordinate, one gear equation each).  With G the map from the independent
+keeps its tree coordinate, one gear equation each; or, substituted, no coordinate and no
+equation: then G = I).  With G the map from the independent
 coordinates to casmbd's (q = G q_i + o, from the URDF's multipliers and offsets): the frames,
 Gᵀ M G against ``crba``, Gᵀ τ with τ casmbd's least-norm ``inverse_dynamics`` at
 (G q_i + o, G v_i, G a_i) (it checks C_q a = γ) against ``rnea``, and the independent part of
@@ -37,7 +46,10 @@ coordinates, 0 on the followers) against M⁻¹ (τ − b) from Pinocchio's ``cr
 ``nonLinearEffects`` — Pinocchio 4.1's ``aba`` refuses mimic joints ("This algorithm does not
 support Joint Mimic type in the model").
 
-Run: ``python -m benchmarks.robots_vs_pinocchio [--quick] [--joint-only] [--update-docs]``.
+Run: ``python -m benchmarks.robots_vs_pinocchio [--quick | --robots PATTERNS]
+[--coordinates joint,absolute] [--base fixed,floating] [--update-docs]`` (``--robots
+ur5,tiago_dual``: parts of the paths or globs under the package's ``robots/``).  CI runs the
+subset of ``tests/peers/test_robots_vs_pinocchio.py``.
 """
 
 from __future__ import annotations
@@ -718,7 +730,8 @@ def markdown(data: dict) -> str:
              "1e-12, 1e-12, 1e-10, and 1e-9 on e. "
              f"**{len(passed)} of {len(compared)} compared robots pass**; "
              f"{len(recs) - len(compared)} of {len(recs)} files were not compared (reasons "
-             "below).", "",
+             "below). CI runs a representative subset (tests/peers/test_robots_vs_pinocchio.py: "
+             "UR5, Panda locked and coupled, Solo-12, TIAGo dual; a skip fails there).", "",
              "| URDF | n_v | frames | FK [m] | R | J | M (crba) | τ (rnea) | q̈ rel. | κ₂(M) | "
              "q̈ (aba) e | pass |",
              "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |"]
@@ -735,7 +748,8 @@ def markdown(data: dict) -> str:
                   "Euler parameters per body, the joints as constraint equations). The state is "
                   "mapped from the joint coordinates: q_a from the body frames (C(q_a) in the "
                   "table), T = ∂q_a/∂q from [J_a; C_q] T = [J; 0] with the stacked body "
-                  "Jacobians (ṙ, ω), v_a = T v; compared: every frame, Tᵀ M_a T against `crba`, "
+                  "Jacobians (ṙ, ω), v_a = T v; compared: every frame, its Jacobian J_a T against "
+                  "Pinocchio's, Tᵀ M_a T against `crba`, "
                   "and the body accelerations (r̈ of the centre of mass, ω̇) of the KKT forward "
                   "dynamics under Q_a (least-norm solution of Tᵀ Q_a = τ) against Pinocchio's "
                   "after `aba` (relative, condition-scaled as above; tolerance 1e-9, the "
