@@ -17,6 +17,7 @@ failure in CI, where ``CASMBD_REQUIRE_PEERS`` is set (``tests/peer_policy.py``).
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 pytest.importorskip("pinocchio")
@@ -105,3 +106,26 @@ def test_a_wrong_model_is_detected():
         pin.buildModelFromUrdf = original
     assert rec["compared"] and not rec["passed"]
     assert rec["errors"]["crba"] > TOLERANCES["crba"]
+
+
+def test_a_wrong_joint_placement_is_detected():
+    """The frame and Jacobian comparisons can fail: a UR5 whose third Pinocchio joint sits
+    1e-9 m off is reported (frames and J beyond 1e-12; M, τ move too)."""
+    import pinocchio as pin
+
+    original = pin.buildModelFromUrdf
+
+    def moved(p, *args):
+        model = original(p, *args)
+        placement = model.jointPlacements[3]
+        model.jointPlacements[3] = pin.SE3(placement.rotation,
+                                           placement.translation + np.array([1e-9, 0.0, 0.0]))
+        return model
+
+    pin.buildModelFromUrdf = moved
+    try:
+        rec = check_robot(ROOT / QUICK[0], states=2, seed=3)
+    finally:
+        pin.buildModelFromUrdf = original
+    assert rec["compared"] and not rec["passed"]
+    assert rec["errors"]["fk"] > 1e-10 and rec["errors"]["jac"] > 1e-10, rec["errors"]
