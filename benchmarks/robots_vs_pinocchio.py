@@ -842,6 +842,11 @@ def markdown(data: dict) -> str:
     floating = [r for r in recs if "floating" in r]
     if floating:
         lines += _floating_section(floating)
+    elif "floating" not in data.get("bases", ["fixed"]):
+        lines += ["", "**Floating base**: not part of this run (`--base fixed,floating` compares "
+                  "`load_urdf(path, floating_base=True)` with Pinocchio's `JointModelFreeFlyer`; "
+                  "with a casmbd whose `load_urdf` has no `floating_base` the rows say \"not "
+                  "available\")."]
     rest = [r for r in recs if not r.get("compared")]
     if rest:
         lines += ["", "Not compared (fixed base):", "",
