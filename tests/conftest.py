@@ -4,7 +4,8 @@ cache.
 The tests live in folders that mirror the package (tests/README.md); the helpers they share
 (``mechanisms``, ``flexible_references``, ``symbolic_checks``, ``composition_scenes``, this
 module's :func:`private_cache`, the scenes of ``tests/scenes/``) stay at ``tests/``, which is on
-``sys.path`` for every folder.
+``sys.path`` for every folder.  The hooks of :mod:`peer_policy` make a skipped peer cross-check
+fail when ``CASMBD_REQUIRE_PEERS`` is set (CI).
 """
 
 import pathlib
@@ -16,6 +17,14 @@ TESTS = pathlib.Path(__file__).resolve().parent
 sys.path.insert(0, str(TESTS.parent))
 if str(TESTS) not in sys.path:
     sys.path.insert(1, str(TESTS))
+
+# the peer cross-checks' policy: a skipped one fails under CASMBD_REQUIRE_PEERS (peer_policy.py)
+from peer_policy import (  # noqa: E402, F401
+    pytest_collection_modifyitems,
+    pytest_configure,
+    pytest_make_collect_report,
+    pytest_runtest_makereport,
+)
 
 
 def private_cache(name: str | None = None, *, scope: str = "function", autouse: bool = True,

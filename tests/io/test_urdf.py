@@ -676,6 +676,7 @@ def test_planar_joint_inverse_dynamics_match_newton_euler(tmp_path, coordinates)
         load(path, initial={"p": 0.1})
 
 
+@pytest.mark.peer("pinocchio")
 def test_planar_joint_against_pinocchio(tmp_path):
     """The planar chain with axis 0 0 1 against Pinocchio's ``JointModelPlanar`` (whose URDF
     parser ignores ``<axis>``: always the joint frame's xy plane) when ``pinocchio`` is
