@@ -537,11 +537,17 @@ def _left(e) -> np.ndarray:
     return np.array([[w, -x, -y, -z], [x, w, -z, y], [y, z, w, -x], [z, -y, x, w]])
 
 
-def from_mujoco(mech: Mechanism, coordinate_names: Sequence[str], qpos, qvel):
+def from_mujoco(mech: Mechanism, coordinate_names: Sequence[str], qpos, qvel,
+                velocity_map=None):
     """MuJoCo's state (``qpos``, ``qvel``) in casmbd's joint coordinates of a loaded model.
 
     Returns (q, v, B, c) with v = B qvel and q̈ = B qacc + c, so that MuJoCo's quantities
     are M_mj = Bᵀ M B, b_mj = Bᵀ (M c + b) and qacc = B⁺ (q̈ − c) (B has full column rank).
+    Without ``velocity_map`` v, B and c are in coordinate rates (v = q̇, as the analyses
+    integrate); with the per-call API's map (``CompiledModel.velocity_map``, where a free
+    body takes the free-flyer velocity, :mod:`casmbd.compiled.free_flyer`) they are in its
+    velocity v (n_v entries): v = G⁺ q̇, v̇ = G⁺ (q̈ − Ġ v), so the same relations hold with
+    the per-call M, b and forward dynamics.
     Per joint (A the body rotation, u its centre of mass in body axes, e ⊗ the quaternion
     product, A₀ the body frame at ``qpos0``):
 
@@ -579,7 +585,8 @@ def from_mujoco(mech: Mechanism, coordinate_names: Sequence[str], qpos, qvel):
         if e.kind in ("hinge", "slide"):
             i = index[f"{e.joint}.{'angle' if e.kind == 'hinge' else 'translation'}"]
             q[i], bmat[i, d] = qpos[a] - e.qpos0[0], 1.0
-            if e.rotor is not None:  # the armature's rotor turns with the joint (gear 1:1)
+            if e.rotor is not None and e.rotor in index:  # the rotor turns with the joint (1:1;
+                # in joint coordinates the gear is substituted: the rotor has no coordinate)
                 i = index[e.rotor]
                 q[i], bmat[i, d] = qpos[a] - e.qpos0[0], 1.0
             continue
@@ -605,4 +612,11 @@ def from_mujoco(mech: Mechanism, coordinate_names: Sequence[str], qpos, qvel):
         omega = qvel[d + 3:d + 6]
         c[pos_rows] = rot @ np.cross(omega, np.cross(omega, u))
         c[rot_rows] = -0.25 * (omega @ omega) * quat
-    return q, bmat @ qvel, bmat, c
+    if velocity_map is None or velocity_map.identity:
+        return q, bmat @ qvel, bmat, c
+    # the per-call velocity: G⁺ is linear for a fixed q (exact on tangent rates)
+    to_v = np.column_stack([velocity_map.velocity_from_rates(q, col) for col in
+                            np.eye(len(q))])
+    v = to_v @ (bmat @ qvel)
+    drift = velocity_map.rate_accelerations(q, v, np.zeros(velocity_map.nv))  # Ġ v
+    return q, v, to_v @ bmat, to_v @ (c - drift)

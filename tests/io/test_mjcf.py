@@ -92,7 +92,8 @@ def test_rigid_body_dynamics_agree_with_mujoco(loaded, name):
     for _ in range(3):
         qpos, qvel = _random_state(model, rng)
         data, full = _mujoco_at(model, qpos, qvel)
-        q, v, bmat, c = from_mujoco(mech, arm.coordinate_names, qpos, qvel)
+        q, v, bmat, c = from_mujoco(mech, arm.coordinate_names, qpos, qvel,
+                                  velocity_map=arm.velocity_map)
         mass = arm.mass_matrix(q)
         scale = np.abs(full).max()
         assert np.abs(bmat.T @ mass @ bmat - full).max() <= 1e-12 * scale
@@ -101,7 +102,7 @@ def test_rigid_body_dynamics_agree_with_mujoco(loaded, name):
         assert np.abs(bias - want).max() <= 1e-10 * max(1.0, np.abs(want).max())
         if name in LOOPS:
             continue  # the loop is closed in casmbd, open here: compared below
-        qdd = arm.forward_dynamics(q, v, np.zeros(arm.nq))
+        qdd = arm.forward_dynamics(q, v, np.zeros(arm.nv))
         qacc = np.linalg.lstsq(bmat, qdd - c, rcond=None)[0]
         assert np.abs(qacc - data.qacc).max() <= 1e-9 * max(1.0, np.abs(data.qacc).max())
 
@@ -118,7 +119,8 @@ def test_inverse_dynamics_agree_with_mj_inverse(loaded, name):
     data = mujoco.MjData(model)
     data.qpos[:], data.qvel[:], data.qacc[:] = qpos, qvel, qacc
     mujoco.mj_inverse(model, data)
-    q, v, bmat, c = from_mujoco(mech, arm.coordinate_names, qpos, qvel)
+    q, v, bmat, c = from_mujoco(mech, arm.coordinate_names, qpos, qvel,
+                                  velocity_map=arm.velocity_map)
     tau = arm.inverse_dynamics(q, v, bmat @ qacc + c)
     want = data.qfrc_inverse
     assert np.abs(bmat.T @ tau - want).max() <= 1e-10 * max(1.0, np.abs(want).max())
@@ -136,7 +138,8 @@ def test_frames_and_sites_agree_with_mujoco(loaded, name):
     mech, arm, model = loaded[name]
     qpos, qvel = _random_state(model, np.random.default_rng(7))
     data, _ = _mujoco_at(model, qpos, qvel)
-    q = from_mujoco(mech, arm.coordinate_names, qpos, qvel)[0]
+    q = from_mujoco(mech, arm.coordinate_names, qpos, qvel,
+                                  velocity_map=arm.velocity_map)[0]
     pos, rot = arm.forward_kinematics(q)
     row = {f: i for i, f in enumerate(arm.frame_names)}
     for b in range(1, model.nbody):
@@ -209,7 +212,8 @@ def test_connect_closure_agrees_with_mujoco_constraint_rows(loaded):
     qpos, qvel = _random_state(model, np.random.default_rng(5))
     _, residual, jac = _closure_rows(model, qpos)
     assert np.abs(residual).max() > 1e-2  # the loop is open here: the residual means something
-    q, _, bmat, _ = from_mujoco(mech, arm.coordinate_names, qpos, qvel)
+    q, _, bmat, _ = from_mujoco(mech, arm.coordinate_names, qpos, qvel,
+                                  velocity_map=arm.velocity_map)
     assert np.abs(arm.numeric.constraints(q, 0.0) - residual).max() <= 1e-12
     cq = arm.numeric.constraint_jacobian(q, 0.0).toarray()
     assert np.abs(cq @ bmat - jac).max() <= 1e-12
@@ -226,8 +230,10 @@ def test_closed_loop_acceleration_agrees_with_mujoco_pieces(name):
     qpos, qvel = _closed_state(model, 11)
     _, _, jac = _closure_rows(model, qpos)
     rows = jac.shape[0]
-    q, v, bmat, c = from_mujoco(mech, arm.coordinate_names, qpos, qvel)
-    cq = arm.numeric.constraint_jacobian(q, 0.0).toarray() @ bmat
+    q, v, bmat, c = from_mujoco(mech, arm.coordinate_names, qpos, qvel,
+                                  velocity_map=arm.velocity_map)
+    rates_b = from_mujoco(mech, arm.coordinate_names, qpos, qvel)[2]  # C_q acts on q̇
+    cq = arm.numeric.constraint_jacobian(q, 0.0).toarray() @ rates_b
 
     def projector(mat):
         basis = np.linalg.svd(mat)[2][:rows]
@@ -248,14 +254,15 @@ def test_closed_loop_acceleration_agrees_with_mujoco_pieces(name):
     kkt = np.block([[full, jac.T], [jac, np.zeros((rows, rows))]])
     exact = np.linalg.solve(kkt, np.concatenate([-(data.qfrc_bias - data.qfrc_passive),
                                                  -jdot_v]))[:n]
-    qacc = np.linalg.lstsq(bmat, arm.forward_dynamics(q, v, np.zeros(arm.nq)) - c,
+    qacc = np.linalg.lstsq(bmat, arm.forward_dynamics(q, v, np.zeros(arm.nv)) - c,
                            rcond=None)[0]
     assert np.abs(qacc - exact).max() <= 1e-8 * np.abs(exact).max()
     # at rest, MuJoCo's own soft solution is the regularised KKT solution with its efc_R,
     # qacc = a₀ + M⁻¹ Jᵀ f, f = −(J M⁻¹ Jᵀ + R)⁻¹ (J a₀ − a_ref); casmbd's is that with R = 0
     data, full = _mujoco_at(model, qpos, np.zeros(n))
-    q, v, bmat, c = from_mujoco(mech, arm.coordinate_names, qpos, np.zeros(n))
-    rest = np.linalg.lstsq(bmat, arm.forward_dynamics(q, v, np.zeros(arm.nq)) - c,
+    q, v, bmat, c = from_mujoco(mech, arm.coordinate_names, qpos, np.zeros(n),
+                                  velocity_map=arm.velocity_map)
+    rest = np.linalg.lstsq(bmat, arm.forward_dynamics(q, v, np.zeros(arm.nv)) - c,
                            rcond=None)[0]
     inverse = np.linalg.inv(full)
     free = -inverse @ (data.qfrc_bias - data.qfrc_passive)
