@@ -461,6 +461,7 @@ def check_absolute(path, leaders, joint, pm, to_pin, perm, scale, states: int, s
                                     locked=dict.fromkeys(leaders, 0.0), **extra)
             system = System(mech, coordinates="absolute")
             ours = casmbd.compile(system, mode=mode)
+            ours.urdf_renamed = getattr(mech, "urdf_renamed", {})  # allegro's link_8.0
             cons = NumericModel(system, ("constraints", "constraint_jacobian"), mode=mode)
     except Exception as exc:
         return {"error": f"{type(exc).__name__}: {exc}".splitlines()[0][:300]}
@@ -503,8 +504,9 @@ def check_absolute(path, leaders, joint, pm, to_pin, perm, scale, states: int, s
         qdd_a = ours.forward_dynamics(qa, t @ v, np.linalg.lstsq(t.T, tau, rcond=None)[0])
         pin.forwardKinematics(pm, data, qp, vp, pin.aba(pm, data, qp, vp, tau[perm]))
         ref = []
+        back = {v: k for k, v in getattr(ours, "urdf_renamed", {}).items()}  # casmbd → URDF
         for b in bodies:
-            j = pm.frames[pm.getFrameId(b, pin.FrameType.BODY)].parentJoint
+            j = pm.frames[pm.getFrameId(back.get(b, b), pin.FrameType.BODY)].parentJoint
             c, acc, w = pm.inertias[j].lever, data.a[j], data.v[j].angular
             lin = acc.linear + np.cross(acc.angular, c) + np.cross(w, data.v[j].linear
                                                                    + np.cross(w, c))
@@ -565,20 +567,23 @@ def check_floating(path, leaders, coordinates: str, states: int, seed: int,
             mech = casmbd.load_urdf(path, floating_base=True,
                                     locked=dict.fromkeys(leaders, 0.0))
             ours = casmbd.compile(mech, mode=mode)
+            ours.urdf_renamed = getattr(mech, "urdf_renamed", {})  # allegro's link_8.0
     except Exception as exc:
         return {"error": f"{type(exc).__name__}: {exc}".splitlines()[0][:300]}
     nv = int(getattr(ours, "nv", ours.nq))
     out: dict = {"build_s": round(time.perf_counter() - t0, 3), "nq": int(ours.nq), "nv": nv,
                  "nc": int(ours.nc)}
     names = [n.rpartition(".")[0] or n for n in ours.coordinate_names]
-    pin_names = {pm.names[j]: j for j in range(2, pm.njoints)}
+    renamed = getattr(mech, "urdf_renamed", {})  # URDF → casmbd names (allegro's joint_0.0)
+    pin_names = {renamed.get(pm.names[j], pm.names[j]): j for j in range(2, pm.njoints)}
     base = [k for k, n in enumerate(names) if n not in pin_names]
     if base != list(range(7)) or nv != ours.nq - 1 or ours.nc:
         return {**out, "error": f"unexpected layout: base coordinates {base} (expected the "
                 "first 7), n_v = n_q − 1 and no constraint equations expected"}
     joints = sorted((pm.joints[j].idx_v, j) for j in pin_names.values())
     index = {n: k for k, n in enumerate(names)}
-    jq = [index[pm.names[j]] for _, j in joints]  # casmbd q index of each Pinocchio joint
+    # casmbd q index of each Pinocchio joint
+    jq = [index[renamed.get(pm.names[j], pm.names[j])] for _, j in joints]
     kinds = [pm.joints[j].nq for _, j in joints]
     perm = np.r_[0:6, np.array(jq, dtype=int) - 1]  # casmbd v index per Pinocchio v index
 
