@@ -51,6 +51,7 @@ import numpy as np
 
 from casmbd.compiled.buffered import BufferedFunction
 from casmbd.compiled.build import compile_model
+from casmbd.compiled.tree_dynamics import FUNCTION_OPTIONS, forward_dynamics, frame_jacobian
 from casmbd.errors import ModelError
 from casmbd.model.bodies import GROUND
 from casmbd.model.needs import Handling, check
@@ -216,13 +217,17 @@ class CompiledModel:
             inverse = ca.mtimes(mass, a) + bias
         # every output dense: the bound arrays hold every entry (a ground marker's rotation
         # or a joint free of gravity would otherwise leave structural zeros out)
-        fns = [ca.Function("robot_mass_matrix", [q, p], [mass], ["q", "p"], ["M"]),
-               ca.Function("robot_bias", [q, v, p], [bias], ["q", "v", "p"], ["b"])]
+        # a tree: O(N) recursions with shared subexpressions (casmbd.compiled.tree_dynamics)
+        opts = dict(FUNCTION_OPTIONS) if recursive else {}
+        fns = [ca.Function("robot_mass_matrix", [q, p], [mass], ["q", "p"], ["M"], opts),
+               ca.Function("robot_bias", [q, v, p], [bias], ["q", "v", "p"], ["b"], opts)]
         if self.nc == 0:
-            qdd = ca.densify(ldl_solve(mass, tau - bias))
-            fd = ca.Function("robot_fd", [q, v, tau, p], [qdd], ["q", "v", "tau", "p"], ["a"])
+            qdd = ca.densify(forward_dynamics(system, tau) if recursive
+                             else ldl_solve(mass, tau - bias))
+            fd = ca.Function("robot_fd", [q, v, tau, p], [qdd], ["q", "v", "tau", "p"], ["a"],
+                             opts)
             ind = ca.Function("robot_id", [q, v, a, p], [ca.densify(inverse)],
-                              ["q", "v", "a", "p"], ["tau"])
+                              ["q", "v", "a", "p"], ["tau"], opts)
             fns += [fd, ind, fd.map("robot_fd_batch", "serial", BATCH_CHUNK, [3], []),
                     ind.map("robot_id_batch", "serial", BATCH_CHUNK, [3], [])]
         else:
@@ -249,10 +254,12 @@ class CompiledModel:
                                [ca.densify(ca.vertcat(*pos)), ca.densify(ca.vertcat(*rot))],
                                ["q", "p"], ["positions", "rotations"]))
         for k, ((body, _), r) in enumerate(zip(frames, pos)):
-            lin = ca.jacobian(r, q)
-            ang = ca.jacobian(ctx.angular_velocity(body), v)
-            fns.append(ca.Function(f"robot_jacobian_{k}", [q, p],
-                                   [ca.densify(ca.vertcat(lin, ang))], ["q", "p"], ["J"]))
+            if recursive:
+                jac = frame_jacobian(system, body, r)
+            else:
+                jac = ca.vertcat(ca.jacobian(r, q), ca.jacobian(ctx.angular_velocity(body), v))
+            fns.append(ca.Function(f"robot_jacobian_{k}", [q, p], [ca.densify(jac)],
+                                   ["q", "p"], ["J"], opts))
         #: the compiled library: sizes, names, parameter values ``numeric.p``
         self.numeric = compile_model(system, (), mode=mode, extra=fns)
         self.coordinate_names: list[str] = self.numeric.coordinate_names
