@@ -1,0 +1,239 @@
+"""Per-call speed and cold compile of casmbd against Pinocchio on example-robot-data (issue 34,
+item 3), both measured in one run.
+
+For every URDF of ``example-robot-data`` that both load (fixed base as the file says, the
+``<mimic>`` pairs locked at 0 in both as in :mod:`benchmarks.robots_vs_pinocchio`, whose robot
+list and loader this reuses), in its own process:
+
+* **cold compile**: :func:`casmbd.compile` (``mode="compiled"``) with an empty private C cache
+  (``$CASMBD_CACHE_DIR`` a fresh temporary folder): symbolic build, code generation and the
+  parallel C compilation of every per-call Function, wall seconds on this machine as loaded;
+* **code size**: bytes of the generated C and of the shared library;
+* **per call from Python**, both sides through their Python bindings, numpy in and out, at the
+  same random state: ``mass_matrix``/``pinocchio.crba``, ``bias_forces``/``nonLinearEffects``,
+  ``forward_dynamics``/``aba``, ``inverse_dynamics``/``rnea``,
+  ``jacobian``/``computeFrameJacobian`` (``LOCAL_WORLD_ALIGNED``, the same link frame: the last
+  frame casmbd lists that Pinocchio also has).  Best of ``--repeat`` repeats of ``--number``
+  calls (warm: after the first calls), in µs per call; the ratio casmbd / Pinocchio is the
+  figure of the issue's target (≤ 1).
+
+Before timing, the two sides are checked to compute the same thing at that state (M, τ, q̈
+relative to 1e-9; a disagreement is recorded, not timed).
+
+Run: ``python -m benchmarks.robots_speed [--robots ur5_robot,panda,...] [--update-docs]``
+(robot names are URDF file stems; default every file).  Writes
+``benchmarks/results/robots_speed.json`` and, with ``--update-docs``, the section
+``## Per call and compile against Pinocchio on example-robot-data`` of docs/performance.md
+and docs/robots.md.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+import timeit
+from pathlib import Path
+
+import numpy as np
+
+from benchmarks.robots_vs_pinocchio import _mimic_joints, _pin_configuration, robots_dir
+
+ROOT = Path(__file__).resolve().parent.parent
+RESULTS = ROOT / "benchmarks" / "results" / "robots_speed.json"
+DOCS = (ROOT / "docs" / "performance.md", ROOT / "docs" / "robots.md")
+HEAD = "## Per call and compile against Pinocchio on example-robot-data"
+#: (casmbd method, Pinocchio function) pairs, the columns of the table
+PAIRS = (("mass_matrix", "crba"), ("bias_forces", "nle"), ("forward_dynamics", "aba"),
+         ("inverse_dynamics", "rnea"), ("jacobian", "frame_jacobian"))
+#: the representative subset of the issue (arms, a legged robot, humanoids, 101 joints)
+SUBSET = ("ur5_robot", "panda", "talos_left_arm", "solo12", "g1_29dof_rev_1_0", "tiago_dual")
+
+
+def _best(fn, number: int, repeat: int) -> float:
+    fn()
+    return min(timeit.repeat(fn, number=number, repeat=repeat)) / number * 1e6
+
+
+def measure_robot(path: Path, number: int = 200, repeat: int = 7, seed: int = 0) -> dict:
+    """The record of one robot (this process compiles it with whatever cache is set)."""
+    import warnings
+
+    import pinocchio as pin
+
+    import casmbd
+
+    rec: dict = {"robot": path.stem}
+    pm = pin.buildModelFromUrdf(str(path))
+    mimic, leaders = _mimic_joints(path)
+    if mimic:
+        ids = sorted({pm.getJointId(n) for n in mimic if pm.existJointName(n)})
+        pm = pin.buildReducedModel(pm, ids, pin.neutral(pm))
+        rec["locked"] = mimic
+    rec["nv"] = int(pm.nv)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        mech = casmbd.load_urdf(path, locked=dict.fromkeys(leaders, 0.0))
+        t0 = time.perf_counter()
+        ours = casmbd.compile(mech, mode="compiled")
+    rec["compile_s"] = round(time.perf_counter() - t0, 2)
+    cache = Path(os.environ["CASMBD_CACHE_DIR"])
+    rec["c_bytes"] = sum(f.stat().st_size for f in cache.rglob("*.c"))
+    rec["so_bytes"] = sum(f.stat().st_size for f in cache.rglob("*.so"))
+    if ours.nc:
+        rec["error"] = f"{ours.nc} constraint equations: not a tree in joint coordinates"
+        return rec
+    to_pin, perm = _pin_configuration(pm, list(ours.coordinate_names))
+    rng = np.random.default_rng(seed)
+    n = ours.nq
+    q, v, x = rng.uniform(-1, 1, n), rng.uniform(-2, 2, n), rng.uniform(-2, 2, n)
+    qp, vp, xp = to_pin(q), v[perm], x[perm]
+    data = pm.createData()
+    frame = next((f for f in reversed(ours.frame_names) if pm.existFrame(f)), None)
+    fid = pm.getFrameId(frame) if frame else pm.nframes - 1
+    world = pin.LOCAL_WORLD_ALIGNED
+    ref = pin.crba(pm, data, qp)
+    ref = np.triu(ref) + np.triu(ref, 1).T
+    m_err = np.max(np.abs(ours.mass_matrix(q)[np.ix_(perm, perm)] - ref)) / np.max(np.abs(ref))
+    tau = pin.rnea(pm, data, qp, vp, xp)
+    t_err = np.max(np.abs(ours.inverse_dynamics(q, v, x)[perm] - tau)) / np.max(np.abs(tau))
+    qdd = pin.aba(pm, data, qp, vp, xp)
+    x_ours = np.empty(n)
+    x_ours[perm] = xp
+    a_err = np.max(np.abs(ours.forward_dynamics(q, v, x_ours)[perm] - qdd)) / np.max(
+        np.abs(qdd))
+    rec["errors"] = {"crba": float(m_err), "rnea": float(t_err), "aba": float(a_err)}
+    if max(rec["errors"].values()) > 1e-9:
+        rec["error"] = f"casmbd and Pinocchio disagree: {rec['errors']}"
+        return rec
+    ours_calls = {"mass_matrix": lambda: ours.mass_matrix(q),
+                  "bias_forces": lambda: ours.bias_forces(q, v),
+                  "forward_dynamics": lambda: ours.forward_dynamics(q, v, x_ours),
+                  "inverse_dynamics": lambda: ours.inverse_dynamics(q, v, x),
+                  "jacobian": lambda: ours.jacobian(q, frame or ours.frame_names[-1])}
+    pin_calls = {"crba": lambda: pin.crba(pm, data, qp),
+                 "nle": lambda: pin.nonLinearEffects(pm, data, qp, vp),
+                 "aba": lambda: pin.aba(pm, data, qp, vp, xp),
+                 "rnea": lambda: pin.rnea(pm, data, qp, vp, xp),
+                 "frame_jacobian": lambda: pin.computeFrameJacobian(pm, data, qp, fid, world)}
+    rec["frame"] = frame
+    rec["us"] = {}
+    for mine, theirs in PAIRS:
+        rec["us"][mine] = round(_best(ours_calls[mine], number, repeat), 3)
+        rec["us"][theirs] = round(_best(pin_calls[theirs], number, repeat), 3)
+    return rec
+
+
+def _in_process(path: Path, timeout: float, number: int, repeat: int) -> dict:
+    """:func:`measure_robot` in a subprocess with an empty private C cache."""
+    root = Path(__file__).resolve().parent.parent
+    with tempfile.TemporaryDirectory(prefix="casmbd_speed_") as cache:
+        env = dict(os.environ, CASMBD_CACHE_DIR=cache)
+        cmd = [sys.executable, "-m", "benchmarks.robots_speed", "--one", str(path),
+               "--number", str(number), "--repeat", str(repeat)]
+        try:
+            out = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, cwd=root,
+                                 env=env)
+        except subprocess.TimeoutExpired:
+            return {"robot": path.stem, "error": f"not done within {timeout:g} s"}
+    lines = [ln for ln in out.stdout.splitlines() if ln.startswith("{")]
+    if not lines:
+        tail = (out.stderr.strip().splitlines() or ["no output"])[-1]
+        return {"robot": path.stem, "error": f"process failed: {tail[:300]}"}
+    return json.loads(lines[-1])
+
+
+def measure(robots: list[str] | None = None, timeout: float = 900.0, number: int = 200,
+            repeat: int = 7) -> dict:
+    """Every robot of the package (or those whose file stem is in ``robots``)."""
+    import casadi
+    import pinocchio as pin
+
+    folder = robots_dir()
+    if folder is None:
+        raise SystemExit("example-robot-data is not installed (pip install example-robot-data)")
+    paths = sorted(folder.rglob("*.urdf"))
+    if robots:
+        stems = {p.stem for p in paths}
+        unknown = [r for r in robots if r not in stems]
+        if unknown:
+            raise SystemExit(f"unknown robots {unknown}; file stems: {sorted(stems)}")
+        paths = [p for p in paths if p.stem in robots]
+    records = []
+    for path in paths:
+        rec = _in_process(path, timeout, number, repeat)
+        print(json.dumps(rec), file=sys.stderr, flush=True)
+        records.append(rec)
+    return {"pinocchio_version": pin.__version__, "casadi_version": casadi.__version__,
+            "machine": f"{platform.machine()}, {os.cpu_count()} CPUs (shared, under load)",
+            "number": number, "repeat": repeat, "robots": records}
+
+
+def markdown(data: dict) -> str:
+    """The section of docs/performance.md and docs/robots.md."""
+    lines = [HEAD, "",
+             "Measured by `python -m benchmarks.robots_speed --update-docs` (a subset: "
+             f"`--robots {','.join(SUBSET)}`), casmbd and Pinocchio "
+             f"{data['pinocchio_version']} in the same run (CasADi {data['casadi_version']}, "
+             f"{data['machine']}).  Per call from Python, best of {data['repeat']} × "
+             f"{data['number']} warm calls, µs, casmbd / Pinocchio and the ratio; cold compile: "
+             "`casmbd.compile` with an empty private C cache (symbolic build, code generation, "
+             "parallel C compilation), seconds; C: bytes of generated C.  The issue's target "
+             "is a ratio ≤ 1 in every column and a cold compile ≤ 30 s.", "",
+             "| robot | nv | M / crba | b / nle | q̈ / aba | τ / rnea | J / frame J "
+             "| cold compile [s] | C [MB] |",
+             "|---|---:|---|---|---|---|---|---:|---:|"]
+    for rec in data["robots"]:
+        if "us" not in rec:
+            lines.append(f"| {rec['robot']} | {rec.get('nv', '')} | "
+                         f"{rec.get('error', '')[:120]} | | | | | "
+                         f"{rec.get('compile_s', '')} | |")
+            continue
+        us = rec["us"]
+        cells = [f"{us[m]:.1f} / {us[p]:.1f} ({us[m] / us[p]:.2g}×)" for m, p in PAIRS]
+        lines.append(f"| {rec['robot']} | {rec['nv']} | " + " | ".join(cells)
+                     + f" | {rec['compile_s']:.0f} | {rec['c_bytes'] / 1e6:.1f} |")
+    lines += ["", ""]
+    return "\n".join(lines)
+
+
+def main(argv=None) -> int:
+    import argparse
+
+    from benchmarks.docs import replace_section
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--robots", help="comma-separated URDF file stems (default: all)")
+    parser.add_argument("--subset", action="store_true", help=f"the robots {SUBSET}")
+    parser.add_argument("--timeout", type=float, default=900.0, help="per robot [s]")
+    parser.add_argument("--number", type=int, default=200)
+    parser.add_argument("--repeat", type=int, default=7)
+    parser.add_argument("--update-docs", action="store_true")
+    parser.add_argument("--render", action="store_true", help="rewrite from the results file")
+    parser.add_argument("--one", help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.one:
+        print(json.dumps(measure_robot(Path(args.one), args.number, args.repeat)))
+        return 0
+    if args.render:
+        data = json.loads(RESULTS.read_text())
+    else:
+        robots = list(SUBSET) if args.subset else (
+            args.robots.split(",") if args.robots else None)
+        data = measure(robots, args.timeout, args.number, args.repeat)
+        RESULTS.parent.mkdir(parents=True, exist_ok=True)
+        RESULTS.write_text(json.dumps(data, indent=1))
+    text = markdown(data)
+    print(text)
+    if args.update_docs:
+        for doc in DOCS:
+            replace_section(doc, HEAD, text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
