@@ -128,6 +128,49 @@ def measure_robot(path: Path, number: int = 200, repeat: int = 7, seed: int = 0)
     return rec
 
 
+def flag_study(path: Path, flags: list[str], number: int = 200, repeat: int = 7) -> list[dict]:
+    """The forward dynamics of one robot (the articulated-body Function of
+    :func:`casmbd.compiled.tree_dynamics.forward_dynamics`, with ``cse``) compiled alone at each
+    of ``flags`` into the current cache: C bytes, compile seconds and µs per call through
+    ``Function.buffer`` (no Python method around it)."""
+    import warnings
+
+    import casadi as ca
+
+    import casmbd
+    from casmbd.compiled import codegen
+    from casmbd.compiled.build import compile_blocks
+    from casmbd.compiled.tree_dynamics import FUNCTION_OPTIONS, forward_dynamics
+    from casmbd.system.equations import System
+
+    _, leaders = _mimic_joints(path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        system = System(casmbd.load_urdf(path, locked=dict.fromkeys(leaders, 0.0)),
+                        coordinates="joint")
+    tau = ca.SX.sym("tau", system.nq)
+    fd = ca.Function("fd_alone", [system.q, system.v, tau, system.p],
+                     [forward_dynamics(system, tau)], FUNCTION_OPTIONS)
+    size = len(codegen._generate_template([fd]))
+    rows = []
+    rng = np.random.default_rng(0)
+    for flag in flags:
+        t0 = time.perf_counter()
+        fns, _ = compile_blocks([fd], "fd_alone" + flag.replace("-", "_"), mode="compiled",
+                                flags=[flag])
+        seconds = time.perf_counter() - t0
+        buf, trigger = fns["fd_alone"].buffer()
+        args = [rng.uniform(-1, 1, system.nq) for _ in range(3)] + [np.zeros(system.p.numel())]
+        for k, arg in enumerate(args):
+            buf.set_arg(k, memoryview(arg))
+        out = np.zeros(system.nq)
+        buf.set_res(0, memoryview(out))
+        rows.append({"robot": path.stem, "flags": flag, "c_bytes": size,
+                     "compile_s": round(seconds, 1), "us": round(_best(trigger, number, repeat),
+                                                                 2)})
+    return rows
+
+
 def _in_process(path: Path, timeout: float, number: int, repeat: int) -> dict:
     """:func:`measure_robot` in a subprocess with an empty private C cache."""
     root = Path(__file__).resolve().parent.parent
@@ -214,8 +257,18 @@ def main(argv=None) -> int:
     parser.add_argument("--repeat", type=int, default=7)
     parser.add_argument("--update-docs", action="store_true")
     parser.add_argument("--render", action="store_true", help="rewrite from the results file")
+    parser.add_argument("--flags", help="one robot's forward dynamics alone at each of these "
+                        "comma-separated flags (e.g. -O0,-O1,-O2), private cache")
     parser.add_argument("--one", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
+    if args.flags:
+        folder = robots_dir()
+        path = next(p for p in sorted(folder.rglob("*.urdf")) if p.stem == args.robots)
+        with tempfile.TemporaryDirectory(prefix="casmbd_flags_") as cache:
+            os.environ["CASMBD_CACHE_DIR"] = cache
+            for row in flag_study(path, args.flags.split(","), args.number, args.repeat):
+                print(json.dumps(row), flush=True)
+        return 0
     if args.one:
         print(json.dumps(measure_robot(Path(args.one), args.number, args.repeat)))
         return 0
