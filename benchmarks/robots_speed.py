@@ -128,11 +128,14 @@ def measure_robot(path: Path, number: int = 200, repeat: int = 7, seed: int = 0)
     return rec
 
 
-def flag_study(path: Path, flags: list[str], number: int = 200, repeat: int = 7) -> list[dict]:
-    """The forward dynamics of one robot (the articulated-body Function of
-    :func:`casmbd.compiled.tree_dynamics.forward_dynamics`, with ``cse``) compiled alone at each
-    of ``flags`` into the current cache: C bytes, compile seconds and µs per call through
-    ``Function.buffer`` (no Python method around it)."""
+def flag_study(path: Path, flags: list[str], number: int = 200, repeat: int = 7,
+               what: str = "fd") -> list[dict]:
+    """The forward dynamics of one robot (``what="fd"``: the articulated-body Function of
+    :func:`casmbd.compiled.tree_dynamics.forward_dynamics`, with ``cse``) or every body's
+    Jacobian (``"jacobians"``, one Function each, as :class:`~casmbd.compiled.robot.CompiledModel`
+    builds them) compiled alone at each of ``flags`` into the current cache: C bytes, compile
+    seconds (parallel units) and µs per call through ``Function.buffer`` (no Python method
+    around it; the Jacobian of the last body)."""
     import warnings
 
     import casadi as ca
@@ -140,7 +143,11 @@ def flag_study(path: Path, flags: list[str], number: int = 200, repeat: int = 7)
     import casmbd
     from casmbd.compiled import codegen
     from casmbd.compiled.build import compile_blocks
-    from casmbd.compiled.tree_dynamics import FUNCTION_OPTIONS, forward_dynamics
+    from casmbd.compiled.tree_dynamics import (
+        FUNCTION_OPTIONS,
+        forward_dynamics,
+        frame_jacobian,
+    )
     from casmbd.system.equations import System
 
     _, leaders = _mimic_joints(path)
@@ -149,25 +156,34 @@ def flag_study(path: Path, flags: list[str], number: int = 200, repeat: int = 7)
         system = System(casmbd.load_urdf(path, locked=dict.fromkeys(leaders, 0.0)),
                         coordinates="joint")
     tau = ca.SX.sym("tau", system.nq)
-    fd = ca.Function("fd_alone", [system.q, system.v, tau, system.p],
-                     [forward_dynamics(system, tau)], FUNCTION_OPTIONS)
-    size = len(codegen._generate_template([fd]))
+    if what == "jacobians":  # every body's Jacobian, one Function each; timed: the last
+        fns_in = [ca.Function(f"jac_alone_{k}", [system.q, system.p],
+                              [ca.densify(frame_jacobian(system, body,
+                                                         system.ctx.centre_of_mass(body)))],
+                              FUNCTION_OPTIONS) for k, body in enumerate(system.body_names)]
+        ins = 1
+    else:
+        fns_in = [ca.Function("fd_alone", [system.q, system.v, tau, system.p],
+                              [forward_dynamics(system, tau)], FUNCTION_OPTIONS)]
+        ins = 3
+    size = sum(len(codegen._generate_template([f])) for f in fns_in)
     rows = []
     rng = np.random.default_rng(0)
     for flag in flags:
         t0 = time.perf_counter()
-        fns, _ = compile_blocks([fd], "fd_alone" + flag.replace("-", "_"), mode="compiled",
-                                flags=[flag])
+        fns, _ = compile_blocks(fns_in, f"{what}_alone" + flag.replace("-", "_"),
+                                mode="compiled", flags=[flag])
         seconds = time.perf_counter() - t0
-        buf, trigger = fns["fd_alone"].buffer()
-        args = [rng.uniform(-1, 1, system.nq) for _ in range(3)] + [np.zeros(system.p.numel())]
+        buf, trigger = fns[fns_in[-1].name()].buffer()
+        args = [rng.uniform(-1, 1, system.nq) for _ in range(ins)]
+        args.append(np.zeros(system.p.numel()))
         for k, arg in enumerate(args):
             buf.set_arg(k, memoryview(arg))
-        out = np.zeros(system.nq)
+        out = np.zeros(fns_in[-1].nnz_out(0))
         buf.set_res(0, memoryview(out))
-        rows.append({"robot": path.stem, "flags": flag, "c_bytes": size,
-                     "compile_s": round(seconds, 1), "us": round(_best(trigger, number, repeat),
-                                                                 2)})
+        rows.append({"robot": path.stem, "what": what, "functions": len(fns_in),
+                     "flags": flag, "c_bytes": size, "compile_s": round(seconds, 1),
+                     "us": round(_best(trigger, number, repeat), 2)})
     return rows
 
 
@@ -259,6 +275,8 @@ def main(argv=None) -> int:
     parser.add_argument("--render", action="store_true", help="rewrite from the results file")
     parser.add_argument("--flags", help="one robot's forward dynamics alone at each of these "
                         "comma-separated flags (e.g. -O0,-O1,-O2), private cache")
+    parser.add_argument("--study", default="fd", choices=("fd", "jacobians"),
+                        help="with --flags: the forward dynamics or every body's Jacobian")
     parser.add_argument("--one", help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.flags:
@@ -266,7 +284,8 @@ def main(argv=None) -> int:
         path = next(p for p in sorted(folder.rglob("*.urdf")) if p.stem == args.robots)
         with tempfile.TemporaryDirectory(prefix="casmbd_flags_") as cache:
             os.environ["CASMBD_CACHE_DIR"] = cache
-            for row in flag_study(path, args.flags.split(","), args.number, args.repeat):
+            for row in flag_study(path, args.flags.split(","), args.number, args.repeat,
+                                  args.study):
                 print(json.dumps(row), flush=True)
         return 0
     if args.one:
