@@ -77,12 +77,12 @@ def tree_urdf() -> str:
         joints.append(_joint(f"{side}_tool_joint", "fixed", f"{side}_hand", f"{side}_tool",
                              (0.01, 0.0, 0.08), (0.0, 0.5, 0.0), (0, 0, 1)))
     body("sensor", "lift", "revolute", (1, 0, 0), (0.0, 0.1, 0.1))
-    return '<robot name="tree10">' + "".join(links + joints) + "</robot>"
+    return '<robot name="tree12">' + "".join(links + joints) + "</robot>"
 
 
 @pytest.fixture(scope="module")
 def tree(tmp_path_factory):
-    path = tmp_path_factory.mktemp("tree") / "tree10.urdf"
+    path = tmp_path_factory.mktemp("tree") / "tree12.urdf"
     path.write_text(tree_urdf())
     mech = casmbd.load_urdf(path)
     model = casmbd.compile(mech, mode="vm")
