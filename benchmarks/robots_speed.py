@@ -225,6 +225,7 @@ def measure(robots: list[str] | None = None, timeout: float = 900.0, number: int
     records = []
     for path in paths:
         rec = _in_process(path, timeout, number, repeat)
+        rec["file"] = str(path.relative_to(folder))
         print(json.dumps(rec), file=sys.stderr, flush=True)
         records.append(rec)
     return {"pinocchio_version": pin.__version__, "casadi_version": casadi.__version__,
@@ -246,7 +247,11 @@ def markdown(data: dict) -> str:
              "| robot | nv | M / crba | b / nle | q̈ / aba | τ / rnea | J / frame J "
              "| cold compile [s] | C [MB] |",
              "|---|---:|---|---|---|---|---|---:|---:|"]
+    stems = [r["robot"] for r in data["robots"]]
     for rec in data["robots"]:
+        if stems.count(rec["robot"]) > 1:  # two files of one name: the folder too
+            rec = dict(rec, robot=rec.get("file", rec["robot"]).split("/")[0] + "/"
+                       + rec["robot"])
         if "us" not in rec:
             lines.append(f"| {rec['robot']} | {rec.get('nv', '')} | "
                          f"{rec.get('error', '')[:120]} | | | | | "
@@ -295,13 +300,16 @@ functions).  The flag trade-off, each Function alone on this machine
 | what | C | -O0 compile / call | -O1 compile / call | -O2 compile / call |
 |---|---:|---|---|---|
 | g1 (29 joints) forward dynamics | 0.62 MB | 3.1 s / 11.5 µs | 11.2 s / 5.1 µs | 19.0 s / 5.1 µs |
-| tiago_dual forward dynamics | 2.2 MB | 5.0 s / 162 µs | 75.7 s / 69 µs | TIAGO_O2 |
+| tiago_dual forward dynamics | 2.2 MB | 5.0 s / 162 µs | 75.7 s / 69 µs | 110.8 s / 175 µs |
 | tiago_dual, 101 bodies' Jacobians | 6.3 MB | 23.3 s / 1.76 µs | | 74.1 s / 0.68 µs |
 
 So the 30 s compile and the 1× per call cannot both be had at this code size: every Function of
 tiago_dual at -O0 would compile in roughly 45 s of CPU (the -O0 rates above: about 3–4 s per
 MB of C) but run 2–3× slower than now, and -O1 on
-its forward dynamics would bring the call to about 3× `aba` for 70 s more compile.  Closing
+its forward dynamics would bring the call to about 3× `aba` for 70 s more compile (-O2 on
+this 2.2 MB function was no faster than -O0 here: gcc's scheduling of one straight-line
+function of 93 k statements; the figures of one function, measured while the machine was
+loaded, vary by tens of percent).  Closing
 the gap needs fewer instructions per joint (Pinocchio's local-frame spatial algebra with
 analytic motion subspaces and bias accelerations for revolute and prismatic joints instead of
 differentiated compositions), not flags.  On the arms and legged robots (≤ 30 joints) the
