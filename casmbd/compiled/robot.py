@@ -18,10 +18,13 @@ Conventions (n_q coordinates, joint coordinates by default):
   ``b = −Q_v − Q_e`` with Q_e the mechanism's own applied forces (gravity, springs, dampers)
   at t = 0 and actuator inputs u = 0 — Pinocchio's ``nle`` (Coriolis, centrifugal and gravity
   terms);
-* ``forward_dynamics`` of a tree (no constraint equations) solves ``M q̈ = τ − b`` by a dense
-  LDLᵀ factorisation written into the generated code (no pivoting: M is symmetric positive
-  definite); with constraint equations (closed chains, Euler parameters) it solves the KKT
-  system ``[M C_qᵀ; C_q 0] [q̈; λ] = [τ − b; γ]`` in numpy from the compiled pieces;
+* ``forward_dynamics`` of a tree in joint coordinates is the articulated-body recursion with τ
+  as the joint efforts (:mod:`casmbd.compiled.tree_dynamics`: O(N), as are the mass matrix,
+  the Newton–Euler τ and b, and the frame Jacobians there); a tree the recursion does not
+  cover solves ``M q̈ = τ − b`` by a dense LDLᵀ factorisation written into the generated code
+  (no pivoting: M is symmetric positive definite); with constraint equations (closed chains,
+  Euler parameters) it solves the KKT system ``[M C_qᵀ; C_q 0] [q̈; λ] = [τ − b; γ]`` in numpy
+  from the compiled pieces;
 * ``inverse_dynamics`` returns ``τ = M a + b``, for a tree in joint coordinates by the
   recursive Newton–Euler algorithm (:func:`newton_euler`, also used for b), else from M.  With
   constraint equations (closed loops, gears, Euler parameters) the equations of motion are
