@@ -50,8 +50,11 @@ MEDIUM_SOURCE = 1_000_000
 #: flags of the hot functions between :data:`MEDIUM_SOURCE` and :data:`LARGE_SOURCE`
 MEDIUM_FLAGS: tuple[str, ...] = ("-O1",)
 #: a function whose C alone exceeds this many bytes gets :data:`COLD_FLAGS` unless flags were
-#: chosen (1000 rods, 5.7 MB: -O0 7.7 s; -O1 did not finish in 8 min on a loaded machine)
-LARGE_SOURCE = 2_000_000
+#: chosen (1000 rods, 5.7 MB: -O0 7.7 s; -O1 did not finish in 8 min on a loaded machine).
+#: tiago_dual's per-call forward dynamics (101 joints, articulated-body recursion, 2.2 MB):
+#: -O0 3.3 s / 92 µs per call, -O1 26 s / 35 µs, -O2 41 s / 33 µs (quiet machine; Pinocchio's
+#: ``aba`` 22 µs): worth -O1 up to here.
+LARGE_SOURCE = 3_000_000
 #: flags of the functions that are not hot, and of the large ones
 COLD_FLAGS: tuple[str, ...] = ("-O0",)
 #: above this many bytes of C in all, one translation unit per function
