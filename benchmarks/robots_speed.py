@@ -12,8 +12,8 @@ list and loader this reuses), in its own process:
 * **per call from Python**, both sides through their Python bindings, numpy in and out, at the
   same random state: ``mass_matrix``/``pinocchio.crba``, ``bias_forces``/``nonLinearEffects``,
   ``forward_dynamics``/``aba``, ``inverse_dynamics``/``rnea``,
-  ``jacobian``/``computeFrameJacobian`` (``LOCAL_WORLD_ALIGNED``, the same link frame: the last
-  frame casmbd lists that Pinocchio also has).  Best of ``--repeat`` repeats of ``--number``
+  ``jacobian``/``computeFrameJacobian`` (``LOCAL_WORLD_ALIGNED``, the same link frame: of the
+  frames both have, the one behind the most joints).  Best of ``--repeat`` repeats of ``--number``
   calls (warm: after the first calls), in µs per call; the ratio casmbd / Pinocchio is the
   figure of the issue's target (≤ 1).
 
@@ -98,9 +98,18 @@ def measure_robot(path: Path, number: int = 200, repeat: int = 7, seed: int = 0)
     q, v, x = rng.uniform(-1, 1, n), rng.uniform(-2, 2, n), rng.uniform(-2, 2, n)
     qp, vp, xp = to_pin(q), v[perm], x[perm]
     data = pm.createData()
-    # a link frame (type BODY: a joint may carry the link's name too)
-    frame = next((f for f in reversed(ours.frame_names) if pm.existFrame(f, pin.BODY)), None)
-    fid = pm.getFrameId(frame, pin.BODY) if frame else pm.nframes - 1
+    # the link frame (type BODY: a joint may carry the link's name too) behind the most
+    # joints: an end effector's Jacobian, the costliest
+    def depth(name):
+        if not pm.existFrame(name, pin.BODY):
+            return 0
+        return len(pm.supports[pm.frames[pm.getFrameId(name, pin.BODY)].parentJoint]) - 1
+
+    frame = max(reversed(ours.frame_names), key=depth)
+    if depth(frame) == 0:
+        rec["error"] = "no link frame on a moving joint in both models"
+        return rec
+    fid = pm.getFrameId(frame, pin.BODY)
     world = pin.LOCAL_WORLD_ALIGNED
     ref = pin.crba(pm, data, qp)
     ref = np.triu(ref) + np.triu(ref, 1).T
@@ -120,7 +129,7 @@ def measure_robot(path: Path, number: int = 200, repeat: int = 7, seed: int = 0)
                   "bias_forces": lambda: ours.bias_forces(q, v),
                   "forward_dynamics": lambda: ours.forward_dynamics(q, v, x_ours),
                   "inverse_dynamics": lambda: ours.inverse_dynamics(q, v, x),
-                  "jacobian": lambda: ours.jacobian(q, frame or ours.frame_names[-1])}
+                  "jacobian": lambda: ours.jacobian(q, frame)}
     pin_calls = {"crba": lambda: pin.crba(pm, data, qp),
                  "nle": lambda: pin.nonLinearEffects(pm, data, qp, vp),
                  "aba": lambda: pin.aba(pm, data, qp, vp, xp),
@@ -302,34 +311,34 @@ against this run's); inverse dynamics 8× → 1.8× `rnea`.  The figures move wi
 the shared machine: a run of the subset while it was busier (load average 10 on 2 CPUs) gave
 tiago_dual 7.1× `aba` and a 276 s cold compile.
 
-Why the large robots still lose: the size of the generated code.  casmbd's recursions carry
+Why the largest robot still loses: the size of the generated code.  casmbd's recursions carry
 global components and centre-of-mass reference points, and the tree kinematics differentiates
 each joint's composition symbolically (the bias accelerations J̇q̇ alone are 37 k instructions
-for tiago_dual), so a 101-joint forward dynamics is 2.2 MB of C: above the 2 MB where
-casmbd.compiled.units compiles at -O0 (gcc's optimiser is superlinear on such straight-line
-functions).  The flag trade-off, each Function alone on this machine
-(`python -m benchmarks.robots_speed --robots ROBOT --flags=-O0,-O1,-O2 [--study jacobians]`):
+for tiago_dual), so a 101-joint forward dynamics is 2.2 MB of C, and gcc's optimiser is
+superlinear on such straight-line functions.  The flag trade-off, each Function alone on a
+quiet machine (`python -m benchmarks.robots_speed --robots ROBOT --flags=-O0,-O1,-O2
+[--study jacobians]`; compile seconds / µs per call through `Function.buffer`):
 
-| what | C | -O0 compile / call | -O1 compile / call | -O2 compile / call |
+| what | C | -O0 | -O1 | -O2 |
 |---|---:|---|---|---|
-| g1 (29 joints) forward dynamics | 0.62 MB | 3.1 s / 11.5 µs | 11.2 s / 5.1 µs | 19.0 s / 5.1 µs |
-| tiago_dual forward dynamics | 2.2 MB | 5.0 s / 162 µs | 75.7 s / 69 µs | 110.8 s / 175 µs |
-| tiago_dual, 101 bodies' Jacobians | 6.3 MB | 23.3 s / 1.76 µs | | 74.1 s / 0.68 µs |
+| g1 (29 joints) forward dynamics | 0.62 MB | 0.7 s / 11.6 µs | 3.4 s / 5.5 µs | 3.7 s / 5.7 µs |
+| tiago_dual forward dynamics | 2.2 MB | 3.3 s / 92 µs | 26 s / 35 µs | 41 s / 33 µs |
+| tiago_dual, 101 Jacobians | 6.3 MB | 8.3 s / 1.84 µs | 15.5 s / 1.06 µs | 38.6 s / 0.69 µs |
 
-So the 30 s compile and the 1× per call cannot both be had at this code size: every Function of
-tiago_dual at -O0 would compile in roughly 45 s of CPU (the -O0 rates above: about 3–4 s per
-MB of C) but run 2–3× slower than now, and -O1 on
-its forward dynamics would bring the call to about 3× `aba` for 70 s more compile (-O2 on
-this 2.2 MB function was no faster than -O0 here: gcc's scheduling of one straight-line
-function of 93 k statements; the figures of one function, measured while the machine was
-loaded, vary by tens of percent).  Closing
-the gap needs fewer instructions per joint (Pinocchio's local-frame spatial algebra with
-analytic motion subspaces and bias accelerations for revolute and prismatic joints instead of
-differentiated compositions), not flags.  Below about 50 joints the forward dynamics beats
-`aba` on all but a few small arms (1.0–1.3×, calls of 1–2 µs); M, b and τ are 1.1–1.2× Pinocchio
-at the median and the Jacobian 1.6×: at 0.5–1 µs per call most of the difference is the
-Python side of a call (argument checks and copies, docs/robots.md *Per-call numeric API*),
-which this item did not change.
+Hence casmbd.compiled.units now compiles a Function of 1–3 MB at -O1 (the band was 1–2 MB:
+tiago_dual's forward dynamics was -O0, 3.3× `aba` in the sweep above if measured before the
+change — see the tiago_dual row).  The same study while the machine was loaded (load average
+10 on 2 CPUs) gave 2–3× the compile times and, for the tiago_dual forward dynamics, 162 / 69 /
+175 µs: per-call figures of these large functions move with the load.  A 30 s cold compile and
+1× Pinocchio per call cannot both be had at this code size: every Function of tiago_dual at
+-O0 would compile in about 25 s of CPU but run 2–3× slower.  Closing the gap needs fewer
+instructions per joint (Pinocchio's local-frame spatial algebra, with analytic motion
+subspaces and bias accelerations for revolute and prismatic joints instead of differentiated
+compositions), not flags.  Below about 50 joints the forward dynamics beats `aba` on all but a
+few small arms (1.0–1.3×, calls of 1–2 µs); M, b and τ are 1.1–1.2× Pinocchio at the median
+and the Jacobian 1.6×: at 0.5–1 µs per call most of the difference is the Python side of a
+call (argument checks and copies, docs/robots.md *Per-call numeric API*), which this item did
+not change.
 """
 
 
