@@ -325,13 +325,13 @@ quiet machine (`python -m benchmarks.robots_speed --robots ROBOT --flags=-O0,-O1
 | tiago_dual forward dynamics | 2.2 MB | 3.3 s / 92 µs | 26 s / 35 µs | 41 s / 33 µs |
 | tiago_dual, 101 Jacobians | 6.3 MB | 8.3 s / 1.84 µs | 15.5 s / 1.06 µs | 38.6 s / 0.69 µs |
 
-Hence casmbd.compiled.units now compiles a Function of 1–3 MB at -O1 (the band was 1–2 MB:
-tiago_dual's forward dynamics was -O0, 3.3× `aba` in the sweep above if measured before the
-change — see the tiago_dual row).  The same study while the machine was loaded (load average
+Hence casmbd.compiled.units now compiles a Function of 1–3 MB at -O1 (the band was 1–2 MB,
+which left tiago_dual's forward dynamics at -O0: 3.3× `aba` and a 134 s cold compile in a
+sweep just before the change).  The same study while the machine was loaded (load average
 10 on 2 CPUs) gave 2–3× the compile times and, for the tiago_dual forward dynamics, 162 / 69 /
 175 µs: per-call figures of these large functions move with the load.  A 30 s cold compile and
 1× Pinocchio per call cannot both be had at this code size: every Function of tiago_dual at
--O0 would compile in about 25 s of CPU but run 2–3× slower.  Closing the gap needs fewer
+-O0 would compile in about 20–25 s of CPU but run 2–3× slower.  Closing the gap needs fewer
 instructions per joint (Pinocchio's local-frame spatial algebra, with analytic motion
 subspaces and bias accelerations for revolute and prismatic joints instead of differentiated
 compositions), not flags.  Below about 50 joints the forward dynamics beats `aba` on all but a
