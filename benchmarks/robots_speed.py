@@ -306,10 +306,11 @@ code), inverse dynamics and b by Newton–Euler, M by the composite-rigid-body r
 Jacobian Function per frame from the ancestors' motion subspaces, CasADi `cse` on every
 Function; translation units split per Function (a `map` batch in the unit of the Function it
 maps, so its C is compiled once) and compiled in parallel.  tiago_dual (101 joints) before →
-after: forward dynamics 361 k → 93 k instructions, 14.5× → 7.1× `aba` (the issue's figures
-against this run's); inverse dynamics 8× → 1.8× `rnea`.  The figures move with the load of
-the shared machine: a run of the subset while it was busier (load average 10 on 2 CPUs) gave
-tiago_dual 7.1× `aba` and a 276 s cold compile.
+after: forward dynamics 361 k → 93 k instructions, 14.5× → 1.7× `aba` (the issue's figures
+against this run's); inverse dynamics 8× → 1.7× `rnea`; cold compile 133 s → 71 s.  The
+figures move with the load of the shared machine: a run of the subset while it was busier
+(load average 10 on 2 CPUs, forward dynamics still at -O0) gave tiago_dual 7.1× `aba` and a
+276 s cold compile.
 
 Why the largest robot still loses: the size of the generated code.  casmbd's recursions carry
 global components and centre-of-mass reference points, and the tree kinematics differentiates
