@@ -18,10 +18,13 @@ Conventions (n_q coordinates, joint coordinates by default):
   ``b = −Q_v − Q_e`` with Q_e the mechanism's own applied forces (gravity, springs, dampers)
   at t = 0 and actuator inputs u = 0 — Pinocchio's ``nle`` (Coriolis, centrifugal and gravity
   terms);
-* ``forward_dynamics`` of a tree (no constraint equations) solves ``M q̈ = τ − b`` by a dense
-  LDLᵀ factorisation written into the generated code (no pivoting: M is symmetric positive
-  definite); with constraint equations (closed chains, Euler parameters) it solves the KKT
-  system ``[M C_qᵀ; C_q 0] [q̈; λ] = [τ − b; γ]`` in numpy from the compiled pieces;
+* ``forward_dynamics`` of a tree in joint coordinates is the articulated-body recursion with τ
+  as the joint efforts (:mod:`casmbd.compiled.tree_dynamics`: O(N), as are the mass matrix,
+  the Newton–Euler τ and b, and the frame Jacobians there); a tree the recursion does not
+  cover solves ``M q̈ = τ − b`` by a dense LDLᵀ factorisation written into the generated code
+  (no pivoting: M is symmetric positive definite); with constraint equations (closed chains,
+  Euler parameters) it solves the KKT system ``[M C_qᵀ; C_q 0] [q̈; λ] = [τ − b; γ]`` in numpy
+  from the compiled pieces;
 * ``inverse_dynamics`` returns ``τ = M a + b``, for a tree in joint coordinates by the
   recursive Newton–Euler algorithm (:func:`newton_euler`, also used for b), else from M.  With
   constraint equations (closed loops, gears, Euler parameters) the equations of motion are
@@ -58,6 +61,7 @@ import numpy as np
 from casmbd.compiled.buffered import BufferedFunction
 from casmbd.compiled.build import compile_model
 from casmbd.compiled.free_flyer import VelocityMap, is_normalization, velocity_functions
+from casmbd.compiled.tree_dynamics import FUNCTION_OPTIONS, forward_dynamics, frame_jacobian
 from casmbd.errors import ModelError, SingularConfigurationError, SingularMassMatrixError
 from casmbd.model.bodies import GROUND
 from casmbd.model.needs import Handling, check
@@ -221,6 +225,9 @@ class CompiledModel:
         applied = at_rest(system.applied_forces)
         # a tree in joint coordinates (mimic followers substituted too): Newton–Euler
         recursive = supported(system, mimic=True) is None
+        # the articulated-body recursion (and the frame Jacobians by motion subspaces): a tree
+        # without substituted mimic followers (their subspace is on the leader's coordinate)
+        articulated = supported(system) is None
         if recursive:
             inverse = newton_euler(system, a) - applied
             bias = ca.densify(ca.substitute(inverse, a, ca.SX.zeros(nq)))
@@ -229,15 +236,19 @@ class CompiledModel:
             inverse = ca.mtimes(mass, a) + bias
         # every output dense: the bound arrays hold every entry (a ground marker's rotation
         # or a joint free of gravity would otherwise leave structural zeros out)
-        fns = [ca.Function("robot_mass_matrix", [q, p], [mass], ["q", "p"], ["M"]),
-               ca.Function("robot_bias", [q, v, p], [bias], ["q", "v", "p"], ["b"])]
+        # a tree: O(N) recursions with shared subexpressions (casmbd.compiled.tree_dynamics)
+        opts = dict(FUNCTION_OPTIONS) if recursive else {}
+        fns = [ca.Function("robot_mass_matrix", [q, p], [mass], ["q", "p"], ["M"], opts),
+               ca.Function("robot_bias", [q, v, p], [bias], ["q", "v", "p"], ["b"], opts)]
         if self.nc == 0:
-            qdd = ca.densify(ldl_solve(mass, tau - bias))
-            # Σ q̈ᵢ, finite iff q̈ is (a zero pivot gives inf or nan): the per-call test
+            qdd = ca.densify(forward_dynamics(system, tau) if articulated
+                             else ldl_solve(mass, tau - bias))
+            # Σ q̈ᵢ, finite iff q̈ is (a zero pivot or a zero articulated inertia gives inf or
+            # nan): the per-call test of a singular mass matrix
             fd = ca.Function("robot_fd", [q, v, tau, p], [qdd, ca.sum1(qdd)],
-                             ["q", "v", "tau", "p"], ["a", "sum"])
+                             ["q", "v", "tau", "p"], ["a", "sum"], opts)
             ind = ca.Function("robot_id", [q, v, a, p], [ca.densify(inverse)],
-                              ["q", "v", "a", "p"], ["tau"])
+                              ["q", "v", "a", "p"], ["tau"], opts)
             fns += [fd, ind, fd.map("robot_fd_batch", "serial", BATCH_CHUNK, [3], []),
                     ind.map("robot_id_batch", "serial", BATCH_CHUNK, [3], [])]
         else:
@@ -264,10 +275,12 @@ class CompiledModel:
                                [ca.densify(ca.vertcat(*pos)), ca.densify(ca.vertcat(*rot))],
                                ["q", "p"], ["positions", "rotations"]))
         for k, ((body, _), r) in enumerate(zip(frames, pos)):
-            lin = ca.jacobian(r, q)
-            ang = ca.jacobian(ctx.angular_velocity(body), v)
-            fns.append(ca.Function(f"robot_jacobian_{k}", [q, p],
-                                   [ca.densify(ca.vertcat(lin, ang))], ["q", "p"], ["J"]))
+            if articulated:
+                jac = frame_jacobian(system, body, r)
+            else:
+                jac = ca.vertcat(ca.jacobian(r, q), ca.jacobian(ctx.angular_velocity(body), v))
+            fns.append(ca.Function(f"robot_jacobian_{k}", [q, p], [ca.densify(jac)],
+                                   ["q", "p"], ["J"], opts))
         rows = list(range(self.nc))
         if not vmap.identity:  # floating bases: every Function in the velocities v (n_v)
             fns, rows = velocity_functions(system, vmap, fns, BATCH_CHUNK, ldl_solve)

@@ -50,8 +50,11 @@ MEDIUM_SOURCE = 1_000_000
 #: flags of the hot functions between :data:`MEDIUM_SOURCE` and :data:`LARGE_SOURCE`
 MEDIUM_FLAGS: tuple[str, ...] = ("-O1",)
 #: a function whose C alone exceeds this many bytes gets :data:`COLD_FLAGS` unless flags were
-#: chosen (1000 rods, 5.7 MB: -O0 7.7 s; -O1 did not finish in 8 min on a loaded machine)
-LARGE_SOURCE = 2_000_000
+#: chosen (1000 rods, 5.7 MB: -O0 7.7 s; -O1 did not finish in 8 min on a loaded machine).
+#: tiago_dual's per-call forward dynamics (101 joints, articulated-body recursion, 2.2 MB):
+#: -O0 3.3 s / 92 µs per call, -O1 26 s / 35 µs, -O2 41 s / 33 µs (quiet machine; Pinocchio's
+#: ``aba`` 22 µs): worth -O1 up to here.
+LARGE_SOURCE = 3_000_000
 #: flags of the functions that are not hot, and of the large ones
 COLD_FLAGS: tuple[str, ...] = ("-O0",)
 #: above this many bytes of C in all, one translation unit per function
@@ -83,7 +86,7 @@ def plan(functions: Sequence[casadi.Function], generate: Callable[[list], str],
         together = [f for f in functions if f.name() in hot_names
                     or (hot_names and _calls(f) & hot_names)]
         if len(together) < 2:
-            return [([f], alone[f.name()], flags_of[f.name()]) for f in functions]
+            return _with_callees(functions, alone, flags_of, generate)
         source = generate(together)  # flags by its largest hot function
         flags = by_size(max(len(alone[f.name()]) for f in together if f.name() in hot_names))
         return [(together, source, flags)] + [([f], alone[f.name()], flags_of[f.name()])
@@ -93,6 +96,36 @@ def plan(functions: Sequence[casadi.Function], generate: Callable[[list], str],
         groups.setdefault(tuple(flags_of[f.name()]), []).append(f)
     return [(group, alone[group[0].name()] if len(group) == 1 else generate(group), list(fl))
             for fl, group in groups.items()]
+
+
+def _with_callees(functions: Sequence[casadi.Function], alone: dict, flags_of: dict,
+                  generate: Callable[[list], str]) -> list[Unit]:
+    """One unit per function, except that a function calling exactly one other of the list
+    (a ``Function.map`` batch of a per-call Function) joins that one's unit at its flags: its
+    C then appears, and is compiled, once (tiago_dual's per-call model: 3.9 MB of C less)."""
+    names = {f.name() for f in functions}
+    owner = {}
+    for f in functions:
+        inner = (_callees(f) & names) - {f.name()}
+        if len(inner) == 1:
+            owner[f.name()] = inner.pop()
+    out: list[Unit] = []
+    for f in functions:
+        if f.name() in owner and owner[f.name()] not in owner:
+            continue
+        group = [f] + [g for g in functions if owner.get(g.name()) == f.name()
+                       and f.name() not in owner]
+        out.append((group, alone[f.name()] if len(group) == 1 else generate(group),
+                    flags_of[f.name()]))
+    return out
+
+
+def _callees(function: casadi.Function) -> set[str]:
+    """Names of every Function ``function`` calls, at any depth (``find_functions``)."""
+    try:
+        return {g.name() for g in function.find_functions()}
+    except (AttributeError, RuntimeError):  # pragma: no cover - CasADi before 3.6
+        return _calls(function)
 
 
 def _calls(function: casadi.Function) -> set[str]:

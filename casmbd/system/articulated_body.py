@@ -66,8 +66,14 @@ def motion_transform(d: ca.SX, dim: int) -> ca.SX:
                       ca.horzcat(-skew, ca.SX.eye(3)))
 
 
-def articulated_accelerations(system, applied: bool = True) -> ca.SX:
-    """q̈(q, q̇, t, u, p) of a tree by the articulated-body recursion (see module docstring)."""
+def articulated_accelerations(system, applied: bool = True, efforts: ca.SX | None = None
+                              ) -> ca.SX:
+    """q̈(q, q̇, t, u, p) of a tree by the articulated-body recursion (see module docstring).
+
+    ``efforts``: generalized forces τ on the joint coordinates (a column of n_q), added to
+    each joint's u = τ_i − Sᵀ p^A (Featherstone, Rigid Body Dynamics Algorithms, Table 7.1);
+    default none.
+    """
     reason = supported(system)
     if reason:
         raise ModelError(f"articulated-body recursion not applicable: {reason}")
@@ -139,6 +145,8 @@ def articulated_accelerations(system, applied: bool = True) -> ca.SX:
         d_mat = ca.mtimes(s.T, u_mat[name])
         d_inv[name] = 1.0 / d_mat if d_mat.numel() == 1 else ca.inv(d_mat)
         u_vec[name] = -ca.mtimes(s.T, p_a)
+        if efforts is not None:
+            u_vec[name] = u_vec[name] + system.body_part(efforts, name)
     acc: dict[str, ca.SX] = {}
     qdd = {}
     for name in order:

@@ -75,3 +75,18 @@ def test_a_failing_unit_names_its_command(tmp_path):
     (tmp_path / "good.o").unlink(missing_ok=True)
     units.compile_objects(commands[:1], logs[:1], timeout=60.0)
     assert (tmp_path / "good.o").exists()
+
+
+def test_a_batch_shares_the_unit_of_its_function(monkeypatch):
+    """Split units without hot functions: a ``map`` of a listed Function is compiled with it
+    (its C once), the others alone."""
+    fs = functions()
+    batch = fs[0].map("rhs_batch", "serial", 4, [], [])
+    monkeypatch.setattr(units, "SPLIT_SOURCE", 0)
+    plan = units.plan([*fs, batch], codegen._generate_template, None, ["-O2"], None)
+    assert [[f.name() for f in u[0]] for u in plan] == [["rhs", "rhs_batch"], ["post"],
+                                                         ["energy"]]
+    # rhs's body written once: the shared unit is shorter than the two units alone
+    together, gen = plan[0][1], codegen._generate_template
+    assert len(together) < len(gen([fs[0]])) + len(gen([batch]))
+    assert together.count("sin(") == gen([batch]).count("sin(") >= 1
