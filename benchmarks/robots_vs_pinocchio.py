@@ -129,16 +129,33 @@ def _pin_configuration(pm, names: list[str], renamed: dict | None = None):
 
 
 def _mimic_joints(path) -> tuple[list[str], list[str]]:
-    """The joints of ``<mimic>`` pairs in the URDF file: all of them, and the leaders."""
+    """The joints of ``<mimic>`` pairs in the URDF file: all of them, and the leaders (a
+    ``<mimic>`` naming no joint of the file is left out: :func:`_broken_mimic`)."""
     import xml.etree.ElementTree as ET
 
+    root = ET.parse(str(path)).getroot()
+    known = {joint.get("name") for joint in root.iter("joint")}
     names, leaders = set(), set()
-    for joint in ET.parse(str(path)).getroot().iter("joint"):
+    for joint in root.iter("joint"):
         mimic = joint.find("mimic")
-        if mimic is not None:
+        if mimic is not None and mimic.get("joint") in known:
             names |= {joint.get("name"), mimic.get("joint")}
             leaders.add(mimic.get("joint"))
     return sorted(names), sorted(leaders)
+
+
+def _broken_mimic(path) -> dict:
+    """The documented option for a file whose ``<mimic>`` names an unknown joint
+    (alex_psyonic_hands): ``ignore_mimic`` = those followers, independent joints as in
+    Pinocchio's model without ``mimic=True``; {} for a sound file."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.parse(str(path)).getroot()
+    known = {joint.get("name") for joint in root.iter("joint")}
+    broken = sorted(joint.get("name") for joint in root.iter("joint")
+                    if joint.find("mimic") is not None
+                    and joint.find("mimic").get("joint") not in known)
+    return {"ignore_mimic": broken} if broken else {}
 
 
 def _rel(x, y) -> float:
@@ -217,6 +234,7 @@ def _check_fixed(path, states: int, seed: int, mode: str, absolute: bool) -> dic
         ids = sorted({pm.getJointId(n) for n in mimic if pm.existJointName(n)})
         pm = pin.buildReducedModel(pm, ids, pin.neutral(pm))
         rec["locked"] = mimic
+    rec.update(_broken_mimic(path))  # the documented option the file needs, recorded
     rec.update(pinocchio=True, nv=int(pm.nv), njoints=int(pm.njoints - 1),
                joint_types=sorted({j.shortname() for j in pm.joints[1:]}))
     import casmbd
@@ -225,7 +243,8 @@ def _check_fixed(path, states: int, seed: int, mode: str, absolute: bool) -> dic
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            mech = casmbd.load_urdf(path, locked=dict.fromkeys(leaders, 0.0))
+            mech = casmbd.load_urdf(path, locked=dict.fromkeys(leaders, 0.0),
+                                    **_broken_mimic(path))
             ours = casmbd.compile(mech, mode=mode)
             ours.urdf_renamed = getattr(mech, "urdf_renamed", {})  # allegro's link_8.0
     except Exception as exc:
@@ -457,7 +476,7 @@ def check_absolute(path, leaders, joint, pm, to_pin, perm, scale, states: int, s
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             extra = {"floating_base": True} if floating else {}
-            mech = casmbd.load_urdf(path, coordinates="absolute",
+            mech = casmbd.load_urdf(path, coordinates="absolute", **_broken_mimic(path),
                                     locked=dict.fromkeys(leaders, 0.0), **extra)
             system = System(mech, coordinates="absolute")
             ours = casmbd.compile(system, mode=mode)
@@ -564,7 +583,7 @@ def check_floating(path, leaders, coordinates: str, states: int, seed: int,
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            mech = casmbd.load_urdf(path, floating_base=True,
+            mech = casmbd.load_urdf(path, floating_base=True, **_broken_mimic(path),
                                     locked=dict.fromkeys(leaders, 0.0))
             ours = casmbd.compile(mech, mode=mode)
             ours.urdf_renamed = getattr(mech, "urdf_renamed", {})  # allegro's link_8.0
