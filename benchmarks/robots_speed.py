@@ -42,7 +42,12 @@ from pathlib import Path
 
 import numpy as np
 
-from benchmarks.robots_vs_pinocchio import _mimic_joints, _pin_configuration, robots_dir
+from benchmarks.robots_vs_pinocchio import (
+    _broken_mimic,
+    _mimic_joints,
+    _pin_configuration,
+    robots_dir,
+)
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "benchmarks" / "results" / "robots_speed.json"
@@ -82,7 +87,7 @@ def measure_robot(path: Path, number: int = 200, repeat: int = 7, seed: int = 0)
     rec["nv"] = int(pm.nv)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        mech = casmbd.load_urdf(path, locked=dict.fromkeys(leaders, 0.0))
+        mech = casmbd.load_urdf(path, locked=dict.fromkeys(leaders, 0.0), **_broken_mimic(path))
         t0 = time.perf_counter()
         ours = casmbd.compile(mech, mode="compiled")
     rec["compile_s"] = round(time.perf_counter() - t0, 2)
@@ -92,7 +97,8 @@ def measure_robot(path: Path, number: int = 200, repeat: int = 7, seed: int = 0)
     if ours.nc:
         rec["error"] = f"{ours.nc} constraint equations: not a tree in joint coordinates"
         return rec
-    to_pin, perm = _pin_configuration(pm, list(ours.coordinate_names))
+    to_pin, perm = _pin_configuration(pm, list(ours.coordinate_names),
+                                      getattr(mech, "urdf_renamed", {}))
     rng = np.random.default_rng(seed)
     n = ours.nq
     q, v, x = rng.uniform(-1, 1, n), rng.uniform(-2, 2, n), rng.uniform(-2, 2, n)
@@ -168,7 +174,8 @@ def flag_study(path: Path, flags: list[str], number: int = 200, repeat: int = 7,
     _, leaders = _mimic_joints(path)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        system = System(casmbd.load_urdf(path, locked=dict.fromkeys(leaders, 0.0)),
+        system = System(casmbd.load_urdf(path, locked=dict.fromkeys(leaders, 0.0),
+                                         **_broken_mimic(path)),
                         coordinates="joint")
     tau = ca.SX.sym("tau", system.nq)
     if what == "jacobians":  # every body's Jacobian, one Function each; timed: the last
