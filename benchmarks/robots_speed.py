@@ -106,7 +106,10 @@ def measure_robot(path: Path, number: int = 200, repeat: int = 7, seed: int = 0)
     data = pm.createData()
     # the link frame (type BODY: a joint may carry the link's name too) behind the most
     # joints: an end effector's Jacobian, the costliest
+    urdf_name = {v: k for k, v in getattr(mech, "urdf_renamed", {}).items()}  # link_8_0
+
     def depth(name):
+        name = urdf_name.get(name, name)
         if not pm.existFrame(name, pin.BODY):
             return 0
         return len(pm.supports[pm.frames[pm.getFrameId(name, pin.BODY)].parentJoint]) - 1
@@ -115,7 +118,7 @@ def measure_robot(path: Path, number: int = 200, repeat: int = 7, seed: int = 0)
     if depth(frame) == 0:
         rec["error"] = "no link frame on a moving joint in both models"
         return rec
-    fid = pm.getFrameId(frame, pin.BODY)
+    fid = pm.getFrameId(urdf_name.get(frame, frame), pin.BODY)
     world = pin.LOCAL_WORLD_ALIGNED
     ref = pin.crba(pm, data, qp)
     ref = np.triu(ref) + np.triu(ref, 1).T
