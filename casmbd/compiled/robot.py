@@ -61,6 +61,7 @@ import numpy as np
 from casmbd.compiled.buffered import BufferedFunction
 from casmbd.compiled.build import compile_model
 from casmbd.compiled.free_flyer import VelocityMap, is_normalization, velocity_functions
+from casmbd.compiled.spatial_recursions import SpatialTree, unsupported
 from casmbd.compiled.tree_dynamics import FUNCTION_OPTIONS, forward_dynamics, frame_jacobian
 from casmbd.errors import ModelError, SingularConfigurationError, SingularMassMatrixError
 from casmbd.model.bodies import GROUND
@@ -68,7 +69,12 @@ from casmbd.model.needs import Handling, check
 from casmbd.system.articulated_body import motion_transform, supported
 from casmbd.system.equations import System
 
-__all__ = ["BATCH_CHUNK", "CompiledModel", "compile"]
+__all__ = ["BATCH_CHUNK", "SPATIAL_RECURSIONS", "CompiledModel", "compile"]
+
+#: write the per-call Functions of a covered tree (single-coordinate revolute and prismatic
+#: joints, rigid links, gravity only) by Featherstone's spatial algebra in local body frames
+#: (:mod:`casmbd.compiled.spatial_recursions`); False: the global-component tree recursions
+SPATIAL_RECURSIONS = True
 
 #: samples per call of the compiled batch Functions (``Function.map`` over a fixed number of
 #: columns, compiled once with the model); a batch of N samples makes ⌈N / BATCH_CHUNK⌉ calls,
@@ -221,14 +227,21 @@ class CompiledModel:
         def at_rest(expr):  # t = 0, actuator inputs u = 0
             return ca.substitute([expr], zero_tu, zeros)[0]
 
-        mass = ca.densify(system.mass_matrix)
-        applied = at_rest(system.applied_forces)
+        # a tree of revolute and prismatic joints: Featherstone's recursions in body frames
+        spatial = (SPATIAL_RECURSIONS and vmap.identity and system.coordinates == "joint"
+                   and unsupported(system) is None)
+        tree = SpatialTree(system, q) if spatial else None
+        mass = ca.densify(tree.mass_matrix() if spatial else system.mass_matrix)
+        applied = None if spatial else at_rest(system.applied_forces)
         # a tree in joint coordinates (mimic followers substituted too): Newton–Euler
-        recursive = supported(system, mimic=True) is None
+        recursive = spatial or supported(system, mimic=True) is None
         # the articulated-body recursion (and the frame Jacobians by motion subspaces): a tree
         # without substituted mimic followers (their subspace is on the leader's coordinate)
-        articulated = supported(system) is None
-        if recursive:
+        articulated = spatial or supported(system) is None
+        if spatial:
+            inverse = tree.inverse_dynamics(v, a)
+            bias = ca.densify(tree.inverse_dynamics(v, ca.SX.zeros(nq)))
+        elif recursive:
             inverse = newton_euler(system, a) - applied
             bias = ca.densify(ca.substitute(inverse, a, ca.SX.zeros(nq)))
         else:
@@ -241,7 +254,8 @@ class CompiledModel:
         fns = [ca.Function("robot_mass_matrix", [q, p], [mass], ["q", "p"], ["M"], opts),
                ca.Function("robot_bias", [q, v, p], [bias], ["q", "v", "p"], ["b"], opts)]
         if self.nc == 0:
-            qdd = ca.densify(forward_dynamics(system, tau) if articulated
+            qdd = ca.densify(tree.forward_dynamics(v, tau) if spatial and not tree.mimic
+                             else forward_dynamics(system, tau) if articulated and not spatial
                              else ldl_solve(mass, tau - bias))
             # Σ q̈ᵢ, finite iff q̈ is (a zero pivot or a zero articulated inertia gives inf or
             # nan): the per-call test of a singular mass matrix
@@ -264,18 +278,28 @@ class CompiledModel:
         frames = [(b, None) for b in system.body_names]
         frames += [(mk.body, mk.point) for mk in mech.markers.values()]
         self.frame_names: list[str] = list(system.body_names) + list(mech.markers)
-        pos = [ctx.position(body, point) for body, point in frames]
+        if spatial:  # world placements of the bodies, markers at their body-frame points
+            poses = tree.world_poses()
+            poses[GROUND] = (ca.SX.zeros(3), ca.SX.eye(3))
+            pos = [poses[body][0] if point is None else
+                   poses[body][0] + ca.mtimes(poses[body][1], ca.DM(ctx.local(body, point)))
+                   for body, point in frames]
+        else:
+            pos = [ctx.position(body, point) for body, point in frames]
         # a frame's axes: the body's, times a marker's fixed offset (Marker.offset)
         axes = [np.eye(dim)] * len(system.body_names) + [
             _offset_matrix(mk.offset(mech.bodies.get(mk.body)), dim)
             for mk in mech.markers.values()]
-        rot = [ca.vec(ca.mtimes(ctx.rotation(body), ca.DM(off)).T)  # row by row
+        rot = [ca.vec(ca.mtimes(poses[body][1] if spatial else ctx.rotation(body),
+                                ca.DM(off)).T)  # row by row
                for (body, _), off in zip(frames, axes)]
         fns.append(ca.Function("robot_fk", [q, p],
                                [ca.densify(ca.vertcat(*pos)), ca.densify(ca.vertcat(*rot))],
-                               ["q", "p"], ["positions", "rotations"]))
+                               ["q", "p"], ["positions", "rotations"], opts))
         for k, ((body, _), r) in enumerate(zip(frames, pos)):
-            if articulated:
+            if spatial:
+                jac = tree.frame_jacobian(poses, body, r)
+            elif articulated:
                 jac = frame_jacobian(system, body, r)
             else:
                 jac = ca.vertcat(ca.jacobian(r, q), ca.jacobian(ctx.angular_velocity(body), v))
