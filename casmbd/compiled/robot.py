@@ -53,6 +53,7 @@ Conventions (n_q coordinates, joint coordinates by default):
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Sequence
 
 import casadi as ca
@@ -74,7 +75,8 @@ __all__ = ["BATCH_CHUNK", "SPATIAL_RECURSIONS", "CompiledModel", "compile"]
 #: write the per-call Functions of a covered tree (single-coordinate revolute and prismatic
 #: joints, rigid links, gravity only) by Featherstone's spatial algebra in local body frames
 #: (:mod:`casmbd.compiled.spatial_recursions`); False: the global-component tree recursions
-SPATIAL_RECURSIONS = True
+#: (environment: ``CASMBD_SPATIAL_RECURSIONS=0`` turns it off, for comparisons)
+SPATIAL_RECURSIONS = os.environ.get("CASMBD_SPATIAL_RECURSIONS", "1") != "0"
 
 #: samples per call of the compiled batch Functions (``Function.map`` over a fixed number of
 #: columns, compiled once with the model); a batch of N samples makes ⌈N / BATCH_CHUNK⌉ calls,

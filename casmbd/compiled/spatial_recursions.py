@@ -73,6 +73,16 @@ def _skew(x) -> ca.SX:
                       ca.horzcat(-x[1], x[0], 0))
 
 
+def _rotate_sym(e: ca.SX, a: ca.SX) -> ca.SX:
+    """E A Eᵀ of a symmetric 3 × 3 A, the upper triangle computed."""
+    t = ca.mtimes(e, a)
+    out = ca.SX.zeros(3, 3)
+    for i in range(3):
+        for j in range(i, 3):
+            out[i, j] = out[j, i] = sum((t[i, k] * e[j, k] for k in range(3)), ca.SX(0))
+    return out
+
+
 def _cross(a, b) -> ca.SX:
     return ca.vertcat(a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
                       a[0] * b[1] - a[1] * b[0])
@@ -179,9 +189,42 @@ class SpatialTree:
         return ca.vertcat(ca.mtimes(e, f[:3]) + _cross(p, lin), lin)
 
     def _inertia_out(self, name: str, mat: ca.SX) -> ca.SX:
-        """Xᵀ I X of a symmetric 6 × 6 child-frame inertia."""
-        half = ca.horzcat(*[self._force_out(name, mat[:, k]) for k in range(6)])
-        return ca.horzcat(*[self._force_out(name, half.T[:, k]) for k in range(6)])
+        """Xᵀ I X of a symmetric 6 × 6 child-frame inertia ``[A B; Bᵀ C]`` (an articulated
+        inertia), by 3 × 3 blocks and only the upper triangles of the symmetric ones: with
+        A' = E A Eᵀ, B' = E B Eᵀ, C' = E C Eᵀ and L = p̃ C',
+        ``Xᵀ I X = [A' + K + Kᵀ − L p̃,  B' + L;  ·,  C']``, K = p̃ B'ᵀ."""
+        e, p = self.pose[name]
+        a_r = _rotate_sym(e, mat[:3, :3])
+        c_r = _rotate_sym(e, mat[3:, 3:])
+        b_r = ca.mtimes(ca.mtimes(e, mat[:3, 3:]), e.T)
+        px = _skew(p)
+        k = ca.mtimes(px, b_r.T)
+        low = ca.mtimes(px, c_r)
+        top = ca.SX.zeros(3, 3)
+        for i in range(3):
+            for j in range(i, 3):
+                top[i, j] = (a_r[i, j] + k[i, j] + k[j, i]
+                             - sum((low[i, m] * px[m, j] for m in range(3)), ca.SX(0)))
+                top[j, i] = top[i, j]
+        side = b_r + low
+        return ca.vertcat(ca.horzcat(top, side), ca.horzcat(side.T, c_r))
+
+    def _rigid_out(self, name: str, m, h: ca.SX, bar: ca.SX) -> tuple:
+        """A rigid-body inertia (m, h = m c, Ī about the frame origin) of the child's frame
+        in the parent's (Featherstone §2.13): h' = E h + m p,
+        Ī' = E Ī Eᵀ − m (p pᵀ − |p|² 1) − (h_E pᵀ + p h_Eᵀ) + 2 (p·h_E) 1, h_E = E h."""
+        e, p = self.pose[name]
+        h_e = ca.mtimes(e, h)
+        rot = _rotate_sym(e, bar)
+        pp, ph = ca.dot(p, p), ca.dot(p, h_e)
+        out = ca.SX.zeros(3, 3)
+        for i in range(3):
+            for j in range(i, 3):
+                val = rot[i, j] - m * p[i] * p[j] - h_e[i] * p[j] - p[i] * h_e[j]
+                if i == j:
+                    val = val + m * pp + 2 * ph
+                out[i, j] = out[j, i] = val
+        return h_e + m * p, out
 
     def _inertia(self, name: str) -> ca.SX:
         link = self.links[name]
@@ -249,29 +292,50 @@ class SpatialTree:
         return ca.vertcat(*tau)
 
     def mass_matrix(self) -> ca.SX:
-        """M by the composite-rigid-body algorithm (Table 6.2)."""
-        comp = {name: self._inertia(name) for name in self.order}
+        """M by the composite-rigid-body algorithm (Table 6.2; M_ij = S_jᵀ F_i in world
+        components, as Pinocchio's ``crba``)."""
+        # composite inertias as rigid-body inertias (m, h, Ī): body frames at G, h = 0
+        comp = {name: (self.links[name].mass, ca.SX.zeros(3), ca.SX(self.links[name].tensor))
+                for name in self.order}
         for name in reversed(self.order):
             parent = self.links[name].parent
             if parent != GROUND:
-                comp[parent] = comp[parent] + self._inertia_out(name, comp[name])
+                mass, h, bar = comp[name]
+                h_p, bar_p = self._rigid_out(name, mass, h, bar)
+                m_q, h_q, bar_q = comp[parent]
+                comp[parent] = (m_q + mass, h_q + h_p, bar_q + bar_p)
+        # F_i = Ic_i S_i and every S_j in world components at the world origin (as
+        # Pinocchio's crba): M_ij = S_jᵀ F_i with one transform per body, none per pair
+        poses = self.world_poses()
+        motion_w, force_w = {}, {}
+        for name in self.order:
+            link = self.links[name]
+            if link.s is None:
+                continue
+            r, rot = poses[name]
+            s_i = ca.DM(link.ratio * link.s)
+            ang = ca.mtimes(rot, s_i[:3])
+            motion_w[name] = ca.vertcat(ang, ca.mtimes(rot, s_i[3:]) + _cross(r, ang))
+            mass, h, bar = comp[name]
+            f = ca.vertcat(ca.mtimes(bar, s_i[:3]) + _cross(h, s_i[3:]),
+                           mass * s_i[3:] - _cross(h, s_i[:3]))
+            lin = ca.mtimes(rot, f[3:])
+            force_w[name] = ca.vertcat(ca.mtimes(rot, f[:3]) + _cross(r, lin), lin)
         m = ca.SX.zeros(self.nq, self.nq)
         for name in self.order:
             link = self.links[name]
             if link.s is None:
                 continue
             # M = Gᵀ M_f G: a follower's entries add into its leader's row and column
-            i, s_i = link.coord, ca.DM(link.ratio * link.s)
-            f = ca.mtimes(comp[name], s_i)
-            m[i, i] = m[i, i] + ca.dot(s_i, f)
+            i, f = link.coord, force_w[name]
+            m[i, i] = m[i, i] + ca.dot(motion_w[name], f)
             node = name
             while self.links[node].parent != GROUND:
-                f = self._force_out(node, f)
                 node = self.links[node].parent
                 other = self.links[node]
                 if other.s is not None:
                     j = other.coord
-                    val = ca.dot(ca.DM(other.ratio * other.s), f)
+                    val = ca.dot(motion_w[node], f)
                     if i == j:
                         m[i, i] = m[i, i] + 2 * val
                     else:
