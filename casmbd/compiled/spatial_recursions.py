@@ -73,6 +73,22 @@ def _skew(x) -> ca.SX:
                       ca.horzcat(-x[1], x[0], 0))
 
 
+def _axis_rotation(h: np.ndarray, angle: ca.SX) -> ca.SX:
+    """R_h(φ) = 1 + sin φ h̃ + (1 − cos φ) h̃² (Rodrigues), written [[c, −s], [s, c]] when h
+    is ± a coordinate axis (most URDF joints: the fewest operations)."""
+    c, s = ca.cos(angle), ca.sin(angle)
+    axis = np.flatnonzero(h)
+    if len(axis) == 1 and abs(abs(h[axis[0]]) - 1.0) == 0.0:
+        k = int(axis[0])
+        i, j = (k + 1) % 3, (k + 2) % 3
+        s = s if h[k] > 0 else -s
+        rot = ca.SX.eye(3)
+        rot[i, i], rot[j, j], rot[i, j], rot[j, i] = c, c, -s, s
+        return rot
+    skew = ca.DM([[0, -h[2], h[1]], [h[2], 0, -h[0]], [-h[1], h[0], 0]])
+    return ca.DM.eye(3) + s * skew + (1 - c) * ca.mtimes(skew, skew)
+
+
 def _rotate_sym(e: ca.SX, a: ca.SX) -> ca.SX:
     """E A Eᵀ of a symmetric 3 × 3 A, the upper triangle computed."""
     t = ca.mtimes(e, a)
@@ -130,10 +146,7 @@ class _Link:
         """(E, p): the child's axes and centre of mass in the parent's frame."""
         e0 = ca.DM(self.e0)
         if self.kind == "revolute":
-            h = self.h
-            skew = ca.DM([[0, -h[2], h[1]], [h[2], 0, -h[0]], [-h[1], h[0], 0]])
-            qi = self.value(q)
-            rot = ca.DM.eye(3) + ca.sin(qi) * skew + (1 - ca.cos(qi)) * ca.mtimes(skew, skew)
+            rot = _axis_rotation(self.h, self.value(q))
             return ca.mtimes(e0, rot), ca.DM(self.j_p) - ca.mtimes(e0, ca.mtimes(rot,
                                                                                  self.j_c))
         shift = ca.DM(self.j_p - self.e0 @ self.j_c)
