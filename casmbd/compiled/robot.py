@@ -328,6 +328,7 @@ class CompiledModel:
         self._m, self._b = self._calls["robot_mass_matrix"], self._calls["robot_bias"]
         self._fk = self._calls["robot_fk"]
         self._jac = [self._calls[f"robot_jacobian_{k}"] for k in range(len(frames))]
+        self._jac_by_frame = dict(zip(self.frame_names, self._jac))
         self._fd = self._calls.get("robot_fd", self._calls.get("robot_kkt"))
         self._id = self._calls.get("robot_id", self._calls.get("robot_id_terms"))
         self.constraint_labels: list[str] = [
@@ -426,19 +427,40 @@ class CompiledModel:
     def mass_matrix(self, q) -> np.ndarray:
         """M(q), dense n_q × n_q (Pinocchio's ``crba``, both triangles filled)."""
         c = self._m
-        self._load(c, "mass_matrix", q)
+        try:  # _load inlined: the call costs a tenth of a small robot's call
+            if len(q) != self.nq:
+                raise ValueError
+            c.a0[...] = q
+        except (ValueError, TypeError):
+            raise self._shape_error("mass_matrix", q) from None
+        c.trigger()
         return c.view.copy()
 
     def bias_forces(self, q, v) -> np.ndarray:
         """b(q, v) = −Q_v − Q_e at t = 0, u = 0, so that M q̈ + b = τ (Pinocchio's ``nle``)."""
         c = self._b
-        self._load(c, "bias_forces", q, v)
+        try:  # _load inlined
+            if len(q) != self.nq or len(v) != self.nv:
+                raise ValueError
+            c.a0[...] = q
+            c.a1[...] = v
+        except (ValueError, TypeError):
+            raise self._shape_error("bias_forces", q, v) from None
+        c.trigger()
         return c.view.copy()
 
     def forward_dynamics(self, q, v, tau) -> np.ndarray:
         """q̈ from M q̈ + b = τ (and C_q q̈ = γ with constraint equations; module docstring)."""
         c = self._fd
-        self._load(c, "forward_dynamics", q, v, tau)
+        try:  # _load inlined
+            if len(q) != self.nq or len(v) != self.nv or len(tau) != self.nv:
+                raise ValueError
+            c.a0[...] = q
+            c.a1[...] = v
+            c.a2[...] = tau
+        except (ValueError, TypeError):
+            raise self._shape_error("forward_dynamics", q, v, tau) from None
+        c.trigger()
         if not self.nc:
             if not math.isfinite(c.outs[1][0]):  # a zero pivot: named (else q̈ stands)
                 self._singular(q, "forward_dynamics")
@@ -492,7 +514,15 @@ class CompiledModel:
             coordinates that cannot produce the motion.
         """
         c = self._id
-        self._load(c, "inverse_dynamics", q, v, a)
+        try:  # _load inlined
+            if len(q) != self.nq or len(v) != self.nv or len(a) != self.nv:
+                raise ValueError
+            c.a0[...] = q
+            c.a1[...] = v
+            c.a2[...] = a
+        except (ValueError, TypeError):
+            raise self._shape_error("inverse_dynamics", q, v, a) from None
+        c.trigger()
         if not self.nc and len(self.actuated) == self.nv:
             tau = c.view.copy()
             return (tau, np.zeros(0)) if return_multipliers else tau
@@ -552,12 +582,17 @@ class CompiledModel:
     def jacobian(self, q, frame: str) -> np.ndarray:
         """J(q) of a body or marker with (ṙ, ω) = J v, rows linear then angular, global
         components (Pinocchio's ``LOCAL_WORLD_ALIGNED``; module docstring)."""
-        k = self._frame_index.get(frame)
-        if k is None:
+        c = self._jac_by_frame.get(frame)
+        if c is None:
             raise ModelError(f"jacobian: unknown frame '{frame}' (bodies and markers: "
                              f"{', '.join(self.frame_names)})")
-        c = self._jac[k]
-        self._load(c, "jacobian", q)
+        try:  # _load inlined
+            if len(q) != self.nq:
+                raise ValueError
+            c.a0[...] = q
+        except (ValueError, TypeError):
+            raise self._shape_error("jacobian", q) from None
+        c.trigger()
         return c.view.copy()
 
     def integrate(self, q, v, dt: float = 1.0) -> np.ndarray:
