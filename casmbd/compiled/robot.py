@@ -18,6 +18,10 @@ Conventions (n_q coordinates, joint coordinates by default):
   ``b = −Q_v − Q_e`` with Q_e the mechanism's own applied forces (gravity, springs, dampers)
   at t = 0 and actuator inputs u = 0 — Pinocchio's ``nle`` (Coriolis, centrifugal and gravity
   terms);
+* a tree of revolute and prismatic joints under gravity (mimic followers substituted) is
+  written by Featherstone's recursions in local body frames, as Pinocchio
+  (:mod:`casmbd.compiled.spatial_recursions`: CRBA, RNEA, ABA, kinematics and Jacobians;
+  :data:`SPATIAL_RECURSIONS`); other trees as follows;
 * ``forward_dynamics`` of a tree in joint coordinates is the articulated-body recursion with τ
   as the joint efforts (:mod:`casmbd.compiled.tree_dynamics`: O(N), as are the mass matrix,
   the Newton–Euler τ and b, and the frame Jacobians there); a tree the recursion does not
