@@ -77,3 +77,31 @@ def test_spatial_recursions_leave_other_trees_to_the_tree_path(tmp_path):
     assert unsupported(System(mech, coordinates="joint")) is not None  # the free-flyer root
     mech = casmbd.load_urdf(SCENES / "ur5_arm.urdf", damping=True)
     assert "applied forces" in unsupported(System(mech, coordinates="joint"))
+
+
+def test_spatial_recursions_with_a_rigid_tree_joint_and_skew_gravity(monkeypatch):
+    """A tree joint of kind 'rigid' (a weld kept as its own body), skew joint axes, general
+    body orientations and gravity off the z axis: the same quantities to 1e-12."""
+    mech = casmbd.Mechanism("welded", dimension=3, gravity=[0.3, -0.2, -9.81])
+    mech.add_body("a", 2.0, [0.1, 0.2, 0.15, 0.01, -0.02, 0.005], [0.3, 0.1, 0.2],
+                  euler_zxz=[0.3, 0.5, -0.2])
+    mech.add_body("b", 1.5, [0.05, 0.07, 0.06], [0.6, 0.2, 0.1], euler_zxz=[-0.4, 0.2, 0.9])
+    mech.add_body("c", 0.8, [0.02, 0.03, 0.025, 0.001, 0.0, 0.002], [0.9, 0.0, 0.3],
+                  euler_zxz=[1.0, -0.3, 0.1])
+    mech.add("revolute", "j1", "ground", "a", [0.0, 0.0, 0.2], [0.2, 0.3, 0.9])
+    mech.add("rigid", "weld", "a", "b")
+    mech.add("prismatic", "j2", "b", "c", [0.7, 0.1, 0.2], [0.6, -0.2, 0.3])
+    assert unsupported(System(mech, coordinates="joint")) is None
+    new = casmbd.compile(mech, mode="vm")
+    monkeypatch.setattr(robot, "SPATIAL_RECURSIONS", False)
+    old = casmbd.compile(mech, mode="vm")
+    rng = np.random.default_rng(2)
+    for _ in range(3):
+        q, v, a = (rng.uniform(-1, 1, new.nq) for _ in range(3))
+        assert _close(new.mass_matrix(q), old.mass_matrix(q)) < TOL
+        assert _close(new.inverse_dynamics(q, v, a), old.inverse_dynamics(q, v, a)) < TOL
+        assert _close(new.forward_dynamics(q, v, a), old.forward_dynamics(q, v, a)) < TOL
+        for got, want in zip(new.forward_kinematics(q), old.forward_kinematics(q)):
+            assert _close(got, want) < TOL
+        for frame in new.frame_names:
+            assert _close(new.jacobian(q, frame), old.jacobian(q, frame)) < TOL
