@@ -18,6 +18,10 @@ Conventions (n_q coordinates, joint coordinates by default):
   ``b = −Q_v − Q_e`` with Q_e the mechanism's own applied forces (gravity, springs, dampers)
   at t = 0 and actuator inputs u = 0 — Pinocchio's ``nle`` (Coriolis, centrifugal and gravity
   terms);
+* a tree of revolute and prismatic joints under gravity (mimic followers substituted) is
+  written by Featherstone's recursions in local body frames, as Pinocchio
+  (:mod:`casmbd.compiled.spatial_recursions`: CRBA, RNEA, ABA, kinematics and Jacobians;
+  :data:`SPATIAL_RECURSIONS`); other trees as follows;
 * ``forward_dynamics`` of a tree in joint coordinates is the articulated-body recursion with τ
   as the joint efforts (:mod:`casmbd.compiled.tree_dynamics`: O(N), as are the mass matrix,
   the Newton–Euler τ and b, and the frame Jacobians there); a tree the recursion does not
@@ -53,6 +57,7 @@ Conventions (n_q coordinates, joint coordinates by default):
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Sequence
 
 import casadi as ca
@@ -61,6 +66,7 @@ import numpy as np
 from casmbd.compiled.buffered import BufferedFunction
 from casmbd.compiled.build import compile_model
 from casmbd.compiled.free_flyer import VelocityMap, is_normalization, velocity_functions
+from casmbd.compiled.spatial_recursions import SpatialTree, unsupported
 from casmbd.compiled.tree_dynamics import FUNCTION_OPTIONS, forward_dynamics, frame_jacobian
 from casmbd.errors import ModelError, SingularConfigurationError, SingularMassMatrixError
 from casmbd.model.bodies import GROUND
@@ -68,7 +74,13 @@ from casmbd.model.needs import Handling, check
 from casmbd.system.articulated_body import motion_transform, supported
 from casmbd.system.equations import System
 
-__all__ = ["BATCH_CHUNK", "CompiledModel", "compile"]
+__all__ = ["BATCH_CHUNK", "SPATIAL_RECURSIONS", "CompiledModel", "compile"]
+
+#: write the per-call Functions of a covered tree (single-coordinate revolute and prismatic
+#: joints, rigid links, gravity only) by Featherstone's spatial algebra in local body frames
+#: (:mod:`casmbd.compiled.spatial_recursions`); False: the global-component tree recursions
+#: (environment: ``CASMBD_SPATIAL_RECURSIONS=0`` turns it off, for comparisons)
+SPATIAL_RECURSIONS = os.environ.get("CASMBD_SPATIAL_RECURSIONS", "1") != "0"
 
 #: samples per call of the compiled batch Functions (``Function.map`` over a fixed number of
 #: columns, compiled once with the model); a batch of N samples makes ⌈N / BATCH_CHUNK⌉ calls,
@@ -221,14 +233,21 @@ class CompiledModel:
         def at_rest(expr):  # t = 0, actuator inputs u = 0
             return ca.substitute([expr], zero_tu, zeros)[0]
 
-        mass = ca.densify(system.mass_matrix)
-        applied = at_rest(system.applied_forces)
+        # a tree of revolute and prismatic joints: Featherstone's recursions in body frames
+        spatial = (SPATIAL_RECURSIONS and vmap.identity and system.coordinates == "joint"
+                   and unsupported(system) is None)
+        tree = SpatialTree(system, q) if spatial else None
+        mass = ca.densify(tree.mass_matrix() if spatial else system.mass_matrix)
+        applied = None if spatial else at_rest(system.applied_forces)
         # a tree in joint coordinates (mimic followers substituted too): Newton–Euler
-        recursive = supported(system, mimic=True) is None
+        recursive = spatial or supported(system, mimic=True) is None
         # the articulated-body recursion (and the frame Jacobians by motion subspaces): a tree
         # without substituted mimic followers (their subspace is on the leader's coordinate)
-        articulated = supported(system) is None
-        if recursive:
+        articulated = spatial or supported(system) is None
+        if spatial:
+            inverse = tree.inverse_dynamics(v, a)
+            bias = ca.densify(tree.inverse_dynamics(v, ca.SX.zeros(nq)))
+        elif recursive:
             inverse = newton_euler(system, a) - applied
             bias = ca.densify(ca.substitute(inverse, a, ca.SX.zeros(nq)))
         else:
@@ -241,7 +260,8 @@ class CompiledModel:
         fns = [ca.Function("robot_mass_matrix", [q, p], [mass], ["q", "p"], ["M"], opts),
                ca.Function("robot_bias", [q, v, p], [bias], ["q", "v", "p"], ["b"], opts)]
         if self.nc == 0:
-            qdd = ca.densify(forward_dynamics(system, tau) if articulated
+            qdd = ca.densify(tree.forward_dynamics(v, tau) if spatial and not tree.mimic
+                             else forward_dynamics(system, tau) if articulated and not spatial
                              else ldl_solve(mass, tau - bias))
             # Σ q̈ᵢ, finite iff q̈ is (a zero pivot or a zero articulated inertia gives inf or
             # nan): the per-call test of a singular mass matrix
@@ -264,18 +284,28 @@ class CompiledModel:
         frames = [(b, None) for b in system.body_names]
         frames += [(mk.body, mk.point) for mk in mech.markers.values()]
         self.frame_names: list[str] = list(system.body_names) + list(mech.markers)
-        pos = [ctx.position(body, point) for body, point in frames]
+        if spatial:  # world placements of the bodies, markers at their body-frame points
+            poses = tree.world_poses()
+            poses[GROUND] = (ca.SX.zeros(3), ca.SX.eye(3))
+            pos = [poses[body][0] if point is None else
+                   poses[body][0] + ca.mtimes(poses[body][1], ca.DM(ctx.local(body, point)))
+                   for body, point in frames]
+        else:
+            pos = [ctx.position(body, point) for body, point in frames]
         # a frame's axes: the body's, times a marker's fixed offset (Marker.offset)
         axes = [np.eye(dim)] * len(system.body_names) + [
             _offset_matrix(mk.offset(mech.bodies.get(mk.body)), dim)
             for mk in mech.markers.values()]
-        rot = [ca.vec(ca.mtimes(ctx.rotation(body), ca.DM(off)).T)  # row by row
+        rot = [ca.vec(ca.mtimes(poses[body][1] if spatial else ctx.rotation(body),
+                                ca.DM(off)).T)  # row by row
                for (body, _), off in zip(frames, axes)]
         fns.append(ca.Function("robot_fk", [q, p],
                                [ca.densify(ca.vertcat(*pos)), ca.densify(ca.vertcat(*rot))],
-                               ["q", "p"], ["positions", "rotations"]))
+                               ["q", "p"], ["positions", "rotations"], opts))
         for k, ((body, _), r) in enumerate(zip(frames, pos)):
-            if articulated:
+            if spatial:
+                jac = tree.frame_jacobian(poses, body, r)
+            elif articulated:
                 jac = frame_jacobian(system, body, r)
             else:
                 jac = ca.vertcat(ca.jacobian(r, q), ca.jacobian(ctx.angular_velocity(body), v))
@@ -302,6 +332,7 @@ class CompiledModel:
         self._m, self._b = self._calls["robot_mass_matrix"], self._calls["robot_bias"]
         self._fk = self._calls["robot_fk"]
         self._jac = [self._calls[f"robot_jacobian_{k}"] for k in range(len(frames))]
+        self._jac_by_frame = dict(zip(self.frame_names, self._jac))
         self._fd = self._calls.get("robot_fd", self._calls.get("robot_kkt"))
         self._id = self._calls.get("robot_id", self._calls.get("robot_id_terms"))
         self.constraint_labels: list[str] = [
@@ -400,19 +431,40 @@ class CompiledModel:
     def mass_matrix(self, q) -> np.ndarray:
         """M(q), dense n_q × n_q (Pinocchio's ``crba``, both triangles filled)."""
         c = self._m
-        self._load(c, "mass_matrix", q)
+        try:  # _load inlined: the call costs a tenth of a small robot's call
+            if len(q) != self.nq:
+                raise ValueError
+            c.a0[...] = q
+        except (ValueError, TypeError):
+            raise self._shape_error("mass_matrix", q) from None
+        c.trigger()
         return c.view.copy()
 
     def bias_forces(self, q, v) -> np.ndarray:
         """b(q, v) = −Q_v − Q_e at t = 0, u = 0, so that M q̈ + b = τ (Pinocchio's ``nle``)."""
         c = self._b
-        self._load(c, "bias_forces", q, v)
+        try:  # _load inlined
+            if len(q) != self.nq or len(v) != self.nv:
+                raise ValueError
+            c.a0[...] = q
+            c.a1[...] = v
+        except (ValueError, TypeError):
+            raise self._shape_error("bias_forces", q, v) from None
+        c.trigger()
         return c.view.copy()
 
     def forward_dynamics(self, q, v, tau) -> np.ndarray:
         """q̈ from M q̈ + b = τ (and C_q q̈ = γ with constraint equations; module docstring)."""
         c = self._fd
-        self._load(c, "forward_dynamics", q, v, tau)
+        try:  # _load inlined
+            if len(q) != self.nq or len(v) != self.nv or len(tau) != self.nv:
+                raise ValueError
+            c.a0[...] = q
+            c.a1[...] = v
+            c.a2[...] = tau
+        except (ValueError, TypeError):
+            raise self._shape_error("forward_dynamics", q, v, tau) from None
+        c.trigger()
         if not self.nc:
             if not math.isfinite(c.outs[1][0]):  # a zero pivot: named (else q̈ stands)
                 self._singular(q, "forward_dynamics")
@@ -466,7 +518,15 @@ class CompiledModel:
             coordinates that cannot produce the motion.
         """
         c = self._id
-        self._load(c, "inverse_dynamics", q, v, a)
+        try:  # _load inlined
+            if len(q) != self.nq or len(v) != self.nv or len(a) != self.nv:
+                raise ValueError
+            c.a0[...] = q
+            c.a1[...] = v
+            c.a2[...] = a
+        except (ValueError, TypeError):
+            raise self._shape_error("inverse_dynamics", q, v, a) from None
+        c.trigger()
         if not self.nc and len(self.actuated) == self.nv:
             tau = c.view.copy()
             return (tau, np.zeros(0)) if return_multipliers else tau
@@ -526,12 +586,17 @@ class CompiledModel:
     def jacobian(self, q, frame: str) -> np.ndarray:
         """J(q) of a body or marker with (ṙ, ω) = J v, rows linear then angular, global
         components (Pinocchio's ``LOCAL_WORLD_ALIGNED``; module docstring)."""
-        k = self._frame_index.get(frame)
-        if k is None:
+        c = self._jac_by_frame.get(frame)
+        if c is None:
             raise ModelError(f"jacobian: unknown frame '{frame}' (bodies and markers: "
                              f"{', '.join(self.frame_names)})")
-        c = self._jac[k]
-        self._load(c, "jacobian", q)
+        try:  # _load inlined
+            if len(q) != self.nq:
+                raise ValueError
+            c.a0[...] = q
+        except (ValueError, TypeError):
+            raise self._shape_error("jacobian", q) from None
+        c.trigger()
         return c.view.copy()
 
     def integrate(self, q, v, dt: float = 1.0) -> np.ndarray:
