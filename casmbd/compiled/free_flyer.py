@@ -44,7 +44,13 @@ import casadi as ca
 import numpy as np
 
 from casmbd.errors import ModelError
-from casmbd.model.rotations import G_matrix, rotation_matrix
+from casmbd.model.rotations import (
+    G_matrix,
+    quaternion_conjugate,
+    quaternion_multiply,
+    rotation_matrix,
+    skew,
+)
 from casmbd.system.descriptions import SpatialAbsolute
 
 __all__ = ["FloatingBlock", "VelocityMap", "difference_blocks", "integrate_blocks",
@@ -194,16 +200,6 @@ class VelocityMap:
         return arr
 
 
-def _skew(a: np.ndarray) -> np.ndarray:
-    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
-
-
-def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton product a ⊗ b, scalar first."""
-    return np.concatenate([[a[0] * b[0] - a[1:] @ b[1:]],
-                           a[0] * b[1:] + b[0] * a[1:] + np.cross(a[1:], b[1:])])
-
-
 def _unit(p: np.ndarray, where: str) -> np.ndarray:
     norm = float(np.linalg.norm(p))
     if not norm > 0.0:
@@ -244,7 +240,7 @@ def left_jacobian(phi: np.ndarray) -> np.ndarray:
     else:  # 1 − cos θ = 2 sin²(θ/2) without cancellation
         a = 2.0 * np.sin(0.5 * theta) ** 2 / theta2
         b = (theta - np.sin(theta)) / (theta2 * theta)
-    w = _skew(phi)
+    w = skew(phi)
     return np.eye(3) + a * w + b * (w @ w)
 
 
@@ -258,7 +254,7 @@ def left_jacobian_inverse(phi: np.ndarray) -> np.ndarray:
     else:
         half = 0.5 * theta
         c = (1.0 - half * np.cos(half) / np.sin(half)) / theta2
-    w = _skew(phi)
+    w = skew(phi)
     return np.eye(3) - 0.5 * w + c * (w @ w)
 
 
@@ -270,7 +266,7 @@ def integrate_blocks(q, v, dt, blocks, scalar_q, scalar_v) -> np.ndarray:
         p0 = _unit(q[b.q + 3:b.q + 7], f"integrate: body '{b.body}'")
         lin, phi = dt * v[b.v:b.v + 3], dt * v[b.v + 3:b.v + 6]
         out[b.q:b.q + 3] = q[b.q:b.q + 3] + rotation_matrix(p0) @ (left_jacobian(phi) @ lin)
-        p1 = _quat_mul(p0, exp_so3_quaternion(phi))
+        p1 = quaternion_multiply(p0, exp_so3_quaternion(phi))
         out[b.q + 3:b.q + 7] = p1 / np.linalg.norm(p1)
     return out
 
@@ -282,7 +278,7 @@ def difference_blocks(q0, q1, blocks, scalar_q, scalar_v, nv) -> np.ndarray:
     for b in blocks:
         p0 = _unit(q0[b.q + 3:b.q + 7], f"difference: body '{b.body}'")
         p1 = _unit(q1[b.q + 3:b.q + 7], f"difference: body '{b.body}'")
-        rel = _quat_mul(p0 * np.array([1.0, -1.0, -1.0, -1.0]), p1)
+        rel = quaternion_multiply(quaternion_conjugate(p0), p1)
         phi = log_so3_quaternion(rel)
         local = rotation_matrix(p0).T @ (q1[b.q:b.q + 3] - q0[b.q:b.q + 3])
         out[b.v:b.v + 3] = left_jacobian_inverse(phi) @ local

@@ -73,7 +73,7 @@ from casmbd.errors import CasmbdError, ModelError, SceneError
 from casmbd.io.urdf_tree import merge
 from casmbd.model import Mechanism
 from casmbd.model.bodies import GROUND
-from casmbd.model.rotations import quaternion_from_matrix
+from casmbd.model.rotations import quaternion_from_matrix, rotation_matrix
 from casmbd.model.visuals import Visual
 
 #: how closely an equality's two sides must meet at ``qpos0`` (m, and rad for a weld)
@@ -421,10 +421,9 @@ def _equalities(model, mujoco, data, mech, group, names, guarded) -> None:
 
 
 def _quat_matrix(quat) -> np.ndarray:
-    w, x, y, z = (float(c) for c in np.asarray(quat, float) / np.linalg.norm(quat))
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+    """A of MuJoCo's quaternion [w, x, y, z], normalised first (MuJoCo normalises too)."""
+    quat = np.asarray(quat, float)
+    return np.asarray(rotation_matrix(quat / np.linalg.norm(quat)), float)
 
 
 def _actuators(model, mujoco, mech, names, guarded) -> None:
