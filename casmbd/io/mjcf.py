@@ -514,7 +514,7 @@ def mjcf_scene(data: dict, source: str, name: str, coordinates: str, gravity) ->
     if "urdf" in data:
         raise SceneError("[scene] keys 'mjcf' and 'urdf': give one robot file")
     for key in ("initial", "locked", "friction", "inertia", "links", "ignore_mimic",
-                "floating_base"):  # URDF import options: never silently dropped
+                "floating_base", "base"):  # URDF import options: never silently dropped
         if key in data:
             raise SceneError(f"[scene] key '{key}': not available with 'mjcf' (only with "
                              "'urdf'" + ("; an MJCF body floats with its own <freejoint>)"

@@ -81,7 +81,7 @@ _LIMIT_KEYS = {"lower", "upper", "restitution", "limit_model", "limit_stiffness"
                "limit_exponent", "limit_damping", "limit_penetration"}
 _SCENE_KEYS = {"name", "dimension", "gravity", "format", "description", "coordinates",
                "tree", "urdf", "initial", "locked", "damping", "friction", "inertia",
-               "links", "ignore_mimic", "floating_base", "mjcf"}
+               "links", "ignore_mimic", "floating_base", "base", "mjcf"}
 _COORDINATES = ("auto", "absolute", "natural", "joint")
 _MARKER_KEYS = {"name", "body", "point", "description", "orientation", "euler_zxz", "angle"}
 _DRIVER_KEYS = {"name", "joint", "body", "coordinate", "position", "description"}
@@ -322,7 +322,7 @@ def _build(data: dict, source: str) -> Mechanism:
         if any(key in scene.data for key in ("initial", "locked", "damping", "friction")):
             raise scene.error("initial", "'initial', 'locked' and 'damping' need 'urdf' (so "
                               "does 'friction')")
-        for key in ("inertia", "links", "ignore_mimic"):  # URDF model options (urdf_checks)
+        for key in ("inertia", "links", "ignore_mimic", "base"):  # URDF options (urdf_checks)
             if key in scene.data:
                 raise scene.error(key, "needs 'urdf' (an option of the URDF import)")
         if "floating_base" in scene.data:

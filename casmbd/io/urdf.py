@@ -71,7 +71,11 @@ from casmbd.io.urdf_tree import MOVING, Robot, merge, parse_urdf
 from casmbd.limits import MAX_SCENE_BYTES, format_bytes
 from casmbd.model import Mechanism
 from casmbd.model.bodies import GROUND
-from casmbd.model.rotations import quaternion_from_matrix
+from casmbd.model.rotations import (
+    euler_zxz_to_quaternion,
+    quaternion_from_matrix,
+    rotation_matrix,
+)
 from casmbd.model.visuals import Visual
 
 #: default gravity of a robot (URDF has none): −9.81 m/s² along global −z
@@ -118,9 +122,11 @@ def _groups(robot: Robot, locked: Mapping) -> dict[str, str]:
     return group
 
 
-def _twists(robot: Robot, values: dict, rates: dict, frames: dict) -> dict:
-    """Global angular velocity ω and frame-origin velocity of every link at (q, q̇)."""
-    out = {robot.root: (np.zeros(3), np.zeros(3))}
+def _twists(robot: Robot, values: dict, rates: dict, frames: dict,
+            root: tuple[np.ndarray, np.ndarray] | None = None) -> dict:
+    """Global angular velocity ω and frame-origin velocity of every link at (q, q̇), the root
+    link moving with ``root`` = (ω, origin velocity) (a floating base's start; else at rest)."""
+    out = {robot.root: (np.zeros(3), np.zeros(3)) if root is None else root}
     for joint in robot.order():
         omega_p, vel_p = out[joint.parent]
         rot_c, pos_c = frames[joint.child]
@@ -212,8 +218,9 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
                     friction: bool = False, inertia: str = "check",
                     links: Mapping | None = None,
                     ignore_mimic: bool | Sequence[str] = False,
-                    floating_base: bool = False) -> Mechanism:
+                    floating_base: bool = False, base: Mapping | None = None) -> Mechanism:
     """The :class:`Mechanism` of a parsed URDF (see :func:`load_urdf`)."""
+    start_base = base_start(base, floating_base, robot.name)
     robot = prepare(robot, inertia, links, ignore_mimic)  # overrides, mimic, 'ground'
 
     renamed = getattr(robot, "renamed", {})  # reserved names (io/urdf_checks.py)
@@ -246,7 +253,14 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
     values = {**locked, **{k: p for k, (p, _) in start.items()}}
     at_start = robot.frames(values)
     moved = any(p != 0.0 for p, _ in start.values())  # else the start is the design pose
-    twists = _twists(robot, values, {k: v for k, (_, v) in start.items()}, at_start)
+    root_twist = None
+    if start_base is not None:  # the floating base's own start: every frame carried with it
+        rot_b, pos_b, vel_b, omega_b = start_base
+        at_start = {k: (rot_b @ rot, rot_b @ pos + pos_b) for k, (rot, pos) in at_start.items()}
+        root_twist = (omega_b, vel_b)
+        moved = True
+    twists = _twists(robot, values, {k: v for k, (_, v) in start.items()}, at_start,
+                     root_twist)
 
     parts: dict[str, list] = {}
     for lname, link in robot.links.items():
@@ -323,6 +337,56 @@ def build_mechanism(robot: Robot, coordinates: str = "joint", locked: Mapping | 
     check_built(robot, mech, locked, design)  # a moving body; massless end links
     mech.urdf_renamed = dict(renamed)  # URDF name → casmbd name of reserved names
     return mech
+
+
+#: keys of ``base`` (``[scene.base]``): the start of a floating base
+BASE_KEYS = ("position", "orientation", "euler_zxz", "velocity", "angular_velocity")
+
+
+def base_start(base: Mapping | None, floating_base: bool, robot: str):
+    """(A, r, v, ω) where a floating base starts, from ``base`` (None: no table given).
+
+    ``position`` and ``orientation`` (unit quaternion [w, x, y, z]) or ``euler_zxz`` place
+    the root link frame in the world (default: the URDF's world frame); ``velocity`` is the
+    global velocity of its origin and ``angular_velocity`` the global angular velocity
+    (default zero).  Refused without ``floating_base`` (a welded root cannot move) and
+    for unknown keys or malformed values, naming the key.
+    """
+    if base is None:
+        return None
+    where = f"URDF '{robot}': base"
+    if not isinstance(base, Mapping):
+        raise SceneError(f"{where}: expected a table of {', '.join(BASE_KEYS)}")
+    if not floating_base:
+        raise SceneError(f"{where}: the start of the base needs floating_base = true (a "
+                         "welded root stays at the world frame)")
+    unknown = sorted(set(base) - set(BASE_KEYS))
+    if unknown:
+        raise SceneError(f"{where}: unknown key '{unknown[0]}' (keys: {', '.join(BASE_KEYS)})")
+    if "orientation" in base and "euler_zxz" in base:
+        raise SceneError(f"{where}: give 'orientation' or 'euler_zxz', not both")
+
+    def vec(key: str, n: int, default) -> np.ndarray:
+        value = base.get(key, default)
+        try:
+            out = np.array(value, dtype=float).reshape(-1)
+        except (TypeError, ValueError):
+            out = np.zeros(0)
+        if out.shape != (n,) or not np.all(np.isfinite(out)):
+            raise SceneError(f"{where} key '{key}': expected {n} finite numbers, got {value!r}")
+        return out
+
+    if "euler_zxz" in base:
+        quat = np.asarray(euler_zxz_to_quaternion(*vec("euler_zxz", 3, None)), float)
+    else:
+        quat = vec("orientation", 4, (1.0, 0.0, 0.0, 0.0))
+        norm = float(np.linalg.norm(quat))
+        if abs(norm - 1.0) > 1e-3:
+            raise SceneError(f"{where} key 'orientation': expected a unit quaternion [w, x, y, "
+                             f"z], got norm {norm:.6g}")
+        quat = quat / norm
+    return (rotation_matrix(quat), vec("position", 3, (0.0, 0.0, 0.0)),
+            vec("velocity", 3, (0.0, 0.0, 0.0)), vec("angular_velocity", 3, (0.0, 0.0, 0.0)))
 
 
 def resolve_mesh(uri: str, source: str) -> str | None:
@@ -407,7 +471,7 @@ def load_urdf(path: str | os.PathLike, coordinates: str = "joint",
               name: str | None = None, friction: bool = False, inertia: str = "check",
               links: Mapping[str, Mapping] | None = None,
               ignore_mimic: bool | Sequence[str] = False,
-              floating_base: bool = False) -> Mechanism:
+              floating_base: bool = False, base: Mapping | None = None) -> Mechanism:
     """Build a spatial :class:`Mechanism` from a URDF file.
 
     Parameters
@@ -449,7 +513,14 @@ def load_urdf(path: str | os.PathLike, coordinates: str = "joint",
         the ground: its coordinates are the position of the root link frame's origin and the
         unit quaternion [w, x, y, z] of its axes (a floating root in joint coordinates; the
         per-call API's free-flyer velocity, :mod:`casmbd.compiled.free_flyer`), starting at
-        the URDF's world frame.
+        the URDF's world frame unless ``base`` says otherwise.
+    base : dict, optional
+        With ``floating_base``: where the base starts, ``{"position": [x, y, z],
+        "orientation": [w, x, y, z]`` (or ``"euler_zxz": [φ, θ, ψ]``), ``"velocity": [...],
+        "angular_velocity": [...]}`` — the root link frame's origin and axes in the world,
+        the global velocity of that origin and the global angular velocity (defaults: the
+        world frame, at rest; :func:`base_start`).  Every link starts carried with it (joint
+        values from ``initial``), in every coordinate choice.
 
     Raises
     ------
@@ -471,15 +542,16 @@ def load_urdf(path: str | os.PathLike, coordinates: str = "joint",
     return loads_urdf(text, str(path), coordinates=coordinates, locked=locked,
                       initial=initial, damping=damping, gravity=gravity, name=name,
                       friction=friction, inertia=inertia, links=links,
-                      ignore_mimic=ignore_mimic, floating_base=floating_base)
+                      ignore_mimic=ignore_mimic, floating_base=floating_base, base=base)
 
 
 def urdf_scene(data: dict, source: str, name: str, coordinates: str, gravity) -> Mechanism:
     """The mechanism of a scene's ``[scene] urdf = "path"`` (relative to the scene file) with
     optional ``[scene.initial]``, ``[scene.locked]`` (joint name = value), ``damping``,
     ``friction``, ``inertia`` ("check" or "repair"), ``ignore_mimic`` (true or a list of joint
-    names), ``floating_base`` and ``[scene.links.NAME]`` (``mass``, ``com``, ``inertia``:
-    :func:`load_urdf`)."""
+    names), ``floating_base``, ``[scene.base]`` (the floating base's start: ``position``,
+    ``orientation`` or ``euler_zxz``, ``velocity``, ``angular_velocity``) and
+    ``[scene.links.NAME]`` (``mass``, ``com``, ``inertia``: :func:`load_urdf`)."""
     if gravity is None:
         raise SceneError("[scene] key 'dimension': a scene with 'urdf' is spatial "
                          "(dimension = 3)")
@@ -509,6 +581,6 @@ def urdf_scene(data: dict, source: str, name: str, coordinates: str, gravity) ->
                          gravity=gravity, name=name, friction=switches["friction"],
                          inertia=data.get("inertia", "check"), links=links,
                          ignore_mimic=data.get("ignore_mimic", False),
-                         floating_base=switches["floating_base"])
+                         floating_base=switches["floating_base"], base=data.get("base"))
     except SceneError as exc:
         raise SceneError(f"[scene] key 'urdf' ('{rel}'): {exc}") from None
