@@ -260,7 +260,7 @@ class CompiledModel:
         fns = [ca.Function("robot_mass_matrix", [q, p], [mass], ["q", "p"], ["M"], opts),
                ca.Function("robot_bias", [q, v, p], [bias], ["q", "v", "p"], ["b"], opts)]
         if self.nc == 0:
-            qdd = ca.densify(tree.forward_dynamics(v, tau) if spatial and not tree.mimic
+            qdd = ca.densify(tree.forward_dynamics(v, tau) if spatial and tree.articulated
                              else forward_dynamics(system, tau) if articulated and not spatial
                              else ldl_solve(mass, tau - bias))
             # Σ q̈ᵢ, finite iff q̈ is (a zero pivot or a zero articulated inertia gives inf or

@@ -32,7 +32,10 @@ articulated-body algorithm (Table 7.1) for q̈; forward kinematics; frame Jacobi
 planar models and applied forces other than gravity are left to the existing path
 (:func:`unsupported` says why).  Substituted mimic followers (q_f = r q_l + δ) are covered
 by M, τ, b, the kinematics and the Jacobians (their columns add into the leader's, M = Gᵀ M_f
-G); their q̈ is the caller's dense solve of M q̈ = τ − b (:attr:`SpatialTree.mimic`).
+G).  Their q̈ is the articulated-body recursion when every follower's joint has its leader's
+parent link (a gripper's fingers; :meth:`SpatialTree.forward_dynamics`, the leader and its
+followers one joint of one coordinate on several children); otherwise the caller's dense
+solve of M q̈ = τ − b (:attr:`SpatialTree.articulated` is False).
 """
 
 from __future__ import annotations
@@ -184,9 +187,17 @@ class SpatialTree:
         self.nq = system.nq
         self.pose = {name: self.links[name].placement(q) for name in order}
         self.gravity = np.asarray(system.mechanism.gravity, float)
-        #: substituted mimic followers: q̈ from M and b (their subspace is on the leader's
-        #: coordinate, outside the articulated-body recursion)
+        #: substituted mimic followers present
         self.mimic = any(link.mimic for link in self.links.values())
+        #: the links moved by each coordinate, in tree order (a leader and its followers)
+        self.groups: dict[int, list[str]] = {}
+        for name in order:
+            if self.links[name].s is not None:
+                self.groups.setdefault(self.links[name].coord, []).append(name)
+        #: q̈ by :meth:`forward_dynamics`: every link of a coordinate has the same parent
+        #: (otherwise the caller's dense solve of M q̈ = τ − b)
+        self.articulated = all(len({self.links[n].parent for n in g}) == 1
+                               for g in self.groups.values())
 
     # ------------------------------------------------------------------ spatial algebra
     def _motion_in(self, name: str, m: ca.SX) -> ca.SX:
@@ -357,8 +368,27 @@ class SpatialTree:
         return m
 
     def forward_dynamics(self, v: ca.SX, tau: ca.SX) -> ca.SX:
-        """q̈ by the articulated-body algorithm (Table 7.1), a₀ = −g (not with mimic
-        followers: :attr:`mimic`)."""
+        """q̈ by the articulated-body algorithm (Table 7.1), a₀ = −g.
+
+        A substituted mimic group (leader and followers, :attr:`groups`; all on one parent
+        link P, :attr:`articulated`) is one joint of one coordinate q_l acting on its children
+        i together: Table 7.1 with the children stacked, the subspace ``(r_i S_i)_i`` (r = 1
+        for the leader) and the block-diagonal articulated inertia, gives
+
+            U_i = IA_i r_i S_i,  D = Σ r_i² S_iᵀ IA_i S_i,  u = τ_l − Σ r_i S_iᵀ pA_i,
+            Ū = Σ X_iᵀ U_i,
+            IA_P += Σ X_iᵀ IA_i X_i − Ū Ūᵀ / D,
+            pA_P += Σ X_iᵀ (pA_i + IA_i c_i) + Ū (u − Σ U_iᵀ c_i) / D,
+            q̈_l = (u − Σ U_iᵀ (X_i a_P + c_i)) / D,   a_i = X_i a_P + c_i + r_i S_i q̈_l,
+
+        with c_i = v_i × r_i S_i q̇_l; τ_l is the leader coordinate's force of M q̈ + b = τ
+        (Gᵀ of the joint efforts, as :meth:`inverse_dynamics`); the offsets δ enter only the
+        joints' placements X_i.  A single joint (the group of one) is Table 7.1 itself.
+        Followers on another parent than their leader's are not covered (ValueError).
+        """
+        if not self.articulated:
+            raise ValueError("a mimic follower's joint has another parent than its leader's: "
+                             "q̈ by M q̈ = τ − b")
         vel = self._velocities(v)
         art, bias, bias_acc = {}, {}, {}
         for name in self.order:
@@ -370,6 +400,12 @@ class SpatialTree:
         u_vec, d_inv, u_eff = {}, {}, {}
         for name in reversed(self.order):
             link = self.links[name]
+            group = self.groups.get(link.coord, []) if link.s is not None else []
+            if len(group) > 1:  # a mimic group: taken at its first link in tree order
+                if name == group[0]:
+                    self._group_backward(group, tau, art, bias, bias_acc, u_vec, d_inv,
+                                         u_eff)
+                continue
             ia, pa = art[name], bias[name]
             if link.s is not None:
                 s = ca.DM(link.s)
@@ -388,8 +424,19 @@ class SpatialTree:
         qdd = [ca.SX(0)] * self.nq
         acc = {}
         for name in self.order:
+            if name in acc:  # a follower, set with its group
+                continue
             link = self.links[name]
             parent_acc = self._base() if link.parent == GROUND else acc[link.parent]
+            group = self.groups.get(link.coord, []) if link.s is not None else []
+            if len(group) > 1:
+                acc_in = {n: self._motion_in(n, parent_acc) + bias_acc[n] for n in group}
+                x = (u_eff[name] - sum((ca.dot(u_vec[n], acc_in[n]) for n in group),
+                                       ca.SX(0))) * d_inv[name]
+                qdd[link.coord] = x
+                for n in group:
+                    acc[n] = acc_in[n] + ca.DM(self.links[n].ratio * self.links[n].s) * x
+                continue
             a = self._motion_in(name, parent_acc) + bias_acc[name]
             if link.s is not None:
                 x = (u_eff[name] - ca.dot(u_vec[name], a)) * d_inv[name]
@@ -397,6 +444,30 @@ class SpatialTree:
                 a = a + ca.DM(link.s) * x
             acc[name] = a
         return ca.vertcat(*qdd)
+
+    def _group_backward(self, group, tau, art, bias, bias_acc, u_vec, d_inv, u_eff) -> None:
+        """The backward step of a mimic group (:meth:`forward_dynamics`): U_i, 1/D and u
+        under the group's first link, IA and pA of the common parent."""
+        first = group[0]
+        parent = self.links[first].parent
+        d, eff = ca.SX(0), tau[self.links[first].coord]
+        for n in group:
+            s = ca.DM(self.links[n].ratio * self.links[n].s)
+            u_vec[n] = ca.mtimes(art[n], s)
+            d = d + ca.dot(s, u_vec[n])
+            eff = eff - ca.dot(s, bias[n])
+        d_inv[first], u_eff[first] = 1 / d, eff
+        if parent == GROUND:
+            return
+        u_bar, ia_p, pa_p, uc = ca.SX.zeros(6), ca.SX.zeros(6, 6), ca.SX.zeros(6), ca.SX(0)
+        for n in group:
+            ia, c = art[n], bias_acc[n]
+            u_bar = u_bar + self._force_out(n, u_vec[n])
+            ia_p = ia_p + self._inertia_out(n, ia)
+            pa_p = pa_p + self._force_out(n, bias[n] + ca.mtimes(ia, c))
+            uc = uc + ca.dot(u_vec[n], c)
+        art[parent] = art[parent] + ia_p - ca.mtimes(u_bar, u_bar.T) * d_inv[first]
+        bias[parent] = bias[parent] + pa_p + u_bar * ((eff - uc) * d_inv[first])
 
     def world_poses(self) -> dict[str, tuple[ca.SX, ca.SX]]:
         """(r_G, A) of every body in global components."""
