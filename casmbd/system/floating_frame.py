@@ -129,6 +129,9 @@ class Invariants:
     """The lumped-mass invariants of one flexible body (module docstring for the definitions).
 
     ``d`` = dimension, ``c`` = 1 (plane) or 3 (space) rotation components, ``n`` = modes.
+    With ``flexible_mass = "reduced"`` the mass, S0 and S1 are those of the FE mass matrix and
+    J_r, J_psi carry the rotary inertia plus the difference between the consistent and lumped
+    I0 and M_ωf(0) (module docstring); the other sums stay lumped.
 
     Attributes
     ----------
