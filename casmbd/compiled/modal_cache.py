@@ -32,7 +32,7 @@ from casmbd.model.modal import ModalData
 __all__ = ["DISK_STORE", "load_modes", "save_modes"]
 
 _ARRAYS = ("positions", "masses", "inertias", "phi_t", "phi_r", "mass", "stiffness",
-           "frequencies", "rigid_mass")
+           "frequencies", "rigid_mass", "rigid_coupling")
 
 
 def _path(key: str):
@@ -98,6 +98,7 @@ def load_modes(key: str) -> ModalData | None:
                  and arrays["phi_t"].shape == (n_nodes, dim, n_modes)
                  and arrays["masses"].shape == (n_nodes,)
                  and arrays["stiffness"].shape == (n_modes, n_modes)
+                 and arrays["rigid_coupling"].shape == (arrays["rigid_mass"].shape[0], n_modes)
                  and len(names) == len(index) and all(0 <= i < n_nodes for i in index))
     if not shapes_ok or not all(np.all(np.isfinite(a)) for a in arrays.values()):
         return None

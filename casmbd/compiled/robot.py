@@ -384,7 +384,9 @@ class CompiledModel:
         check_mass_matrix`: N an orthonormal basis of null(C_q) (the identity for a tree), the
         eigenvectors x = N y of the eigenvalues of Nᵀ M N at most 1e-12 of the largest are
         motions without kinetic energy; the coordinates carrying ≥ 10 % of the largest share
-        of |x|² are named with their bodies' mass and inertia.
+        of |x|² are named with their bodies' mass and inertia.  An eigenvalue below −1e-12 of
+        the largest is not rounding: the message says "indefinite" (negative kinetic energy)
+        and names the coordinates of those eigenvectors instead.
         """
         self._load(self._m, what, q)
         m = 0.5 * (self._m.view + self._m.view.T)
@@ -399,7 +401,8 @@ class CompiledModel:
         tol = 1e-12 * max(float(np.max(np.abs(eig))), np.finfo(float).tiny)
         if eig[0] > tol:
             return
-        share = np.sum((basis @ vec[:, eig <= tol]) ** 2, axis=1)
+        indefinite = eig[0] < -tol  # negative kinetic energy, beyond rounding
+        share = np.sum((basis @ vec[:, eig < -tol if indefinite else eig <= tol]) ** 2, axis=1)
         named = [k for k in np.argsort(-share, kind="stable") if share[k] >= 0.1 * share.max()]
         parts = []
         for k in named[:4]:
@@ -407,6 +410,16 @@ class CompiledModel:
             mass, inertia = self._body_inertia.get(body, ("?", "?"))
             parts.append(f"'{self.velocity_names[k]}' (body '{body}': mass {mass}, inertia "
                          f"{inertia})")
+        if indefinite:
+            raise SingularMassMatrixError(
+                f"{what}: the mass matrix is indefinite at this q (smallest eigenvalue "
+                f"{eig[0]:.3g} of {eig[-1]:.3g}"
+                + (", on the null space of the constraint Jacobian" if cq is not None else "")
+                + "): a motion of " + ", ".join(parts) + " has negative kinetic energy, not "
+                "zero: an inertia that is not physical (a link's mass or inertia tensor); "
+                "check the links' <inertial> data",
+                coordinates=[self.velocity_names[k] for k in named],
+                bodies=list(dict.fromkeys(self._coordinate_bodies[k] for k in named)))
         raise SingularMassMatrixError(
             f"{what}: the mass matrix is singular at this q (smallest eigenvalue {eig[0]:.3g} "
             f"of {eig[-1]:.3g}"

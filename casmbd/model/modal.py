@@ -191,6 +191,12 @@ class ModalData:
         x, y, z translations, rotations about x, y, z).  Its blocks are the total mass, the
         first moment ``m x̃_G`` and the inertia tensor about the origin (exact for the
         consistent beam mass matrix, where the lumped sums are O(h²) approximations).
+    rigid_coupling : numpy.ndarray, (3, m) plane or (6, m) space, or None
+        ``Rᵀ M Φ``: the coupling of the rigid-body modes R (as in ``rigid_mass``) with the
+        modes through the FE mass matrix — the consistent first moments ``S1`` (translation
+        rows) and rotation–deformation couplings (rotation rows) that
+        ``flexible_mass = "reduced"`` uses (zero for free-interface modes, which are
+        mass-orthogonal to R).  ``None`` for modal data not computed from an FE mass matrix.
     source : str
         What the modes were computed from (for messages).
     key : str
@@ -210,6 +216,7 @@ class ModalData:
     reduction: str
     reference: int | None
     rigid_mass: np.ndarray
+    rigid_coupling: np.ndarray | None = None
     source: str = "modal data"
     key: str = ""
 

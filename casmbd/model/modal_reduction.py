@@ -192,13 +192,15 @@ def _finish(model: FEModel, Phi: np.ndarray, reduction: str, reference: int | No
         lam = np.maximum(lam, 0.0)
     R = rigid_body_modes(model)
     rigid = R.T @ (M @ R)
+    coupling = R.T @ (M @ Phi)
     phi_t, phi_r = _split(model, Phi)
     return ModalData(dimension=model.dimension, positions=model.positions.copy(),
                      masses=model.masses.copy(), inertias=model.inertias.copy(),
                      phi_t=phi_t, phi_r=phi_r, mass=Mr, stiffness=Kr,
                      frequencies=np.sqrt(lam), node_names=dict(model.node_names),
                      reduction=reduction, reference=reference,
-                     rigid_mass=0.5 * (rigid + rigid.T), source=model.source, key=key)
+                     rigid_mass=0.5 * (rigid + rigid.T), rigid_coupling=np.asarray(coupling),
+                     source=model.source, key=key)
 
 
 def fe_model_key(model: FEModel):

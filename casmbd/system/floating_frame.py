@@ -63,6 +63,26 @@ parameters (ω̄ = 2 G(p) ṗ, B = diag(1, 2G, 1)) Ḃ q̇ = 0 (G(ṗ) ṗ = 0):
 the Hessian of T(A(p), 2 G ṗ) exactly, and Bᵀ Q_v differs from AD's ∂T/∂q − Ṁ q̇ only along p,
 which the normalisation constraint's multiplier absorbs (also checked in the tests).
 
+``flexible_mass = "reduced"`` (issue 35): the η-independent and η-linear-coefficient inertia
+come from the FE mass matrix M instead of the lumped nodes, through the rigid-body modes of the
+mesh about the body origin (translations T_r, rotations R_r with the nodal rotational dofs;
+ModalData.rigid_mass = [T_r R_r]ᵀ M [T_r R_r], ModalData.rigid_coupling = [T_r R_r]ᵀ M Φ):
+
+    m 1 = T_rᵀ M T_r,  −S̃0 (plane S0⊥) = T_rᵀ M R_r,  I0 = R_rᵀ M R_r,
+    S1 = T_rᵀ M Φ,     M_ωf(0) = R_rᵀ M Φ,            M_ff = Φᵀ M Φ,
+
+so that M(A = 1, η = 0) = [T_r R_r Φ]ᵀ M [T_r R_r Φ], the Gram matrix of one mass metric,
+positive definite for a basis of full rank (Shabana, ch. 5, the consistent-mass invariants
+Ī_θθ = ∫ρ ũᵀũ, S̄_f = ∫ρ S dV).  Mixing lumped rigid and coupling invariants with the
+consistent M_ff is not a Gram matrix and is indefinite when constraint modes carry rigid-like
+motion (a tip constraint mode of a beam with interfaces at both ends turns about the root).
+The η-dependent parts stay lumped: P1, P2 and Q1 (the change of the inertia tensor and of the
+coupling with the deformation, zero at η = 0) are the lumped sums, which keeps Q_v the exact
+Lagrange (plane) and Euler–Poincaré (space) forces of that M(η): the differences
+I0 − (tr P0 1 − P0) and M_ωf(0) − Q0 are carried in J_r and J_Ψ, the only constants besides
+P0 and Q0 through which they enter.  S(η) = S0 + S1 η is the exact consistent first moment
+(gravity acts on it: the consistent modal gravity load S1ᵀ g).
+
 Elastic and damping forces: Q_f += −K η − C η̇ with C = M_ff V diag(2 ζ_k ω_k) Vᵀ M_ff, V the
 M_ff-normalised eigenvectors of (K, M_ff) — diag(2 ζ_k ω_k) for mass-normalised modes.
 
@@ -109,6 +129,9 @@ class Invariants:
     """The lumped-mass invariants of one flexible body (module docstring for the definitions).
 
     ``d`` = dimension, ``c`` = 1 (plane) or 3 (space) rotation components, ``n`` = modes.
+    With ``flexible_mass = "reduced"`` the mass, S0 and S1 are those of the FE mass matrix and
+    J_r, J_psi carry the rotary inertia plus the difference between the consistent and lumped
+    I0 and M_ωf(0) (module docstring); the other sums stay lumped.
 
     Attributes
     ----------
@@ -264,6 +287,78 @@ def _geometric_stiffness(u0, m, phi, psi, where: str) -> np.ndarray:
     return 0.5 * (kg + kg.T)
 
 
+def _consistent_rigid(modal: ModalData, P0: np.ndarray, Q0: np.ndarray, where: str):
+    """(m, S0, S1, J_r, J_Ψ) of ``flexible_mass = "reduced"`` from ModalData.rigid_mass and
+    rigid_coupling (module docstring): J_r = I0 − (tr P0 1 − P0), J_Ψ = M_ωf(0) − Q0 carry
+    the difference to the lumped P0, Q0 so that M(1, 0) = [T_r R_r Φ]ᵀ M [T_r R_r Φ]."""
+    dim, n = modal.dimension, Q0.shape[1]
+    nr = 3 if dim == 2 else 6
+    if getattr(modal, "rigid_coupling", None) is None:
+        raise ModelError(f"{where} field 'flexible_mass': 'reduced' needs the FE mass "
+                         "matrix's rigid-body data (ModalData.rigid_mass and rigid_coupling, "
+                         "from casmbd.model.modal_reduction); these modal data have none")
+    rigid = _array(modal.rigid_mass, (nr, nr), f"{where} field 'rigid_mass'")
+    coupling = _array(modal.rigid_coupling, (nr, n), f"{where} field 'rigid_coupling'")
+    rigid = 0.5 * (rigid + rigid.T)
+    t, r = slice(0, dim), slice(dim, nr)
+    mass = float(np.trace(rigid[t, t])) / dim
+    scale = max(abs(mass), 1e-300)
+    tol = 1e-8
+    if mass <= 0.0 or np.abs(rigid[t, t] - mass * np.eye(dim)).max() > tol * scale:
+        raise ModelError(f"{where} field 'rigid_mass': the FE mass matrix does not give one "
+                         f"positive mass in every direction (T_rᵀ M T_r = "
+                         f"{np.array2string(rigid[t, t], precision=4)}): not a rigid-body mass")
+    mtr = rigid[t, r]
+    if dim == 2:  # T_rᵀ M R_z = S0⊥ = (−S0_y, S0_x)
+        S0 = np.array([mtr[1, 0], -mtr[0, 0]])
+        J_r = rigid[r, r] - np.trace(P0)
+    else:  # T_rᵀ M R_r = −S̃0: antisymmetric
+        lever = max(1.0, float(np.abs(modal.positions).max()))
+        if np.abs(mtr + mtr.T).max() > tol * scale * lever:
+            raise ModelError(f"{where} field 'rigid_mass': the translation–rotation block of "
+                             "the FE mass matrix is not antisymmetric (not the first moment of "
+                             "a rigid body)")
+        skew = 0.5 * (mtr - mtr.T)
+        S0 = np.array([skew[1, 2], skew[2, 0], skew[0, 1]])
+        J_r = rigid[r, r] - (np.trace(P0) * np.eye(3) - P0)
+    return mass, S0, coupling[t].copy(), 0.5 * (J_r + J_r.T), coupling[r] - Q0
+
+
+#: a body mass matrix at η = 0 is indefinite when its Jacobi-scaled smallest eigenvalue is
+#: below minus this (rounding of a Gram matrix stays far above)
+INDEFINITE_RTOL = 1e-10
+
+
+def _check_definite(mass, S0, S1, P0, Q0, J_r, J_psi, M_ff, flexible_mass: str,
+                    where: str) -> None:
+    """Refuse invariants whose body mass matrix M(1, 0) (module docstring) is indefinite: a
+    negative eigenvalue of the Jacobi-scaled matrix below −:data:`INDEFINITE_RTOL` (a zero one,
+    a massless motion, is left to the mechanism's check: joints may carry it)."""
+    d = S0.shape[0]
+    if d == 2:
+        m_rw = np.array([[-S0[1]], [S0[0]]])
+        m_ww = np.atleast_2d(np.trace(P0) + J_r)
+    else:
+        m_rw = -np.array([[0.0, -S0[2], S0[1]], [S0[2], 0.0, -S0[0]], [-S0[1], S0[0], 0.0]])
+        m_ww = np.trace(P0) * np.eye(3) - P0 + J_r
+    m_wf = Q0 + J_psi
+    full = np.block([[mass * np.eye(d), m_rw, S1], [m_rw.T, m_ww, m_wf],
+                     [S1.T, m_wf.T, M_ff]])
+    diag = np.diag(full)
+    if np.any(diag <= 0.0):
+        return  # a massless direction: singular at worst, the mechanism's check names it
+    scaled = full / np.sqrt(np.outer(diag, diag))
+    eig = np.linalg.eigvalsh(0.5 * (scaled + scaled.T))
+    if eig[0] < -INDEFINITE_RTOL:
+        raise ModelError(
+            f"{where}: the body mass matrix at zero deformation is indefinite (smallest "
+            f"eigenvalue {eig[0]:.3g} of the Jacobi-scaled matrix, flexible_mass = "
+            f"'{flexible_mass}'): a motion with negative kinetic energy, not a massless one. "
+            "The rigid-body, coupling and flexible mass invariants do not come from one mass "
+            "matrix (modal data whose 'mass' does not match its nodal masses and modes, or "
+            "'rigid_mass'/'rigid_coupling' from another mesh)")
+
+
 def invariants(modal: ModalData, *, damping_ratio=0.0, flexible_mass: str = "lumped",
                stiffening: bool = False, name: str = "flexible body") -> Invariants:
     """Compute the lumped-mass invariants of a flexible body once, with numpy.
@@ -276,10 +371,12 @@ def invariants(modal: ModalData, *, damping_ratio=0.0, flexible_mass: str = "lum
     damping_ratio : float or array_like (n,)
         Modal damping ratio ζ per mode (C = diag(2 ζ_k ω_k) for mass-normalised modes).
     flexible_mass : {"lumped", "reduced"}
-        M_ff from the lumped nodes (Σ m_i Φ_iᵀΦ_i + Σ Ψ_iᵀ J_i Ψ_i: the exact lumped model, the
-        default) or ModalData.mass (Φᵀ M Φ of the FE mass matrix, the identity for
-        mass-normalised modes; consistent with the reduced frequencies).  M_ff is constant, so
-        the choice does not change Q_v.
+        The lumped model (every invariant a sum over the nodes, M_ff = Σ m_i Φ_iᵀΦ_i +
+        Σ Ψ_iᵀ J_i Ψ_i; the default) or the FE mass matrix for the inertia at η = 0: m, S0,
+        I0, S1, M_ωf(0) from ModalData.rigid_mass and rigid_coupling and M_ff =
+        ModalData.mass (Φᵀ M Φ, the identity for mass-normalised modes; consistent with the
+        reduced frequencies); the η-dependent invariants P1, P2, Q1 stay lumped (module
+        docstring).
     stiffening : bool
         Compute the centrifugal geometric stiffness K_G1 (beam along the body x axis).
     name : str
@@ -293,7 +390,8 @@ def invariants(modal: ModalData, *, damping_ratio=0.0, flexible_mass: str = "lum
     ------
     ModelError
         Malformed modal data (naming the body and field), a bad damping ratio or
-        ``flexible_mass``, stiffening of nodes off the x axis.
+        ``flexible_mass``, stiffening of nodes off the x axis, "reduced" without the FE
+        rigid-body data, a body mass matrix at η = 0 that is indefinite.
     """
     where = f"flexible body '{name}'"
     if flexible_mass not in FLEXIBLE_MASS:
@@ -317,9 +415,13 @@ def invariants(modal: ModalData, *, damping_ratio=0.0, flexible_mass: str = "lum
     if M_ff.size and np.linalg.eigvalsh(M_ff)[0] <= 0.0:
         raise ModelError(f"{where}: the flexible mass matrix ({flexible_mass}) is not positive "
                          "definite (a mode moves no mass)")
+    mass = float(m.sum())
+    if flexible_mass == "reduced":
+        mass, S0, S1, J_r, J_psi = _consistent_rigid(modal, P0, Q0, where)
+    _check_definite(mass, S0, S1, P0, Q0, J_r, J_psi, M_ff, flexible_mass, where)
     C = _damping(K, M_ff, damping_ratio, where)
     K_G1 = _geometric_stiffness(u0, m, phi, psi, where) if stiffening else None
-    return Invariants(modal.dimension, float(m.sum()), S0, S1, P0, P1, P2, Q0, Q1, J_r, J_psi,
+    return Invariants(modal.dimension, mass, S0, S1, P0, P1, P2, Q0, Q1, J_r, J_psi,
                       psi_j_psi, M_ff, K, C, K_G1, u0, phi, psi,
                       dict(getattr(modal, "node_names", {}) or {}))
 

@@ -36,7 +36,7 @@ def test_second_lookup_reads_the_disk(_cache, beam, monkeypatch):
     second = flexible_bodies.modal_data(beam, "craig_bampton", 3, ["root", "tip"],
                                       store=modal_cache.DISK_STORE)
     for name in ("positions", "masses", "inertias", "phi_t", "phi_r", "mass", "stiffness",
-                 "frequencies", "rigid_mass"):
+                 "frequencies", "rigid_mass", "rigid_coupling"):
         assert np.array_equal(getattr(first, name), getattr(second, name)), name
     assert second.node_names == first.node_names and second.reference == first.reference
     assert second.reduction == "craig_bampton" and second.key == first.key

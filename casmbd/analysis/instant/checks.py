@@ -292,7 +292,8 @@ def _pivots_positive(matrix: np.ndarray) -> bool:
 
 
 def check_mass_matrix(model, q, t: float, what: str = "simulation") -> None:
-    """Raise naming the bodies without mass where M is singular on the constraint manifold.
+    """Raise naming the bodies without mass where M is singular (or indefinite) on the
+    constraint manifold.
 
     Forward dynamics needs the KKT matrix [[M, C_qᵀ], [C_q, 0]] non-singular, i.e. (with C_q
     of full row rank, or after its dependent rows are dropped) M positive definite on the null
@@ -305,10 +306,15 @@ def check_mass_matrix(model, q, t: float, what: str = "simulation") -> None:
     without kinetic energy; the bodies whose coordinates carry ≥ 10 % of the largest share of
     their |x|² are named.
 
+    A smallest eigenvalue below −:data:`MASS_RTOL` times the largest is not rounding: the
+    matrix is *indefinite* (a motion with negative kinetic energy), a different defect with a
+    different message naming the bodies of those motions.
+
     Raises
     ------
     ModelError
-        Naming those bodies with their mass and inertia.
+        Naming those bodies with their mass and inertia ("singular": massless motions;
+        "indefinite": motions with negative kinetic energy).
     """
     if model.nq == 0 or model.nq > MASS_CHECK_MAX:
         return
@@ -331,7 +337,9 @@ def check_mass_matrix(model, q, t: float, what: str = "simulation") -> None:
     tol = MASS_RTOL * max(float(np.max(np.abs(eig))), np.finfo(float).tiny)
     if eig[0] > tol:
         return
-    x = basis @ vec[:, eig <= tol]  # every motion without kinetic energy
+    indefinite = eig[0] < -tol  # beyond rounding: negative kinetic energy, not a massless motion
+    # every motion without kinetic energy (indefinite: every one with negative energy)
+    x = basis @ vec[:, eig < -tol] if indefinite else basis @ vec[:, eig <= tol]
     shares, start = {}, 0
     for body, desc in model.descriptions.items():
         shares[body] = float(np.sum(x[start:start + desc.size] ** 2))
@@ -346,6 +354,14 @@ def check_mass_matrix(model, q, t: float, what: str = "simulation") -> None:
             return f"'{name}'"
         return f"'{name}' (mass {body.mass}, inertia {body.inertia})"
 
+    if indefinite:
+        raise ModelError(
+            f"{what} at t = {t:g}: the mass matrix is indefinite on the constraint manifold "
+            f"(smallest eigenvalue {eig[0]:.3g} of {float(eig[-1]):.3g}): a motion of "
+            + ", ".join(f"body {about(b)}" for b in named[:4])
+            + " has negative kinetic energy. Not a massless body: an inertia that is not "
+            "physical (a negative mass or moment of inertia from a parameter), or a flexible "
+            "body whose mass invariants do not come from one mass matrix (hand-made modal data)")
     raise ModelError(
         f"{what} at t = {t:g}: the mass matrix is singular on the constraint manifold "
         f"(smallest eigenvalue {eig[0]:.3g} of {float(eig[-1]):.3g}): a motion of "
