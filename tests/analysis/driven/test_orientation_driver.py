@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 import casmbd
-from casmbd.errors import ModelError, RedundantConstraintError
+from casmbd.errors import CasmbdError, ModelError, RedundantConstraintError, SceneError
 from casmbd.model.rotations import euler_zxz_to_quaternion, rotation_matrix
 
 MASS = 2.0
@@ -170,6 +170,86 @@ def test_a_floating_base_robot_is_driven_and_its_base_wrench_reported():
     absolute = casmbd.inverse_dynamics(driven("absolute"), 1.0, 4, mode="vm")
     scale = np.max(np.abs(res["driver_efforts"]))
     assert np.max(np.abs(absolute["driver_efforts"] - res["driver_efforts"])) <= 1e-9 * scale
+
+
+SCENE = """
+[scene]
+urdf = "{urdf}"
+floating_base = true
+coordinates = "{coordinates}"
+[[drivers]]
+name = "bx"
+body = "world"
+coordinate = "x"
+position = "0.1*sin(t)"
+[[drivers]]
+name = "by"
+body = "world"
+coordinate = "y"
+position = "0.2*t"
+[[drivers]]
+name = "bz"
+body = "world"
+coordinate = "z"
+position = "0.5 + 0.3*t*t"
+[[drivers]]
+name = "brot"
+body = "world"
+coordinate = "orientation"
+{orientation}
+"""
+
+
+def _scene(orientation='euler_zxz = ["0.3*t", "0.2*sin(2*t)", "-0.1*t"]', joints=True,
+           coordinates="joint"):
+    import pathlib
+
+    urdf = pathlib.Path("tests/scenes/ur5_arm.urdf").resolve()
+    text = SCENE.format(urdf=urdf, orientation=orientation, coordinates=coordinates)
+    if joints:
+        for k, joint in enumerate(("shoulder_pan_joint", "shoulder_lift_joint", "elbow_joint",
+                                   "wrist_1_joint", "wrist_2_joint", "wrist_3_joint")):
+            text += (f'[[drivers]]\nname = "d_{joint}"\njoint = "{joint}"\n'
+                     f'position = "{0.1 * (k + 1)}*sin({k + 1}*t)"\n')
+    return casmbd.loads_scene(text, "fb.toml")
+
+
+def test_scene_orientation_driver_matches_the_python_one():
+    """[[drivers]] coordinate = "orientation" + euler_zxz: the same efforts as
+    ``mech.add_driver(..., coordinate="orientation", euler_zxz=...)`` (exactly: the same
+    model)."""
+    res = casmbd.inverse_dynamics(_scene(), 1.0, 4, mode="vm")
+    mech = casmbd.load_urdf("tests/scenes/ur5_arm.urdf", floating_base=True)
+    mech.add_driver("bx", "0.1*sin(t)", body="world", coordinate="x")
+    mech.add_driver("by", "0.2*t", body="world", coordinate="y")
+    mech.add_driver("bz", "0.5 + 0.3*t*t", body="world", coordinate="z")
+    mech.add_driver("brot", body="world", coordinate="orientation",
+                    euler_zxz=["0.3*t", "0.2*sin(2*t)", "-0.1*t"])
+    for k, joint in enumerate(mech.joints):
+        mech.add_driver(f"d_{joint}", f"{0.1 * (k + 1)}*sin({k + 1}*t)", joint=joint)
+    ref = casmbd.inverse_dynamics(mech, 1.0, 4, mode="vm")
+    assert np.max(np.abs(res["driver_efforts"] - ref["driver_efforts"])) <= 1e-12 * np.max(
+        np.abs(ref["driver_efforts"]))
+
+
+@pytest.mark.parametrize("orientation, words", [
+    ('euler_zxz = ["t", "0"]', ["'brot'", "euler_zxz", "3 expressions"]),
+    ('rpy = ["t", "0", "q("]', ["'brot'", "rpy"]),
+    ('position = "t"', ["'brot'", "'position'", "euler_zxz"]),
+    ("", ["'brot'", "exactly one of"]),
+    ('euler_zxz = [0, 0, 0]\nangles = [0, 0, 0]', ["'brot'", "angles", "unknown key"]),
+])
+def test_bad_scene_orientation_driver_is_named(orientation, words):
+    with pytest.raises(SceneError) as err:
+        _scene(orientation, joints=False)
+    for word in words:
+        assert word in str(err.value), str(err.value)
+
+
+def test_a_floating_base_needs_its_orientation_driven():
+    """Without the joint drivers the count check names the free degrees of freedom."""
+    with pytest.raises(CasmbdError, match="6 free degree"):
+        casmbd.kinematics(_scene(joints=False), 1.0, 2, mode="vm")
 
 
 # ---------------------------------------------------------------------------- bad input
