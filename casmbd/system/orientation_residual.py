@@ -21,6 +21,7 @@ from casmbd.model.rotations import (
     quaternion_multiply,
     rotation_matrix,
 )
+from casmbd.model.values import resolve
 
 
 def prescribed_rotation(form: str, values: list[ca.SX]) -> ca.SX:
@@ -48,3 +49,20 @@ def orientation_residual(rotation: ca.SX, target: ca.SX) -> ca.SX:
     r = ca.mtimes(rotation, target.T)
     axial = ca.vertcat(r[2, 1] - r[1, 2], r[0, 2] - r[2, 0], r[1, 0] - r[0, 1])
     return 2.0 * axial / (1.0 + ca.trace(r))
+
+
+def half_turn_margins(system) -> tuple[list[str], ca.SX]:
+    """The orientation drivers of ``system`` (by name) and r_0² = (1 + tr R_e) / 4 of each,
+    the squared scalar part of its error quaternion (1 at A = A_d, 0 half a turn away, where
+    C is 0/0 in floating point and its Jacobian singular)."""
+    names, margins = [], []
+    for driver in system.mechanism.drivers.values():
+        if driver.orientation_row is None or driver.orientation_row in names:
+            continue
+        values = [resolve(a, system.t, system.ctx.p, f"driver '{driver.orientation_row}' "
+                          f"field '{driver.form}'") for a in driver.angles]
+        target = prescribed_rotation(driver.form, values)
+        names.append(driver.orientation_row)
+        margins.append(0.25 * (1.0 + ca.trace(ca.mtimes(system.ctx.rotation(driver.body),
+                                                        target.T))))
+    return names, ca.vertcat(*margins) if margins else ca.SX(0, 1)

@@ -18,7 +18,13 @@ import numpy as np
 import pytest
 
 import casmbd
-from casmbd.errors import CasmbdError, ModelError, RedundantConstraintError, SceneError
+from casmbd.errors import (
+    AssemblyError,
+    CasmbdError,
+    ModelError,
+    RedundantConstraintError,
+    SceneError,
+)
 from casmbd.model.rotations import euler_zxz_to_quaternion, rotation_matrix
 
 MASS = 2.0
@@ -307,3 +313,29 @@ def test_an_orientation_a_joint_already_fixes_is_redundant():
         f"driver 'rot.{r}' equation 'orientation'" for r in "xyz"]
     with pytest.raises(RedundantConstraintError, match=r"driver 'rot\.z'"):
         casmbd.kinematics(welded("0.1*t"), 1.0, 2, mode="vm")
+
+
+def _spinning(phi):
+    mech = _body_mech()
+    for axis in "xyz":
+        mech.add_driver(f"d{axis}", "0", body="b", coordinate=axis)
+    mech.add_driver("rot", body="b", coordinate="orientation", euler_zxz=[phi, "0.3", 0])
+    return mech
+
+
+def test_many_turns_and_a_start_near_half_a_turn_are_driven():
+    """The base may turn any number of times (only the error rotation enters C): φ = 7t
+    passes 400°; a start 172° from A_d(0) (φ = 3) still assembles onto A_d."""
+    for phi, at in (("7*t", lambda t: 7 * t), ("3.0", lambda t: 3.0)):
+        res = casmbd.kinematics(_spinning(phi), 1.0, 8, mode="vm")
+        for k, t in enumerate(res.t):
+            expected = rotation_matrix(euler_zxz_to_quaternion(at(t), 0.3, 0.0))
+            assert np.max(np.abs(res["rotation_matrices"][k, :9].reshape(3, 3) - expected)) \
+                <= 1e-12
+
+
+def test_a_start_half_a_turn_away_is_named():
+    """Exactly half a turn the equations read 0/0: refused naming the driver, the body and
+    the angle instead of a spurious 'solution'."""
+    with pytest.raises(AssemblyError, match=r"driver 'rot' at t = 0: body 'b' starts 180\.0°"):
+        casmbd.kinematics(_spinning("pi"), 1.0, 2, mode="vm")
