@@ -100,7 +100,7 @@ class OrientationDriver(Driver):
 
     @property
     def target(self) -> str:
-        return (f"body '{self.body}' orientation ({self.form}, moment about "
+        return (f"body '{self.body}' orientation ({self.form}, the rotation about "
                 f"{ORIENTATION_ROWS[self.axis]})")
 
 
