@@ -1,8 +1,8 @@
 """The orientation driver's equations (casmbd/system/orientation_residual.py) in closed form.
 
 C(A, A_d) = 2 axial(R_e − R_eᵀ)/(1 + tr R_e), R_e = A A_dᵀ, must be the Gibbs vector
-2 tan(θ/2) n of the error rotation (θ about n, global axes) — 1e-12 relative —, vanish at A = A_d for
-any A_d, have the Jacobian I with respect to a global virtual rotation δπ at the solution
+2 tan(θ/2) n of the error rotation (θ about n, global axes; 1e-12 relative), vanish at
+A = A_d for any A_d, have the Jacobian I with respect to a global virtual rotation δπ at the solution
 (A = exp([δπ]) A_d; central differences, 1e-9), stay regular approaching a half-turn
 (Jacobian determinant > 0 at 179°) and read 0/0 at exactly 180°. The three prescription forms
 agree with their matrices (1e-15).
