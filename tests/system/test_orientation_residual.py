@@ -2,10 +2,10 @@
 
 C(A, A_d) = 2 axial(R_e − R_eᵀ)/(1 + tr R_e), R_e = A A_dᵀ, must be the Gibbs vector
 2 tan(θ/2) n of the error rotation (θ about n, global axes; 1e-12 relative), vanish at
-A = A_d for any A_d, have the Jacobian I with respect to a global virtual rotation δπ at the solution
-(A = exp([δπ]) A_d; central differences, 1e-9), stay regular approaching a half-turn
-(Jacobian determinant > 0 at 179°) and read 0/0 at exactly 180°. The three prescription forms
-agree with their matrices (1e-15).
+A = A_d for any A_d, have the Jacobian I with respect to a global virtual rotation δπ at the
+solution (A = exp([δπ]) A_d; central differences, 1e-9), stay regular approaching a
+half-turn (Jacobian determinant > 1 at 179°) and read 0/0 at exactly 180°. The three
+prescription forms agree with their matrices (1e-15).
 """
 
 from __future__ import annotations
