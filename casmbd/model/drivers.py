@@ -28,7 +28,8 @@ class Driver:
     and angle in the plane, x, y and z of the reference point in space).
 
     ``position`` is a value of time (number, expression string over ``t`` and parameters, or
-    callable ``f(t)`` / ``f(t, p)``).
+    callable ``f(t)`` / ``f(t, p)``). A spatial body's orientation is driven by three rows,
+    :class:`OrientationDriver` (``Mechanism.add_driver(..., coordinate="orientation")``).
     """
 
     name: str

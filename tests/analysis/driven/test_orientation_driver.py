@@ -252,8 +252,8 @@ def test_bad_scene_orientation_driver_is_named(orientation, words):
         assert word in str(err.value), str(err.value)
 
 
-def test_a_floating_base_needs_its_orientation_driven():
-    """Without the joint drivers the count check names the free degrees of freedom."""
+def test_a_floating_base_without_joint_drivers_counts_the_free_joints():
+    """Base fully driven, joints not: the count check names the 6 free joint coordinates."""
     with pytest.raises(CasmbdError, match="6 free degree"):
         casmbd.kinematics(_scene(joints=False), 1.0, 2, mode="vm")
 
