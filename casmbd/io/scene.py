@@ -27,7 +27,9 @@ Contract (SI units, angles in radians; vectors have ``dimension`` components)::
                   (universal); gear: joint1, joint2, ratio (no bodies).  The keys of
                   each type are declared by its kind (casmbd.model.registry.JOINT_KINDS)
     [[drivers]]   name, joint (+ coordinate for a multi-coordinate joint) |
-                  body + coordinate (x|y|angle; x|y|z in space), position (expression of t)
+                  body + coordinate (x|y|angle; x|y|z in space), position (expression of t) |
+                  body + coordinate = "orientation" (space) + euler_zxz = [φ, θ, ψ] (or
+                  rpy = [roll, pitch, yaw], quaternion = [w, x, y, z]), expressions of t
     [[forces]]    name, type = force|torque|spring_damper|rotational_spring_damper, ...
                   (torque: value number in the plane, [tx, ty, tz] + frame in space)
     [[actuators]] name, joint, coordinate (optional)
@@ -61,6 +63,7 @@ from casmbd.limits import (
 )
 from casmbd.model import Mechanism, measures
 from casmbd.model.contacts import CONTACT_SHAPES
+from casmbd.model.drivers import ORIENTATION_FORMS
 from casmbd.model.expressions import evaluate_number, parse_expression
 from casmbd.model.joint_friction import joint_friction_from_scene
 from casmbd.model.registry import BODY_KINDS, FORCE_KINDS, JOINT_KINDS
@@ -410,11 +413,14 @@ def _build(data: dict, source: str) -> Mechanism:
             raise e.error("restitution", "applies to joint limits: give 'lower' or 'upper'")
 
     for e in entries("drivers"):
-        e.check_keys(_DRIVER_KEYS)
-        guarded(e, lambda e=e: mech.add_driver(
-            _name(e), _position(e), joint=e.string("joint", required=False),
-            body=e.string("body", required=False),
-            coordinate=e.string("coordinate", required=False)))
+        e.check_keys(_DRIVER_KEYS | set(ORIENTATION_FORMS))
+        forms = {k: e.values(k, (n,), "expressions of t") for k, n in ORIENTATION_FORMS.items()
+                 if e.has(k)}  # an orientation driver (casmbd.model.drivers.OrientationDriver)
+        guarded(e, lambda e=e, forms=forms: mech.add_driver(
+            _name(e), _position(e) if e.has("position") or not (
+                forms or e.data.get("coordinate") == "orientation") else None,
+            joint=e.string("joint", required=False), body=e.string("body", required=False),
+            coordinate=e.string("coordinate", required=False), **forms))
 
     scene_forces = {n: k for n, k in FORCE_KINDS.items() if k.scene_keys is not None}
     for e in entries("forces"):  # each kind reads its own keys (casmbd.model.registry)

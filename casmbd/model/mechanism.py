@@ -30,7 +30,14 @@ from casmbd.model.contacts import (
     slide_parameters,
     slides,
 )
-from casmbd.model.drivers import BODY_COORDINATES, Driver
+from casmbd.model.drivers import (
+    BODY_COORDINATES,
+    ORIENTATION,
+    ORIENTATION_FORMS,
+    Driver,
+    OrientationDriver,
+    orientation_rows,
+)
 from casmbd.model.flexible_bodies import NodeFrame, is_flexible, node_attachment
 from casmbd.model.forces import (
     Actuator,
@@ -451,11 +458,26 @@ class Mechanism:
                         coordinate1=coordinate1, coordinate2=coordinate2, offset=offset)
 
     # ------------------------------------------------------------------ drivers
-    def add_driver(self, name: str, position: Value, joint: str | None = None,
-                   body: str | None = None, coordinate: str | None = None) -> Driver:
+    def add_driver(self, name: str, position: Value | None = None, joint: str | None = None,
+                   body: str | None = None, coordinate: str | None = None, *,
+                   euler_zxz: Sequence[Value] | None = None, rpy: Sequence[Value] | None = None,
+                   quaternion: Sequence[Value] | None = None
+                   ) -> Driver | tuple[OrientationDriver, ...]:
         """Prescribe a joint coordinate (``coordinate`` picks one of a multi-coordinate joint)
-        or a body coordinate (x, y, angle in the plane; x, y, z in space) as f(t)."""
+        or a body coordinate (x, y, angle in the plane; x, y, z in space) as f(t).
+
+        ``coordinate="orientation"`` with ``body`` (space) prescribes the body's rotation as
+        ``euler_zxz`` [φ, θ, ψ], ``rpy`` [roll, pitch, yaw] or ``quaternion`` [w, x, y, z] of t:
+        three drivers ``<name>.x``, ``<name>.y``, ``<name>.z`` whose efforts are the moment
+        about the global axes (:class:`~casmbd.model.drivers.OrientationDriver`); returns them.
+        """
         self._unique(self.drivers, "driver", name)
+        forms = {k: v for k, v in (("euler_zxz", euler_zxz), ("rpy", rpy),
+                                   ("quaternion", quaternion)) if v is not None}
+        if coordinate == ORIENTATION or forms:
+            return self._add_orientation_driver(name, body, coordinate, position, joint, forms)
+        if position is None:
+            raise ModelError(f"driver '{name}' field 'position': missing")
         driver = Driver(name, position, joint=joint, body=body, coordinate=coordinate)
         if joint is not None:
             joint_obj = self._joint(joint, f"driver '{name}' field 'joint'")
@@ -473,6 +495,34 @@ class Mechanism:
             self._body(body, f"driver '{name}' field 'body'")
         self.drivers[name] = driver
         return driver
+
+    def _add_orientation_driver(self, name, body, coordinate, position, joint, forms):
+        where = f"driver '{name}'"
+        if coordinate != ORIENTATION:
+            raise ModelError(f"{where} field '{next(iter(forms))}': applies to coordinate = "
+                             f"'{ORIENTATION}', not {coordinate!r}")
+        if joint is not None or body is None:
+            raise ModelError(f"{where}: an orientation driver takes 'body' (a spatial body), "
+                             "not 'joint'")
+        if self.dimension != 3:
+            raise ModelError(f"{where} field 'coordinate': 'orientation' drives a spatial "
+                             f"body; in the plane drive body '{body}' coordinate 'angle'")
+        if position is not None:
+            raise ModelError(f"{where} field 'position': an orientation driver takes "
+                             f"{' or '.join(ORIENTATION_FORMS)}, not 'position'")
+        if len(forms) != 1:
+            raise ModelError(f"{where}: give exactly one of {', '.join(ORIENTATION_FORMS)} "
+                             f"(got {', '.join(forms) or 'none'})")
+        if body == GROUND:
+            raise ModelError(f"{where} field 'body': the ground cannot be driven")
+        self._body(body, f"{where} field 'body'")
+        (form, angles), = forms.items()
+        rows = orientation_rows(name, body, form, angles)
+        for row in rows:
+            self._unique(self.drivers, "driver", self._generate(row.name))
+        for row in rows:
+            self.drivers[row.name] = row
+        return tuple(rows)
 
     # ------------------------------------------------------------------ forces
     def add_force(self, name: str, body: str, value: Sequence[Value],

@@ -31,6 +31,7 @@ from casmbd.system.choice import AUTO, choose_coordinates
 from casmbd.system.context import Context
 from casmbd.system.descriptions import COORDINATE_CHOICES, describe
 from casmbd.system.joint_reactions import Reactions
+from casmbd.system.orientation_residual import orientation_residual, prescribed_rotation
 from casmbd.system.outputs import Outputs
 from casmbd.system.tree import TreeKinematics, tree_descriptions
 
@@ -242,6 +243,11 @@ class System(AppliedForces, Outputs, Reactions):
     def _driver_residual(self, driver, ctx) -> ca.SX:
         """Row of C of one driver written with ``ctx``: its joint's coordinate, a body angle or
         a reference-point coordinate minus the prescribed position."""
+        if driver.orientation_row is not None:  # one of three rows (orientation_residual)
+            values = [self._value(a, f"driver '{driver.orientation_row}' field "
+                                     f"'{driver.form}'") for a in driver.angles]
+            return orientation_residual(ctx.rotation(driver.body), prescribed_rotation(
+                driver.form, values))[driver.axis]
         target = self._value(driver.position, f"driver '{driver.name}' field 'position'")
         if driver.joint is not None:
             return self.mechanism.joints[driver.joint].driver_residual(

@@ -18,7 +18,8 @@ from casmbd.io.scene import loads_scene
 
 #: unit of a coordinate by the suffix of its name (``body.x``, ``joint.angle`` …)
 _COORDINATE_UNITS = {"x": "m", "y": "m", "z": "m", "translation": "m", "length": "m",
-                     "angle": "rad", "angle1": "rad", "angle2": "rad"}
+                     "angle": "rad", "angle1": "rad", "angle2": "rad",
+                     "orientation": "rad"}  # a body's orientation driver: its effort in N m
 #: the effort conjugate to a coordinate of this unit
 EFFORT_UNIT = {"m": "N", "rad": "N m", "m or rad": "N or N m"}
 

@@ -12,6 +12,7 @@ import time
 
 import numpy as np
 
+from casmbd.analysis.driven.orientation_start import check_half_turns
 from casmbd.analysis.formulations import FORMULATIONS, default_formulation
 from casmbd.analysis.instant.assembly import accelerations, assemble, velocities
 from casmbd.analysis.instant.independent import (
@@ -212,6 +213,7 @@ def kinematics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.
     t0 = time.perf_counter()
     grid = np.linspace(t_start, t_end, int(steps) + 1)
     q = assemble(full, full.initial_coordinates(), grid[0], tol=tol).q
+    check_half_turns(full, q, grid[0])  # orientation drivers: not half a turn away
     plan = find_redundant(full, q, grid[0])
     model = IndependentRows(full, plan.kept_rows) if plan.removes else full
     rep = check_rank(model, q, grid[0])

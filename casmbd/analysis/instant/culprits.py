@@ -294,7 +294,7 @@ def _hint(model, culprit: Culprit, q: np.ndarray, t: float, rows: np.ndarray,
         lo, hi = _range(model, q, t, int(rows[0]), rest, free, tol)
     if culprit.kind == "driver" and culprit.element in mech.drivers:
         driver = mech.drivers[culprit.element]
-        f = _driver_value(model, driver, t)
+        f = None if driver.orientation_row else _driver_value(model, driver, t)  # 3 rows
         asked = f"{driver.target} = {f:.6g}" if f is not None else driver.target
         allowed = "" if f is None else _bounds(None if lo is None else f + lo,
                                                None if hi is None else f + hi, f, "from", "to")
