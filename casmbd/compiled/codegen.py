@@ -466,8 +466,10 @@ def compile_functions(
         Names of the functions evaluated often (an integrator's right-hand side): when no
         flags were chosen, only these get the default flags and the others
         :data:`casmbd.compiled.units.COLD_FLAGS` (``-O0``); by default every function gets
-        them (and any whose C alone exceeds 1 MB ``-O0``).  Large builds are compiled as one
-        translation unit per function on every core (:mod:`casmbd.compiled.units`).
+        them (by size: ``-O1`` above 1 MB of C alone, ``-O0`` above 3 MB, and
+        :data:`casmbd.compiled.units.BULK_FLAGS` in place of the default when the C of all
+        functions exceeds 2 MB).  Large builds are compiled as one translation unit per
+        function on every core (:mod:`casmbd.compiled.units`).
 
     Returns
     -------
