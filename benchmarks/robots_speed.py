@@ -408,8 +408,9 @@ placements 0.8 s, the Jacobians 3.3 MB about 19 s; the longest unit 6 s), so on 
 cores its cold compile is about 18 s of gcc plus 4 s of symbolic build and code generation,
 some 23 s (the same estimate gives 42 s before, against the 41 s measured).  On this machine
 under load (load average 5 on 2 CPUs) the cold compile took 40 s in the subset run and 42.6,
-42.1 s in two runs alone (before: 59 s at load 1–3, 120 s at load 6; the full sweep above:
-60 s).  Per call unchanged: tiago_dual µs before → after in one same-load pair of runs
+42.1 s in two runs alone, and back to back with the code before at load 4–5: 83.3 s before
+(gcc CPU 77.2 s), 45.3 s after (38.2 s); the full sweep above: 60 s.  Per call unchanged:
+tiago_dual µs before → after in one same-load pair of runs
 (Pinocchio after): M 8.80 → 8.82 (14.9), b 4.08 → 4.18 (10.8), q̈ 9.28 → 9.13 (22.8), τ 4.77 →
 4.47 (10.9), J 0.966 → 0.958 (1.016); the subset run after: M 8.49 / 14.37, b 3.89 / 10.40,
 q̈ 9.00 / 21.69, τ 4.14 / 10.53, J 0.92 / 0.98 (0.94×).  The rule also takes the other robots
