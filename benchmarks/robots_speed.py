@@ -386,6 +386,43 @@ rest is the Python side of a call (argument checks, the copies in and out, about
 against Pinocchio's 0.3–0.4).  tiago_dual's cold compile is 36 s (target 30 s): 7.4 MB of C,
 most of it the 130 Jacobian Functions, each of which repeats the forward kinematics of its
 chain.
+
+Compile flags of a large per-call library (casmbd/compiled/units.py `BULK_FLAGS`,
+casmbd/compiled/codegen.py `_merge_output_guards`; issue 34 item 3).  Measured unit by unit
+(gcc 12, each translation unit alone on one core; gcc CPU seconds / µs per call through
+`Function.buffer`): before, tiago_dual's 135 units took 77 s of gcc CPU time (41 s cold on
+the quiet 2 cores): the mass matrix 0.94 MB 12.0 s, q̈ 0.96 MB 7.9 s, τ 0.41 MB 3.8 s, b
+0.39 MB 2.9 s, the placements 0.16 MB 1.5 s, all at -O2, and the 130 frame Jacobians
+(24–48 kB each, 4.6 MB) 0.3–0.36 s each, about 43 s: more than half.  Two changes.  (1) CasADi
+guards every store of an output entry (`if (res[0]!=0) res[0][k]=…;`: 10 201 of them in M,
+606 in each Jacobian, most of a Jacobian being its zero entries); consecutive stores to one
+output now share one test (the same stores in the same order): 7.4 → 6.0 MB of C.  (2) A
+library without hot Functions (every Function called per call) above 2 MB of C in all
+(`BULK_SOURCE`) is compiled at `-O1 -fstrict-aliasing` instead of -O2: its cost is the number
+of Functions, and on this straight-line code `-O1` loses to -O2 only by the type-based alias
+analysis (without it every store reloads the `res`/`arg` pointers).  The deepest Jacobian:
+-O2 0.32 s / 0.408 µs, -O1 0.15 s / 0.454 µs, -O1 -fstrict-aliasing 0.15 s / 0.419 µs; the
+mass matrix 10.0 s / 7.80 µs at -O2, 6.0 s / 7.65 µs at `-O1 -fstrict-aliasing`.  After:
+tiago_dual's gcc CPU time 77 → 36 s (M 0.78 MB 6.1 s, q̈ 0.96 MB 4.7 s, τ 1.8 s, b 1.6 s,
+placements 0.8 s, the Jacobians 3.3 MB about 19 s; the longest unit 6 s), so on the quiet 2
+cores its cold compile is about 18 s of gcc plus 4 s of symbolic build and code generation,
+some 23 s (the same estimate gives 42 s before, against the 41 s measured).  On this machine
+under load (load average 5 on 2 CPUs) the cold compile took 40 s in the subset run and 42.6,
+42.1 s in two runs alone, and back to back with the code before at load 4–5: 83.3 s before
+(gcc CPU 77.2 s), 45.3 s after (38.2 s); the full sweep above: 60 s.  Per call unchanged:
+tiago_dual µs before → after in one same-load pair of runs
+(Pinocchio after): M 8.80 → 8.82 (14.9), b 4.08 → 4.18 (10.8), q̈ 9.28 → 9.13 (22.8), τ 4.77 →
+4.47 (10.9), J 0.966 → 0.958 (1.016); the subset run after: M 8.49 / 14.37, b 3.89 / 10.40,
+q̈ 9.00 / 21.69, τ 4.14 / 10.53, J 0.92 / 0.98 (0.94×).  The rule also takes the other robots
+above 2 MB of C (icub, icub_reduced, romeo, alex_psyonic_hands, g1_29dof_with_hand, tiago):
+icub J 0.839 / 0.781 after against 0.833 / 0.784 before, alex_psyonic_hands 0.84 / 0.83
+against 0.83 / 0.81 (their Jacobians were already 1.02–1.13× `computeFrameJacobian`); the
+other subset robots are below 2 MB and keep -O2 (their compile and per-call figures of the
+subset run after: ur5_robot 1.5 s, panda 2.3 s, talos_left_arm 2.3 s, solo12 2.2 s, g1_29dof
+9.4 s; ratios as in the table above within the run-to-run spread).  Not done: packing the
+Jacobians several to a unit saves only 12 % of their gcc time (32 of them: 5.0 s alone, 4.4 s
+together); -O1 without strict aliasing is 10 % slower per Jacobian call (tiago_dual's J would
+be about 1.0× Pinocchio); the Jacobians still repeat their chain's kinematics.
 """
 
 

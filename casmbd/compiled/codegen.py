@@ -178,7 +178,47 @@ def _generate_template(functions: Sequence[casadi.Function]) -> str:
     generator = casadi.CodeGenerator(f"{_PREFIX_MARKER}.c", dict(_CODEGEN_OPTIONS))
     for function in functions:
         generator.add(function)
-    return generator.dump()
+    return _merge_output_guards(generator.dump())
+
+
+#: one output store of CasADi's C: ``if (res[i]!=0) <one statement without braces>;``
+_GUARD_RE = re.compile(r"^([ \t]*)if \((res\[\d+\])!=0\) ([^{}\n]*;)$", re.MULTILINE)
+
+
+def _merge_output_guards(text: str) -> str:
+    """CasADi's C with each run of consecutive stores to one output under one test.
+
+    CasADi guards every store of an output entry, ``if (res[0]!=0) res[0][k]=a5;``: a dense
+    output of n entries is n branches (tiago_dual's mass matrix 10 201, each frame
+    Jacobian 606), which gcc's passes walk one basic block at a time.  Consecutive lines
+    guarded by the same ``res[i]`` become ``if (res[i]!=0) {...}``: the same stores in the
+    same order under the same (invariant) condition.  Measured (gcc 12, one core): the mass
+    matrix unit 12.0 s → 10.0 s at -O2, 7.1 s → 6.0 s at -O1 -fstrict-aliasing; a frame
+    Jacobian 0.21 s → 0.15 s at -O1 -fstrict-aliasing; per call unchanged.
+    """
+    out: list[str] = []
+    run: list[str] = []
+    indent = guard = ""
+
+    def close() -> None:
+        if run:
+            body = run[0] if len(run) == 1 else "{" + " ".join(run) + "}"
+            out.append(f"{indent}if ({guard}!=0) {body}")
+            run.clear()
+
+    for line in text.split("\n"):
+        match = _GUARD_RE.match(line)
+        if match is None:
+            close()
+            out.append(line)
+        elif run and match.group(2) == guard:
+            run.append(match.group(3))
+        else:
+            close()
+            indent, guard = match.group(1), match.group(2)
+            run.append(match.group(3))
+    close()
+    return "\n".join(out)
 
 
 def _vm_report(codegen_seconds: float = 0.0, compile_seconds: float = 0.0, key: str = ""
@@ -426,8 +466,10 @@ def compile_functions(
         Names of the functions evaluated often (an integrator's right-hand side): when no
         flags were chosen, only these get the default flags and the others
         :data:`casmbd.compiled.units.COLD_FLAGS` (``-O0``); by default every function gets
-        them (and any whose C alone exceeds 1 MB ``-O0``).  Large builds are compiled as one
-        translation unit per function on every core (:mod:`casmbd.compiled.units`).
+        them (by size: ``-O1`` above 1 MB of C alone, ``-O0`` above 3 MB, and
+        :data:`casmbd.compiled.units.BULK_FLAGS` in place of the default when the C of all
+        functions exceeds 2 MB).  Large builds are compiled as one translation unit per
+        function on every core (:mod:`casmbd.compiled.units`).
 
     Returns
     -------

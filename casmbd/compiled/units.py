@@ -15,11 +15,15 @@ load): the right-hand side 376 kB of C, 15.9 s at ``-O2``; the post-processing 3
 Rules (:func:`plan`): with flags chosen by the caller or ``$CASMBD_CFLAGS`` every function gets
 them; otherwise a function gets :data:`COLD_FLAGS` when ``hot`` is given and does not name it
 or its C alone exceeds :data:`LARGE_SOURCE`, :data:`MEDIUM_FLAGS` when it exceeds
-:data:`MEDIUM_SOURCE`, and the default flags otherwise.  Below :data:`SPLIT_SOURCE` bytes
-of C in all, one unit per distinct flag set (the
-compiler's start-up dominates small builds); above it, one unit per function, except the hot
-functions and the functions that call one of them (an integrator's compiled block, the
-post-processing that takes q̈ from the dynamics) share one: the dynamics' C once.
+:data:`MEDIUM_SOURCE`, and the default flags otherwise — :data:`BULK_FLAGS` in place of the
+default when ``hot`` is not given and the C of all functions exceeds :data:`BULK_SOURCE`
+(tiago_dual's per-call model: 135 Functions, 7.4 MB of C, 130 of them frame Jacobians of
+24–48 kB; gcc's CPU time 73 s at -O2, 38 s at ``BULK_FLAGS`` with the output guards
+merged, per call unchanged).  Below :data:`SPLIT_SOURCE` bytes of C in all, one unit per
+distinct flag set (the compiler's start-up dominates small builds); above it, one unit per
+function, except the hot functions and the functions that call one of them (an integrator's
+compiled block, the post-processing that takes q̈ from the dynamics) share one: the
+dynamics' C once.
 """
 
 from __future__ import annotations
@@ -37,8 +41,8 @@ import casadi
 
 from casmbd.errors import CompileError
 
-__all__ = ["COLD_FLAGS", "LARGE_SOURCE", "MEDIUM_FLAGS", "MEDIUM_SOURCE", "SPLIT_SOURCE",
-           "compile_objects", "plan"]
+__all__ = ["BULK_FLAGS", "BULK_SOURCE", "COLD_FLAGS", "LARGE_SOURCE", "MEDIUM_FLAGS",
+           "MEDIUM_SOURCE", "SPLIT_SOURCE", "compile_objects", "plan"]
 
 #: a hot function whose C alone exceeds this many bytes gets :data:`MEDIUM_FLAGS`: gcc's
 #: ``-O2`` is superlinear on CasADi's long straight-line functions.  Measured (gcc 12, one
@@ -59,6 +63,19 @@ LARGE_SOURCE = 3_000_000
 COLD_FLAGS: tuple[str, ...] = ("-O0",)
 #: above this many bytes of C in all, one translation unit per function
 SPLIT_SOURCE = 200_000
+#: a library without ``hot`` functions (every Function evaluated per call, e.g. a robot's
+#: per-call model) whose C in all exceeds this many bytes gets :data:`BULK_FLAGS` instead of
+#: the default flags: its cost is the number of Functions, not one of them.
+BULK_SOURCE = 2_000_000
+#: ``-O1`` with ``-O2``'s type-based alias analysis: CasADi's straight-line code stores
+#: through ``res[i]`` between loads of ``arg[i]`` and ``res[i]``; without strict aliasing each
+#: store forces the pointers to be loaded again, the part of ``-O2`` that matters per call.
+#: Measured (gcc 12, one core, tiago_dual's per-call Functions, output guards merged by
+#: :func:`casmbd.compiled.codegen._merge_output_guards`): the deepest frame Jacobian (48 kB
+#: of C) -O2 0.32 s / 0.408 µs per call, -O1 0.15 s / 0.454 µs, -O1 -fstrict-aliasing
+#: 0.15 s / 0.419 µs; the mass matrix (0.94 MB) -O2 10.0 s / 7.80 µs, -O1 -fstrict-aliasing
+#: 6.0 s / 7.65 µs.
+BULK_FLAGS: tuple[str, ...] = ("-O1", "-fstrict-aliasing")
 _STDERR_TAIL = 4000
 
 #: a unit: the functions it holds, their C template, the optimisation flags
@@ -71,6 +88,9 @@ def plan(functions: Sequence[casadi.Function], generate: Callable[[list], str],
     """The translation units of ``functions`` (see the module notes); ``generate`` gives the
     C template of a list of functions."""
     alone = {f.name(): generate([f]) for f in functions}
+    if chosen is None and hot is None and sum(map(len, alone.values())) > BULK_SOURCE:
+        default = list(BULK_FLAGS)
+
     def by_size(size: int) -> list[str]:
         return list(chosen) if chosen is not None else list(COLD_FLAGS) \
             if size > LARGE_SOURCE else list(MEDIUM_FLAGS) if size > MEDIUM_SOURCE \

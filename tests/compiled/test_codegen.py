@@ -143,7 +143,8 @@ def test_symbol_prefix_matches_direct_generation():
     for function in functions:
         generator.add(function)
     kept = pathlib.Path(report.library).with_suffix(".c").read_text()
-    assert kept == generator.dump()
+    # CasADi's own C, with its runs of output stores under one test each
+    assert kept == codegen._merge_output_guards(generator.dump())
     assert codegen._PREFIX_MARKER not in kept
 
 

@@ -90,3 +90,71 @@ def test_a_batch_shares_the_unit_of_its_function(monkeypatch):
     together, gen = plan[0][1], codegen._generate_template
     assert len(together) < len(gen([fs[0]])) + len(gen([batch]))
     assert together.count("sin(") == gen([batch]).count("sin(") >= 1
+
+
+def test_a_large_per_call_library_gets_the_bulk_flags(monkeypatch):
+    """Without hot functions, above BULK_SOURCE bytes of C in all, the default flags give way
+    to BULK_FLAGS (-O1 with strict aliasing); hot functions, chosen flags and the size rules
+    of one function keep theirs."""
+    fs = functions()
+    gen = codegen._generate_template
+    total = sum(len(gen([f])) for f in fs)
+    monkeypatch.setattr(units, "BULK_SOURCE", total - 1)  # just above it
+    assert units.BULK_FLAGS == ("-O1", "-fstrict-aliasing")
+    assert [u[2] for u in units.plan(fs, gen, None, ["-O2"], None)] == [list(units.BULK_FLAGS)]
+    assert [u[2] for u in units.plan(fs, gen, None, ["-O2"], {"rhs"})] == \
+        [["-O2"], list(units.COLD_FLAGS)]  # an integrator's library: as before
+    assert [u[2] for u in units.plan(fs, gen, ["-O3"], ["-O3"], None)] == [["-O3"]]
+    monkeypatch.setattr(units, "SPLIT_SOURCE", 0)
+    sizes = [len(gen([f])) for f in fs]
+    monkeypatch.setattr(units, "MEDIUM_SOURCE", sorted(sizes)[-2])  # the largest alone above
+    assert sorted(sizes)[-2] < max(sizes)
+    assert [u[2] for u in units.plan(fs, gen, None, ["-O2"], None)] == \
+        [list(units.MEDIUM_FLAGS if n == max(sizes) else units.BULK_FLAGS) for n in sizes]
+    monkeypatch.setattr(units, "MEDIUM_SOURCE", max(sizes))
+    monkeypatch.setattr(units, "BULK_SOURCE", total)  # at it: the default flags
+    assert [u[2] for u in units.plan(fs, gen, None, ["-O2"], None)] == [["-O2"]] * 3
+
+
+def test_output_guards_merge_per_run():
+    """Consecutive stores guarded by the same res[i] share one test; other lines, and runs
+    of another output, stay as they were."""
+    text = ("  a0=0.;\n"
+            "  if (res[0]!=0) res[0][0]=a0;\n"
+            "  if (res[0]!=0) res[0][1]=a0;\n"
+            "  if (res[1]!=0) res[1][0]=a1;\n"
+            "  a2=sin(a1);\n"
+            "  if (res[0]!=0) res[0][2]=a2;\n"
+            "  if (res[0]!=0) casadi_copy(w0, 3, res[0]);\n"
+            "  if (res[0]!=0) { res[0][3]=a2; }\n")
+    assert codegen._merge_output_guards(text) == (
+        "  a0=0.;\n"
+        "  if (res[0]!=0) {res[0][0]=a0; res[0][1]=a0;}\n"
+        "  if (res[1]!=0) res[1][0]=a1;\n"
+        "  a2=sin(a1);\n"
+        "  if (res[0]!=0) {res[0][2]=a2; casadi_copy(w0, 3, res[0]);}\n"
+        "  if (res[0]!=0) { res[0][3]=a2; }\n")
+
+
+@needs_compiler
+def test_merged_guards_compile_to_the_same_numbers(tmp_path, monkeypatch):
+    """A dense output with structural zeros (a Jacobian-like 6 x 8 block) and a second
+    output, compiled from the merged C: equal to the CasADi virtual machine to rounding, and
+    a null output pointer still skips its stores."""
+    monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path))
+    x = casadi.SX.sym("x", 8)
+    jac = casadi.densify(casadi.jacobian(casadi.vertcat(casadi.sin(x[:3]), x[3] * x[4],
+                                                        casadi.cos(x[5]), x[0] * x[7]), x))
+    f = casadi.Function("guarded", [x], [jac, casadi.sum1(x)])
+    template = codegen._generate_template([f])
+    assert template.count("if (res[0]!=0)") < 48 // 4  # 48 stores, a few runs
+    out, _ = codegen.compile_functions([f], "guards_test", mode="compiled")
+    xv = np.linspace(-1.0, 1.3, 8)
+    for got, want in zip(out["guarded"].call([xv]), f.call([xv]), strict=True):
+        np.testing.assert_allclose(np.asarray(got), np.asarray(want), rtol=1e-15, atol=0)
+    buf, trigger = out["guarded"].buffer()
+    buf.set_arg(0, memoryview(xv))
+    total = np.zeros(1)
+    buf.set_res(1, memoryview(total))  # res[0] left null
+    trigger()
+    assert total[0] == pytest.approx(xv.sum(), rel=1e-15)
