@@ -639,8 +639,9 @@ class FlexibleBody:
         u = self.node_offset(i, eta)
         spin = omega * _perp(u) if self.dimension == 2 else ca.cross(omega, u)
         rel = ca.mtimes(_dm(self.inv.phi_t[i]), etadot)
-        if self.stiffening:
-            rel += ca.jtimes(self.node_shortening(i, eta), eta, etadot)
+        if self.stiffening:  # ḋ_i = −(ηᵀ F_i η̇) e_x
+            rate = -ca.bilin(_dm(self.inv.foreshortening[i]), eta, etadot)
+            rel += ca.vertcat(rate, ca.SX(self.dimension - 1, 1))
         return Rdot + ca.mtimes(A, spin + rel)
 
     def node_rotation_vector(self, node, eta) -> ca.SX:
