@@ -285,6 +285,19 @@ def test_boom_under_its_own_weight():
         assert (wg > w0) == (g > 0)
 
 
+def test_standing_boom_buckles_under_its_own_weight():
+    """Greenhill's self-weight buckling of a standing cantilever, (ρA g L³/EI)_cr = 7.8373
+    (Timoshenko & Gere, *Theory of Elastic Stability*, §2.10): the lowest ω² (24 elements)
+    falls from +0.0036 at 0.999 to −0.0212 at 1.001 of it; the line between reaches 0 at
+    0.99929 (bound 1e-3; 0.99983 at 48 elements: the lumped axial force, O(h²))."""
+    crit = 7.8373 * EI / (RHOA * L**3)
+    below, above = (_lowest(_clamped_free(0.0, gravity=[-f * crit, 0.0]))[0]
+                    for f in (0.999, 1.001))
+    zero = 0.999 + 0.002 * below / (below - above)
+    assert below > 0.0 > above
+    assert zero == pytest.approx(1.0, abs=1e-3)
+
+
 # ---------------------------------------------------------------- 2. the model itself
 
 
