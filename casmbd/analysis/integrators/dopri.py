@@ -17,14 +17,27 @@ after a rejection h_new = h · max(0.2, 0.9 · err^(−α)) and no growth on the
 The first step comes from Hairer's heuristic (HNW I §II.4, "Starting step size").
 
 One *attempted* step is a CasADi Function; it is folded (:func:`integrators.fixed_fold`) into
-a block of :data:`BLOCK` attempts, each clipped to the next output time (h ← t_out − t when
-t + 1.01 h ≥ t_out, so outputs are hit exactly, no dense output), and an attempt once t has
-reached t_out does nothing (a short-circuit ``if_else``: no right-hand side is evaluated), so
-one block size serves long and short output intervals.  The block alone is generated to C and
-compiled (one translation unit: the right-hand side's C once) and called through
-``Function.buffer()`` like :class:`integrators.FixedStep`: no Python per step, only per block
-of 16 attempts.  The few right-hand sides outside the block (the first step's heuristic, a
-restart after a projection) run in CasADi's virtual machine.
+blocks of :data:`BLOCKS` = 64, 16 and 4 attempts, each attempt clipped to the next output time
+(h ← t_out − t when t + 1.01 h ≥ t_out, so outputs are hit exactly, no dense output), and an
+attempt once t has reached t_out does nothing (a short-circuit ``if_else``: no right-hand
+side is evaluated), so the block sizes change the number of calls, never the steps.  The
+blocks and the start (Hairer's first step, :func:`dopri_start`) are generated to C with the
+model (:meth:`DopriKind.model_functions`: in the model's library, one translation unit with
+the right-hand side they call) and called through ``Function.buffer()`` like
+:class:`integrators.FixedStep`: no Python per step, only one call per block —
+:meth:`Dopri.advance` takes the largest block not longer than the attempts left to the output
+time at the current step size — and one for the start.  The one right-hand side outside
+the compiled code is a restart's k₁ after a projection (one call of the dynamics).  Per
+right-hand-side evaluation the stepping costs 1.1–1.2× the bare compiled function on the
+pendulum chains (docs/performance.md, "Integrator steps against the right-hand side").
+
+Why blocks and not one Function over the whole run: CasADi's graphs have no while loop, so
+an adaptive march with an unknown number of attempts is a fixed-length fold with masking;
+a masked attempt costs a branch and a copy of the state, and the block chosen is no longer
+than the attempts left, so few are wasted; the Python call per block is ~1–2 µs, against up
+to 64 × 6 right-hand sides.
+Exact results and adaptivity are those of the step-by-step method: the same attempts in the
+same order (tests/analysis/integrators/test_dopri_fused.py).
 """
 
 from __future__ import annotations
@@ -241,8 +254,11 @@ class Dopri:
                  functions: dict | None = None, blocks: tuple[int, ...] = BLOCKS,
                  compiled_start: bool = True):
         self.nx = dyn.size1_in("x")
-        t, x, p = ca.MX.sym("t"), ca.MX.sym("x", self.nx), ca.MX.sym("p", dyn.size1_in("p"))
-        self._f = BufferedFunction(ca.Function("rhs", [t, x, p], [dyn(t=t, x=x, p=p)["ode"]]))
+        # f(t, x, p) straight through the dynamics' own buffer (compiled with the model or
+        # symbolic); the other inputs (z, u) stay zero
+        self._dyn = BufferedFunction(dyn)
+        self._slots = [dyn.index_in(n) for n in ("t", "x", "p")]
+        self._ode = dyn.index_out("ode")
         self.report = None
         functions = dict(functions or {})
         wanted = [block_name(k) for k in blocks] + [START_NAME]
@@ -290,6 +306,14 @@ class Dopri:
             tail[1:] = after.s[2 * self.nx + 1:]
             extra = after.extra_evaluations + 1
         return DopriState(np.concatenate([x0, f0, tail]), self.nx, extra)
+
+    def _f(self, t: float, x: np.ndarray, p) -> np.ndarray:
+        """f(t, x, p): the ODE's right-hand side (a copy)."""
+        inputs = self._dyn.inputs
+        for slot, value in zip(self._slots, (t, x, p)):
+            inputs[slot][...] = value
+        self._dyn.evaluate()
+        return self._dyn.outputs[self._ode].copy()
 
     def _checked(self, state: DopriState, t0: float) -> DopriState:
         """``state`` if its k₁ = f(t0, x0) is finite, else an IntegratorError."""
