@@ -254,16 +254,15 @@ class Dopri:
                  functions: dict | None = None, blocks: tuple[int, ...] = BLOCKS,
                  compiled_start: bool = True):
         self.nx = dyn.size1_in("x")
-        # f(t, x, p) straight through the dynamics' own buffer (compiled with the model or
-        # symbolic); the other inputs (z, u) stay zero
-        self._dyn = BufferedFunction(dyn)
-        self._slots = [dyn.index_in(n) for n in ("t", "x", "p")]
-        self._ode = dyn.index_out("ode")
         self.report = None
         functions = dict(functions or {})
         wanted = [block_name(k) for k in blocks] + [START_NAME]
         if not all(n in functions for n in wanted):  # not compiled with the model
-            funcs = model_functions(dyn, blocks)
+            t, x, p = ca.MX.sym("t"), ca.MX.sym("x", self.nx), \
+                ca.MX.sym("p", dyn.size1_in("p"))
+            rhs = ca.Function(RHS_NAME, [t, x, p], [dyn(t=t, x=x, p=p)["ode"]],
+                              ["t", "x", "p"], ["ode"])  # a restart's k1, compiled too
+            funcs = [*model_functions(dyn, blocks), rhs]
             if mode != "vm":
                 compiled, self.report = compile_blocks(funcs, name, mode=mode)
                 funcs = [compiled[f.name()] for f in funcs]
@@ -273,6 +272,12 @@ class Dopri:
         self._blocks = {k: BufferedFunction(functions[block_name(k)]) for k in self.blocks}
         self._block = self._blocks[self.blocks[0]]
         self._start = BufferedFunction(functions[START_NAME]) if compiled_start else None
+        # f(t, x, p) through a compiled function's own buffer: the right-hand side compiled
+        # with the blocks, or the dynamics compiled with the model (its z and u stay zero)
+        f = functions.get(RHS_NAME, dyn)
+        self._dyn = BufferedFunction(f)
+        self._slots = [f.index_in(n) for n in ("t", "x", "p")]
+        self._ode = f.index_out("ode")
         #: compiled calls made (blocks and starts), for the statistics
         self.calls = 0
 
@@ -357,6 +362,8 @@ class Dopri:
 
 #: name of the compiled start (:func:`dopri_start`)
 START_NAME = "dopri5_start"
+#: name of the right-hand side compiled with blocks built apart from the model
+RHS_NAME = "dopri5_rhs"
 
 
 def block_name(size: int) -> str:
