@@ -87,7 +87,8 @@ WHERE = (
     "side of chain8 (0.35 µs on a quiet machine, docs above), so the ratio cannot reach 3 on "
     "chain8 through CasADi's integrator whatever casmbd does; it does on larger models. "
     "casmbd's own code in a run costs 34 µs (`CapturedOutput`: a temporary file and two "
-    "`dup2`) plus 8 µs (`stats()`), measured alone; *raw* is the integrator called in a "
+    "`dup2`; since issue 36 only around SUNDIALS runs and projections, not compiled "
+    "stepping) plus 8 µs (`stats()`), measured alone; *raw* is the integrator called in a "
     "tight loop, 0.3–0.5 ms per run faster than inside `Simulator.run`. Cut in casmbd: "
     "the fixed-step loops (compiled folds of 256, 64, 16, 4 and 1 steps called through "
     "`Function.buffer()` on arrays bound once instead of CasADi's argument conversion: "
@@ -428,7 +429,7 @@ def markdown(data: dict) -> str:
     if "per_eval" in data:
         lines += ["", *per_eval_markdown(data["per_eval"])]
     lines += ["", *WHERE]
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines) + "\n\n"
 
 
 #: the columns of the per-evaluation table: (path key, heading)
@@ -492,8 +493,12 @@ def eval_notes(rows: list[dict]) -> str:
            for k in ("adams", "cvodes", "idas") if "us_eval" in r["paths"].get(k, {})]
     jac = [100 * r["paths"][k]["jacobian_share"] for r in rows for k in ("cvodes", "idas")
            if "jacobian_share" in r["paths"].get(k, {})]
+    fixed = [(r["paths"]["dopri5 Simulator.run"]["us_eval"] - r["paths"]["dopri5"]["us_eval"])
+             * r["paths"]["dopri5"]["evals"] for r in rows
+             if "us_eval" in r["paths"].get("dopri5 Simulator.run", {})]
     return EVAL_NOTES.format(sun_lo=min(sun, default=0), sun_hi=max(sun, default=0),
-                             jac_lo=min(jac, default=0), jac_hi=max(jac, default=0))
+                             jac_lo=min(jac, default=0), jac_hi=max(jac, default=0),
+                             fixed_lo=min(fixed, default=0), fixed_hi=max(fixed, default=0))
 
 
 #: why some paths stay above the per-evaluation target (issue 36 item 4); the ranges are
@@ -505,7 +510,10 @@ EVAL_NOTES = (
     "output); what remains above 1× is the Runge–Kutta arithmetic itself (seven stage "
     "combinations and the error norm over nx states per six evaluations, and the copies of "
     "each stage's arguments in CasADi's generated code for an MX call), which weighs most "
-    "on the smallest right-hand sides (the four-bar: nx = 6, 0.4 µs). Inlining the six "
+    "on the smallest right-hand sides (the four-bar: nx = 6, 0.4 µs). `Simulator.run` adds "
+    "a fixed cost per run, not per step ({fixed_lo:.0f}–{fixed_hi:.0f} µs here: the start, "
+    "the run's own Python, the output and the statistics), which the runs of 0.5–5 ms above "
+    "feel and longer runs do not. Inlining the six "
     "right-hand sides into one SX step (`Function.expand()`) was measured and rejected: "
     "chain8 1.16× instead of 1.12×, and the four-bar's augmented-Lagrangian solve expanded "
     "16× slower with a 62 s compile (measured once, 2026-11-29). The SUNDIALS paths are "
