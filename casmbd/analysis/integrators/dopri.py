@@ -342,7 +342,8 @@ class Dopri:
         s, start = state.s, sum(state.counts())
         nx, smallest = self.nx, self.blocks[-1]
         while True:
-            left = (t_out - s[2 * nx]) / s[2 * nx + 1]  # attempts left at the current h
+            h = float(s[2 * nx + 1])  # attempts left at the current h (NaN: the smallest)
+            left = (t_out - float(s[2 * nx])) / h if h > 0 else 0.0
             size = next((k for k in self.blocks if k <= left), smallest)
             s = self._blocks[size](s, p, c)
             self.calls += 1
