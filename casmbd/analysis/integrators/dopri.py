@@ -17,14 +17,27 @@ after a rejection h_new = h · max(0.2, 0.9 · err^(−α)) and no growth on the
 The first step comes from Hairer's heuristic (HNW I §II.4, "Starting step size").
 
 One *attempted* step is a CasADi Function; it is folded (:func:`integrators.fixed_fold`) into
-a block of :data:`BLOCK` attempts, each clipped to the next output time (h ← t_out − t when
-t + 1.01 h ≥ t_out, so outputs are hit exactly, no dense output), and an attempt once t has
-reached t_out does nothing (a short-circuit ``if_else``: no right-hand side is evaluated), so
-one block size serves long and short output intervals.  The block alone is generated to C and
-compiled (one translation unit: the right-hand side's C once) and called through
-``Function.buffer()`` like :class:`integrators.FixedStep`: no Python per step, only per block
-of 16 attempts.  The few right-hand sides outside the block (the first step's heuristic, a
-restart after a projection) run in CasADi's virtual machine.
+blocks of :data:`BLOCKS` = 64, 16 and 4 attempts, each attempt clipped to the next output time
+(h ← t_out − t when t + 1.01 h ≥ t_out, so outputs are hit exactly, no dense output), and an
+attempt once t has reached t_out does nothing (a short-circuit ``if_else``: no right-hand
+side is evaluated), so the block sizes change the number of calls, never the steps.  The
+blocks and the start (Hairer's first step, :func:`dopri_start`) are generated to C with the
+model (:meth:`DopriKind.model_functions`: in the model's library, one translation unit with
+the right-hand side they call) and called through ``Function.buffer()`` like
+:class:`integrators.FixedStep`: no Python per step, only one call per block —
+:meth:`Dopri.advance` takes the largest block not longer than the attempts left to the output
+time at the current step size — and one for the start.  The one right-hand side outside
+the compiled code is a restart's k₁ after a projection (one call of the dynamics).  Per
+right-hand-side evaluation the stepping costs 1.1–1.2× the bare compiled function on the
+pendulum chains (docs/performance.md, "Integrator steps against the right-hand side").
+
+Why blocks and not one Function over the whole run: CasADi's graphs have no while loop, so
+an adaptive march with an unknown number of attempts is a fixed-length fold with masking;
+a masked attempt costs a branch and a copy of the state, and the block chosen is no longer
+than the attempts left, so few are wasted; the Python call per block is ~1–2 µs, against up
+to 64 × 6 right-hand sides.
+Exact results and adaptivity are those of the step-by-step method: the same attempts in the
+same order (tests/analysis/integrators/test_dopri_fused.py).
 """
 
 from __future__ import annotations
@@ -57,7 +70,12 @@ _E = (71 / 57600, 0.0, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 4
 SAFETY, FAC_MIN, FAC_MAX = 0.9, 0.2, 5.0
 BETA = 0.04
 ALPHA = 0.2 - 0.75 * BETA
-#: attempts per compiled call (the attempts after t_out cost a branch and a copy of the state)
+#: attempts per compiled call, the block sizes compiled (the attempts after t_out cost a
+#: branch and a copy of the state): :meth:`Dopri.advance` calls the largest block not longer
+#: than the attempts left to t_out (estimated (t_out − t) / h), so a long output interval
+#: takes few calls from Python and a short one wastes few attempts
+BLOCKS = (64, 16, 4)
+#: the block of the previous releases (one size), kept as the reference of the tests
 BLOCK = 16
 #: the state after the x and k₁ parts: t, h, err_old, last_rejected, accepted, rejected, failed
 _TAIL = 7
@@ -122,6 +140,50 @@ def dopri_attempt(dyn: ca.Function) -> ca.Function:
     return ca.Function("dopri_attempt", [s, p, c], [out], ["s", "p", "c"], ["s_next"])
 
 
+def dopri_start(dyn: ca.Function) -> ca.Function:
+    """The packed state at the start, first step by Hairer's heuristic, compiled:
+    ``(x0, p, c) -> s``, c = (t0, t_end, rtol, atol).
+
+    HNW I §II.4 ("Starting step size"): with sc = atol + rtol |x₀| and the root mean square
+    norm ‖·‖, d₀ = ‖x₀‖, d₁ = ‖f₀‖, h₀ = 0.01 d₀ / d₁ (1e-6 when d₀ or d₁ < 1e-5), capped by
+    t_end − t₀; one explicit Euler step gives d₂ = ‖f(t₀ + h₀, x₀ + h₀ f₀) − f₀‖ / h₀ and
+    h = min(100 h₀, (0.01 / max(d₁, d₂))^(1/5), t_end − t₀) (max(1e-6, 10⁻³ h₀) when
+    max(d₁, d₂) ≤ 1e-15).  Two right-hand sides; the same arithmetic as
+    :func:`first_step` (NumPy), to rounding.
+    """
+    nx = dyn.size1_in("x")
+    x0, p, c = ca.MX.sym("x0", nx), ca.MX.sym("p", dyn.size1_in("p")), ca.MX.sym("c", 4)
+    t0, t_end, rtol, atol = c[0], c[1], c[2], c[3]
+    f0 = dyn(t=t0, x=x0, p=p)["ode"]
+    sc = atol + rtol * ca.fabs(x0)
+    n = max(nx, 1)
+    d0, d1 = ca.sqrt(ca.sumsqr(x0 / sc) / n), ca.sqrt(ca.sumsqr(f0 / sc) / n)
+    h0 = ca.if_else(ca.logic_or(d0 < 1e-5, d1 < 1e-5), 1e-6, 0.01 * d0 / d1)
+    h0 = ca.fmin(h0, t_end - t0)
+    f1 = dyn(t=t0 + h0, x=x0 + h0 * f0, p=p)["ode"]
+    d2 = ca.sqrt(ca.sumsqr((f1 - f0) / sc) / n) / h0
+    big = ca.fmax(d1, d2)
+    h1 = ca.if_else(big <= 1e-15, ca.fmax(1e-6, h0 * 1e-3), (0.01 / big) ** 0.2)
+    h = ca.fmin(ca.fmin(100 * h0, h1), t_end - t0)
+    s = ca.vertcat(x0, f0, t0, h, 1e-4, 0, 0, 0, 0)
+    return ca.Function(START_NAME, [x0, p, c], [s], ["x0", "p", "c"], ["s"])
+
+
+def first_step(f, x0: np.ndarray, f0: np.ndarray, t0: float, t_end: float, p, rtol: float,
+               atol: float) -> float:
+    """Hairer's starting step (see :func:`dopri_start`) in NumPy, ``f(t, x, p)`` the
+    right-hand side: the reference of the compiled start."""
+    sc = atol + rtol * np.abs(x0)
+    d0, d1 = _wrms(x0, sc), _wrms(f0, sc)
+    h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
+    h0 = min(h0, t_end - t0)
+    f1 = f(t0 + h0, x0 + h0 * f0, p)
+    d2 = _wrms(f1 - f0, sc) / h0
+    big = max(d1, d2)
+    h1 = max(1e-6, h0 * 1e-3) if big <= 1e-15 else (0.01 / big) ** 0.2
+    return min(100 * h0, h1, t_end - t0)
+
+
 @dataclass
 class DopriState:
     """Where a DOPRI5 run stands: the packed state ``s`` (see :func:`dopri_attempt`) and the
@@ -176,22 +238,48 @@ class Dopri:
         :func:`casmbd.compiled.build.compile_blocks` (cached on disk).
     name : str
         Library name (a C identifier).
+    functions : dict, optional
+        The blocks and the start already compiled (with the model: ``name -> Function``);
+        those missing are generated (and compiled unless ``mode="vm"``).
+    blocks : tuple of int
+        The block sizes (attempts per call), default :data:`BLOCKS`; ``(BLOCK,)`` is the
+        single block of the previous releases.  The sizes change the number of calls, not
+        the steps: an attempt once t = t_out does nothing.
+    compiled_start : bool
+        Hairer's first step by the compiled :func:`dopri_start` (one call); ``False``: in
+        NumPy (:func:`first_step`, two right-hand sides called from Python), as before.
     """
 
     def __init__(self, dyn: ca.Function, mode: str = "vm", name: str = "casmbd_dopri5",
-                 block: ca.Function | None = None):
+                 functions: dict | None = None, blocks: tuple[int, ...] = BLOCKS,
+                 compiled_start: bool = True):
         self.nx = dyn.size1_in("x")
-        t, x, p = ca.MX.sym("t"), ca.MX.sym("x", self.nx), ca.MX.sym("p", dyn.size1_in("p"))
-        self._f = BufferedFunction(ca.Function("rhs", [t, x, p], [dyn(t=t, x=x, p=p)["ode"]]))
         self.report = None
-        if block is not None:  # compiled with the model (DopriKind.model_functions)
-            self._block = BufferedFunction(block)
-            return
-        block = dopri_block(dyn)
-        if mode != "vm":
-            compiled, self.report = compile_blocks([block], name, mode=mode)
-            block = compiled[block.name()]
-        self._block = BufferedFunction(block)
+        functions = dict(functions or {})
+        wanted = [block_name(k) for k in blocks] + [START_NAME]
+        if not all(n in functions for n in wanted):  # not compiled with the model
+            t, x, p = ca.MX.sym("t"), ca.MX.sym("x", self.nx), \
+                ca.MX.sym("p", dyn.size1_in("p"))
+            rhs = ca.Function(RHS_NAME, [t, x, p], [dyn(t=t, x=x, p=p)["ode"]],
+                              ["t", "x", "p"], ["ode"])  # a restart's k1, compiled too
+            funcs = [*model_functions(dyn, blocks), rhs]
+            if mode != "vm":
+                compiled, self.report = compile_blocks(funcs, name, mode=mode)
+                funcs = [compiled[f.name()] for f in funcs]
+            functions.update({f.name(): f for f in funcs})
+        #: block size -> its compiled call, largest first
+        self.blocks = sorted(blocks, reverse=True)
+        self._blocks = {k: BufferedFunction(functions[block_name(k)]) for k in self.blocks}
+        self._block = self._blocks[self.blocks[0]]
+        self._start = BufferedFunction(functions[START_NAME]) if compiled_start else None
+        # f(t, x, p) through a compiled function's own buffer: the right-hand side compiled
+        # with the blocks, or the dynamics compiled with the model (its z and u stay zero)
+        f = functions.get(RHS_NAME, dyn)
+        self._dyn = BufferedFunction(f)
+        self._slots = [f.index_in(n) for n in ("t", "x", "p")]
+        self._ode = f.index_out("ode")
+        #: compiled calls made (blocks and starts), for the statistics
+        self.calls = 0
 
     def start(self, x0, t0: float, t_end: float, p, rtol: float, atol: float,
               after: DopriState | None = None) -> DopriState:
@@ -208,27 +296,36 @@ class Dopri:
             raise IntegratorError(f"dopri5: the state at t = {t0:.6g} is not finite (entries "
                                   f"{bad[:5].tolist()}: {x0[bad[:5]].tolist()})", t0,
                                   "NON_FINITE")
+        if after is None and self._start is not None:  # Hairer's start, compiled
+            s = self._start(x0, p, np.array([t0, t_end, rtol, atol], float))
+            self.calls += 1
+            return self._checked(DopriState(s, self.nx, 2), t0)
         f0 = self._f(t0, x0, p)
-        if not np.all(np.isfinite(f0)):
-            raise IntegratorError(f"dopri5: the right-hand side at t = {t0:.6g} is not "
-                                  f"finite", t0, "NON_FINITE")
+        self._checked(DopriState(np.concatenate([x0, f0]), self.nx), t0)
         tail = np.zeros(_TAIL)
         tail[0] = t0
         if after is None:
-            sc = atol + rtol * np.abs(x0)
-            d0, d1 = _wrms(x0, sc), _wrms(f0, sc)
-            h0 = 1e-6 if d0 < 1e-5 or d1 < 1e-5 else 0.01 * d0 / d1
-            h0 = min(h0, t_end - t0)
-            f1 = self._f(t0 + h0, x0 + h0 * f0, p)
-            d2 = _wrms(f1 - f0, sc) / h0
-            big = max(d1, d2)
-            h1 = max(1e-6, h0 * 1e-3) if big <= 1e-15 else (0.01 / big) ** 0.2
-            tail[1] = min(100 * h0, h1, t_end - t0)
+            tail[1] = first_step(self._f, x0, f0, t0, t_end, p, rtol, atol)
             tail[2], extra = 1e-4, 2
         else:
             tail[1:] = after.s[2 * self.nx + 1:]
             extra = after.extra_evaluations + 1
         return DopriState(np.concatenate([x0, f0, tail]), self.nx, extra)
+
+    def _f(self, t: float, x: np.ndarray, p) -> np.ndarray:
+        """f(t, x, p): the ODE's right-hand side (a copy)."""
+        inputs = self._dyn.inputs
+        for slot, value in zip(self._slots, (t, x, p)):
+            inputs[slot][...] = value
+        self._dyn.evaluate()
+        return self._dyn.outputs[self._ode].copy()
+
+    def _checked(self, state: DopriState, t0: float) -> DopriState:
+        """``state`` if its k₁ = f(t0, x0) is finite, else an IntegratorError."""
+        if not np.all(np.isfinite(state.s[self.nx:2 * self.nx])):
+            raise IntegratorError(f"dopri5: the right-hand side at t = {t0:.6g} is not "
+                                  f"finite", t0, "NON_FINITE")
+        return state
 
     def advance(self, state: DopriState, p, t_out: float, rtol: float, atol: float,
                 max_steps: int) -> DopriState:
@@ -243,8 +340,13 @@ class Dopri:
         """
         c = np.array([t_out, rtol, atol])
         s, start = state.s, sum(state.counts())
+        nx, smallest = self.nx, self.blocks[-1]
         while True:
-            s = self._block(s, p, c)
+            h = float(s[2 * nx + 1])  # attempts left at the current h (NaN: the smallest)
+            left = (t_out - float(s[2 * nx])) / h if h > 0 else 0.0
+            size = next((k for k in self.blocks if k <= left), smallest)
+            s = self._blocks[size](s, p, c)
+            self.calls += 1
             state = DopriState(s, self.nx, state.extra_evaluations)
             if state.t >= t_out:
                 return state
@@ -259,14 +361,32 @@ class Dopri:
                     f"t = {t_out:.6g})", state.t, "TOO_MUCH_WORK")
 
 
-#: name of the block Function (compiled with the model or on its own)
-BLOCK_NAME = f"dopri5_block{BLOCK}"
+#: name of the compiled start (:func:`dopri_start`)
+START_NAME = "dopri5_start"
+#: name of the right-hand side compiled with blocks built apart from the model
+RHS_NAME = "dopri5_rhs"
 
 
-def dopri_block(dyn: ca.Function) -> ca.Function:
-    """:data:`BLOCK` attempted steps of ``dyn``: ``(s, p, c) -> s_next`` (see
-    :func:`dopri_attempt`)."""
-    return fixed_fold(dopri_attempt(dyn), BLOCK, BLOCK_NAME)
+def block_name(size: int) -> str:
+    """The name of the block of ``size`` attempts (compiled with the model or on its own)."""
+    return f"dopri5_block{size}"
+
+
+#: name of the block of the previous releases' single size
+BLOCK_NAME = block_name(BLOCK)
+
+
+def dopri_block(dyn: ca.Function, size: int = BLOCK,
+                attempt: ca.Function | None = None) -> ca.Function:
+    """``size`` attempted steps of ``dyn``: ``(s, p, c) -> s_next`` (see
+    :func:`dopri_attempt`; ``attempt`` shared between blocks generates its C once)."""
+    return fixed_fold(attempt or dopri_attempt(dyn), size, block_name(size))
+
+
+def model_functions(dyn: ca.Function, blocks: tuple[int, ...] = BLOCKS) -> list[ca.Function]:
+    """The blocks of ``blocks`` attempts (one attempt Function shared) and the start."""
+    attempt = dopri_attempt(dyn)
+    return [*(dopri_block(dyn, k, attempt) for k in blocks), dopri_start(dyn)]
 
 
 @dataclass(frozen=True)
@@ -274,11 +394,13 @@ class DopriKind(IntegratorKind):
     """An adaptive explicit Runge–Kutta method run by :class:`Dopri` in compiled blocks."""
 
     compiled: bool = True
-    model_function_names: tuple[str, ...] = (BLOCK_NAME,)
+    writes_messages: bool = False
+    model_function_names: tuple[str, ...] = (*(block_name(k) for k in BLOCKS), START_NAME)
 
     def model_functions(self, dyn: ca.Function) -> list[ca.Function]:
-        """The block of attempted steps, compiled in the model's library beside ``dyn``."""
-        return [dopri_block(dyn)]
+        """The blocks of attempted steps and the start, compiled in the model's library
+        beside ``dyn`` (:func:`model_functions`)."""
+        return model_functions(dyn)
 
     def integrate(self, runs, grid, x0, z0, rtol: float, atol: float, projection: bool,
                   step, max_steps: int):
@@ -288,7 +410,7 @@ class DopriKind(IntegratorKind):
 
     def runner(self, dyn: ca.Function, mode: str, name: str,
                functions: dict | None = None) -> Dopri:
-        """The compiled stepping of ``dyn`` (built once per simulator); with the block among
-        the model's compiled ``functions`` (then ``dyn`` should be the compiled dynamics),
-        nothing is generated or compiled."""
-        return Dopri(dyn, mode=mode, name=name, block=(functions or {}).get(BLOCK_NAME))
+        """The compiled stepping of ``dyn`` (built once per simulator); with the blocks and
+        the start among the model's compiled ``functions`` (then ``dyn`` should be the
+        compiled dynamics), nothing is generated or compiled."""
+        return Dopri(dyn, mode=mode, name=name, functions=functions)

@@ -227,6 +227,7 @@ class FixedStepKind(IntegratorKind):
     """
 
     fixed_step: bool = True
+    writes_messages: bool = False
     step_builder: Callable[[ca.Function], ca.Function] = rk4_step
     history: int = 0
     evaluations_per_step: int = 4

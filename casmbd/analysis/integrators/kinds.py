@@ -85,6 +85,10 @@ class IntegratorKind:
         :class:`casmbd.analysis.integrators.dopri.Dopri`).
     model_function_names : tuple of str
         Names of the Functions of :meth:`model_functions` (compiled with the model).
+    writes_messages : bool
+        The solver may write diagnostics to stderr (SUNDIALS), which a run captures
+        (:class:`~casmbd.analysis.integrators.sundials.CapturedOutput`); compiled stepping
+        writes none.
     """
 
     name: str
@@ -98,6 +102,7 @@ class IntegratorKind:
     compiled: bool = False
     #: names of the :meth:`model_functions`
     model_function_names: tuple[str, ...] = ()
+    writes_messages: bool = True
 
     def model_functions(self, dyn: ca.Function) -> list[ca.Function]:
         """Functions of this method over the dynamics ``dyn`` worth compiling with the model
