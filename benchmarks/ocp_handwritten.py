@@ -273,11 +273,12 @@ def ur5_inverse_dynamics(chain: list[dict] | None = None, gravity=(0.0, 0.0, -G)
 
 def implicit_collocation_problem(rnea: Callable, nq: int, x_start, x_end, u_lower, u_upper,
                                  v_limit, t_guess: float, t_bounds: tuple[float, float],
-                                 intervals: int, degree: int):
+                                 intervals: int, degree: int, start: dict | None = None):
     """Minimum time with the equations of motion as constraints (casmbd's implicit form):
     Radau collocation of degree d on one element per interval, at every point
     h [q̇; q̈] = Σ C_rj x_r, RNEA(q, q̇, q̈) = u with q̈ variables, |q̇| ≤ v_limit; continuity
-    x_{k+1} = Σ D_r x_r; linear guess, zero controls and accelerations."""
+    x_{k+1} = Σ D_r x_r; linear guess, zero controls and accelerations, or the arrays of
+    ``start`` ("T", "X" (2nq, N+1), "U" (nq, N), "XC" (2nq, dN), "A" (nq, dN)) if given."""
     tau, cmat, dvec = radau_matrices(degree)
     qs, vs, as_ = (ca.SX.sym(n, nq) for n in ("q", "v", "a"))
     f = ca.Function("rnea", [qs, vs, as_], [rnea(qs, vs, as_)])
@@ -307,8 +308,15 @@ def implicit_collocation_problem(rnea: Callable, nq: int, x_start, x_end, u_lowe
             opti.subject_to(opti.bounded(-vmax, v, vmax))
         opti.subject_to(X[:, k + 1] == ca.mtimes(xs, dvec))
         opti.subject_to(opti.bounded(np.asarray(u_lower), U[:, k], np.asarray(u_upper)))
+        if start is not None:
+            opti.set_initial(xc, start["XC"][:, k * degree:(k + 1) * degree])
+            opti.set_initial(acc, start["A"][:, k * degree:(k + 1) * degree])
     opti.set_initial(X[:, intervals], x_end)
     opti.set_initial(U, 0.0)
+    if start is not None:
+        opti.set_initial(T, start["T"])
+        opti.set_initial(X, start["X"])
+        opti.set_initial(U, start["U"])
     opti.subject_to(X[:, 0] == x_start)
     opti.subject_to(X[:, intervals] == x_end)
     opti.minimize(T)
