@@ -188,7 +188,9 @@ def markdown(data: dict) -> str:
                           f"{r['ratio_cpu']:.2f}× CPU: " + (", ".join(why) or "timing noise"))
     same = [r for r in data["rows"] if abs(r["objective_rel_diff"]) <= 1e-6]
     other = [r for r in data["rows"] if abs(r["objective_rel_diff"]) > 1e-6]
-    lines += ["", f"**Verdict (≤ {TARGET:g}× the fair baseline, wall or CPU).** "
+    lines += ["", f"**Verdict (≤ {TARGET:g}× the fair baseline, wall or CPU; solves of "
+              "10–50 ms on the shared 2-core machine move by up to ±30 % between runs of "
+              "this script).** "
               + ("Met on every row." if not missed else "Missed: " + "; ".join(missed) + ".")
               + (" Same optimum (objectives within 1e-6 relative): "
                  + ", ".join(f"`{r['problem']}`" for r in dict((x['problem'], x) for x in
