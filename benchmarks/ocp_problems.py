@@ -71,6 +71,9 @@ BASELINE_VARIANTS: dict[str, dict] = {
     f"{SAME}, whole NLP compiled": {"subintervals": 1, "degree": 3, "compile": "nlp"},
     f"{SAME}, implicit dynamics": {"subintervals": 1, "degree": 3, "dynamics": "implicit"},
     "degree 4, 1 element (the library default)": {"subintervals": 1, "degree": 4}}
+#: The problems whose baseline shares the pendulum transcription of
+#: :mod:`benchmarks.ocp_handwritten` (the UR5's is its own file's: implicit, degree 4, 12×1).
+SAME_TRANSCRIPTION = ("cart_pole", "double_pendulum_swingup", "double_pendulum_min_time")
 #: The derivative modes the default may choose, for every other problem file (a mode the
 #: default row already used is not run again).
 ELEMENTS = {"virtual machine": {"compile": False}, "compiled elements": {"compile": "elements"}}
@@ -149,7 +152,7 @@ def worker(path: str, overrides: dict, repeat: int, replay: bool) -> dict:
     (:func:`enough`; JSON-able figures)."""
     from casmbd.io.ocp_table import load_ocp
 
-    setups, setup_cpus, solves, cpus, compiled = [], [], [], [], []
+    setups, setup_cpus, solves, cpus, compiled, callbacks = [], [], [], [], [], []
     sol = ocp = None
     while not enough(solves, repeat):
         start, cpu0 = time.perf_counter(), _cpu()
@@ -161,12 +164,14 @@ def worker(path: str, overrides: dict, repeat: int, replay: bool) -> dict:
         setup_cpus.append(cpu_total - sol.stats.get("solve_cpu_seconds", math.nan))
         solves.append(sol.stats["solve_seconds"])
         cpus.append(sol.stats.get("solve_cpu_seconds", math.nan))
+        callbacks.append(sum(v for k, v in sol.stats.get("timings", {}).items()
+                             if k.startswith("t_wall_nlp_")))
         setups.append(total - sol.stats["solve_seconds"])
         compiled.append({"compiled": sol.stats.get("compiled"),
                          "cache_hit": sol.stats.get("cache_hit"),
                          "compile_seconds": sol.stats.get("compile_seconds")})
     out = {"description": _describe(ocp), "setups": setups, "setup_cpus": setup_cpus,
-           "solves": solves, "cpus": cpus,
+           "solves": solves, "cpus": cpus, "callbacks": callbacks,
            "compiled": compiled, "derivatives": sol.stats.get("derivatives"),
            "dynamics": sol.stats.get("dynamics")}
     s = sol.stats
@@ -280,6 +285,7 @@ def measure_toml(path: pathlib.Path, variant: str, overrides: dict, repeat: int)
         "setup_cold_cpu_s": cold["setup_cpus"][0], "setup_cached_cpu_s": warm["setup_cpus"][0],
         "solve_median_s": statistics.median(warm["solves"]),
         "solve_cpu_median_s": statistics.median(warm["cpus"]),
+        "callback_median_s": statistics.median(warm.get("callbacks") or [math.nan]),
         "solve_min_s": min(warm["solves"]),
         "solve_all_s": " ".join(f"{x:.4g}" for x in warm["solves"]),
         "process_cold_s": cold_wall, "process_cached_s": warm_wall / len(warm["solves"]),
@@ -364,7 +370,8 @@ def _attach(rows: list[Row], name: str, runs: list[dict]) -> None:
     them (times: the mean of the two medians, so that a change of load during the problem's
     variants affects both sides alike)."""
     b = dict(runs[0])
-    for key in ("solve_seconds", "solve_cpu_seconds", "setup_seconds", "ipopt_wall_seconds"):
+    for key in ("solve_seconds", "solve_cpu_seconds", "setup_seconds", "ipopt_wall_seconds",
+                "callback_seconds"):
         b[key] = statistics.mean(r.get(key, math.nan) for r in runs)
     for row in rows:
         if row.problem != name or "objective" not in row.figures:
@@ -379,6 +386,7 @@ def _attach(rows: list[Row], name: str, runs: list[dict]) -> None:
             "ratio_cpu": row.figures.get("solve_cpu_median_s", math.nan)
             / b.get("solve_cpu_seconds", math.nan),
             "baseline_ipopt_wall_s": b["ipopt_wall_seconds"],
+            "baseline_callback_s": b["callback_seconds"],
             "baseline_variables": b["variables"],
             "objective_rel_diff": (ours - b["objective"]) / abs(b["objective"]),
             "ratio_solve": row.figures["solve_median_s"] / b["solve_seconds"],
@@ -404,7 +412,7 @@ def run(paths: list[pathlib.Path], repeat: int, baselines: bool) -> list[Row]:
         compare = baselines and path.stem in PROBLEMS
         runs = [b for b in [_baseline(path.stem, repeat) if compare else None] if b]
         variants = {"as in the file": {}}
-        if path.stem in PROBLEMS:
+        if path.stem in SAME_TRANSCRIPTION:
             variants.update(BASELINE_VARIANTS)
         else:
             variants.update(ELEMENTS)

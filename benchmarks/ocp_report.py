@@ -43,7 +43,8 @@ CSV_COLUMNS = (
     "baseline_objective", "baseline_iterations", "baseline_setup_s", "baseline_solve_s",
     "baseline_ipopt_wall_s", "baseline_variables", "objective_rel_diff", "ratio_solve", "error",
     "derivatives", "solve_cpu_median_s", "baseline_solve_cpu_s", "ratio_cpu",
-    "setup_cold_cpu_s", "setup_cached_cpu_s", "dynamics",
+    "setup_cold_cpu_s", "setup_cached_cpu_s", "dynamics", "callback_median_s",
+    "baseline_callback_s",
 )
 
 
@@ -125,12 +126,23 @@ def _with_cpu(f: dict, what: str) -> str:
     return _sec(f.get(f"{what}_s")) + (f" ({_sec(cpu)})" if cpu is not None else "")
 
 
+def _in_callbacks(seconds) -> str:
+    """" (x ms)": the wall time of a solve spent in the NLP's functions (CasADi's
+    t_wall_nlp_* timers; the rest is IPOPT and MUMPS), or nothing when not recorded."""
+    try:
+        ok = seconds is not None and math.isfinite(float(seconds))
+    except (TypeError, ValueError):
+        ok = False
+    return f" ({_sec(float(seconds))})" if ok else ""
+
+
 def perf_table(rows: list[Row]) -> str:
     """The docs/performance.md table."""
     header = ["problem", "transcription", "derivatives", "objective", "iter.",
-              "max violation", "set-up cold (CPU)", "set-up cached (CPU)", "NLP solve",
-              "replay error",
-              "hand-written: objective, iter., NLP solve", "ours / hand-written (wall; CPU)"]
+              "max violation", "set-up cold (CPU)", "set-up cached (CPU)",
+              "NLP solve (in callbacks)", "replay error",
+              "hand-written: objective, iter., NLP solve (in callbacks)",
+              "ours / hand-written (wall; CPU)"]
     lines = ["| " + " | ".join(header) + " |", "|" + "|".join([" --- "] * len(header)) + "|"]
     seen = set()
     for r in rows:
@@ -139,13 +151,15 @@ def perf_table(rows: list[Row]) -> str:
         ratio = "–"
         if "baseline_objective" in f:
             base = (f"{_num(f['baseline_objective'])}, {f['baseline_iterations']}, "
-                    f"{_sec(f['baseline_solve_s'])}")
+                    f"{_sec(f['baseline_solve_s'])}"
+                    f"{_in_callbacks(f.get('baseline_callback_s'))}")
             ratio = f"{f['ratio_solve']:.2f}; {_num(f.get('ratio_cpu'), 2)}"
         lines.append("| " + " | ".join([
             _problem_cell(r, r.problem not in seen), f.get("transcription", "–"),
             _derivatives(f), _objective(r), str(f.get("iterations", "–")),
             _num(f.get("constraint_violation"), 2), _with_cpu(f, "setup_cold"),
-            _with_cpu(f, "setup_cached"), _sec(f.get("solve_median_s")),
+            _with_cpu(f, "setup_cached"),
+            _sec(f.get("solve_median_s")) + _in_callbacks(f.get("callback_median_s")),
             _num(f.get("replay_error"), 2), base, ratio]) + " |")
         seen.add(r.problem)
     return "\n".join(lines)
@@ -276,11 +290,84 @@ def target_lines(rows: list[Row]) -> list[str]:
               "(`casmbd.ocp.dynamics.choose_dynamics`) and, on Radau points, lets the last "
               "collocation state be the next mesh node (no continuity rows), so IPOPT's "
               "linear algebra — most of each iteration on these problems — works on fewer "
-              "variables and constraints than the hand-written NLP (which also states the "
-              "control bounds as constraints); the implicit rows carry q̈ as variables at "
+              "variables and constraints than the hand-written NLP (whose simple bounds "
+              "IPOPT gets as bounds too: `detect_simple_bounds`); the implicit rows carry "
+              "q̈ as variables at "
               "every collocation point (the form every closed loop uses: M q̈ + C_qᵀλ = Q, "
               "nothing inverted), a third more variables.")
     return out
+
+
+def _verdict_row(rows: list[Row], problem: str) -> Row | None:
+    """The row of ``problem`` compared in the issue-36 verdict: the default settings with the
+    baseline's transcription (the pendulums) or as in the file (the UR5, whose baseline uses
+    the file's transcription)."""
+    for variant in (SAME, "as in the file"):
+        for r in rows:
+            if r.problem == problem and r.variant == variant and "ratio_solve" in r.figures:
+                return r
+    return None
+
+
+def fair_baseline_lines(rows: list[Row]) -> list[str]:
+    """Issue 36 item 3: ours against the fair hand-written baseline (its simple bounds as
+    bounds, the same IPOPT options), per problem: iterations, solve time, the part of it in
+    the NLP callbacks and the rest (IPOPT and MUMPS), per iteration, and the verdict."""
+    parts, missed = [], []
+    for problem in ("cart_pole", "double_pendulum_swingup", "double_pendulum_min_time",
+                    "ur5_min_time"):
+        r = _verdict_row(rows, problem)
+        if r is None:
+            continue
+        f = r.figures
+        ours, theirs = f["solve_median_s"], f["baseline_solve_s"]
+        cb, bcb = f.get("callback_median_s", math.nan), f.get("baseline_callback_s", math.nan)
+        it, bit = f.get("iterations"), f.get("baseline_iterations")
+        cell = (f"`{problem}` ({_derivatives(f)}, {f.get('dynamics')}) {f['ratio_solve']:.2f}× "
+                f"(CPU {_num(f.get('ratio_cpu'), 2)}×): {it} / {bit} iterations, "
+                f"{_sec(ours)} / {_sec(theirs)}, of which callbacks {_sec(cb)} / {_sec(bcb)} "
+                f"and IPOPT {_sec(ours - cb)} / {_sec(theirs - bcb)}; per iteration "
+                f"{_sec(ours / it)} / {_sec(theirs / bit)}; objective "
+                f"{f['objective_rel_diff']:+.1e} relative")
+        parts.append(cell)
+        if f["ratio_solve"] > TARGETS["ratio"]:
+            why = []
+            if it > bit:
+                why.append(f"{it - bit} more IPOPT iterations")
+            per = (ours / it) / (theirs / bit)
+            if per > 1:
+                why.append(f"each iteration {per:.2f}× the baseline's")
+            elif it <= bit:
+                why.append(f"each iteration only {per:.2f}× the baseline's")
+            if abs(f["objective_rel_diff"]) > 1e-6:
+                why.append("another local optimum")
+            missed.append(f"`{problem}` by {f['ratio_solve'] / TARGETS['ratio']:.2f}× "
+                          f"({', '.join(why) or 'timing noise'})")
+    if not parts:
+        return []
+    return [
+        "**Against the fair baseline (issue 36 item 3).** The hand-written NLP states its "
+        "control, final-time and boundary-state bounds as constraint rows; with CasADi's "
+        "`detect_simple_bounds` IPOPT gets them as bounds (the minimum-time pendulum: 52 → 26 "
+        "iterations). casmbd states them as bounds itself (control and time bounds, and "
+        "boundary conditions on one state as lbw = ubw, fixed by IPOPT). Same IPOPT options "
+        "on both sides (the UR5's `tol` 1e-10 and `bound_relax_factor` 0 from its file). "
+        "Ours / hand-written: " + "; ".join(parts) + ". *≤ "
+        f"{TARGETS['ratio']:g}×*: " + (f"missed by {'; '.join(missed)}" if missed
+                                       else "met on all") + ". "
+        "With the last Radau point shared with the next node the KKT system is smaller "
+        "(cheaper iterations) but IPOPT's inertia-correcting regularisation δ_w I acts on "
+        "different variables, so its path and iteration count differ from the baseline's "
+        "(the unshared form takes exactly the baseline's iterations: swing-up 21, minimum "
+        "time 26, measured); the double pendulum's accelerations from the joint-coordinate "
+        "mass matrix also depend structurally on θ₁ (cos θ₁ cos(θ₁+θ₂) + sin θ₁ sin(θ₁+θ₂), "
+        "not simplified to cos θ₂): 2200 Hessian nonzeros on 704 variables against the "
+        "closed form's 1600 on 904, though the closed form substituted changes the solve "
+        "by 0–10 % (measured). The UR5 baseline (hand-written recursive Newton–Euler, "
+        "equal to Pinocchio's `rnea` to 1.4e-14, the file's implicit degree-4 Radau "
+        "transcription on 12 intervals) needs hundreds of iterations and ends at another "
+        "local optimum than ours, so its ratio compares two solves of one NLP, not the same "
+        "path."]
 
 
 def derivative_lines(rows: list[Row]) -> list[str]:
@@ -340,6 +427,7 @@ def comment_lines(rows: list[Row]) -> list[str]:
     same = [(r, x) for r, x in pairs if r.variant == SAME]
     default = [(r, x) for r, x in pairs if r.variant == "as in the file"]
     out += target_lines(rows)
+    out += fair_baseline_lines(rows)
     out += derivative_lines(rows)
     if default:
         text = ", ".join(f"`{r.problem}` {x:.2f}×" for r, x in default)

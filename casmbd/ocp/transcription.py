@@ -301,15 +301,42 @@ class Transcription:
         u0, un = self.U[0], self.U[self.N - 1]
         t0, tn = self.mesh_time(0), self.mesh_time(self.M)
         if ocp._initial_given:
-            b.eq(self.initial_fn(x0[:nq], x0[nq:], t0, u0, self.p) - self.initial_values,
-                 "initial conditions")
+            rows = self._fix_states(self.initial_fn, self.initial_values, 0)
+            b.eq(self.initial_fn(x0[:nq], x0[nq:], t0, u0, self.p)[rows]
+                 - self.initial_values[rows], "initial conditions")
         else:  # the scene's consistent initial state
             start = self._scene_start()
             b.lbw[self.X_block][:2 * nq] = start
             b.ubw[self.X_block][:2 * nq] = start
         if ocp._final:
-            b.eq(self.final_fn(xn[:nq], xn[nq:], tn, un, self.p) - self.final_values,
-                 "final conditions")
+            rows = self._fix_states(self.final_fn, self.final_values, self.M)
+            b.eq(self.final_fn(xn[:nq], xn[nq:], tn, un, self.p)[rows]
+                 - self.final_values[rows], "final conditions")
+
+    def _fix_states(self, fn: ca.Function, values: np.ndarray, node: int) -> list[int]:
+        """Boundary conditions that name one state, x_i(t_node) = value, stated as bounds
+        lbw = ubw = value of that component of the mesh node (IPOPT then removes the variable:
+        ``fixed_variable_treatment = make_parameter``) rather than as constraint rows — what
+        ``detect_simple_bounds`` does for a hand-written NLP; without constraint equations
+        only (with them a fixed coordinate can leave a node's C = 0 rows dependent).  Returns
+        the rows left as constraints."""
+        n = int(values.size)
+        if self.nc or not n:
+            return list(range(n))
+        x = ca.SX.sym("x", 2 * self.nq)
+        out = fn(x[:self.nq], x[self.nq:], ca.SX.sym("t"), ca.SX.sym("u", self.nu), self.p)
+        b, block, fixed, left = self.b, self.X_block, set(), []
+        for r in range(n):
+            e = out[r]
+            hit = [i for i in range(2 * self.nq) if ca.is_equal(e, x[i])] \
+                if e.is_symbolic() else []
+            if len(hit) != 1 or hit[0] in fixed:
+                left.append(r)
+                continue
+            fixed.add(hit[0])
+            k = node * 2 * self.nq + hit[0]
+            b.lbw[block][k] = b.ubw[block][k] = float(values[r])
+        return left
 
     def _scene_start(self) -> np.ndarray:
         model = compile_model(self.system, "dynamics", mode="vm")
@@ -403,7 +430,12 @@ class Transcription:
                 "solver": ocp.solver, "derivatives": used,
                 "compiled": bool(report and report.mode == "compiled"),
                 "compile_seconds": report.compile_seconds if report else 0.0,
-                "cache_hit": bool(report and report.cache_hit), **self.mesh}
+                "cache_hit": bool(report and report.cache_hit),
+                # CasADi's timers: IPOPT's own (t_proc_total minus the callbacks) and
+                # each callback's (nlp_f, nlp_g, nlp_grad_f, nlp_jac_g, nlp_hess_l)
+                "timings": {k: float(v) for k, v in stats.items()
+                            if k.startswith(("t_proc_", "t_wall_", "n_call_"))},
+                **self.mesh}
         sol = OcpSolution.from_transcription(self, x, info, np.asarray(out["lam_g"]).ravel(),
                                              gval)
         if not info["success"] and raise_on_failure:

@@ -217,3 +217,20 @@ def test_batched_projection_of_the_guess_equals_the_pointwise_one(monkeypatch):
     for x in xc:
         c, cdot, _ = tr.node(x[:tr.nq], x[tr.nq:], 0.0, tr.p)
         assert max(np.max(np.abs(np.asarray(c))), np.max(np.abs(np.asarray(cdot)))) < 1e-10
+
+
+def test_boundary_states_are_bounds_not_rows(swing_up):
+    """Initial and final conditions that name one state are variable bounds lbw = ubw
+    (IPOPT fixes the variable), not constraint rows: the swing-up's NLP has only its
+    collocation rows (degree 4, 50 × 2 elements, the last point shared with the next node:
+    4 points × 4 states × 100 = 1600) and its end states equal the conditions exactly (to
+    1e-15, where a row would hold them to IPOPT's tolerance); the solver's callback timers
+    are reported (one Hessian per iteration at least)."""
+    assert swing_up.stats["constraints"] == 1600
+    assert np.max(np.abs(np.concatenate([swing_up.q[0], swing_up.v[0]])
+                         - [-math.pi / 2, 0.0, 0.0, 0.0])) < 1e-15
+    assert np.max(np.abs(np.concatenate([swing_up.q[-1], swing_up.v[-1]])
+                         - [math.pi / 2, 0.0, 0.0, 0.0])) < 1e-15
+    timings = swing_up.stats["timings"]
+    assert timings["n_call_nlp_hess_l"] >= swing_up.iterations
+    assert timings["t_wall_nlp_jac_g"] > 0.0
