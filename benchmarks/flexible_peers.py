@@ -508,3 +508,104 @@ def exudyn_ffrf_spinup(modal, omega: float, *, h: float = 2e-3, t_end: float = 2
                    signals={"tip": defl},
                    info={"h": h, "failed": failed or bool(np.any(np.abs(defl) > limit)),
                          "modes": m})
+
+
+def exudyn_ancf_slider_crank(diameter: float, *, elements: int = 8, t_end: float = 0.4,
+                             h: float = 1e-4, write: float = 1e-4, rho: float = 0.8,
+                             beta: float | None = None) -> PeerRun:
+    """Issue 35's flexible slider-crank in Exudyn with the rod as geometrically exact ANCF
+    cables (``ObjectANCFCable2D``: Euler–Bernoulli, exact kinematics, consistent mass).
+
+    The mechanism of :func:`tests.flexible_references.corotational_slider_crank`: a planar
+    rigid crank (radius 0.152 m) driven at 150 rad/s by a velocity-level coordinate
+    constraint, the rod (0.304 m, ``rod_section(diameter)``) pinned to the crank pin and to a
+    mass point (half the rod's mass) held on the x axis; Kelvin–Voigt damping of the
+    deformation rates, ``bendingDamping = β EI``, ``axialDamping = β EA`` (β = 2 ζ/ω1, the
+    reference's stiffness-proportional damping); start: the rigid translation at θ = π/2
+    (every node at (−ω r, 0)).  Generalized-α (spectral radius ``rho``), fixed step h.
+
+    Returns
+    -------
+    PeerRun
+        Signals ``A``, ``B``, ``mid`` (n_t, 2): positions of the end and middle nodes;
+        ``slider`` (n_t,): the slider's x.
+    """
+    import exudyn as exu
+    from exudyn.itemInterface import (
+        Cable2D,
+        CoordinateConstraint,
+        MarkerBodyPosition,
+        MarkerNodeCoordinate,
+        MarkerNodePosition,
+        MassPoint2D,
+        NodePoint2D,
+        NodePoint2DSlope1,
+        NodePointGround,
+        NodeRigidBody2D,
+        ObjectGround,
+        RevoluteJoint2D,
+        RigidBody2D,
+        SensorNode,
+        SphericalJoint,
+    )
+
+    from tests.flexible_references import SLIDER_CRANK_ROD, pinned_frequency, rod_section
+
+    if elements % 2:
+        raise ValueError("exudyn_ancf_slider_crank: elements must be even (a middle node)")
+    p = SLIDER_CRANK_ROD
+    sec = rod_section(diameter)
+    r, w, L = p["crank"], p["omega"], p["length"]
+    beta = 2.0 * p["zeta"] / pinned_frequency(sec) if beta is None else beta
+    b0 = -np.arcsin(r / L)
+    c0, s0 = np.cos(b0), np.sin(b0)
+    SC = exu.SystemContainer()
+    mbs = SC.AddSystem()
+    ground = mbs.AddObject(ObjectGround())
+    nodes = [mbs.AddNode(NodePoint2DSlope1(referenceCoordinates=[x * c0, r + x * s0, c0, s0],
+                                           initialVelocities=[-w * r, 0.0, 0.0, 0.0]))
+             for x in np.linspace(0.0, L, elements + 1)]
+    for k in range(elements):
+        mbs.AddObject(Cable2D(physicsLength=L / elements, physicsMassPerLength=sec["rhoA"],
+                              physicsBendingStiffness=sec["EI"], physicsAxialStiffness=sec["EA"],
+                              physicsBendingDamping=beta * sec["EI"],
+                              physicsAxialDamping=beta * sec["EA"],
+                              nodeNumbers=[nodes[k], nodes[k + 1]]))
+    n_crank = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[0.0, r / 2.0, np.pi / 2.0],
+                                          initialVelocities=[-w * r / 2.0, 0.0, w]))
+    crank = mbs.AddObject(RigidBody2D(nodeNumber=n_crank, physicsMass=0.3,
+                                      physicsInertia=0.3 * r**2 / 12.0))
+    mbs.AddObject(RevoluteJoint2D(markerNumbers=[
+        mbs.AddMarker(MarkerBodyPosition(bodyNumber=ground, localPosition=[0, 0, 0])),
+        mbs.AddMarker(MarkerBodyPosition(bodyNumber=crank, localPosition=[-r / 2, 0, 0]))]))
+    m_zero = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=mbs.AddNode(NodePointGround()),
+                                                coordinate=0))
+    mbs.AddObject(CoordinateConstraint(markerNumbers=[
+        m_zero, mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=n_crank, coordinate=2))],
+        offset=w, velocityLevel=True))
+    mbs.AddObject(SphericalJoint(markerNumbers=[
+        mbs.AddMarker(MarkerBodyPosition(bodyNumber=crank, localPosition=[r / 2, 0, 0])),
+        mbs.AddMarker(MarkerNodePosition(nodeNumber=nodes[0]))], constrainedAxes=[1, 1, 0]))
+    x_b = float(np.sqrt(L**2 - r**2))
+    n_slider = mbs.AddNode(NodePoint2D(referenceCoordinates=[x_b, 0.0],
+                                       initialVelocities=[-w * r, 0.0]))
+    mbs.AddObject(MassPoint2D(nodeNumber=n_slider, physicsMass=0.5 * sec["mass"]))
+    mbs.AddObject(SphericalJoint(markerNumbers=[
+        mbs.AddMarker(MarkerNodePosition(nodeNumber=nodes[-1])),
+        mbs.AddMarker(MarkerNodePosition(nodeNumber=n_slider))], constrainedAxes=[1, 1, 0]))
+    mbs.AddObject(CoordinateConstraint(markerNumbers=[
+        mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=n_slider, coordinate=1)), m_zero]))
+    sensors = {name: mbs.AddSensor(SensorNode(nodeNumber=nodes[i], storeInternal=True,
+                                              outputVariableType=exu.OutputVariableType.Position))
+               for name, i in (("A", 0), ("mid", elements // 2), ("B", elements))}
+    mbs.Assemble()
+    ss = _settings(exu, t_end, h, write, rho, abs_tol=1e-8, dense=True)
+    t0 = time.perf_counter()
+    mbs.SolveDynamic(ss)
+    seconds = time.perf_counter() - t0
+    data = {k: mbs.GetSensorStoredData(s) for k, s in sensors.items()}
+    signals = {k: v[:, 1:3] for k, v in data.items()}
+    signals["slider"] = signals["B"][:, 0]
+    return PeerRun(t=data["A"][:, 0], signals=signals, seconds=seconds,
+                   steps=int(ss.timeIntegration.numberOfSteps),
+                   info={"h": h, "spectral_radius": rho, "elements": elements, "beta": beta})
