@@ -14,10 +14,17 @@ in Euler parameters (:class:`casmbd.system.descriptions.SpatialAbsolute`), the t
 ½ c (pᵀṗ)² with c = (4/3) tr J (J the undeformed inertia about the centre of mass) makes the
 mass matrix M_q = Bᵀ M B + c p pᵀ (B = diag(1, 2G, 1)) positive definite without changing the
 motion.  The quadratic-velocity forces are the closed forms of the invariants (Q_v,q = Bᵀ Q_v
-with Ḃ q̇ = 0 for Euler parameters, minus c |ṗ|² p), the elastic, damping and stiffening forces
-−K η − C η̇ − s(ω̄) K_G1 η act on η (:meth:`FlexibleDescription.body_forces`), and gravity acts
+with Ḃ q̇ = 0 for Euler parameters, minus c |ṗ|² p), the elastic and damping forces
+−K η − C η̇ act on η (:meth:`FlexibleDescription.body_forces`), and gravity acts
 at the deformed centre of mass R + A S(η)/m (:meth:`FlexibleDescription.mass_centre`), which
 for the lumped model is exactly Σ m_i g · r_i.
+
+With ``stiffening`` the nodes foreshorten (second-order axial kinematics,
+:mod:`casmbd.system.floating_frame`): node positions carry d_i(η), S(η) carries σ(η) e_x, and T
+gains ΔT(A, η, Ṙ, ω̄, η̇), whose mass matrix is the Hessian like the rest of T and whose
+quadratic-velocity forces ∂ΔT/∂q − (∂²ΔT/∂q̇∂q) q̇ are added by AD in the block's own
+coordinates (:meth:`FlexibleDescription.foreshortening_forces`; for Euler parameters they differ
+from the Bᵀ form only along p, which the normalisation's multiplier absorbs, as for T_lin).
 
 The frame's reference point is its origin R: the description's ``offset`` s = −c (c the
 undeformed centre of mass in body axes), so that points fixed in the *frame* (not nodes) are
@@ -100,15 +107,23 @@ class FlexibleDescription:
         raise NotImplementedError
 
     def kinetic_energy(self, q, v, mass, inertia):
-        """T = ½ wᵀ M(A, η) w (module docstring)."""
+        """T = ½ wᵀ M(A, η) w (+ ΔT with stiffening) (module docstring)."""
         rot, eta, rdot, omega, etadot = self._frame_velocity(q, v)
         return self.flex.kinetic_energy(rot, eta, rdot, omega, etadot)
 
+    def foreshortening_forces(self, q, v) -> ca.SX:
+        """Lagrange's ∂ΔT/∂q − (∂²ΔT/∂q̇∂q) q̇ of the foreshortening energy, by AD in the block's
+        coordinates (zero without stiffening)."""
+        if not self.flex.stiffening:
+            return ca.SX(q.numel(), 1)
+        rot, eta, rdot, omega, etadot = self._frame_velocity(q, v)
+        energy = self.flex.foreshortening_energy(rot, eta, rdot, omega, etadot)
+        return ca.jacobian(energy, q).T - ca.jtimes(ca.gradient(energy, v), q, v)
+
     def body_forces(self, q, v) -> ca.SX:
-        """Elastic, damping and stiffening forces on the block: (0, −K η − C η̇ − s K_G1 η)."""
-        _, eta, _, omega, etadot = self._frame_velocity(q, v)
-        return ca.vertcat(ca.SX(self.frame_size, 1),
-                          self.flex.elastic_forces(eta, etadot, omega))
+        """Elastic and damping forces on the block: (0, −K η − C η̇)."""
+        _, eta, _, _, etadot = self._frame_velocity(q, v)
+        return ca.vertcat(ca.SX(self.frame_size, 1), self.flex.elastic_forces(eta, etadot))
 
     def elastic_energy(self, q) -> ca.SX:
         """V = ½ ηᵀ K η."""
@@ -118,7 +133,7 @@ class FlexibleDescription:
         """Deformed centre of mass R + A S(η)/m (gravity acts here)."""
         ref, rot = ctx.frame_of(name)
         eta = ctx.coordinates(name)[self.frame_size:]
-        first = self.flex._first_moment(eta)
+        first = self.flex.first_moment(eta)
         return ref + ca.mtimes(rot, first) / self.flex.inv.mass
 
     def node_frame(self, ctx, name: str, node: int) -> tuple[ca.SX, ca.SX]:
@@ -129,11 +144,14 @@ class FlexibleDescription:
                 self.flex.node_rotation(node, rot, eta))
 
     def node_deflection(self, ctx, name: str, node: int) -> tuple[ca.SX, ca.SX]:
-        """(Φ_i η, Ψ_i η): the node's elastic displacement and small rotation relative to the
-        undeformed body frame, in body axes (seed 002, eq. 5–26: u_i = u_i0 + Φ_i η)."""
+        """(Φ_i η (+ d_i), Ψ_i η): the node's elastic displacement and small rotation relative
+        to the undeformed body frame, in body axes (seed 002, eq. 5–26: u_i = u_i0 + Φ_i η; the
+        foreshortening d_i with stiffening)."""
         eta = ctx.coordinates(name)[self.frame_size:]
-        return (ca.mtimes(ca.DM(np.atleast_2d(self.flex.inv.phi_t[node])), eta),
-                self.flex.node_rotation_vector(node, eta))
+        shift = ca.mtimes(ca.DM(np.atleast_2d(self.flex.inv.phi_t[node])), eta)
+        if self.flex.stiffening:
+            shift += self.flex.node_shortening(node, eta)
+        return shift, self.flex.node_rotation_vector(node, eta)
 
     def node_angle(self, ctx, name: str, node: int) -> ca.SX:
         """Plane: θ + Ψ_i η, the node frame's angle."""
@@ -172,9 +190,11 @@ class PlanarFlexible(FlexibleDescription, PlanarAbsolute):
         return rot, q[n:], v[0:2], v[2], v[n:]
 
     def quadratic_velocity_forces(self, q, v, mass, inertia):
-        """Lagrange's ∂T/∂q − Ṁ q̇ of q = (R, θ, η) in closed form (the invariants)."""
+        """Lagrange's ∂T/∂q − Ṁ q̇ of q = (R, θ, η) in closed form (the invariants), + the
+        foreshortening's by AD."""
         rot, eta, _, omega, etadot = self._frame_velocity(q, v)
-        return self.flex.quadratic_velocity_forces(rot, eta, omega, etadot)
+        qv = self.flex.quadratic_velocity_forces(rot, eta, omega, etadot)
+        return qv + self.foreshortening_forces(q, v) if self.flex.stiffening else qv
 
 
 @register_description("spatial_flexible")
@@ -215,7 +235,8 @@ class SpatialFlexible(FlexibleDescription, SpatialAbsolute):
         qv = self.flex.quadratic_velocity_forces(rot, eta, omega, etadot)
         p, pdot = q[3:7], v[3:7]
         spin = 2.0 * ca.mtimes(G_matrix(p).T, qv[3:6]) - self._c * ca.dot(pdot, pdot) * p
-        return ca.vertcat(qv[0:3], spin, qv[6:])
+        out = ca.vertcat(qv[0:3], spin, qv[6:])
+        return out + self.foreshortening_forces(q, v) if self.flex.stiffening else out
 
 
 class _NaturalFlexible(FlexibleDescription):

@@ -66,22 +66,47 @@ which the normalisation constraint's multiplier absorbs (also checked in the tes
 Elastic and damping forces: Q_f += −K η − C η̇ with C = M_ff V diag(2 ζ_k ω_k) Vᵀ M_ff, V the
 M_ff-normalised eigenvectors of (K, M_ff) — diag(2 ζ_k ω_k) for mass-normalised modes.
 
-Geometric stiffening (issue 23 item 1; Kane, Ryan & Banerjee, J. Guid. Control Dyn. 10(2),
-1987, the spin-up beam; Wallrapp & Wiedemann, Nonlinear Dyn. 34, 2003): the linear modal model
-misses the bending stiffness of the axial (centrifugal) load, and a beam spun above its first
-bending frequency diverges.  For a beam whose nodes lie on the body x axis (node order by x, the
-root at the smallest x, rotation about the body origin), the lumped centrifugal load gives the
-axial force of the element (x_j, x_j+1) as N_j = s(ω̄) Σ_{i>j} m_i x_i with s = θ̇² (plane) or
-ω̄_y² + ω̄_z² (space), and each element contributes the geometric stiffness of the Hermite beam
-(Przemieniecki, *Theory of Matrix Structural Analysis*, 1968, ch. 15; Cook et al.,
-*Concepts and Applications of Finite Element Analysis*, 4th ed., ch. 18)
+Geometric stiffness from every axial load (``stiffening``; issue 23 item 1, widened in issue 35
+item 1): second-order axial kinematics, the foreshortening of Kane, Ryan & Banerjee (J. Guid.
+Control Dyn. 10(2), 1987, the spin-up beam) and of Wallrapp's geometric-stiffening terms
+(Wallrapp & Wiedemann, Nonlinear Dyn. 34, 2003; Schwertassek & Wallrapp, *Dynamik flexibler
+Mehrkörpersysteme*, 1999, §6.6).  The linear modal model has no bending stiffness from axial
+load: a beam spun above its first bending frequency diverges, and a column under an end load
+never buckles.  For a beam whose nodes lie on the body x axis (u_i0 = x_i e_x) a node does not
+keep its axial position when the beam bends: the arc between the reference node (the node at the
+frame origin, x = 0, or the node nearest to it) and node i keeps its length, so
 
-    K_G,e = N / (30 h) [[36, 3h, −36, 3h], [3h, 4h², −3h, −h²], [−36, −3h, 36, −3h],
-                        [3h, −h², −3h, 4h²]]   on (v_1, θ_1, v_2, θ_2)
+    ū_i(η) = u_i0 + Φ_i η + d_i(η),   d_i = −½ (ηᵀ F_i η) e_x,
+    F_i = ± Σ_{elements e between the reference node and node i} Φ_eᵀ g_e Φ_e
 
-(the string form N/h [[1, −1], [−1, 1]] on v when the nodes carry no rotations), in each bending
-plane ((v, θz) and (w, −θy)).  Projected on the modes, K_G(ω̄) = s(ω̄) K_G1 and
-Q_f += −K_G(ω̄) η.  Neglected: the axial loads of the frame's linear and angular accelerations.
+(+ for nodes at larger x, − for nodes at smaller x: both move toward the reference), with g_e
+the slope kernel ∫ w'ᵀ w' dx of the element's lateral interpolation, exact for it — Hermite
+(Przemieniecki, *Theory of Matrix Structural Analysis*, 1968, §15.2; Cook et al., *Concepts
+and Applications of Finite Element Analysis*, 4th ed., ch. 18)
+
+    g_e = 1/(30 h) [[36, 3h, −36, 3h], [3h, 4h², −3h, −h²], [−36, −3h, 36, −3h],
+                    [3h, −h², −3h, 4h²]]   on (v_1, θ_1, v_2, θ_2)
+
+in each bending plane ((v, θz) and (w, −θy)), or 1/h [[1, −1], [−1, 1]] on v for nodes without
+rotations — the geometric stiffness of the element per unit axial force.  Every consumer of a node
+position (joints, markers, forces and springs at nodes, node outputs) gets r_i = R + A ū_i(η), so
+the reaction of a joint at a node and an applied nodal force give their geometric stiffness
+exactly, by AD (λᵀ C_qq, ∂(J_iᵀ F)/∂q: a column under an end load P sees −P F_tip).  Inertial
+loads enter through the kinetic energy: T = T_lin + ΔT with the terms of order 2 in (η, η̇)
+
+    ΔT = Σ m_i (Ṙ + Ȧ u_i0) · (Ȧ d_i + A ḋ_i)
+       = v̄_R · (ω̄ × e_x σ + e_x σ̇) + s(ω̄) π,     v̄_R = Aᵀ Ṙ,
+    σ = −½ ηᵀ S_G η,  π = −½ ηᵀ P_G η,  S_G = Σ m_i F_i,  P_G = Σ m_i x_i F_i,
+
+s = θ̇² (plane) or ω̄_y² + ω̄_z² (space); (ω̄ × u_i0) · ḋ_i = 0 on the axis, and terms of
+order ≥ 3 are dropped.  Its mass-matrix part (∂²ΔT/∂q̇², O(η)) and its quadratic-velocity forces
+∂ΔT/∂q − (∂²ΔT/∂q̇∂q) q̇ come by AD in the body's coordinates
+(:mod:`casmbd.system.flexible_descriptions`).  The centrifugal term −s(ω̄) P_G η is the former
+K_G1 = Σ_e K_G,e(N̂_e) with N̂_e = Σ_{outboard j} m_j x_j (P_G = Σ_e g_e Σ_{outboard} m_j x_j);
+the frame's acceleration now gives its axial load too (Ṙ terms), and gravity acts on
+S(η) = S0 + S1 η + σ e_x, the first moment of the foreshortened nodes.  Not covered: the
+second-order rotations of the nodes (rotary inertia J_i), meshes off the body x axis (an
+imported FE model's own geometric-stiffness matrices).
 
 Everything here is a CasADi SX expression of symbols the caller gives; the invariants are DM
 constants, so the expressions are built once and AD does the rest.
@@ -129,7 +154,8 @@ class Invariants:
     K, C : (n, n)
         Reduced stiffness and modal damping.
     K_G1 : (n, n) or None
-        Geometric stiffness per unit s(ω̄) (None: no stiffening).
+        Centrifugal geometric stiffness per unit s(ω̄), P_G = Σ m_i x_i F_i (None: no
+        stiffening).
     positions : (N, d) ; phi_t : (N, d, n) ; phi_r : (N, c, n)
         Node data for the node outputs.
     node_names : dict[str, int]
@@ -155,6 +181,8 @@ class Invariants:
     phi_t: np.ndarray
     phi_r: np.ndarray
     node_names: dict
+    foreshortening: np.ndarray | None = None
+    S_G: np.ndarray | None = None
 
     @property
     def n_modes(self) -> int:
@@ -230,38 +258,45 @@ def _damping(K: np.ndarray, M: np.ndarray, ratio, where: str) -> np.ndarray:
     return mv @ np.diag(2.0 * zeta * omega) @ mv.T
 
 
-def _geometric_stiffness(u0, m, phi, psi, where: str) -> np.ndarray:
-    """K_G1 = Σ_e Φ_eᵀ K_G,e(N̂_e) Φ_e of a beam along the body x axis (module docstring)."""
+def _foreshortening(u0, phi, psi, where: str) -> np.ndarray:
+    """F_i (N, n, n) of d_i = −½ (ηᵀ F_i η) e_x for a beam along the body x axis (module
+    docstring): the slope kernels g_e summed from the reference node (nearest to x = 0)."""
     dim, n = u0.shape[1], phi.shape[2]
     scale = max(1.0, float(np.abs(u0).max()))
     if np.any(np.abs(u0[:, 1:]) > 1e-12 * scale):
         raise ModelError(f"{where}: geometric stiffening needs the nodes on the body x axis "
-                         "(a beam along x)")
+                         "(a beam along x; the geometric stiffness of other meshes is not "
+                         "built)")
     order = np.argsort(u0[:, 0], kind="stable")
     x = u0[order, 0]
     if np.any(np.diff(x) <= 0.0):
         raise ModelError(f"{where}: geometric stiffening needs distinct node positions along x")
-    # axial force per unit s(ω̄) in element j: the centrifugal load of the outboard nodes
-    outboard = np.cumsum((m[order] * x)[::-1])[::-1]
     hermite = np.any(psi)
     planes = [(1, 2, 1.0)] if dim == 2 else [(1, 2, 1.0), (2, 1, -1.0)]
-    kg = np.zeros((n, n))
+    kernels = []
     for j in range(len(x) - 1):
-        h, axial = x[j + 1] - x[j], outboard[j + 1]
-        a, b = order[j], order[j + 1]
+        h, a, b = x[j + 1] - x[j], order[j], order[j + 1]
+        ge = np.zeros((n, n))
         for trans, rot, sign in planes:
             if hermite:
-                ke = axial / (30.0 * h) * np.array(
+                ke = 1.0 / (30.0 * h) * np.array(
                     [[36, 3 * h, -36, 3 * h], [3 * h, 4 * h * h, -3 * h, -h * h],
                      [-36, -3 * h, 36, -3 * h], [3 * h, -h * h, -3 * h, 4 * h * h]])
                 rrow = 0 if dim == 2 else rot
                 basis = np.vstack([phi[a, trans], sign * psi[a, rrow], phi[b, trans],
                                    sign * psi[b, rrow]])
             else:
-                ke = axial / h * np.array([[1.0, -1.0], [-1.0, 1.0]])
+                ke = 1.0 / h * np.array([[1.0, -1.0], [-1.0, 1.0]])
                 basis = np.vstack([phi[a, trans], phi[b, trans]])
-            kg += basis.T @ ke @ basis
-    return 0.5 * (kg + kg.T)
+            ge += basis.T @ ke @ basis
+        kernels.append(0.5 * (ge + ge.T))
+    ref = int(np.argmin(np.abs(x)))
+    F = np.zeros((len(x), n, n))
+    for j in range(ref, len(x) - 1):  # outward to larger x: shortening toward the reference
+        F[order[j + 1]] = F[order[j]] + kernels[j]
+    for j in range(ref - 1, -1, -1):  # to smaller x: the opposite sign
+        F[order[j]] = F[order[j + 1]] - kernels[j]
+    return F
 
 
 def invariants(modal: ModalData, *, damping_ratio=0.0, flexible_mass: str = "lumped",
@@ -281,7 +316,8 @@ def invariants(modal: ModalData, *, damping_ratio=0.0, flexible_mass: str = "lum
         mass-normalised modes; consistent with the reduced frequencies).  M_ff is constant, so
         the choice does not change Q_v.
     stiffening : bool
-        Compute the centrifugal geometric stiffness K_G1 (beam along the body x axis).
+        Second-order axial kinematics (foreshortening, module docstring): the geometric
+        stiffness of every axial load (beam along the body x axis).
     name : str
         Body name for messages.
 
@@ -318,10 +354,12 @@ def invariants(modal: ModalData, *, damping_ratio=0.0, flexible_mass: str = "lum
         raise ModelError(f"{where}: the flexible mass matrix ({flexible_mass}) is not positive "
                          "definite (a mode moves no mass)")
     C = _damping(K, M_ff, damping_ratio, where)
-    K_G1 = _geometric_stiffness(u0, m, phi, psi, where) if stiffening else None
+    F = _foreshortening(u0, phi, psi, where) if stiffening else None
+    K_G1 = np.einsum("i,i,ikl->kl", m, u0[:, 0], F) if stiffening else None
+    S_G = np.einsum("i,ikl->kl", m, F) if stiffening else None
     return Invariants(modal.dimension, float(m.sum()), S0, S1, P0, P1, P2, Q0, Q1, J_r, J_psi,
                       psi_j_psi, M_ff, K, C, K_G1, u0, phi, psi,
-                      dict(getattr(modal, "node_names", {}) or {}))
+                      dict(getattr(modal, "node_names", {}) or {}), foreshortening=F, S_G=S_G)
 
 
 def planar_rotation(theta) -> ca.SX:
@@ -371,12 +409,27 @@ class FlexibleBody:
         self._trace = _dm(np.eye(d).reshape(1, -1))
         self._Jr, self._Jpsi, self._Mff = _dm(inv.J_r), _dm(inv.J_psi), _dm(inv.M_ff)
         self._K, self._C = _dm(inv.K), _dm(inv.C)
-        self._KG = None if inv.K_G1 is None else _dm(inv.K_G1)
+        self.stiffening = inv.foreshortening is not None
+        if self.stiffening:
+            self._SG, self._PG = _dm(inv.S_G), _dm(inv.K_G1)
 
     # ------------------------------------------------------------------ invariant sums
     def _first_moment(self, eta) -> ca.SX:
         """S(η) = S0 + S1 η."""
         return self._S0 + ca.mtimes(self._S1, eta)
+
+    def first_moment(self, eta) -> ca.SX:
+        """Σ m_i ū_i(η) = S0 + S1 η (+ σ(η) e_x with stiffening): the first moment of the
+        (foreshortened) nodes, on which gravity acts."""
+        first = self._first_moment(eta)
+        if not self.stiffening:
+            return first
+        return first + ca.vertcat(self._axial_sum(self._SG, eta), ca.SX(self.dimension - 1, 1))
+
+    @staticmethod
+    def _axial_sum(F, eta) -> ca.SX:
+        """−½ ηᵀ F η."""
+        return -0.5 * ca.bilin(F, eta, eta)
 
     def _w_matrix(self, eta) -> ca.SX:
         """(d², n): column k = vec W_k, W_k = P1[k] + Σ_l η_l P2[l, k]."""
@@ -404,7 +457,8 @@ class FlexibleBody:
 
     # ------------------------------------------------------------------ inertia
     def mass_matrix(self, A, eta) -> ca.SX:
-        """M(A, η) in w = (Ṙ, ω̄, η̇) (module docstring), symmetric, size d + c + n."""
+        """M(A, η) in w = (Ṙ, ω̄, η̇) (module docstring), symmetric, size d + c + n; of the
+        linear kinematics (T_lin: the foreshortening's ΔT is added by the descriptions)."""
         d, inv = self.dimension, self.inv
         S = self._first_moment(eta)
         P = self.pseudo_inertia(eta)
@@ -422,12 +476,15 @@ class FlexibleBody:
         return ca.vertcat(top, mid, bot)
 
     def kinetic_energy(self, A, eta, Rdot, omega, etadot) -> ca.SX:
-        """T = ½ wᵀ M(A, η) w with w = (Ṙ, ω̄, η̇)."""
+        """T = ½ wᵀ M(A, η) w with w = (Ṙ, ω̄, η̇) (+ ΔT with stiffening: module docstring)."""
         w = ca.vertcat(Rdot, omega, etadot)
-        return 0.5 * ca.bilin(self.mass_matrix(A, eta), w, w)
+        lin = 0.5 * ca.bilin(self.mass_matrix(A, eta), w, w)
+        if not self.stiffening:
+            return lin
+        return lin + self.foreshortening_energy(A, eta, Rdot, omega, etadot)
 
     def quadratic_velocity_forces(self, A, eta, omega, etadot) -> ca.SX:
-        """Q_v(A, η, ω̄, η̇) with M ẇ = Q_v + Q_e (module docstring; size d + c + n).
+        """Q_v(A, η, ω̄, η̇) with M ẇ = Q_v + Q_e (module docstring; size d + c + n), of T_lin.
 
         In the plane these are Lagrange's ∂T/∂q − Ṁ q̇ for q = (R, θ, η).
         """
@@ -457,35 +514,41 @@ class FlexibleBody:
 
     # ------------------------------------------------------------------ elastic forces
     def stiffening_factor(self, omega) -> ca.SX:
-        """s(ω̄) = θ̇² (plane) or ω̄_y² + ω̄_z² (space): K_G(ω̄) = s K_G1."""
+        """s(ω̄) = θ̇² (plane) or ω̄_y² + ω̄_z² (space) = |ω̄ × e_x|²."""
         if self.dimension == 2:
             return omega ** 2
         return omega[1] ** 2 + omega[2] ** 2
 
-    def elastic_forces(self, eta, etadot, omega=None) -> ca.SX:
-        """Q_f = −K η − C η̇ − s(ω̄) K_G1 η (the last only with stiffening and ``omega`` given).
+    def _transport(self, eta, omega, etadot) -> ca.SX:
+        """c = ω̄ × e_x σ + e_x σ̇ = Σ m_i (ω̄ × d_i + ḋ_i) in body axes (ΔT = v̄_R · c + s π)."""
+        sigma = self._axial_sum(self._SG, eta)
+        sigma_dot = -ca.bilin(self._SG, eta, etadot)
+        if self.dimension == 2:
+            return ca.vertcat(sigma_dot, omega * sigma)
+        return ca.vertcat(sigma_dot, omega[2] * sigma, -omega[1] * sigma)
 
-        Raises
-        ------
-        ModelError
-            Stiffening computed but ``omega`` missing.
-        """
-        out = -ca.mtimes(self._K, eta) - ca.mtimes(self._C, etadot)
-        if self._KG is not None:
-            if omega is None:
-                raise ModelError("flexible body: geometric stiffening needs the angular "
-                                 "velocity (omega)")
-            out -= self.stiffening_factor(omega) * ca.mtimes(self._KG, eta)
-        return out
+    def foreshortening_energy(self, A, eta, Rdot, omega, etadot) -> ca.SX:
+        """ΔT = v̄_R · (ω̄ × e_x σ + e_x σ̇) + s(ω̄) π (module docstring), zero without
+        stiffening: the kinetic energy of the foreshortening d_i to second order in (η, η̇)."""
+        if not self.stiffening:
+            return ca.SX(0.0)
+        vbar = ca.mtimes(A.T, Rdot)
+        return (ca.dot(vbar, self._transport(eta, omega, etadot))
+                + self.stiffening_factor(omega) * self._axial_sum(self._PG, eta))
+
+    def elastic_forces(self, eta, etadot) -> ca.SX:
+        """Q_f = −K η − C η̇ (the geometric stiffness comes from the kinematics: module
+        docstring)."""
+        return -ca.mtimes(self._K, eta) - ca.mtimes(self._C, etadot)
 
     def elastic_energy(self, eta) -> ca.SX:
         """V = ½ ηᵀ K η."""
         return 0.5 * ca.bilin(self._K, eta, eta)
 
-    def generalized_forces(self, eta, etadot, omega) -> ca.SX:
-        """Elastic, damping (and stiffening) forces padded to the size of w (zeros on Ṙ, ω̄)."""
+    def generalized_forces(self, eta, etadot) -> ca.SX:
+        """Elastic and damping forces padded to the size of w (zeros on Ṙ, ω̄)."""
         return ca.vertcat(ca.SX(self.dimension + self.rotations, 1),
-                          self.elastic_forces(eta, etadot, omega))
+                          self.elastic_forces(eta, etadot))
 
     # ------------------------------------------------------------------ nodes
     def _node(self, node) -> int:
@@ -500,21 +563,32 @@ class FlexibleBody:
                              f"0..{count - 1}")
         return int(node)
 
+    def node_shortening(self, node, eta) -> ca.SX:
+        """d_i = −½ (ηᵀ F_i η) e_x, the foreshortening (zero without stiffening)."""
+        if not self.stiffening:
+            return ca.SX(self.dimension, 1)
+        F = _dm(self.inv.foreshortening[self._node(node)])
+        return ca.vertcat(self._axial_sum(F, eta), ca.SX(self.dimension - 1, 1))
+
     def node_offset(self, node, eta) -> ca.SX:
-        """u_i = u_i0 + Φ_i η (body frame)."""
+        """ū_i = u_i0 + Φ_i η (+ d_i with stiffening) (body frame)."""
         i = self._node(node)
-        return _dm(self.inv.positions[i]) + ca.mtimes(_dm(self.inv.phi_t[i]), eta)
+        offset = _dm(self.inv.positions[i]) + ca.mtimes(_dm(self.inv.phi_t[i]), eta)
+        return offset + self.node_shortening(i, eta) if self.stiffening else offset
 
     def node_position(self, node, R, A, eta) -> ca.SX:
         """r_i = R + A (u_i0 + Φ_i η)  (seed 002, eq. 5–26)."""
         return R + ca.mtimes(A, self.node_offset(node, eta))
 
     def node_velocity(self, node, A, eta, Rdot, omega, etadot) -> ca.SX:
-        """ṙ_i = Ṙ + A (ω̄ × u_i + Φ_i η̇)."""
+        """ṙ_i = Ṙ + A (ω̄ × ū_i + Φ_i η̇ + ḋ_i)."""
         i = self._node(node)
         u = self.node_offset(i, eta)
         spin = omega * _perp(u) if self.dimension == 2 else ca.cross(omega, u)
-        return Rdot + ca.mtimes(A, spin + ca.mtimes(_dm(self.inv.phi_t[i]), etadot))
+        rel = ca.mtimes(_dm(self.inv.phi_t[i]), etadot)
+        if self.stiffening:
+            rel += ca.jtimes(self.node_shortening(i, eta), eta, etadot)
+        return Rdot + ca.mtimes(A, spin + rel)
 
     def node_rotation_vector(self, node, eta) -> ca.SX:
         """ψ_i = Ψ_i η: the node's small rotation in body axes (an angle in the plane)."""
@@ -544,6 +618,9 @@ class FlexibleBody:
         return rel if self.dimension == 2 else ca.mtimes(A, rel)
 
     def linear_momentum(self, A, eta, Rdot, omega, etadot) -> ca.SX:
-        """p = Σ m_i ṙ_i = ∂T/∂Ṙ = m Ṙ + M_Rω ω̄ + A S1 η̇."""
+        """p = ∂T/∂Ṙ = m Ṙ + M_Rω ω̄ + A S1 η̇ (+ ∂ΔT/∂Ṙ with stiffening)."""
         w = ca.vertcat(Rdot, omega, etadot)
-        return ca.mtimes(self.mass_matrix(A, eta)[:self.dimension, :], w)
+        lin = ca.mtimes(self.mass_matrix(A, eta)[:self.dimension, :], w)
+        if not self.stiffening:
+            return lin
+        return lin + ca.mtimes(A, self._transport(eta, omega, etadot))

@@ -219,7 +219,7 @@ def _free_floating(dim: int, zeta: float):
         rot_rate = 0.5 * ca.mtimes(G_matrix(rot).T, omega)
     M = body.mass_matrix(A, eta)
     force = body.quadratic_velocity_forces(A, eta, omega, etad) + body.generalized_forces(
-        eta, etad, omega)
+        eta, etad)
     dissipation = ca.bilin(ca.DM(body.inv.C), etad, etad)
     rhs = ca.vertcat(rdot, rot_rate, etad, ca.solve(M, force), dissipation)
     energy = body.kinetic_energy(A, eta, rdot, omega, etad) + body.elastic_energy(eta) + x[-1]
@@ -286,8 +286,11 @@ def _slopes(dim: int, stiffening: bool, elements: int = 40):
     A = planar_rotation(0.3) if dim == 2 else ca.DM.eye(3)
     omega = om if dim == 2 else ca.vertcat(0.0, 0.0, om)
     zero = ca.DM.zeros(n)
+    # the foreshortening's centrifugal term ∂ΔT/∂η at Ṙ = 0, η̇ = 0 (−s(ω̄) P_G η)
+    shortening = ca.gradient(body.foreshortening_energy(A, eta, ca.DM.zeros(dim), omega, zero),
+                             eta)
     q_f = body.quadratic_velocity_forces(A, eta, omega, zero)[-n:] + body.elastic_forces(
-        eta, zero, omega)
+        eta, zero) + shortening
     k_eff = ca.Function("k", [eta, om], [-ca.jacobian(q_f, eta)])
     w0 = 1.8751 ** 2 * np.sqrt(EI / (rhoA * L ** 4))
     big = 1e-3 * w0
