@@ -553,6 +553,7 @@ def exudyn_ancf_slider_crank(diameter: float, *, elements: int = 8, t_end: float
 
     if elements % 2:
         raise ValueError("exudyn_ancf_slider_crank: elements must be even (a middle node)")
+    t_setup = time.perf_counter()
     p = SLIDER_CRANK_ROD
     sec = rod_section(diameter)
     r, w, L = p["crank"], p["omega"], p["length"]
@@ -600,6 +601,7 @@ def exudyn_ancf_slider_crank(diameter: float, *, elements: int = 8, t_end: float
                for name, i in (("A", 0), ("mid", elements // 2), ("B", elements))}
     mbs.Assemble()
     ss = _settings(exu, t_end, h, write, rho, abs_tol=1e-8, dense=True)
+    setup = time.perf_counter() - t_setup
     t0 = time.perf_counter()
     mbs.SolveDynamic(ss)
     seconds = time.perf_counter() - t0
@@ -608,7 +610,8 @@ def exudyn_ancf_slider_crank(diameter: float, *, elements: int = 8, t_end: float
     signals["slider"] = signals["B"][:, 0]
     return PeerRun(t=data["A"][:, 0], signals=signals, seconds=seconds,
                    steps=int(ss.timeIntegration.numberOfSteps),
-                   info={"h": h, "spectral_radius": rho, "elements": elements, "beta": beta})
+                   info={"setup_seconds": setup, "h": h, "spectral_radius": rho,
+                         "elements": elements, "beta": beta})
 
 
 def exudyn_ffrf_beam_slider_crank(modal, diameter: float, *, t_end: float = 0.4,
@@ -649,6 +652,7 @@ def exudyn_ffrf_beam_slider_crank(modal, diameter: float, *, t_end: float = 0.4,
 
     from tests.flexible_references import SLIDER_CRANK_ROD, pinned_frequency, rod_section
 
+    t_setup = time.perf_counter()
     p = SLIDER_CRANK_ROD
     sec = rod_section(diameter)
     r, w, L = p["crank"], p["omega"], p["length"]
@@ -716,6 +720,7 @@ def exudyn_ffrf_beam_slider_crank(modal, diameter: float, *, t_end: float = 0.4,
         outputVariableType=exu.OutputVariableType.Position)) for name in ("A", "B", "mid")}
     mbs.Assemble()
     ss = _settings(exu, t_end, h, write, rho, abs_tol=1e-8, dense=True)
+    setup = time.perf_counter() - t_setup
     t0 = time.perf_counter()
     mbs.SolveDynamic(ss)
     seconds = time.perf_counter() - t0
@@ -724,4 +729,5 @@ def exudyn_ffrf_beam_slider_crank(modal, diameter: float, *, t_end: float = 0.4,
     signals["slider"] = signals["B"][:, 0]
     return PeerRun(t=data["A"][:, 0], signals=signals, seconds=seconds,
                    steps=int(ss.timeIntegration.numberOfSteps),
-                   info={"h": h, "spectral_radius": rho, "modes": m, "beta": beta})
+                   info={"setup_seconds": setup, "h": h, "spectral_radius": rho,
+                         "modes": m, "beta": beta})
