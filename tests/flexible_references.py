@@ -91,7 +91,8 @@ the deformation rates; :func:`slider_crank_scene` is the casmbd model under test
 (measured 2026-11-29, 10 mm / 20 mm rod, steady maximum mid-span deflection over the last crank
 turn at 0.4 s): 8 elements 1.34683 / 0.33711 mm, 16 elements 1.35845 / 0.34025 mm; Richardson
 (h²) of 8 and 16 elements for the 10 mm rod 1.36232 mm against Exudyn's ANCF cable converged at
-16 and 32 elements, 1.36234 mm; energy balance T + U + D − W to 2.6e-8 J of 73 J; E × 1e4:
+16 and 32 elements, 1.36234 mm (32 elements: 1.36137 mm, Richardson of 16/32 1.362337 mm);
+energy balance T + U + D − W to 2.6e-8 J of 73 J; E × 1e4:
 slider on the rigid mechanism's x(t) to 1.1e-9 m, deflection 6e-5 of the flexible one.  Cost:
 8 elements ≈ 25–65 s, 16 ≈ 45–80 s per 0.4 s run (Radau, rtol 1e-7; the load of the shared
 machine sets the spread), so the test reads the stored result.
@@ -684,7 +685,8 @@ def write_slider_crank_reference(path=None, *, cases=((0.01, 8), (0.02, 8), (0.0
     mid-span deflection and slider position of the last crank revolution (times, values) and
     the steady maximum |deflection| in an .npz (``tests/data/slider_crank_reference.npz``).
 
-    Command: ``python -m tests.flexible_references`` (minutes on one core).
+    Command: ``python -m tests.flexible_references`` (about 25 minutes on a loaded machine, 18
+    of them for the 32-element run).
     """
     import pathlib
     import time
