@@ -13,9 +13,10 @@ exactly β K_red (checked below).
 Reference: :func:`tests.flexible_references.corotational_slider_crank` (Crisfield
 co-rotational Euler–Bernoulli elements, lumped masses, Radau rtol 1e-7), stored in
 ``tests/data/slider_crank_reference.npz`` (``python -m tests.flexible_references``, about
-25 minutes on a loaded machine).  Its checks (2026-11-29): mesh 8 → 16 elements 1.34683 → 1.35845 mm (10 mm rod),
-0.33711 → 0.34025 mm (20 mm); Richardson (h²) of 8 and 16 elements 1.36232 mm against
-Exudyn's ANCF cable converged at 16–32 elements and h = 2.5e-5 s, 1.36234 mm; energy balance
+25 minutes on a loaded machine).  Its checks (2026-11-29): mesh 8 → 16 → 32 elements
+1.34683 → 1.35845 → 1.36137 mm (10 mm rod), 0.33711 → 0.34025 mm (20 mm); Richardson (h²)
+of 16 and 32 elements 1.362337 mm against Exudyn's ANCF cable converged at 16–32 elements and
+h = 2.5e-5 s, 1.362343 mm; energy balance
 T + U + D − W to 2.6e-8 J of 73 J (tests/peers/test_flexible_references.py); E × 1e4: the
 slider on the rigid mechanism's x(t) to 1.1e-9 m.
 
