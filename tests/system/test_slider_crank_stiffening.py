@@ -35,6 +35,7 @@ import pathlib
 
 import numpy as np
 import pytest
+from conftest import private_cache
 
 import casmbd
 from casmbd.model.fe_beam import beam_model
@@ -52,6 +53,8 @@ from tests.flexible_references import (
 )
 
 ELEMENTS, MODES, T_END = 8, 4, 0.4
+
+_cache = private_cache("casmbd_cache_slider_crank", scope="module")
 
 
 @pytest.fixture(scope="module")
