@@ -554,7 +554,9 @@ def corotational_slider_crank(diameter: float, *, elements: int = 8, t_end: floa
     pinned–pinned bending frequency (ζ = 0.05): 5 % on that mode and ζ_k = β ω_k/2 on the
     others (the same operator as a floating-frame model with C = β K).  Start: the rigid
     motion at θ = π/2 with zero deformation — the rod lies on the line from (0, r) to
-    (sqrt(L² − r²), 0) and translates, every node at velocity (−ω r, 0), ψ̇ = 0.  No gravity.
+    (sqrt(L² − r²), 0) and translates, every node at velocity (−ω r, 0), ψ̇ = 0 (the node
+    rotations ψ count from this initial configuration, the chord angles from β0 =
+    −asin(r/L), as :func:`_element_forces` takes them).  No gravity.
 
     Parameters
     ----------
@@ -658,8 +660,7 @@ def corotational_slider_crank(diameter: float, *, elements: int = 8, t_end: floa
         defl[k] = e[0] * dm[1] - e[1] * dm[0]
         slider[k] = qn[N, 0]
         if energy:
-            kinetic = 0.5 * float(mdiag[2:] @ v[2:] ** 2)     # node 0's translation: the crank's
-            kinetic += 0.5 * float(mdiag[:2] @ v[:2] ** 2)
+            kinetic = 0.5 * float(mdiag @ v**2)
             res[k] = (kinetic + _strain_energy(q, l0, beta0, EA, EI)
                       + sol.y[-1, k] - sol.y[-2, k])
     return SliderCrankResult(sol.t, defl, slider, res, sol.status, sol.nfev)
