@@ -371,7 +371,8 @@ class PlanarFlexibleBody(_Flexible):
     damping_ratio : float or sequence
         Modal damping ratio (one, or one per mode).
     stiffening : bool
-        Centrifugal geometric stiffening (beams along the body x axis).
+        Geometric stiffness of every axial load from the foreshortening kinematics (beams
+        along the body x axis; :mod:`casmbd.system.floating_frame`).
     flexible_mass : {"lumped", "reduced"}
     """
 

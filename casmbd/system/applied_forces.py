@@ -180,9 +180,9 @@ class AppliedForces:
         return total + self._body_forces()
 
     def _body_forces(self) -> ca.SX:
-        """Forces a body's description exerts on its own coordinates: the elastic, damping and
-        stiffening forces −K η − C η̇ − s K_G1 η of flexible bodies (internal forces: no work
-        in a rigid motion of the body, so the reactions do not see them)."""
+        """Forces a body's description exerts on its own coordinates: the elastic and damping
+        forces −K η − C η̇ of flexible bodies (internal forces: no work in a rigid motion of the
+        body, so the reactions do not see them)."""
         parts, any_force = [], False
         for name in self.body_names:
             desc = self.descriptions[name]

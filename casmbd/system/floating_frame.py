@@ -92,21 +92,31 @@ rotations — the geometric stiffness of the element per unit axial force.  Ever
 position (joints, markers, forces and springs at nodes, node outputs) gets r_i = R + A ū_i(η), so
 the reaction of a joint at a node and an applied nodal force give their geometric stiffness
 exactly, by AD (λᵀ C_qq, ∂(J_iᵀ F)/∂q: a column under an end load P sees −P F_tip).  Inertial
-loads enter through the kinetic energy: T = T_lin + ΔT with the terms of order 2 in (η, η̇)
+loads enter through the kinetic energy of the foreshortened nodes, T = T_lin + ΔT,
 
-    ΔT = Σ m_i (Ṙ + Ȧ u_i0) · (Ȧ d_i + A ḋ_i)
-       = v̄_R · (ω̄ × e_x σ + e_x σ̇) + s(ω̄) π,     v̄_R = Aᵀ Ṙ,
+    ΔT = ½ Σ m_i (|w_i + c_i|² − |w_i|²),   w_i = v̄_R + ω̄ × (u_i0 + Φ_i η) + Φ_i η̇,
+    c_i = ω̄ × d_i + ḋ_i,   v̄_R = Aᵀ Ṙ   (body axes),
+
+exact for the lumped nodes and summed over them (:meth:`FlexibleBody.foreshortening_energy`).
+Its part of second order in (η, η̇) is the invariant form
+
+    ΔT₂ = v̄_R · (ω̄ × e_x σ + e_x σ̇) + s(ω̄) π,
     σ = −½ ηᵀ S_G η,  π = −½ ηᵀ P_G η,  S_G = Σ m_i F_i,  P_G = Σ m_i x_i F_i,
 
-s = θ̇² (plane) or ω̄_y² + ω̄_z² (space); (ω̄ × u_i0) · ḋ_i = 0 on the axis, and terms of
-order ≥ 3 are dropped.  Its mass-matrix part (∂²ΔT/∂q̇², O(η)) and its quadratic-velocity forces
+s = θ̇² (plane) or ω̄_y² + ω̄_z² (space) ((ω̄ × u_i0) · ḋ_i = 0 on the axis): the Ṙ terms give
+the axial load of the frame's acceleration, −s(ω̄) P_G η the centrifugal geometric stiffness,
+equal to the former K_G1 = Σ_e K_G,e(N̂_e) with N̂_e = Σ_{outboard j} m_j x_j
+(P_G = Σ_e g_e Σ_{outboard} m_j x_j).  ΔT₂ alone would do for the linearisation, but its mass
+matrix is not of the form Jᵀ diag(m) J: the O(η) terms of the Ṙ–η̇ block are kept and those of
+the η̇–η̇ block (order 3 in T) dropped, and M turned indefinite at modal coordinates of 1e-2
+(millimetres on the 1 m pendulum of tests/system/test_geometric_stiffness.py); the node sums
+cost N (n² + 2 d n) operations and keep M positive semi-definite at any η.  The mass
+matrix of ΔT (its Hessian in the velocities) and its quadratic-velocity forces
 ∂ΔT/∂q − (∂²ΔT/∂q̇∂q) q̇ come by AD in the body's coordinates
-(:mod:`casmbd.system.flexible_descriptions`).  The centrifugal term −s(ω̄) P_G η is the former
-K_G1 = Σ_e K_G,e(N̂_e) with N̂_e = Σ_{outboard j} m_j x_j (P_G = Σ_e g_e Σ_{outboard} m_j x_j);
-the frame's acceleration now gives its axial load too (Ṙ terms), and gravity acts on
-S(η) = S0 + S1 η + σ e_x, the first moment of the foreshortened nodes.  Not covered: the
-second-order rotations of the nodes (rotary inertia J_i), meshes off the body x axis (an
-imported FE model's own geometric-stiffness matrices).
+(:mod:`casmbd.system.flexible_descriptions`).  Gravity acts on the first moment of the
+foreshortened nodes, S(η) = S0 + S1 η + σ e_x.  Not covered: the second-order rotations of the
+nodes (rotary inertia J_i), meshes off the body x axis (an imported FE model's own
+geometric-stiffness matrices).
 
 Everything here is a CasADi SX expression of symbols the caller gives; the invariants are DM
 constants, so the expressions are built once and AD does the rest.
@@ -183,6 +193,7 @@ class Invariants:
     node_names: dict
     foreshortening: np.ndarray | None = None
     S_G: np.ndarray | None = None
+    node_masses: np.ndarray | None = None
 
     @property
     def n_modes(self) -> int:
@@ -359,7 +370,8 @@ def invariants(modal: ModalData, *, damping_ratio=0.0, flexible_mass: str = "lum
     S_G = np.einsum("i,ikl->kl", m, F) if stiffening else None
     return Invariants(modal.dimension, float(m.sum()), S0, S1, P0, P1, P2, Q0, Q1, J_r, J_psi,
                       psi_j_psi, M_ff, K, C, K_G1, u0, phi, psi,
-                      dict(getattr(modal, "node_names", {}) or {}), foreshortening=F, S_G=S_G)
+                      dict(getattr(modal, "node_names", {}) or {}), foreshortening=F, S_G=S_G,
+                      node_masses=m if stiffening else None)
 
 
 def planar_rotation(theta) -> ca.SX:
@@ -411,7 +423,8 @@ class FlexibleBody:
         self._K, self._C = _dm(inv.K), _dm(inv.C)
         self.stiffening = inv.foreshortening is not None
         if self.stiffening:
-            self._SG, self._PG = _dm(inv.S_G), _dm(inv.K_G1)
+            self._SG = _dm(inv.S_G)
+        self._node_sums = None
 
     # ------------------------------------------------------------------ invariant sums
     def _first_moment(self, eta) -> ca.SX:
@@ -520,7 +533,7 @@ class FlexibleBody:
         return omega[1] ** 2 + omega[2] ** 2
 
     def _transport(self, eta, omega, etadot) -> ca.SX:
-        """c = ω̄ × e_x σ + e_x σ̇ = Σ m_i (ω̄ × d_i + ḋ_i) in body axes (ΔT = v̄_R · c + s π)."""
+        """Σ m_i c_i = ω̄ × e_x σ + e_x σ̇ (body axes): ∂ΔT/∂v̄_R."""
         sigma = self._axial_sum(self._SG, eta)
         sigma_dot = -ca.bilin(self._SG, eta, etadot)
         if self.dimension == 2:
@@ -528,13 +541,38 @@ class FlexibleBody:
         return ca.vertcat(sigma_dot, omega[2] * sigma, -omega[1] * sigma)
 
     def foreshortening_energy(self, A, eta, Rdot, omega, etadot) -> ca.SX:
-        """ΔT = v̄_R · (ω̄ × e_x σ + e_x σ̇) + s(ω̄) π (module docstring), zero without
-        stiffening: the kinetic energy of the foreshortening d_i to second order in (η, η̇)."""
+        """ΔT = ½ Σ m_i (|w_i + c_i|² − |w_i|²), exact for the lumped nodes (module docstring;
+        w_i = v̄_R + ω̄ × (u_i0 + Φ_i η) + Φ_i η̇ the linear node velocity, c_i = ω̄ × d_i + ḋ_i,
+        both in body axes); its second-order part is v̄_R · (ω̄ × e_x σ + e_x σ̇) + s(ω̄) π.
+        Zero without stiffening."""
         if not self.stiffening:
             return ca.SX(0.0)
+        inv, d, n = self.inv, self.dimension, self.n_modes
+        count = inv.positions.shape[0]
+        if self._node_sums is None:
+            self._node_sums = (_dm(inv.foreshortening.reshape(count * n, n)),
+                               _dm(inv.phi_t.reshape(count * d, n)), _dm(inv.positions.T),
+                               _dm(inv.node_masses))
+        F, phi, u0, mass = self._node_sums
+        slopes = ca.reshape(ca.mtimes(F, eta), n, count)     # column i: F_i η
+        delta = -0.5 * ca.mtimes(slopes.T, eta)              # δ_i, d_i = δ_i e_x
+        delta_dot = -ca.mtimes(slopes.T, etadot)
+        u = u0 + ca.reshape(ca.mtimes(phi, eta), d, count)
+        rel = ca.reshape(ca.mtimes(phi, etadot), d, count)
         vbar = ca.mtimes(A.T, Rdot)
-        return (ca.dot(vbar, self._transport(eta, omega, etadot))
-                + self.stiffening_factor(omega) * self._axial_sum(self._PG, eta))
+        if d == 2:
+            w_x = vbar[0] - omega * u[1, :] + rel[0, :]
+            w_y = vbar[1] + omega * u[0, :] + rel[1, :]
+            along = omega * w_y                              # w_i · (ω̄ × e_x)
+        else:
+            om = omega
+            w_x = vbar[0] + om[1] * u[2, :] - om[2] * u[1, :] + rel[0, :]
+            w_y = vbar[1] + om[2] * u[0, :] - om[0] * u[2, :] + rel[1, :]
+            w_z = vbar[2] + om[0] * u[1, :] - om[1] * u[0, :] + rel[2, :]
+            along = om[2] * w_y - om[1] * w_z
+        per_node = (along.T * delta + w_x.T * delta_dot
+                    + 0.5 * (self.stiffening_factor(omega) * delta ** 2 + delta_dot ** 2))
+        return ca.dot(mass, per_node)
 
     def elastic_forces(self, eta, etadot) -> ca.SX:
         """Q_f = −K η − C η̇ (the geometric stiffness comes from the kinematics: module

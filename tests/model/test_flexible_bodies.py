@@ -313,10 +313,12 @@ def test_spinup_omega_6_linear_diverges_stiffened_agrees_with_corotational():
     bound and passes |tip| = L = 10 m at t = 9.15 s (first output sample beyond; the full
     linear FE model of ``linear_ffrf_spinup`` stops there too, its last sample below L at
     9.10 s; up to then the two agree within 8.5e-4 m, bound 2e-3 m), 76 m at 10 s.  With
-    ``stiffening = true``: bounded, peak −0.5806 m at 6.8 s; against the co-rotational
-    (geometrically exact) beam over 0–9 s (peak −0.5811 m): max difference 2.2e-3 m (bound
-    4e-3 m), against the unreduced stiffened linear model 2.1e-4 m (bound 5e-4 m: the 4-mode
-    truncation)."""
+    ``stiffening = true`` (the foreshortening kinematics of issue 35): bounded, peak −0.5821 m;
+    against the co-rotational (geometrically exact) beam over 0–9 s (peak −0.5811 m): max
+    difference 1.14e-3 m (bound 2.5e-3 m; 2.2e-3 m with the former centrifugal K_G1 force),
+    against the unreduced linear model with that K_G1 force 1.58e-3 m (bound 3e-3 m: the same
+    second-order stiffness — 2.1e-4 m with the former force, the 4-mode truncation — plus the
+    kinetic energy of the foreshortening beyond second order, which the former force lacked)."""
     t, tip = _spinup(6.0, stiffening=False, t_end=10.0)
     lin_ref = linear_ffrf_spinup(6.0, elements=10, t_end=10.0, n_out=201)
     assert lin_ref.status == 1  # its divergence event |tip| = L fired
@@ -329,10 +331,10 @@ def test_spinup_omega_6_linear_diverges_stiffened_agrees_with_corotational():
     t, tip = _spinup(6.0, stiffening=True, t_end=9.0)
     assert np.max(np.abs(tip)) < 0.6
     stiff_ref = linear_ffrf_spinup(6.0, elements=10, t_end=9.0, n_out=181, stiffening=True)
-    assert np.max(np.abs(tip - stiff_ref.tip)) <= 5e-4
+    assert np.max(np.abs(tip - stiff_ref.tip)) <= 3e-3
     corot = corotational_spinup(6.0, elements=10, t_end=9.0, n_out=181, rtol=1e-6)
     assert corot.status == 0
-    assert np.max(np.abs(tip - corot.tip)) <= 4e-3
+    assert np.max(np.abs(tip - corot.tip)) <= 2.5e-3
     assert np.min(tip) == pytest.approx(np.min(corot.tip), abs=2e-3)
 
 
