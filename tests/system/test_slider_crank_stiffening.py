@@ -24,8 +24,8 @@ casmbd: the rod a built-in beam of the same 8 elements and lumped masses (so the
 the kinematics of the deformation and the modal truncation only), Craig–Bampton with
 interfaces at both pins and 4 fixed-interface modes, ``stiffening = true``; CVODES (BDF), rtol
 1e-9, to 0.4 s (9.5 crank turns, the transient decayed: the steady maximum changes by < 1e-4
-relative from one turn to the next).  Measured: 1.34625 mm (−0.043 %) and 0.33698 mm
-(−0.040 %); before issue 35 (linear floating frame) +13.3 % and +2.7 %.  Figures in
+relative from one turn to the next).  Measured: 1.34648 mm (−0.025 %) and 0.33698 mm
+(−0.039 %); before issue 35 (linear floating frame) +13.3 % and +2.7 %.  Figures in
 docs/flexible.md.
 """
 
