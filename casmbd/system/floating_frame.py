@@ -134,7 +134,8 @@ from casmbd.errors import ModelError
 from casmbd.model.modal import ModalData
 from casmbd.model.rotations import rotation_matrix
 
-__all__ = ["FlexibleBody", "Invariants", "invariants", "planar_rotation"]
+__all__ = ["FlexibleBody", "Invariants", "foreshortening_matrices", "invariants",
+           "planar_rotation"]
 
 FLEXIBLE_MASS = ("lumped", "reduced")
 
@@ -308,6 +309,20 @@ def _foreshortening(u0, phi, psi, where: str) -> np.ndarray:
     for j in range(ref - 1, -1, -1):  # to smaller x: the opposite sign
         F[order[j]] = F[order[j + 1]] - kernels[j]
     return F
+
+
+def foreshortening_matrices(modal: ModalData, name: str = "flexible body") -> np.ndarray:
+    """F_i (N, n, n) of the foreshortening d_i = −½ (ηᵀ F_i η) e_x of a beam along the body x
+    axis (module docstring), for drawing and checks.
+
+    Raises
+    ------
+    ModelError
+        Malformed modal data, nodes off the x axis.
+    """
+    where = f"flexible body '{name}'"
+    u0, _, _, phi, psi, _, _ = _checked(modal, where)
+    return _foreshortening(u0, phi, psi, where)
 
 
 def invariants(modal: ModalData, *, damping_ratio=0.0, flexible_mass: str = "lumped",
@@ -624,8 +639,9 @@ class FlexibleBody:
         u = self.node_offset(i, eta)
         spin = omega * _perp(u) if self.dimension == 2 else ca.cross(omega, u)
         rel = ca.mtimes(_dm(self.inv.phi_t[i]), etadot)
-        if self.stiffening:
-            rel += ca.jtimes(self.node_shortening(i, eta), eta, etadot)
+        if self.stiffening:  # ḋ_i = −(ηᵀ F_i η̇) e_x
+            rate = -ca.bilin(_dm(self.inv.foreshortening[i]), eta, etadot)
+            rel += ca.vertcat(rate, ca.SX(self.dimension - 1, 1))
         return Rdot + ca.mtimes(A, spin + rel)
 
     def node_rotation_vector(self, node, eta) -> ca.SX:

@@ -41,6 +41,7 @@ from casmbd.io.scene import loads_scene
 from casmbd.model.bodies import GROUND
 from casmbd.model.contacts import PlaneContact, tangents
 from casmbd.model.flexible_bodies import is_flexible, node_attachment
+from casmbd.system.floating_frame import foreshortening_matrices
 
 
 @dataclass
@@ -60,6 +61,9 @@ class FlexibleShape:
         Lumped nodal masses (the deformed centre of mass Σ m_i r_i / Σ m_i).
     nodes : dict of str to int
         Named nodes → node index.
+    foreshortening : ndarray, (n_nodes, n_modes, n_modes), optional
+        F_i of the foreshortening d_i = −½ (ηᵀ F_i η) e_x of a body with ``stiffening``
+        (:func:`casmbd.system.floating_frame.foreshortening_matrices`); None without.
     """
 
     positions: np.ndarray
@@ -67,14 +71,26 @@ class FlexibleShape:
     phi_r: np.ndarray
     masses: np.ndarray
     nodes: dict[str, int] = field(default_factory=dict)
+    foreshortening: np.ndarray | None = None
 
     @classmethod
     def from_body(cls, body) -> FlexibleShape:
         """The shape of a flexible body of the model layer."""
         modal = body.modal
+        shortening = foreshortening_matrices(modal, body.name) \
+            if getattr(body, "stiffening", False) else None
         return cls(np.asarray(modal.positions, float), np.asarray(modal.phi_t, float),
                    np.asarray(modal.phi_r, float), np.asarray(modal.masses, float),
-                   dict(modal.node_names))
+                   dict(modal.node_names), shortening)
+
+    def offsets(self, eta: np.ndarray, scale: float = 1.0) -> np.ndarray:
+        """u_i0 + s Φ_i η (+ s² d_i(η) with stiffening: the arc length of the magnified
+        shape kept) for every node, (n_t, n_nodes, dim)."""
+        out = self.positions[None] + scale * np.einsum("ijm,km->kij", self.phi_t, eta)
+        if self.foreshortening is not None:
+            out[:, :, 0] -= 0.5 * scale**2 * np.einsum("km,iml,kl->ki", eta,
+                                                       self.foreshortening, eta)
+        return out
 
     @property
     def n_modes(self) -> int:
@@ -335,10 +351,13 @@ def flexible_states(result, geo: Geometry) -> dict[str, tuple[np.ndarray, ...]]:
 
 
 def _node_pose(shape: FlexibleShape, state, index: int, scale: float):
-    """Position r_i = R + A (u_i0 + s Φ_i η) (n_t, dim) and rotation (n_t, dim, dim) of
+    """Position r_i = R + A (u_i0 + s Φ_i η + s² d_i) (n_t, dim) and rotation (n_t, dim, dim) of
     node ``index`` (module docstring)."""
     ref, rot, eta = state
     offset = shape.positions[index] + scale * eta @ shape.phi_t[index].T
+    if shape.foreshortening is not None:
+        offset[:, 0] -= 0.5 * scale**2 * np.einsum("km,ml,kl->k", eta,
+                                                   shape.foreshortening[index], eta)
     position = ref + np.einsum("kij,kj->ki", rot, offset)
     if shape.positions.shape[1] == 2:
         psi = scale * eta @ shape.phi_r[index]
@@ -352,13 +371,13 @@ def _node_pose(shape: FlexibleShape, state, index: int, scale: float):
 def flexible_nodes(result, geo: Geometry, scale: float = 1.0,
                    states: dict | None = None) -> dict[str, np.ndarray]:
     """Deformed node positions (n_t, n_nodes, dim) of every flexible body of ``geo``,
-    r_i = R + A (u_i0 + s Φ_i η) (module docstring; ``scale`` is s)."""
+    r_i = R + A (u_i0 + s Φ_i η + s² d_i) (module docstring; ``scale`` is s; d_i the
+    foreshortening with ``stiffening``)."""
     states = flexible_states(result, geo) if states is None else states
     nodes = {}
     for body, shape in geo.flexible.items():
         ref, rot, eta = states[body]
-        offsets = shape.positions[None] + scale * np.einsum("ijm,km->kij", shape.phi_t, eta)
-        nodes[body] = ref[:, None, :] + np.einsum("kab,kib->kia", rot, offsets)
+        nodes[body] = ref[:, None, :] + np.einsum("kab,kib->kia", rot, shape.offsets(eta, scale))
     return nodes
 
 
