@@ -508,3 +508,226 @@ def exudyn_ffrf_spinup(modal, omega: float, *, h: float = 2e-3, t_end: float = 2
                    signals={"tip": defl},
                    info={"h": h, "failed": failed or bool(np.any(np.abs(defl) > limit)),
                          "modes": m})
+
+
+def exudyn_ancf_slider_crank(diameter: float, *, elements: int = 8, t_end: float = 0.4,
+                             h: float = 1e-4, write: float = 1e-4, rho: float = 0.8,
+                             beta: float | None = None) -> PeerRun:
+    """Issue 35's flexible slider-crank in Exudyn with the rod as geometrically exact ANCF
+    cables (``ObjectANCFCable2D``: Euler–Bernoulli, exact kinematics, consistent mass).
+
+    The mechanism of :func:`tests.flexible_references.corotational_slider_crank`: a planar
+    rigid crank (radius 0.152 m) driven at 150 rad/s by a velocity-level coordinate
+    constraint, the rod (0.304 m, ``rod_section(diameter)``) pinned to the crank pin and to a
+    mass point (half the rod's mass) held on the x axis; Kelvin–Voigt damping of the
+    deformation rates, ``bendingDamping = β EI``, ``axialDamping = β EA`` (β = 2 ζ/ω1, the
+    reference's stiffness-proportional damping); start: the rigid translation at θ = π/2
+    (every node at (−ω r, 0)).  Generalized-α (spectral radius ``rho``), fixed step h.
+
+    Returns
+    -------
+    PeerRun
+        Signals ``A``, ``B``, ``mid`` (n_t, 2): positions of the end and middle nodes;
+        ``slider`` (n_t,): the slider's x.
+    """
+    import exudyn as exu
+    from exudyn.itemInterface import (
+        Cable2D,
+        CoordinateConstraint,
+        MarkerBodyPosition,
+        MarkerNodeCoordinate,
+        MarkerNodePosition,
+        MassPoint2D,
+        NodePoint2D,
+        NodePoint2DSlope1,
+        NodePointGround,
+        NodeRigidBody2D,
+        ObjectGround,
+        RevoluteJoint2D,
+        RigidBody2D,
+        SensorNode,
+        SphericalJoint,
+    )
+
+    from tests.flexible_references import SLIDER_CRANK_ROD, pinned_frequency, rod_section
+
+    if elements % 2:
+        raise ValueError("exudyn_ancf_slider_crank: elements must be even (a middle node)")
+    t_setup = time.perf_counter()
+    p = SLIDER_CRANK_ROD
+    sec = rod_section(diameter)
+    r, w, L = p["crank"], p["omega"], p["length"]
+    beta = 2.0 * p["zeta"] / pinned_frequency(sec) if beta is None else beta
+    b0 = -np.arcsin(r / L)
+    c0, s0 = np.cos(b0), np.sin(b0)
+    SC = exu.SystemContainer()
+    mbs = SC.AddSystem()
+    ground = mbs.AddObject(ObjectGround())
+    nodes = [mbs.AddNode(NodePoint2DSlope1(referenceCoordinates=[x * c0, r + x * s0, c0, s0],
+                                           initialVelocities=[-w * r, 0.0, 0.0, 0.0]))
+             for x in np.linspace(0.0, L, elements + 1)]
+    for k in range(elements):
+        mbs.AddObject(Cable2D(physicsLength=L / elements, physicsMassPerLength=sec["rhoA"],
+                              physicsBendingStiffness=sec["EI"], physicsAxialStiffness=sec["EA"],
+                              physicsBendingDamping=beta * sec["EI"],
+                              physicsAxialDamping=beta * sec["EA"],
+                              nodeNumbers=[nodes[k], nodes[k + 1]]))
+    n_crank = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[0.0, r / 2.0, np.pi / 2.0],
+                                          initialVelocities=[-w * r / 2.0, 0.0, w]))
+    crank = mbs.AddObject(RigidBody2D(nodeNumber=n_crank, physicsMass=0.3,
+                                      physicsInertia=0.3 * r**2 / 12.0))
+    mbs.AddObject(RevoluteJoint2D(markerNumbers=[
+        mbs.AddMarker(MarkerBodyPosition(bodyNumber=ground, localPosition=[0, 0, 0])),
+        mbs.AddMarker(MarkerBodyPosition(bodyNumber=crank, localPosition=[-r / 2, 0, 0]))]))
+    m_zero = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=mbs.AddNode(NodePointGround()),
+                                                coordinate=0))
+    mbs.AddObject(CoordinateConstraint(markerNumbers=[
+        m_zero, mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=n_crank, coordinate=2))],
+        offset=w, velocityLevel=True))
+    mbs.AddObject(SphericalJoint(markerNumbers=[
+        mbs.AddMarker(MarkerBodyPosition(bodyNumber=crank, localPosition=[r / 2, 0, 0])),
+        mbs.AddMarker(MarkerNodePosition(nodeNumber=nodes[0]))], constrainedAxes=[1, 1, 0]))
+    x_b = float(np.sqrt(L**2 - r**2))
+    n_slider = mbs.AddNode(NodePoint2D(referenceCoordinates=[x_b, 0.0],
+                                       initialVelocities=[-w * r, 0.0]))
+    mbs.AddObject(MassPoint2D(nodeNumber=n_slider, physicsMass=0.5 * sec["mass"]))
+    mbs.AddObject(SphericalJoint(markerNumbers=[
+        mbs.AddMarker(MarkerNodePosition(nodeNumber=nodes[-1])),
+        mbs.AddMarker(MarkerNodePosition(nodeNumber=n_slider))], constrainedAxes=[1, 1, 0]))
+    mbs.AddObject(CoordinateConstraint(markerNumbers=[
+        mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=n_slider, coordinate=1)), m_zero]))
+    sensors = {name: mbs.AddSensor(SensorNode(nodeNumber=nodes[i], storeInternal=True,
+                                              outputVariableType=exu.OutputVariableType.Position))
+               for name, i in (("A", 0), ("mid", elements // 2), ("B", elements))}
+    mbs.Assemble()
+    ss = _settings(exu, t_end, h, write, rho, abs_tol=1e-8, dense=True)
+    setup = time.perf_counter() - t_setup
+    t0 = time.perf_counter()
+    mbs.SolveDynamic(ss)
+    seconds = time.perf_counter() - t0
+    data = {k: mbs.GetSensorStoredData(s) for k, s in sensors.items()}
+    signals = {k: v[:, 1:3] for k, v in data.items()}
+    signals["slider"] = signals["B"][:, 0]
+    return PeerRun(t=data["A"][:, 0], signals=signals, seconds=seconds,
+                   steps=int(ss.timeIntegration.numberOfSteps),
+                   info={"setup_seconds": setup, "h": h, "spectral_radius": rho,
+                         "elements": elements, "beta": beta})
+
+
+def exudyn_ffrf_beam_slider_crank(modal, diameter: float, *, t_end: float = 0.4,
+                                  h: float = 1e-4, write: float = 1e-4, rho: float = 0.8,
+                                  beta: float | None = None) -> PeerRun:
+    """Issue 35's flexible slider-crank with the rod as Exudyn's ``ObjectFFRFreducedOrder`` on
+    casmbd's modes of the built-in beam (``modal``: Craig–Bampton, interfaces A (node 0, the
+    frame origin) and B).
+
+    As :func:`exudyn_ffrf_spinup`, Exudyn's nodes are the beam nodes with translations only;
+    its reduced mass is casmbd's lumped Σ m_i Φ_iᵀΦ_i + Σ J_i Ψ_iᵀΨ_i and its reduced stiffness
+    ΦᵀKΦ, its damping matrix β ΦᵀKΦ (the reference's stiffness-proportional damping on the
+    modes).  Mechanism and start as :func:`exudyn_ancf_slider_crank`; the pins are position
+    joints on the mesh nodes A and B.  Exudyn's FFRF has no geometric stiffness: the error
+    floor of this model is that of a linear floating frame.
+    """
+    import exudyn as exu
+    from exudyn.FEM import FEMinterface, ObjectFFRFreducedOrderInterface
+    from exudyn.itemInterface import (
+        CoordinateConstraint,
+        GenericJoint,
+        MarkerBodyPosition,
+        MarkerBodyRigid,
+        MarkerNodeCoordinate,
+        MarkerNodePosition,
+        MarkerNodeRigid,
+        MarkerSuperElementPosition,
+        MassPoint2D,
+        NodePoint2D,
+        NodePointGround,
+        NodeRigidBody2D,
+        ObjectGround,
+        RevoluteJoint2D,
+        RigidBody2D,
+        SensorSuperElement,
+        SphericalJoint,
+    )
+
+    from tests.flexible_references import SLIDER_CRANK_ROD, pinned_frequency, rod_section
+
+    t_setup = time.perf_counter()
+    p = SLIDER_CRANK_ROD
+    sec = rod_section(diameter)
+    r, w, L = p["crank"], p["omega"], p["length"]
+    beta = 2.0 * p["zeta"] / pinned_frequency(sec) if beta is None else beta
+    n, m = modal.n_nodes, modal.n_modes
+    fem = FEMinterface()
+    fem.nodes = {"Position": np.hstack([modal.positions, np.zeros((n, 1))])}
+    fem.massMatrix = sp.diags(np.repeat(modal.masses, 3)).tocsr()
+    fem.stiffnessMatrix = sp.eye(3 * n, format="csr")          # replaced below by ΦᵀKΦ
+    basis = np.zeros((n, 3, m))
+    basis[:, :2, :] = modal.phi_t
+    fem.modeBasis = {"matrix": basis.reshape(3 * n, m), "type": "HCBmodes"}
+    cms = ObjectFFRFreducedOrderInterface(fem)
+    cms.massMatrixReduced = (np.einsum("i,ikp,ikq->pq", modal.masses, modal.phi_t, modal.phi_t)
+                             + np.einsum("i,ip,iq->pq", modal.inertias, modal.phi_r,
+                                         modal.phi_r))
+    cms.stiffnessMatrixReduced = np.asarray(modal.stiffness)
+    cms.massMatrixFFRFreduced[cms.nODE2rigid:, cms.nODE2rigid:] = cms.massMatrixReduced
+    beta0 = -np.arcsin(r / L)
+    SC = exu.SystemContainer()
+    mbs = SC.AddSystem()
+    rod = cms.AddObjectFFRFreducedOrder(mbs, positionRef=[0.0, r, 0.0],
+                                        initialVelocity=[-w * r, 0.0, 0.0],
+                                        rotationMatrixRef=_rotation_z(beta0))
+    o_rod = rod["oFFRFreducedOrder"]
+    mc = exu.MatrixContainer()
+    mc.SetWithDenseMatrix(beta * np.asarray(modal.stiffness), useDenseMatrix=False)
+    mbs.SetObjectParameter(o_rod, "dampingMatrixReduced", mc)
+    ground = mbs.AddObject(ObjectGround())
+    n_crank = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[0.0, r / 2.0, np.pi / 2.0],
+                                          initialVelocities=[-w * r / 2.0, 0.0, w]))
+    crank = mbs.AddObject(RigidBody2D(nodeNumber=n_crank, physicsMass=0.3,
+                                      physicsInertia=0.3 * r**2 / 12.0))
+    mbs.AddObject(RevoluteJoint2D(markerNumbers=[
+        mbs.AddMarker(MarkerBodyPosition(bodyNumber=ground, localPosition=[0, 0, 0])),
+        mbs.AddMarker(MarkerBodyPosition(bodyNumber=crank, localPosition=[-r / 2, 0, 0]))]))
+    m_zero = mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=mbs.AddNode(NodePointGround()),
+                                                coordinate=0))
+    mbs.AddObject(CoordinateConstraint(markerNumbers=[
+        m_zero, mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=n_crank, coordinate=2))],
+        offset=w, velocityLevel=True))
+    mbs.AddObject(GenericJoint(markerNumbers=[
+        mbs.AddMarker(MarkerBodyRigid(bodyNumber=ground, localPosition=[0, 0, 0])),
+        mbs.AddMarker(MarkerNodeRigid(nodeNumber=rod["nRigidBody"]))],
+        constrainedAxes=[0, 0, 1, 1, 1, 0]))
+
+    def pin(node: str):
+        return mbs.AddMarker(MarkerSuperElementPosition(
+            bodyNumber=o_rod, meshNodeNumbers=[modal.node(node)], weightingFactors=[1.0]))
+
+    mbs.AddObject(SphericalJoint(markerNumbers=[
+        mbs.AddMarker(MarkerBodyPosition(bodyNumber=crank, localPosition=[r / 2, 0, 0])),
+        pin("A")], constrainedAxes=[1, 1, 0]))
+    x_b = float(np.sqrt(L**2 - r**2))
+    n_slider = mbs.AddNode(NodePoint2D(referenceCoordinates=[x_b, 0.0],
+                                       initialVelocities=[-w * r, 0.0]))
+    mbs.AddObject(MassPoint2D(nodeNumber=n_slider, physicsMass=0.5 * sec["mass"]))
+    mbs.AddObject(SphericalJoint(markerNumbers=[
+        pin("B"), mbs.AddMarker(MarkerNodePosition(nodeNumber=n_slider))],
+        constrainedAxes=[1, 1, 0]))
+    mbs.AddObject(CoordinateConstraint(markerNumbers=[
+        mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=n_slider, coordinate=1)), m_zero]))
+    sensors = {name: mbs.AddSensor(SensorSuperElement(
+        bodyNumber=o_rod, meshNodeNumber=modal.node(name), storeInternal=True,
+        outputVariableType=exu.OutputVariableType.Position)) for name in ("A", "B", "mid")}
+    mbs.Assemble()
+    ss = _settings(exu, t_end, h, write, rho, abs_tol=1e-8, dense=True)
+    setup = time.perf_counter() - t_setup
+    t0 = time.perf_counter()
+    mbs.SolveDynamic(ss)
+    seconds = time.perf_counter() - t0
+    data = {k: mbs.GetSensorStoredData(s) for k, s in sensors.items()}
+    signals = {k: v[:, 1:3] for k, v in data.items()}
+    signals["slider"] = signals["B"][:, 0]
+    return PeerRun(t=data["A"][:, 0], signals=signals, seconds=seconds,
+                   steps=int(ss.timeIntegration.numberOfSteps),
+                   info={"setup_seconds": setup, "h": h, "spectral_radius": rho,
+                         "modes": m, "beta": beta})

@@ -84,6 +84,18 @@ against the first period 2π/ω1 = 1.65 s), and the steady centrifugal stretch �
 elements, (a) ≈ 1 s, (b) ≈ 5–7 s per run (rtol 1e-7; rtol 1e-6 and 1e-7 peaks agree to 3e-9 m);
 20 elements are slow with Radau (≈ 2 min for (a)): the lumped rotary inertias give rotation
 modes at ω ∝ h⁻², which the error control of the rotation dofs resolves.
+
+Issue 35 adds the flexible slider-crank (:func:`corotational_slider_crank`: the same
+co-rotational elements between a driven crank pin and a slider, stiffness-proportional damping of
+the deformation rates; :func:`slider_crank_scene` is the casmbd model under test).  Figures
+(measured 2026-11-29, 10 mm / 20 mm rod, steady maximum mid-span deflection over the last crank
+turn at 0.4 s): 8 elements 1.34683 / 0.33711 mm, 16 elements 1.35845 / 0.34025 mm; Richardson
+(h²) of 8 and 16 elements for the 10 mm rod 1.36232 mm against Exudyn's ANCF cable converged at
+16 and 32 elements, 1.36234 mm (32 elements: 1.36137 mm, Richardson of 16/32 1.362337 mm);
+energy balance T + U + D − W to 2.6e-8 J of 73 J; E × 1e4:
+slider on the rigid mechanism's x(t) to 1.1e-9 m, deflection 6e-5 of the flexible one.  Cost:
+8 elements ≈ 25–65 s, 16 ≈ 45–80 s per 0.4 s run (Radau, rtol 1e-7; the load of the shared
+machine sets the spread), so the test reads the stored result.
 """
 
 from __future__ import annotations
@@ -95,8 +107,12 @@ from scipy.integrate import solve_ivp
 
 from casmbd.model.fe_beam import beam_model
 
-__all__ = ["KANE_BEAM", "MATTIASSON_TIP_LOAD", "SpinupResult", "corotational_cantilever",
-           "corotational_spinup", "hub_angle", "linear_ffrf_spinup"]
+__all__ = ["KANE_BEAM", "MATTIASSON_TIP_LOAD", "SLIDER_CRANK_REFERENCE", "SLIDER_CRANK_ROD",
+           "SliderCrankResult", "SpinupResult", "chord_deflection",
+           "corotational_cantilever", "corotational_slider_crank",
+           "corotational_spinup", "hub_angle", "linear_ffrf_spinup", "pinned_frequency",
+           "rod_section", "slider_crank_damping", "slider_crank_scene",
+           "steady_deflection", "write_slider_crank_reference"]
 
 KANE_BEAM = {"length": 10.0, "rhoA": 1.2, "EI": 1.4e4, "EA": 2.8e7, "Ts": 15.0}
 """The spin-up beam of issue 23 (Kane, Ryan & Banerjee 1987)."""
@@ -416,3 +432,411 @@ joint = "hub"
 position = "(Omega/Ts)*(min(t,Ts)**2/2 + (Ts/(2*pi))**2*(cos(2*pi*min(t,Ts)/Ts) - 1))\
  + Omega*max(t - Ts, 0)"
 """
+
+
+# --- issue 35: the flexible slider-crank -----------------------------------------------------
+
+SLIDER_CRANK_ROD = {"crank": 0.152, "length": 0.304, "omega": 150.0, "E": 2.07e11,
+                    "rho": 7870.0, "zeta": 0.05}
+"""The flexible slider-crank of issue 35: crank radius 0.152 m turning at a constant 150 rad/s,
+steel connecting rod 0.304 m long of circular section (E = 2.07e11 Pa, ρ = 7870 kg/m³), 5 %
+damping on its first (pinned–pinned) bending mode; no gravity."""
+
+
+def rod_section(diameter: float, *, E: float | None = None, rho: float | None = None) -> dict:
+    """Section properties of the circular rod: EA, EI = E π d⁴/64, rhoA = ρ π d²/4 and the
+    rod's mass (:data:`SLIDER_CRANK_ROD` unless E or ρ is given)."""
+    p = SLIDER_CRANK_ROD
+    E = p["E"] if E is None else E
+    rho = p["rho"] if rho is None else rho
+    area = np.pi * diameter**2 / 4.0
+    return {"EA": E * area, "EI": E * np.pi * diameter**4 / 64.0, "rhoA": rho * area,
+            "mass": rho * area * p["length"]}
+
+
+def pinned_frequency(section: dict, length: float | None = None) -> float:
+    """First bending frequency of the pinned–pinned rod, ω1 = π² sqrt(EI/(ρA L⁴)) [rad/s]."""
+    L = SLIDER_CRANK_ROD["length"] if length is None else length
+    return float(np.pi**2 * np.sqrt(section["EI"] / (section["rhoA"] * L**4)))
+
+
+@dataclass
+class SliderCrankResult:
+    """History of the co-rotational slider-crank.
+
+    Attributes
+    ----------
+    t : numpy.ndarray
+        Output times [s].
+    deflection : numpy.ndarray
+        Mid-span deflection [m]: signed distance of the middle node from the chord between the
+        pins (positive to the left of the chord A → B).
+    slider : numpy.ndarray
+        Slider (pin B) position along x [m].
+    energy_residual : numpy.ndarray or None
+        T + U + D − W [J] (kinetic, strain energy, dissipated energy, work of the crank-pin
+        force), constant for an exact solution; ``None`` unless ``energy=True``.
+    status, nfev : int
+        solve_ivp status and right-hand-side evaluations.
+    """
+
+    t: np.ndarray
+    deflection: np.ndarray
+    slider: np.ndarray
+    energy_residual: np.ndarray | None
+    status: int
+    nfev: int
+
+
+def _deformation_rates(q: np.ndarray, v: np.ndarray, l0: float, EA: float, EI: float,
+                       beta: float) -> tuple[np.ndarray, np.ndarray]:
+    """Stiffness-proportional damping on the co-rotational deformation rates.
+
+    The local deformation rates of element e are d_e = B_e q̇ (B of the module docstring:
+    u̇_l = r·q̇, θ̄̇_{1,2} = b_{1,2}·q̇); the damping forces f_d = Σ_e B_eᵀ β K_l B_e q̇ with
+    K_l = diag(EA/l0, EI/l0 [[4, 2], [2, 4]]) — a dissipation function ½ β ḋᵀ K_l ḋ of the
+    deformation only (rigid motion is not damped).  Returns f_d and ∂f_d/∂q̇.
+    """
+    qn = q.reshape(-1, 3)
+    d = qn[1:, :2] - qn[:-1, :2]
+    length = np.hypot(d[:, 0], d[:, 1])
+    c, s = d[:, 0] / length, d[:, 1] / length
+    ne = len(length)
+    zero, one = np.zeros(ne), np.ones(ne)
+    r = np.stack([-c, -s, zero, c, s, zero], axis=1)
+    g = np.stack([-s / length, c / length, zero, s / length, -c / length, zero], axis=1)
+    b1 = g + np.stack([zero, zero, one, zero, zero, zero], axis=1)
+    b2 = g + np.stack([zero, zero, zero, zero, zero, one], axis=1)
+    Bm = np.stack([r, b1, b2], axis=1)                                   # (ne, 3, 6)
+    kl = np.diag([EA / l0, 0.0, 0.0])
+    kl[1:, 1:] = EI / l0 * np.array([[4.0, 2.0], [2.0, 4.0]])
+    ke = beta * np.einsum("eia,ij,ejb->eab", Bm, kl, Bm)                # (ne, 6, 6)
+    D = np.zeros((q.size, q.size))
+    for e in range(ne):
+        D[3 * e:3 * e + 6, 3 * e:3 * e + 6] += ke[e]
+    return D @ v, D
+
+
+def _strain_energy(q: np.ndarray, l0: float, beta0: np.ndarray, EA: float, EI: float) -> float:
+    """U = Σ_e ½ (EA/l0 u_l² + EI/l0 (4θ̄1² + 4θ̄1θ̄2 + 4θ̄2²)/2) of the co-rotational chain."""
+    qn = q.reshape(-1, 3)
+    d = qn[1:, :2] - qn[:-1, :2]
+    length = np.hypot(d[:, 0], d[:, 1])
+    alpha = np.arctan2(d[:, 1], d[:, 0]) - beta0
+    t1 = np.angle(np.exp(1j * (qn[:-1, 2] - alpha)))
+    t2 = np.angle(np.exp(1j * (qn[1:, 2] - alpha)))
+    return float(np.sum(0.5 * EA / l0 * (length - l0) ** 2
+                        + EI / l0 * (2.0 * t1**2 + 2.0 * t1 * t2 + 2.0 * t2**2)))
+
+
+def corotational_slider_crank(diameter: float, *, elements: int = 8, t_end: float = 0.4,
+                              n_out: int = 801, rtol: float = 1e-9,
+                              slider_mass: float | None = None, stiffness_scale: float = 1.0,
+                              beta: float | None = None, energy: bool = False,
+                              method: str = "Radau") -> SliderCrankResult:
+    """Geometrically exact flexible slider-crank (issue 35 item 3's reference).
+
+    The rod of :data:`SLIDER_CRANK_ROD` (section :func:`rod_section` of ``diameter``) is a
+    chain of Crisfield co-rotational Euler–Bernoulli elements (module docstring, Crisfield 1991
+    §7.2) with the lumped masses m_i, J_i of :func:`casmbd.model.fe_beam.beam_model`; node 0
+    is pinned to the crank pin, whose motion is prescribed, X0 = r cos θ, Y0 = r sin θ,
+    θ = π/2 + ω t (the crank is rigid and driven: its own inertia does not reach the rod); node
+    N is pinned to the slider (mass ``slider_mass``, default half the rod's mass) that moves
+    on the x axis: Y_N = 0, and the slider mass adds to node N's x inertia.  Both pins leave
+    the section rotations ψ0, ψN free.  The constraints fix node coordinates, so they are
+    eliminated: the remaining 3N coordinates have a constant diagonal mass matrix and
+
+        M q̈ = −f(q) − f_d(q, q̇)
+
+    with f the co-rotational internal force (:func:`_element_forces`, prescribed node 0
+    included) and f_d the stiffness-proportional damping of the deformation rates
+    (:func:`_deformation_rates`), β = 2 ζ / ω1 with ω1 = π² sqrt(EI/(ρA L⁴)) the first
+    pinned–pinned bending frequency (ζ = 0.05): 5 % on that mode and ζ_k = β ω_k/2 on the
+    others (the same operator as a floating-frame model with C = β K).  Start: the rigid
+    motion at θ = π/2 with zero deformation — the rod lies on the line from (0, r) to
+    (sqrt(L² − r²), 0) and translates, every node at velocity (−ω r, 0), ψ̇ = 0 (the node
+    rotations ψ count from this initial configuration, the chord angles from β0 =
+    −asin(r/L), as :func:`_element_forces` takes them).  No gravity.
+
+    Parameters
+    ----------
+    diameter : float
+        Rod diameter [m].
+    elements : int
+        Co-rotational elements (even: the middle node is the mid-span point).
+    t_end, n_out : float, int
+        End time [s] and uniform output samples.
+    rtol : float
+        solve_ivp relative tolerance (atol = rtol · 1e-3 in m, rad, m/s).
+    slider_mass : float, optional
+        Slider mass [kg] (default half the rod's mass).
+    stiffness_scale : float
+        Factor on E (the rigid-limit check).
+    beta : float, optional
+        Stiffness-proportional damping coefficient [s] (default 2 ζ/ω1).
+    energy : bool
+        Integrate the crank-pin work and the dissipated energy with the motion and return
+        T + U + D − W.
+
+    Returns
+    -------
+    SliderCrankResult
+    """
+    if isinstance(elements, bool) or not isinstance(elements, int) or elements < 2 \
+            or elements % 2:
+        raise ValueError(f"elements must be an even integer >= 2, got {elements!r}")
+    p = SLIDER_CRANK_ROD
+    sec = rod_section(diameter, E=p["E"] * stiffness_scale)
+    EA, EI, rhoA = sec["EA"], sec["EI"], sec["rhoA"]
+    L, r, w = p["length"], p["crank"], p["omega"]
+    ms = 0.5 * rod_section(diameter)["mass"] if slider_mass is None else slider_mass
+    if beta is None:
+        beta = 2.0 * p["zeta"] / pinned_frequency(rod_section(diameter))
+    N = elements
+    x, m, j = _lumped(L, N)
+    mdiag = rhoA * np.column_stack([m, m, j]).ravel()
+    mdiag[3 * N] += ms
+    nfull = 3 * (N + 1)
+    free = np.setdiff1d(np.arange(nfull), [0, 1, 3 * N + 1])
+    n = free.size
+    minv = 1.0 / mdiag[free]
+    beta0 = np.full(N, -np.arcsin(r / L))
+    l0 = L / N
+    c0, s0 = np.cos(beta0[0]), np.sin(beta0[0])
+    q0 = np.column_stack([x * c0, r + x * s0, np.zeros(N + 1)]).ravel()     # ψ from the start
+    v0 = np.zeros(nfull)
+    v0[0::3] = -w * r
+
+    def pin(t):
+        th = np.pi / 2.0 + w * t
+        c, s = np.cos(th), np.sin(th)
+        return (np.array([r * c, r * s]), np.array([-r * w * s, r * w * c]),
+                np.array([-r * w * w * c, -r * w * w * s]))
+
+    def full(t, y):
+        (a, va, _), q, v = pin(t), np.zeros(nfull), np.zeros(nfull)
+        q[free], v[free] = y[:n], y[n:2 * n]
+        q[:2], v[:2] = a, va
+        return q, v
+
+    def forces(t, y):
+        q, v = full(t, y)
+        f, _ = _element_forces(q, l0, beta0, EA, EI, False)
+        fd, _ = _deformation_rates(q, v, l0, EA, EI, beta)
+        return q, v, f, fd
+
+    def rhs(t, y):
+        _q, v, f, fd = forces(t, y)
+        out = [y[n:2 * n], -minv * (f + fd)[free]]
+        if energy:
+            acc = pin(t)[2]
+            work = float((mdiag[:2] * acc + f[:2] + fd[:2]) @ v[:2])   # crank-pin power
+            out.append([work, float(v @ fd)])
+        return np.concatenate(out)
+
+    def jac(t, y):
+        q, v = full(t, y)
+        _, Kt = _element_forces(q, l0, beta0, EA, EI, True)
+        _, D = _deformation_rates(q, v, l0, EA, EI, beta)
+        J = np.zeros((y.size, y.size))
+        J[:n, n:2 * n] = np.eye(n)
+        J[n:2 * n, :n] = -minv[:, None] * Kt[np.ix_(free, free)]
+        J[n:2 * n, n:2 * n] = -minv[:, None] * D[np.ix_(free, free)]
+        return J
+
+    y0 = np.concatenate([q0[free], v0[free]] + ([np.zeros(2)] if energy else []))
+    t_eval = np.linspace(0.0, t_end, n_out)
+    sol = solve_ivp(rhs, (0.0, t_end), y0, method=method, jac=jac, rtol=rtol,
+                    atol=rtol * 1e-3, t_eval=t_eval)
+    defl = np.empty(sol.t.size)
+    slider = np.empty(sol.t.size)
+    res = np.empty(sol.t.size) if energy else None
+    for k, t in enumerate(sol.t):
+        q, v = full(t, sol.y[:, k])
+        qn = q.reshape(-1, 3)
+        a, b, mid = qn[0, :2], qn[N, :2], qn[N // 2, :2]
+        e = (b - a) / np.linalg.norm(b - a)
+        dm = mid - 0.5 * (a + b)
+        defl[k] = e[0] * dm[1] - e[1] * dm[0]
+        slider[k] = qn[N, 0]
+        if energy:
+            kinetic = 0.5 * float(mdiag @ v**2)
+            res[k] = (kinetic + _strain_energy(q, l0, beta0, EA, EI)
+                      + sol.y[-1, k] - sol.y[-2, k])
+    return SliderCrankResult(sol.t, defl, slider, res, sol.status, sol.nfev)
+
+
+def steady_deflection(t: np.ndarray, deflection: np.ndarray, *, revolutions: float = 1.0,
+                      omega: float | None = None) -> float:
+    """Largest |mid-span deflection| over the last ``revolutions`` crank turns [m]."""
+    w = SLIDER_CRANK_ROD["omega"] if omega is None else omega
+    last = t >= t[-1] - revolutions * 2.0 * np.pi / w - 1e-12
+    return float(np.abs(deflection[last]).max())
+
+
+#: the stored reference of the slider-crank test (written by :func:`write_slider_crank_reference`)
+SLIDER_CRANK_REFERENCE = "data/slider_crank_reference.npz"
+
+
+def write_slider_crank_reference(path=None, *, cases=((0.01, 8), (0.02, 8), (0.01, 16),
+                                                      (0.02, 16), (0.01, 32)),
+                                 t_end: float = 0.4, rtol: float = 1e-7,
+                                 dt: float = 1e-4) -> dict:
+    """Run :func:`corotational_slider_crank` for each (diameter, elements) and store the
+    mid-span deflection and slider position of the last crank revolution (times, values) and
+    the steady maximum |deflection| in an .npz (``tests/data/slider_crank_reference.npz``).
+
+    Command: ``python -m tests.flexible_references`` (about 25 minutes on a loaded machine, 18
+    of them for the 32-element run).
+    """
+    import pathlib
+    import time
+
+    out = {}
+    period = 2.0 * np.pi / SLIDER_CRANK_ROD["omega"]
+    n_out = round(t_end / dt) + 1
+    for diameter, elements in cases:
+        t0 = time.perf_counter()
+        res = corotational_slider_crank(diameter, elements=elements, t_end=t_end, n_out=n_out,
+                                        rtol=rtol)
+        key = f"d{round(diameter * 1e3)}_e{elements}"
+        last = res.t >= res.t[-1] - period - 1e-12
+        out[f"{key}_t"] = res.t[last]
+        out[f"{key}_deflection"] = res.deflection[last]
+        out[f"{key}_slider"] = res.slider[last]
+        out[f"{key}_steady"] = steady_deflection(res.t, res.deflection)
+        # periodicity: the same maximum one revolution earlier
+        before = res.t < res.t[-1] - period - 1e-12
+        out[f"{key}_steady_before"] = steady_deflection(res.t[before], res.deflection[before])
+        out[f"{key}_seconds"] = time.perf_counter() - t0
+        out[f"{key}_status"] = res.status
+        print(key, out[f"{key}_steady"], out[f"{key}_steady_before"], out[f"{key}_seconds"],
+              flush=True)
+    out["t_end"], out["rtol"] = t_end, rtol
+    path = pathlib.Path(__file__).parent / SLIDER_CRANK_REFERENCE if path is None else path
+    pathlib.Path(path).parent.mkdir(parents=True, exist_ok=True)
+    np.savez(path, **out)
+    return out
+
+
+if __name__ == "__main__":
+    write_slider_crank_reference()
+
+
+def slider_crank_damping(diameter: float, *, elements: int = 8, modes: int = 4,
+                         beta: float | None = None) -> list[float]:
+    """Modal damping ratios ζ_k = β ω_k / 2 of casmbd's rod modes (built-in beam, lumped mass,
+    Craig–Bampton with interfaces A and B, ``modes`` fixed-interface modes), ω_k the
+    frequencies of the reduced stiffness over casmbd's lumped flexible mass M_ff: with them
+    casmbd's modal damping C = M_ff V diag(2 ζ_k ω_k) Vᵀ M_ff is exactly β K_red, the damping
+    operator of :func:`corotational_slider_crank` (β = 2 ζ/ω1 by default)."""
+    import scipy.linalg
+
+    from casmbd.model.modal_reduction import craig_bampton
+
+    sec = rod_section(diameter)
+    L = SLIDER_CRANK_ROD["length"]
+    beta = 2.0 * SLIDER_CRANK_ROD["zeta"] / pinned_frequency(sec) if beta is None else beta
+    fe = beam_model(L, elements, EA=sec["EA"], rhoA=sec["rhoA"], EI=sec["EI"], mass="lumped",
+                    nodes={"A": 0.0, "mid": L / 2.0, "B": L})
+    modal = craig_bampton(fe, modes, ["A", "B"])
+    m_ff = (np.einsum("i,iak,ial->kl", modal.masses, modal.phi_t, modal.phi_t)
+            + np.einsum("i,ik,il->kl", modal.inertias, modal.phi_r, modal.phi_r))
+    lam = scipy.linalg.eigh(np.asarray(modal.stiffness), m_ff, eigvals_only=True)
+    return [float(beta * np.sqrt(max(v, 0.0)) / 2.0) for v in lam]
+
+
+def slider_crank_scene(diameter: float, *, elements: int = 8, modes: int = 4,
+                       stiffening: bool = True, damping: list[float] | None = None) -> str:
+    """The slider-crank of :func:`corotational_slider_crank` as a casmbd scene (the system
+    under test): driven rigid crank, the rod a built-in beam (lumped mass, Craig–Bampton with
+    interfaces at the pins A and B, ``modes`` fixed-interface modes, modal damping
+    :func:`slider_crank_damping`), a slider of half the rod's mass on a prismatic joint along
+    x, no gravity; the same start (rigid translation at θ = π/2).  Node ``mid`` is the
+    mid-span point."""
+    p = SLIDER_CRANK_ROD
+    sec = rod_section(diameter)
+    zeta = slider_crank_damping(diameter, elements=elements, modes=modes) if damping is None \
+        else damping
+    return f"""
+[scene]
+name = "slider_crank_issue35"
+dimension = 2
+gravity = [0.0, 0.0]
+[parameters]
+omega = {p['omega']}
+r = {p['crank']}
+l = {p['length']}
+[[bodies]]
+name = "crank"
+mass = 0.3
+inertia = "0.3 * r**2 / 12"
+position = [0.0, "r / 2"]
+angle = "pi / 2"
+velocity = ["-omega * r / 2", 0.0]
+angular_velocity = "omega"
+[[bodies]]
+name = "rod"
+type = "flexible"
+position = [0.0, "r"]
+angle = "-asin(r / l)"
+velocity = ["-omega * r", 0.0]
+modes = {modes}
+reduction = "craig_bampton"
+interfaces = ["A", "B"]
+damping_ratio = {[float(z) for z in zeta]}
+stiffening = {str(stiffening).lower()}
+[bodies.beam]
+length = "l"
+elements = {elements}
+EI = {sec['EI']!r}
+EA = {sec['EA']!r}
+rhoA = {sec['rhoA']!r}
+mass = "lumped"
+nodes = {{ A = 0.0, mid = "l / 2", B = "l" }}
+[[bodies]]
+name = "slider"
+mass = {0.5 * sec['mass']!r}
+inertia = 1e-6
+position = ["sqrt(l**2 - r**2)", 0.0]
+velocity = ["-omega * r", 0.0]
+[[joints]]
+name = "O"
+type = "revolute"
+body1 = "ground"
+body2 = "crank"
+point = [0.0, 0.0]
+[[joints]]
+name = "A"
+type = "revolute"
+body1 = "crank"
+body2 = "rod"
+node2 = "A"
+point = [0.0, "r"]
+[[joints]]
+name = "B"
+type = "revolute"
+body1 = "rod"
+node1 = "B"
+body2 = "slider"
+point = ["sqrt(l**2 - r**2)", 0.0]
+[[joints]]
+name = "slide"
+type = "prismatic"
+body1 = "ground"
+body2 = "slider"
+point = ["sqrt(l**2 - r**2)", 0.0]
+axis = [1.0, 0.0]
+[[drivers]]
+name = "crank_speed"
+joint = "O"
+position = "pi / 2 + omega * t"
+"""
+
+
+def chord_deflection(a: np.ndarray, b: np.ndarray, mid: np.ndarray) -> np.ndarray:
+    """Signed distance of ``mid`` from the chord a → b (positive to its left), (n_t, 2)
+    arrays → (n_t,) [m] (the sign convention of :class:`SliderCrankResult`)."""
+    e = (b - a) / np.linalg.norm(b - a, axis=1)[:, None]
+    d = mid - 0.5 * (a + b)
+    return e[:, 0] * d[:, 1] - e[:, 1] * d[:, 0]
