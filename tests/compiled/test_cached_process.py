@@ -1,7 +1,7 @@
 """A cache hit in a fresh process builds nothing symbolic (issue 36 item 5, lazy loading).
 
-The parent builds and compiles a folded pendulum chain (the default path); a new Python
-process then constructs the same Simulator on the same cache while counting every
+The parent builds and compiles a folded pendulum chain (the default path from 32 rods on); a
+new Python process then constructs the same Simulator on the same cache while counting every
 ``casadi.SX.sym``/``casadi.MX.sym`` call and every ``System`` constructed: no System and no SX
 symbol (the three MX symbols of DOPRI5's call wrapper are of fixed size), the report must be a
 cache hit, and its first run must equal the parent's to 1e-14.
@@ -46,7 +46,7 @@ def system_init(self, *args, **kwargs):
 equations.System.__init__ = system_init
 from benchmarks.chains import pendulum_chain
 from casmbd.analysis.dynamics.simulate import Simulator
-sim = Simulator(pendulum_chain(5), mode="compiled")
+sim = Simulator(pendulum_chain(5), mode="compiled", formulation_options={"fold": True})
 res = sim.run(0.5, 5, rtol=1e-9, atol=1e-9)
 rep = sim.model.report
 print(json.dumps({**counts, "cache_hit": rep.cache_hit, "compiled": rep.compiled,
@@ -59,7 +59,7 @@ def test_cache_hit_in_a_fresh_process_builds_no_expressions(cache):
     from benchmarks.chains import pendulum_chain
     from casmbd.analysis.dynamics.simulate import Simulator
 
-    sim = Simulator(pendulum_chain(5), mode="compiled")
+    sim = Simulator(pendulum_chain(5), mode="compiled", formulation_options={"fold": True})
     assert sim.model.report.compiled and sim.formulation_name == "articulated"
     tip = np.asarray(sim.run(0.5, 5, rtol=1e-9, atol=1e-9).marker("tip")["position"])
     env = dict(os.environ, PYTHONPATH=str(ROOT))

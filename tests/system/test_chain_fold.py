@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from benchmarks.chains import pendulum_chain
+from casmbd.errors import AnalysisError
 from casmbd.model import Mechanism
 from casmbd.system import chain_fold
 from casmbd.system.articulated_body import articulated_accelerations
@@ -57,8 +58,9 @@ def test_other_trees_are_not_folded():
 
 @pytest.mark.parametrize("n", [6])
 def test_simulated_chain_equals_the_unrolled_formulation(n, tmp_path, monkeypatch):
-    """The default path (folded) and ``formulation_options={"fold": False}`` give the same
-    tip trajectory to 1e-10 m (DOPRI5 at 1e-10: the same steps up to rounding)."""
+    """The folded chain (``fold=True``; by default from FOLD_MIN_BODIES bodies on) and
+    ``fold=False`` give the same tip trajectory to 1e-10 m (DOPRI5 at 1e-10: the same steps
+    up to rounding); a bad value of the option is a casmbd error naming it."""
     from casmbd.analysis.dynamics.simulate import Simulator
 
     monkeypatch.setenv("CASMBD_CACHE_DIR", str(tmp_path))
@@ -70,3 +72,15 @@ def test_simulated_chain_equals_the_unrolled_formulation(n, tmp_path, monkeypatc
         res = sim.run(0.5, 10, rtol=1e-10, atol=1e-10)
         tips.append(np.asarray(res.marker("tip")["position"], float))
     np.testing.assert_allclose(tips[0], tips[1], rtol=0.0, atol=1e-10)
+    with pytest.raises(AnalysisError, match="fold"):
+        Simulator(pendulum_chain(n), formulation_options={"fold": "yes"}, mode="vm")
+
+
+def test_auto_folds_from_the_threshold_on():
+    """``fold="auto"``: a chain below FOLD_MIN_BODIES keeps the unrolled SX right-hand side,
+    one at the threshold gets the folded MX Function."""
+    from casmbd.analysis.formulations.articulated import FOLD_MIN_BODIES, articulated
+
+    small, large = _system(FOLD_MIN_BODIES - 1), _system(FOLD_MIN_BODIES)
+    assert articulated(small).function.is_a("SXFunction")
+    assert articulated(large).function.is_a("MXFunction")

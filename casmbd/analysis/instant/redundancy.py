@@ -20,7 +20,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
+
+from casmbd.lazy import lazy_module
+
+sp = lazy_module("scipy.sparse")
 
 #: relative tolerance on singular values / residual norms, times the largest singular value
 RANK_RTOL = 1e-8
