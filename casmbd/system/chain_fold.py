@@ -145,10 +145,34 @@ def _outward_step() -> ca.Function:
     return ca.Function("chain_outward", [carry, data], [a_prime + s * qdd, qdd])
 
 
+def _bake(step: ca.Function, fixed: dict[int, float]) -> ca.Function:
+    """``step`` with the rows ``fixed`` of its data input replaced by their values (the
+    same for every body folded over: identical rods), so that the step's expressions are
+    simplified with them (products with the zeros and ones of design frames vanish); its data
+    input keeps the other rows, in order."""
+    free = [k for k in range(step.size1_in(1)) if k not in fixed]
+    carry = ca.SX.sym("carry", step.size1_in(0))
+    data = ca.SX.sym("data", len(free))
+    full = ca.vertcat(*[ca.SX(fixed[k]) if k in fixed else data[free.index(k)]
+                        for k in range(step.size1_in(1))])
+    return ca.Function(step.name() + "_baked", [carry, data], step(carry, full))
+
+
+def _uniform_rows(values: np.ndarray, rows) -> dict[int, float]:
+    """The rows (index into ``rows``' numbering) whose columns of ``values`` are all equal."""
+    return {row: float(values[k, 0]) for k, row in enumerate(rows)
+            if values.shape[1] and np.all(values[k] == values[k, 0])}
+
+
 def folded_accelerations(system, q: ca.MX, v: ca.MX, p: ca.MX) -> ca.MX:
     """q̈(q, q̇, p) of a planar revolute chain (:func:`supported`) as an MX expression of
     three folds (``mapaccum``) over the bodies (module notes); the same numbers as
-    :func:`casmbd.system.articulated_body.articulated_accelerations`."""
+    :func:`casmbd.system.articulated_body.articulated_accelerations`.
+
+    Data that are the same for every body folded over (identical rods: design frames, joint
+    points, masses and inertias given as numbers) are built into the per-body Functions as
+    constants rather than passed body by body; the first body, whose joint is on the ground,
+    takes the kinematics step on its own."""
     order = chain_order(system)
     n = len(order)
     desc = system.descriptions
@@ -158,16 +182,30 @@ def folded_accelerations(system, q: ca.MX, v: ca.MX, p: ca.MX) -> ca.MX:
         np.asarray(desc[k].rot_c0, float).ravel(order="F"),
         np.asarray(desc[k].point - desc[k].pos_p0, float),
         np.asarray(desc[k].pos_c0 - desc[k].point, float)]) for k in order]).T
-    inertias = ca.Function("chain_inertias", [system.p], [ca.horzcat(*[
-        ca.vertcat(*system._mass_inertia(system.mechanism.bodies[k])) for k in order])])
-    kin = _kinematics_step().mapaccum("chain_kinematics_fold", n)
-    start = ca.DM([1, 0, 0, 1, 0, 0, 0])
+    inertia_expr = ca.horzcat(*[ca.vertcat(*system._mass_inertia(system.mechanism.bodies[k]))
+                                for k in order])
+    inertias = ca.Function("chain_inertias", [system.p], [inertia_expr])
     data = ca.vertcat(q[index].T, v[index].T, ca.DM(consts))
-    _, geometry = kin(start, data)
+    # kinematics: the first body alone (its parent is the ground), then a fold over the rest
+    # with the rows equal for all of them built in
+    generic = _kinematics_step()
+    carry0, geometry0 = generic(ca.DM([1, 0, 0, 1, 0, 0, 0]), data[:, 0])
+    geometry = geometry0
+    if n > 1:
+        fixed = _uniform_rows(consts[:, 1:], range(2, 14))
+        free = [k for k in range(14) if k not in fixed]
+        kin = _bake(generic, fixed).mapaccum("chain_kinematics_fold", n - 1)
+        _, rest = kin(carry0, data[free, 1:])
+        geometry = ca.horzcat(geometry0, rest)
     reverse = list(range(n - 1, -1, -1))
-    inward = _inward_step(np.asarray(system.mechanism.gravity, float)).mapaccum(
-        "chain_inward_fold", n)
-    _, factors = inward(ca.DM.zeros(12), ca.vertcat(inertias(p), geometry)[:, reverse])
+    inward_step = _inward_step(np.asarray(system.mechanism.gravity, float))
+    inward_data = ca.vertcat(inertias(p), geometry)
+    fixed = {}
+    if not ca.depends_on(inertia_expr, system.p):
+        fixed = _uniform_rows(np.asarray(ca.evalf(inertia_expr), float), range(2))
+    free = [k for k in range(8) if k not in fixed]
+    inward = _bake(inward_step, fixed).mapaccum("chain_inward_fold", n)
+    _, factors = inward(ca.DM.zeros(12), inward_data[free, reverse])
     outward = _outward_step().mapaccum("chain_outward_fold", n)
     _, qdd = outward(ca.DM.zeros(3), ca.vertcat(geometry, factors[:, reverse]))
     out = ca.MX.zeros(system.nq, 1)
