@@ -80,7 +80,10 @@ CONFIG_LABEL = {"abs_al": "absolute, augmented_lagrangian (the default in absolu
 #: compile variant -> (mode, CASMBD_CFLAGS); "O2" is the library default
 VARIANTS: dict[str, tuple[str, str | None]] = {
     "O2": ("compiled", None), "O1": ("compiled", "-O1"), "O0": ("compiled", "-O0"),
-    "vm": ("vm", None)}
+    "vm": ("vm", None), "unrolled": ("compiled", None)}
+#: variant -> formulation options: "unrolled" is the articulated recursion unrolled body by
+#: body (``fold=False``, what the chain got before issue 36), for a comparison in the same run
+VARIANT_OPTIONS: dict[str, dict] = {"unrolled": {"fold": False}}
 TARGET_ERROR = 1e-6
 #: issue 36 item 5: first build of the 1000-rod chain [s], the whole cached process [s]
 BUILD_TARGET, PROCESS_TARGET = 10.0, 0.5
@@ -148,7 +151,8 @@ def _simulator(n: int, config: str, variant: str):
     _, formulation = CONFIGS[config]
     # the default formulation is chosen by the library for "abs_al" and "joint_aba"
     name = None if formulation in ("augmented_lagrangian", "articulated") else formulation
-    sim = Simulator(mechanism(n, config), name, mode=mode)
+    sim = Simulator(mechanism(n, config), name, mode=mode,
+                    formulation_options=VARIANT_OPTIONS.get(variant))
     if sim.formulation_name != formulation:
         raise RuntimeError(f"expected {formulation}, Simulator chose {sim.formulation_name}")
     return sim
@@ -631,7 +635,7 @@ def targets(rows: list[dict]) -> list[str]:
         if r is not None:
             total = _num(r, "build_total_s")
             verdict = "met" if total <= BUILD_TARGET else \
-                f"**missed** by {total / BUILD_TARGET:.1f}×"
+                f"**missed** by {total / BUILD_TARGET:.2f}×"
             build.append(f"{config} {total:.1f} s ({verdict})" if math.isfinite(total)
                          else f"{config} {r.get('status')} (**missed**)")
         runs = [x for x in rows if x["config"] == config and x["variant"] == "O2"
@@ -640,9 +644,9 @@ def targets(rows: list[dict]) -> list[str]:
             whole, cpu = _num(r, "cached_process_s"), _num(r, "cached_process_cpu_s")
             cached.append(f"{config} {whole:.2f} s wall, {cpu:.2f} s CPU (wall " + (
                 "met" if whole <= PROCESS_TARGET else
-                f"**missed** by {whole / PROCESS_TARGET:.1f}×") + "; CPU " + (
+                f"**missed** by {whole / PROCESS_TARGET:.2f}×") + "; CPU " + (
                 "met" if cpu <= PROCESS_TARGET else
-                f"**missed** by {cpu / PROCESS_TARGET:.1f}×") + ")")
+                f"**missed** by {cpu / PROCESS_TARGET:.2f}×") + ")")
         if runs:
             top = max(runs, key=lambda x: x["n"])
             worst = max(_num(x, "second_run_s") for x in runs)
@@ -762,47 +766,71 @@ NOTES = """\
 ### Findings
 
 Read off the tables above and from one-off measurements on the same machine during the same
-hour (the latter not re-measured by the command):
+hour (the latter not re-measured by the command). The 2 cores were shared with other jobs
+(the *load* column: 1-minute load average when the case started); wall times vary by 2× between
+runs at loads 4-8, so compare rows of one run, and the *CPU* columns.
 
-* *The default path of a chain is joint coordinates and the articulated recursion at every N*
-  (`casmbd/system/choice.py`: the size limit now applies only to mechanisms with loops or
-  Euler parameters). Its first build at N = 1000 takes 24.7 s (symbolic 5.6 s, C generation
-  2.7 s, compilation 16.4 s on both cores; 18.8 MB of C): the target of 30 s is met, at a
-  load average of 2.2–2.8 on the 2 cores. A cached second run constructs the simulator in
-  0.10 s. Before this session's changes the same build did not finish in 400 s at N = 300.
-* *Why it is O(N) now* (commits 16d4611, 6b03b46, afbd9ac and the `units` commits after them): the
-  virtual displacements of reactions and of the recursion are written with placeholder poses
-  (no AD sweep over a body's ancestors, which made the build O(N²)); each body's applied
-  wrench is built once; Q_v comes from the force recursion alone; the compiled M of joint
-  coordinates is N mapped columns ∂T/∂q̇ at unit rates (O(N) code, 2.1 MB at N = 1000,
-  instead of N² entries: 13.7 MB of C at N = 300 before); the outputs' velocities and
-  accelerations come from the recursive twists (147 k instead of 514 k operations at
-  N = 1000); an unconstrained ODE compiles no Q_e, Q_v or B (its consistent start takes q̈
-  from the recursion); the integrator's compiled block (DOPRI5) is compiled with the model in
-  one translation unit with the right-hand side and the post-processing that calls it (the
-  right-hand side's 5.7 MB of C were compiled three times).
-* *Compile flags by size.* A hot function up to 1 MB of C gets `-O2`, 1–2 MB `-O1` (gcc's
-  `-O2` is superlinear on CasADi's straight-line code: at N = 300 the articulated right-hand
-  side takes 97.8 s at `-O2` for 28.1 µs per call, 16.4 s at `-O1` for 20.8 µs, 2.8 s at
-  `-O0` for 93.8 µs, measured alone on one core), above 2 MB `-O0`. The N = 1000 right-hand
-  side (5.7 MB) is therefore `-O0`: 271 µs per call where `-O1` code would take about
-  70 µs, and `-O1` did not compile in 8 minutes on the loaded machine. This is why the solve
-  time grows like N^1.16 over 2–1000 (RHS N^1.05, steps N^-0.17) and misses N^1.1; with
-  `CASMBD_CFLAGS=-O1` a user trades minutes of compilation for the faster code. The
-  absolute-coordinate rows at N = 300 were measured before the `-O1` band (their right-hand
-  sides of 1–2 MB now compile at `-O1`: augmented Lagrangian 50.4 s / 311 µs against 6.0 s /
-  1193 µs at `-O0`).
+* *Issue 36, item 5: the default path of the 1000-rod chain.* It is joint coordinates, the
+  articulated recursion and DOPRI5; from 32 rods on the recursion of a planar revolute chain
+  loaded by gravity is now *folded* (`casmbd/system/chain_fold.py`): its three passes
+  (kinematics root to tip, articulated inertias tip to root, accelerations root to tip) are
+  each one small per-body SX Function applied over the bodies by CasADi's `mapaccum`, with
+  what is equal for every rod (design frames, joint points, mass, inertia) built in as
+  constants. Its q̈ equals the unrolled recursion's to 1e-12 on a 20-rod chain
+  (tests/system/test_chain_fold.py); the rows *unrolled* (formulation option `fold=False`,
+  the code of before issue 36) are the same chain in the same run. The right-hand side's C
+  is 0.34 MB at N = 1000 (mostly index tables) instead of 5.7 MB, compiled at `-O2` in
+  about 2 s of CPU; the solve no longer runs `-O0` code.
+* *Folded against unrolled* (rows *O2* and *unrolled* of the same run; and one-off, back to
+  back in fresh processes at load 3.4-5.8): at N = 100 and 300 the fold builds 3.4× and 2.4×
+  faster (4.6 s against 15.6 s, 11.5 s against 28.0 s; CPU 3.2 against 9.1 s, 10.6 against
+  17.8 s) and its right-hand side is 1.7-2.6× slower per call (17.2 against 10.1 µs,
+  56.1 against 21.9 µs: the unrolled code is `-O2`/`-O1` there and gcc folds the constants of
+  each body into it); at N = 1000 its right-hand side is 2-7× faster (273 against 541 µs in
+  the run, 104 against 727 µs one-off: the unrolled one is `-O0`), but the first build is not
+  faster: 50.9 s (load 6.0) against 35.8 s (load 4.5) in the run, 30.2 s against 48.3 s
+  one-off, and the processor time is the same within the noise (36.4 against 32.4 s in the
+  run; one-off Python 4.4 + gcc 29.9 s against 6.4 + 26.1 s). The folded right-hand side
+  costs 0.1-0.3 µs per body and call; the unrolled one is faster per call where gcc can
+  still optimise it (2.0× at 8 rods, 1.0× at 32, 0.66× at 100 in one process; hence the
+  fold from 32 rods on only).
+* *Target "cold build + compile ≤ 10 s" at N = 1000: missed, by 3-5×* (30-51 s at loads
+  4-6; 32-36 s of processor time). What is left is not the dynamics: the gcc time is the
+  `-O0` translation units of the functions that are still unrolled body by body — the
+  outputs (4.0 MB of C), the joint reactions (3.8 MB), the mass matrix's mapped columns
+  (2.1 MB), `post` with the energies (1.3 MB), the kinetic (1.0 MB) and potential (0.3 MB)
+  energy: 12.9 MB of the 13.2 MB; and the 4-8 s of symbolic build is the System's tree
+  kinematics and those same expressions. Meeting 10 s needs them folded as the recursion
+  is (the outputs and energies as a per-body Function mapped over the bodies, the reactions
+  as the Newton–Euler inward fold, M by a composite-rigid-body fold) or not compiled at all
+  (the virtual machine: each of them serialises to 12 MB and takes 0.35 s to load again,
+  which the cached process would pay); not done in this issue.
+* *Target "cached second process ≤ 0.5 s" at N = 1000*: the whole `python -c` process
+  (interpreter, imports, the chain, the `Simulator` from the model record: no System and no
+  SX expression is built, tests/compiled/test_cached_process.py counts them) takes
+  0.28 s of CPU (met) and 0.4-0.6 s of wall time at loads 5-7. `import casmbd.analysis.dynamics
+  .simulate` no longer loads scipy (0.2 s: scipy.sparse, scipy.linalg, imported on first use
+  through `casmbd/lazy.py`). The issue's 1.9 s was a process with a run: the run adds the
+  solve, the mass-matrix check of the start (`check_mass_matrix`, 0.4 s: M of the 1000-rod
+  chain by 1000 mapped columns) and the post-processing, which this target does not cover.
+* *Solve time growth*: see *Against the issue's targets*; the fit mixes the unrolled code
+  below 32 rods with the folded code above, and the shorter horizon from N = 300 on.
+* *The tree reactions' build was O(N²)*: for every body it scanned every joint for constraint
+  rows, also with none (268 k generator steps at N = 300); it now returns at once without
+  constraint equations.
+* *Compile flags by size* (unchanged; what the unrolled rows get): a hot function up to
+  1 MB of C gets `-O2`, 1-3 MB `-O1`, above `-O0` (gcc's `-O2` is superlinear on CasADi's
+  straight-line code: at N = 300 the unrolled articulated right-hand side takes 97.8 s at
+  `-O2` for 28.1 µs per call, 16.4 s at `-O1` for 20.8 µs, 2.8 s at `-O0` for 93.8 µs, alone
+  on one core). A caller of a hot function shares its translation unit only when the hot C
+  exceeds 100 kB (`units.SHARE_SOURCE`): the folded right-hand side is repeated in `post`'s
+  unit instead of pulling the energies into the `-O2` unit (46 s of gcc at N = 1000).
 * *Pinocchio at N = 1000*: not measured. `pinocchio.Model.createData()` for the chain with
   `JointModelRZ` joints takes 0.18 / 0.63 / 4.1 GB at N = 100 / 200 / 400 (Pinocchio 4.1,
-  growing like N^2.7); at N = 1000 the run children were killed by the kernel's OOM killer
-  after 24 GB, which cost the absolute-coordinate rows at N = 1000 their run figures (their
-  builds: abs_al 34.9 s, abs_kkt 28.8 s). The benchmark now skips Pinocchio above N = 400.
-  Up to N = 300 our right-hand side costs 0.13–0.30× Pinocchio's `aba` per Python call.
-* *Absolute coordinates* are the automatic choice only for mechanisms with many loops or no
-  spanning tree; their right-hand side (augmented Lagrangian: a symbolic sparse LDLᵀ of the
-  KKT matrix) grows like N^1.4 and is 8.4× Pinocchio at N = 300.
-* *Machine load*: the 2 cores were shared with other jobs (load averages above); the times
-  are upper bounds.
+  growing like N^2.7); the benchmark skips Pinocchio above N = 400.
+* *Absolute coordinates* (rows kept from the run of 2026-11-25, `--merge`) are the automatic
+  choice only for mechanisms with many loops or no spanning tree; their right-hand side
+  (augmented Lagrangian: a symbolic sparse LDLᵀ of the KKT matrix) grows like N^1.4.
 
 """
 
@@ -840,9 +868,14 @@ def markdown(data: dict) -> str:
         "stored minimal-coordinate reference (N = 2, 8, 32) or the same Simulator at "
         "rtol = 1e-12 (self-convergence). t ∈ [0, 2] s for N ≤ 100 and [0, 0.5] s for "
         "N ≥ 300. Per-case timeout: " f"{data.get('timeout', math.nan):g} s per child."
-        + (f" Flag variants: {', '.join(variants)} (`O0`/`O1` through `CASMBD_CFLAGS`, "
-           "`vm` = `Simulator(..., mode=\"vm\")`: CasADi's virtual machine, no C at all); "
-           "`O2` is the library default." if variants else ""), "",
+        + (f" Variants: {', '.join(variants)} (`O0`/`O1` through `CASMBD_CFLAGS`, "
+           "`vm` = `Simulator(..., mode=\"vm\")`: CasADi's virtual machine, no C at all; "
+           "`unrolled` = `formulation_options={\"fold\": False}`: the articulated "
+           "recursion unrolled body by body, as before issue 36); `O2` is the library "
+           "default. *load*: 1-minute load average when the case started; *build CPU*: "
+           "processor time of the build child and its compilers; *cached process*: a new "
+           "`python -c` process on the filled cache (interpreter, imports, the chain, the "
+           "`Simulator`), fastest of 3, wall and *cached CPU*." if variants else ""), "",
         "![scaling](figures/scaling.png)", "",
         "### Every case", "",
         *table(rows), "",
