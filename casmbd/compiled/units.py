@@ -65,8 +65,10 @@ COLD_FLAGS: tuple[str, ...] = ("-O0",)
 SPLIT_SOURCE = 200_000
 #: the functions that call a hot function share its unit (its C compiled once) only when the
 #: hot functions' C exceeds this many bytes; below it each caller is its own unit at its own
-#: flags and repeats the (small) hot C
-SHARE_SOURCE = 100_000
+#: flags and repeats the hot C at those flags.  Sharing puts the caller at the hot flags: the
+#: folded 1000-rod chain's right-hand side (0.34 MB of C, mostly index tables) pulled
+#: ``post`` with the unrolled energies (1.3 MB) into its -O2 unit
+SHARE_SOURCE = 1_000_000
 #: a library without ``hot`` functions (every Function evaluated per call, e.g. a robot's
 #: per-call model) whose C in all exceeds this many bytes gets :data:`BULK_FLAGS` instead of
 #: the default flags: its cost is the number of Functions, not one of them.
@@ -108,8 +110,8 @@ def plan(functions: Sequence[casadi.Function], generate: Callable[[list], str],
         # post-processing call the dynamics, whose C then appears (and is compiled) once
         hot_names = set(hot or ())
         # callers share the hot unit only when the hot C is worth not repeating: a folded
-        # right-hand side (casmbd.system.chain_fold) is a few kB, and its caller ``post``
-        # carries the unrolled energies (1.3 MB at N = 1000: 46 s at -O2, -O0 alone)
+        # right-hand side (casmbd.system.chain_fold) is 0.34 MB at N = 1000, and its caller
+        # ``post`` carries the unrolled energies (1.3 MB: 46 s of gcc at -O2, -O0 alone)
         share = sum(len(alone[f.name()]) for f in functions if f.name() in hot_names) \
             > SHARE_SOURCE
         together = [f for f in functions if f.name() in hot_names

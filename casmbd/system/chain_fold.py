@@ -1,5 +1,6 @@
 """The articulated-body recursion of a planar revolute chain written once and folded over the
-bodies: code of constant size, whatever the number of bodies.
+bodies: its arithmetic is generated once, whatever the number of bodies (what grows with N
+is the tables of indices that select each body's columns: 0.34 MB of C at N = 1000).
 
 :func:`casmbd.system.articulated_body.articulated_accelerations` unrolls the recursion into one
 SX expression per body; a 1000-rod chain gives 5.7 MB of C that gcc compiles in 8 s at
