@@ -781,25 +781,23 @@ runs at loads 4-8, so compare rows of one run, and the *CPU* columns.
   the code of before issue 36) are the same chain in the same run. The right-hand side's C
   is 0.34 MB at N = 1000 (mostly index tables) instead of 5.7 MB, compiled at `-O2` in
   about 2 s of CPU; the solve no longer runs `-O0` code.
-* *Folded against unrolled* (rows *O2* and *unrolled* of the same run; and one-off, back to
-  back in fresh processes at load 3.4-5.8): at N = 100 and 300 the fold builds 3.4× and 2.4×
-  faster (4.6 s against 15.6 s, 11.5 s against 28.0 s; CPU 3.2 against 9.1 s, 10.6 against
-  17.8 s) and its right-hand side is 1.7-2.6× slower per call (17.2 against 10.1 µs,
-  56.1 against 21.9 µs: the unrolled code is `-O2`/`-O1` there and gcc folds the constants of
-  each body into it); at N = 1000 its right-hand side is 2-7× faster (273 against 541 µs in
-  the run, 104 against 727 µs one-off: the unrolled one is `-O0`), but the first build is not
-  faster: 50.9 s (load 6.0) against 35.8 s (load 4.5) in the run, 30.2 s against 48.3 s
-  one-off, and the processor time is the same within the noise (36.4 against 32.4 s in the
-  run; one-off Python 4.4 + gcc 29.9 s against 6.4 + 26.1 s). The folded right-hand side
-  costs 0.1-0.3 µs per body and call; the unrolled one is faster per call where gcc can
-  still optimise it (2.0× at 8 rods, 1.0× at 32, 0.66× at 100 in one process; hence the
-  fold from 32 rods on only).
-* *Target "cold build + compile ≤ 10 s" at N = 1000: missed, by 3-5×* (30-51 s at loads
-  4-6; 32-36 s of processor time). What is left is not the dynamics: the gcc time is the
-  `-O0` translation units of the functions that are still unrolled body by body — the
-  outputs (4.0 MB of C), the joint reactions (3.8 MB), the mass matrix's mapped columns
+* *Folded against unrolled* (rows *O2* and *unrolled* of the same run, loads 3.3-4.0;
+  *unrolled* is `fold=False` with this issue's translation-unit rule): at N = 100, 300 and
+  1000 the folded chain builds in 2.9 / 8.9 / 29.6 s against 12.0 / 21.8 / 38.2 s
+  (processor time 2.6 / 6.9 / 26.2 s against 9.2 / 17.6 / 33.2 s). Its right-hand side costs
+  0.17-0.18 µs per body and call at every N (17.8 / 54.5 / 168.6 µs) against 9.9 / 19.4 /
+  519 µs unrolled: where gcc can still optimise the unrolled code (`-O2` below 1 MB of C,
+  `-O1` to 3 MB) it is 1.8-2.8× faster per call, because each body's constants are folded
+  into it, while at N = 1000 it is `-O0` and 3.1× slower (solve 0.092 s against 0.203 s).
+  The fold starts at 32 rods (`FOLD_MIN_BODIES`; per call, in one process: 2.0× the
+  unrolled cost at 8 rods, 0.95× at 32).
+* *Target "cold build + compile ≤ 10 s" at N = 1000: missed, by 3.0×* (29.6 s at load 3.8;
+  26.2 s of processor time). What is left is not the dynamics (its unit, the folded
+  right-hand side with DOPRI5's compiled block, is 0.34 MB of C at `-O2`): the compile time
+  is the `-O0` translation units of the functions that are still unrolled body by body —
+  the outputs (4.0 MB of C), the joint reactions (3.8 MB), the mass matrix's mapped columns
   (2.1 MB), `post` with the energies (1.3 MB), the kinetic (1.0 MB) and potential (0.3 MB)
-  energy: 12.9 MB of the 13.2 MB; and the 4-8 s of symbolic build is the System's tree
+  energy: 12.9 MB of the 13.6 MB; and the 5 s of symbolic build is the System's tree
   kinematics and those same expressions. Meeting 10 s needs them folded as the recursion
   is (the outputs and energies as a per-body Function mapped over the bodies, the reactions
   as the Newton–Euler inward fold, M by a composite-rigid-body fold) or not compiled at all
@@ -813,8 +811,11 @@ runs at loads 4-8, so compare rows of one run, and the *CPU* columns.
   through `casmbd/lazy.py`). The issue's 1.9 s was a process with a run: the run adds the
   solve, the mass-matrix check of the start (`check_mass_matrix`, 0.4 s: M of the 1000-rod
   chain by 1000 mapped columns) and the post-processing, which this target does not cover.
-* *Solve time growth*: see *Against the issue's targets*; the fit mixes the unrolled code
-  below 32 rods with the folded code above, and the shorter horizon from N = 300 on.
+* *Target "solve growth ≤ N^1.1"*: the fit over 10-1000 above mixes the unrolled code at
+  10 rods with the folded code from 32 on and the shorter horizon from 300 on; over the
+  folded sizes 32-1000 the solve seconds per simulated second grow like N^1.07 (RHS N^0.98,
+  steps N^-0.61 with the horizon change), over 100-1000 like N^0.87: met there, not over
+  the whole range.
 * *The tree reactions' build was O(N²)*: for every body it scanned every joint for constraint
   rows, also with none (268 k generator steps at N = 300); it now returns at once without
   constraint equations.
