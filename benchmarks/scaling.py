@@ -824,8 +824,9 @@ runs at loads 4-8, so compare rows of one run, and the *CPU* columns.
   straight-line code: at N = 300 the unrolled articulated right-hand side takes 97.8 s at
   `-O2` for 28.1 µs per call, 16.4 s at `-O1` for 20.8 µs, 2.8 s at `-O0` for 93.8 µs, alone
   on one core). A caller of a hot function shares its translation unit only when the hot C
-  exceeds 100 kB (`units.SHARE_SOURCE`): the folded right-hand side is repeated in `post`'s
-  unit instead of pulling the energies into the `-O2` unit (46 s of gcc at N = 1000).
+  exceeds 1 MB (`units.SHARE_SOURCE`): the folded right-hand side (0.34 MB at N = 1000) is
+  repeated in `post`'s `-O0` unit instead of pulling the unrolled energies into the `-O2`
+  unit (the first run of this issue's table: 40-54 s of compilation at N = 1000).
 * *Pinocchio at N = 1000*: not measured. `pinocchio.Model.createData()` for the chain with
   `JointModelRZ` joints takes 0.18 / 0.63 / 4.1 GB at N = 100 / 200 / 400 (Pinocchio 4.1,
   growing like N^2.7); the benchmark skips Pinocchio above N = 400.
