@@ -16,13 +16,15 @@ from collections.abc import Iterable
 
 import casadi as ca
 import numpy as np
-import scipy.sparse as sp
 
 from casmbd.compiled.codegen import BuildReport, compile_functions
 from casmbd.compiled.workspace import Workspace
 from casmbd.errors import ModelError
+from casmbd.lazy import lazy_module
 from casmbd.model.measures import result_names
 from casmbd.system.equations import SIGNATURES, Equation, System
+
+sp = lazy_module("scipy.sparse")
 
 #: Functions each analysis needs; nothing else is generated or compiled for it.
 NEEDS: dict[str, tuple[str, ...]] = {

@@ -42,7 +42,7 @@ import casadi
 from casmbd.errors import CompileError
 
 __all__ = ["BULK_FLAGS", "BULK_SOURCE", "COLD_FLAGS", "LARGE_SOURCE", "MEDIUM_FLAGS",
-           "MEDIUM_SOURCE", "SPLIT_SOURCE", "compile_objects", "plan"]
+           "MEDIUM_SOURCE", "SHARE_SOURCE", "SPLIT_SOURCE", "compile_objects", "plan"]
 
 #: a hot function whose C alone exceeds this many bytes gets :data:`MEDIUM_FLAGS`: gcc's
 #: ``-O2`` is superlinear on CasADi's long straight-line functions.  Measured (gcc 12, one
@@ -63,6 +63,12 @@ LARGE_SOURCE = 3_000_000
 COLD_FLAGS: tuple[str, ...] = ("-O0",)
 #: above this many bytes of C in all, one translation unit per function
 SPLIT_SOURCE = 200_000
+#: the functions that call a hot function share its unit (its C compiled once) only when the
+#: hot functions' C exceeds this many bytes; below it each caller is its own unit at its own
+#: flags and repeats the hot C at those flags.  Sharing puts the caller at the hot flags: the
+#: folded 1000-rod chain's right-hand side (0.34 MB of C, mostly index tables) pulled
+#: ``post`` with the unrolled energies (1.3 MB) into its -O2 unit
+SHARE_SOURCE = 1_000_000
 #: a library without ``hot`` functions (every Function evaluated per call, e.g. a robot's
 #: per-call model) whose C in all exceeds this many bytes gets :data:`BULK_FLAGS` instead of
 #: the default flags: its cost is the number of Functions, not one of them.
@@ -103,9 +109,14 @@ def plan(functions: Sequence[casadi.Function], generate: Callable[[list], str],
         # the hot functions and their callers share one unit: an integrator's block and the
         # post-processing call the dynamics, whose C then appears (and is compiled) once
         hot_names = set(hot or ())
+        # callers share the hot unit only when the hot C is worth not repeating: a folded
+        # right-hand side (casmbd.system.chain_fold) is 0.34 MB at N = 1000, and its caller
+        # ``post`` carries the unrolled energies (1.3 MB: 46 s of gcc at -O2, -O0 alone)
+        share = sum(len(alone[f.name()]) for f in functions if f.name() in hot_names) \
+            > SHARE_SOURCE
         together = [f for f in functions if f.name() in hot_names
-                    or (hot_names and _calls(f) & hot_names)]
-        if len(together) < 2:
+                    or (hot_names and share and _calls(f) & hot_names)]
+        if not together or (len(together) < 2 and share):
             return _with_callees(functions, alone, flags_of, generate)
         source = generate(together)  # flags by its largest hot function
         flags = by_size(max(len(alone[f.name()]) for f in together if f.name() in hot_names))

@@ -18,9 +18,11 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.sparse as sp
 
 from casmbd.compiled.buffered import BufferedFunction
+from casmbd.lazy import lazy_module
+
+sp = lazy_module("scipy.sparse")
 
 if TYPE_CHECKING:  # annotations only: the model module imports this one
     from casmbd.compiled.model import NumericModel

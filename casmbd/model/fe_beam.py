@@ -41,11 +41,13 @@ from __future__ import annotations
 from collections.abc import Mapping, Sequence
 
 import numpy as np
-import scipy.sparse as sp
 
 from casmbd.errors import ModelError
+from casmbd.lazy import lazy_module
 from casmbd.limits import MAX_BEAM_ELEMENTS, check_count
 from casmbd.model.modal import FEModel
+
+sp = lazy_module("scipy.sparse")
 
 __all__ = ["beam_model", "planar_element_matrices", "spatial_element_matrices"]
 

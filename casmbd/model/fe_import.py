@@ -40,9 +40,9 @@ import zipfile
 from collections.abc import Mapping
 
 import numpy as np
-import scipy.sparse as sp
 
 from casmbd.errors import ModelError
+from casmbd.lazy import lazy_module
 from casmbd.limits import (
     MAX_FE_DOFS,
     MAX_FE_NODES,
@@ -52,6 +52,8 @@ from casmbd.limits import (
     check_regular_file,
 )
 from casmbd.model.modal import FEModel, check_node_layout, rotational_dofs
+
+sp = lazy_module("scipy.sparse")
 
 __all__ = ["load_fe_npz", "save_fe_npz"]
 

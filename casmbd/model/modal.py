@@ -35,9 +35,11 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
-import scipy.sparse as sp
 
 from casmbd.errors import ModelError
+from casmbd.lazy import lazy_module
+
+sp = lazy_module("scipy.sparse")
 
 __all__ = ["FEModel", "ModalData", "cache_key", "rotational_dofs", "translational_dofs"]
 

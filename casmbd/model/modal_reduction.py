@@ -41,11 +41,9 @@ import re
 from collections.abc import Sequence
 
 import numpy as np
-import scipy.linalg as sl
-import scipy.sparse as sp
-import scipy.sparse.linalg as spl
 
 from casmbd.errors import ModelError
+from casmbd.lazy import lazy_module
 from casmbd.limits import MAX_MODES, check_count
 from casmbd.model.modal import (
     FEModel,
@@ -53,6 +51,10 @@ from casmbd.model.modal import (
     cache_key,
     rotational_dofs,
 )
+
+sl = lazy_module("scipy.linalg")
+sp = lazy_module("scipy.sparse")
+spl = lazy_module("scipy.sparse.linalg")
 
 __all__ = ["DENSE_LIMIT", "check_fe_model", "craig_bampton", "free_modes", "reduce",
            "rigid_body_modes"]

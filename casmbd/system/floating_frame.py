@@ -148,14 +148,16 @@ from dataclasses import dataclass
 
 import casadi as ca
 import numpy as np
-import scipy.linalg
 
 from casmbd.errors import ModelError
+from casmbd.lazy import lazy_module
 from casmbd.model.modal import ModalData
 from casmbd.model.rotations import rotation_matrix
 
 __all__ = ["FlexibleBody", "Invariants", "foreshortening_matrices", "invariants",
            "planar_rotation"]
+
+sla = lazy_module("scipy.linalg")
 
 FLEXIBLE_MASS = ("lumped", "reduced")
 
@@ -287,7 +289,7 @@ def _damping(K: np.ndarray, M: np.ndarray, ratio, where: str) -> np.ndarray:
                          f"got {ratio!r}")
     if not np.any(zeta) or n == 0:
         return np.zeros((n, n))
-    lam, vec = scipy.linalg.eigh(K, M)
+    lam, vec = sla.eigh(K, M)
     omega = np.sqrt(np.clip(lam, 0.0, None))
     mv = M @ vec
     return mv @ np.diag(2.0 * zeta * omega) @ mv.T

@@ -63,6 +63,8 @@ class Reactions:
         drivers of those joints or of the body) written with ``ctx``, and their row indices."""
         rows, index = [], []
         elements = self._element_rows
+        if not elements:  # no constraint equations (a tree in joint coordinates)
+            return ca.SX(0, 1), index
         desc = self.descriptions.get(body)
         if desc is not None and ("body", body) in elements:
             eqs, _ = desc.constraints(ctx.coordinates(body))

@@ -5,7 +5,8 @@ reason), never to dodge an import cycle.
 
 The layers, lowest first (a module's layer is that of the longest prefix listed in LAYERS):
 
-0. ``errors``, ``interrupts``, ``limits``, ``progress``, ``atomic`` — helpers below everything;
+0. ``errors``, ``interrupts``, ``limits``, ``progress``, ``atomic``, ``lazy`` — helpers below
+   everything;
 1. ``model`` — what the user builds, with the expression parser (``model.expressions``);
 2. ``system`` — the symbolic equations, with the named quantities analyses and the OCP share
    (``system.quantities``);
@@ -37,7 +38,7 @@ PACKAGE = pathlib.Path(__file__).resolve().parents[2] / "casmbd"
 
 LAYERS = {
     "casmbd.errors": 0, "casmbd.interrupts": 0, "casmbd.limits": 0, "casmbd.progress": 0,
-    "casmbd.atomic": 0,
+    "casmbd.atomic": 0, "casmbd.lazy": 0,
     "casmbd.model": 1,
     "casmbd.system": 2,
     "casmbd.compiled": 3,

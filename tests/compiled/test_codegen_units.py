@@ -158,3 +158,22 @@ def test_merged_guards_compile_to_the_same_numbers(tmp_path, monkeypatch):
     buf.set_res(1, memoryview(total))  # res[0] left null
     trigger()
     assert total[0] == pytest.approx(xv.sum(), rel=1e-15)
+
+
+def test_callers_of_a_small_hot_function_get_their_own_unit(monkeypatch):
+    """A caller of a hot function shares its unit only when the hot C exceeds SHARE_SOURCE:
+    a folded right-hand side is small, its caller (``post`` with the unrolled energies) is
+    then compiled alone at the cold flags, repeating the hot C."""
+    x = casadi.SX.sym("x", 3)
+    rhs = casadi.Function("rhs", [x], [casadi.sin(x) * x[0]])
+    xm = casadi.MX.sym("x", 3)
+    post = casadi.Function("post", [xm], [rhs(xm) + casadi.exp(xm)])
+    monkeypatch.setattr(units, "SPLIT_SOURCE", 0)
+    gen = codegen._generate_template
+    monkeypatch.setattr(units, "SHARE_SOURCE", 0)
+    shared = units.plan([rhs, post], gen, None, ["-O2"], {"rhs"})
+    assert [([f.name() for f in u[0]], u[2]) for u in shared] == [(["rhs", "post"], ["-O2"])]
+    monkeypatch.setattr(units, "SHARE_SOURCE", 10**9)
+    alone = units.plan([rhs, post], gen, None, ["-O2"], {"rhs"})
+    assert [([f.name() for f in u[0]], u[2]) for u in alone] == \
+        [(["rhs"], ["-O2"]), (["post"], list(units.COLD_FLAGS))]

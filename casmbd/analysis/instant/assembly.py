@@ -19,14 +19,16 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg as sla
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from casmbd.analysis.instant.checks import nonfinite_values
 from casmbd.analysis.instant.culprits import explain as explain_culprits
 from casmbd.analysis.instant.redundancy import DENSE_MAX_ENTRIES, rank_report
 from casmbd.errors import AssemblyError, CasmbdError, ModelError, SingularConfigurationError
+from casmbd.lazy import lazy_module
+
+sla = lazy_module("scipy.linalg")
+sp = lazy_module("scipy.sparse")
+spla = lazy_module("scipy.sparse.linalg")
 
 
 @dataclass

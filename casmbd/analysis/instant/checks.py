@@ -22,11 +22,13 @@ from collections.abc import Iterator
 
 import casadi as ca
 import numpy as np
-import scipy.sparse as sp
 
 from casmbd.errors import AssemblyError, ModelError
+from casmbd.lazy import lazy_module
 from casmbd.model.bodies import GROUND
 from casmbd.model.values import Samples, resolve
+
+sp = lazy_module("scipy.sparse")
 
 #: value fields of force elements (a tuple value is checked component by component)
 FORCE_FIELDS = ("value", "stiffness", "damping", "free_length", "free_angle", "actuator")

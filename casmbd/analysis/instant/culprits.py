@@ -29,11 +29,13 @@ from dataclasses import asdict, dataclass, field
 
 import casadi as ca
 import numpy as np
-import scipy.linalg as sla
 
 from casmbd.errors import CasmbdError
+from casmbd.lazy import lazy_module
 from casmbd.model.bodies import GROUND
 from casmbd.model.values import resolve
+
+sla = lazy_module("scipy.linalg")
 
 
 def _minimize():

@@ -17,12 +17,14 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg as sla
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 from casmbd.analysis.instant.assembly import assemble
 from casmbd.analysis.instant.reaction_friction import has_reaction_friction, solve_normals
+from casmbd.lazy import lazy_module
+
+sla = lazy_module("scipy.linalg")
+sp = lazy_module("scipy.sparse")
+spla = lazy_module("scipy.sparse.linalg")
 
 #: relative singular-value cut of the minimum-norm KKT solve with redundant equations
 TRUNCATE_RTOL = 1e-10

@@ -20,7 +20,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.sparse as sp
+
+from casmbd.lazy import lazy_module
+
+sp = lazy_module("scipy.sparse")
 
 #: relative tolerance on singular values / residual norms, times the largest singular value
 RANK_RTOL = 1e-8
@@ -342,8 +345,6 @@ def near_singular_passes(model, grid: np.ndarray, qs: np.ndarray, vs: np.ndarray
     :func:`conditioning`.  The located conditioning is an estimate limited by the interpolation
     error, so a coarse output grid reports a passage with a larger value than a fine one.
     """
-    from scipy.optimize import minimize_scalar
-
     out: list[tuple[float, float]] = []
     n = len(grid)
     if n < 3 or rank is None:
@@ -388,6 +389,10 @@ def near_singular_passes(model, grid: np.ndarray, qs: np.ndarray, vs: np.ndarray
                      for j in range(lo, hi + 1)}
             m = min(inner, key=inner.get)
             lo, hi = max(lo, m - 1), min(hi, m + 1)
+        # here, not at the top: scipy.optimize takes 0.3 s to import and most runs refine
+        # nothing (a 1000-rod chain's cached run: a fifth of the process)
+        from scipy.optimize import minimize_scalar
+
         for j in range(lo, hi):
             res = minimize_scalar(lambda t, j=j: at(j, t), bounds=(grid[j], grid[j + 1]),
                                   method="bounded", options={"xatol": 1e-9 * (1 + abs(grid[j]))})

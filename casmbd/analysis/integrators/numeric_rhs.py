@@ -14,11 +14,13 @@ from __future__ import annotations
 
 import casadi as ca
 import numpy as np
-import scipy.linalg as sla
 
 from casmbd.analysis.instant.reaction_friction import has_reaction_friction
 from casmbd.analysis.integrators import sundials as sun
 from casmbd.compiled.buffered import BufferedFunction
+from casmbd.lazy import lazy_module
+
+sla = lazy_module("scipy.linalg")
 
 
 class RhsError(Exception):

@@ -40,12 +40,14 @@ import math
 
 import casadi as ca
 import numpy as np
-import scipy.linalg as sla
 
 from casmbd.errors import CasmbdError, ModelError
 from casmbd.interrupts import reraise_interrupt
+from casmbd.lazy import lazy_module
 from casmbd.model.bodies import GROUND
 from casmbd.model.values import numeric
+
+sla = lazy_module("scipy.linalg")
 
 __all__ = ["FREE_LENGTH_MAX", "GROWTH", "MAX_COORDINATES", "MAX_ELEMENTS", "OMEGA_MAX",
            "check_plausible_elements", "diagnose_stiffness"]
