@@ -302,16 +302,18 @@ class Transcription:
         t0, tn = self.mesh_time(0), self.mesh_time(self.M)
         if ocp._initial_given:
             rows = self._fix_states(self.initial_fn, self.initial_values, 0)
-            b.eq(self.initial_fn(x0[:nq], x0[nq:], t0, u0, self.p)[rows]
-                 - self.initial_values[rows], "initial conditions")
+            if rows:  # conditions left as rows (the others are bounds)
+                b.eq(self.initial_fn(x0[:nq], x0[nq:], t0, u0, self.p)[rows]
+                     - self.initial_values[rows], "initial conditions")
         else:  # the scene's consistent initial state
             start = self._scene_start()
             b.lbw[self.X_block][:2 * nq] = start
             b.ubw[self.X_block][:2 * nq] = start
         if ocp._final:
             rows = self._fix_states(self.final_fn, self.final_values, self.M)
-            b.eq(self.final_fn(xn[:nq], xn[nq:], tn, un, self.p)[rows]
-                 - self.final_values[rows], "final conditions")
+            if rows:
+                b.eq(self.final_fn(xn[:nq], xn[nq:], tn, un, self.p)[rows]
+                     - self.final_values[rows], "final conditions")
 
     def _fix_states(self, fn: ca.Function, values: np.ndarray, node: int) -> list[int]:
         """Boundary conditions that name one state, x_i(t_node) = value, stated as bounds
