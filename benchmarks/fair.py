@@ -29,7 +29,6 @@ from __future__ import annotations
 import math
 import os
 import subprocess
-import time
 from collections.abc import Callable, Iterable, Sequence
 from pathlib import Path
 
@@ -217,17 +216,19 @@ def best_time_to_error(curves: dict[str, Iterable[tuple[float, float]]],
     return best
 
 
-def per_call(call: Callable[[], object], number: int, repeat: int = 5) -> dict:
-    """Per-call time of ``call`` under the fair rule: cold first call apart, then the best of
-    ``repeat`` loops of ``number`` calls (seconds per call)."""
-    t0 = time.perf_counter()
+def time_per_call(call: Callable[[], object], repeat: int = 7,
+                  min_seconds: float = 0.05) -> float:
+    """Microseconds per call of ``call`` under the fair rule: the first (cold) call made
+    apart, then the best of ``repeat`` timeit loops, each of enough calls to last
+    ``min_seconds`` (used for casmbd's and the peer's per-call figures alike)."""
+    import timeit
+
     call()
-    cold = time.perf_counter() - t0
-    loops = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        for _ in range(number):
-            call()
-        loops.append((time.perf_counter() - t0) / number)
-    return {"seconds": min(loops), "cold_seconds": cold, "number": number, "repeats": repeat,
-            "load": load()[0]}
+    timer = timeit.Timer(call)
+    number = 1
+    while True:
+        elapsed = timer.timeit(number)
+        if elapsed >= min_seconds:
+            break
+        number = max(2 * number, int(number * min_seconds / max(elapsed, 1e-9) * 1.2))
+    return 1e6 * min(timer.repeat(repeat, number)) / number
