@@ -291,6 +291,11 @@ def _exudyn_settings(exu, t_end: float, level: float, adaptive: bool, explicit: 
         ti.numberOfSteps = 1
         ti.absoluteTolerance = level
         ti.relativeTolerance = level
+        # the automatic first step (initialStepSize 0) is h_max = t_end on the chains at rest:
+        # on chain8 and chain32 DOPRI5 then "reached minStepSize" at t = 0 and took one step
+        # of 2 s (tip error 11.8, every tolerance; tables before issue 36 counted it as a
+        # run).  A first step of 1e-4 s is Exudyn's documented remedy.
+        ti.initialStepSize = 1e-4
     else:
         ti.automaticStepSize = False
         ti.numberOfSteps = round(t_end / level)

@@ -369,8 +369,8 @@ def main(argv=None) -> int:
             if peer_rows:
                 peers.write_csv(peer_rows, Path(args.peers_csv))
     problems = [p for p in args.problems if any(r["problem"] == p for r in rows)]
-    plot(rows, problems, peer_rows)
-    if args.update_docs:
+    if args.update_docs:  # the figures belong with the docs section (a subset run to
+        plot(rows, problems, peer_rows)  # another CSV must not overwrite them)
         args_text = [a for a in (argv if argv is not None else sys.argv[1:])
                      if a != "--from-csv"]
         command = "python -m benchmarks.work_precision " + " ".join(args_text)
