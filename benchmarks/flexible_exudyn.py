@@ -21,8 +21,10 @@ fixed-interface modes) are computed once by casmbd and given to Exudyn's
 Signals: the distance of the rod's mid node from the chord A–B (mid-span deflection) and the
 slider position over 0.2 s (4.8 crank turns).  Reference: casmbd at rtol 1e-12 (checked against
 rtol 1e-11 and against Exudyn's finest step).  Cost: casmbd's ``solve_seconds`` (compiled
-right-hand side, variable step) per rtol, Exudyn's ``SolveDynamic`` wall time (generalized-α,
-fixed step, its C++ FFRF object) per step size; time to a given deflection error.
+right-hand side, variable step) per rtol, Exudyn's ``SolveSteps`` (generalized-α, fixed step,
+its C++ FFRF object) per step size, both best of 3 warm runs with the cold first run apart;
+time to a given deflection error interpolated log-log (the fair rules of
+:mod:`benchmarks.fair`).
 
 Run ``python -m benchmarks.flexible_exudyn [--quick] [--update-docs]`` (``pip install
 .[bench]`` for Exudyn; without it the Exudyn runs are skipped and said so): writes
@@ -496,9 +498,11 @@ def markdown(data: dict) -> str:
               f"{sc['reference']['rtol_1e-11_vs_1e-12']:.1e} m). Cost: casmbd's solve time "
               "(compiled equations; built once in "
               f"{sc['casmbd_build_seconds']:.1f} s"
-              f"{', from the disk cache' if sc.get('casmbd_cache_hit') else ''}), Exudyn's "
-              "`SolveDynamic` wall time (its C++ FFRF object; the invariants are computed "
-              "before).", "",
+              f"{', from the disk cache' if sc.get('casmbd_cache_hit') else ''}) and "
+              "Exudyn's `SolveSteps` (its C++ FFRF object; `InitializeSolver` and the "
+              "invariants apart), both the best of 3 warm runs, the cold first run (Exudyn: "
+              "`SolveDynamic` with its set-up inside) in its own column; each side swept "
+              "until 1e-7 m or its floor (`benchmarks/fair.py`).", "",
               "| code | tolerance / step | solve time (best warm) | cold first run | steps | "
               "deflection error [m] | slider error [m] |", "|---|---|---|---|---|---|---|"]
     for r in sc["rows"]:
