@@ -251,6 +251,17 @@ def peers_table(rows: list[dict], problems, peer_rows: list[dict]) -> list[str]:
     return lines
 
 
+def _run_loads(rows: list[dict], peer_rows: list[dict]) -> str:
+    """"; 1-minute load average during the runs 3.1–7.9 (casmbd), …" from the rows' ``load``
+    (recorded by :func:`benchmarks.fair.timed`; empty for rows written before)."""
+    parts = []
+    for name, group in (("casmbd", rows), ("peers", peer_rows)):
+        loads = [float(r["load"]) for r in group if r.get("load") not in (None, "")]
+        if loads:
+            parts.append(f"{min(loads):.1f}–{max(loads):.1f} ({name})")
+    return ("; 1-minute load average during the runs " + ", ".join(parts)) if parts else ""
+
+
 def markdown(rows: list[dict], problems, command: str,
              peer_rows: list[dict] | None = None) -> str:
     """The docs section: best times per accuracy level, the peers of the same run and the full
@@ -259,7 +270,8 @@ def markdown(rows: list[dict], problems, command: str,
     lines = ["## Forward dynamics: work-precision", "",
              f"Measured {datetime.date.today().isoformat()} on {machine()}; load average "
              f"when the tables were written {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} (above "
-             "about 1 the cores were shared with other work and the times are upper bounds).",
+             "about 1 the cores were shared with other work and the times are upper bounds)"
+             + _run_loads(rows, peer_rows or []) + ".",
              "",
              f"Command: `{command}`", "",
              "Solve time is the integration alone (best of the warm repeats; the cold first run "
