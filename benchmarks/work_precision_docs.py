@@ -248,6 +248,18 @@ def peers_table(rows: list[dict], problems, peer_rows: list[dict]) -> list[str]:
                 f"{theirs} | {f'{ratio:.3f}' if ratio is not None else '—'} | {verdict} | "
                 f"{_ms(best[0]) + ' (' + best[1] + ')' if best else 'not reached'} | "
                 f"{b_ratio} |")
+    noise = []
+    for target in (1e-6, 1e-9):
+        a, b = (best_peer(peer_rows, p, target) for p in ("chain8", "chain8_3d"))
+        if a and b:
+            noise.append(f"{max(a[0], b[0]) / min(a[0], b[0]):.2f}× at {target:.0e}")
+    if noise:
+        lines += ["", "The peers' chain8 and chain8_3d runs are the same models run twice: their "
+                  "best times differ by " + " and ".join(noise) + " in this run, a measure of "
+                  "the timing noise on the shared machine. Where both sides run the same "
+                  "method (DOPRI5 on chain2 against Exudyn's), the steps are alike and the "
+                  "ratio is the cost per step, which includes casmbd's integrator overhead "
+                  "(issue 36 item 4)."]
     return lines
 
 
