@@ -103,3 +103,35 @@ def against_fastest(mine: dict | None, top: dict | None, level: str, digits: int
             f"{mine['solve_seconds'] / top['solve_seconds']:.2g}× the fastest pinned "
             f"configuration ({top['config']}, {1e3 * top['solve_seconds']:.{digits}f} ms).")
 
+
+
+#: a generated figure in README.md or docs/*.md: ``<!-- fig:name -->text<!-- /fig -->``
+SPAN = r"<!-- fig:(?P<name>[a-z0-9_]+) -->(?P<text>.*?)<!-- /fig -->"
+
+
+def spans(text: str) -> list[tuple[str, str]]:
+    """The ``(name, text)`` of every generated span (:data:`SPAN`) in ``text``, in order."""
+    import re
+
+    return [(m["name"], m["text"]) for m in re.finditer(SPAN, text, flags=re.S)]
+
+
+def replace_spans(path: Path, render) -> list[str]:
+    """Rewrite every generated span of ``path`` with ``render(name)`` (a name ``render``
+    does not know raises ``KeyError``); returns the names whose text changed."""
+    import re
+
+    path = Path(path)
+    text = path.read_text(encoding="utf-8")
+    changed = []
+
+    def sub(m):
+        new = render(m["name"])
+        if new != m["text"]:
+            changed.append(m["name"])
+        return f"<!-- fig:{m['name']} -->{new}<!-- /fig -->"
+
+    out = re.sub(SPAN, sub, text, flags=re.S)
+    if out != text:
+        path.write_text(out, encoding="utf-8")
+    return changed

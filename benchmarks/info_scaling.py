@@ -1,7 +1,9 @@
 """Time of ``casmbd info`` on planar pendulum chains of N = 500 … 5000 rods (issue 18, item 3).
 
 Every size is written as a scene file (:func:`chain_scene`: N rods pinned end to end, absolute
-coordinates, the default) and ``casmbd info`` is run on it in a **fresh subprocess** with an
+coordinates set in the scene — the default ``auto`` would pick joint coordinates for this
+tree, N coordinates and no equation, and the study is about the rank and assembly of large
+constraint Jacobians) and ``casmbd info`` is run on it in a **fresh subprocess** with an
 empty compile cache, the wall time of the whole command (Python start, scene parsing,
 validation, System, equations, compilation or virtual machine, assembly, rank) measured
 around it.  The degrees of freedom it prints are checked (= N).
@@ -31,15 +33,18 @@ HEAD = "## `casmbd info` on large scenes"
 BEFORE = {500: 18.0, 1000: 61.0, 2000: 158.0, 5000: 643.0}
 
 
-def chain_scene(n: int, name: str | None = None) -> str:
+def chain_scene(n: int, name: str | None = None, coordinates: str | None = None) -> str:
     """TOML text of N slender rods (1 m, 1 kg) pinned end to end, hanging from the origin.
 
     Rod ``i`` (``rod{i}``) lies along +x with its centre at (i + 0.5, 0); revolute ``pin0``
     pins it to the ground at the origin, ``pin{i}`` joins ``rod{i-1}`` and ``rod{i}`` at
-    (i, 0).  3 N coordinates, 2 N equations, N degrees of freedom.
+    (i, 0).  ``coordinates`` (``[scene] coordinates``) None leaves the choice to casmbd's
+    default ``auto`` (joint coordinates for this tree: N coordinates, no equation);
+    ``"absolute"`` gives 3 N coordinates and 2 N equations.  N degrees of freedom.
     """
     lines = ["[scene]", f'name = "{name or f"chain{n}"}"', "dimension = 2",
-             "gravity = [0.0, -9.81]", ""]
+             "gravity = [0.0, -9.81]"]
+    lines += [f'coordinates = "{coordinates}"', ""] if coordinates else [""]
     for i in range(n):
         lines += ["[[bodies]]", f'name = "rod{i}"', "mass = 1.0", f"inertia = {1 / 12!r}",
                   f"position = [{i + 0.5!r}, 0.0]", ""]
@@ -54,7 +59,7 @@ def time_info(n: int, mode: str = "auto") -> dict:
     """Wall time of ``casmbd info --json`` on an N-rod chain in a fresh process and cache."""
     with tempfile.TemporaryDirectory() as tmp:
         scene = Path(tmp) / f"chain{n}.toml"
-        scene.write_text(chain_scene(n))
+        scene.write_text(chain_scene(n, coordinates="absolute"))
         env = dict(os.environ, CASMBD_CACHE_DIR=str(Path(tmp) / "cache"))
         t0 = time.perf_counter()
         proc = subprocess.run([sys.executable, "-m", "casmbd", "info", str(scene), "--json",
@@ -78,14 +83,19 @@ def measure(sizes, mode: str = "auto") -> dict:
         if row["dof"] != n:
             raise SystemExit(f"wrong degrees of freedom for {n} rods: {row['dof']}")
         rows.append(row)
-    return {"rows": rows, "machine": os.uname().machine, "cpus": os.cpu_count()}
+    return {"rows": rows, "machine": os.uname().machine, "cpus": os.cpu_count(),
+            "load": [round(x, 2) for x in os.getloadavg()],
+            "command": "python -m benchmarks.info_scaling " + " ".join(sys.argv[1:])}
 
 
 def markdown(data: dict) -> str:
     """The docs section: a table of N, time before (issue 18) and now."""
     text = ("Wall time of `casmbd info chain.toml --json` (fresh process, empty cache, default "
-            "`--mode auto`) on a planar chain of N rods pinned end to end (absolute "
-            "coordinates; 3N coordinates, 2N equations, N degrees of freedom), written by "
+            "`--mode auto`) on a planar chain of N rods pinned end to end in absolute "
+            "coordinates, set in the scene (`coordinates = \"absolute\"`: 3N coordinates, "
+            "2N equations, N degrees of freedom; the default `auto` would pick joint "
+            "coordinates for this tree — N coordinates, no equation — and this study is "
+            "about the rank and the assembly of large constraint Jacobians), written by "
             "`python -m benchmarks.info_scaling --update-docs`. *Before* are the figures of "
             "issue 18. Three steps were super-linear: compiling C and C_q to C (25 s at "
             "N = 500; `info` now evaluates them on the virtual machine under `auto`), the "
@@ -95,6 +105,10 @@ def markdown(data: dict) -> str:
             "assembled, dense least-squares Newton steps (70 s for a driven 500-rod chain; now "
             "a sparse augmented system, 2.3 s). What is left grows linearly: reading the "
             "scene, building the expressions, the CasADi Functions.")
+    if "load" in data:
+        text += (f" Load average {' '.join(f'{x:.2f}' for x in data['load'])} at the end of "
+                 f"the run (2 cores; above about 1 the times are upper bounds); command "
+                 f"`{data['command'].strip()}`.")
     return before_now_table(HEAD, text, data["rows"], BEFORE)
 
 

@@ -35,13 +35,20 @@ Peers and methods
         (MuJoCo clamps the time constant to 2 h, so it is 2 h for h > 1e-4).  ``drift`` is the
         connect gap at t = 10, ``drift_max`` the largest gap sampled every 10 ms.
 
-Timing
+Fair rules (:mod:`benchmarks.fair`)
     ``solve_seconds`` is the integration alone: Exudyn's ``SolveSteps`` (after
     ``InitializeSolver``, reported as ``setup_seconds``), MuJoCo's ``mj_step(model, data,
-    nstep)`` (the step loop in C, no Python per step).  Median of ``repeat`` runs after one
-    warm-up run; a warm-up longer than :data:`LONG_RUN` seconds counts as one of the runs (the
-    median is always of at least three).  ``build_seconds`` is the model construction
-    (Exudyn: items and ``Assemble``; MuJoCo: MJCF compilation).
+    nstep)`` (the step loop in C, no Python per step); best of ``repeat`` warm runs,
+    the cold first run in ``cold_seconds`` (:func:`benchmarks.fair.timed`).
+    ``build_seconds`` is the model construction (Exudyn: items and ``Assemble``; MuJoCo:
+    MJCF compilation).  Each method's sweep runs until its error is below 1e-9 or stops
+    falling, or a run exceeds the time cap (:func:`benchmarks.fair.sweep`; the reason is in
+    ``sweep_stop``); time to error is interpolated log-log (:func:`best_peer_time`).
+    Settings at the peers' documented best: MuJoCo's RK4, ``implicitfast`` and ``implicit``
+    integrators, constraint solver tolerance 1e-12 (default 1e-8) with 200 iterations on the
+    four-bar; Exudyn's generalized-α with Newton tolerances 1e-12 relative / 1e-14 absolute
+    (defaults 1e-8 / 1e-10: they floor the error near 1e-8), its explicit RK44 and DOPRI5 on
+    the kinematic tree.
 
 Usage
     ``python -m benchmarks.peers [--problems chain2 chain8 ...] [--quick]
@@ -55,7 +62,6 @@ import argparse
 import csv
 import math
 import os
-import statistics
 import sys
 import time
 from collections.abc import Callable
@@ -63,12 +69,16 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks import fair
 from benchmarks.references import load_reference
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "benchmarks" / "results"
 
-PROBLEMS = ["chain2", "chain8", "chain32", "fourbar"]
+#: ``chain8_3d`` (the spatial chain of :mod:`benchmarks.work_precision`): MuJoCo and
+#: Exudyn's kinematic tree are spatial codes, their chain models are the same; Exudyn's
+#: RigidBody2D is planar and is not run on it
+PROBLEMS = ["chain2", "chain8", "chain32", "fourbar", "chain8_3d"]
 GRAVITY = 9.81
 LENGTH = 1.0
 MASS = 1.0
@@ -77,25 +87,30 @@ INERTIA = MASS * LENGTH**2 / 12.0
 #: radius used for the axial inertia m r²/2 and the capsule geoms of the MuJoCo models
 RADIUS = LENGTH / 20.0
 T_END = {"chain": 2.0, "fourbar": 10.0}
-#: a warm-up run longer than this [s] counts as one of the timed runs
-LONG_RUN = 1.0
+#: a single run slower than this [s] ends a sweep (``--cap``; :data:`benchmarks.fair.RUN_CAP`)
+RUN_CAP = fair.RUN_CAP
 
-#: step sizes / tolerances, coarse to fine: (peer formulation, integrator) -> kind -> levels
+#: step sizes / tolerances, coarse to fine: (peer formulation, integrator) -> kind -> levels.
+#: The lists go far below what any run reaches: :func:`benchmarks.fair.sweep` stops each
+#: sweep at error 1e-9, at the method's floor or at the time cap.
+_STEPS2 = fair.refine(1e-2, 2.0, 1e-7)
+_STEPS10 = fair.refine(1e-2, 10.0 ** 0.5, 1e-7)
+_TOLS = [10.0 ** -k for k in range(4, 15)]
 LEVELS = {
-    ("exudyn_rigidbody2d", "generalized_alpha"): {
-        "chain": [1e-2, 3e-3, 1e-3, 3e-4, 1e-4],
-        "fourbar": [1e-2, 3e-3, 1e-3, 3e-4, 1e-4]},
-    # the fixed-step RK4 sweeps reach past 1e-9 on chain8 (h = 6.25e-4 stopped at 1.3e-9)
-    ("exudyn_kinematictree", "rk44"): {"chain": [1e-2, 5e-3, 2.5e-3, 1.25e-3, 6.25e-4,
-                                                 3.125e-4, 1.5625e-4]},
-    ("exudyn_kinematictree", "dopri5"): {"chain": [1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10,
-                                                   1e-11, 1e-12]},
-    ("mujoco", "rk4"): {"chain": [1e-2, 5e-3, 2.5e-3, 1.25e-3, 6.25e-4, 3.125e-4, 1.5625e-4],
-                        "fourbar": [1e-3, 1e-4]},
-    ("mujoco", "implicitfast"): {"chain": [1e-3, 1e-4, 1e-5], "fourbar": [1e-3, 1e-4]},
-    ("mujoco_stiff", "rk4"): {"fourbar": [1e-3, 3e-4, 1e-4, 3e-5]},
-    ("mujoco_stiff", "implicitfast"): {"fourbar": [1e-3, 1e-4, 1e-5]},
+    ("exudyn_rigidbody2d", "generalized_alpha"): {"chain": _STEPS10, "fourbar": _STEPS10},
+    ("exudyn_kinematictree", "rk44"): {"chain": _STEPS2},
+    ("exudyn_kinematictree", "dopri5"): {"chain": _TOLS},
+    ("mujoco", "rk4"): {"chain": _STEPS2, "fourbar": _STEPS10},
+    ("mujoco", "implicitfast"): {"chain": _STEPS10, "fourbar": _STEPS10},
+    ("mujoco", "implicit"): {"chain": _STEPS10, "fourbar": _STEPS10},
+    ("mujoco_stiff", "rk4"): {"fourbar": _STEPS10},
+    ("mujoco_stiff", "implicitfast"): {"fourbar": _STEPS10},
+    ("mujoco_stiff", "implicit"): {"fourbar": _STEPS10},
 }
+#: the MuJoCo constraint solver at its tightest useful setting (four-bar; default 1e-8, 100)
+MUJOCO_SOLVER = {"tolerance": "1e-12", "iterations": "200"}
+#: Exudyn's Newton tolerances for generalized-α (defaults 1e-8 relative, 1e-10 absolute)
+EXUDYN_NEWTON = {"relativeTolerance": 1e-12, "absoluteTolerance": 1e-14}
 #: integrators that take a tolerance (the others a fixed step)
 ADAPTIVE = {"dopri5"}
 #: stiffened MuJoCo equality settings (time constant 0.2 ms, clamped by MuJoCo to 2 h;
@@ -105,7 +120,7 @@ STIFF = {"solref": "0.0002 1", "solimp": "0.9999 0.9999 0.001 0.5 2"}
 KEYS = ["problem", "coordinates", "formulation", "integrator", "tolerance", "step", "status",
         "solve_seconds", "error", "drift", "velocity_drift", "steps", "rhs_evaluations",
         "setup_seconds", "build_seconds", "nq", "nc", "message", "peer", "peer_version",
-        "drift_max"]
+        "drift_max", "cold_seconds", "repeats", "load", "sweep_stop"]
 
 LABELS = {
     ("exudyn_rigidbody2d", "generalized_alpha"): "Exudyn RigidBody2D generalized-alpha",
@@ -113,8 +128,10 @@ LABELS = {
     ("exudyn_kinematictree", "dopri5"): "Exudyn KinematicTree DOPRI5",
     ("mujoco", "rk4"): "MuJoCo RK4",
     ("mujoco", "implicitfast"): "MuJoCo implicitfast",
+    ("mujoco", "implicit"): "MuJoCo implicit",
     ("mujoco_stiff", "rk4"): "MuJoCo RK4, stiffened constraint",
     ("mujoco_stiff", "implicitfast"): "MuJoCo implicitfast, stiffened constraint",
+    ("mujoco_stiff", "implicit"): "MuJoCo implicit, stiffened constraint",
 }
 
 
@@ -123,8 +140,13 @@ LABELS = {
 # --------------------------------------------------------------------------------------------
 
 
+def _links(problem: str) -> int:
+    """Rods of a chain problem (``chain8`` and ``chain8_3d``: 8)."""
+    return int(problem[5:].removesuffix("_3d"))
+
+
 def _kind(problem: str) -> str:
-    if problem.startswith("chain") and problem[5:].isdigit():
+    if problem.startswith("chain") and problem[5:].removesuffix("_3d").isdigit():
         return "chain"
     if problem == "fourbar":
         return "fourbar"
@@ -134,7 +156,7 @@ def _kind(problem: str) -> str:
 def reference(problem: str) -> np.ndarray | float:
     """Reference tip position at t = 2 (chains) or crank angle at t = 10 (four-bar)."""
     if _kind(problem) == "chain":
-        ref = load_reference(f"pendulum_chain_n{int(problem[5:])}")
+        ref = load_reference(f"pendulum_chain_n{_links(problem)}")
         return np.asarray(ref["results"]["tip_position"], dtype=float)
     return float(load_reference("parallelogram_four_bar")["results"]["phi_end"])
 
@@ -149,14 +171,9 @@ def _import(name: str):
         return None
 
 
-def _timed(run: Callable[[], tuple[float, dict]], repeat: int) -> tuple[float, dict]:
-    """Median solve time of ``repeat`` runs after a warm-up (a long warm-up counts as a run)."""
-    first, result = run()
-    times = [first] if first > LONG_RUN else []
-    while len(times) < repeat:
-        seconds, result = run()
-        times.append(seconds)
-    return statistics.median(times), result
+def _timed(run: Callable[[], tuple[float, dict]], repeat: int) -> dict:
+    """:func:`benchmarks.fair.timed`: cold first run apart, best of ``repeat`` warm runs."""
+    return fair.timed(run, repeat)
 
 
 def _row(problem: str, formulation: str, integrator: str, level: float, **values) -> dict:
@@ -195,7 +212,7 @@ def exudyn_rigidbody2d(problem: str):
     ground = mbs.AddObject(ObjectGround(referencePosition=[0.0, 0.0, 0.0]))
     half = 0.5 * LENGTH
     if _kind(problem) == "chain":
-        n = int(problem[5:])
+        n = _links(problem)
         # rod i: centre ((i + ½) L, 0), angle 0, at rest
         states = [(f"rod{i}", [(i + 0.5) * LENGTH, 0.0, 0.0], [0.0, 0.0, 0.0]) for i in range(n)]
         pins = [(None, [0.0, 0.0, 0.0], "rod0", [-half, 0.0, 0.0])]
@@ -274,11 +291,19 @@ def _exudyn_settings(exu, t_end: float, level: float, adaptive: bool, explicit: 
         ti.numberOfSteps = 1
         ti.absoluteTolerance = level
         ti.relativeTolerance = level
+        # the automatic first step (initialStepSize 0) is h_max = t_end on the chains at rest:
+        # on chain8 and chain32 DOPRI5 then "reached minStepSize" at t = 0 and took one step
+        # of 2 s (tip error 11.8, every tolerance; tables before issue 36 counted it as a
+        # run).  A first step of 1e-4 s is Exudyn's documented remedy.
+        ti.initialStepSize = 1e-4
     else:
         ti.automaticStepSize = False
         ti.numberOfSteps = round(t_end / level)
     if explicit:
         ti.explicit.computeEndOfStepAccelerations = False
+    else:
+        for key, value in EXUDYN_NEWTON.items():
+            setattr(ti.newton, key, value)
     return ss
 
 
@@ -311,8 +336,8 @@ def exudyn_generalized_alpha(problem: str, levels=None, repeat: int = 3) -> list
     start = time.perf_counter()
     _, mbs, bodies, joints, nodes = exudyn_rigidbody2d(problem)
     build = time.perf_counter() - start
-    rows = []
-    for h in levels:
+
+    def measure(h):
         ss = _exudyn_settings(exu, t_end, h, adaptive=False, explicit=False)
 
         def run(ss=ss):
@@ -343,10 +368,11 @@ def exudyn_generalized_alpha(problem: str, levels=None, repeat: int = 3) -> list
                              "setup_seconds": t1 - t0,
                              "message": f"jacobians {int(solver.it.newtonJacobiCount)}"}
 
-        rows.append(_measure(problem, key, t_end / ss.timeIntegration.numberOfSteps, run,
-                             repeat, build, "absolute",
-                             3 * len(bodies), 2 * len(joints), "Exudyn", exu.__version__))
-    return rows
+        return _measure(problem, key, t_end / ss.timeIntegration.numberOfSteps, run,
+                        repeat, build, "absolute",
+                        3 * len(bodies), 2 * len(joints), "Exudyn", exu.__version__)
+
+    return _swept(levels, measure)
 
 
 def exudyn_tree(problem: str, integrator: str = "dopri5", levels=None,
@@ -359,13 +385,13 @@ def exudyn_tree(problem: str, integrator: str = "dopri5", levels=None,
     levels = levels or LEVELS[key]["chain"]
     solver_type = {"rk44": exu.DynamicSolverType.RK44,
                    "dopri5": exu.DynamicSolverType.DOPRI5}[integrator]
-    n = int(problem[5:])
+    n = _links(problem)
     ref = reference(problem)
     start = time.perf_counter()
     _, mbs, node = exudyn_kinematic_tree(n)
     build = time.perf_counter() - start
-    rows = []
-    for level in levels:
+
+    def measure(level):
         ss = _exudyn_settings(exu, T_END["chain"], level, adaptive=integrator in ADAPTIVE,
                               explicit=True)
         ss.timeIntegration.solverType = solver_type
@@ -392,9 +418,10 @@ def exudyn_tree(problem: str, integrator: str = "dopri5", levels=None,
                              "message": f"rejected {rejected}" if rejected else ""}
 
         fixed = "" if integrator in ADAPTIVE else T_END["chain"] / ss.timeIntegration.numberOfSteps
-        rows.append(_measure(problem, key, fixed or level, run, repeat, build, "joint", n, 0,
-                             "Exudyn", exu.__version__))
-    return rows
+        return _measure(problem, key, fixed or level, run, repeat, build, "joint", n, 0,
+                        "Exudyn", exu.__version__)
+
+    return _swept(levels, measure)
 
 
 # --------------------------------------------------------------------------------------------
@@ -411,9 +438,10 @@ def _mjcf_rod() -> str:
             'contype="0" conaffinity="0"/>')
 
 
-def _mjcf(name: str, integrator: str, step: float, world: str, extra: str = "") -> str:
+def _mjcf(name: str, integrator: str, step: float, world: str, extra: str = "",
+          option: str = "") -> str:
     return (f'<mujoco model="{name}"><compiler angle="radian" inertiafromgeom="false"/>'
-            f'<option timestep="{step!r}" integrator="{integrator}" '
+            f'<option timestep="{step!r}" integrator="{integrator}"{option} '
             f'gravity="0 {-GRAVITY!r} 0"><flag contact="disable"/></option>'
             f"<worldbody>{world}</worldbody>{extra}</mujoco>")
 
@@ -430,7 +458,8 @@ def mujoco_chain_xml(n: int, integrator: str = "RK4", step: float = 1e-3) -> str
 
 
 def mujoco_fourbar_xml(integrator: str = "RK4", step: float = 1e-3,
-                       solref: str | None = None, solimp: str | None = None) -> str:
+                       solref: str | None = None, solimp: str | None = None,
+                       tolerance: str | None = None, iterations: str | None = None) -> str:
     """MJCF of the parallelogram: crank (hinge A at the origin) - coupler (hinge B) - rocker
     (hinge C), closed by ``connect`` of site ``Dr`` (rocker end) to world site ``D`` = (1, 0).
 
@@ -446,8 +475,10 @@ def mujoco_fourbar_xml(integrator: str = "RK4", step: float = 1e-3,
              f'<body name="rocker" pos="{LENGTH!r} 0 0"><joint name="C" {hinge}/>{rod}'
              f'<site name="Dr" pos="{LENGTH!r} 0 0"/></body></body></body>')
     attrs = (f' solref="{solref}"' if solref else "") + (f' solimp="{solimp}"' if solimp else "")
+    option = ((f' tolerance="{tolerance}"' if tolerance else "")
+              + (f' iterations="{iterations}"' if iterations else ""))
     return _mjcf("fourbar", integrator, step, world,
-                 f'<equality><connect site1="Dr" site2="D"{attrs}/></equality>')
+                 f'<equality><connect site1="Dr" site2="D"{attrs}/></equality>', option)
 
 
 def check_mujoco_model(model) -> None:
@@ -501,16 +532,16 @@ def mujoco_run(problem: str, integrator: str = "rk4", stiff: bool = False, level
     levels = levels or LEVELS[key][kind]
     ref = reference(problem)
     t_end = T_END[kind]
-    name = {"rk4": "RK4", "implicitfast": "implicitfast"}[integrator]
-    rows = []
-    for level in levels:
+    name = {"rk4": "RK4", "implicitfast": "implicitfast", "implicit": "implicit"}[integrator]
+
+    def measure(level):
         nstep = round(t_end / level)
         h = t_end / nstep  # the step that lands exactly on t_end
         start = time.perf_counter()
         if kind == "chain":
-            xml = mujoco_chain_xml(int(problem[5:]), name, h)
+            xml = mujoco_chain_xml(_links(problem), name, h)
         else:
-            xml = mujoco_fourbar_xml(name, h, **(STIFF if stiff else {}))
+            xml = mujoco_fourbar_xml(name, h, **(STIFF if stiff else {}), **MUJOCO_SOLVER)
         model = mujoco.MjModel.from_xml_string(xml)
         build = time.perf_counter() - start
         check_mujoco_model(model)
@@ -538,8 +569,9 @@ def mujoco_run(problem: str, integrator: str = "rk4", stiff: bool = False, level
                        3 * model.neq, "MuJoCo", mujoco.__version__)
         if kind == "fourbar" and row["status"] == "ok":
             row["drift_max"] = _mujoco_drift_max(mujoco, model, data, problem, nstep)
-        rows.append(row)
-    return rows
+        return row
+
+    return _swept(levels, measure)
 
 
 def _mujoco_drift_max(mujoco, model, data, problem: str, nstep: int) -> float:
@@ -560,14 +592,23 @@ def _mujoco_drift_max(mujoco, model, data, problem: str, nstep: int) -> float:
 # --------------------------------------------------------------------------------------------
 
 
+def _swept(levels, measure) -> list[dict]:
+    """:func:`benchmarks.fair.sweep` over ``levels``, the stop reason in every row."""
+    rows, stop = fair.sweep(levels, measure, cap=RUN_CAP)
+    for row in rows:
+        row["sweep_stop"] = stop
+    print(f"{'':8s} sweep stopped: {stop}", flush=True)
+    return rows
+
+
 def _measure(problem, key, level, run, repeat, build, coordinates, nq, nc, peer,
              version) -> dict:
     row = _row(problem, key[0], key[1], level, build_seconds=build, coordinates=coordinates,
                nq=nq, nc=nc, peer=peer, peer_version=version)
     try:
-        seconds, result = _timed(run, repeat)
+        result = _timed(run, repeat)
         row.update(result)
-        row.update({"solve_seconds": seconds, "status": "ok"})
+        row["status"] = "ok"
     except Exception as exc:  # a peer's failure is a result, recorded with its message
         row.update({"status": "failed", "message": str(exc).splitlines()[0][:200]})
     _print_row(row)
@@ -602,15 +643,16 @@ def sweep(problems, repeat: int = 3, quick: bool = False) -> list[dict]:
 
         def pick(key, kind=kind):
             levels = LEVELS[key].get(kind)
-            return (levels[:1] + levels[-2:-1] if quick and len(levels) > 2 else levels)
+            return levels[:4] if quick else levels
 
         key = ("exudyn_rigidbody2d", "generalized_alpha")
-        rows += exudyn_generalized_alpha(problem, pick(key), repeat)
+        if not problem.endswith("_3d"):
+            rows += exudyn_generalized_alpha(problem, pick(key), repeat)
         if kind == "chain":
             for integrator in ("rk44", "dopri5"):
                 rows += exudyn_tree(problem, integrator, pick(("exudyn_kinematictree",
                                                                integrator)), repeat)
-        for integrator in ("rk4", "implicitfast"):
+        for integrator in ("rk4", "implicitfast", "implicit"):
             rows += mujoco_run(problem, integrator, False, pick(("mujoco", integrator)), repeat)
             if kind == "fourbar":
                 rows += mujoco_run(problem, integrator, True,
@@ -649,17 +691,24 @@ def _fineness(row) -> float:
 def best_peer_time(rows, problem: str, error_level: float) -> tuple[float, str] | None:
     """Fastest peer time [s] reaching ``error_level`` on ``problem``, and its method.
 
-    The same rule as casmbd's tables (:func:`benchmarks.work_precision.best_time`): the
-    smallest measured solve time among the runs whose error is at most the level — no
-    interpolation between sweep points, for casmbd and peers alike.  ``None``: no run
-    reaches it.
+    The fair rule (:func:`benchmarks.fair.best_time_to_error`), the same as casmbd's tables:
+    each method's time to the level interpolated log-log along its sweep, the fastest
+    method.  ``None``: no method reaches it down to its floor.
     """
-    best = None
-    for name, points in _curves(rows, problem).items():
-        for err, sec in points:
-            if err <= error_level and (best is None or sec < best[0]):
-                best = (sec, name)
-    return best
+    return fair.best_time_to_error(_curves(rows, problem), error_level)
+
+
+def floors(rows, problem: str) -> dict[str, tuple[float, str]]:
+    """Each method's smallest error on ``problem`` and why its sweep stopped."""
+    out: dict[str, tuple[float, str]] = {}
+    for row in rows:
+        if row["problem"] != problem or row["status"] != "ok":
+            continue
+        err = float(row["error"])
+        name = label(row)
+        if name not in out or err < out[name][0]:
+            out[name] = (err, row.get("sweep_stop", ""))
+    return out
 
 
 def table(rows, problems) -> str:
@@ -676,7 +725,7 @@ def table(rows, problems) -> str:
         lines.append(f"{r['problem']:8s} {label(r):42s} {_level_text(r):11s} "
                      f"{1e3 * r['solve_seconds']:10.2f} {r['error']:9.2e} {drift} {dmax} "
                      f"{r['steps']:7d}")
-    lines += ["", "Fastest peer run reaching the error level (no interpolation):"]
+    lines += ["", "Fastest peer method at the error level (interpolated log-log):"]
     for problem in problems:
         for level in (1e-6, 1e-9):
             best = best_peer_time(rows, problem, level)
@@ -689,12 +738,16 @@ def main(argv=None) -> int:
     """Command-line entry point."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--problems", nargs="+", default=PROBLEMS, choices=PROBLEMS)
-    parser.add_argument("--repeat", type=int, default=3, help="timed runs (median), >= 3")
-    parser.add_argument("--quick", action="store_true", help="two levels per method")
+    parser.add_argument("--repeat", type=int, default=3, help="warm runs (best of), >= 3")
+    parser.add_argument("--quick", action="store_true", help="four levels per method")
+    parser.add_argument("--cap", type=float, default=fair.RUN_CAP,
+                        help="a run slower than this [s] ends its sweep")
     parser.add_argument("--csv", default=str(RESULTS / "peers.csv"))
     args = parser.parse_args(argv)
     load = os.getloadavg()
     print(f"load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}", flush=True)
+    global RUN_CAP
+    RUN_CAP = args.cap
     rows = sweep(args.problems, max(3, args.repeat), args.quick)
     if rows:
         write_csv(rows, Path(args.csv))

@@ -15,7 +15,10 @@ list and loader this reuses), in its own process:
   ``jacobian``/``computeFrameJacobian`` (``LOCAL_WORLD_ALIGNED``, the same link frame: of the
   frames both have, the one behind the most joints).  Best of ``--repeat`` repeats of ``--number``
   calls (warm: after the first calls), in µs per call; the ratio casmbd / Pinocchio is the
-  figure of the issue's target (≤ 1).
+  figure of the issue's target (≤ 1).  This is the fair per-call rule of
+  :mod:`benchmarks.fair` (casmbd through its public ``CompiledModel`` methods, as a user calls
+  them, against Pinocchio's binding); the ``--study flags`` figures go through
+  ``Function.buffer`` and are not a comparison with Pinocchio.
 
 Before timing, the two sides are checked to compute the same thing at that state (M, τ, q̈
 relative to 1e-9; a disagreement is recorded, not timed).
@@ -42,6 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks import fair
 from benchmarks.robots_vs_pinocchio import (
     _broken_mimic,
     _mimic_joints,
@@ -255,7 +259,9 @@ def measure(robots: list[str] | None = None, timeout: float = 900.0, number: int
         records.append(rec)
     return {"pinocchio_version": pin.__version__, "casadi_version": casadi.__version__,
             "machine": f"{platform.machine()}, {os.cpu_count()} CPUs (shared, under load)",
-            "number": number, "repeat": repeat, "robots": records}
+            "number": number, "repeat": repeat, "robots": records,
+            # the fair rules (benchmarks.fair): versions and load with every results file
+            "versions": fair.versions(), "load": fair.load()}
 
 
 def markdown(data: dict) -> str:

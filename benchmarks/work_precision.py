@@ -1,8 +1,9 @@
 """Work-precision harness for forward dynamics: solve time against error.
 
 For each problem × formulation × integrator × tolerance it records the wall time of the
-integration alone (median of ``--repeat`` runs; the build and the integrator set-up are reported
-apart), the error against an independent minimal-coordinate reference
+integration alone (best of ``--repeat`` warm runs, the cold first run apart: the fair rules of
+:mod:`benchmarks.fair`; the build and the integrator set-up are reported apart), the error
+against an independent minimal-coordinate reference
 (:mod:`benchmarks.references`), the constraint drift and the step counts; it writes a CSV, a
 log-log plot per problem (time against error) and, with ``--update-docs``, the section of
 ``docs/performance.md``.
@@ -43,13 +44,13 @@ from __future__ import annotations
 import argparse
 import csv
 import math
-import statistics
 import sys
 from pathlib import Path
 
 import numpy as np
 
 import casmbd
+from benchmarks import fair
 from benchmarks.chains import body_name, joint_name, pendulum_chain
 from benchmarks.peers import _curves
 from benchmarks.references import load_reference
@@ -154,20 +155,21 @@ def problem(name: str, coordinates: str = "absolute"):
 
 def run_case(sim: Simulator, integrator: str, t_end: float, tol: float, step: float | None,
              error, repeat: int) -> dict:
-    """Median solve time of ``repeat`` runs (after one warm-up) and the accuracy figures."""
-    times = []
-    res = None
-    for k in range(repeat + 1):
+    """One case under the fair rule (:func:`benchmarks.fair.timed`): the cold first run in
+    ``cold_seconds``, the best of ``repeat`` warm runs in ``solve_seconds`` (the solve alone;
+    the integrator set-up in ``setup_seconds``), and the accuracy figures."""
+
+    def run():
         res = sim.run(t_end, 1, integrator=integrator, rtol=tol, atol=tol, step=step)
-        if k:
-            times.append(res.stats["solve_seconds"])
-    return {"solve_seconds": statistics.median(times), "error": error(res),
-            "integrator": res.stats.get("integrator", integrator),
+        return res.stats["solve_seconds"], {
+            "error": error(res), "integrator": res.stats.get("integrator", integrator),
             "drift": float(res["constraint_violation"][-1]),
             "velocity_drift": float(res["velocity_violation"][-1]),
             "steps": res.stats.get("steps", 0),
             "rhs_evaluations": res.stats.get("rhs_evaluations", 0),
             "setup_seconds": res.stats.get("setup_seconds", 0.0)}
+
+    return fair.timed(run, repeat)
 
 
 def sweep(problems, methods, repeat: int, quick: bool,
@@ -202,7 +204,10 @@ def sweep(problems, methods, repeat: int, quick: bool,
             levels = STEPS[kind] if fixed else SWEEP[kind]
             if quick:
                 levels = levels[1:3]
+            errors: list[float] = []  # this method's errors so far (fair.floor_reached)
             for level in levels:
+                if fair.floor_reached(errors):
+                    break  # below 1e-9 or at its floor: finer levels add nothing
                 tol, step = (1e-8, level) if fixed else (level, None)
                 row = {"problem": pname, "coordinates": coords, "formulation": built,
                        "integrator": integrator or sim.kind.default_integrator,
@@ -218,6 +223,8 @@ def sweep(problems, methods, repeat: int, quick: bool,
                 except CasmbdError as exc:
                     row.update({"status": "failed", "message": str(exc).splitlines()[0][:200]})
                 rows.append(row)
+                if row["status"] == "ok":
+                    errors.append(row["error"])
                 write_csv(rows, RESULTS / "work_precision.partial.csv")  # survives a kill
                 label = f"h={step:.3g}" if fixed else f"tol={tol:.0e}"
                 print(f"{tag:12s} {built:21s} {row['integrator']:6s} {label:10s} "
@@ -234,7 +241,7 @@ def write_csv(rows: list[dict], path: Path) -> None:
     keys = ["problem", "coordinates", "formulation", "integrator", "tolerance", "step",
             "status", "solve_seconds", "error", "drift", "velocity_drift", "steps",
             "rhs_evaluations", "setup_seconds", "build_seconds", "nq", "nc", "message",
-            "chosen_coordinates"]
+            "chosen_coordinates", "cold_seconds", "repeats", "load"]
     with open(path, "w", newline="", encoding="utf-8") as fh:
         writer = csv.DictWriter(fh, fieldnames=keys, extrasaction="ignore")
         writer.writeheader()
@@ -249,7 +256,7 @@ def read_csv(path: Path) -> list[dict]:
         for row in csv.DictReader(fh):
             row["coordinates"] = row.get("coordinates") or "absolute"
             for key in ("tolerance", "step", "solve_seconds", "error", "drift", "velocity_drift",
-                        "setup_seconds", "build_seconds"):
+                        "setup_seconds", "build_seconds", "cold_seconds", "load"):
                 row[key] = float(row[key]) if row.get(key) not in (None, "") else ""
             for key in ("steps", "rhs_evaluations", "nq", "nc"):
                 row[key] = int(float(row[key])) if row.get(key) not in (None, "") else 0
@@ -362,8 +369,8 @@ def main(argv=None) -> int:
             if peer_rows:
                 peers.write_csv(peer_rows, Path(args.peers_csv))
     problems = [p for p in args.problems if any(r["problem"] == p for r in rows)]
-    plot(rows, problems, peer_rows)
-    if args.update_docs:
+    if args.update_docs:  # the figures belong with the docs section (a subset run to
+        plot(rows, problems, peer_rows)  # another CSV must not overwrite them)
         args_text = [a for a in (argv if argv is not None else sys.argv[1:])
                      if a != "--from-csv"]
         command = "python -m benchmarks.work_precision " + " ".join(args_text)

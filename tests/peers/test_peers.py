@@ -14,18 +14,22 @@ from benchmarks import peers
 from benchmarks.references import chain_mass_matrix, chain_rhs
 
 
-def test_best_peer_time_takes_the_fastest_run_at_or_below_the_level():
-    # one rule for casmbd and the peers (benchmarks.work_precision_docs.best_time): the smallest
-    # measured time among the runs whose error is at most the level, no interpolation
+def test_best_peer_time_interpolates_log_log_and_takes_the_fastest_method():
+    # the fair rule (benchmarks.fair.time_to_error), the same for casmbd and the peers:
+    # each method's time at the level interpolated log-log between its sweep points around
+    # it; MuJoCo at 1e-6: halfway in log error between (1e-4, 1 ms) and (1e-8, 10 ms), so
+    # 10^0.5 ms = 3.162 ms, faster than Exudyn's single point (1e-7, 5 ms)
     rows = [
         {"problem": "p", "formulation": "mujoco", "integrator": "rk4", "status": "ok",
          "step": h, "tolerance": "", "error": e, "solve_seconds": s}
         for h, e, s in [(1e-2, 1e-4, 1e-3), (1e-3, 1e-8, 1e-2)]
     ] + [{"problem": "p", "formulation": "exudyn_kinematictree", "integrator": "dopri5",
           "status": "ok", "step": "", "tolerance": 1e-6, "error": 1e-7, "solve_seconds": 5e-3}]
-    assert peers.best_peer_time(rows, "p", 1e-6) == (5e-3, "Exudyn KinematicTree DOPRI5")
+    seconds, name = peers.best_peer_time(rows, "p", 1e-6)
+    assert name == "MuJoCo RK4" and seconds == pytest.approx(10**-2.5, rel=1e-12)
     assert peers.best_peer_time(rows, "p", 1e-4) == (1e-3, "MuJoCo RK4")
-    assert peers.best_peer_time(rows, "p", 1e-8) == (1e-2, "MuJoCo RK4")
+    seconds, name = peers.best_peer_time(rows, "p", 1e-8)
+    assert name == "MuJoCo RK4" and seconds == pytest.approx(1e-2, rel=1e-12)
     assert peers.best_peer_time(rows, "p", 1e-12) is None
 
 
