@@ -159,7 +159,6 @@ def folded_outputs(system) -> ca.Function:
     groups from the folded motion; the joint coordinates (one angle difference each) are
     written out as there."""
     order = chain_order(system)
-    n = len(order)
     qm, vm, am = (ca.MX.sym(s, system.nq) for s in ("q", "v", "a"))
     tm, pm = ca.MX.sym("t"), ca.MX.sym("p", system.p.numel())
     motion = _motion(system, qm, vm, am)
