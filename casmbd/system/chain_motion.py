@@ -35,9 +35,9 @@ from casmbd.system.chain_fold import chain_order
 from casmbd.system.chain_fold import supported as fold_supported
 from casmbd.system.requests import output_groups
 
-__all__ = ["folded_energies", "folded_outputs", "supported"]
+__all__ = ["folded_energies", "folded_outputs", "motion", "supported"]
 
-_CARRY = 13  # vec(A) (4), r (2), ṙ (2), r̈ (2), θ, ω, α
+_CARRY = 17  # vec(A) (4), r (2), ṙ (2), r̈ (2), θ, ω, α, ρ = J − r_P (2), e = r − J (2)
 
 
 def supported(system) -> str | None:
@@ -85,7 +85,7 @@ def _motion_step() -> ca.Function:
     w_c, al_c = w_p + qd, al_p + qdd
     rd_c = rd_p + _cross(w_p, rho) + _cross(w_c, e)
     rdd_c = rdd_p + _cross(al_p, rho) - w_p**2 * rho + _cross(al_c, e) - w_c**2 * e
-    out = ca.vertcat(ca.vec(a_c), r_c, rd_c, rdd_c, th_p + th0 + q, w_c, al_c)
+    out = ca.vertcat(ca.vec(a_c), r_c, rd_c, rdd_c, th_p + th0 + q, w_c, al_c, rho, e)
     return ca.Function("chain_motion", [carry, data], [out])
 
 
@@ -100,8 +100,9 @@ def _joint_data(system, order) -> np.ndarray:
         [float(desc[k].angle_offset)]]) for k in order]).T
 
 
-def _motion(system, q, v, a) -> ca.MX:
-    """The bodies' motion, a column per body in chain order (rows as the carry)."""
+def motion(system, q, v, a) -> ca.MX:
+    """The bodies' motion, a column per body in chain order: rows vec(A) (0–3), r_G (4–5),
+    ṙ_G (6–7), r̈_G (8–9), θ, ω, α (10–12), ρ = J − r_P (13–14), e = r_G − J (15–16)."""
     order = chain_order(system)
     index = [system.ctx.index[name] for name in order]
     data = ca.vertcat(q[index].T, v[index].T, a[index].T, ca.DM(_joint_data(system, order)))
@@ -109,7 +110,7 @@ def _motion(system, q, v, a) -> ca.MX:
     return _motion_step().mapaccum("chain_motion_fold", len(order))(start, data)
 
 
-def _mass_rows(system, p: ca.MX) -> tuple[ca.MX, ca.MX]:
+def mass_rows(system, p: ca.MX) -> tuple[ca.MX, ca.MX]:
     """Masses and inertias of the bodies in chain order, two rows (expressions of p)."""
     order = chain_order(system)
     expr = ca.horzcat(*[ca.vertcat(*system._mass_inertia(system.mechanism.bodies[k]))
@@ -125,11 +126,11 @@ def folded_energies(system) -> tuple[ca.Function, ca.Function]:
     q, v = ca.MX.sym("q", system.nq), ca.MX.sym("v", system.nq)
     t, p = ca.MX.sym("t"), ca.MX.sym("p", system.p.numel())
     zero = ca.MX.zeros(system.nq)
-    mass, inertia = _mass_rows(system, p)
-    moving = _motion(system, q, v, zero)
+    mass, inertia = mass_rows(system, p)
+    moving = motion(system, q, v, zero)
     rd, w = moving[6:8, :], moving[11, :]
     kin = 0.5 * (ca.dot(mass, ca.sum1(rd * rd)) + ca.dot(inertia, w * w))
-    still = _motion(system, q, zero, zero)
+    still = motion(system, q, zero, zero)
     gravity = ca.DM(np.asarray(system.mechanism.gravity, float)).T
     pot = -ca.dot(mass, ca.mtimes(gravity, still[4:6, :]))
     return (ca.Function("kinetic_energy", [q, v, p], [kin], ["q", "v", "p"], ["T"]),
@@ -161,15 +162,15 @@ def folded_outputs(system) -> ca.Function:
     order = chain_order(system)
     qm, vm, am = (ca.MX.sym(s, system.nq) for s in ("q", "v", "a"))
     tm, pm = ca.MX.sym("t"), ca.MX.sym("p", system.p.numel())
-    motion = _motion(system, qm, vm, am)
+    bodies = motion(system, qm, vm, am)
     if order != list(system.body_names):  # the outputs list bodies in declaration order
-        motion = motion[:, [order.index(b) for b in system.body_names]]
+        bodies = bodies[:, [order.index(b) for b in system.body_names]]
     names, exprs = [], []
     for label, rows in (("body_", (slice(4, 6), slice(6, 8), slice(8, 10))),
                         ("angle_", (10, 11, 12))):
-        exprs += [ca.reshape(motion[r, :], -1, 1) for r in rows]
+        exprs += [ca.reshape(bodies[r, :], -1, 1) for r in rows]
         names += [label + "positions", label + "velocities", label + "accelerations"]
-    markers, marker_angles = _marker_group(system, list(system.body_names), motion) \
+    markers, marker_angles = _marker_group(system, list(system.body_names), bodies) \
         if system.mechanism.markers else ([ca.MX(0, 1)] * 3, None)
     exprs += markers
     names += ["marker_positions", "marker_velocities", "marker_accelerations"]
