@@ -15,7 +15,7 @@ Body k takes from its child (carry) the child's joint wrench at the child's join
 Calculation"; seed 004), reported with the sign of the joint's body order (the action of
 body1 on body2).  The joint torque is M_J (S = (0, 0, 1) at the joint point), so the
 column j of M is M_J of every joint for q̇ = 0, q̈ = e_j, g = 0 (Walker and Orin, 1982,
-method 1: the inverse dynamics of unit accelerations), folded over the columns.
+method 1: the inverse dynamics of unit accelerations), mapped over the columns.
 ``tests/system/test_chain_motion.py`` checks both against the unrolled Functions to 1e-12.
 """
 
@@ -82,18 +82,17 @@ def folded_reactions(system) -> ca.Function:
 
 def folded_mass_matrix(system) -> ca.Function:
     """``mass_matrix(q, p) -> M`` of a chain: the joint torques of unit accelerations
-    without gravity or rates (module notes), the column pass folded over the N columns."""
+    without gravity or rates (module notes), the column pass mapped over the N columns."""
     order = chain_order(system)
     index = [system.ctx.index[name] for name in order]
     q, p = ca.MX.sym("q", system.nq), ca.MX.sym("p", system.p.numel())
-    a = ca.MX.sym("a", system.nq)
+    j = ca.MX.sym("j")
+    # e_j built from its index at run time: a mapped identity would be stored as N²
+    # constants in the C (4.3 MB at N = 1000), and a fold over the columns takes 9 s to build
+    rows = np.arange(system.nq, dtype=float)
+    a = ca.eq(ca.DM(rows), j)
     torque = ca.MX.zeros(system.nq)
     torque[index] = _wrenches(system, q, ca.MX.zeros(system.nq), a, p, np.zeros(2))[2, :].T
-    # e_j as the carry of a fold over the columns (e_{j+1} its shift by one row): a
-    # mapped identity would be stored as N² constants in the C (4.3 MB at N = 1000)
-    shifted = ca.vertcat(ca.MX(1, 1), a[:-1])
-    column = ca.Function("chain_mass_column", [a, q, p], [shifted, torque])
-    first = ca.DM.zeros(system.nq)
-    first[0] = 1.0
-    _, m = column.mapaccum("chain_mass_columns", system.nq)(first, q, p)
+    column = ca.Function("chain_mass_column", [q, p, j], [torque])
+    m = column.map(system.nq)(q, p, ca.DM(rows).T)
     return ca.Function("mass_matrix", [q, p], [m], ["q", "p"], ["M"])
