@@ -49,12 +49,13 @@ def _backward_step(gravity: np.ndarray) -> ca.Function:
                         sign * ca.vertcat(force, moment_j)])
 
 
-def _wrenches(system, q, v, a, p, gravity) -> ca.MX:
-    """The joint wrenches (F_x, F_y, M_J), a column per body in chain order, with signs."""
+def _wrenches(system, q, v, a, p, gravity, signed: bool = True) -> ca.MX:
+    """The joint wrenches (F_x, F_y, M_J), a column per body in chain order: the action of
+    the parent on the body, or with ``signed`` of each joint's body1 on its body2."""
     order = chain_order(system)
     mech = system.mechanism
-    sign = [1.0 if mech.joints[system.descriptions[b].joint.name].body2 == b else -1.0
-            for b in order]
+    sign = [1.0 if not signed or mech.joints[system.descriptions[b].joint.name].body2 == b
+            else -1.0 for b in order]
     moving = motion(system, q, v, a)
     mass, inertia = mass_rows(system, p)
     data = ca.vertcat(mass, inertia, moving[8:10, :], moving[12, :], moving[13:17, :],
@@ -92,7 +93,8 @@ def folded_mass_matrix(system) -> ca.Function:
     rows = np.arange(system.nq, dtype=float)
     a = ca.eq(ca.DM(rows), j)
     torque = ca.MX.zeros(system.nq)
-    torque[index] = _wrenches(system, q, ca.MX.zeros(system.nq), a, p, np.zeros(2))[2, :].T
+    torque[index] = _wrenches(system, q, ca.MX.zeros(system.nq), a, p, np.zeros(2),
+                              signed=False)[2, :].T
     column = ca.Function("chain_mass_column", [q, p, j], [torque])
     m = column.map(system.nq)(q, p, ca.DM(rows).T)
     return ca.Function("mass_matrix", [q, p], [m], ["q", "p"], ["M"])
