@@ -90,13 +90,18 @@ def _irregular_chain(n: int) -> System:
 
     mech = Mechanism("irregular", gravity=(0.3, -9.81))
     mech.coordinates = "joint"
+    mech.add_parameter("m_mid", 1.3)
+    mech.add_parameter("j_mid", 0.2)
     rng = np.random.default_rng(11)
     joint, parent = np.zeros(2), "ground"
     for k in range(n):
         length, angle = rng.uniform(0.5, 1.5), rng.uniform(-1.0, 1.0)
         axis = np.array([np.cos(angle), np.sin(angle)])
         centre = joint + 0.5 * length * axis
-        mech.add_body(f"b{k}", mass=rng.uniform(0.5, 2.0), inertia=rng.uniform(0.05, 0.3),
+        mass, inertia = rng.uniform(0.5, 2.0), rng.uniform(0.05, 0.3)
+        if k == n // 2:  # the mass and inertia of one body are parameters
+            mass, inertia = "2 * m_mid", "j_mid"
+        mech.add_body(f"b{k}", mass=mass, inertia=inertia,
                       position=tuple(centre), angle=float(rng.uniform(-0.5, 0.5)),
                       reference_point=tuple(centre + 0.1 * axis))
         bodies = (f"b{k}", parent) if k % 3 == 2 else (parent, f"b{k}")
@@ -109,14 +114,16 @@ def _irregular_chain(n: int) -> System:
 
 def test_irregular_chain_folds_to_the_same_numbers():
     """Outputs, T, V, reactions and M of an irregular 12-body chain (see _irregular_chain:
-    the per-body data differ, reaction signs follow each joint's body order) equal the
+    the per-body data differ, reaction signs follow each joint's body order, one body's
+    mass and inertia are parameters, evaluated away from their defaults) equal the
     unrolled Functions to 1e-12."""
     system = _irregular_chain(12)
     assert chain_motion.supported(system) is None
     unrolled = system.outputs_function()
     folded = chain_motion.folded_outputs(system)
     kin, pot = chain_motion.folded_energies(system)
-    p, u, lam = system.parameter_values, np.zeros(system.u.numel()), np.zeros(system.nc)
+    p, u, lam = 1.5 * system.parameter_values, np.zeros(system.u.numel()), np.zeros(system.nc)
+    assert p.size == 2
     q, v, a = (np.random.default_rng(2).uniform(-2.0, 2.0, system.nq) for _ in range(3))
     for name, got, want in zip(unrolled.name_out(), folded(q, v, a, 0.0, p),
                                unrolled(q, v, a, 0.0, p)):
