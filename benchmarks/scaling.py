@@ -781,45 +781,55 @@ runs at loads 4-8, so compare rows of one run, and the *CPU* columns.
   the code of before issue 36) are the same chain in the same run. The right-hand side's C
   is 0.34 MB at N = 1000 (mostly index tables) instead of 5.7 MB, compiled at `-O2` in
   about 2 s of CPU; the solve no longer runs `-O0` code.
-* *Folded against unrolled* (rows *O2* and *unrolled* of the same run, loads 3.3-4.0;
-  *unrolled* is `fold=False` with this issue's translation-unit rule): at N = 100, 300 and
-  1000 the folded chain builds in 2.9 / 8.9 / 29.6 s against 12.0 / 21.8 / 38.2 s
-  (processor time 2.6 / 6.9 / 26.2 s against 9.2 / 17.6 / 33.2 s). Its right-hand side costs
-  0.17-0.18 µs per body and call at every N (17.8 / 54.5 / 168.6 µs) against 9.9 / 19.4 /
-  519 µs unrolled: where gcc can still optimise the unrolled code (`-O2` below 1 MB of C,
-  `-O1` to 3 MB) it is 1.8-2.8× faster per call, because each body's constants are folded
-  into it, while at N = 1000 it is `-O0` and 3.1× slower (solve 0.092 s against 0.203 s).
-  The fold starts at 32 rods (`FOLD_MIN_BODIES`; per call, in one process: 2.0× the
-  unrolled cost at 8 rods, 0.95× at 32).
-* *Target "cold build + compile ≤ 10 s" at N = 1000: missed, by 3.0×* (29.6 s at load 3.8;
-  26.2 s of processor time). What is left is not the dynamics (its unit, the folded
-  right-hand side with DOPRI5's compiled block, is 0.34 MB of C at `-O2`): the compile time
-  is the `-O0` translation units of the functions that are still unrolled body by body —
-  the outputs (4.0 MB of C), the joint reactions (3.8 MB), the mass matrix's mapped columns
-  (2.1 MB), `post` with the energies (1.3 MB), the kinetic (1.0 MB) and potential (0.3 MB)
-  energy: 12.9 MB of the 13.6 MB; and the 5 s of symbolic build is the System's tree
-  kinematics and those same expressions. Meeting 10 s needs them folded as the recursion
-  is (the outputs and energies as a per-body Function mapped over the bodies, the reactions
-  as the Newton–Euler inward fold, M by a composite-rigid-body fold) or not compiled at all
-  (the virtual machine: each of them serialises to 12 MB and takes 0.35 s to load again,
-  which the cached process would pay); not done in this issue.
+* *The rest of the chain's model folded too* (this issue, branch h-fold2): the outputs
+  (positions, velocities, accelerations of the bodies and the tip marker, angles) from one
+  per-body forward-kinematics step folded root to tip, the kinetic and potential energies
+  (their own Functions and `post`'s) as sums over those columns
+  (`casmbd/system/chain_motion.py`), the joint reactions by a backward Newton–Euler pass
+  folded tip to root and the mass matrix (read once per run by the start check
+  `check_mass_matrix`) as that pass on unit accelerations mapped over its columns
+  (`casmbd/system/chain_reactions.py`); each equals the body-by-body Function to 1e-12
+  (tests/system/test_chain_motion.py). The C of the 1000-rod model is 1.8 MB instead of
+  13.6 MB, and the symbolic build 0.47 s instead of 4.9 s (the System's expressions are no
+  longer written out).
+* *Folded against unrolled* (rows *O2* and *unrolled* of the same run, loads 2.4-3.2;
+  *unrolled* is `fold=False`: every Function body by body, the code of before issue 36): at
+  N = 100, 300 and 1000 the folded chain builds in 1.1 / 1.6 / 4.9 s against
+  11.9 / 20.4 / 20.2 s (processor time 1.5 / 2.0 / 5.0 s against 9.1 / 18.7 / 32.2 s; the
+  unrolled 1000-rod build compiles its `-O0` units on both cores). With only the right-hand
+  side folded (the previous run of this table, loads 3.3-4.0) the folded chain built in
+  2.9 / 8.9 / 29.6 s (processor time 2.6 / 6.9 / 26.2 s). Its right-hand side costs 9.0 /
+  41.9 / 98.7 µs against 8.0 / 15.7 / 237 µs unrolled: where gcc can still optimise the
+  unrolled code (`-O2` below 1 MB of C, `-O1` to 3 MB) it is faster per call, because each
+  body's constants are folded into it, while at N = 1000 it is `-O0` and 2.4× slower. The
+  fold starts at 32 rods (`FOLD_MIN_BODIES`).
+* *Target "cold build + compile ≤ 10 s" at N = 1000: met* (4.9 s at load 2.5, 5.0 s of
+  processor time: symbolic 0.47 s, codegen 0.25 s, compile 4.2 s). What the compiler still
+  gets is the folds' call tables (CasADi's `mapaccum` writes one call per body: 1.8 MB of C
+  for the right-hand side, DOPRI5's block, `post`, the outputs, reactions, M and energies).
+  Only a planar serial chain of revolute joints loaded by gravity is folded; other trees
+  (branches, spatial joints, force elements, actuators, output requests) are still written
+  body by body.
 * *Target "cached second process ≤ 0.5 s" at N = 1000: met* — the whole `python -c`
   process (interpreter, imports, the chain, the `Simulator` from the model record: no System
   and no SX expression is built, tests/compiled/test_cached_process.py counts them) takes
-  0.42 s of wall time and 0.31 s of processor time (the N = 1000 row; 0.25-0.36 s at the
-  smaller sizes). The simulator's imports no longer load scipy (0.2 s: scipy.sparse and
+  0.35 s of wall time and 0.28 s of processor time (the N = 1000 row; 0.42 / 0.31 s in the
+  previous run at load 3.8; 0.21-0.23 s at the smaller sizes). The simulator's imports no
+  longer load scipy (0.2 s: scipy.sparse and
   scipy.linalg are imported on first use through `casmbd/lazy.py`). The issue's 1.9 s was a
   process with a run: one-off, `Simulator(chain).run(0.5, 50)` in a new process on the cache
   takes 1.1-1.6 s of wall time at load 3 (1.8-1.9 s before this issue at the same load):
   the solve 0.12-0.2 s, the post-processing of the outputs 0.4 s, the start checks 0.3 s
   (`check_mass_matrix`: M of the 1000-rod chain by 1000 mapped columns and its
-  factorisation) — outside this target; scipy.optimize (0.3 s to import) is now imported
+  factorisation; with the folded M one-off 0.7 s at load 2.5: two evaluations of 0.22 s and
+  a dense Cholesky) — outside this target; scipy.optimize (0.3 s to import) is now imported
   only when a near-singular passage is refined.
 * *Target "solve growth ≤ N^1.1"*: the fit over 10-1000 above mixes the unrolled code at
   10 rods with the folded code from 32 on and the shorter horizon from 300 on; over the
-  folded sizes 32-1000 the solve seconds per simulated second grow like N^1.07 (RHS N^0.98,
-  steps N^-0.61 with the horizon change), over 100-1000 like N^0.87: met there, not over
-  the whole range.
+  folded sizes 32-1000 the solve seconds per simulated second grew like N^1.07 in the
+  previous run (RHS N^0.98, steps N^-0.61 with the horizon change) and N^1.27 in this one
+  (100-1000: N^1.06; the solve columns are single median-of-3 runs on shared cores, and the
+  N = 300 solve took 0.0098 s here against 0.034 s before): not met over the whole range.
 * *The tree reactions' build was O(N²)*: for every body it scanned every joint for constraint
   rows, also with none (268 k generator steps at N = 300); it now returns at once without
   constraint equations.

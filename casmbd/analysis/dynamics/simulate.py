@@ -49,6 +49,7 @@ from casmbd.analysis.integrators.stiffness_culprit import (
     diagnose_stiffness,
 )
 from casmbd.compiled.build import compile_model
+from casmbd.compiled.model import NEEDS
 from casmbd.errors import AnalysisError, CasmbdError, IntegratorError, UnknownMethodError
 from casmbd.interrupts import reraise_interrupt
 from casmbd.limits import check_steps
@@ -205,9 +206,16 @@ class Simulator(Stepping, CachedBuild):
         hot = [f.name() for f in [*self.formulation.functions, *steps]]
         # q̈ of an unconstrained ODE from its own right-hand side: no M, Q_e, Q_v compiled
         needs = "ode_dynamics" if ode is not None and system.nc == 0 else "dynamics"
+        # the formulation's stand-ins for the System's own (a long chain's folded outputs)
+        own = {f.name(): f for f in self.kind.model_functions(
+            system, **dict(formulation_options or {}))}
+        needs = [n for n in NEEDS[needs] if n not in own]
+        energies = (own["kinetic_energy"], own["potential_energy"]) \
+            if "kinetic_energy" in own else None
         self.model = compile_model(system, needs, mode=mode,
-                                   extra=[*self.formulation.functions, *steps,
-                                          post_processing(system, u_expr, ode), self.ufun],
+                                   extra=[*self.formulation.functions, *steps, *own.values(),
+                                          post_processing(system, u_expr, ode, energies),
+                                          self.ufun],
                                    hot=self.kind.hot_functions(hot))  # per step: -O2
         self.system = system
         self.dyn = self.model.function(self.formulation.function.name())

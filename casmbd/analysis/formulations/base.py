@@ -107,6 +107,11 @@ class FormulationKind:
         form.name = self.name
         return form
 
+    def model_functions(self, system: System, **options) -> list[ca.Function]:
+        """Functions that stand in for the System's own of the same names in the compiled
+        model (the folded outputs and energies of a long chain); none by default."""
+        return []
+
     def initial_algebraic(self, a: np.ndarray, lam: np.ndarray) -> np.ndarray:
         """The algebraic state z at a consistent start with accelerations ``a`` and
         multipliers ``lam``: (q̈, λ) for a DAE, empty otherwise."""

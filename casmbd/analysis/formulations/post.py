@@ -10,7 +10,8 @@ from casmbd.system.equations import System
 
 
 def post_processing(system: System, inputs: ca.SX | None = None,
-                    dynamics: ca.Function | None = None) -> ca.Function:
+                    dynamics: ca.Function | None = None,
+                    energies: tuple[ca.Function, ca.Function] | None = None) -> ca.Function:
     """q̈, λ from the sparse KKT system and diagnostics, for mapped evaluation at outputs.
 
     ``post(q, v, t, p) -> (a, lambda, residual, T, V, C_max, Cdot_max)``: the KKT system of
@@ -22,10 +23,12 @@ def post_processing(system: System, inputs: ca.SX | None = None,
     without constraint equations — q̈ is the second half of ẋ = (q̇, q̈) instead of the solve
     of M q̈ = Q (the same accelerations; the residual is 0): no joint-space M enters the
     code, which stays O(N) with the articulated-body recursion (the dense M and its QR made
-    the 300-rod chain's ``post`` 15.7 MB of C).
+    the 300-rod chain's ``post`` 15.7 MB of C).  ``energies``: ``kinetic_energy(q, v, p)``
+    and ``potential_energy(q, t, p)`` Functions to use there instead of the System's own
+    expressions (a long chain's folded sums, :mod:`casmbd.system.chain_motion`).
     """
     if dynamics is not None and system.nc == 0:
-        return _post_from_dynamics(system, dynamics)
+        return _post_from_dynamics(system, dynamics, energies)
     t, q, v, p = symbolic_arguments(system)
     # reaction-proportional joint friction: Q_e at N = 0 here and a NaN residual, so that
     # every output time is recomputed by the numeric fixed point of λ and N
@@ -58,14 +61,19 @@ def post_processing(system: System, inputs: ca.SX | None = None,
                        ["a", "lambda", "residual", "T", "V", "C_max", "Cdot_max"])
 
 
-def _post_from_dynamics(system: System, dynamics: ca.Function) -> ca.Function:
+def _post_from_dynamics(system: System, dynamics: ca.Function,
+                        energies: tuple[ca.Function, ca.Function] | None = None
+                        ) -> ca.Function:
     """``post`` of an unconstrained system with q̈ from its ODE right-hand side."""
     t, q, v, p = symbolic_arguments(system)
-    parts = ca.Function("post_parts", [q, v, t, p],
-                        [system.kinetic_energy, system.potential_energy])
     qm, vm, tm, pm = (ca.MX.sym(name, s.sparsity()) for name, s in
                       (("q", q), ("v", v), ("t", t), ("p", p)))
-    kin, pot = parts(qm, vm, tm, pm)
+    if energies is not None:
+        kin, pot = energies[0](qm, vm, pm), energies[1](qm, tm, pm)
+    else:
+        parts = ca.Function("post_parts", [q, v, t, p],
+                            [system.kinetic_energy, system.potential_energy])
+        kin, pot = parts(qm, vm, tm, pm)
     xdot = dynamics(tm, ca.vertcat(qm, vm), ca.MX(0, 1), pm, ca.MX(0, 1))[0]
     zero = ca.MX(1, 1)
     return ca.Function("post", [qm, vm, tm, pm],
