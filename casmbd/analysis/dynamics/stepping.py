@@ -17,9 +17,17 @@ from casmbd.analysis.instant.kkt import project_velocities
 from casmbd.analysis.integrators import fixed_step as fixed
 from casmbd.analysis.integrators import kinds as integ
 from casmbd.analysis.integrators import sundials as sun
+from casmbd.compiled.build import compile_blocks
 from casmbd.compiled.model import c_symbol_name
 from casmbd.errors import IntegratorError
 from casmbd.interrupts import reraise_interrupt
+
+#: the largest ODE (states) whose SUNDIALS Newton methods get the exact compiled Jacobian:
+#: measured (CVODES-BDF at rtol = atol = 1e-7, docs/performance.md "Integrator steps against
+#: the right-hand side"), chain8 (16 states) 5.4 -> 3.1 µs per right-hand side, but chain32
+#: (64 states) 67 -> 76 µs: the Jacobian of the 32-rod articulated-body recursion by CasADi's
+#: AD (250 000 operations expanded) costs more than 64 finite-difference calls
+NEWTON_JACOBIAN_MAX = 32
 
 
 class Stepping:
@@ -29,11 +37,35 @@ class Stepping:
         p = self.model.p
         return p if t_k is None else np.append(p, t_k)
 
+    def sundials_dynamics(self, name: str):
+        """The compiled dynamics the SUNDIALS method ``name`` integrates.
+
+        A Newton method (CVODES-BDF, IDAS) on an ODE formulation of at most
+        :data:`NEWTON_JACOBIAN_MAX` states gets the dynamics compiled with their exact
+        Jacobian ``jac_<name>`` = ∂(ẋ, …)/∂(t, x, z, p, u) (CasADi's AD of the formulation's
+        Function), in a library of its own built on first use and cached like the model's:
+        the Newton matrix I − γ ∂f/∂x is then formed from one call instead of finite
+        differences of the right-hand side.  Adams (functional iteration) never asks for a
+        Jacobian, and the DAE formulations compile theirs with the model: both use
+        ``self.dyn``.
+        """
+        kind = integ.INTEGRATORS.get(name)
+        if not getattr(kind, "newton", False) or self._mode == "vm" \
+                or self.formulation.kind != "ode" or self.dyn.nnz_in(1) > NEWTON_JACOBIAN_MAX:
+            return self.dyn
+        if "newton_dyn" not in self._solvers:
+            f = self.formulation.function
+            prefix = c_symbol_name(f"{self.model.name}_newton")
+            functions, _ = compile_blocks([f, f.jacobian()], prefix, mode=self._mode,
+                                          hot=[f.name(), f"jac_{f.name()}"])
+            self._solvers["newton_dyn"] = functions[f.name()]
+        return self._solvers["newton_dyn"]
+
     def _clocked_sundials(self, name, grid, rtol, atol, max_steps):
         """The one-call SUNDIALS integrator on dynamics with a progress clock
         (:func:`casmbd.progress.integrator_clock`: same steps, same numbers), and the clock;
         None when the dynamics have quadratures of their own."""
-        clocked = progress.integrator_clock(self.dyn, grid[1:])
+        clocked = progress.integrator_clock(self.sundials_dynamics(name), grid[1:])
         if clocked is None:
             return None
         dyn, clock = clocked
@@ -188,14 +220,14 @@ class Stepping:
             if len(kept) <= 1:  # failed in the first interval (or at its start)
                 return np.asarray(x0, float)[None, :], {}
             try:
-                solver = sun.sundials(self.dyn, name, grid[0], kept[1:], rtol, atol,
-                                        max_steps)
+                solver = sun.sundials(self.sundials_dynamics(name), name, grid[0],
+                                      kept[1:], rtol, atol, max_steps)
                 res = solver(x0=x0, z0=z0, p=self.model.p)
                 return np.vstack([x0, np.asarray(res["xf"]).T]), {}
             except RuntimeError as exc:
                 reraise_interrupt(exc)
         interval = grid[1] - grid[0]
-        shifted = integ.shifted(self.dyn)
+        shifted = integ.shifted(self.sundials_dynamics(name))
         xs = [np.asarray(x0, float)]
         x, z = xs[0], z0
         stats: dict = {}
