@@ -9,6 +9,7 @@ outputs before a failure.
 
 from __future__ import annotations
 
+import casadi as ca
 import numpy as np
 
 from casmbd import progress
@@ -22,11 +23,13 @@ from casmbd.compiled.model import c_symbol_name
 from casmbd.errors import IntegratorError
 from casmbd.interrupts import reraise_interrupt
 
-#: the largest ODE (states) whose SUNDIALS Newton methods get the exact compiled Jacobian:
-#: measured (CVODES-BDF at rtol = atol = 1e-7, docs/performance.md "Integrator steps against
-#: the right-hand side"), chain8 (16 states) 5.4 -> 3.1 µs per right-hand side, but chain32
-#: (64 states) 67 -> 76 µs: the Jacobian of the 32-rod articulated-body recursion by CasADi's
-#: AD (250 000 operations expanded) costs more than 64 finite-difference calls
+#: the largest ODE (states) whose SUNDIALS Newton methods get the exact compiled Jacobian;
+#: larger ones get forward differences of the compiled right-hand side.  Measured (CVODES-BDF
+#: at rtol = atol = 1e-7, docs/performance.md "Integrator steps against the right-hand
+#: side"): chain8 (16 states) 5.3 µs per right-hand side with central differences, 3.7 with
+#: forward differences, 3.2 exact; chain32 (64 states) 66, 26 and 76 µs: the Jacobian of the
+#: 32-rod articulated-body recursion by CasADi's AD (250 000 operations expanded) costs more
+#: than 65 calls of the right-hand side, and compiles in 8.6 s (100 rods: 7.8 s)
 NEWTON_JACOBIAN_MAX = 32
 
 
@@ -45,14 +48,18 @@ class Stepping:
         Jacobian ``jac_<name>`` = ∂(ẋ, …)/∂(t, x, z, p, u) (CasADi's AD of the formulation's
         Function), in a library of its own built on first use and cached like the model's:
         the Newton matrix I − γ ∂f/∂x is then formed from one call instead of finite
-        differences of the right-hand side.  Adams (functional iteration) never asks for a
+        differences of the right-hand side.  A larger ODE gets forward differences of the
+        compiled right-hand side (:meth:`_forward_difference_dynamics`; its exact Jacobian
+        costs more than nx + 1 calls).  Adams (functional iteration) never asks for a
         Jacobian, and the DAE formulations compile theirs with the model: both use
         ``self.dyn``.
         """
         kind = integ.INTEGRATORS.get(name)
-        if not getattr(kind, "newton", False) or self._mode == "vm" \
-                or self.formulation.kind != "ode" or self.dyn.nnz_in(1) > NEWTON_JACOBIAN_MAX:
+        if not getattr(kind, "newton", False) or not self.dyn.is_a("External") \
+                or self.kind.kind != "ode":
             return self.dyn
+        if self.dyn.nnz_in(1) > NEWTON_JACOBIAN_MAX:
+            return self._forward_difference_dynamics()
         if "newton_dyn" not in self._solvers:
             f = self.formulation.function
             prefix = c_symbol_name(f"{self.model.name}_newton")
@@ -60,6 +67,23 @@ class Stepping:
                                           hot=[f.name(), f"jac_{f.name()}"])
             self._solvers["newton_dyn"] = functions[f.name()]
         return self._solvers["newton_dyn"]
+
+    def _forward_difference_dynamics(self):
+        """The model's compiled dynamics loaded again with forward differences (one call per
+        state and one at the point: nx + 1 calls a Jacobian) instead of CasADi's default
+        central differences: on chain32 (64 states) CVODES-BDF 60 → 24 ms a run, the same
+        steps; else ``self.dyn``."""
+        if "forward_dyn" not in self._solvers:
+            fname, found = self.dyn.name(), self.dyn
+            for library in self.model.report.libraries or ():
+                try:
+                    found = ca.external(fname, library, {"enable_fd": True,
+                                                         "fd_method": "forward"})
+                    break
+                except RuntimeError:  # a split model: the function is in another library
+                    continue
+            self._solvers["forward_dyn"] = found
+        return self._solvers["forward_dyn"]
 
     def _clocked_sundials(self, name, grid, rtol, atol, max_steps):
         """The one-call SUNDIALS integrator on dynamics with a progress clock

@@ -115,3 +115,24 @@ def test_run_with_exact_jacobian_matches_finite_difference_path(chain, plugin):
     nq = chain.model.nq
     assert np.max(np.abs(res["q"][-1] - xs[:nq, -1])) <= RUN_TOL
     assert np.max(np.abs(res["v"][-1] - xs[nq:, -1])) <= RUN_TOL
+
+
+def test_larger_odes_get_forward_differences(monkeypatch):
+    """Above NEWTON_JACOBIAN_MAX states (lowered here to 4 for the 6-state chain) the Newton
+    matrix is forward differences of the compiled right-hand side (nx + 1 calls, not CasADi's
+    default central differences), and the run ends within RUN_TOL of the exact-Jacobian run."""
+    from casmbd.analysis.dynamics import stepping
+
+    exact = Simulator(_chain3()).run(2.0, 4, integrator="cvodes", rtol=1e-10, atol=1e-10)
+    monkeypatch.setattr(stepping, "NEWTON_JACOBIAN_MAX", 4)
+    sim = Simulator(_chain3())
+    dyn = sim.sundials_dynamics("cvodes")
+    assert dyn is not sim.dyn and dyn.name() == sim.dyn.name()
+    solver = sun.sundials(dyn, "cvodes", 0.0, [0.1], 1e-8, 1e-8, 1000)
+    g = solver.get_function("jacF")
+    kinds = {g.instruction_MX(i).which_function().class_name()
+             for i in range(g.n_instructions()) if g.instruction_MX(i).op() == ca.OP_CALL}
+    assert "ForwardDiff" in kinds and "CentralDiff" not in kinds, kinds
+    res = sim.run(2.0, 4, integrator="cvodes", rtol=1e-10, atol=1e-10)
+    assert np.max(np.abs(res["q"][-1] - exact["q"][-1])) <= RUN_TOL
+    assert np.max(np.abs(res["v"][-1] - exact["v"][-1])) <= RUN_TOL
