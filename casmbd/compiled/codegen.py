@@ -258,15 +258,10 @@ def _load(names: list[str], library: pathlib.Path) -> dict[str, casadi.Function]
     """Load every function of ``names`` from ``library`` with :func:`casadi.external`.
 
     A function compiled together with its ``jac_<name>`` companion gets exact Jacobians from
-    it: it is loaded without ``enable_fd``, because CasADi prefers finite differences over the
-    library's ``jac_<name>`` when ``enable_fd`` is set (a SUNDIALS Newton matrix is then
-    ``fwd16_<name>`` by central differences, 2 × 16 calls a block).  Otherwise derivatives
-    fall back to finite differences (``enable_fd``), which integrators need only to set
-    themselves up when no Newton iteration is used.
+    it; otherwise derivatives fall back to finite differences (``enable_fd``), which
+    integrators need only to set themselves up when no Newton iteration is used.
     """
-    return {fname: casadi.external(fname, str(library),
-                                   {"enable_fd": f"jac_{fname}" not in names})
-            for fname in names}
+    return {fname: casadi.external(fname, str(library), {"enable_fd": True}) for fname in names}
 
 
 def _run_compiler(command: list[str], source: pathlib.Path | list[pathlib.Path],

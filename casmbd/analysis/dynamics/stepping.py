@@ -51,8 +51,10 @@ class Stepping:
         differences of the right-hand side.  A larger ODE gets forward differences of the
         compiled right-hand side (:meth:`_forward_difference_dynamics`; its exact Jacobian
         costs more than nx + 1 calls).  Adams (functional iteration) never asks for a
-        Jacobian, and the DAE formulations compile theirs with the model: both use
-        ``self.dyn``.
+        Jacobian: it uses ``self.dyn``; so do the DAE formulations, whose compiled
+        ``jac_<name>`` the model's library loads with ``enable_fd`` (central differences:
+        with their exact Jacobian index1 on IDAS gives up elsewhere at singular poses,
+        tests/analysis/formulations/test_singular_chains.py).
         """
         kind = integ.INTEGRATORS.get(name)
         if not getattr(kind, "newton", False) or not self.dyn.is_a("External") \
@@ -63,9 +65,12 @@ class Stepping:
         if "newton_dyn" not in self._solvers:
             f = self.formulation.function
             prefix = c_symbol_name(f"{self.model.name}_newton")
-            functions, _ = compile_blocks([f, f.jacobian()], prefix, mode=self._mode,
-                                          hot=[f.name(), f"jac_{f.name()}"])
-            self._solvers["newton_dyn"] = functions[f.name()]
+            functions, report = compile_blocks([f, f.jacobian()], prefix, mode=self._mode,
+                                               hot=[f.name(), f"jac_{f.name()}"])
+            # without enable_fd: with it CasADi prefers central differences (fwd16_<name> by
+            # CentralDiff) to the library's jac_<name>
+            self._solvers["newton_dyn"] = functions[f.name()] if report.library is None \
+                else ca.external(f.name(), report.library)
         return self._solvers["newton_dyn"]
 
     def _forward_difference_dynamics(self):
