@@ -246,18 +246,38 @@ def _rk4_cpu(sim, t_end: float, repeat: int) -> dict:
     return {"us_eval": 1e6 * seconds / (4 * count), "evals": 4 * count, "steps": count}
 
 
-def _sundials_cpu(sim, name: str, t_end: float, repeat: int) -> dict:
-    """Processor µs per right-hand side of the CasADi SUNDIALS integrator ``name`` called
-    directly over [0, t_end] at rtol = atol = TOL, and the share of its time in Jacobians."""
+def _jacobian_kind(dyn, name: str) -> str:
+    """How the integrator ``name`` forms its Newton matrix from ``dyn``."""
     from casmbd.analysis.integrators import sundials as sun
 
-    solver = sun.sundials(sim.dyn, name, 0.0, [t_end], TOL, TOL, 10 ** 6)
+    kind = sun.integrator_kind(name)
+    if not getattr(kind, "newton", False):
+        return "none"
+    g = ca.integrator("jacobian_kind", kind.plugin, dyn, 0.0, [1.0],
+                      dict(kind.options)).get_function("jacF")
+    called = {g.instruction_MX(i).which_function().class_name()
+              for i in range(g.n_instructions()) if g.instruction_MX(i).op() == ca.OP_CALL}
+    return "central differences" if "CentralDiff" in called else \
+        "forward differences" if "ForwardDiff" in called else "exact"
+
+
+def _sundials_cpu(sim, name: str, t_end: float, repeat: int, previous: bool = False) -> dict:
+    """Processor µs per right-hand side of the CasADi SUNDIALS integrator ``name`` called
+    directly over [0, t_end] at rtol = atol = TOL, and the share of its time in Jacobians;
+    on the dynamics ``Simulator`` gives that method (``sundials_dynamics``: exact or
+    forward-difference Jacobians), or with ``previous`` on the model's dynamics as loaded
+    (CasADi's central differences, the path before issue 36 item 4)."""
+    from casmbd.analysis.integrators import sundials as sun
+
+    dyn = sim.dyn if previous else sim.sundials_dynamics(name)
+    solver = sun.sundials(dyn, name, 0.0, [t_end], TOL, TOL, 10 ** 6)
     x0 = np.concatenate([sim.model.initial_coordinates(), sim.model.initial_velocities()])
     z0, p = np.zeros(sim.dyn.nnz_in(2)), sim.model.p  # ODE formulations: no z
     seconds = _fastest(lambda: solver(x0=x0, z0=z0, p=p), repeat, 0.0, time.thread_time)
     st = solver.stats()
     evals = int(st.get("n_call_daeF") or st.get("nfevals"))
     return {"us_eval": 1e6 * seconds / evals, "evals": evals, "steps": int(st["nsteps"]),
+            "ms_run": 1e3 * seconds, "jacobian": _jacobian_kind(dyn, name),
             "jacobians": int(st.get("n_call_jacF", 0)),
             "jacobian_share": float(st.get("t_proc_jacF", 0.0)) / seconds}
 
@@ -295,11 +315,13 @@ def per_evaluation(repeat: int, problems=EVAL_PROBLEMS) -> list[dict]:
         paths["dopri5"] = _dopri_cpu(sim, t_end, repeat)
         paths["dopri5 previous"] = _dopri_cpu(sim, t_end, repeat, previous=True)
         paths["rk4"] = _rk4_cpu(sim, t_end, repeat)
-        for plugin in ("adams", "cvodes", "idas"):
+        for plugin, previous in (("adams", False), ("cvodes", False), ("cvodes", True),
+                                 ("idas", False), ("idas", True)):
+            key = f"{plugin} previous" if previous else plugin
             try:
-                paths[plugin] = _sundials_cpu(sim, plugin, t_end, repeat)
+                paths[key] = _sundials_cpu(sim, plugin, t_end, repeat, previous)
             except (RuntimeError, ValueError) as exc:  # e.g. IDAS on an ODE without z
-                paths[plugin] = {"error": str(exc).splitlines()[-1][:120]}
+                paths[key] = {"error": str(exc).splitlines()[-1][:120]}
         paths["dopri5 Simulator.run"] = _run_cpu(sim, t_end, repeat, integrator="dopri5",
                                                   rtol=TOL, atol=TOL)
         paths["rk4 Simulator.run"] = _run_cpu(sim, t_end, repeat, integrator="rk4",
@@ -434,7 +456,9 @@ def markdown(data: dict) -> str:
 
 #: the columns of the per-evaluation table: (path key, heading)
 EVAL_COLUMNS = (("dopri5", "DOPRI5"), ("dopri5 previous", "DOPRI5 before"), ("rk4", "RK4"),
-                ("adams", "Adams"), ("cvodes", "CVODES (BDF)"), ("idas", "IDAS"),
+                ("adams", "Adams"), ("cvodes", "CVODES (BDF)"),
+                ("cvodes previous", "CVODES before"), ("idas", "IDAS"),
+                ("idas previous", "IDAS before"),
                 ("dopri5 Simulator.run", "DOPRI5 `run`"), ("rk4 Simulator.run", "RK4 `run`"))
 
 
@@ -463,18 +487,26 @@ def per_eval_markdown(rows: list[dict]) -> list[str]:
         "configuration (one block size of 16 attempts, the start's two right-hand sides "
         "from Python), same process; *RK4*: the compiled folds, step "
         f"{RK4_STEP:g} s; *Adams*, *CVODES*, *IDAS*: the CasADi SUNDIALS integrator called "
-        "directly, per right-hand side it evaluated (`n_call_daeF`; the finite-difference "
-        "Jacobians' evaluations not counted, their time is: *Jacobian share*); *`run`*: "
+        "directly, per right-hand side it evaluated (`n_call_daeF`; the Jacobians' own "
+        "calls not counted, their time is: *Jacobian share*), CVODES and IDAS on the "
+        "dynamics `Simulator` gives a Newton method (`Simulator.sundials_dynamics`: the "
+        "exact compiled Jacobian `jac_<name>` up to 32 states, forward differences of the "
+        "compiled right-hand side above); *before*: the same integrator on the model's "
+        "dynamics as loaded before (the Newton matrix by CasADi's central differences), "
+        "same process; *`run`*: "
         "`Simulator.run`'s `solve_cpu_seconds` (processor time of the solve) per evaluation, "
         "casmbd's own code in the run included (start, output, statistics). *load*: the "
         "1-minute load average at the start and end of the row.", "",
         "| problem | formulation | nx | RHS [µs] | load | "
-        + " | ".join(h for _, h in EVAL_COLUMNS) + " | CVODES / IDAS Jacobian share |",
+        + " | ".join(h for _, h in EVAL_COLUMNS)
+        + " | CVODES / IDAS Jacobian share, now (before) |",
         "|---|---|---:|---:|---|" + "---:|" * len(EVAL_COLUMNS) + "---:|"]
     for r in rows:
         paths, rhs = r["paths"], r["rhs_us"]
-        share = " / ".join(f"{100 * paths[k].get('jacobian_share', 0.0):.0f} %"
-                           for k in ("cvodes", "idas"))
+        share = " / ".join(
+            f"{100 * paths.get(k, {}).get('jacobian_share', 0.0):.0f} % "
+            f"({100 * paths.get(k + ' previous', {}).get('jacobian_share', 0.0):.0f} %)"
+            for k in ("cvodes", "idas"))
         lines.append(f"| {r['problem']} | {r['formulation']} | {r['nx']} | {_f(rhs)} | "
                      f"{r['load']:.1f}–{r['load_end']:.1f} | "
                      + " | ".join(_cell(paths.get(k, {}), rhs) for k, _ in EVAL_COLUMNS)
@@ -482,8 +514,19 @@ def per_eval_markdown(rows: list[dict]) -> list[str]:
     calls = "; ".join(f"{r['problem']} {r['paths']['dopri5 previous']['calls']} → "
                       f"{r['paths']['dopri5']['calls']}" for r in rows
                       if "calls" in r["paths"].get("dopri5", {}))
+    runs = "; ".join(
+        f"{r['problem']} " + ", ".join(
+            f"{k.upper()} {r['paths'][k + ' previous']['ms_run']:.2f} → "
+            f"{r['paths'][k]['ms_run']:.2f} ms ({r['paths'][k]['jacobian']}, "
+            f"{r['paths'][k + ' previous']['evals']} → {r['paths'][k]['evals']} evaluations)"
+            for k in ("cvodes", "idas")
+            if "ms_run" in r["paths"].get(k, {}) and "ms_run" in
+            r["paths"].get(k + " previous", {}))
+        for r in rows)
     lines += ["", "Compiled calls from Python per DOPRI5 run, before → now: " + calls + ".",
-              "", eval_notes(rows)]
+              "", "Whole SUNDIALS Newton runs (processor ms, fastest of the repeats), before "
+              "→ now, the Jacobian now, and the right-hand sides evaluated: " + runs + ".",
+              "", eval_notes(rows), "", OPTIONS_NOTE]
     return lines
 
 
@@ -523,11 +566,44 @@ EVAL_NOTES = (
     "`OracleFunction::calc_function` (two `clock_gettime` of the process-time clock for "
     "its statistics, not switchable; the *floor* column above) and SUNDIALS' own work per "
     "step (vector operations, the Nordsieck history, the error test: Adams takes 1.7 right-"
-    "hand sides a step). The BDF paths (CVODES, IDAS) also solve a Newton system each step "
-    "and form their Jacobians by finite differences of the compiled right-hand side "
-    "(`enable_fd`: no `jac_` function is compiled with the model), {jac_lo:.0f}–{jac_hi:.0f} % "
-    "of their time; an exact compiled Jacobian would cut that share, not the "
-    "per-evaluation floor."
+    "hand sides a step; the four-bar's and chain8's right-hand sides cost 0.3–0.4 µs, so "
+    "this fixed cost per call is 5–6× the function). The BDF paths (CVODES, IDAS) also "
+    "solve a Newton system each step: its Jacobian is now the exact compiled `jac_<name>` "
+    "(CasADi's AD of the formulation's Function, compiled in a library of its own on first "
+    "use by a Newton method: chain8 2.6 s, chain32 8.6 s, the 100-rod chain 7.8 s cold at "
+    "load 2.5) up to 32 states, and above that forward differences of the compiled "
+    "right-hand side (nx + 1 calls; the exact chain32 Jacobian, 250 000 operations "
+    "expanded, cost more than that: 76 µs per evaluation against 26), {jac_lo:.0f}–"
+    "{jac_hi:.0f} % of their time. What remains is SUNDIALS' Newton iteration, the sparse "
+    "LU of I − γJ (CSparse) at every Jacobian, and the same per-call floor. The "
+    "Jacobians were never exact before: no ODE formulation compiled one, and the DAE "
+    "formulations' `jac_<name>`, compiled with the model, is loaded with `enable_fd`, with "
+    "which CasADi prefers central differences (`fwd16_<name>` by `CentralDiff`, 2 calls per "
+    "direction) to the compiled Jacobian; it stays so (loaded exact, index1 on IDAS gives "
+    "up at another place near a singular pose of the 3-rod chain, t = 2.62 instead of the "
+    "pass at 1.2333 that tests/analysis/formulations/test_singular_chains.py expects). "
+    "On the four-bar (the "
+    "augmented Lagrangian's penalty makes it stiff) CVODES takes more steps with the exact "
+    "Jacobian than with central differences (see the whole runs above): the Newton "
+    "iteration's convergence there steers the step size, and the per-evaluation ratio "
+    "falls while the run does not get faster."
+)
+
+#: the integrator options measured for their overhead (issue 36 item 4), once: the CasADi
+#: integrator called directly as in the table, rtol = atol = 1e-7, 2026-11-29, load 3.0
+OPTIONS_NOTE = (
+    "Integrator options measured for their overhead (once, 2026-11-29, load 3.0, the "
+    "same calls as the table; µs per right-hand side, chain8 / four-bar / chain32): "
+    "`print_stats` is already off; `record_time` off and `regularity_check` off change "
+    "nothing (±1 %: CasADi 3.8 keeps the per-call process-time statistics, "
+    "`t_proc_daeF`, with `record_time` off); linear solver: CSparse (the default) against "
+    "dense `lapacklu` CVODES 3.18 / 3.37 / 62.6 against 3.22 / 3.33 / 59.0, IDAS 2.97 / "
+    "3.60 / 26.0 against 3.27 / 3.47 / 23.7 (chain32 then still with central differences; "
+    "lapacklu also changes the four-bar's step sequence), `qr` no better; "
+    "`newton_scheme` GMRES (matrix-free) 2.4–2.6× slower per "
+    "evaluation; `max_multistep_order` 3 for IDAS lowers the cost per evaluation (2.7 / "
+    "3.1 / 16.0) by taking 1.9–2.5× as many evaluations, slower runs; Adams' order 5 or 8 "
+    "instead of 12 changes nothing on these runs. None is adopted."
 )
 
 

@@ -503,7 +503,8 @@ class Simulator(Stepping, CachedBuild):
                 return xs, self._solver_stats(solver.stats())
         solver = self._solver(
             (name, tuple(grid), rtol, atol, max_steps),
-            lambda: sun.sundials(self.dyn, name, grid[0], grid[1:], rtol, atol, max_steps))
+            lambda: sun.sundials(self.sundials_dynamics(name), name, grid[0], grid[1:], rtol,
+                                 atol, max_steps))
         res = solver(x0=x0, z0=z0, p=self.model.p)
         xs = np.vstack([x0, np.asarray(res["xf"]).T])
         return xs, self._solver_stats(solver.stats())

@@ -9,6 +9,7 @@ outputs before a failure.
 
 from __future__ import annotations
 
+import casadi as ca
 import numpy as np
 
 from casmbd import progress
@@ -17,9 +18,19 @@ from casmbd.analysis.instant.kkt import project_velocities
 from casmbd.analysis.integrators import fixed_step as fixed
 from casmbd.analysis.integrators import kinds as integ
 from casmbd.analysis.integrators import sundials as sun
+from casmbd.compiled.build import compile_blocks
 from casmbd.compiled.model import c_symbol_name
 from casmbd.errors import IntegratorError
 from casmbd.interrupts import reraise_interrupt
+
+#: the largest ODE (states) whose SUNDIALS Newton methods get the exact compiled Jacobian;
+#: larger ones get forward differences of the compiled right-hand side.  Measured (CVODES-BDF
+#: at rtol = atol = 1e-7, docs/performance.md "Integrator steps against the right-hand
+#: side"): chain8 (16 states) 5.3 µs per right-hand side with central differences, 3.7 with
+#: forward differences, 3.2 exact; chain32 (64 states) 66, 26 and 76 µs: the Jacobian of the
+#: 32-rod articulated-body recursion by CasADi's AD (250 000 operations expanded) costs more
+#: than 65 calls of the right-hand side, and compiles in 8.6 s (100 rods: 7.8 s)
+NEWTON_JACOBIAN_MAX = 32
 
 
 class Stepping:
@@ -29,11 +40,61 @@ class Stepping:
         p = self.model.p
         return p if t_k is None else np.append(p, t_k)
 
+    def sundials_dynamics(self, name: str):
+        """The compiled dynamics the SUNDIALS method ``name`` integrates.
+
+        A Newton method (CVODES-BDF, IDAS) on an ODE formulation of at most
+        :data:`NEWTON_JACOBIAN_MAX` states gets the dynamics compiled with their exact
+        Jacobian ``jac_<name>`` = ∂(ẋ, …)/∂(t, x, z, p, u) (CasADi's AD of the formulation's
+        Function), in a library of its own built on first use and cached like the model's:
+        the Newton matrix I − γ ∂f/∂x is then formed from one call instead of finite
+        differences of the right-hand side.  A larger ODE gets forward differences of the
+        compiled right-hand side (:meth:`_forward_difference_dynamics`; its exact Jacobian
+        costs more than nx + 1 calls).  Adams (functional iteration) never asks for a
+        Jacobian: it uses ``self.dyn``; so do the DAE formulations, whose compiled
+        ``jac_<name>`` the model's library loads with ``enable_fd`` (central differences:
+        with their exact Jacobian index1 on IDAS gives up elsewhere at singular poses,
+        tests/analysis/formulations/test_singular_chains.py).
+        """
+        kind = integ.INTEGRATORS.get(name)
+        if not getattr(kind, "newton", False) or not self.dyn.is_a("External") \
+                or self.kind.kind != "ode":
+            return self.dyn
+        if self.dyn.nnz_in(1) > NEWTON_JACOBIAN_MAX:
+            return self._forward_difference_dynamics()
+        if "newton_dyn" not in self._solvers:
+            f = self.formulation.function
+            prefix = c_symbol_name(f"{self.model.name}_newton")
+            functions, report = compile_blocks([f, f.jacobian()], prefix, mode=self._mode,
+                                               hot=[f.name(), f"jac_{f.name()}"])
+            # without enable_fd: with it CasADi prefers central differences (fwd16_<name> by
+            # CentralDiff) to the library's jac_<name>
+            self._solvers["newton_dyn"] = functions[f.name()] if report.library is None \
+                else ca.external(f.name(), report.library)
+        return self._solvers["newton_dyn"]
+
+    def _forward_difference_dynamics(self):
+        """The model's compiled dynamics loaded again with forward differences (one call per
+        state and one at the point: nx + 1 calls a Jacobian) instead of CasADi's default
+        central differences: on chain32 (64 states) CVODES-BDF 60 → 24 ms a run, the same
+        steps; else ``self.dyn``."""
+        if "forward_dyn" not in self._solvers:
+            fname, found = self.dyn.name(), self.dyn
+            for library in self.model.report.libraries or ():
+                try:
+                    found = ca.external(fname, library, {"enable_fd": True,
+                                                         "fd_method": "forward"})
+                    break
+                except RuntimeError:  # a split model: the function is in another library
+                    continue
+            self._solvers["forward_dyn"] = found
+        return self._solvers["forward_dyn"]
+
     def _clocked_sundials(self, name, grid, rtol, atol, max_steps):
         """The one-call SUNDIALS integrator on dynamics with a progress clock
         (:func:`casmbd.progress.integrator_clock`: same steps, same numbers), and the clock;
         None when the dynamics have quadratures of their own."""
-        clocked = progress.integrator_clock(self.dyn, grid[1:])
+        clocked = progress.integrator_clock(self.sundials_dynamics(name), grid[1:])
         if clocked is None:
             return None
         dyn, clock = clocked
@@ -188,14 +249,14 @@ class Stepping:
             if len(kept) <= 1:  # failed in the first interval (or at its start)
                 return np.asarray(x0, float)[None, :], {}
             try:
-                solver = sun.sundials(self.dyn, name, grid[0], kept[1:], rtol, atol,
-                                        max_steps)
+                solver = sun.sundials(self.sundials_dynamics(name), name, grid[0],
+                                      kept[1:], rtol, atol, max_steps)
                 res = solver(x0=x0, z0=z0, p=self.model.p)
                 return np.vstack([x0, np.asarray(res["xf"]).T]), {}
             except RuntimeError as exc:
                 reraise_interrupt(exc)
         interval = grid[1] - grid[0]
-        shifted = integ.shifted(self.dyn)
+        shifted = integ.shifted(self.sundials_dynamics(name))
         xs = [np.asarray(x0, float)]
         x, z = xs[0], z0
         stats: dict = {}

@@ -214,6 +214,12 @@ class SundialsKind(IntegratorKind):
         """Every need: SUNDIALS' root finding serves the event-driven run."""
         return ALL_NEEDS
 
+    @property
+    def newton(self) -> bool:
+        """Whether the method solves a Newton system each step (BDF, IDAS) and so asks for
+        the Jacobian of the dynamics; Adams with functional iteration never does."""
+        return dict(self.options).get("nonlinear_solver_iteration", "newton") != "functional"
+
     def build(self, dyn: ca.Function, t0: float, tout, rtol: float, atol: float,
               max_steps: int, xdot0=None) -> ca.Function:
         """A CasADi integrator of ``dyn`` from ``t0`` with outputs at the times ``tout``.
