@@ -140,7 +140,7 @@ def diagnose_failure(model, t: float) -> list[str]:
     return []
 
 
-def _evaluations(model, q, v, t: float, u, every: bool = False
+def _evaluations(model, q, v, t: float, u, every: bool = False, skip: tuple[str, ...] = ()
                  ) -> Iterator[tuple[str, str, np.ndarray, list[str]]]:
     """(function name, description, values, row labels) of each equation the model has, at
     the state (with ``every`` also those it did not compile: built in the virtual machine)."""
@@ -159,7 +159,8 @@ def _evaluations(model, q, v, t: float, u, every: bool = False
              ("quadratic_velocity_forces", "the quadratic-velocity forces", coords,
               lambda: model.quadratic_velocity_forces(q, v))]
     for name, text, labels, call in calls:
-        if (every or name in model.functions) and (labels is coords or model.nc):
+        if name not in skip and (every or name in model.functions) and \
+                (labels is coords or model.nc):
             yield name, text, call(), labels
 
 
@@ -173,8 +174,8 @@ def _bad_rows(values) -> np.ndarray:
 
 
 def check_start(model, q, v, t: float, u=None, what: str = "analysis",
-                forces: np.ndarray | None = None, every: bool = False
-                ) -> dict[str, np.ndarray]:
+                forces: np.ndarray | None = None, every: bool = False,
+                skip: tuple[str, ...] = ()) -> dict[str, np.ndarray]:
     """Raise naming the culprit when the start state or an equation there is not finite.
 
     Parameters
@@ -194,6 +195,9 @@ def check_start(model, q, v, t: float, u=None, what: str = "analysis",
     every : bool
         Also evaluate the equations the model did not compile (an ODE right-hand side that
         is not finite at the start: its culprit is in the forces it was compiled without).
+    skip : tuple of str
+        Equations not evaluated (``"mass_matrix"`` when :func:`tree_mass_positive` already
+        found finite, positive pivots: M is then finite too).
 
     Returns
     -------
@@ -220,7 +224,7 @@ def check_start(model, q, v, t: float, u=None, what: str = "analysis",
                              + ", ".join(f"{names[i]} = {arr[i]}" for i in bad[:4]))
     if not np.all(np.isfinite(u)):
         raise ModelError(f"{what} at t = {t:g}: the actuator inputs are not finite: {u}")
-    evaluations = list(_evaluations(model, q, v, t, u, every))
+    evaluations = list(_evaluations(model, q, v, t, u, every, skip))
     if forces is not None:
         evaluations.append(("forces", "the generalized forces", np.asarray(forces, float),
                             names))
@@ -301,6 +305,23 @@ def _pivots_positive(matrix: np.ndarray) -> bool:
     except np.linalg.LinAlgError:
         return False
     return bool(np.min(np.diag(chol)) ** 2 > MASS_RTOL)
+
+
+def tree_mass_positive(model, q) -> bool:
+    """True when the model has the folded articulated-body pivots
+    (:func:`casmbd.system.chain_pivots.folded_pivots`, a long chain in joint coordinates) and
+    at ``q`` every pivot is finite and exceeds :data:`MASS_RTOL` times its diagonal entry of
+    M: D_i > MASS_RTOL M_ii, the Jacobi-scaled pivots of M = Lᵀ D L eliminated from the tips
+    (Featherstone 2008, §6.3), so M is positive definite — the verdict of
+    :func:`check_mass_matrix` by one O(N) fold, without M.  False otherwise (no pivots
+    compiled, or a pivot fails: then :func:`check_mass_matrix` decides, and names the
+    bodies)."""
+    if model.nc or model.nq == 0 or "articulated_pivots" not in model.functions:
+        return False
+    out = model.data.vector("articulated_pivots", q, model.p)
+    pivots, diagonal = out[:model.nq], out[model.nq:]
+    return bool(np.all(np.isfinite(out)) and np.all(diagonal > 0.0)
+                and np.all(pivots > MASS_RTOL * diagonal))
 
 
 def check_mass_matrix(model, q, t: float, what: str = "simulation",
