@@ -24,9 +24,34 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
-from casmbd.system.chain_fold import _bake, _kinematics_step, _transport, chain_order
+from casmbd.system.chain_fold import chain_order
 
 __all__ = ["folded_pivots"]
+
+
+def _transport(d):
+    """X(d): (ω, ṙ) ↦ (ω, ṙ + ω × d) in the plane."""
+    return ca.vertcat(ca.horzcat(1, 0, 0), ca.horzcat(-d[1], 1, 0), ca.horzcat(d[0], 0, 1))
+
+
+def _geometry_step() -> ca.Function:
+    """Root to tip: the parent's rotation and centre of mass in, the child's out, with
+    d = r_C − r_P and e = r_C − J (the kinematics of :mod:`casmbd.system.chain_fold`, rates
+    left out)."""
+    carry = ca.SX.sym("parent", 6)  # vec(A_P) (4), r_P (2)
+    data = ca.SX.sym("data", 13)  # q, vec(A_P0ᵀ) (4), vec(A_C0) (4), a (2), b (2)
+    a_p, r_p = ca.reshape(carry[:4], 2, 2), carry[4:6]
+    angle = data[0]
+    p0t, c0 = ca.reshape(data[1:5], 2, 2), ca.reshape(data[5:9], 2, 2)
+    a, b = data[9:11], data[11:13]
+    c, s = ca.cos(angle), ca.sin(angle)
+    rel = ca.vertcat(ca.horzcat(c, -s), ca.horzcat(s, c))
+    base = ca.mtimes(a_p, p0t)
+    joint = r_p + ca.mtimes(base, a)
+    r_c = r_p + ca.mtimes(base, a + ca.mtimes(rel, b))
+    a_c = ca.mtimes(base, ca.mtimes(rel, c0))
+    return ca.Function("chain_pivot_geometry", [carry, data],
+                       [ca.vertcat(ca.vec(a_c), r_c), ca.vertcat(r_c - r_p, r_c - joint)])
 
 
 def _pivot_step() -> ca.Function:
@@ -50,9 +75,9 @@ def _pivot_step() -> ca.Function:
 
 def folded_pivots(system) -> ca.Function:
     """``articulated_pivots(q, p) -> [D; diag M]`` (2 n_q, each in the order of the
-    coordinates) of a chain of :func:`casmbd.system.chain_fold.supported`: the kinematics fold
-    of :func:`~casmbd.system.chain_fold.folded_accelerations` (rates zero), then the pivot
-    step (module notes) folded tip to root."""
+    coordinates) of a chain of :func:`casmbd.system.chain_fold.supported`: a kinematics fold
+    root to tip (:func:`_geometry_step`), then the pivot step (module notes) folded tip to
+    root."""
     order = chain_order(system)
     n = len(order)
     desc = system.descriptions
@@ -65,15 +90,11 @@ def folded_pivots(system) -> ca.Function:
         np.asarray(desc[k].pos_c0 - desc[k].point, float)]) for k in order]).T
     inertias = ca.Function("chain_pivot_inertias", [system.p], [ca.horzcat(*[
         ca.vertcat(*system._mass_inertia(system.mechanism.bodies[k])) for k in order])])
-    data = ca.vertcat(q[index].T, ca.DM.zeros(1, n), ca.DM(consts))
-    generic = _kinematics_step()
-    carry0, geometry = generic(ca.DM([1, 0, 0, 1, 0, 0, 0]), data[:, 0])
-    if n > 1:
-        _, rest = _bake(generic, {}).mapaccum("chain_pivot_kinematics", n - 1)(
-            carry0, data[:, 1:])
-        geometry = ca.horzcat(geometry, rest)
+    data = ca.vertcat(q[index].T, ca.DM(consts))
+    _, geometry = _geometry_step().mapaccum("chain_pivot_kinematics", n)(
+        ca.DM([1, 0, 0, 1, 0, 0]), data)
     reverse = list(range(n - 1, -1, -1))
-    step_data = ca.vertcat(inertias(p), geometry[:4, :])[:, reverse]
+    step_data = ca.vertcat(inertias(p), geometry)[:, reverse]
     _, out = _pivot_step().mapaccum("chain_pivot_fold", n)(ca.DM.zeros(18), step_data)
     out = out[:, reverse]
     pivots, diagonal = ca.MX.zeros(system.nq), ca.MX.zeros(system.nq)
