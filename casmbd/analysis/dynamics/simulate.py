@@ -49,6 +49,7 @@ from casmbd.analysis.integrators.stiffness_culprit import (
     check_plausible_elements,
     diagnose_stiffness,
 )
+from casmbd.compiled.buffered import BufferedFunction
 from casmbd.compiled.build import compile_model
 from casmbd.compiled.model import NEEDS
 from casmbd.errors import AnalysisError, CasmbdError, IntegratorError, UnknownMethodError
@@ -262,13 +263,25 @@ class Simulator(Stepping, CachedBuild):
         if self.kind.ode_right_hand_side(self.dyn) is None or self.model.nc or \
                 "quadratic_velocity_forces" in self.model.functions:
             return None
-        nq, p = self.model.nq, self.model.p
+        nq, p, rhs = self.model.nq, self.model.p, self._rhs_buffer()
 
         def accelerations(q, v):
             x = np.concatenate([q, v])
-            return np.asarray(self.dyn(t, x, np.zeros(0), p, np.zeros(0))[0],
+            return np.asarray(rhs(t, x, np.zeros(0), p, np.zeros(0)),
                               dtype=float).ravel()[nq:]
         return accelerations
+
+    def _rhs_buffer(self):
+        """The ODE right-hand side called through its bound buffers
+        (:class:`~casmbd.compiled.buffered.BufferedFunction`: no conversion of every
+        argument to a CasADi matrix, tens of µs a call), made once; its output 0."""
+        rhs = self.__dict__.get("_rhs_buffered")
+        if rhs is None:
+            buffered = BufferedFunction.of(self.dyn)
+            rhs = buffered if buffered is not self.dyn else \
+                (lambda *args: self.dyn(*args)[0])
+            self._rhs_buffered = rhs
+        return rhs
 
     def _integrator_name(self, integrator: str | None) -> str:
         name = integrator or self.kind.default_integrator
@@ -440,11 +453,10 @@ class Simulator(Stepping, CachedBuild):
         """
         if self.kind.ode_right_hand_side(self.dyn) is None or len(x0) > STIFF_CHECK_MAX:
             return None
-        p = self._params()
+        p, call = self._params(), self._rhs_buffer()
 
         def rhs(x):
-            return np.asarray(self.dyn(t, x, np.zeros(0), p, np.zeros(0))[0],
-                              dtype=float).ravel()
+            return np.asarray(call(t, x, np.zeros(0), p, np.zeros(0)), dtype=float).ravel()
 
         f0 = rhs(x0)
         if not np.all(np.isfinite(f0)):
