@@ -445,8 +445,9 @@ class Simulator(Stepping, CachedBuild):
 
     def stiffness(self, x0: np.ndarray, t: float) -> float | None:
         """Largest decay rate max(−Re λ) of the ODE's Jacobian at (t, x0), by one-sided
-        finite differences of the compiled right-hand side (2 n_q + 1 evaluations; None for
-        DAE and numeric formulations and above :data:`STIFF_CHECK_MAX` states).
+        finite differences of the compiled right-hand side (2 n_q + 1 evaluations, the 2 n_q
+        perturbed ones in one call of the right-hand side mapped over them; None for DAE and
+        numeric formulations and above :data:`STIFF_CHECK_MAX` states).
 
         An explicit multistep method (Adams) needs about max(−Re λ) · (t_end − t_start) steps
         to stay stable whatever the tolerance; BDF does not (Hairer & Wanner, stiff problems).
@@ -461,12 +462,21 @@ class Simulator(Stepping, CachedBuild):
         f0 = rhs(x0)
         if not np.all(np.isfinite(f0)):
             return None
-        jac = np.empty((len(x0), len(x0)))
-        for i in range(len(x0)):
-            h = 1e-7 * (1.0 + abs(x0[i]))
-            x = x0.copy()
-            x[i] += h
-            jac[:, i] = (rhs(x) - f0) / h
+        nx = len(x0)
+        h = 1e-7 * (1.0 + np.abs(x0))
+        perturbed = np.repeat(x0[:, None], nx, axis=1)
+        perturbed[np.arange(nx), np.arange(nx)] += h  # column i: x0 + h_i e_i
+        columns = self.__dict__.get("_rhs_columns")
+        if columns is None or columns[0] != nx:
+            columns = self._rhs_columns = (nx, BufferedFunction.of(self.dyn.map(nx)))
+        mapped = columns[1]
+        if isinstance(mapped, BufferedFunction):
+            values = mapped(t, perturbed, np.zeros(0), p, np.zeros(0)).reshape(
+                (nx, nx), order="F")
+        else:
+            values = np.asarray(mapped(t, perturbed, np.zeros(0), p, np.zeros(0))[0],
+                                dtype=float)
+        jac = (values - f0[:, None]) / h[None, :]
         if not np.all(np.isfinite(jac)):
             return None
         return float(max(0.0, np.max(-np.linalg.eigvals(jac).real, initial=0.0)))
