@@ -277,10 +277,7 @@ class Simulator(Stepping, CachedBuild):
         argument to a CasADi matrix, tens of µs a call), made once; its output 0."""
         rhs = self.__dict__.get("_rhs_buffered")
         if rhs is None:
-            buffered = BufferedFunction.of(self.dyn)
-            rhs = buffered if buffered is not self.dyn else \
-                (lambda *args: self.dyn(*args)[0])
-            self._rhs_buffered = rhs
+            rhs = self._rhs_buffered = _buffered_call(self.dyn)
         return rhs
 
     def _integrator_name(self, integrator: str | None) -> str:
@@ -468,14 +465,9 @@ class Simulator(Stepping, CachedBuild):
         perturbed[np.arange(nx), np.arange(nx)] += h  # column i: x0 + h_i e_i
         columns = self.__dict__.get("_rhs_columns")
         if columns is None or columns[0] != nx:
-            columns = self._rhs_columns = (nx, BufferedFunction.of(self.dyn.map(nx)))
-        mapped = columns[1]
-        if isinstance(mapped, BufferedFunction):
-            values = mapped(t, perturbed, np.zeros(0), p, np.zeros(0)).reshape(
-                (nx, nx), order="F")
-        else:
-            values = np.asarray(mapped(t, perturbed, np.zeros(0), p, np.zeros(0))[0],
-                                dtype=float)
+            columns = self._rhs_columns = (nx, _buffered_call(self.dyn.map(nx), nx))
+        values = np.asarray(columns[1](t, perturbed, np.zeros(0), p, np.zeros(0)),
+                            dtype=float).reshape((nx, nx), order="F")
         jac = (values - f0[:, None]) / h[None, :]
         if not np.all(np.isfinite(jac)):
             return None
@@ -538,6 +530,29 @@ class Simulator(Stepping, CachedBuild):
         res = solver(x0=x0, z0=z0, p=self.model.p)
         xs = np.vstack([x0, np.asarray(res["xf"]).T])
         return xs, self._solver_stats(solver.stats())
+
+
+def _buffered_call(function: ca.Function, columns: int = 1):
+    """``function``'s output 0 (its non-zeros) at positional inputs, through its bound
+    buffers when its inputs and outputs are dense (:class:`BufferedFunction`), else by a
+    CasADi call.  As with a CasADi call, an empty input stands for zeros; with ``columns``
+    (a Function mapped over that many points) an input of one point's size is repeated."""
+    buffered = BufferedFunction.of(function)
+    if buffered is function:
+        return lambda *args: np.asarray(function(*args)[0], dtype=float).ravel(order="F")
+    sizes = [a.size for a in buffered.inputs]
+
+    def call(*args):
+        full = []
+        for size, arg in zip(sizes, args, strict=False):
+            arg = np.asarray(arg, dtype=float)
+            if arg.size == 0:
+                arg = np.zeros(size)
+            elif arg.size * columns == size:
+                arg = np.tile(arg.ravel(order="F"), columns)
+            full.append(arg)
+        return buffered(*full)
+    return call
 
 
 #: what forward dynamics handles: every need, each formulation and integrator its own share
