@@ -70,3 +70,20 @@ def test_massless_tip_still_named(monkeypatch, fold):
     with pytest.raises(ModelError, match=r"singular.*'rod3'.*has no inertia"):
         sim.run(0.1, 2)
     assert "diagnose" in calls and "eigh" in calls
+
+
+def test_healthy_absolute_chain_skips_the_null_space_diagnosis(monkeypatch):
+    """In absolute coordinates (C_q of 6 rows) M itself passes the cheap test: no projection
+    on the null space of C_q, no eigen-decomposition; the start is still checked (a run to
+    0.2 s whose tip angle equals the joint-coordinate run's to 1e-8)."""
+    mech = pendulum_chain(3)
+    mech.coordinates = "absolute"
+    mech.name = "mass_cost_abs3"
+    sim = Simulator(mech)
+    assert sim.model.nc == 6
+    calls = _spy(monkeypatch)
+    res = sim.run(0.2, 4, rtol=1e-11)
+    assert calls == []  # neither the null-space diagnosis nor an eigen-decomposition
+    joint = Simulator(_chain(3)).run(0.2, 4, rtol=1e-11)
+    tip_abs = res["q"][-1][sim.model.coordinate_names.index("rod2.angle")]
+    assert abs(tip_abs - float(np.sum(joint["q"][-1]))) < 1e-8
