@@ -823,7 +823,12 @@ runs at loads 4-8, so compare rows of one run, and the *CPU* columns.
   (`check_mass_matrix`: M of the 1000-rod chain by 1000 mapped columns and its
   factorisation; with the folded M one-off 0.7 s at load 2.5: two evaluations of 0.22 s and
   a dense Cholesky) — outside this target; scipy.optimize (0.3 s to import) is now imported
-  only when a near-singular passage is refined.
+  only when a near-singular passage is refined. Since branch h-runcost the start of a run
+  checks M > 0 of a folded chain by its articulated-body pivots (D_i > 1e-12 M_ii, one O(N)
+  fold, `casmbd/system/chain_pivots.py`; M itself, its dense factorisation and the
+  eigen-decomposition that names the massless bodies only when that test fails): that
+  process takes 0.67-0.70 s of wall time at load 1.5 (run 0.21 s: solve 0.12 s, outputs
+  0.08 s) against 1.53-2.05 s for the code before (run 1.0-1.5 s), one-off.
 * *Target "solve growth ≤ N^1.1"*: the fit over 10-1000 above mixes the unrolled code at
   10 rods with the folded code from 32 on and the shorter horizon from 300 on; over the
   folded sizes 32-1000 the solve seconds per simulated second grew like N^1.07 in the

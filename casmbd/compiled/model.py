@@ -374,16 +374,20 @@ class NumericModel:
         """Q_v(q, v)."""
         return self.data.quadratic_velocity_forces(q, v)
 
-    def outputs(self, q: np.ndarray, v: np.ndarray, a: np.ndarray, t: np.ndarray) -> dict:
+    def outputs(self, q: np.ndarray, v: np.ndarray, a: np.ndarray, t: np.ndarray,
+                mapped: ca.Function | None = None) -> dict:
         """Body, marker and joint outputs at many time points in one mapped call.
 
         ``q``, ``v``, ``a`` have shape (n_t, n_q); every output has time as first axis.
+        ``mapped``: the outputs Function already mapped over the n_t points (kept by the
+        caller from run to run), else mapped here.
         """
         f = self.function("outputs")
         n = len(t)
         if n == 0:
             raise ModelError("outputs: no time points")
-        res = f.map(n)(q.T, v.T, a.T, np.reshape(t, (1, n)), np.tile(self.p[:, None], (1, n)))
+        mapped = f.map(n) if mapped is None else mapped
+        res = mapped(q.T, v.T, a.T, np.reshape(t, (1, n)), np.tile(self.p[:, None], (1, n)))
         res = res if isinstance(res, (list, tuple)) else [res]
         out = {name: np.asarray(res[i]).T for i, name in enumerate(f.name_out())}
         self._unwrap_angles(out)

@@ -133,6 +133,18 @@ class PostProcessing:
 
     def __init__(self, model, redundancy: dict, ufun):
         self.model, self.redundancy, self.ufun = model, redundancy, ufun
+        self._maps: dict = {}  # (name, n) -> the Function mapped over n points, made once
+
+    def _mapped(self, f, n: int):
+        """``f.map(n)``, made once per (Function, n): a run of the same length reuses it
+        (CasADi's map is ~45 µs to make, what a short run costs in all)."""
+        key = (f.name(), n)
+        mapped = self._maps.get(key)
+        if mapped is None:
+            if len(self._maps) > 32:
+                self._maps.clear()
+            mapped = self._maps[key] = f.map(n)
+        return mapped
 
     def diagnose(self, result: Result, t_fail: float) -> str:
         """Rank and conditioning of C_q where a run failed: at the state extrapolated from the
@@ -255,14 +267,14 @@ class PostProcessing:
         n = len(grid)
         p_all = np.tile(model.p[:, None], (1, n))
         try:
-            post = model.function("post").map(n)(qs.T, vs.T, grid[None, :], p_all)
+            post = self._mapped(model.function("post"), n)(qs.T, vs.T, grid[None, :], p_all)
             acc, lam = np.asarray(post[0]).T.copy(), np.asarray(post[1]).T.reshape(n, -1).copy()
             residual = np.asarray(post[2]).ravel()
             kin, pot, pos_viol, vel_viol = (np.asarray(x).ravel() for x in post[3:7])
         except RuntimeError as exc:  # CasADi's VM QR raises on a singular KKT matrix
             reraise_interrupt(exc)
             acc, lam, residual, kin, pot, pos_viol, vel_viol = self._post_by_parts(grid, qs, vs)
-        us = np.asarray(self.ufun.map(n)(grid[None, :], p_all)).T.reshape(n, -1)
+        us = np.asarray(self._mapped(self.ufun, n)(grid[None, :], p_all)).T.reshape(n, -1)
         # singular KKT matrices (redundant constraints, singular poses): minimum-norm solve
         scale = 1.0 + np.max(np.abs(np.concatenate([acc, lam], axis=1)), axis=1,
                              initial=0.0)
@@ -276,10 +288,10 @@ class PostProcessing:
         for k in singular:
             acc[k], lam[k] = accelerations_and_multipliers(model, qs[k], vs[k], grid[k], us[k],
                                                            redundant=redundant)
-        outputs = model.outputs(qs, vs, acc, grid)
-        reac_f = model.function("joint_reactions").map(n)
-        reac = np.asarray(reac_f(qs.T, vs.T, acc.T, grid[None, :], us.T,
-                                 np.tile(model.p[:, None], (1, n)), lam.T)) \
+        outputs = model.outputs(qs, vs, acc, grid, self._mapped(model.function("outputs"), n))
+        reac = np.asarray(self._mapped(model.function("joint_reactions"), n)(
+            qs.T, vs.T, acc.T, grid[None, :], us.T, np.tile(model.p[:, None], (1, n)),
+            lam.T)) \
             if system.mechanism.joints else np.zeros((3, 0))
         n_j, size = len(system.mechanism.joints), system.reaction_size
         reactions = reac.reshape(size, n, n_j).transpose(1, 2, 0) if n_j else \

@@ -38,6 +38,7 @@ from casmbd.analysis.instant.checks import (
     check_mass_matrix,
     check_start,
     diagnose_failure,
+    tree_mass_positive,
 )
 from casmbd.analysis.instant.independent import find_redundant
 from casmbd.analysis.instant.kkt import accelerations_and_multipliers, consistent_state
@@ -48,6 +49,7 @@ from casmbd.analysis.integrators.stiffness_culprit import (
     check_plausible_elements,
     diagnose_stiffness,
 )
+from casmbd.compiled.buffered import BufferedFunction
 from casmbd.compiled.build import compile_model
 from casmbd.compiled.model import NEEDS
 from casmbd.errors import AnalysisError, CasmbdError, IntegratorError, UnknownMethodError
@@ -261,13 +263,22 @@ class Simulator(Stepping, CachedBuild):
         if self.kind.ode_right_hand_side(self.dyn) is None or self.model.nc or \
                 "quadratic_velocity_forces" in self.model.functions:
             return None
-        nq, p = self.model.nq, self.model.p
+        nq, p, rhs = self.model.nq, self.model.p, self._rhs_buffer()
 
         def accelerations(q, v):
             x = np.concatenate([q, v])
-            return np.asarray(self.dyn(t, x, np.zeros(0), p, np.zeros(0))[0],
+            return np.asarray(rhs(t, x, np.zeros(0), p, np.zeros(0)),
                               dtype=float).ravel()[nq:]
         return accelerations
+
+    def _rhs_buffer(self):
+        """The ODE right-hand side called through its bound buffers
+        (:class:`~casmbd.compiled.buffered.BufferedFunction`: no conversion of every
+        argument to a CasADi matrix, tens of µs a call), made once; its output 0."""
+        rhs = self.__dict__.get("_rhs_buffered")
+        if rhs is None:
+            rhs = self._rhs_buffered = _buffered_call(self.dyn)
+        return rhs
 
     def _integrator_name(self, integrator: str | None) -> str:
         name = integrator or self.kind.default_integrator
@@ -312,10 +323,18 @@ class Simulator(Stepping, CachedBuild):
         v0 = model.initial_velocities() if v0 is None else np.asarray(v0, float)
         u0 = self.inputs_at(t_start)
         ode_acc = self._ode_accelerations(t_start)
-        check_start(model, q0, v0, t_start, u0, what="simulation",  # names a NaN's culprit
-                    every=ode_acc is not None and not np.all(np.isfinite(ode_acc(q0, v0))))
-        # names the bodies without mass where M is singular (at the assembled start)
-        check_mass_matrix(model, assemble(model, q0, t_start).q, t_start)
+        # a long chain's articulated-body pivots: M > 0 without M (O(N), not O(N²))
+        healthy = tree_mass_positive(model, q0)
+        evaluated = check_start(model, q0, v0, t_start, u0, what="simulation",  # NaN culprit
+                                every=ode_acc is not None
+                                and not np.all(np.isfinite(ode_acc(q0, v0))),
+                                skip=("mass_matrix",) if healthy else ())
+        if not healthy:  # names the bodies without mass where M is singular (at the
+            # assembled start; M of check_start reused when the assembly did not move q0)
+            q_asm = assemble(model, q0, t_start).q
+            check_mass_matrix(model, q_asm, t_start,
+                              mass=evaluated.get("mass_matrix") if np.array_equal(q_asm, q0)
+                              else None)
         start = consistent_state(model, q0, v0, t_start, u0, accelerations=ode_acc)
         check_consistent_start(model, start.q, start.v, start.a, t_start)
         x0 = np.concatenate([start.q, start.v])
@@ -423,29 +442,33 @@ class Simulator(Stepping, CachedBuild):
 
     def stiffness(self, x0: np.ndarray, t: float) -> float | None:
         """Largest decay rate max(−Re λ) of the ODE's Jacobian at (t, x0), by one-sided
-        finite differences of the compiled right-hand side (2 n_q + 1 evaluations; None for
-        DAE and numeric formulations and above :data:`STIFF_CHECK_MAX` states).
+        finite differences of the compiled right-hand side (2 n_q + 1 evaluations, the 2 n_q
+        perturbed ones in one call of the right-hand side mapped over them; None for DAE and
+        numeric formulations and above :data:`STIFF_CHECK_MAX` states).
 
         An explicit multistep method (Adams) needs about max(−Re λ) · (t_end − t_start) steps
         to stay stable whatever the tolerance; BDF does not (Hairer & Wanner, stiff problems).
         """
         if self.kind.ode_right_hand_side(self.dyn) is None or len(x0) > STIFF_CHECK_MAX:
             return None
-        p = self._params()
+        p, call = self._params(), self._rhs_buffer()
 
         def rhs(x):
-            return np.asarray(self.dyn(t, x, np.zeros(0), p, np.zeros(0))[0],
-                              dtype=float).ravel()
+            return np.asarray(call(t, x, np.zeros(0), p, np.zeros(0)), dtype=float).ravel()
 
         f0 = rhs(x0)
         if not np.all(np.isfinite(f0)):
             return None
-        jac = np.empty((len(x0), len(x0)))
-        for i in range(len(x0)):
-            h = 1e-7 * (1.0 + abs(x0[i]))
-            x = x0.copy()
-            x[i] += h
-            jac[:, i] = (rhs(x) - f0) / h
+        nx = len(x0)
+        h = 1e-7 * (1.0 + np.abs(x0))
+        perturbed = np.repeat(x0[:, None], nx, axis=1)
+        perturbed[np.arange(nx), np.arange(nx)] += h  # column i: x0 + h_i e_i
+        columns = self.__dict__.get("_rhs_columns")
+        if columns is None or columns[0] != nx:
+            columns = self._rhs_columns = (nx, _buffered_call(self.dyn.map(nx), nx))
+        values = np.asarray(columns[1](t, perturbed, np.zeros(0), p, np.zeros(0)),
+                            dtype=float).reshape((nx, nx), order="F")
+        jac = (values - f0[:, None]) / h[None, :]
         if not np.all(np.isfinite(jac)):
             return None
         return float(max(0.0, np.max(-np.linalg.eigvals(jac).real, initial=0.0)))
@@ -508,6 +531,29 @@ class Simulator(Stepping, CachedBuild):
         res = solver(x0=x0, z0=z0, p=self.model.p)
         xs = np.vstack([x0, np.asarray(res["xf"]).T])
         return xs, self._solver_stats(solver.stats())
+
+
+def _buffered_call(function: ca.Function, columns: int = 1):
+    """``function``'s output 0 (its non-zeros) at positional inputs, through its bound
+    buffers when its inputs and outputs are dense (:class:`BufferedFunction`), else by a
+    CasADi call.  As with a CasADi call, an empty input stands for zeros; with ``columns``
+    (a Function mapped over that many points) an input of one point's size is repeated."""
+    buffered = BufferedFunction.of(function)
+    if buffered is function:
+        return lambda *args: np.asarray(function(*args)[0], dtype=float).ravel(order="F")
+    sizes = [a.size for a in buffered.inputs]
+
+    def call(*args):
+        full = []
+        for size, arg in zip(sizes, args, strict=False):
+            arg = np.asarray(arg, dtype=float)
+            if arg.size == 0:
+                arg = np.zeros(size)
+            elif arg.size * columns == size:
+                arg = np.tile(arg.ravel(order="F"), columns)
+            full.append(arg)
+        return buffered(*full)
+    return call
 
 
 #: what forward dynamics handles: every need, each formulation and integrator its own share

@@ -14,7 +14,7 @@ from casmbd.analysis.formulations.base import (
     symbolic_arguments,
 )
 from casmbd.errors import AnalysisError
-from casmbd.system import chain_fold, chain_motion, chain_reactions
+from casmbd.system import chain_fold, chain_motion, chain_pivots, chain_reactions
 from casmbd.system.articulated_body import articulated_accelerations, supported
 from casmbd.system.equations import System
 
@@ -97,7 +97,8 @@ class Articulated(FormulationKind):
             return []
         return [chain_motion.folded_outputs(system), *chain_motion.folded_energies(system),
                 chain_reactions.folded_reactions(system),
-                chain_reactions.folded_mass_matrix(system)]
+                chain_reactions.folded_mass_matrix(system),
+                chain_pivots.folded_pivots(system)]  # the cheap test of M > 0 (run start)
 
     def default_reason(self, system: System) -> str:
         return "default: the articulated-body recursion (a tree in joint coordinates)"

@@ -140,10 +140,10 @@ def diagnose_failure(model, t: float) -> list[str]:
     return []
 
 
-def _evaluations(model, q, v, t: float, u, every: bool = False
-                 ) -> Iterator[tuple[str, np.ndarray, list[str]]]:
-    """(description, values, row labels) of each equation the model has, at the state (with
-    ``every`` also those it did not compile: built in the virtual machine)."""
+def _evaluations(model, q, v, t: float, u, every: bool = False, skip: tuple[str, ...] = ()
+                 ) -> Iterator[tuple[str, str, np.ndarray, list[str]]]:
+    """(function name, description, values, row labels) of each equation the model has, at
+    the state (with ``every`` also those it did not compile: built in the virtual machine)."""
     coords = model.coordinate_names
     rows = [str(label) for label in model.constraint_labels]
     calls = [("constraints", "the constraints C", rows, lambda: model.constraints(q, t)),
@@ -159,8 +159,9 @@ def _evaluations(model, q, v, t: float, u, every: bool = False
              ("quadratic_velocity_forces", "the quadratic-velocity forces", coords,
               lambda: model.quadratic_velocity_forces(q, v))]
     for name, text, labels, call in calls:
-        if (every or name in model.functions) and (labels is coords or model.nc):
-            yield text, call(), labels
+        if name not in skip and (every or name in model.functions) and \
+                (labels is coords or model.nc):
+            yield name, text, call(), labels
 
 
 def _bad_rows(values) -> np.ndarray:
@@ -173,7 +174,8 @@ def _bad_rows(values) -> np.ndarray:
 
 
 def check_start(model, q, v, t: float, u=None, what: str = "analysis",
-                forces: np.ndarray | None = None, every: bool = False) -> None:
+                forces: np.ndarray | None = None, every: bool = False,
+                skip: tuple[str, ...] = ()) -> dict[str, np.ndarray]:
     """Raise naming the culprit when the start state or an equation there is not finite.
 
     Parameters
@@ -193,6 +195,16 @@ def check_start(model, q, v, t: float, u=None, what: str = "analysis",
     every : bool
         Also evaluate the equations the model did not compile (an ODE right-hand side that
         is not finite at the start: its culprit is in the forces it was compiled without).
+    skip : tuple of str
+        Equations not evaluated (``"mass_matrix"`` when :func:`tree_mass_positive` already
+        found finite, positive pivots: M is then finite too).
+
+    Returns
+    -------
+    dict
+        The values evaluated, by function name (e.g. ``"mass_matrix"``: M at ``q``), for a
+        later check at the same state not to evaluate them again
+        (:func:`check_mass_matrix` ``mass``).
 
     Raises
     ------
@@ -212,10 +224,11 @@ def check_start(model, q, v, t: float, u=None, what: str = "analysis",
                              + ", ".join(f"{names[i]} = {arr[i]}" for i in bad[:4]))
     if not np.all(np.isfinite(u)):
         raise ModelError(f"{what} at t = {t:g}: the actuator inputs are not finite: {u}")
-    evaluations = list(_evaluations(model, q, v, t, u, every))
+    evaluations = list(_evaluations(model, q, v, t, u, every, skip))
     if forces is not None:
-        evaluations.append(("the generalized forces", np.asarray(forces, float), names))
-    for text, values, labels in evaluations:
+        evaluations.append(("forces", "the generalized forces", np.asarray(forces, float),
+                            names))
+    for _, text, values, labels in evaluations:
         bad = _bad_rows(values)
         if not bad.size:
             continue
@@ -224,6 +237,7 @@ def check_start(model, q, v, t: float, u=None, what: str = "analysis",
             culprits = [f"{text} is not finite in the rows of "
                         + ", ".join(labels[i] for i in bad[:4])]
         raise ModelError(f"{what} at t = {t:g}: " + "; ".join(culprits[:4]))
+    return {name: values for name, _, values, _ in evaluations}
 
 
 def _worst(labels, residual: np.ndarray, count: int = 3) -> str:
@@ -293,7 +307,25 @@ def _pivots_positive(matrix: np.ndarray) -> bool:
     return bool(np.min(np.diag(chol)) ** 2 > MASS_RTOL)
 
 
-def check_mass_matrix(model, q, t: float, what: str = "simulation") -> None:
+def tree_mass_positive(model, q) -> bool:
+    """True when the model has the folded articulated-body pivots
+    (:func:`casmbd.system.chain_pivots.folded_pivots`, a long chain in joint coordinates) and
+    at ``q`` every pivot is finite and exceeds :data:`MASS_RTOL` times its diagonal entry of
+    M: D_i > MASS_RTOL M_ii, the Jacobi-scaled pivots of M = Lᵀ D L eliminated from the tips
+    (Featherstone 2008, §6.3), so M is positive definite — the verdict of
+    :func:`check_mass_matrix` by one O(N) fold, without M.  False otherwise (no pivots
+    compiled, or a pivot fails: then :func:`check_mass_matrix` decides, and names the
+    bodies)."""
+    if model.nc or model.nq == 0 or "articulated_pivots" not in model.functions:
+        return False
+    out = model.data.vector("articulated_pivots", q, model.p)
+    pivots, diagonal = out[:model.nq], out[model.nq:]
+    return bool(np.all(np.isfinite(out)) and np.all(diagonal > 0.0)
+                and np.all(pivots > MASS_RTOL * diagonal))
+
+
+def check_mass_matrix(model, q, t: float, what: str = "simulation",
+                      mass=None) -> None:
     """Raise naming the bodies without mass where M is singular (or indefinite) on the
     constraint manifold.
 
@@ -312,6 +344,18 @@ def check_mass_matrix(model, q, t: float, what: str = "simulation") -> None:
     matrix is *indefinite* (a motion with negative kinetic energy), a different defect with a
     different message naming the bodies of those motions.
 
+    Cheap test first: when the Jacobi-scaled Cholesky pivots of M itself exceed
+    :data:`MASS_RTOL` (:func:`_pivots_positive`, one dense factorisation, n³/3 flops) M is
+    positive definite on the whole space, hence on the null space of C_q: no SVD of C_q, no
+    projection, no eigen-decomposition.  Only when it fails does :func:`_diagnose_mass` run the
+    projected test and the eigen-decomposition that names the bodies (a tree in joint
+    coordinates without mass, or absolute coordinates with a massless body, take that path).
+
+    Parameters
+    ----------
+    mass : array or sparse matrix, optional
+        M already evaluated at ``q`` (:func:`check_start` returns it), not evaluated again.
+
     Raises
     ------
     ModelError
@@ -320,9 +364,18 @@ def check_mass_matrix(model, q, t: float, what: str = "simulation") -> None:
     """
     if model.nq == 0 or model.nq > MASS_CHECK_MAX:
         return
-    m = model.mass_matrix(q)
+    m = model.mass_matrix(q) if mass is None else mass
     m = np.asarray(m.todense() if sp.issparse(m) else m, float)
     m = 0.5 * (m + m.T)
+    if _pivots_positive(m):  # positive definite on the whole space: on the manifold too
+        return
+    _diagnose_mass(model, m, q, t, what)
+
+
+def _diagnose_mass(model, m: np.ndarray, q, t: float, what: str) -> None:
+    """The full test of :func:`check_mass_matrix` on the null space of C_q (SVD of C_q,
+    projected pivots, then the eigen-decomposition naming the bodies); run only when M itself
+    fails the cheap test."""
     basis = np.eye(model.nq)
     if model.nc:
         cq = model.constraint_jacobian(q, t)
@@ -332,7 +385,7 @@ def check_mass_matrix(model, q, t: float, what: str = "simulation") -> None:
         basis = vt[int(np.sum(s > tol)):].T
     if basis.shape[1] == 0:
         return
-    projected = basis.T @ m @ basis
+    projected = basis.T @ m @ basis if model.nc else m
     if _pivots_positive(projected):
         return
     eig, vec = np.linalg.eigh(projected)
