@@ -58,7 +58,7 @@ class Stepping:
         """
         kind = integ.INTEGRATORS.get(name)
         if not getattr(kind, "newton", False) or not self.dyn.is_a("External") \
-                or self.kind.kind != "ode":
+                or self.kind.ode_right_hand_side(self.dyn) is None:  # an explicit ODE only
             return self.dyn
         if self.dyn.nnz_in(1) > NEWTON_JACOBIAN_MAX:
             return self._forward_difference_dynamics()
