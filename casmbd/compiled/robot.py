@@ -410,23 +410,16 @@ class CompiledModel:
             mass, inertia = self._body_inertia.get(body, ("?", "?"))
             parts.append(f"'{self.velocity_names[k]}' (body '{body}': mass {mass}, inertia "
                          f"{inertia})")
-        if indefinite:
-            raise SingularMassMatrixError(
-                f"{what}: the mass matrix is indefinite at this q (smallest eigenvalue "
-                f"{eig[0]:.3g} of {eig[-1]:.3g}"
-                + (", on the null space of the constraint Jacobian" if cq is not None else "")
-                + "): a motion of " + ", ".join(parts) + " has negative kinetic energy, not "
-                "zero: an inertia that is not physical (a link's mass or inertia tensor); "
-                "check the links' <inertial> data",
-                coordinates=[self.velocity_names[k] for k in named],
-                bodies=list(dict.fromkeys(self._coordinate_bodies[k] for k in named)))
+        state, cause = ("indefinite", " has negative kinetic energy, not zero: an inertia that "
+                        "is not physical (a link's mass or inertia tensor); check the links' "
+                        "<inertial> data") if indefinite else (
+            "singular", " has no inertia (a massless end link); give the link mass and inertia "
+            "(load_urdf(..., links={NAME: {'mass': ..., 'inertia': [...]}})) or lock its joint")
         raise SingularMassMatrixError(
-            f"{what}: the mass matrix is singular at this q (smallest eigenvalue {eig[0]:.3g} "
+            f"{what}: the mass matrix is {state} at this q (smallest eigenvalue {eig[0]:.3g} "
             f"of {eig[-1]:.3g}"
             + (", on the null space of the constraint Jacobian" if cq is not None else "")
-            + "): a motion of " + ", ".join(parts) + " has no inertia (a massless end link);"
-            " give the link mass and inertia (load_urdf(..., links={NAME: {'mass': ..., "
-            "'inertia': [...]}})) or lock its joint",
+            + "): a motion of " + ", ".join(parts) + cause,
             coordinates=[self.velocity_names[k] for k in named],
             bodies=list(dict.fromkeys(self._coordinate_bodies[k] for k in named)))
 
