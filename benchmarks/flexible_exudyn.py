@@ -55,6 +55,7 @@ from benchmarks.flexible_peers import (
     exudyn_spinup,
     rod_mesh,
 )
+from tests.flexible_references import chord_deflection
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "benchmarks" / "results" / "flexible_exudyn.json"
@@ -162,13 +163,6 @@ name = "crank_speed"
 joint = "O"
 position = "pi / 2 + omega * t"
 """
-
-
-def chord_deflection(a: np.ndarray, b: np.ndarray, mid: np.ndarray) -> np.ndarray:
-    """Signed distance of ``mid`` from the chord a→b, (n_t, 2) arrays → (n_t,) [m]."""
-    e = (b - a) / np.linalg.norm(b - a, axis=1)[:, None]
-    d = mid - 0.5 * (a + b)
-    return e[:, 0] * d[:, 1] - e[:, 1] * d[:, 0]
 
 
 BEAM_TABLE = """[bodies.beam]

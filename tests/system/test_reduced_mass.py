@@ -38,7 +38,7 @@ from casmbd.model.fe_beam import beam_model
 from casmbd.model.modal import FEModel, ModalData
 from casmbd.model.modal_reduction import reduce
 from casmbd.system.floating_frame import FlexibleBody, invariants, planar_rotation
-from tests.flexible_references import KANE_BEAM
+from tests.flexible_references import KANE_BEAM, chord_deflection
 from tests.model.test_mass_checks import chain
 
 _cache = private_cache("cache_reduced_mass", scope="module")
@@ -325,9 +325,7 @@ def test_pinned_pinned_beam_simulates_with_reduced_mass():
 
 def _chord_deflection(res) -> np.ndarray:
     """Distance of the rod's mid node from the chord A–B (signed, m)."""
-    a, b, m = (res.node(f"rod@{k}")["position"] for k in ("A", "B", "mid"))
-    e = (b - a) / np.linalg.norm(b - a, axis=1)[:, None]
-    return (m - a)[:, 1] * e[:, 0] - (m - a)[:, 0] * e[:, 1]
+    return chord_deflection(*(res.node(f"rod@{k}")["position"] for k in ("A", "B", "mid")))
 
 
 def test_flexible_slider_crank_runs_with_reduced_mass():
