@@ -37,6 +37,9 @@ NEEDS: dict[str, str] = {
     "modal_coordinates": "elastic modal coordinates (a flexible body)",
     "drivers": "motion prescribed as a function of time (a driver)",
     "inputs": "actuator inputs u(t) (an actuator)",
+    "velocity_constraints": "constraints on the velocities that are not derivatives of "
+                            "position constraints (rolling without slipping, a knife edge: "
+                            "A(q) v + b(q, t) = 0, non-holonomic)",
 }
 
 
