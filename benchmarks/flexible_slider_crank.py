@@ -58,6 +58,7 @@ import warnings
 
 import numpy as np
 
+from benchmarks import fair
 from benchmarks.docs import replace_section, study_parser
 from benchmarks.flexible_peers import (
     exudyn_ancf_slider_crank,
@@ -100,16 +101,11 @@ def _error(t: np.ndarray, defl: np.ndarray, ref: dict) -> float:
     return float(np.abs(defl[idx[hit]] - ref["deflection"][hit]).max())
 
 
-def _best(run, repeat: int, slow: float = 2.0):
-    """Best of ``repeat`` calls of ``run() -> (seconds, payload)``; one call when slow."""
-    best = run()
-    for _ in range(repeat - 1):
-        if best[0] > slow:
-            break
-        nxt = run()
-        if nxt[0] < best[0]:
-            best = nxt
-    return best
+def _timed(run, repeat: int) -> tuple[float, float, object]:
+    """The fair rule (:func:`benchmarks.fair.timed`): the cold first run apart, then the best
+    of ``repeat`` warm solves; returns (best warm seconds, cold seconds, the last result)."""
+    out = fair.timed(lambda: (lambda r: (r[0], {"result": r[1]}))(run()), repeat)
+    return out["solve_seconds"], out["cold_seconds"], out["result"]
 
 
 def casmbd_rows(ref: dict, quick: bool, repeat: int) -> list[dict]:
@@ -133,12 +129,13 @@ def casmbd_rows(ref: dict, quick: bool, repeat: int) -> list[dict]:
                                           rtol=rtol)
                     return res.stats["solve_seconds"], res
 
-                seconds, res = _best(run, repeat)
+                seconds, cold, res = _timed(run, repeat)
                 m = {k: res.marker(f"rod@{k}")["position"] for k in ("A", "B", "mid")}
                 err = _error(res.t, chord_deflection(m["A"], m["B"], m["mid"]), ref)
                 rows.append({"code": "casmbd" if stiffening else "casmbd_linear",
                              "elements": elements, "modes": 4, "rtol": rtol,
-                             "seconds": seconds, "build_seconds": build, "cache_hit": cached,
+                             "seconds": seconds, "cold_seconds": cold, "build_seconds": build,
+                             "cache_hit": cached,
                              "steps": int(res.stats["steps"]),
                              "config": f"{res.stats['formulation']} / "
                                        f"{res.stats['integrator']}",
@@ -163,10 +160,11 @@ def exudyn_rows(ref: dict, quick: bool, repeat: int) -> list[dict]:
                                              write=DT)
                 return r.seconds, r
 
-            seconds, r = _best(run, repeat)
+            seconds, cold, r = _timed(run, repeat)
             s = r.signals
             rows.append({"code": "exudyn_ancf", "elements": elements, "h": h,
-                         "seconds": seconds, "setup_seconds": r.info["setup_seconds"],
+                         "seconds": seconds, "cold_seconds": cold,
+                         "setup_seconds": r.info["setup_seconds"],
                          "steps": r.steps,
                          "config": "ObjectANCFCable2D, generalized-α ρ∞ 0.8, dense LU",
                          "error": _error(r.t, chord_deflection(s["A"], s["B"], s["mid"]), ref)})
@@ -184,10 +182,11 @@ def exudyn_rows(ref: dict, quick: bool, repeat: int) -> list[dict]:
                                                   write=DT)
                 return r.seconds, r
 
-            seconds, r = _best(run, repeat)
+            seconds, cold, r = _timed(run, repeat)
             s = r.signals
             rows.append({"code": "exudyn_ffrf", "elements": elements, "modes": 4, "h": h,
-                         "seconds": seconds, "setup_seconds": r.info["setup_seconds"],
+                         "seconds": seconds, "cold_seconds": cold,
+                         "setup_seconds": r.info["setup_seconds"],
                          "steps": r.steps,
                          "config": "ObjectFFRFreducedOrder, generalized-α ρ∞ 0.8, dense LU",
                          "error": _error(r.t, chord_deflection(s["A"], s["B"], s["mid"]), ref)})
@@ -196,23 +195,16 @@ def exudyn_rows(ref: dict, quick: bool, repeat: int) -> list[dict]:
 
 
 def time_to_error(rows: list[dict], level: float) -> dict | None:
-    """Log–log interpolated solve time at which the front of ``rows`` reaches ``level``:
-    ``{"seconds", "bound"}`` (bound "≤" when the fastest run is already below the level),
-    ``None`` when no run reaches it."""
-    front, best = [], np.inf
-    for r in sorted(rows, key=lambda r: r["seconds"]):
-        if r["error"] < best:
-            front.append(r)
-            best = r["error"]
-    if not front or front[-1]["error"] > level:
+    """Solve time at which a contestant reaches ``level``, interpolated log-log along its
+    Pareto front (:func:`benchmarks.fair.time_to_error`): ``{"seconds", "bound"}`` (bound
+    "≤" when its fastest front run is already below the level: no extrapolation to cheaper
+    runs), ``None`` when no run reaches it."""
+    points = [(r["error"], r["seconds"]) for r in rows]
+    seconds = fair.time_to_error(points, level)
+    if seconds is None:
         return None
-    k = next(i for i, r in enumerate(front) if r["error"] <= level)
-    if k == 0:
-        return {"seconds": front[0]["seconds"], "bound": "≤"}
-    a, b = front[k - 1], front[k]
-    w = np.log(level / a["error"]) / np.log(b["error"] / a["error"])
-    return {"seconds": float(np.exp(np.log(a["seconds"])
-                                    + w * np.log(b["seconds"] / a["seconds"]))), "bound": ""}
+    front = fair.pareto(points)
+    return {"seconds": seconds, "bound": "≤" if front and front[0][0] <= level else ""}
 
 
 def _git() -> str:
@@ -248,7 +240,8 @@ def measure(quick: bool = False, repeat: int = 3) -> dict:
     return {"date": datetime.date.today().isoformat(), "machine": platform.machine(),
             "python": platform.python_version(), "quick": quick, "repeat": repeat,
             "casmbd_commit": _git(), "casadi": casadi.__version__, "numpy": np.__version__,
-            "exudyn": getattr(exu, "__version__", None),
+            "exudyn": getattr(exu, "__version__", None), "versions": fair.versions(),
+            "load": fair.load(),
             "reference": {k: v for k, v in ref.items() if k not in ("t", "deflection")},
             "rows": rows, "time_to_error": tte, "floors": floors}
 

@@ -31,6 +31,7 @@ import time
 
 import casadi as ca
 
+from benchmarks import fair
 from benchmarks import ocp_handwritten as hw
 from benchmarks.docs import replace_section
 
@@ -129,6 +130,7 @@ def measure(repeat: int, only: list[str] | None) -> dict:
     return {"rows": rows, "repeat": repeat, "load_start": load0, "load_end": os.getloadavg(),
             "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
             "casadi": ca.__version__, "python": platform.python_version(),
+            "versions": fair.versions(),
             "command": "python -m benchmarks.ocp_fair " + " ".join(sys.argv[1:])}
 
 
