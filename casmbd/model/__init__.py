@@ -44,6 +44,7 @@ from casmbd.model.spatial_joints import (
     Spherical,
     Universal,
 )
+from casmbd.model.velocity_constraint import VelocityConstraint
 
 __all__ = ["BODY_KINDS", "FORCE_KINDS", "GROUND", "JOINT_KINDS", "Actuator", "Body",
            "CompliantContact", "ContactSlide", "Cylindrical", "Distance", "Driver",
@@ -52,4 +53,5 @@ __all__ = ["BODY_KINDS", "FORCE_KINDS", "GROUND", "JOINT_KINDS", "Actuator", "Bo
            "PointForce", "Prismatic", "Revolute", "Rigid", "RollingSphere",
            "RotationalSpringDamper", "SpatialBody", "SpatialFixed", "SpatialFlexibleBody",
            "SpatialPrismatic", "SpatialRevolute", "SpatialRigid", "Spherical", "SpringDamper",
-           "Torque", "Universal", "UserForce", "register_body", "register_force", "register_joint"]
+           "Torque", "Universal", "UserForce", "VelocityConstraint", "register_body",
+           "register_force", "register_joint"]
