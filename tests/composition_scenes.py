@@ -296,9 +296,9 @@ def _sleigh(dim, name, coordinates, blade):
     if dim == 3:
         m.add("planar", "floor", "ground", "sleigh", (0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
     m.add_spring_damper("front", "ground", "sleigh", (0.5, 0.5, *z), (0.2, 0.0, *z),
-                        stiffness=10.0, free_length=0.4)
+                        stiffness=10.0, free_length=0.2)
     m.add_spring_damper("rear", "ground", "sleigh", (-0.5, 0.5, *z), (-0.2, 0.0, *z),
-                        stiffness=10.0, free_length=0.4)
+                        stiffness=10.0, free_length=0.2)
     blade(m, z)
     return m
 

@@ -294,3 +294,13 @@ def test_python_api_names_the_joint_and_field():
     with pytest.raises(ModelError, match="joint 'r': body1 and body2"):
         mech.add("knife_edge", "r", "ball", "ball", point=[0, 0, 0.1], axis=[1, 0, 0])
     assert "r" not in mech.joints
+
+
+def test_only_the_slip_rows_are_velocity_rows():
+    """The rolling sphere's ``contact`` row is a position row (assembly, projections and
+    stabilisation keep it); ``slip_1`` and ``slip_2`` are velocity rows."""
+    system = casmbd.System(ball_on_incline("absolute", 0.0, 0.0))
+    labels = [str(lab) for lab in system.constraint_labels]
+    assert [labels[i] for i in system.velocity_rows] == [
+        "joint 'roll' equation 'slip_1'", "joint 'roll' equation 'slip_2'"]
+    assert "joint 'roll' equation 'contact'" in [labels[i] for i in system.holonomic_rows]
