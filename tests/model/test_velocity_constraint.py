@@ -204,3 +204,11 @@ def test_scene_errors_name_the_joint_and_key(keys, message):
         loads_scene(SCENE.format(keys=keys))
     text = str(err.value)
     assert "'blade'" in text and message in text, text
+
+
+def test_row_count_is_limited():
+    from casmbd.errors import LimitError
+    from casmbd.limits import MAX_VELOCITY_ROWS
+    with pytest.raises(LimitError, match="joint 'v' field 'rows': 1,001 exceeds the limit"):
+        planar_mech().add("velocity", "v", "ground", "sleigh",
+                          rows=["vx('P')"] * (MAX_VELOCITY_ROWS + 1))
