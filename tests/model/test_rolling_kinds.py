@@ -304,3 +304,20 @@ def test_only_the_slip_rows_are_velocity_rows():
     assert [labels[i] for i in system.velocity_rows] == [
         "joint 'roll' equation 'slip_1'", "joint 'roll' equation 'slip_2'"]
     assert "joint 'roll' equation 'contact'" in [labels[i] for i in system.holonomic_rows]
+
+
+def test_the_rolling_body_is_not_the_ground_and_the_axle_is_z():
+    mech = Mechanism("m", dimension=2)
+    mech.add_body("disc", 1.0, 0.005, [0.0, 0.1])
+    with pytest.raises(ModelError, match="joint 'r' field 'body2': the disc must be a moving"):
+        mech.add("rolling_disc", "r", "disc", "ground", point=[0, 0.1], radius=0.1)
+    with pytest.raises(ModelError, match="joint 'r' field 'body2': the body carrying the blade"):
+        mech.add("knife_edge", "r", "disc", "ground", point=[0, 0.1], axis=[1, 0])
+    with pytest.raises(ModelError, match="joint 'r' field 'axis': in the plane the axle"):
+        mech.add("rolling_disc", "r", "ground", "disc", [0, 0.1], ["z", 0, 1], 0.1)
+    with pytest.raises(ModelError, match="joint 'r' field 'axis': in the plane the axle"):
+        mech.add("rolling_disc", "r", "ground", "disc", [0, 0.1], 0.1)
+    with pytest.raises(ModelError, match="joint 'r' field 'radius': missing"):
+        mech.add("rolling_disc", "r", "ground", "disc", [0, 0.1])
+    joint = mech.add("rolling_disc", "r", "ground", "disc", [0, 0.1], [0, 0, -1], 0.1)
+    assert joint.radius == 0.1 and not mech.joints["r"].needs
