@@ -120,17 +120,23 @@ def _check_height(name: str, point, origin, normal, radius: float) -> None:
                          "side the normal points to)")
 
 
+def _moving(name: str, body2: str, what: str) -> None:
+    """body2 is the rolling body: not the ground."""
+    if body2 == GROUND:
+        raise ModelError(f"joint '{name}' field 'body2': {what} must be a moving body (the "
+                         "support, body1, may be the ground)")
+
+
 def _planar_axis(name: str, axis) -> None:
     """A planar disc's axle is z: ``axis`` may be given, as a 3-vector along ±z."""
     if axis is None:
         return
     where = f"joint '{name}' field 'axis'"
-    arr = np.asarray(axis, dtype=float).reshape(-1) if isinstance(axis, (list, tuple, np.ndarray)) \
-        else None
-    if arr is None or arr.shape != (3,):
+    try:
+        unit = unit_vector(axis, where, 3)
+    except ModelError:
         raise ModelError(f"{where}: in the plane the axle is the z axis; give [0, 0, 1] (or "
-                         f"omit it), got {axis!r}")
-    unit = unit_vector(arr, where, 3)
+                         f"omit it), got {axis!r}") from None
     if abs(abs(unit[2]) - 1.0) > 1e-9:
         raise ModelError(f"{where}: in the plane the axle must be along z ([0, 0, 1]), got "
                          f"{axis!r}")
@@ -164,11 +170,16 @@ class PlanarRollingDisc(Joint):
     scene_keys = frozenset({"point", "axis", "radius", "origin", "normal"})
 
     @classmethod
-    def create(cls, mech, name: str, body1: str, body2: str, point, radius,
-               origin=(0.0, 0.0), normal=(0.0, 1.0), axis=None) -> PlanarRollingDisc:
-        """Check the fields (naming the joint and the field) and build the joint."""
+    def create(cls, mech, name: str, body1: str, body2: str, point, axis=None, radius=None,
+               origin=(0.0, 0.0), normal=(0.0, 1.0)) -> PlanarRollingDisc:
+        """Check the fields (naming the joint and the field) and build the joint; the
+        arguments are in the order of the spatial ``rolling_disc`` (``axis`` optional here:
+        give ``radius`` by keyword)."""
         mech._new_joint(name, body1, body2)
+        _moving(name, body2, "the disc")
         _planar_axis(name, axis)
+        if radius is None:
+            raise ModelError(f"joint '{name}' field 'radius': missing")
         return cls(name, body1, body2, point=point, radius=radius, origin=origin,
                    normal=normal)
 
@@ -177,9 +188,9 @@ class PlanarRollingDisc(Joint):
         name = e.string("name")
         axis = e.vector("axis", 3, required=False) if e.has("axis") else None
         return mech.add("rolling_disc", name, e.string("body1"), e.string("body2"),
-                        e.vector("point", 2), e.number("radius"),
+                        e.vector("point", 2), axis, e.number("radius"),
                         origin=e.vector("origin", 2, default=[0.0, 0.0]),
-                        normal=e.vector("normal", 2, default=[0.0, 1.0]), axis=axis)
+                        normal=e.vector("normal", 2, default=[0.0, 1.0]))
 
     def __post_init__(self):
         where = f"joint '{self.name}' field"
@@ -256,6 +267,7 @@ class KnifeEdge(Joint):
                normal=None) -> KnifeEdge:
         """Check the fields (naming the joint and the field) and build the joint."""
         mech._new_joint(name, body1, body2)
+        _moving(name, body2, "the body carrying the blade")
         if mech.dimension == 2 and normal is not None:
             raise ModelError(f"joint '{name}' field 'normal': a planar knife edge slides in "
                              "the plane (no normal to give)")
@@ -329,6 +341,7 @@ class RollingSphere(Joint):
                origin=(0.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0)) -> RollingSphere:
         """Check the fields (naming the joint and the field) and build the joint."""
         mech._new_joint(name, body1, body2)
+        _moving(name, body2, "the sphere")
         return cls(name, body1, body2, point=point, radius=radius, origin=origin,
                    normal=normal)
 

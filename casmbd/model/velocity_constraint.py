@@ -45,6 +45,7 @@ import casadi as ca
 import numpy as np
 
 from casmbd.errors import ModelError
+from casmbd.limits import MAX_VELOCITY_ROWS, check_count
 from casmbd.model.bodies import GROUND
 from casmbd.model.expressions import parse_expression
 from casmbd.model.joints import Joint
@@ -224,6 +225,7 @@ class VelocityConstraint(Joint):
         if not isinstance(texts, (list, tuple)) or not texts:
             raise ModelError(f"{where} 'rows': expected an expression string or a non-empty "
                              f"list of them, got {rows!r}")
+        check_count(f"joint '{name}' field 'rows'", len(texts), MAX_VELOCITY_ROWS)
         if labels is None:
             labels = [f"row_{k + 1}" for k in range(len(texts))]
         elif isinstance(labels, str):

@@ -632,9 +632,9 @@ def _from_triplets(n: int, rows: list[int], cols: list[int], vals: list) -> ca.S
 
 def velocity_row_indices(mechanism, labels, tree_joints=()) -> list[int]:
     """Indices of the rows of C (labelled ``labels``) that a joint of ``mechanism`` writes at
-    the velocity level: the rows of a joint with ``velocity_equations`` whose labels are in
-    its ``velocity_labels`` (every row of the joint when it names none; a rolling disc's
-    ``contact`` row stays a position row), a tree joint writing no rows."""
+    the velocity level (it has ``velocity_equations``; a tree joint writes no rows): the rows
+    its ``velocity_labels`` name when it declares them (a rolling sphere's or disc's
+    ``contact`` row is a position row beside its slip rows), else all its rows."""
     joints = {name: getattr(j, "velocity_labels", None)
               for name, j in mechanism.joints.items()
               if hasattr(j, "velocity_equations") and name not in tree_joints}
