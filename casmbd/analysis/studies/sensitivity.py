@@ -331,8 +331,8 @@ def sensitivity(mechanism, outputs: Sequence[str] | str, parameters: Sequence[st
     c_s, cq_s, _, _ = cons(st.q, t_start, ps)
     hol = list(getattr(dsys, "holonomic_rows", range(nc)))
     if len(hol) < nc:  # rows written at the velocity level correct no position (C ≡ 0)
-        c_s, cq_s = c_s[hol], ca.Function("ch", [q, p], [dsys.position_jacobian[hol, :]])(
-            st.q, ps)
+        c_s, cq_s = c_s[hol], ca.Function("ch", [q, t, p], [dsys.position_jacobian[hol, :]])(
+            st.q, t_start, ps)
     q0 = st.q - ca.mtimes(cq_s.T, ca.solve(ca.mtimes(cq_s, cq_s.T), c_s)) if hol else \
         ca.SX(st.q)
     _, cq0, ct0, m0 = cons(q0, t_start, ps)
