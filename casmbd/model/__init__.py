@@ -34,6 +34,7 @@ from casmbd.model.registry import (
     register_force,
     register_joint,
 )
+from casmbd.model.rolling_disc import RollingDisc
 from casmbd.model.spatial_joints import (
     Cylindrical,
     SpatialFixed,
@@ -48,6 +49,7 @@ __all__ = ["BODY_KINDS", "FORCE_KINDS", "GROUND", "JOINT_KINDS", "Actuator", "Bo
            "CompliantContact", "ContactSlide", "Cylindrical", "Distance", "Driver",
            "ExpressionForce", "Fixed", "ForceElement", "Gear", "Joint", "JointFriction", "Marker",
            "Mechanism", "Planar", "PlanarFlexibleBody", "PointForce", "Prismatic", "Revolute",
-           "Rigid", "RotationalSpringDamper", "SpatialBody", "SpatialFixed", "SpatialFlexibleBody",
+           "Rigid", "RollingDisc", "RotationalSpringDamper", "SpatialBody", "SpatialFixed",
+           "SpatialFlexibleBody",
            "SpatialPrismatic", "SpatialRevolute", "SpatialRigid", "Spherical", "SpringDamper",
            "Torque", "Universal", "UserForce", "register_body", "register_force", "register_joint"]
