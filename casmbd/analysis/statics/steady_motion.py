@@ -477,7 +477,8 @@ def _linearize(lin: SteadyMotion, q, v, t: float, u) -> SteadyMotionModel:
              "max_rate_not_cyclic": float(max((abs(vs[k]) for k in keep), default=0.0)),
              "max_acceleration": float(np.max(np.abs(jac.a), initial=0.0)),
              "position_change": state.position_change, "velocity_change": state.velocity_change,
-             "build_seconds": lin.build_seconds, "solve_seconds": time.perf_counter() - t0}
+             "build_seconds": lin.build_seconds, "solve_seconds": time.perf_counter() - t0,
+             **{k: val for k, val in model.report_dict.items() if k != "build_seconds"}}
     return SteadyMotionModel(eig, j_red, w, jac.J, [names[k] for k in cyclic], symmetries,
                              remaining, modes, qs, vs, jac.a, names, stats)
 
