@@ -633,9 +633,10 @@ def _from_triplets(n: int, rows: list[int], cols: list[int], vals: list) -> ca.S
 def velocity_row_indices(mechanism, labels, tree_joints=()) -> list[int]:
     """Indices of the rows of C (labelled ``labels``) that a joint of ``mechanism`` writes at
     the velocity level (it has ``velocity_equations``; a tree joint writes no rows): the rows
-    its ``velocity_labels`` names when it declares them (a joint with a holonomic contact row
-    beside its velocity rows: a rolling disc or sphere), else all of its rows."""
-    joints = {name: getattr(j, "velocity_labels", None) for name, j in mechanism.joints.items()
+    its ``velocity_labels`` name when it declares them (a rolling sphere's or disc's
+    ``contact`` row is a position row beside its slip rows), else all its rows."""
+    joints = {name: getattr(j, "velocity_labels", None)
+              for name, j in mechanism.joints.items()
               if hasattr(j, "velocity_equations") and name not in tree_joints}
     return [i for i, lab in enumerate(labels) if lab.kind == "joint" and lab.element in joints
             and (joints[lab.element] is None or lab.label in joints[lab.element])]
