@@ -86,6 +86,20 @@ def _actuator_efforts(model, grid, qs, vs, acc) -> np.ndarray:
     return out, lam
 
 
+def tyre_forces(model, lam: np.ndarray) -> tuple[np.ndarray, list[str]]:
+    """The forces of the rows written at the velocity level (rolling without slipping, knife
+    edges): −λ of each such row, named ``"<joint>.<row label>"``.
+
+    A row W = dᵀ ṙ_P (d a unit direction, P the touching point: every rolling and knife-edge
+    row) has C_q = dᵀ ∂r_P/∂q, so its constraint force −C_qᵀ λ is the virtual work of the force
+    −λ d at P on the joint's second body: −λ is the tyre force along the row's own direction
+    (lateral, longitudinal), in newtons (seed 000 eq. 6.145: the reaction −C_qᵀ λ)."""
+    rows = list(model.velocity_rows)
+    labels = model.constraint_labels
+    return -np.asarray(lam, float)[:, rows], [f"{labels[i].element}.{labels[i].label}"
+                                              for i in rows]
+
+
 #: what inverse dynamics handles (casmbd.model.needs): no event-driven elements
 HANDLING = Handling(
     "inverse dynamics", ALL_NEEDS - EVENT_NEEDS,
@@ -100,7 +114,9 @@ HANDLING = Handling(
              "contact_friction": "simulate, or model = 'compliant'",
              "stick_slip": "the regularised law (stick_slip = false), or simulate"},
     notes={"modal_coordinates": "flexible bodies move rigidly (η = 0)",
-           "reaction_forces": "λ and the friction levels by a fixed point at each time"})
+           "reaction_forces": "λ and the friction levels by a fixed point at each time",
+           "velocity_constraints": "−λ of each rolling row reported as its tyre force "
+                                   "(``tyre_forces``, named joint.row)"})
 
 
 def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.0,
@@ -130,7 +146,9 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
     Result
         ``kind == "inverse_dynamics"``: the kinematic arrays plus ``lambda``,
         ``driver_efforts`` (n_t × n_drivers), ``joint_reactions`` (n_t × n_joints × 3),
-        ``kinetic_energy`` and ``potential_energy``.
+        ``kinetic_energy`` and ``potential_energy``; with rows written at the velocity level
+        (rolling without slipping, knife edges) ``tyre_forces`` (n_t × rows, −λ of each row:
+        :func:`tyre_forces`) named in ``names["tyre_forces"]`` as ``"<joint>.<row>"``.
 
     Raises
     ------
@@ -205,6 +223,8 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
     names = dict(kin.names)
     names["drivers"] = drivers
     names["actuators"] = actuators
+    if model.velocity_rows:  # rolling and knife-edge rows: their forces, named by row
+        arrays["tyre_forces"], names["tyre_forces"] = tyre_forces(model, lam)
     stats = dict(kin.stats)
     stats.update(flags)
     if friction:
