@@ -53,6 +53,12 @@ def test_inverse_dynamics_reports_the_tyre_force_by_row():
     assert np.max(np.abs(inv["tyre_forces"][:, 0] - by_hand)) <= 1e-10
     # the tyre force is −λ of the blade's row (the first row of C: joints before drivers)
     assert np.array_equal(inv["tyre_forces"][:, 0], -inv["lambda"][:, 0])
+    # and the blade's joint reaction is that force along its normal, no moment about G
+    theta = inv.body("cart")["angle"]
+    reaction = inv["joint_reactions"][:, 0, :]
+    assert np.max(np.abs(reaction[:, 0] + np.sin(theta) * by_hand)) <= 1e-10
+    assert np.max(np.abs(reaction[:, 1] - np.cos(theta) * by_hand)) <= 1e-10
+    assert np.max(np.abs(reaction[:, 2])) <= 1e-12
 
 
 def test_tyre_forces_agree_across_coordinate_choices():

@@ -196,3 +196,28 @@ def test_an_impact_keeps_the_blade():
         assert res["kinetic_energy"][-1] < 0.5 * res["kinetic_energy"][0]
     assert abs(runs[0].events[0]["time"] - runs[1].events[0]["time"]) <= 1e-8
     assert np.max(np.abs(runs[0]["q"] - runs[1]["q"])) <= 1e-8
+
+
+@pytest.mark.parametrize("coordinates", ["absolute", "natural", "joint"])
+def test_reactions_of_velocity_rows_from_their_multipliers(coordinates):
+    """Joint reactions of a kind with velocity rows and no ``virtual_equations`` of its own
+    (the generic virtual twist of :mod:`casmbd.system.joint_reactions`): a uniform ball
+    rolling down an incline of α = 0.3 (``rolling_sphere``) is held by N = m g cos α along the
+    normal and the friction (2/7) m g sin α up the slope (Routh), 1e-8 N, while it also rolls
+    across the slope and spins about the normal."""
+    from casmbd.model.mechanism import Mechanism
+    g, alpha, radius, mass = 9.81, 0.3, 0.2, 1.5
+    normal = np.array([-np.sin(alpha), 0.0, np.cos(alpha)])
+    uphill = np.array([np.cos(alpha), 0.0, np.sin(alpha)])
+    omega = 3.0 * normal + 0.5 / radius / np.cross(uphill, normal)[1] * uphill
+    mech = Mechanism("ball", gravity=(0.0, 0.0, -g), coordinates=coordinates)
+    mech.add_body("ball", mass, [0.4 * mass * radius**2] * 3, radius * normal,
+                  velocity=radius * np.cross(omega, normal), angular_velocity=omega)
+    mech.add("rolling_sphere", "roll", "ground", "ball", point=radius * normal,
+             radius=radius, origin=[0.0, 0.0, 0.0], normal=normal)
+    res = casmbd.simulate(mech, 1.0, 4, rtol=1e-10, mode="vm")
+    force = res["joint_reactions"][:, 0, :3]
+    assert np.max(np.abs(force @ normal - mass * g * np.cos(alpha))) <= 1e-8
+    assert np.max(np.abs(force @ uphill - 2.0 / 7.0 * mass * g * np.sin(alpha))) <= 1e-8
+    across = np.cross(normal, uphill)
+    assert np.max(np.abs(force @ across)) <= 1e-8
