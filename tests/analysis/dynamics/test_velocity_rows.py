@@ -221,3 +221,31 @@ def test_reactions_of_velocity_rows_from_their_multipliers(coordinates):
     assert np.max(np.abs(force @ uphill - 2.0 / 7.0 * mass * g * np.sin(alpha))) <= 1e-8
     across = np.cross(normal, uphill)
     assert np.max(np.abs(force @ across)) <= 1e-8
+
+
+def test_energy_guard_of_fixed_step_runs_counts_velocity_rows():
+    """A row A v + b = 0 does work λᵀ b: a joint with velocity rows is listed among the
+    elements that exchange energy unless its kind declares it workless
+    (``energy_exchange()`` → None), so the fixed-step energy guard never stops a run such a
+    row powers (a prescribed slip velocity) and still guards a workless blade."""
+    import copy
+
+    from casmbd.analysis.integrators.invariants import energy_exchange
+    res = casmbd.simulate(sleigh(), 0.1, 1, mode="vm")
+
+    class Workless(type(sleigh().joints["knife"])):
+        def energy_exchange(self):
+            return None
+
+    class Powered(type(sleigh().joints["knife"])):
+        def energy_exchange(self):
+            return "prescribed slip"
+
+    for cls, listed in ((Workless, False), (Powered, True)):
+        mech = sleigh()
+        joint = copy.copy(mech.joints["knife"])
+        joint.__class__ = cls
+        mech.joints["knife"] = joint
+        found = [item for item in energy_exchange(mech, res) if "joint 'knife'" in item]
+        assert bool(found) == listed, cls.__name__
+    assert "prescribed slip of joint 'knife'" in energy_exchange(mech, res)
