@@ -75,3 +75,29 @@ def test_tyre_forces_survive_the_result_file(tmp_path):
     back = casmbd.results.load(path)
     assert back.names["tyre_forces"] == ["blade.lateral"]
     assert np.array_equal(back["tyre_forces"], inv["tyre_forces"])
+
+
+def test_a_mechanism_driven_at_the_velocity_level():
+    """The same cart driven by velocity rows only (a ``velocity`` joint: ẋ = 1, θ̇ = 0.5 cos t)
+    — no position equation at all: kinematics integrates every coordinate (x = t and
+    θ = 0.5 sin t to 1e-12, y to the quadrature to 1e-10), and the efforts of the driving rows
+    are tyre forces too: the force along x F sin θ and the torque I θ̈ = −0.05 sin t (1e-10)."""
+    m = casmbd.Mechanism("cart", gravity=(0.0, 0.0))
+    m.add_body("cart", mass=MASS, inertia=0.1, position=(0.0, 0.0))
+    add_knife_edge(m, "blade", "cart", (0.0, 0.0), (1.0, 0.0))
+    m.add("velocity", "motion", "ground", "cart",
+          rows=["vx('cart') - 1", "omega_of('cart') - 0.5*cos(t)"], labels=["ahead", "steer"])
+    inv = casmbd.inverse_dynamics(m, 2.0, 10, mode="vm")
+    t, body = inv.t, inv.body("cart")
+    assert np.max(np.abs(body["position"][:, 0] - t)) <= 1e-12
+    assert np.max(np.abs(body["angle"] - 0.5 * np.sin(t))) <= 1e-12
+    ref = [quad(lambda s: np.tan(0.5 * np.sin(s)), 0.0, tk, epsabs=1e-14, epsrel=1e-14)[0]
+           for tk in t]
+    assert np.max(np.abs(body["position"][:, 1] - ref)) <= 1e-10
+    assert inv.names["tyre_forces"] == ["blade.lateral", "motion.ahead", "motion.steer"]
+    theta = 0.5 * np.sin(t)
+    lateral = MASS * 0.5 * np.cos(t) / np.cos(theta) ** 3
+    forces = inv["tyre_forces"]
+    assert np.max(np.abs(forces[:, 0] - lateral)) <= 1e-10
+    assert np.max(np.abs(forces[:, 1] - lateral * np.sin(theta))) <= 1e-10
+    assert np.max(np.abs(forces[:, 2] + 0.05 * np.sin(t))) <= 1e-10
