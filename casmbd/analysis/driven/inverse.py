@@ -28,6 +28,7 @@ from casmbd.analysis.driven.kinematics import check_result_size, kinematics
 from casmbd.analysis.instant.checks import diagnose
 from casmbd.analysis.instant.independent import find_redundant, minimum_norm, scatter
 from casmbd.analysis.instant.reaction_friction import has_reaction_friction, solve_normals
+from casmbd.analysis.instant.tyre_forces import tyre_forces
 from casmbd.analysis.instant.undetermined_reactions import flag_undetermined
 from casmbd.compiled.build import compile_model
 from casmbd.compiled.model import NEEDS, NumericModel
@@ -86,20 +87,6 @@ def _actuator_efforts(model, grid, qs, vs, acc) -> np.ndarray:
     return out, lam
 
 
-def tyre_forces(model, lam: np.ndarray) -> tuple[np.ndarray, list[str]]:
-    """The forces of the rows written at the velocity level (rolling without slipping, knife
-    edges): −λ of each such row, named ``"<joint>.<row label>"``.
-
-    A row W = dᵀ ṙ_P (d a unit direction, P the touching point: every rolling and knife-edge
-    row) has C_q = dᵀ ∂r_P/∂q, so its constraint force −C_qᵀ λ is the virtual work of the force
-    −λ d at P on the joint's second body: −λ is the tyre force along the row's own direction
-    (lateral, longitudinal), in newtons (seed 000 eq. 6.145: the reaction −C_qᵀ λ)."""
-    rows = list(model.velocity_rows)
-    labels = model.constraint_labels
-    return -np.asarray(lam, float)[:, rows], [f"{labels[i].element}.{labels[i].label}"
-                                              for i in rows]
-
-
 #: what inverse dynamics handles (casmbd.model.needs): no event-driven elements
 HANDLING = Handling(
     "inverse dynamics", ALL_NEEDS - EVENT_NEEDS,
@@ -148,7 +135,8 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
         ``driver_efforts`` (n_t × n_drivers), ``joint_reactions`` (n_t × n_joints × 3),
         ``kinetic_energy`` and ``potential_energy``; with rows written at the velocity level
         (rolling without slipping, knife edges) ``tyre_forces`` (n_t × rows, −λ of each row:
-        :func:`tyre_forces`) named in ``names["tyre_forces"]`` as ``"<joint>.<row>"``.
+        :func:`~casmbd.analysis.instant.tyre_forces.tyre_forces`) named in
+        ``names["tyre_forces"]`` as ``"<joint>.<row>"``.
 
     Raises
     ------

@@ -249,3 +249,15 @@ def test_energy_guard_of_fixed_step_runs_counts_velocity_rows():
         found = [item for item in energy_exchange(mech, res) if "joint 'knife'" in item]
         assert bool(found) == listed, cls.__name__
     assert "prescribed slip of joint 'knife'" in energy_exchange(mech, res)
+
+
+def test_simulation_reports_tyre_forces():
+    """A simulation names the blade's force too (−λ of its row): the blade is the only force
+    on the sleigh, so its force F l is m a_G, F = m a_G · l at every output (1e-8)."""
+    res = casmbd.simulate(sleigh(), 1.0, 10, formulation="index1", rtol=1e-10, mode="vm")
+    assert res.names["tyre_forces"] == ["knife.lateral"]
+    body = res.body("sleigh")
+    theta, acc = body["angle"], body["acceleration"]
+    lateral = np.column_stack([-np.sin(theta), np.cos(theta)])
+    force = SLEIGH["m"] * np.einsum("ij,ij->i", acc, lateral)
+    assert np.max(np.abs(res["tyre_forces"][:, 0] - force)) <= 1e-8
