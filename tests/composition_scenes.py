@@ -270,6 +270,83 @@ def actuator(m, dim):
     m.add_actuator("motor", "pin")
 
 
+# --------------------------------------------------------------------- rolling (issue 37)
+def rolling_disc(dim, driven=False, coordinates="auto"):
+    """A disc (R = 0.1) rolling on the ground line, held by a horizontal spring."""
+    m = casmbd.Mechanism("rolling_disc", gravity=G2, coordinates=coordinates)
+    m.add_body("disc", mass=1.0, inertia=0.005, position=(0.0, 0.1), velocity=(0.3, 0.0),
+               angular_velocity=-3.0)
+    m.add("rolling_disc", "roll", "ground", "disc", point=(0.0, 0.1), radius=0.1)
+    m.add_spring_damper("spring", "ground", "disc", (-0.5, 0.1), (0.0, 0.1), stiffness=20.0,
+                        free_length=0.4)
+    if driven:
+        m.add_driver("push", joint="roll", coordinate="translation", position="0.1*sin(2*t)")
+    return m
+
+
+def _sleigh(dim, name, coordinates, blade):
+    """A sleigh on the horizontal plane (seen from above in the plane, held on the floor by a
+    planar joint in space), pulled by two springs, its rear point on a blade ``blade(m)``."""
+    z = (0.0,) * (dim - 2)
+    m = casmbd.Mechanism(name, gravity=(0.0, 0.0) if dim == 2 else (0.0, 0.0, -9.81),
+                         coordinates=coordinates)
+    m.add_body("sleigh", mass=1.0, inertia=0.02 if dim == 2 else [0.01, 0.02, 0.02],
+               position=(0.0, 0.0, *z), velocity=(0.3, -0.04, *z),
+               angular_velocity=0.2 if dim == 2 else (0.0, 0.0, 0.2))
+    if dim == 3:
+        m.add("planar", "floor", "ground", "sleigh", (0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+    m.add_spring_damper("front", "ground", "sleigh", (0.5, 0.5, *z), (0.2, 0.0, *z),
+                        stiffness=10.0, free_length=0.2)
+    m.add_spring_damper("rear", "ground", "sleigh", (-0.5, 0.5, *z), (-0.2, 0.0, *z),
+                        stiffness=10.0, free_length=0.2)
+    blade(m, z)
+    return m
+
+
+def knife_edge(dim, driven=False, coordinates="auto"):
+    return _sleigh(dim, "knife_edge", coordinates, lambda m, z: m.add(
+        "knife_edge", "blade", "ground", "sleigh", point=(-0.2, 0.0, *z), axis=(1.0, 0.0, *z)))
+
+
+def knife_edge_driven(dim, driven=True, coordinates="auto"):
+    """The sleigh driven at the velocity level: its x and its heading prescribed, its other
+    coordinate follows from the blade (kinematics integrates q̇ = v(q, t); the blade's row is
+    one of the velocity equations; inverse dynamics reports its tyre force)."""
+    m = knife_edge(dim, coordinates=coordinates)
+    if driven and dim == 2:
+        m.add_driver("ahead", body="sleigh", coordinate="x", position="0.3*t")
+        m.add_driver("steer", body="sleigh", coordinate="angle", position="0.2*sin(t)")
+    elif driven:
+        m.add_driver("ahead", joint="floor", coordinate="x", position="0.3*t")
+        m.add_driver("steer", joint="floor", coordinate="angle", position="0.2*sin(t)")
+    return m
+
+
+def velocity(dim, driven=False, coordinates="auto"):
+    """The sleigh's blade as a generic velocity row: the rear point's velocity across the
+    line from the rear to the front point (unnormalised)."""
+    def blade(m, z):
+        m.add_marker("rear_point", "sleigh", (-0.2, 0.0, *z))
+        m.add_marker("front_point", "sleigh", (0.2, 0.0, *z))
+        m.add("velocity", "blade", "ground", "sleigh", rows=[
+            "-(y('front_point') - y('rear_point'))*vx('rear_point')"
+            " + (x('front_point') - x('rear_point'))*vy('rear_point')"], labels=["lateral"])
+    return _sleigh(dim, "velocity", coordinates, blade)
+
+
+def rolling_sphere(dim, driven=False, coordinates="auto"):
+    """A ball (R = 0.1) rolling on the floor, held by two horizontal springs."""
+    m = casmbd.Mechanism("rolling_sphere", gravity=(0.0, 0.0, -9.81), coordinates=coordinates)
+    m.add_body("ball", mass=1.0, inertia=[0.004] * 3, position=(0.0, 0.0, 0.1),
+               velocity=(0.2, 0.1, 0.0), angular_velocity=(-1.0, 2.0, 0.5))
+    m.add("rolling_sphere", "roll", "ground", "ball", point=(0.0, 0.0, 0.1), radius=0.1)
+    m.add_spring_damper("x_spring", "ground", "ball", (-0.5, 0.0, 0.1), (0.0, 0.0, 0.1),
+                        stiffness=20.0, free_length=0.4)
+    m.add_spring_damper("y_spring", "ground", "ball", (0.0, -0.5, 0.1), (0.0, 0.0, 0.1),
+                        stiffness=20.0, free_length=0.4)
+    return m
+
+
 #: variant -> (builder, dimensions, has a driven form)
 VARIANTS = {
     "revolute": (revolute, (2, 3), True), "prismatic": (prismatic, (2, 3), True),
@@ -291,6 +368,9 @@ VARIANTS = {
     "contact_compliant": (contact_compliant, (2, 3), False),
     "flexible": (flexible, (2, 3), False), "rigid_body": (revolute, (2, 3), True),
     "driver": (driver, (2, 3), True), "actuator": (actuator, (2, 3), True),
+    "rolling_disc": (rolling_disc, (2,), True), "knife_edge": (knife_edge, (2, 3), False),
+    "knife_edge_driven": (knife_edge_driven, (2, 3), True),
+    "rolling_sphere": (rolling_sphere, (3,), False), "velocity": (velocity, (2, 3), False),
 }
 
 #: registered kind -> the variants that exercise it (a kind missing here fails the matrix)
@@ -298,7 +378,9 @@ KIND_VARIANTS = {
     **{k: (k,) for k in ("revolute", "prismatic", "rigid", "fixed", "distance", "gear",
                          "spherical", "universal", "cylindrical", "inline", "planar",
                          "force", "torque", "spring_damper", "rotational_spring_damper",
-                         "user", "expression", "flexible")},
+                         "user", "expression", "flexible", "rolling_disc",
+                         "rolling_sphere", "velocity")},
+    "knife_edge": ("knife_edge", "knife_edge_driven"),
     "joint_friction": ("joint_friction", "joint_friction_reaction",
                        "joint_friction_stick_slip"),
     "compliant_contact": ("stop_compliant", "contact_compliant"),

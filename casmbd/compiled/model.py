@@ -161,6 +161,8 @@ class NumericModel:
         self.joint_rows: dict[str, list[int]] = {k: list(v) for k, v in
                                                  system.joint_rows.items()}
         self.driver_rows: dict[str, int] = dict(system.driver_rows)
+        #: rows of C written at the velocity level (non-holonomic; System.velocity_rows)
+        self.velocity_rows: list[int] = list(system.velocity_rows)
         self._q0 = system.initial_coordinates()
         self._v0 = system.initial_velocities() if system.local else None
         self._v0_at: tuple[list[float], np.ndarray] | None = None
@@ -185,7 +187,8 @@ class NumericModel:
                 "joint_coordinate_names": self.joint_coordinate_names,
                 "body_names": self.body_names, "length_indices": self.length_indices.tolist(),
                 "reaction_size": self.reaction_size, "joint_rows": self.joint_rows,
-                "driver_rows": self.driver_rows, "q0": self._q0.tolist(),
+                "driver_rows": self.driver_rows, "velocity_rows": self.velocity_rows,
+                "q0": self._q0.tolist(),
                 "v0": v0.tolist(), "v0_local": self._v0 is not None,
                 "coordinate_reason": self.coordinate_reason}
 
@@ -213,6 +216,7 @@ class NumericModel:
         self.reaction_size = int(record["reaction_size"])
         self.joint_rows = {k: list(v) for k, v in record["joint_rows"].items()}
         self.driver_rows = dict(record["driver_rows"])
+        self.velocity_rows = [int(i) for i in record.get("velocity_rows", ())]
         self._q0 = np.array(record["q0"], dtype=float).reshape(-1)
         v0 = np.array(record["v0"], dtype=float).reshape(-1)
         self._v0 = v0 if record["v0_local"] else None
@@ -287,6 +291,12 @@ class NumericModel:
         view.__dict__.update(self.__dict__)
         view._origin, view.data = origin, data
         return view
+
+    @property
+    def holonomic_rows(self) -> list[int]:
+        """Rows of C that are position constraints (all but :attr:`velocity_rows`)."""
+        vel = set(self.velocity_rows)
+        return [i for i in range(self.nc) if i not in vel]
 
     @property
     def parameters(self) -> dict[str, float]:

@@ -34,6 +34,8 @@ from casmbd.model.registry import (
     register_force,
     register_joint,
 )
+from casmbd.model.rolling import KnifeEdge, PlanarRollingDisc, RollingSphere
+from casmbd.model.rolling_disc import RollingDisc
 from casmbd.model.spatial_joints import (
     Cylindrical,
     SpatialFixed,
@@ -43,11 +45,14 @@ from casmbd.model.spatial_joints import (
     Spherical,
     Universal,
 )
+from casmbd.model.velocity_constraint import VelocityConstraint
 
 __all__ = ["BODY_KINDS", "FORCE_KINDS", "GROUND", "JOINT_KINDS", "Actuator", "Body",
            "CompliantContact", "ContactSlide", "Cylindrical", "Distance", "Driver",
-           "ExpressionForce", "Fixed", "ForceElement", "Gear", "Joint", "JointFriction", "Marker",
-           "Mechanism", "Planar", "PlanarFlexibleBody", "PointForce", "Prismatic", "Revolute",
-           "Rigid", "RotationalSpringDamper", "SpatialBody", "SpatialFixed", "SpatialFlexibleBody",
+           "ExpressionForce", "Fixed", "ForceElement", "Gear", "Joint", "JointFriction",
+           "KnifeEdge", "Marker", "Mechanism", "Planar", "PlanarFlexibleBody", "PlanarRollingDisc",
+           "PointForce", "Prismatic", "Revolute", "Rigid", "RollingDisc", "RollingSphere",
+           "RotationalSpringDamper", "SpatialBody", "SpatialFixed", "SpatialFlexibleBody",
            "SpatialPrismatic", "SpatialRevolute", "SpatialRigid", "Spherical", "SpringDamper",
-           "Torque", "Universal", "UserForce", "register_body", "register_force", "register_joint"]
+           "Torque", "Universal", "UserForce", "VelocityConstraint", "register_body",
+           "register_force", "register_joint"]

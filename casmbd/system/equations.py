@@ -273,6 +273,28 @@ class System(AppliedForces, Outputs, Reactions):
         return self._constraint_parts[0]
 
     @cached_property
+    def velocity_rows(self) -> list[int]:
+        """Indices of the rows of C written at the velocity level (a joint with
+        ``velocity_equations``: rolling without slipping, a knife edge): their position rows
+        are 0, C_q is ∂W/∂v there and C_t = W(v = 0).  Assembly, position projections and
+        position stabilisation use the other rows (:attr:`holonomic_rows`) only."""
+        return velocity_row_indices(self.mechanism, self.constraint_labels, self.tree_joints)
+
+    @property
+    def holonomic_rows(self) -> list[int]:
+        """Indices of the rows of C that are position constraints (all but
+        :attr:`velocity_rows`)."""
+        vel = set(self.velocity_rows)
+        return [i for i in range(self.nc) if i not in vel]
+
+    @cached_property
+    def position_jacobian(self) -> ca.SX:
+        """∂C/∂q: C_q of the position constraints, zero on the :attr:`velocity_rows` (whose
+        C_q is ∂W/∂v, no derivative of a position function): the Jacobian of position
+        projections and the GGL correction."""
+        return ca.jacobian(self.constraints, self.q)
+
+    @cached_property
     def _velocity_rows(self) -> ca.SX | None:
         """W(q, v, t), affine in v: the rows C_q v + C_t of non-holonomic constraints (a
         joint with ``velocity_equations``, whose position rows are 0: a contact sticking in
@@ -606,3 +628,15 @@ def _from_triplets(n: int, rows: list[int], cols: list[int], vals: list) -> ca.S
     keys = sorted(entries)
     sparsity = ca.Sparsity.triplet(n, n, [r for _, r in keys], [c for c, _ in keys])
     return ca.SX(sparsity, ca.vertcat(*[entries[k] for k in keys]))
+
+
+def velocity_row_indices(mechanism, labels, tree_joints=()) -> list[int]:
+    """Indices of the rows of C (labelled ``labels``) that a joint of ``mechanism`` writes at
+    the velocity level (it has ``velocity_equations``; a tree joint writes no rows): the rows
+    its ``velocity_labels`` name when it declares them (a rolling sphere's or disc's
+    ``contact`` row is a position row beside its slip rows), else all its rows."""
+    joints = {name: getattr(j, "velocity_labels", None)
+              for name, j in mechanism.joints.items()
+              if hasattr(j, "velocity_equations") and name not in tree_joints}
+    return [i for i, lab in enumerate(labels) if lab.kind == "joint" and lab.element in joints
+            and (joints[lab.element] is None or lab.label in joints[lab.element])]

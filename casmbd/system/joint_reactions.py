@@ -12,11 +12,13 @@ applied-force terms (``_force_terms`` of :mod:`casmbd.system.applied_forces`).
 
 from __future__ import annotations
 
+import copy
 from functools import cached_property
 
 import casadi as ca
 
 from casmbd.model.bodies import GROUND
+from casmbd.system.context import Context
 
 
 class Reactions:
@@ -76,7 +78,11 @@ class Reactions:
             if body in joint.bodies or body in (ctx.owner(b) for b in joint.bodies):
                 touching.add(joint.name)
                 if ("joint", joint.name) in elements:
-                    rows.append(ca.vec(joint.equations(ctx)))
+                    # a joint with velocity rows writes them as virtual displacements
+                    write = getattr(joint, "virtual_equations", None)
+                    if write is None and hasattr(joint, "velocity_equations"):
+                        write = self._virtual_velocity_rows(joint, body)
+                    rows.append(ca.vec((write or joint.equations)(ctx)))
                     index += elements[("joint", joint.name)]
         for driver in self.mechanism.drivers.values():
             if (driver.joint in touching or (driver.body and ctx.owner(driver.body) == body)) and \
@@ -84,6 +90,35 @@ class Reactions:
                 rows.append(ca.vec(self._driver_residual(driver, ctx)))
                 index += elements[("driver", driver.name)]
         return (ca.vertcat(*rows) if rows else ca.SX(0, 1)), index
+
+    def _virtual_velocity_rows(self, joint, body: str):
+        """The rows of a joint with ``velocity_equations`` and no ``virtual_equations``, for
+        the perturbed context of ``body``: its position rows, plus its velocity rows
+        W = A v + b with the velocities replaced by those of the virtual twist ė of ``body``
+        alone (every coordinate rate 0, ``body``'s points moving by ∂r/∂e ė and turning by
+        ė_θ) and then ė by e, b dropped.  ∂/∂e at e = 0 is A (∂q̇/∂ė): the row's coefficients
+        on the virtual twist, so the wrench is −(∂W/∂e)ᵀ λ as for a position row (virtual
+        work, seed 000 eqs. 6.145–6.151).  A row that reads a joint coordinate's rate directly
+        (a ``velocity`` row of ``rate('J')`` with J a tree joint in joint coordinates) sees no
+        virtual twist through it: its reaction leaves that term out."""
+        def write(ctx) -> ca.SX:
+            e = ctx._perturbation
+            de = ca.SX.sym(f"de_{body}", e.numel())
+            dim = self.dimension
+            virtual = copy.copy(ctx)
+            rates = ca.SX.sym(f"v_{body}", ctx.q.numel())  # put to 0 below
+            virtual.q = ca.vertcat(ctx.q, e)
+            virtual.v = ca.vertcat(rates, de)
+
+            def omega(name: str) -> ca.SX:
+                base = Context.angular_velocity(virtual, name)
+                return base + de[dim:] if ctx.owner(name) == body else base
+            virtual.angular_velocity = omega
+            rows = ca.substitute(ca.vec(joint.velocity_equations(virtual)), rates,
+                                 ca.SX.zeros(rates.numel()))
+            rows = rows - ca.substitute(rows, de, ca.SX.zeros(de.numel()))
+            return ca.vec(joint.equations(ctx)) + ca.substitute(rows, de, e)
+        return write
 
     def _applied_wrench(self, body: str) -> tuple[ca.SX, list[str]]:
         """Force and moment about G of every applied force on ``body``, and the names of user

@@ -61,6 +61,21 @@ class ConstraintSubset:
         labels = self._system.constraint_labels
         return [labels[i] for i in self.keep]
 
+    @property
+    def velocity_rows(self) -> list[int]:
+        """The kept rows written at the velocity level, as indices of the subset."""
+        vel = set(self._system.velocity_rows)
+        return [k for k, i in enumerate(self.keep) if i in vel]
+
+    @property
+    def holonomic_rows(self) -> list[int]:
+        vel = set(self.velocity_rows)
+        return [k for k in range(self.nc) if k not in vel]
+
+    @cached_property
+    def position_jacobian(self) -> ca.SX:
+        return self._system.position_jacobian[self.keep, :]
+
     @cached_property
     def constraints(self) -> ca.SX:
         return self._system.constraints[self.keep]

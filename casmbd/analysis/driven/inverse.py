@@ -28,6 +28,7 @@ from casmbd.analysis.driven.kinematics import check_result_size, kinematics
 from casmbd.analysis.instant.checks import diagnose
 from casmbd.analysis.instant.independent import find_redundant, minimum_norm, scatter
 from casmbd.analysis.instant.reaction_friction import has_reaction_friction, solve_normals
+from casmbd.analysis.instant.tyre_forces import tyre_forces
 from casmbd.analysis.instant.undetermined_reactions import flag_undetermined
 from casmbd.compiled.build import compile_model
 from casmbd.compiled.model import NEEDS, NumericModel
@@ -100,7 +101,9 @@ HANDLING = Handling(
              "contact_friction": "simulate, or model = 'compliant'",
              "stick_slip": "the regularised law (stick_slip = false), or simulate"},
     notes={"modal_coordinates": "flexible bodies move rigidly (η = 0)",
-           "reaction_forces": "λ and the friction levels by a fixed point at each time"})
+           "reaction_forces": "λ and the friction levels by a fixed point at each time",
+           "velocity_constraints": "−λ of each rolling row reported as its tyre force "
+                                   "(``tyre_forces``, named joint.row)"})
 
 
 def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.0,
@@ -130,7 +133,10 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
     Result
         ``kind == "inverse_dynamics"``: the kinematic arrays plus ``lambda``,
         ``driver_efforts`` (n_t × n_drivers), ``joint_reactions`` (n_t × n_joints × 3),
-        ``kinetic_energy`` and ``potential_energy``.
+        ``kinetic_energy`` and ``potential_energy``; with rows written at the velocity level
+        (rolling without slipping, knife edges) ``tyre_forces`` (n_t × rows, −λ of each row:
+        :func:`~casmbd.analysis.instant.tyre_forces.tyre_forces`) named in
+        ``names["tyre_forces"]`` as ``"<joint>.<row>"``.
 
     Raises
     ------
@@ -205,6 +211,8 @@ def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: floa
     names = dict(kin.names)
     names["drivers"] = drivers
     names["actuators"] = actuators
+    if model.velocity_rows:  # rolling and knife-edge rows: their forces, named by row
+        arrays["tyre_forces"], names["tyre_forces"] = tyre_forces(model, lam)
     stats = dict(kin.stats)
     stats.update(flags)
     if friction:

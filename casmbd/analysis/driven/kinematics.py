@@ -27,11 +27,14 @@ from casmbd.compiled.build import compile_model
 from casmbd.compiled.model import NumericModel
 from casmbd.compiled.workspace import Workspace
 from casmbd.errors import AnalysisError, AssemblyError, CasmbdError, RedundantConstraintError
+from casmbd.lazy import lazy_module
 from casmbd.limits import check_steps
 from casmbd.model.flexible_bodies import rigidified
 from casmbd.model.measures import result_names
 from casmbd.model.needs import ALL_NEEDS, Handling, check
 from casmbd.results import Result
+
+scipy_integrate = lazy_module("scipy.integrate")
 
 
 def _model(mechanism_or_model, analysis: str, mode: str, rigid: bool = True,
@@ -83,6 +86,12 @@ def check_rank(model: NumericModel, q: np.ndarray, t: float):
 def info(mechanism_or_model, mode: str = "auto", *, data: Workspace | None = None) -> dict:
     """Coordinates, constraints, degrees of freedom and dependent equations of a mechanism.
 
+    ``degrees_of_freedom`` is n_q − rank C_q over every row: the free velocities.  With rows
+    written at the velocity level (rolling without slipping) ``velocity_rows`` names them and
+    ``configuration_degrees_of_freedom`` = n_q − rank of the position rows counts the
+    configuration's freedoms, more than the velocities' (a wheel at rest on a plane can be
+    put anywhere, but rolls only where it points).
+
     The rank is evaluated at the assembled initial configuration.  If the mechanism cannot
     be assembled, ``"assembled"`` is False, ``"assembly_error"`` says why (most likely culprit
     first) and ``"assembly_culprits"`` ranks the elements (dicts of
@@ -128,6 +137,13 @@ def info(mechanism_or_model, mode: str = "auto", *, data: Workspace | None = Non
         "stats": model.report_dict,
         **default_path(model.system),
     })
+    if model.velocity_rows:  # non-holonomic: fewer velocities than configuration freedoms
+        hol = model.holonomic_rows
+        jac = model.constraint_jacobian(q, 0.0)
+        out["velocity_rows"] = [f"{labels[i].element}.{labels[i].label}"
+                                for i in model.velocity_rows]
+        out["configuration_degrees_of_freedom"] = \
+            model.nq - (rank_report(jac[hol, :]).rank if hol else 0)
     return out
 
 
@@ -149,6 +165,33 @@ def default_path(system) -> dict:
             "default_integrator": kind.default_integrator, "integrator_reason": how}
 
 
+#: relative and absolute tolerance of the integration of q̇ = v(q, t) between output times
+#: of a mechanism with rows written at the velocity level (DOP853)
+CARRY_RTOL = 1e-12
+
+
+def carried_positions(model, q: np.ndarray, t0: float, t1: float, tol: float) -> np.ndarray:
+    """q at ``t1`` from q at ``t0`` by integrating q̇ = v(q, t), the velocities of the driven
+    mechanism (C_q v = −C_t over every row, the velocity-level ones included).
+
+    With rows A(q) v + b = 0 written at the velocity level (rolling without slipping, a knife
+    edge) the position equations leave n − m_h coordinates open and the path decides them:
+    a disc driven along a closed curve ends displaced.  The velocity analysis is regular
+    (C_q square of full rank), so q̇ = v(q, t) is an ODE, integrated by DOP853 (Hairer,
+    Nørsett & Wanner, *Solving ODEs I*, II.5) to :data:`CARRY_RTOL`; the caller then
+    assembles the holonomic rows from this guess (a minimum-norm correction of its drift).
+    """
+    def rates(t, y):
+        return velocities(model, y, t)
+    sol = scipy_integrate.solve_ivp(rates, (float(t0), float(t1)), np.asarray(q, float),
+                              method="DOP853", rtol=CARRY_RTOL,
+                              atol=max(CARRY_RTOL, tol))
+    if not sol.success:
+        raise AnalysisError(f"kinematics at t = {t1:g}: the integration of q̇ = v(q, t) of "
+                            f"the velocity-level rows failed ({sol.message})")
+    return sol.y[:, -1]
+
+
 #: what the kinematic analysis handles (casmbd.model.needs): every need but impacts
 HANDLING = Handling(
     "kinematics", ALL_NEEDS - {"events"},
@@ -159,7 +202,11 @@ HANDLING = Handling(
            "reaction_forces": "forces do not enter the kinematic analysis",
            "stick_slip": "forces do not enter the kinematic analysis",
            "contact_friction": "forces do not enter the kinematic analysis",
-           "inputs": "forces do not enter the kinematic analysis"})
+           "inputs": "forces do not enter the kinematic analysis",
+           "velocity_constraints": "its rows count as velocity equations (a driver for "
+                                   "every degree of freedom of the velocities); the "
+                                   "positions they leave open follow from q̇ = v(q, t), "
+                                   "integrated between output times (DOP853, 1e-12)"})
 
 
 def kinematics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.0,
@@ -232,6 +279,8 @@ def kinematics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.
             h = t - grid[k - 1]
             guess = q + h * v + 0.5 * h * h * a
             try:
+                if model.velocity_rows:  # positions the path decides: q̇ = v(q, t)
+                    guess = carried_positions(model, q, grid[k - 1], t, tol)
                 res = assemble(model, guess, t, tol=tol)
             except CasmbdError as exc:
                 message = str(exc)  # an AssemblyError ranks its culprits here

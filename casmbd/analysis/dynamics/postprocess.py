@@ -33,6 +33,7 @@ from casmbd.analysis.instant.redundancy import (
     rank_report,
     reference_equilibration,
 )
+from casmbd.analysis.instant.tyre_forces import tyre_forces
 from casmbd.analysis.instant.undetermined_reactions import flag_undetermined, multiplier_null_space
 from casmbd.errors import (
     AssemblyError,
@@ -325,4 +326,6 @@ class PostProcessing:
                   "actuator_inputs": us, "kinetic_energy": kin, "potential_energy": pot,
                   "total_energy": kin + pot, "constraint_violation": pos_viol,
                   "velocity_violation": vel_viol, "constraint_conditioning": cond}
+        if getattr(model, "velocity_rows", None):  # rolling rows: their forces, by row
+            arrays["tyre_forces"], names["tyre_forces"] = tyre_forces(model, lam)
         return Result("simulation", grid, arrays, names, stats).attach_scene(system.mechanism)

@@ -78,7 +78,7 @@ class Articulated(FormulationKind):
     refuses: ClassVar[dict] = {
         need: "it integrates an unconstrained tree in joint coordinates" for need in
                ("events", "stick_slip", "contact_friction", "reaction_forces",
-                "modal_coordinates", "drivers")}
+                "modal_coordinates", "drivers", "velocity_constraints")}
     instead: ClassVar[dict] = {need: "the default formulation" for need in refuses}
     kind = "ode"
     default_integrator = "dopri5"

@@ -86,9 +86,12 @@ class FormulationKind:
     refuses: ClassVar[dict] = {
         "events": "no event-driven phases", "stick_slip": "no event-driven phases",
         "contact_friction": "no event-driven phases",
-        "reaction_forces": "it does not solve for the multipliers"}
+        "reaction_forces": "it does not solve for the multipliers",
+        "velocity_constraints": "it does not declare that it keeps rows written at the "
+                                "velocity level (A(q) v + b = 0) apart from position rows"}
     instead: ClassVar[dict] = {need: "formulation 'index1'" for need in
-                     ("events", "stick_slip", "contact_friction", "reaction_forces")}
+                     ("events", "stick_slip", "contact_friction", "reaction_forces",
+                      "velocity_constraints")}
 
     @property
     def numeric(self) -> bool:

@@ -6,7 +6,9 @@
   Reaction-proportional joint friction uses λ directly: Q_e(q, v, λ) (IDAS's Newton solves
   the algebraic equations with it).
 * ``ggl`` — Gear–Gupta–Leimkuhler stabilised index-2 DAE: q̇ = v − C_qᵀ μ, v̇ = q̈,
-  M q̈ + C_qᵀ λ = Q, C = 0, C_q v + C_t = 0 (z = (q̈, λ, μ)).
+  M q̈ + C_qᵀ λ = Q, C = 0, C_q v + C_t = 0 (z = (q̈, λ, μ)).  A row written at the velocity
+  level (non-holonomic, C ≡ 0) keeps C_q v + C_t = 0 and has no position correction: its μ is
+  held at 0 and q̇ = v − (∂C/∂q)ᵀ μ takes the position Jacobian of the holonomic rows.
 """
 
 from __future__ import annotations
@@ -50,12 +52,21 @@ def ggl(system: System, inputs: ca.SX | None = None) -> Formulation:
     lam = ca.SX.sym("lambda", system.nc)
     mu = ca.SX.sym("mu", system.nc)
     cq = system.constraint_jacobian
+    # the position rows: C = 0 with the correction −(∂C/∂q)ᵀ μ; a row written at the velocity
+    # level (C ≡ 0, non-holonomic) has no position to correct: its μ is 0
+    position = system.constraints
+    velocity_rows = list(getattr(system, "velocity_rows", ()))
+    if velocity_rows:
+        mask = np.ones(system.nc)
+        mask[velocity_rows] = 0.0
+        position = position + ca.mtimes(ca.diag(ca.DM(1.0 - mask)), mu)
     alg = ca.vertcat(
         ca.mtimes(system.mass_matrix, a) + ca.mtimes(cq.T, lam)
         - generalized_forces(system, inputs, lam),
-        system.constraints,
+        position,
         ca.mtimes(cq, v) + system.constraint_time_derivative)
-    ode = ca.vertcat(v - ca.mtimes(cq.T, mu), a)
+    correction = system.position_jacobian if velocity_rows else cq
+    ode = ca.vertcat(v - ca.mtimes(correction.T, mu), a)
     f = dae_function("dyn_ggl", t, ca.vertcat(q, v), ca.vertcat(a, lam, mu), pu, ode, alg)
     return Formulation("ggl", "dae", f, system.nq, system.nq + 2 * system.nc, [f.jacobian()])
 

@@ -9,6 +9,8 @@ the only layer that evaluates them.
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import casadi as ca
 
 from casmbd.analysis.formulations.base import Formulation, FormulationKind
@@ -71,6 +73,17 @@ class Partitioning(NumericFormulation):
 
     name = "partitioning"
     layout = "y = (q_i, v_i), independent coordinates chosen by LU with full pivoting"
+    refuses: ClassVar[dict] = {
+        **NumericFormulation.refuses,
+        "velocity_constraints": "with rows A(q) v + b = 0 the independent velocities are "
+                                "fewer than the independent positions, and the dependent "
+                                "positions are no function of the independent ones (they "
+                                "follow from the path), so its state y = (q_i, v_i) cannot "
+                                "hold the motion"}
+    instead: ClassVar[dict] = {**NumericFormulation.instead,
+                               "velocity_constraints": "formulation 'nullspace' (the same "
+                               "elimination of the multipliers on the full state) or the "
+                               "default"}
 
 
 class Nullspace(NumericFormulation):
@@ -80,3 +93,6 @@ class Nullspace(NumericFormulation):
 
     name = "nullspace"
     layout = "x = (q, v), accelerations in the SVD null space of C_q"
+    #: rows written at the velocity level enter as any row of C_q q̈ = γ (the null space of
+    #: all rows), and the projection assembles the holonomic rows only
+    handles = NumericFormulation.handles | {"velocity_constraints"}

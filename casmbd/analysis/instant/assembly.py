@@ -68,6 +68,9 @@ def _locked(model, q: np.ndarray, t: float, residual: np.ndarray, free: np.ndarr
     """A sentence for an assembly failure where C_q has full column rank at the last iterate:
     no coordinate is left free, so an over-determined set of joints locks the mechanism."""
     jac = model.constraint_jacobian(q, t)[:, free]
+    vel = set(getattr(model, "velocity_rows", ()))
+    if vel:  # the position equations only
+        jac = jac[[i for i in range(model.nc) if i not in vel], :]
     rep = rank_report(jac)
     if rep.rank < len(free) or rep.n_equations <= rep.rank:
         return ""
@@ -160,6 +163,10 @@ def assemble(model, q0: np.ndarray, t: float = 0.0, fixed: Sequence[str | int] |
              tol: float = 1e-11, max_iter: int = 50) -> AssemblyReport:
     """Newton-Raphson on C(q, t) = 0 from ``q0`` keeping the ``fixed`` coordinates.
 
+    The rows a joint writes at the velocity level (``model.velocity_rows``: rolling without
+    slipping, a knife edge) restrict no position — their C is identically 0 — and are left
+    out of the Newton matrix: the step is the minimum-norm one of the holonomic rows.
+
     Converged when max |C| <= ``tol`` · max(1, largest |x|, |y|(, |z|)) of the iterate: relative
     to the mechanism's size (default 1e-11), never to the size of a wild guess.
 
@@ -176,7 +183,11 @@ def assemble(model, q0: np.ndarray, t: float = 0.0, fixed: Sequence[str | int] |
         raise AssemblyError(f"assembly at t = {t:g}: the initial coordinates are not finite")
     idx_fixed = coordinate_indices(model, fixed)
     free = np.setdiff1d(np.arange(model.nq), idx_fixed)
-    if model.nc == 0:
+    # rows written at the velocity level (rolling without slipping, a knife edge) have C = 0
+    # and restrict no position: Newton on the holonomic rows only
+    vel_rows = list(getattr(model, "velocity_rows", ()))
+    hol_rows = [i for i in range(model.nc) if i not in set(vel_rows)]
+    if model.nc == 0 or not hol_rows:
         return AssemblyReport(q, 0, 0.0, np.zeros_like(q))
     # residuals are lengths (or angles): scale the tolerance with the size of the mechanism —
     # at the current iterate, not the guess (a guess extrapolated through a singular pose can
@@ -201,10 +212,13 @@ def assemble(model, q0: np.ndarray, t: float = 0.0, fixed: Sequence[str | int] |
         if norm <= tol:
             break
         jac = model.constraint_jacobian(q, t)[:, free]
+        rhs = -c
+        if vel_rows:  # velocity-level rows (their C is 0) do not restrict positions
+            jac, rhs = jac[hol_rows, :], rhs[hol_rows]
         try:
-            step = solve_linear(jac, -c, "constraint Jacobian", t)
+            step = solve_linear(jac, rhs, "constraint Jacobian", t)
         except SingularConfigurationError:
-            step = min_norm_solve(jac, -c)
+            step = min_norm_solve(jac, rhs)
         alpha, accepted = 1.0, False
         for _ in range(12):
             trial = q.copy()

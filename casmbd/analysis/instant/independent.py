@@ -134,6 +134,17 @@ class IndependentRows:
         labels = self._model.constraint_labels
         return [labels[i] for i in self.keep]
 
+    @property
+    def velocity_rows(self) -> list[int]:
+        """The kept rows written at the velocity level, as indices of the kept rows."""
+        vel = set(getattr(self._model, "velocity_rows", ()))
+        return [k for k, i in enumerate(self.keep) if i in vel]
+
+    @property
+    def holonomic_rows(self) -> list[int]:
+        vel = set(self.velocity_rows)
+        return [k for k in range(len(self.keep)) if k not in vel]
+
     def constraints(self, q, t: float) -> np.ndarray:
         return self._model.constraints(q, t)[self.keep]
 

@@ -85,7 +85,8 @@ def energy_exchange(mechanism, result: Result, params: dict | None = None) -> li
     limits, force elements that are not pure springs (dampers, actuation, applied forces;
     a spring's ``damping`` and ``actuator`` that are expressions count unless they are 0 at
     the parameter values ``params``, default the mechanism's), springs whose values depend on
-    time, and flexible bodies with modal damping."""
+    time, flexible bodies with modal damping, and joints with rows at the velocity level that
+    do not declare them workless (``energy_exchange()`` returning None: A v = 0, b = 0)."""
     params = dict(mechanism.parameters if params is None else params)
     out = [f"driver '{d}'" for d in mechanism.drivers]
     inputs = result.arrays.get("actuator_inputs")
@@ -100,6 +101,14 @@ def energy_exchange(mechanism, result: Result, params: dict | None = None) -> li
         elif any(_time_dependent(getattr(force, key, None), params)
                  for key in ("stiffness", "free_length", "free_angle")):
             out.append(f"time-dependent spring '{name}'")
+    for name, joint in mechanism.joints.items():
+        # rows A v + b = 0 written at the velocity level do work λᵀ b unless b = 0: a kind
+        # that knows its rows are workless says so (``energy_exchange()`` → None)
+        if hasattr(joint, "velocity_equations"):
+            exchange = joint.energy_exchange() if hasattr(joint, "energy_exchange") \
+                else "velocity rows"
+            if exchange is not None:
+                out.append(f"{exchange} of joint '{name}'")
     for name, body in mechanism.bodies.items():
         if np.any(np.asarray(getattr(body, "damping_ratio", 0.0), dtype=float) != 0.0):
             out.append(f"modal damping of body '{name}'")
