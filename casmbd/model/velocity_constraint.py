@@ -1,20 +1,20 @@
 """A generic velocity constraint written in the scene (``type = "velocity"``):
 rows W_k(q, v, t) = A_k(q, t) v + b_k(q, t) = 0 given as expressions of measures.
 
-Each row is an expression of the measures of :mod:`casmbd.model.measures` — positions
-(``x``, ``y``, ``z``, ``angle``, ``translation``, ``coordinate``, ``distance``, ``angle_of``),
-velocities (``vx``, ``vy``, ``vz``, ``rate``, ``omega_of``), time ``t`` and the scene's
-parameters — that must be *affine in the velocities*: a velocity measure may be multiplied by
-functions of the positions, time and parameters, never by another velocity measure or put
-inside a nonlinear function (``speed``, ``abs(vx(...))``, ``vx(...)**2`` are refused).  The
-check is made when the joint is added, on the parsed rows with the measures standing as
-symbols (position measures as q-symbols, velocity measures as v-symbols, ``speed`` as the norm
-of three v-symbols): ∂W/∂v must not depend on v, and W(v) − W(0) − (∂W/∂v) v must vanish at
-random probes (which also catches ``sign``, ``floor``, ``min``/``max`` of a velocity); the
-refusal names the joint, the row and the additive term at fault.  When the system is built the
-rows are written with the system's context and checked again (∂W/∂v free of v).  A row that
-involves no velocity measure is refused (a constraint on positions is a holonomic joint or a
-driver).
+Each row is an expression of the measures of :mod:`casmbd.model.measures` — positions (``x``,
+``y``, ``z``, ``angle``, ``translation``, ``coordinate``, ``distance``, ``angle_of``),
+velocities (``vx``, ``vy``, ``vz``, ``rate``, ``omega_of``, ``wx``, ``wy``, ``wz``), time ``t``
+and the scene's parameters — that must be *affine in the velocities*: a velocity measure may be
+multiplied by functions of the positions, time and parameters, never by another velocity
+measure or put inside a nonlinear function (``speed``, ``abs(vx(...))``, ``vx(...)**2`` are
+refused). The check is made when the joint is added, on the parsed rows with the measures
+standing as symbols (position measures as q-symbols, velocity measures as v-symbols, ``speed``
+as the norm of three v-symbols): ∂W/∂v must not depend on v, and W(v) − W(0) − (∂W/∂v) v must
+vanish at random probes (which also catches ``sign``, ``floor``, ``min``/``max`` of a
+velocity); the refusal names the joint, the row and the additive term at fault. When the system
+is built the rows are written with the system's context and checked again (∂W/∂v free of v). A
+row that involves no velocity measure is refused (a constraint on positions is a holonomic
+joint or a driver).
 
 The rows enter the equations through the velocity-row protocol of
 :class:`casmbd.system.equations.System`: ``velocity_equations`` returns W, whose Jacobian
@@ -55,7 +55,8 @@ from casmbd.model.registry import register_joint
 __all__ = ["VELOCITY_MEASURES", "VelocityConstraint", "additive_terms"]
 
 #: the measures that are velocities (linear in v); every other measure is a position (or time)
-VELOCITY_MEASURES = frozenset({"rate", "vx", "vy", "vz", "omega_of", "speed"})
+VELOCITY_MEASURES = frozenset({"rate", "vx", "vy", "vz", "omega_of", "wx", "wy", "wz",
+                               "speed"})
 #: random probes of the affinity check and their relative tolerance
 _PROBES, _PROBE_TOLERANCE = 3, 1e-9
 
@@ -147,8 +148,8 @@ def _check_row(mech, text: str, where: str) -> None:
     rng = np.random.default_rng(0)
     if vel.numel() == 0 or not ca.depends_on(row, vel):
         raise ModelError(f"{where}: the row involves no velocity (rate, vx, vy, vz, "
-                         "omega_of): a constraint on the positions is a holonomic joint or "
-                         f"a driver, got {text!r}")
+                         "omega_of, wx, wy, wz): a constraint on the positions is a holonomic "
+                         f"joint or a driver, got {text!r}")
     if _affine(row, vel, rest, rng):
         return
     for term in additive_terms(text):
