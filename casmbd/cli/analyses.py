@@ -200,6 +200,23 @@ def _cmd_statics(args) -> tuple[dict, str]:
     return data, "\n".join(lines)
 
 
+def _steady_motion(mech, args) -> tuple[dict, str]:
+    """``linearize --steady-motion``: the eigenvalues of the reduced system, the modes named
+    by the remaining coordinates."""
+    lin = linearize(mech, mode=args.mode, steady_motion=True)
+    data = lin.to_json()
+    s = lin.stats
+    lines = [f"linearization of '{mech.name}' about the steady motion from its initial state: "
+             f"cyclic {', '.join(lin.cyclic) or 'none'}; symmetries "
+             f"{', '.join(lin.symmetries) or 'none'}; {s['reduced_dimension']} states remain "
+             f"({'stable' if lin.stable else 'unstable'})"]
+    for mode in lin.modes:
+        re, im = mode["eigenvalue"]
+        lines.append(f"  eigenvalue {re:+.10g} {im:+.10g}i   mode {mode['coordinate']}")
+    lines.append(timing_line(s))
+    return data, "\n".join(lines)
+
+
 def _cmd_linearize(args) -> tuple[dict, str]:
     """Linearize about the initial configuration at rest, the static equilibrium
     (``--at-equilibrium``) or a stored state (``--from RESULT.npz --time T``).
@@ -213,6 +230,8 @@ def _cmd_linearize(args) -> tuple[dict, str]:
     if getattr(args, "stable", False) and not args.at_equilibrium:
         raise AnalysisError("linearize: --stable goes with --at-equilibrium")
     mech = load_scene_for(args)
+    if getattr(args, "steady_motion", False):
+        return _steady_motion(mech, args)
     if args.at_equilibrium:
         lin = linearize(mech, mode=args.mode, at="equilibrium", redundancy=args.redundancy,
                         stable=getattr(args, "stable", False))

@@ -99,6 +99,11 @@ def linearize_arguments(p) -> None:
     where.add_argument("--from", dest="from_result", metavar="RESULT.npz", default=None,
                        help="linearize about the state stored in this result (of the same "
                             "scene) at the output time nearest --time")
+    where.add_argument("--steady-motion", action="store_true",
+                       help="linearize about the steady motion from the initial state (a "
+                            "wheel or bicycle rolling): the cyclic coordinates (position on "
+                            "the plane, heading, spins) are removed, the eigenvalues of the "
+                            "rest reported")
     p.add_argument("--time", type=float, default=None,
                    help="with --from: the time of the stored state (nearest output time)")
     p.add_argument("--stable", action="store_true",

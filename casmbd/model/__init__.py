@@ -35,6 +35,7 @@ from casmbd.model.registry import (
     register_joint,
 )
 from casmbd.model.rolling import KnifeEdge, PlanarRollingDisc, RollingSphere
+from casmbd.model.rolling_disc import RollingDisc
 from casmbd.model.spatial_joints import (
     Cylindrical,
     SpatialFixed,
@@ -50,7 +51,7 @@ __all__ = ["BODY_KINDS", "FORCE_KINDS", "GROUND", "JOINT_KINDS", "Actuator", "Bo
            "CompliantContact", "ContactSlide", "Cylindrical", "Distance", "Driver",
            "ExpressionForce", "Fixed", "ForceElement", "Gear", "Joint", "JointFriction",
            "KnifeEdge", "Marker", "Mechanism", "Planar", "PlanarFlexibleBody", "PlanarRollingDisc",
-           "PointForce", "Prismatic", "Revolute", "Rigid", "RollingSphere",
+           "PointForce", "Prismatic", "Revolute", "Rigid", "RollingDisc", "RollingSphere",
            "RotationalSpringDamper", "SpatialBody", "SpatialFixed", "SpatialFlexibleBody",
            "SpatialPrismatic", "SpatialRevolute", "SpatialRigid", "Spherical", "SpringDamper",
            "Torque", "Universal", "UserForce", "VelocityConstraint", "register_body",

@@ -458,6 +458,17 @@ class Mechanism:
                         coordinate1=coordinate1, coordinate2=coordinate2, offset=offset)
 
     # ------------------------------------------------------------------ drivers
+    def add_rolling_disc(self, name: str, body1: str, body2: str, point: Sequence[float],
+                         radius: float, axis: Sequence[float] | None = None,
+                         origin: Sequence[float] | None = None,
+                         normal: Sequence[float] | None = None) -> Joint:
+        """A wheel of ``body2`` (centre ``point``, ``radius``, axle ``axis``) rolling without
+        slipping on the plane of ``body1`` through ``origin`` with ``normal``
+        (:mod:`casmbd.model.rolling_disc`)."""
+        keys = {k: v for k, v in (("axis", axis), ("origin", origin), ("normal", normal))
+                if v is not None}
+        return self.add("rolling_disc", name, body1, body2, point=point, radius=radius, **keys)
+
     def add_driver(self, name: str, position: Value | None = None, joint: str | None = None,
                    body: str | None = None, coordinate: str | None = None, *,
                    euler_zxz: Sequence[Value] | None = None, rpy: Sequence[Value] | None = None,

@@ -76,7 +76,9 @@ class Reactions:
             if body in joint.bodies or body in (ctx.owner(b) for b in joint.bodies):
                 touching.add(joint.name)
                 if ("joint", joint.name) in elements:
-                    rows.append(ca.vec(joint.equations(ctx)))
+                    # a joint with velocity rows writes them as virtual displacements
+                    write = getattr(joint, "virtual_equations", joint.equations)
+                    rows.append(ca.vec(write(ctx)))
                     index += elements[("joint", joint.name)]
         for driver in self.mechanism.drivers.values():
             if (driver.joint in touching or (driver.body and ctx.owner(driver.body) == body)) and \

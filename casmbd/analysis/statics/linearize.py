@@ -92,6 +92,7 @@ from casmbd.analysis.instant.redundancy import RANK_RTOL, null_space_basis
 from casmbd.analysis.statics.report import state_reports, state_summary
 from casmbd.analysis.statics.stability import STABILITY_RTOL, Stability, classify_stability
 from casmbd.analysis.statics.statics import STATICS_NEEDS, static_equilibrium, statics_functions
+from casmbd.analysis.statics.steady_motion import linearize_steady_motion, velocity_row_mask
 from casmbd.compiled.build import compile_model
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, CompositionError, ModelError, SingularConfigurationError
@@ -432,7 +433,27 @@ HANDLING = Handling(
              "reaction_forces": "simulate with the formulation 'index1', or inverse dynamics"},
     notes={"events": "gaps open at the operating point do not act on small motions; a gap "
                      "closed there is refused by name",
-           "inputs": "B̄ maps the inputs"})
+           "inputs": "B̄ maps the inputs",
+           "velocity_constraints": "about a steady motion only (steady_motion=True, "
+                                   "--steady-motion: cyclic coordinates removed); refused "
+                                   "by name otherwise"})
+
+
+def _refuse_velocity_rows(system: System) -> None:
+    """Refuse non-holonomic rows: the small-oscillation form lives on the independent
+    positions (the null space of C_q), which a velocity constraint does not restrict (a rolling
+    disc about a rolling state described with Euler parameters gave ±12.47i, ±4.00i, ±2.77
+    where the closed form is ±11.05i: issue 37)."""
+    mask = velocity_row_mask(system)
+    if not mask.any():
+        return
+    joints = sorted({system.constraint_labels[i].element for i in np.flatnonzero(mask)})
+    raise CompositionError(
+        f"linearize: {', '.join(repr(j) for j in joints)} constrain the velocities "
+        "(non-holonomic rows): the linearization in independent positions does not apply; "
+        "instead: linearize about a steady motion (steady_motion=True, casmbd linearize "
+        "--steady-motion), with joint coordinates in which the rolling motion is cyclic",
+        "linearize", [(j, "velocity_constraints") for j in joints])
 
 
 def _closed_gaps(system: System, q: np.ndarray, v: np.ndarray, t: float, p) -> None:
@@ -472,7 +493,7 @@ def _at_equilibrium(mechanism, system: System, t: float, mode: str, stable: bool
 
 def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "auto",
               rtol: float = RANK_RTOL, *, at=None, at_time: float | None = None,
-              redundancy: str = "auto", stable: bool = False) -> LinearModel:
+              redundancy: str = "auto", stable: bool = False, steady_motion: bool = False):
     """Linearize the constrained dynamics of ``mechanism`` about the state (q, v, t, u).
 
     Parameters
@@ -513,10 +534,18 @@ def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "au
     stable : bool, keyword-only
         With ``at="equilibrium"``: about a stable equilibrium (``static_equilibrium(m,
         stable=True)``) instead of the one nearest the initial configuration.
+    steady_motion : bool, keyword-only
+        Linearize about the steady motion that starts at (q, v) (default: the scene's initial
+        state) with the cyclic coordinates removed:
+        :func:`casmbd.analysis.statics.steady_motion.linearize_steady_motion`, which returns a
+        :class:`~casmbd.analysis.statics.steady_motion.SteadyMotionModel`.  A mechanism with
+        non-holonomic (velocity) constraints is linearized only this way: the independent
+        positions of the small-oscillation form do not exist for it, and it is refused by
+        name otherwise.
 
     Returns
     -------
-    LinearModel
+    LinearModel (SteadyMotionModel with ``steady_motion=True``)
 
     Raises
     ------
@@ -537,7 +566,13 @@ def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "au
     else:
         system = System(mechanism)
     t = float(t)
+    if steady_motion:
+        if at is not None or at_time is not None or stable:
+            raise ModelError("linearize: steady_motion=True linearizes about (q, v) or the "
+                             "initial state; not with at=, at_time= or stable=")
+        return linearize_steady_motion(mechanism, q=q, v=v, t=t, u=u, mode=mode, rtol=rtol)
     check(system.mechanism, HANDLING)
+    _refuse_velocity_rows(system)
     about = {"about": "initial" if q is None and v is None else "state"}
     if at is not None:
         if q is not None or v is not None:
