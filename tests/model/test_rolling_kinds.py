@@ -88,6 +88,12 @@ def test_chaplygin_sleigh_follows_its_closed_form(coordinates):
     assert u_ref[-1] > 1.25 and omega_ref[-1] < 0.6  # the motion is not trivial
     row = res.names["constraints"].index("joint 'blade' equation 'lateral'")
     assert np.max(np.abs(res.arrays["lambda"][:, row] + force_ref)) < 1e-7
+    # the joint reaction: the force F e₂ on the sleigh at the blade point, no moment there
+    th = body["angle"]
+    lateral = np.column_stack([-np.sin(th), np.cos(th)])
+    reaction = res.arrays["joint_reactions"][:, 0, :]
+    assert np.max(np.abs(reaction[:, :2] - force_ref[:, None] * lateral)) < 1e-7
+    assert np.max(np.abs(reaction[:, 2])) < 1e-9
 
 
 @pytest.mark.parametrize("coordinates", COORDINATES)
@@ -150,6 +156,12 @@ def test_rolling_sphere_on_an_incline(coordinates):
     assert np.max(np.abs(pos @ NORMAL - R)) < 1e-12
     energy = res.arrays["total_energy"]
     assert np.ptp(energy) < 1e-8 * np.max(res.arrays["kinetic_energy"])
+    # the reaction on the ball, about its centre: N n + f t (N = m g cos α, f = 2/7 m g sin α
+    # up the slope: m a = m g sin α − f with a = 5/7 g sin α), moment (−R n) × F
+    force = MASS * G * (np.cos(ALPHA) * NORMAL + 2.0 / 7.0 * np.sin(ALPHA) * UPHILL)
+    reaction = res.arrays["joint_reactions"][:, 0, :]
+    assert np.max(np.abs(reaction[:, :3] - force)) < 1e-8
+    assert np.max(np.abs(reaction[:, 3:] - np.cross(-R * NORMAL, force))) < 1e-8
 
 
 def test_a_spinning_ball_on_level_ground_keeps_spinning():
@@ -191,6 +203,12 @@ def test_planar_rolling_disc_on_an_incline(coordinates):
     assert np.max(np.abs(s + R * (body["angle"] - 0.3))) < 1e-9
     energy = res.arrays["total_energy"]
     assert np.ptp(energy) < 1e-8 * np.max(res.arrays["kinetic_energy"])
+    # the reaction on the disc, about its centre: N n + f t, f = 1/3 m g sin α up the slope
+    force = MASS * G * (np.cos(ALPHA) * normal + np.sin(ALPHA) / 3.0 * UPHILL[[0, 2]])
+    arm = -R * normal
+    reaction = res.arrays["joint_reactions"][:, 0, :]
+    assert np.max(np.abs(reaction[:, :2] - force)) < 1e-8
+    assert np.max(np.abs(reaction[:, 2] - (arm[0] * force[1] - arm[1] * force[0]))) < 1e-8
     joint = res.joint("roll")
     assert np.max(np.abs(joint["coordinate"] - s)) < 1e-9
     assert np.max(np.abs(joint["angle"] - body["angle"])) < 1e-9
