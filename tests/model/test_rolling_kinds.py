@@ -339,3 +339,59 @@ def test_the_rolling_body_is_not_the_ground_and_the_axle_is_z():
         mech.add("rolling_disc", "r", "ground", "disc", [0, 0.1])
     joint = mech.add("rolling_disc", "r", "ground", "disc", [0, 0.1], [0, 0, -1], 0.1)
     assert joint.radius == 0.1 and not mech.joints["r"].needs
+
+
+DECK = 0.7  # m/s: the support's uniform velocity along x
+
+
+def on_deck(kind: str) -> Mechanism:
+    """The sleigh, the planar disc or the ball on a deck (body1) driven along x at 0.7 m/s:
+    relative to the deck each moves as on the ground (Galilean invariance)."""
+    dim = 3 if kind == "ball" else 2
+    z = (0.0,) * (dim - 2)
+    gravity = (0.0, 0.0, -G) if dim == 3 else ((0.0, 0.0) if kind == "sleigh" else (0.0, -G))
+    mech = Mechanism(kind, gravity=gravity, coordinates="absolute")
+    mech.add_body("deck", 5.0, 1.0 if dim == 2 else [1.0] * 3, (0.0, -1.0, *z),
+                  velocity=(DECK, 0.0, *z))
+    mech.add("prismatic", "rail", "ground", "deck", (0.0, -1.0, *z), (1.0, 0.0, *z))
+    mech.add_driver("push", joint="rail", position=f"{DECK}*t")
+    if kind == "sleigh":
+        mech.add_body("sleigh", M, INERTIA, [0.0, 0.0], velocity=[U0 + DECK, A * W0],
+                      angular_velocity=W0)
+        mech.add("knife_edge", "blade", "deck", "sleigh", point=[-A, 0.0], axis=[1.0, 0.0])
+    elif kind == "disc":
+        mech.add_body("disc", MASS, 0.5 * MASS * R * R, (0.0, R), velocity=(DECK + 0.4, 0.0),
+                      angular_velocity=-0.4 / R)
+        mech.add("rolling_disc", "roll", "deck", "disc", point=(0.0, R), radius=R)
+    else:
+        mech.add_body("ball", MASS, [0.4 * MASS * R * R] * 3, (0.0, 0.0, R),
+                      velocity=(DECK + 0.3, 0.0, 0.0), angular_velocity=(0.0, 0.3 / R, 2.0))
+        mech.add("rolling_sphere", "roll", "deck", "ball", point=(0.0, 0.0, R), radius=R)
+    return mech
+
+
+@pytest.mark.parametrize("kind", ["sleigh", "disc", "ball"])
+def test_a_moving_support_carries_the_rolling_body(kind):
+    """On the deck moving at 0.7 m/s: the sleigh's u and ω relative to the deck follow the
+    closed form (1e-8); the disc and the ball roll on at their speed relative to the deck
+    (level: 0.4 and 0.3 m/s, no slip relative to the deck, 1e-9)."""
+    res = casmbd.simulate(on_deck(kind), 2.0, 20, rtol=RTOL, atol=ATOL, mode="vm")
+    t = res.t
+    body = res.body(kind)
+    rel = body["velocity"].copy()
+    rel[:, 0] -= DECK
+    if kind == "sleigh":
+        th = body["angle"]
+        u = rel[:, 0] * np.cos(th) + rel[:, 1] * np.sin(th)
+        u_ref, omega_ref, _, _ = sleigh_closed_form(t)
+        assert np.max(np.abs(u - u_ref)) < 1e-8
+        assert np.max(np.abs(body["angular_velocity"] - omega_ref)) < 1e-8
+    elif kind == "disc":
+        assert np.max(np.abs(body["position"][:, 0] - (DECK + 0.4) * t)) < 1e-9
+        assert np.max(np.abs(rel[:, 0] + R * body["angular_velocity"])) < 1e-9
+    else:
+        omega = body["angular_velocity"]
+        assert np.max(np.abs(body["position"][:, 0] - (DECK + 0.3) * t)) < 1e-9
+        slip = rel - R * np.cross(omega, [0.0, 0.0, 1.0])
+        assert np.max(np.abs(slip)) < 1e-9
+        assert np.max(np.abs(omega[:, 2] - 2.0)) < 1e-8
