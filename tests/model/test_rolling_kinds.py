@@ -395,3 +395,15 @@ def test_a_moving_support_carries_the_rolling_body(kind):
         slip = rel - R * np.cross(omega, [0.0, 0.0, 1.0])
         assert np.max(np.abs(slip)) < 1e-9
         assert np.max(np.abs(omega[:, 2] - 2.0)) < 1e-8
+
+
+def test_mechanism_wrappers_add_the_kinds():
+    mech = Mechanism("m", gravity=(0.0, 0.0, -9.81))
+    mech.add_body("ball", 1.0, [0.004] * 3, [0.0, 0.0, 0.1])
+    mech.add_marker("c", "ball", [0.0, 0.0, 0.1])
+    assert isinstance(mech.add_rolling_sphere("r", "ground", "ball", [0, 0, 0.1], 0.1),
+                      casmbd.model.RollingSphere)
+    assert mech.add_knife_edge("k", "ground", "ball", [0, 0, 0.1], [1, 0, 0]).labels == \
+        ("lateral",)
+    joint = mech.add_velocity_constraint("v", "ground", "ball", ["vz('c')"], ["height"])
+    assert joint.labels == ("height",)
