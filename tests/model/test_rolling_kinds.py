@@ -407,3 +407,19 @@ def test_mechanism_wrappers_add_the_kinds():
         ("lateral",)
     joint = mech.add_velocity_constraint("v", "ground", "ball", ["vz('c')"], ["height"])
     assert joint.labels == ("height",)
+
+
+@pytest.mark.parametrize("blade", [-A, A])
+def test_straight_sleigh_linearised_about_its_steady_motion(blade):
+    """Straight at u: ω̇ = −m a u ω / J linearised (a the blade's distance behind G) — one
+    eigenvalue −m a u/(I + m a²) after the cyclic x, y, θ are removed (1e-10): stable with the
+    blade behind, unstable (the sleigh turns round) with it in front."""
+    speed = 1.5
+    mech = Mechanism("sleigh", dimension=2)
+    mech.add_body("sleigh", M, INERTIA, [0.0, 0.0], velocity=[speed, 0.0])
+    mech.add("knife_edge", "blade", "ground", "sleigh", point=[blade, 0.0], axis=[1.0, 0.0])
+    lin = casmbd.linearize(mech, steady_motion=True, mode="vm")
+    a = -blade
+    expected = -M * a * speed / (INERTIA + M * a * a)
+    eig = np.asarray(lin.eigenvalues)
+    assert eig.shape == (1,) and abs(eig[0] - expected) < 1e-10
