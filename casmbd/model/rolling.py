@@ -70,8 +70,8 @@ from casmbd.model.bodies import GROUND, scalar, unit_vector, vector
 from casmbd.model.joints import Joint
 from casmbd.model.registry import register_joint
 
-__all__ = ["KnifeEdge", "PlanarRollingDisc", "RollingSphere", "material_velocity",
-           "plane_triad"]
+__all__ = ["KnifeEdge", "PlanarRollingDisc", "RollingSphere", "material_point",
+           "material_velocity", "plane_triad"]
 
 #: largest |(point − origin)·n − radius| accepted, relative to max(1, radius): the centre
 #: given at the initial pose must be one radius above the plane (line)
@@ -90,6 +90,19 @@ def material_velocity(ctx, body: str, at: ca.SX) -> ca.SX:
     omega = ctx.angular_velocity(body)
     turn = omega * ca.vertcat(-r[1], r[0]) if dim == 2 else ca.cross(omega, r)
     return ca.jtimes(com, ctx.q, ctx.v) + turn
+
+
+def material_point(ctx, body: str, frozen: ca.SX) -> ca.SX:
+    """Position of the material point of ``body`` that is at ``frozen`` (an expression frozen
+    at the unperturbed pose, ``ctx.resolve``): r_G + A A₀ᵀ (frozen − r_G₀).  Written with a
+    perturbed context (:meth:`~casmbd.system.context.Context.perturbed`) its derivative by the
+    virtual displacement e = (δr_G, δθ) of ``body`` is δr_G + δθ × (frozen − r_G): the
+    coefficients of the material point's velocity (the constant ``frozen`` for the ground)."""
+    if body == GROUND:
+        return frozen
+    com, rot = ctx.centre_of_mass(body), ctx.rotation(body)
+    local = ca.mtimes(ctx.resolve(rot).T, frozen - ctx.resolve(com))
+    return com + ca.mtimes(rot, local)
 
 
 def plane_triad(normal) -> tuple[np.ndarray, np.ndarray]:
@@ -237,8 +250,8 @@ class PlanarRollingDisc(Joint):
         return self.coordinate(ctx, which) - target
 
     def reaction_point(self) -> np.ndarray:
-        """The contact point at the initial pose."""
-        return self.point - self.radius * self.normal
+        """The centre (the reaction's moment is about it, as for the spatial disc)."""
+        return self.point
 
 
 @register_joint
@@ -303,13 +316,22 @@ class KnifeEdge(Joint):
         """W = (v_P − v_P¹)·l, affine in v (the rows C_q v + C_t of W = 0)."""
         p = ctx.point(self.body2, ctx.local(self.body2, self.point))
         rel = ca.jtimes(p, ctx.q, ctx.v) - material_velocity(ctx, self.body1, p)
+        return ca.dot(rel, self._lateral(ctx))
+
+    def _lateral(self, ctx) -> ca.SX:
         a = ctx.direction(self.body2, ctx.local_direction(self.body2, self.axis))
         if self.dimension == 2:
-            lateral = ca.vertcat(-a[1], a[0])
-        else:
-            n = ctx.direction(self.body1, ctx.local_direction(self.body1, self.normal))
-            lateral = ca.cross(n, a)
-        return ca.dot(rel, lateral)
+            return ca.vertcat(-a[1], a[0])
+        n = ctx.direction(self.body1, ctx.local_direction(self.body1, self.normal))
+        return ca.cross(n, a)
+
+    def virtual_equations(self, ctx) -> ca.SX:
+        """l₀·(X₂ − X₁): X_i the material point of body i at P, l and P frozen at the
+        unperturbed pose; its derivative by a virtual rigid displacement of either body is the
+        coefficient of that body's twist in W (the joint reactions' virtual work)."""
+        p = ctx.point(self.body2, ctx.local(self.body2, self.point))
+        moved = p - material_point(ctx, self.body1, ctx.resolve(p))
+        return ca.dot(ctx.resolve(self._lateral(ctx)), moved)
 
     def reaction_point(self) -> np.ndarray:
         return self.point
@@ -381,6 +403,21 @@ class RollingSphere(Joint):
                   for t in plane_triad(self.normal))
         return ca.vertcat(ca.SX(0.0), ca.dot(t1, slip), ca.dot(t2, slip))
 
+    def virtual_equations(self, ctx) -> ca.SX:
+        """The contact row and t_k₀·(X₂ − X₁), X_i the material point of body i at the contact
+        point P = r_c − R n (P, t_k frozen at the unperturbed pose): their derivatives by a
+        virtual rigid displacement are the coefficients of the rows (the joint reactions)."""
+        o, n = _support_frame(ctx, self.body1, self.origin, self.normal)
+        c = self._centre(ctx)
+        contact = ctx.resolve(c - self.radius * n)
+        moved = material_point(ctx, self.body2, contact) - \
+            material_point(ctx, self.body1, contact)
+        rows = [ca.dot(c - o, n) - self.radius]
+        for t in plane_triad(self.normal):
+            rows.append(ca.dot(ctx.resolve(ctx.direction(
+                self.body1, ctx.local_direction(self.body1, t))), moved))
+        return ca.vertcat(*rows)
+
     def reaction_point(self) -> np.ndarray:
-        """The contact point at the initial pose."""
-        return self.point - self.radius * self.normal
+        """The centre (the reaction's moment is about it, as for the spatial disc)."""
+        return self.point
