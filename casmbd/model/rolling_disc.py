@@ -42,7 +42,8 @@ the loop, as in absolute coordinates.
 Scene keys (``[[joints]] type = "rolling_disc"``): ``body1`` (``"ground"`` or the body carrying
 the plane), ``body2`` (the wheel), ``point`` (wheel centre, global at the initial pose),
 ``axis`` (axle direction, global at the initial pose), ``radius``, ``origin`` (a point of the
-plane, default [0, 0, 0]) and ``normal`` (the plane's normal, pointing to the wheel's side).
+plane, default [0, 0, 0]) and ``normal`` (the plane's normal, pointing to the wheel's side;
+default [0, 0, 1], as the rolling sphere's).
 Directions are normalised; the zero vector, an axle along the normal (a disc lying flat on
 the plane: the lowest point is undefined), a radius ≤ 0 and a centre that is not at the
 height R cos φ above the plane (the gap is stated) are refused by name.
@@ -118,7 +119,7 @@ class RollingDisc(Joint):
                         point=e.vector("point", 3), axis=e.vector("axis", 3),
                         radius=e.number("radius"),
                         origin=e.vector("origin", 3, default=[0.0, 0.0, 0.0]),
-                        normal=e.vector("normal", 3))
+                        normal=e.vector("normal", 3, default=[0.0, 0.0, 1.0]))
 
     def __post_init__(self):
         where = f"joint '{self.name}' field"

@@ -333,12 +333,19 @@ def test_scene_contract_loads_and_rolls():
 
 @pytest.mark.parametrize("line,key,words", [
     ("radius = 0.3", "radius", "missing required key"),
-    ("normal = [0.0, 0.0, 1.0]", "normal", "missing required key"),
     ("axis = [0.0, 1.0, 0.0]", "axis", "missing required key"),
 ])
 def test_scene_keys_are_named(line, key, words):
     with pytest.raises(SceneError, match=f"key '{key}': {words}"):
         loads_scene(SCENE.replace(line, ""))
+
+
+def test_origin_and_normal_default_to_the_xy_plane():
+    mech = loads_scene(SCENE.replace("origin = [0.0, 0.0, 0.0]", "")
+                       .replace("normal = [0.0, 0.0, 1.0]", ""))
+    joint = mech.joints["rear_contact"]
+    np.testing.assert_array_equal(joint.origin, [0.0, 0.0, 0.0])
+    np.testing.assert_array_equal(joint.normal, [0.0, 0.0, 1.0])
 
 
 def test_unknown_scene_key_is_named():
