@@ -9,8 +9,8 @@ disc and its lowest point are
     w = n − (n·a) a,   u = w / |w|,   P = c − R u,
 
 |w| = √(1 − (n·a)²) = cos φ, φ the lean of the disc from the upright (Neimark & Fufaev,
-*Dynamics of Nonholonomic Systems*, AMS 1972, ch. II §4; O'Reilly, Nonlinear Dynamics 10
-(1996) 287–305, §2).  The joint has three rows:
+*Dynamics of Nonholonomic Systems*, AMS 1972; O'Reilly, "The dynamics of rolling disks and
+sliding disks", Nonlinear Dynamics 10 (1996) 287–305).  The joint has three rows:
 
 * ``contact`` (holonomic): the lowest point lies on the plane, n·(P − O) = n·(c − O) − R |w| = 0;
 * ``longitudinal`` and ``lateral`` (non-holonomic, :meth:`RollingDisc.velocity_equations`):
@@ -21,8 +21,8 @@ disc and its lowest point are
   with the tangent basis t₁ = (a × n)/|a × n| (the direction of rolling: +x for an axle along
   +y on a plane of normal +z) and t₂ = n × t₁ (lateral, the axle's projection on the plane).
 
-The velocity rows are affine in the velocities and not integrable; their position rows are 0
-and the system takes C_q = ∂W/∂v, C_t = W(v = 0) on them
+The velocity rows (named by ``velocity_labels``) are affine in the velocities and not
+integrable; their position rows are 0 and the system takes C_q = ∂W/∂v, C_t = W(v = 0) on them
 (:meth:`casmbd.system.equations.System._velocity_rows`); the velocity of the contact row is
 n·(v₂(P) − v₁(P)) as well (the gap rate of the lowest point equals the normal velocity of the
 material point there), so the three multipliers are the components of one contact force at P:
