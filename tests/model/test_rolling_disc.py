@@ -3,7 +3,7 @@ forms: a uniform thin disc of mass m and radius R (moments of inertia A = m R²/
 diameter, C = m R²/2 about the axle) rolling without slipping on a horizontal plane.
 
 Steady turning (O'Reilly, "The dynamics of rolling disks and sliding disks", Nonlinear Dynamics
-10 (1996) 287–305; Neimark & Fufaev, *Dynamics of Nonholonomic Systems*, AMS 1972, ch. II):
+10 (1996) 287–305; Neimark & Fufaev, *Dynamics of Nonholonomic Systems*, AMS 1972):
 with θ the lean from the upright, Ω the heading (precession) rate and v = R ω_a the speed of
 the centre (ω_a = ω·a the angular velocity about the axle a), the steady motions satisfy
 

@@ -4,7 +4,7 @@
 A uniform thin disc (mass m, radius R, A = m R²/4 about a diameter, C = m R²/2 about the
 axle) rolling upright at speed v on a horizontal plane: linearised in the lean θ, Newton–Euler
 about the centre gives (A + m R²) θ̈ = (m g R − C (C + m R²) v² / (A R²)) θ (Neimark & Fufaev,
-*Dynamics of Nonholonomic Systems*, AMS 1972, ch. V; O'Reilly, Nonlinear Dynamics 10 (1996)
+*Dynamics of Nonholonomic Systems*, AMS 1972; O'Reilly, Nonlinear Dynamics 10 (1996)
 287–305), i.e. θ̈ = λ² θ with
 
     λ² = 4 g / (5 R) − 12 v² / (5 R²),
