@@ -106,6 +106,9 @@ MAX_TOML_DEPTH = 32
 MAX_BODIES = 20_000
 #: Most joints, markers, drivers, forces, actuators or parameters of one mechanism, each.
 MAX_ELEMENTS = 100_000
+#: Most rows of one generic velocity constraint (:mod:`casmbd.model.velocity_constraint`;
+#: each row is parsed and probed for linearity in the velocities when it is added).
+MAX_VELOCITY_ROWS = 1_000
 #: Longest expression string, in characters (:mod:`casmbd.model.expressions`).
 MAX_EXPRESSION_LENGTH = 10_000
 #: Deepest nesting of an expression (:mod:`casmbd.model.expressions`).

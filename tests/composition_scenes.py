@@ -334,6 +334,20 @@ def knife_edge(dim, driven=False, coordinates="auto"):
         "knife_edge", "blade", "ground", "sleigh", point=(-0.2, 0.0, *z), axis=(1.0, 0.0, *z)))
 
 
+def knife_edge_driven(dim, driven=True, coordinates="auto"):
+    """The sleigh driven at the velocity level: its x and its heading prescribed, its other
+    coordinate follows from the blade (kinematics integrates q̇ = v(q, t); the blade's row is
+    one of the velocity equations; inverse dynamics reports its tyre force)."""
+    m = knife_edge(dim, coordinates=coordinates)
+    if driven and dim == 2:
+        m.add_driver("ahead", body="sleigh", coordinate="x", position="0.3*t")
+        m.add_driver("steer", body="sleigh", coordinate="angle", position="0.2*sin(t)")
+    elif driven:
+        m.add_driver("ahead", joint="floor", coordinate="x", position="0.3*t")
+        m.add_driver("steer", joint="floor", coordinate="angle", position="0.2*sin(t)")
+    return m
+
+
 def velocity(dim, driven=False, coordinates="auto"):
     """The sleigh's blade as a generic velocity row: the rear point's velocity across the
     line from the rear to the front point (unnormalised)."""
@@ -381,6 +395,7 @@ VARIANTS = {
     "flexible": (flexible, (2, 3), False), "rigid_body": (revolute, (2, 3), True),
     "driver": (driver, (2, 3), True), "actuator": (actuator, (2, 3), True),
     "rolling_disc": (rolling_disc, (2,), True), "knife_edge": (knife_edge, (2, 3), False),
+    "knife_edge_driven": (knife_edge_driven, (2, 3), True),
     "rolling_sphere": (rolling_sphere, (3,), False), "velocity": (velocity, (2, 3), False),
 }
 
@@ -389,8 +404,9 @@ KIND_VARIANTS = {
     **{k: (k,) for k in ("revolute", "prismatic", "rigid", "fixed", "distance", "gear",
                          "spherical", "universal", "cylindrical", "inline", "planar",
                          "force", "torque", "spring_damper", "rotational_spring_damper",
-                         "user", "expression", "flexible", "rolling_disc", "knife_edge",
+                         "user", "expression", "flexible", "rolling_disc",
                          "rolling_sphere", "velocity")},
+    "knife_edge": ("knife_edge", "knife_edge_driven"),
     "joint_friction": ("joint_friction", "joint_friction_reaction",
                        "joint_friction_stick_slip"),
     "compliant_contact": ("stop_compliant", "contact_compliant"),

@@ -1,12 +1,8 @@
 """Small non-holonomic scenes for the velocity-constraint tests (issue 37, item 1).
 
-Until the shipped kinds (``knife_edge``, ``rolling_disc``, ...) land, the tests use
-:class:`TestKnifeEdge`, a planar knife edge written with the velocity-row protocol of
-:mod:`casmbd.system.equations` (``velocity_equations``; its position row is 0): the velocity of
-a body point P normal to a body-fixed direction d is zero, n·ṙ_P = 0 with n = R(90°) d
-(Neimark & Fufaev 1972, the Chaplygin sleigh).  It is added to ``mechanism.joints`` directly
-(as the event-driven run adds its closures), never registered, so the registries stay as
-shipped.
+The scenes use the shipped ``knife_edge`` kind (:mod:`casmbd.model.rolling`): the velocity of
+a body point P across a body-fixed blade direction a is zero, l·ṙ_P = 0 with l = R(90°) a
+(Neimark & Fufaev 1972, the Chaplygin sleigh), one row written at the velocity level.
 
 The Chaplygin sleigh: a body of mass m and central inertia I_G whose knife edge at P lies a
 distance ``a`` behind G along the body axis e.  With u the speed of P along e and ω the turning
@@ -20,51 +16,14 @@ Control*, §1.7).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import ClassVar
-
-import casadi as ca
 import numpy as np
 
 import casmbd
-from casmbd.model.joints import Joint
 
 
-@dataclass
-class TestKnifeEdge(Joint):
-    """n·ṙ_P = 0: a planar knife edge at ``point`` (global at the initial pose) of ``body2``
-    along ``direction`` (global at the initial pose)."""
-
-    __test__ = False  # not a pytest class
-    point: tuple = (0.0, 0.0)
-    direction: tuple = (1.0, 0.0)
-
-    needs: ClassVar[frozenset[str]] = frozenset({"velocity_constraints"})
-    dimensions: ClassVar[tuple[int, ...]] = (2,)
-    drawing: ClassVar[str] = "none"
-    labels: tuple = ("lateral",)
-
-    def equations(self, ctx) -> ca.SX:
-        return ca.SX.zeros(1)
-
-    def velocity_equations(self, ctx) -> ca.SX:
-        """W = n·ṙ_P, affine (linear) in v."""
-        body = self.body2
-        r_p = ctx.point(body, ctx.local(body, self.point))
-        d = ctx.direction(body, ctx.local_direction(body, self.direction))
-        return ca.dot(ca.vertcat(-d[1], d[0]), ca.jtimes(r_p, ctx.q, ctx.v))
-
-    def reaction_point(self):
-        return np.asarray(self.point, float)
-
-
-def add_knife_edge(mech, name: str, body: str, point, direction) -> TestKnifeEdge:
-    """Add a :class:`TestKnifeEdge` on ``body`` to ``mech`` (ground as body1)."""
-    mech._new_joint(name, "ground", body)
-    joint = TestKnifeEdge(name, "ground", body, point=tuple(point),
-                          direction=tuple(direction))
-    mech.joints[name] = joint
-    return joint
+def add_knife_edge(mech, name: str, body: str, point, direction):
+    """A planar knife edge on ``body`` against the ground (the shipped kind ``knife_edge``)."""
+    return mech.add("knife_edge", name, "ground", body, point, direction)
 
 
 #: the sleigh of the tests: m, I_G, a (knife a behind G), u₀, ω₀

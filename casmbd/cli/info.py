@@ -24,7 +24,10 @@ def _cmd_info(args) -> tuple[dict, str]:
              f"({data['formulation_reason']}), integrator {data['integrator_reason']}",
              f"  constraints: {data['n_constraints']} equations{body_rows}, "
              f"rank {data['rank']}",
-             f"  degrees of freedom: {data['degrees_of_freedom']}"]
+             f"  degrees of freedom: {data['degrees_of_freedom']}"
+             + (f" (velocities; {data['configuration_degrees_of_freedom']} of the "
+                f"configuration: rows at the velocity level "
+                f"{', '.join(data['velocity_rows'])})" if data.get("velocity_rows") else "")]
     if not data["assembled"]:
         lines[-2] += " (at the initial guess: not assembled)"
         lines.append("  redundant equations: not analysed (not assembled)")

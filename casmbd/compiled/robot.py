@@ -671,7 +671,8 @@ class CompiledModel:
 
 #: what the per-call API handles (casmbd.model.needs): the smooth equations at one state
 HANDLING = Handling(
-    "the per-call API (casmbd.compile)", frozenset({"modal_coordinates", "inputs", "drivers"}),
+    "the per-call API (casmbd.compile)", frozenset({"modal_coordinates", "inputs", "drivers",
+                                                    "velocity_constraints"}),
     why={"events": "its equations have no contact or stop rows and no impulses",
          "contact_friction": "its equations have no contact rows",
          "stick_slip": "the exact Coulomb law switches at events, which one call has not",
@@ -681,7 +682,9 @@ HANDLING = Handling(
              "stick_slip": "the regularised law (stick_slip = false), or simulate",
              "reaction_forces": "inverse dynamics (casmbd.inverse_dynamics)"},
     notes={"inputs": "τ are the efforts; actuator inputs u = 0 in the bias",
-           "drivers": "driver rows are constraint equations at t = 0 (a call has no time)"})
+           "drivers": "driver rows are constraint equations at t = 0 (a call has no time)",
+           "velocity_constraints": "rolling rows enter the KKT system as C_q q̈ = γ (their λ "
+                                   "the tyre forces); q and v are the caller's, on them"})
 
 
 def compile(mechanism, coordinates: str | None = "joint", mode: str = "auto",

@@ -92,7 +92,7 @@ HELPER_ARITY: dict[str, int] = {"step": 5, "smooth_sign": 2, "dead_zone": 3}
 MEASURE_ARITY: dict[str, int] = {
     "angle": 1, "translation": 1, "coordinate": 1, "rate": 1,
     "x": 1, "y": 1, "z": 1, "vx": 1, "vy": 1, "vz": 1, "speed": 1, "distance": 2,
-    "angle_of": 1, "omega_of": 1,
+    "angle_of": 1, "omega_of": 1, "wx": 1, "wy": 1, "wz": 1,
 }
 
 BINARY_OPERATORS: dict[type, Callable[[Any, Any], Any]] = {

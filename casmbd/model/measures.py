@@ -15,6 +15,8 @@ with quoted names, like Adams' function expressions (DX, VR, AZ, …):
 ``distance("A", "B")``      |r_B − r_A|
 ``angle_of("B")``           planar angle of body B (or of marker B's frame)
 ``omega_of("B")``           its rate, the planar angular velocity
+``wx("B")``, ``wy``, ``wz``   global components of the angular velocity of body B (of marker
+                            B's body); ``wz`` alone in the plane (= ``omega_of``)
 ``t``, ``time``             time
 ==========================  ==================================================================
 
@@ -48,7 +50,7 @@ from casmbd.model.flexible_bodies import named_nodes
 _KINDS = {"angle": "joint", "translation": "joint", "coordinate": "joint", "rate": "joint",
           "x": "point", "y": "point", "z": "point", "vx": "point", "vy": "point",
           "vz": "point", "speed": "point", "distance": "point", "angle_of": "frame",
-          "omega_of": "frame"}
+          "omega_of": "frame", "wx": "spin", "wy": "spin", "wz": "spin"}
 #: names of time in an expression of measures
 TIME_NAMES = ("t", "time")
 
@@ -113,11 +115,19 @@ def resolve(mech, function: str, names: tuple[str, ...]) -> MeasureRef:
     ------
     ModelError
         An unknown joint, marker or body (listing the known ones), a joint without the
-        coordinate asked for, ``z``/``vz`` in the plane or ``angle_of``/``omega_of`` in space.
+        coordinate asked for, ``z``/``vz``/``wx``/``wy`` in the plane or
+        ``angle_of``/``omega_of`` in space.
     """
     kind = _KINDS[function]
     if kind == "joint":
         return _joint(mech, function, names[0])
+    if kind == "spin":
+        if function != "wz" and mech.dimension == 2:
+            raise ModelError(f"{function}(...) needs a spatial mechanism (in the plane the "
+                             "angular velocity is wz or omega_of)")
+        if names[0] in mech.nodes:
+            return MeasureRef(function, (f"body:{names[0]}",))
+        return MeasureRef(function, (_target(mech, function, names[0]),))
     if function in ("z", "vz") and mech.dimension == 2:
         raise ModelError(f"{function}(...) needs a spatial mechanism (this one is planar)")
     if kind == "frame" and mech.dimension != 2:
@@ -223,6 +233,11 @@ def value_of(ctx, ref: MeasureRef) -> ca.SX:
     if _KINDS[function] == "joint":
         coord = ctx.mechanism.joints[ref.targets[0]].coordinate(ctx, ref.coordinate)
         return ca.jtimes(coord, q, v) if function == "rate" else coord
+    if _KINDS[function] == "spin":
+        kind, _, name = ref.targets[0].partition(":")
+        body = ctx.mechanism.markers[name].body if kind == "marker" else name
+        omega = ctx.angular_velocity(body)
+        return omega if ctx.dimension == 2 else omega["xyz".index(function[1])]
     if _KINDS[function] == "frame":
         angle = _frame_angle(ctx, ref.targets[0])
         return ca.jtimes(angle, q, v) if function == "omega_of" else angle

@@ -469,6 +469,28 @@ class Mechanism:
                 if v is not None}
         return self.add("rolling_disc", name, body1, body2, point=point, radius=radius, **keys)
 
+    def add_knife_edge(self, name: str, body1: str, body2: str, point: Sequence[float],
+                       axis: Sequence[float], normal: Sequence[float] | None = None) -> Joint:
+        """A knife edge (Chaplygin's sleigh): ``body2``'s ``point`` has no velocity across the
+        blade ``axis``, relative to ``body1``; in space ``normal`` is the plane's
+        (:mod:`casmbd.model.rolling`)."""
+        return self.add("knife_edge", name, body1, body2, point=point, axis=axis,
+                        normal=normal)
+
+    def add_rolling_sphere(self, name: str, body1: str, body2: str, point: Sequence[float],
+                           radius: float, origin: Sequence[float] = (0.0, 0.0, 0.0),
+                           normal: Sequence[float] = (0.0, 0.0, 1.0)) -> Joint:
+        """A sphere of ``body2`` (centre ``point``) rolling without slipping on the plane of
+        ``body1`` through ``origin`` with ``normal`` (:mod:`casmbd.model.rolling`)."""
+        return self.add("rolling_sphere", name, body1, body2, point=point, radius=radius,
+                        origin=origin, normal=normal)
+
+    def add_velocity_constraint(self, name: str, body1: str, body2: str, rows,
+                                labels=None, point: Sequence[float] | None = None) -> Joint:
+        """Velocity rows A(q, t) v + b(q, t) = 0 written as expressions of measures, each
+        checked for linearity in the velocities (:mod:`casmbd.model.velocity_constraint`)."""
+        return self.add("velocity", name, body1, body2, rows=rows, labels=labels, point=point)
+
     def add_driver(self, name: str, position: Value | None = None, joint: str | None = None,
                    body: str | None = None, coordinate: str | None = None, *,
                    euler_zxz: Sequence[Value] | None = None, rpy: Sequence[Value] | None = None,

@@ -70,8 +70,8 @@ from casmbd.model.bodies import GROUND, scalar, unit_vector, vector
 from casmbd.model.joints import Joint
 from casmbd.model.registry import register_joint
 
-__all__ = ["KnifeEdge", "PlanarRollingDisc", "RollingSphere", "material_velocity",
-           "plane_triad"]
+__all__ = ["KnifeEdge", "PlanarRollingDisc", "RollingSphere", "material_point",
+           "material_velocity", "plane_triad"]
 
 #: largest |(point − origin)·n − radius| accepted, relative to max(1, radius): the centre
 #: given at the initial pose must be one radius above the plane (line)
@@ -90,6 +90,19 @@ def material_velocity(ctx, body: str, at: ca.SX) -> ca.SX:
     omega = ctx.angular_velocity(body)
     turn = omega * ca.vertcat(-r[1], r[0]) if dim == 2 else ca.cross(omega, r)
     return ca.jtimes(com, ctx.q, ctx.v) + turn
+
+
+def material_point(ctx, body: str, frozen: ca.SX) -> ca.SX:
+    """Position of the material point of ``body`` that is at ``frozen`` (an expression frozen
+    at the unperturbed pose, ``ctx.resolve``): r_G + A A₀ᵀ (frozen − r_G₀).  Written with a
+    perturbed context (:meth:`~casmbd.system.context.Context.perturbed`) its derivative by the
+    virtual displacement e = (δr_G, δθ) of ``body`` is δr_G + δθ × (frozen − r_G): the
+    coefficients of the material point's velocity (the constant ``frozen`` for the ground)."""
+    if body == GROUND:
+        return frozen
+    com, rot = ctx.centre_of_mass(body), ctx.rotation(body)
+    local = ca.mtimes(ctx.resolve(rot).T, frozen - ctx.resolve(com))
+    return com + ca.mtimes(rot, local)
 
 
 def plane_triad(normal) -> tuple[np.ndarray, np.ndarray]:
@@ -120,17 +133,23 @@ def _check_height(name: str, point, origin, normal, radius: float) -> None:
                          "side the normal points to)")
 
 
+def _moving(name: str, body2: str, what: str) -> None:
+    """body2 is the rolling body: not the ground."""
+    if body2 == GROUND:
+        raise ModelError(f"joint '{name}' field 'body2': {what} must be a moving body (the "
+                         "support, body1, may be the ground)")
+
+
 def _planar_axis(name: str, axis) -> None:
     """A planar disc's axle is z: ``axis`` may be given, as a 3-vector along ±z."""
     if axis is None:
         return
     where = f"joint '{name}' field 'axis'"
-    arr = np.asarray(axis, dtype=float).reshape(-1) if isinstance(axis, (list, tuple, np.ndarray)) \
-        else None
-    if arr is None or arr.shape != (3,):
+    try:
+        unit = unit_vector(axis, where, 3)
+    except ModelError:
         raise ModelError(f"{where}: in the plane the axle is the z axis; give [0, 0, 1] (or "
-                         f"omit it), got {axis!r}")
-    unit = unit_vector(arr, where, 3)
+                         f"omit it), got {axis!r}") from None
     if abs(abs(unit[2]) - 1.0) > 1e-9:
         raise ModelError(f"{where}: in the plane the axle must be along z ([0, 0, 1]), got "
                          f"{axis!r}")
@@ -164,11 +183,16 @@ class PlanarRollingDisc(Joint):
     scene_keys = frozenset({"point", "axis", "radius", "origin", "normal"})
 
     @classmethod
-    def create(cls, mech, name: str, body1: str, body2: str, point, radius,
-               origin=(0.0, 0.0), normal=(0.0, 1.0), axis=None) -> PlanarRollingDisc:
-        """Check the fields (naming the joint and the field) and build the joint."""
+    def create(cls, mech, name: str, body1: str, body2: str, point, axis=None, radius=None,
+               origin=(0.0, 0.0), normal=(0.0, 1.0)) -> PlanarRollingDisc:
+        """Check the fields (naming the joint and the field) and build the joint; the
+        arguments are in the order of the spatial ``rolling_disc`` (``axis`` optional here:
+        give ``radius`` by keyword)."""
         mech._new_joint(name, body1, body2)
+        _moving(name, body2, "the disc")
         _planar_axis(name, axis)
+        if radius is None:
+            raise ModelError(f"joint '{name}' field 'radius': missing")
         return cls(name, body1, body2, point=point, radius=radius, origin=origin,
                    normal=normal)
 
@@ -177,9 +201,9 @@ class PlanarRollingDisc(Joint):
         name = e.string("name")
         axis = e.vector("axis", 3, required=False) if e.has("axis") else None
         return mech.add("rolling_disc", name, e.string("body1"), e.string("body2"),
-                        e.vector("point", 2), e.number("radius"),
+                        e.vector("point", 2), axis, e.number("radius"),
                         origin=e.vector("origin", 2, default=[0.0, 0.0]),
-                        normal=e.vector("normal", 2, default=[0.0, 1.0]), axis=axis)
+                        normal=e.vector("normal", 2, default=[0.0, 1.0]))
 
     def __post_init__(self):
         where = f"joint '{self.name}' field"
@@ -226,8 +250,8 @@ class PlanarRollingDisc(Joint):
         return self.coordinate(ctx, which) - target
 
     def reaction_point(self) -> np.ndarray:
-        """The contact point at the initial pose."""
-        return self.point - self.radius * self.normal
+        """The centre (the reaction's moment is about it, as for the spatial disc)."""
+        return self.point
 
 
 @register_joint
@@ -256,6 +280,7 @@ class KnifeEdge(Joint):
                normal=None) -> KnifeEdge:
         """Check the fields (naming the joint and the field) and build the joint."""
         mech._new_joint(name, body1, body2)
+        _moving(name, body2, "the body carrying the blade")
         if mech.dimension == 2 and normal is not None:
             raise ModelError(f"joint '{name}' field 'normal': a planar knife edge slides in "
                              "the plane (no normal to give)")
@@ -291,13 +316,22 @@ class KnifeEdge(Joint):
         """W = (v_P − v_P¹)·l, affine in v (the rows C_q v + C_t of W = 0)."""
         p = ctx.point(self.body2, ctx.local(self.body2, self.point))
         rel = ca.jtimes(p, ctx.q, ctx.v) - material_velocity(ctx, self.body1, p)
+        return ca.dot(rel, self._lateral(ctx))
+
+    def _lateral(self, ctx) -> ca.SX:
         a = ctx.direction(self.body2, ctx.local_direction(self.body2, self.axis))
         if self.dimension == 2:
-            lateral = ca.vertcat(-a[1], a[0])
-        else:
-            n = ctx.direction(self.body1, ctx.local_direction(self.body1, self.normal))
-            lateral = ca.cross(n, a)
-        return ca.dot(rel, lateral)
+            return ca.vertcat(-a[1], a[0])
+        n = ctx.direction(self.body1, ctx.local_direction(self.body1, self.normal))
+        return ca.cross(n, a)
+
+    def virtual_equations(self, ctx) -> ca.SX:
+        """l₀·(X₂ − X₁): X_i the material point of body i at P, l and P frozen at the
+        unperturbed pose; its derivative by a virtual rigid displacement of either body is the
+        coefficient of that body's twist in W (the joint reactions' virtual work)."""
+        p = ctx.point(self.body2, ctx.local(self.body2, self.point))
+        moved = p - material_point(ctx, self.body1, ctx.resolve(p))
+        return ca.dot(ctx.resolve(self._lateral(ctx)), moved)
 
     def reaction_point(self) -> np.ndarray:
         return self.point
@@ -329,6 +363,7 @@ class RollingSphere(Joint):
                origin=(0.0, 0.0, 0.0), normal=(0.0, 0.0, 1.0)) -> RollingSphere:
         """Check the fields (naming the joint and the field) and build the joint."""
         mech._new_joint(name, body1, body2)
+        _moving(name, body2, "the sphere")
         return cls(name, body1, body2, point=point, radius=radius, origin=origin,
                    normal=normal)
 
@@ -368,6 +403,21 @@ class RollingSphere(Joint):
                   for t in plane_triad(self.normal))
         return ca.vertcat(ca.SX(0.0), ca.dot(t1, slip), ca.dot(t2, slip))
 
+    def virtual_equations(self, ctx) -> ca.SX:
+        """The contact row and t_k₀·(X₂ − X₁), X_i the material point of body i at the contact
+        point P = r_c − R n (P, t_k frozen at the unperturbed pose): their derivatives by a
+        virtual rigid displacement are the coefficients of the rows (the joint reactions)."""
+        o, n = _support_frame(ctx, self.body1, self.origin, self.normal)
+        c = self._centre(ctx)
+        contact = ctx.resolve(c - self.radius * n)
+        moved = material_point(ctx, self.body2, contact) - \
+            material_point(ctx, self.body1, contact)
+        rows = [ca.dot(c - o, n) - self.radius]
+        for t in plane_triad(self.normal):
+            rows.append(ca.dot(ctx.resolve(ctx.direction(
+                self.body1, ctx.local_direction(self.body1, t))), moved))
+        return ca.vertcat(*rows)
+
     def reaction_point(self) -> np.ndarray:
-        """The contact point at the initial pose."""
-        return self.point - self.radius * self.normal
+        """The centre (the reaction's moment is about it, as for the spatial disc)."""
+        return self.point

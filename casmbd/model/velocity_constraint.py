@@ -1,20 +1,20 @@
 """A generic velocity constraint written in the scene (``type = "velocity"``):
 rows W_k(q, v, t) = A_k(q, t) v + b_k(q, t) = 0 given as expressions of measures.
 
-Each row is an expression of the measures of :mod:`casmbd.model.measures` — positions
-(``x``, ``y``, ``z``, ``angle``, ``translation``, ``coordinate``, ``distance``, ``angle_of``),
-velocities (``vx``, ``vy``, ``vz``, ``rate``, ``omega_of``), time ``t`` and the scene's
-parameters — that must be *affine in the velocities*: a velocity measure may be multiplied by
-functions of the positions, time and parameters, never by another velocity measure or put
-inside a nonlinear function (``speed``, ``abs(vx(...))``, ``vx(...)**2`` are refused).  The
-check is made when the joint is added, on the parsed rows with the measures standing as
-symbols (position measures as q-symbols, velocity measures as v-symbols, ``speed`` as the norm
-of three v-symbols): ∂W/∂v must not depend on v, and W(v) − W(0) − (∂W/∂v) v must vanish at
-random probes (which also catches ``sign``, ``floor``, ``min``/``max`` of a velocity); the
-refusal names the joint, the row and the additive term at fault.  When the system is built the
-rows are written with the system's context and checked again (∂W/∂v free of v).  A row that
-involves no velocity measure is refused (a constraint on positions is a holonomic joint or a
-driver).
+Each row is an expression of the measures of :mod:`casmbd.model.measures` — positions (``x``,
+``y``, ``z``, ``angle``, ``translation``, ``coordinate``, ``distance``, ``angle_of``),
+velocities (``vx``, ``vy``, ``vz``, ``rate``, ``omega_of``, ``wx``, ``wy``, ``wz``), time ``t``
+and the scene's parameters — that must be *affine in the velocities*: a velocity measure may be
+multiplied by functions of the positions, time and parameters, never by another velocity
+measure or put inside a nonlinear function (``speed``, ``abs(vx(...))``, ``vx(...)**2`` are
+refused). The check is made when the joint is added, on the parsed rows with the measures
+standing as symbols (position measures as q-symbols, velocity measures as v-symbols, ``speed``
+as the norm of three v-symbols): ∂W/∂v must not depend on v, and W(v) − W(0) − (∂W/∂v) v must
+vanish at random probes (which also catches ``sign``, ``floor``, ``min``/``max`` of a
+velocity); the refusal names the joint, the row and the additive term at fault. When the system
+is built the rows are written with the system's context and checked again (∂W/∂v free of v). A
+row that involves no velocity measure is refused (a constraint on positions is a holonomic
+joint or a driver).
 
 The rows enter the equations through the velocity-row protocol of
 :class:`casmbd.system.equations.System`: ``velocity_equations`` returns W, whose Jacobian
@@ -22,7 +22,9 @@ The rows enter the equations through the velocity-row protocol of
 dependence included (a prescribed slip velocity b(q, t)).  The joint declares the need
 ``"velocity_constraints"``.  Scene keys: ``rows`` (a string or a list of strings), optional
 ``labels`` (one identifier per row, default ``row_1``, ``row_2``, …), ``body1`` (default
-``"ground"``) and ``body2`` (the body whose reaction is reported); the bodies whose poses
+``"ground"``), ``body2`` (the body whose reaction is reported) and optional ``point`` (where
+the reaction's moment is taken, global at the initial pose; default body2's centre of mass);
+the bodies whose poses
 enter the rows are found from the measures (:attr:`VelocityConstraint.bodies`).
 
 Example (the knife edge of a planar sleigh whose blade point is the marker ``"P"``)::
@@ -45,16 +47,25 @@ import casadi as ca
 import numpy as np
 
 from casmbd.errors import ModelError
-from casmbd.model.bodies import GROUND
+from casmbd.limits import MAX_VELOCITY_ROWS, check_count
+from casmbd.model.bodies import GROUND, vector
 from casmbd.model.expressions import parse_expression
 from casmbd.model.joints import Joint
-from casmbd.model.measures import TIME_NAMES, MeasureRef, check, expression, measure_calls
+from casmbd.model.measures import (
+    TIME_NAMES,
+    MeasureRef,
+    check,
+    expression,
+    measure_calls,
+    value_of,
+)
 from casmbd.model.registry import register_joint
 
 __all__ = ["VELOCITY_MEASURES", "VelocityConstraint", "additive_terms"]
 
 #: the measures that are velocities (linear in v); every other measure is a position (or time)
-VELOCITY_MEASURES = frozenset({"rate", "vx", "vy", "vz", "omega_of", "speed"})
+VELOCITY_MEASURES = frozenset({"rate", "vx", "vy", "vz", "omega_of", "wx", "wy", "wz",
+                               "speed"})
 #: random probes of the affinity check and their relative tolerance
 _PROBES, _PROBE_TOLERANCE = 3, 1e-9
 
@@ -146,8 +157,8 @@ def _check_row(mech, text: str, where: str) -> None:
     rng = np.random.default_rng(0)
     if vel.numel() == 0 or not ca.depends_on(row, vel):
         raise ModelError(f"{where}: the row involves no velocity (rate, vx, vy, vz, "
-                         "omega_of): a constraint on the positions is a holonomic joint or "
-                         f"a driver, got {text!r}")
+                         "omega_of, wx, wy, wz): a constraint on the positions is a holonomic "
+                         f"joint or a driver, got {text!r}")
     if _affine(row, vel, rest, rng):
         return
     for term in additive_terms(text):
@@ -193,11 +204,12 @@ class VelocityConstraint(Joint):
 
     rows: tuple[str, ...] = ()
     involved: tuple[str, ...] = ()
+    point: np.ndarray | None = None
 
     kind = "velocity"
     title = "velocity constraint"
     dimensions = (2, 3)
-    scene_keys = frozenset({"rows", "labels"})
+    scene_keys = frozenset({"rows", "labels", "point"})
     drawing = "none"
 
     @property
@@ -211,7 +223,7 @@ class VelocityConstraint(Joint):
 
     @classmethod
     def create(cls, mech, name: str, body1: str = GROUND, body2: str | None = None,
-               rows=None, labels=None) -> VelocityConstraint:
+               rows=None, labels=None, point=None) -> VelocityConstraint:
         """Check the rows (each parses, involves a velocity and is affine in the velocities)
         and the labels, naming the joint, the field and the row."""
         if body2 is None:
@@ -224,6 +236,7 @@ class VelocityConstraint(Joint):
         if not isinstance(texts, (list, tuple)) or not texts:
             raise ModelError(f"{where} 'rows': expected an expression string or a non-empty "
                              f"list of them, got {rows!r}")
+        check_count(f"joint '{name}' field 'rows'", len(texts), MAX_VELOCITY_ROWS)
         if labels is None:
             labels = [f"row_{k + 1}" for k in range(len(texts))]
         elif isinstance(labels, str):
@@ -242,8 +255,10 @@ class VelocityConstraint(Joint):
             check(mech, text, at)
             _check_row(mech, text, at)
         involved = tuple(dict.fromkeys([body1, body2, *_bodies_of(mech, tuple(texts))]))
+        if point is not None:
+            point = vector(point, f"{where} 'point'", mech.dimension)
         return cls(name, body1, body2, labels=tuple(labels), rows=tuple(texts),
-                   involved=involved)
+                   involved=involved, point=point)
 
     @classmethod
     def from_scene(cls, mech, e) -> VelocityConstraint:
@@ -253,7 +268,8 @@ class VelocityConstraint(Joint):
             raise e.error("rows", "missing required key")
         labels = e.data.get("labels")
         return mech.add("velocity", name, e.string("body1", default=GROUND),
-                        e.string("body2"), rows=rows, labels=labels)
+                        e.string("body2"), rows=rows, labels=labels,
+                        point=e.vector("point", mech.dimension, required=False))
 
     def equations(self, ctx) -> ca.SX:
         return ca.SX.zeros(len(self.rows))
@@ -271,5 +287,81 @@ class VelocityConstraint(Joint):
             out.append(row)
         return ca.vertcat(*out)
 
-    def reaction_point(self) -> None:
-        return None
+    def virtual_equations(self, ctx) -> ca.SX:
+        """Σ_k a_k(q₀, t) s_k(q), one entry per row: W = Σ_k a_k m_k + b with m_k its velocity
+        measures, a_k frozen at the unperturbed pose (``ctx.resolve``) and s_k the position
+        whose rate m_k is (x for vx, the coordinate for rate, the angle for omega_of, the
+        rotation vector for wx, wy, wz).  Its derivative by a virtual rigid displacement of a
+        body is the coefficient of that body's twist in W: the joint reactions' virtual work."""
+        out = []
+        for k, (text, label) in enumerate(zip(self.rows, self.labels, strict=True)):
+            where = f"joint '{self.name}' field 'rows' row {k + 1} ('{label}')"
+            split = _Velocities(ctx)
+            row = split.parse(text, where)
+            if not split.refs:
+                out.append(ca.SX(0.0))
+                continue
+            coeff = ctx.resolve(ca.jacobian(row, ca.vertcat(*split.slots)))
+            out.append(ca.mtimes(coeff, ca.vertcat(*[_displacement(ctx, r)
+                                                     for r in split.refs])))
+        return ca.vertcat(*out)
+
+    def reaction_point(self) -> np.ndarray | None:
+        """``point`` (global, initial pose) when given: the reaction's moment is about it
+        (default: body2's centre of mass at the initial pose)."""
+        return self.point
+
+
+class _Velocities:
+    """A row written with ``ctx`` but its velocity measures as symbols (``slots``, one per
+    distinct measure ``refs``): W = Σ a_k slot_k + b."""
+
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self.refs: list[MeasureRef] = []
+        self.slots: list[ca.SX] = []
+
+    def build(self, ref: MeasureRef) -> ca.SX:
+        if ref.function not in VELOCITY_MEASURES:
+            return value_of(self.ctx, ref)
+        if ref not in self.refs:
+            self.refs.append(ref)
+            self.slots.append(ca.SX.sym(f"s{len(self.slots)}"))
+        return self.slots[self.refs.index(ref)]
+
+    def parse(self, text: str, where: str) -> ca.SX:
+        symbols = dict(self.ctx.p)
+        for name in TIME_NAMES:
+            symbols.setdefault(name, self.ctx.t)
+        return ca.SX(parse_expression(text, symbols, where,
+                                      measure_calls(self.ctx.mechanism, self.build)))
+
+
+def _rotation_vector(ctx, body: str) -> ca.SX:
+    """½ vee(S − Sᵀ), S = A A₀ᵀ (A₀ frozen): zero at the unperturbed pose, its derivative by a
+    virtual rotation δθ of ``body`` is δθ."""
+    rot = ctx.rotation(body)
+    s = ca.mtimes(rot, ctx.resolve(rot).T)
+    return 0.5 * ca.vertcat(s[2, 1] - s[1, 2], s[0, 2] - s[2, 0], s[1, 0] - s[0, 1])
+
+
+def _displacement(ctx, ref: MeasureRef) -> ca.SX:
+    """The position whose rate the velocity measure ``ref`` is (see
+    :meth:`VelocityConstraint.virtual_equations`)."""
+    function = ref.function
+    if function == "rate":
+        return ctx.mechanism.joints[ref.targets[0]].coordinate(ctx, ref.coordinate)
+    kind, _, name = ref.targets[0].partition(":")
+    if function in ("vx", "vy", "vz"):
+        if kind == "marker":
+            marker = ctx.mechanism.markers[name]
+            pos = ctx.position(marker.body, marker.point)
+        else:
+            pos = ctx.centre_of_mass(name)
+        return pos["xyz".index(function[1])]
+    body = ctx.mechanism.markers[name].body if kind == "marker" else name
+    if body == GROUND:
+        return ca.SX(0.0)
+    if function == "omega_of" or ctx.dimension == 2:  # omega_of, wz in the plane
+        return ctx.angle(body)
+    return _rotation_vector(ctx, body)["xyz".index(function[1])]

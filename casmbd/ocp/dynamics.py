@@ -11,6 +11,9 @@ error) each interval carries projection multipliers μ, ν with
 
     q̇ = v + C_qᵀ μ,      v̇ = q̈ + C_qᵀ ν,
 
+(rows written at the velocity level, A(q) q̇ + b = 0, have no position row: μ and the nodes'
+C = 0 take the holonomic rows only, :func:`node_constraints`)
+
 the collocation analogue of the Gear–Gupta–Leimkuhler stabilisation: μ and ν are of the size of
 the discretisation error and vanish for the exact solution.  Shooting uses the explicit form
 q̈ = f(q, q̇, u, t) from the KKT system (or the articulated-body recursion for trees).
@@ -43,13 +46,32 @@ def implicit_residual(system) -> ca.Function:
 
 
 def node_constraints(system) -> ca.Function:
-    """``node(q, v, t, p) -> (C, C_q v + C_t, C_qᵀ)`` at a mesh node."""
+    """``node(q, v, t, p) -> (C_h, C_q v + C_t, C_qᵀ)`` at a mesh node.
+
+    C_h are the position constraints — every row but those written at the velocity level
+    (rolling without slipping, knife edges: their C is identically 0 and would be a 0 = 0
+    row of the NLP); the velocity rows C_q v + C_t = 0 are every row, with the velocity
+    projection v̇ = q̈ + C_qᵀ ν (a rolling row is a path constraint on the velocities at every
+    node, and its derivative C_q q̈ = γ holds at every collocation point)."""
     q, v, t, p = system.q, system.v, system.t, system.p
     cq = system.constraint_jacobian
+    rows = list(getattr(system, "holonomic_rows", range(system.nc)))
+    c_h = system.constraints if len(rows) == system.nc else system.constraints[rows]
     return ca.Function("ocp_node", [q, v, t, p],
-                       [system.constraints,
-                        ca.mtimes(cq, v) + system.constraint_time_derivative, cq.T],
+                       [c_h, ca.mtimes(cq, v) + system.constraint_time_derivative, cq.T],
                        ["q", "v", "t", "p"], ["C", "Cdot", "CqT"])
+
+
+def position_projection(system) -> ca.Function:
+    """``proj(q, t, p) -> C_hqᵀ``: the transposed Jacobian ∂C_h/∂q of the position rows of
+    :func:`node_constraints`, which carries the position projection q̇ = v + C_hqᵀ μ (C_qᵀ
+    itself when no row is written at the velocity level)."""
+    q, t, p = system.q, system.t, system.p
+    rows = list(getattr(system, "holonomic_rows", range(system.nc)))
+    ch_q = system.constraint_jacobian if len(rows) == system.nc else \
+        system.position_jacobian[rows, :]
+    return ca.Function("ocp_position_projection", [q, t, p], [ch_q.T], ["q", "t", "p"],
+                       ["ChT"])
 
 
 def explicit_accelerations(system) -> ca.Function:

@@ -25,7 +25,7 @@ def boundary_state(tr, which: str, start: np.ndarray, continuation: int = 8) -> 
     u = ca.DM.zeros(tr.nu)
     parts = []
     if tr.nc:
-        c, cdot, _ = tr.node(x[:nq], x[nq:], t, tr.p)
+        c, cdot = tr.node(x[:nq], x[nq:], t, tr.p)[:2]
         parts += [c, cdot]
     fn, values = ((tr.initial_fn, tr.initial_values) if which == "initial"
                   else (tr.final_fn, tr.final_values))
@@ -78,7 +78,7 @@ def _manifold_residual(tr) -> ca.Function:
     constraint manifold, for the projections of the guess."""
     nq = tr.nq
     x, t = ca.SX.sym("x", 2 * nq), ca.SX.sym("t")
-    c, cdot, _ = tr.node(x[:nq], x[nq:], t, tr.p)
+    c, cdot = tr.node(x[:nq], x[nq:], t, tr.p)[:2]
     res = ca.vertcat(c, cdot)
     return ca.Function("project", [x, t], [res, ca.jacobian(res, x)])
 

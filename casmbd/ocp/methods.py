@@ -113,13 +113,13 @@ class DirectCollocation(TranscriptionMethod):
         na = 0 if tr.explicit else nq
         ab, _ = b.var("A", na, d * M)
         lamb, _ = b.var("LAM", nc, d * M)
-        mub, _ = b.var("MU", nc, M)
+        mub, _ = b.var("MU", tr.nh, M)
         nub, _ = b.var("NU", nc, M)
         slb, _ = b.var("SL", nu_ if tr.energy else 0, d * M, 0.0, np.inf)
         # one element, symbolically
         xk, xk1 = ca.SX.sym("xk", 2 * nq), ca.SX.sym("xk1", 2 * nq)
         xc, a_e = ca.SX.sym("xc", 2 * nq, ncol), ca.SX.sym("a", na, d)
-        lam_e, mu, nu = ca.SX.sym("lam", nc, d), ca.SX.sym("mu", nc), ca.SX.sym("nu", nc)
+        lam_e, mu, nu = ca.SX.sym("lam", nc, d), ca.SX.sym("mu", tr.nh), ca.SX.sym("nu", nc)
         sl = ca.SX.sym("sl", nu_ if tr.energy else 0, d)
         u, tk, h = ca.SX.sym("u", nu_), ca.SX.sym("tk"), ca.SX.sym("h")
         rows, lo, hi, labels = [], [], [], []
@@ -145,7 +145,8 @@ class DirectCollocation(TranscriptionMethod):
             qdot, vdot = v, a
             if nc:
                 ct = tr.node(q, ca.SX.zeros(nq), t, tr.p)[2]
-                qdot, vdot = v + ca.mtimes(ct, mu), a + ca.mtimes(ct, nu)
+                cht = tr.position_projection(q, t, tr.p)
+                qdot, vdot = v + ca.mtimes(cht, mu), a + ca.mtimes(ct, nu)
             add(h * ca.vertcat(qdot, vdot) - xp, f"collocation point {j}")
             if not tr.explicit:
                 dyn, acc = tr.res(q, v, a, lam, u, t, tr.p)
@@ -210,7 +211,7 @@ class MultipleShooting(TranscriptionMethod):
         f = ca.Function("ocp_ode", [x, u, t], [ode, quad])
         # the registered shooting integrator (casmbd.analysis.integrators.INTEGRATORS)
         step = integrator_kind(ocp.integrator).shooting_step(f, x, u, t, ocp.steps)
-        mub, _ = b.var("MU", nc, N)
+        mub, _ = b.var("MU", tr.nh, N)
         nub, _ = b.var("NU", nc, N)
         slb, _ = b.var("SL", tr.nu if tr.energy else 0, N, 0.0, np.inf)
         # one interval, mapped over all of them
@@ -218,13 +219,14 @@ class MultipleShooting(TranscriptionMethod):
             if step.is_a("SXFunction") else (step.mx_in(0), ca.MX.sym("xk1", 2 * nq))
         sym = type(xk)
         uk, tk, hk = sym.sym("u", tr.nu), sym.sym("t"), sym.sym("h")
-        mu, nu = sym.sym("mu", nc), sym.sym("nu", nc)
+        mu, nu = sym.sym("mu", tr.nh), sym.sym("nu", nc)
         sl = sym.sym("sl", tr.nu if tr.energy else 0)
         xend, qk = step(xk, uk, tk, hk)
         gap = xk1 - xend
         if nc:
             ct = tr.node(xk1[:nq], sym.zeros(nq), tk + hk, tr.p)[2]
-            gap = gap - ca.vertcat(ca.mtimes(ct, mu), ca.mtimes(ct, nu))
+            cht = tr.position_projection(xk1[:nq], tk + hk, tr.p)
+            gap = gap - ca.vertcat(ca.mtimes(cht, mu), ca.mtimes(ct, nu))
         rows, lo, hi = [gap], [np.zeros(2 * nq)], [np.zeros(2 * nq)]
         labels = ["continuity"] * (2 * nq)
         if tr.energy:

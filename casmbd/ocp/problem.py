@@ -84,7 +84,10 @@ HANDLING = Handling(
         "reaction_forces": "a constant Coulomb level (mu = 0), or inverse dynamics along a "
                            "given motion"},
     notes={"modal_coordinates": "the mesh is checked against the fastest elastic mode",
-           "inputs": "the controls"})
+           "inputs": "the controls",
+           "velocity_constraints": "C_q q̇ + C_t = 0 on every row at every mesh node and "
+                                   "C_q q̈ = γ at every collocation point; C = 0 and the "
+                                   "position projection on the holonomic rows only"})
 
 
 @dataclass

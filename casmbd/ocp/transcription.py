@@ -25,7 +25,7 @@ from casmbd import interrupts, progress
 from casmbd.analysis.instant.kkt import consistent_state
 from casmbd.compiled.build import compile_model
 from casmbd.errors import AnalysisError, OptimizationError
-from casmbd.ocp.dynamics import choose_dynamics, node_constraints
+from casmbd.ocp.dynamics import choose_dynamics, node_constraints, position_projection
 from casmbd.ocp.flexible_mesh import mesh_check, solver_defaults
 from casmbd.ocp.guess import initial_guess
 from casmbd.ocp.methods import transcription_method
@@ -138,6 +138,9 @@ class Transcription:
         system = ocp.system
         self.system = system
         self.nq, self.nc, self.nu = system.nq, system.nc, len(ocp.controls)
+        #: position constraints (rows not written at the velocity level): C = 0 at the nodes
+        #: and the size of the position projection μ
+        self.nh = len(getattr(system, "holonomic_rows", range(system.nc)))
         self.p = ca.DM(system.parameter_values)
         self.N = ocp.intervals
         #: the registered method (casmbd.ocp.methods.TRANSCRIPTIONS): what it needs and builds
@@ -174,6 +177,7 @@ class Transcription:
         self.explicit, self.dynamics_choice, self.acc, self.res = choose_dynamics(
             system, ocp.dynamics, self.method.implicit)
         self.node = node_constraints(system)
+        self.position_projection = position_projection(system)
         args = [system.q, system.v, system.t, system.u, system.p]
         self.args = args
         self.input_matrix = ca.Function("ocp_b", args, [system.input_matrix])
@@ -242,7 +246,7 @@ class Transcription:
     def _projection(self, q, mu, nu):
         """(C_qᵀ μ, C_qᵀ ν) at q (the node function needs t only through C_t: unused here)."""
         ct = self.node(q, ca.DM.zeros(self.nq), 0.0, self.p)[2]
-        return ca.mtimes(ct, mu), ca.mtimes(ct, nu)
+        return ca.mtimes(self.position_projection(q, 0.0, self.p), mu), ca.mtimes(ct, nu)
 
     def add_mesh_nodes(self) -> None:
         """C = 0 and C_q q̇ + C_t = 0 at every mesh node, path constraints at the nodes (and at
@@ -270,11 +274,11 @@ class Transcription:
         for kinds, nodes, what in groups:
             exprs, lo, hi, labels = [], [], [], []
             if "nodes" in kinds and self.nc:
-                c, cdot, _ = self.node(q, v, t, self.p)
+                c, cdot = self.node(q, v, t, self.p)[:2]
                 exprs += [c, cdot]
-                lo.append(np.zeros(2 * self.nc))
-                hi.append(np.zeros(2 * self.nc))
-                labels += ["position constraint"] * self.nc + ["velocity constraint"] * self.nc
+                lo.append(np.zeros(self.nh + self.nc))
+                hi.append(np.zeros(self.nh + self.nc))
+                labels += ["position constraint"] * self.nh + ["velocity constraint"] * self.nc
             for kind in kinds:
                 fn, plo, phi = self.path_fns[kind]
                 if fn.numel_out(0):

@@ -88,6 +88,12 @@ def test_chaplygin_sleigh_follows_its_closed_form(coordinates):
     assert u_ref[-1] > 1.25 and omega_ref[-1] < 0.6  # the motion is not trivial
     row = res.names["constraints"].index("joint 'blade' equation 'lateral'")
     assert np.max(np.abs(res.arrays["lambda"][:, row] + force_ref)) < 1e-7
+    # the joint reaction: the force F e₂ on the sleigh at the blade point, no moment there
+    th = body["angle"]
+    lateral = np.column_stack([-np.sin(th), np.cos(th)])
+    reaction = res.arrays["joint_reactions"][:, 0, :]
+    assert np.max(np.abs(reaction[:, :2] - force_ref[:, None] * lateral)) < 1e-7
+    assert np.max(np.abs(reaction[:, 2])) < 1e-9
 
 
 @pytest.mark.parametrize("coordinates", COORDINATES)
@@ -150,6 +156,12 @@ def test_rolling_sphere_on_an_incline(coordinates):
     assert np.max(np.abs(pos @ NORMAL - R)) < 1e-12
     energy = res.arrays["total_energy"]
     assert np.ptp(energy) < 1e-8 * np.max(res.arrays["kinetic_energy"])
+    # the reaction on the ball, about its centre: N n + f t (N = m g cos α, f = 2/7 m g sin α
+    # up the slope: m a = m g sin α − f with a = 5/7 g sin α), moment (−R n) × F
+    force = MASS * G * (np.cos(ALPHA) * NORMAL + 2.0 / 7.0 * np.sin(ALPHA) * UPHILL)
+    reaction = res.arrays["joint_reactions"][:, 0, :]
+    assert np.max(np.abs(reaction[:, :3] - force)) < 1e-8
+    assert np.max(np.abs(reaction[:, 3:] - np.cross(-R * NORMAL, force))) < 1e-8
 
 
 def test_a_spinning_ball_on_level_ground_keeps_spinning():
@@ -191,6 +203,12 @@ def test_planar_rolling_disc_on_an_incline(coordinates):
     assert np.max(np.abs(s + R * (body["angle"] - 0.3))) < 1e-9
     energy = res.arrays["total_energy"]
     assert np.ptp(energy) < 1e-8 * np.max(res.arrays["kinetic_energy"])
+    # the reaction on the disc, about its centre: N n + f t, f = 1/3 m g sin α up the slope
+    force = MASS * G * (np.cos(ALPHA) * normal + np.sin(ALPHA) / 3.0 * UPHILL[[0, 2]])
+    arm = -R * normal
+    reaction = res.arrays["joint_reactions"][:, 0, :]
+    assert np.max(np.abs(reaction[:, :2] - force)) < 1e-8
+    assert np.max(np.abs(reaction[:, 2] - (arm[0] * force[1] - arm[1] * force[0]))) < 1e-8
     joint = res.joint("roll")
     assert np.max(np.abs(joint["coordinate"] - s)) < 1e-9
     assert np.max(np.abs(joint["angle"] - body["angle"])) < 1e-9
@@ -304,3 +322,104 @@ def test_only_the_slip_rows_are_velocity_rows():
     assert [labels[i] for i in system.velocity_rows] == [
         "joint 'roll' equation 'slip_1'", "joint 'roll' equation 'slip_2'"]
     assert "joint 'roll' equation 'contact'" in [labels[i] for i in system.holonomic_rows]
+
+
+def test_the_rolling_body_is_not_the_ground_and_the_axle_is_z():
+    mech = Mechanism("m", dimension=2)
+    mech.add_body("disc", 1.0, 0.005, [0.0, 0.1])
+    with pytest.raises(ModelError, match="joint 'r' field 'body2': the disc must be a moving"):
+        mech.add("rolling_disc", "r", "disc", "ground", point=[0, 0.1], radius=0.1)
+    with pytest.raises(ModelError, match="joint 'r' field 'body2': the body carrying the blade"):
+        mech.add("knife_edge", "r", "disc", "ground", point=[0, 0.1], axis=[1, 0])
+    with pytest.raises(ModelError, match="joint 'r' field 'axis': in the plane the axle"):
+        mech.add("rolling_disc", "r", "ground", "disc", [0, 0.1], ["z", 0, 1], 0.1)
+    with pytest.raises(ModelError, match="joint 'r' field 'axis': in the plane the axle"):
+        mech.add("rolling_disc", "r", "ground", "disc", [0, 0.1], 0.1)
+    with pytest.raises(ModelError, match="joint 'r' field 'radius': missing"):
+        mech.add("rolling_disc", "r", "ground", "disc", [0, 0.1])
+    joint = mech.add("rolling_disc", "r", "ground", "disc", [0, 0.1], [0, 0, -1], 0.1)
+    assert joint.radius == 0.1 and not mech.joints["r"].needs
+
+
+DECK = 0.7  # m/s: the support's uniform velocity along x
+
+
+def on_deck(kind: str) -> Mechanism:
+    """The sleigh, the planar disc or the ball on a deck (body1) driven along x at 0.7 m/s:
+    relative to the deck each moves as on the ground (Galilean invariance)."""
+    dim = 3 if kind == "ball" else 2
+    z = (0.0,) * (dim - 2)
+    gravity = (0.0, 0.0, -G) if dim == 3 else ((0.0, 0.0) if kind == "sleigh" else (0.0, -G))
+    mech = Mechanism(kind, gravity=gravity, coordinates="absolute")
+    mech.add_body("deck", 5.0, 1.0 if dim == 2 else [1.0] * 3, (0.0, -1.0, *z),
+                  velocity=(DECK, 0.0, *z))
+    mech.add("prismatic", "rail", "ground", "deck", (0.0, -1.0, *z), (1.0, 0.0, *z))
+    mech.add_driver("push", joint="rail", position=f"{DECK}*t")
+    if kind == "sleigh":
+        mech.add_body("sleigh", M, INERTIA, [0.0, 0.0], velocity=[U0 + DECK, A * W0],
+                      angular_velocity=W0)
+        mech.add("knife_edge", "blade", "deck", "sleigh", point=[-A, 0.0], axis=[1.0, 0.0])
+    elif kind == "disc":
+        mech.add_body("disc", MASS, 0.5 * MASS * R * R, (0.0, R), velocity=(DECK + 0.4, 0.0),
+                      angular_velocity=-0.4 / R)
+        mech.add("rolling_disc", "roll", "deck", "disc", point=(0.0, R), radius=R)
+    else:
+        mech.add_body("ball", MASS, [0.4 * MASS * R * R] * 3, (0.0, 0.0, R),
+                      velocity=(DECK + 0.3, 0.0, 0.0), angular_velocity=(0.0, 0.3 / R, 2.0))
+        mech.add("rolling_sphere", "roll", "deck", "ball", point=(0.0, 0.0, R), radius=R)
+    return mech
+
+
+@pytest.mark.parametrize("kind", ["sleigh", "disc", "ball"])
+def test_a_moving_support_carries_the_rolling_body(kind):
+    """On the deck moving at 0.7 m/s: the sleigh's u and ω relative to the deck follow the
+    closed form (1e-8); the disc and the ball roll on at their speed relative to the deck
+    (level: 0.4 and 0.3 m/s, no slip relative to the deck, 1e-9)."""
+    res = casmbd.simulate(on_deck(kind), 2.0, 20, rtol=RTOL, atol=ATOL, mode="vm")
+    t = res.t
+    body = res.body(kind)
+    rel = body["velocity"].copy()
+    rel[:, 0] -= DECK
+    if kind == "sleigh":
+        th = body["angle"]
+        u = rel[:, 0] * np.cos(th) + rel[:, 1] * np.sin(th)
+        u_ref, omega_ref, _, _ = sleigh_closed_form(t)
+        assert np.max(np.abs(u - u_ref)) < 1e-8
+        assert np.max(np.abs(body["angular_velocity"] - omega_ref)) < 1e-8
+    elif kind == "disc":
+        assert np.max(np.abs(body["position"][:, 0] - (DECK + 0.4) * t)) < 1e-9
+        assert np.max(np.abs(rel[:, 0] + R * body["angular_velocity"])) < 1e-9
+    else:
+        omega = body["angular_velocity"]
+        assert np.max(np.abs(body["position"][:, 0] - (DECK + 0.3) * t)) < 1e-9
+        slip = rel - R * np.cross(omega, [0.0, 0.0, 1.0])
+        assert np.max(np.abs(slip)) < 1e-9
+        assert np.max(np.abs(omega[:, 2] - 2.0)) < 1e-8
+
+
+def test_mechanism_wrappers_add_the_kinds():
+    mech = Mechanism("m", gravity=(0.0, 0.0, -9.81))
+    mech.add_body("ball", 1.0, [0.004] * 3, [0.0, 0.0, 0.1])
+    mech.add_marker("c", "ball", [0.0, 0.0, 0.1])
+    assert isinstance(mech.add_rolling_sphere("r", "ground", "ball", [0, 0, 0.1], 0.1),
+                      casmbd.model.RollingSphere)
+    assert mech.add_knife_edge("k", "ground", "ball", [0, 0, 0.1], [1, 0, 0]).labels == \
+        ("lateral",)
+    joint = mech.add_velocity_constraint("v", "ground", "ball", ["vz('c')"], ["height"])
+    assert joint.labels == ("height",)
+
+
+@pytest.mark.parametrize("blade", [-A, A])
+def test_straight_sleigh_linearised_about_its_steady_motion(blade):
+    """Straight at u: ω̇ = −m a u ω / J linearised (a the blade's distance behind G) — one
+    eigenvalue −m a u/(I + m a²) after the cyclic x, y, θ are removed (1e-10): stable with the
+    blade behind, unstable (the sleigh turns round) with it in front."""
+    speed = 1.5
+    mech = Mechanism("sleigh", dimension=2)
+    mech.add_body("sleigh", M, INERTIA, [0.0, 0.0], velocity=[speed, 0.0])
+    mech.add("knife_edge", "blade", "ground", "sleigh", point=[blade, 0.0], axis=[1.0, 0.0])
+    lin = casmbd.linearize(mech, steady_motion=True, mode="vm")
+    a = -blade
+    expected = -M * a * speed / (INERTIA + M * a * a)
+    eig = np.asarray(lin.eigenvalues)
+    assert eig.shape == (1,) and abs(eig[0] - expected) < 1e-10

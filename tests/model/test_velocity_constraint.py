@@ -22,7 +22,7 @@ import pytest
 from scipy.integrate import quad
 
 import casmbd
-from casmbd.errors import ModelError, SceneError
+from casmbd.errors import ExpressionError, ModelError, SceneError
 from casmbd.io.scene import loads_scene
 from casmbd.model import Mechanism
 from casmbd.model.velocity_constraint import VelocityConstraint, additive_terms
@@ -56,6 +56,15 @@ def test_generic_row_reproduces_the_knife_edge(coordinates):
     tol = 1e-9 if coordinates == "natural" else 1e-12
     for key in ("q", "v", "lambda"):
         assert np.max(np.abs(runs[0].arrays[key] - runs[1].arrays[key])) < tol, key
+    # the same reaction force; its moment about G (the generic kind has no point) is the
+    # knife edge's (about P, zero) plus (P − G) × F
+    knife, generic = (r.arrays["joint_reactions"][:, 0, :] for r in runs)
+    assert np.max(np.abs(knife[:, :2] - generic[:, :2])) < 1e-9
+    th = runs[0].body("sleigh")["angle"]
+    arm = -A * np.column_stack([np.cos(th), np.sin(th)])
+    moment = arm[:, 0] * knife[:, 1] - arm[:, 1] * knife[:, 0]
+    assert np.max(np.abs(generic[:, 2] - moment)) < 1e-9
+    assert np.max(np.abs(knife[:, :2])) > 1.0
 
 
 C, OMEGA = 0.3, 2.5
@@ -178,10 +187,10 @@ type = "velocity"
 
 def test_scene_reads_rows_labels_and_parameters():
     mech = loads_scene(SCENE.format(keys='body2 = "sleigh"\nrows = "vy(\'P\') - c"\n'
-                                         'labels = ["lateral"]'))
+                                         'labels = ["lateral"]\npoint = [-0.2, 0.0]'))
     joint = mech.joints["blade"]
     assert joint.rows == ("vy('P') - c",) and joint.labels == ("lateral",)
-    assert joint.body1 == "ground"
+    assert joint.body1 == "ground" and joint.reaction_point().tolist() == [-0.2, 0.0]
 
 
 @pytest.mark.parametrize(("keys", "message"), [
@@ -196,7 +205,8 @@ def test_scene_reads_rows_labels_and_parameters():
      "field 'labels': must be distinct"),
     ('body2 = "sleigh"\nrows = ["vy(\'P\')"]\nlabels = ["not a name"]', "field 'labels'"),
     ('body2 = "sleigh"\nrows = ["vy(\'P\')*vx(\'P\')"]', "row 1 ('row_1'): not affine"),
-    ('body2 = "sleigh"\nrows = ["vy(\'P\')"]\npoint = [0.0, 0.0]', "key 'point': unknown key"),
+    ('body2 = "sleigh"\nrows = ["vy(\'P\')"]\naxis = [0.0, 0.0]', "key 'axis': unknown key"),
+    ('body2 = "sleigh"\nrows = ["vy(\'P\')"]\npoint = [0.0]', "key 'point'"),
     ('body1 = "sleigh"\nbody2 = "sleigh"\nrows = ["vy(\'P\')"]', "body1 and body2"),
 ])
 def test_scene_errors_name_the_joint_and_key(keys, message):
@@ -204,3 +214,56 @@ def test_scene_errors_name_the_joint_and_key(keys, message):
         loads_scene(SCENE.format(keys=keys))
     text = str(err.value)
     assert "'blade'" in text and message in text, text
+
+
+def test_row_count_is_limited():
+    from casmbd.errors import LimitError
+    from casmbd.limits import MAX_VELOCITY_ROWS
+    with pytest.raises(LimitError, match="joint 'v' field 'rows': 1,001 exceeds the limit"):
+        planar_mech().add("velocity", "v", "ground", "sleigh",
+                          rows=["vx('P')"] * (MAX_VELOCITY_ROWS + 1))
+
+
+def ball(generic: bool, coordinates: str = "absolute") -> Mechanism:
+    """A ball (R = 0.1) on level ground, pulled by two springs, rolling and spinning: the
+    ``rolling_sphere`` or the same no-slip rows written by hand with the spatial angular
+    velocity measures (ṙ_c − R ω × e_z = 0: vx − R wy, vy + R wx) and the height as a velocity
+    row (vz = 0)."""
+    mech = Mechanism("ball", gravity=(0.0, 0.0, -9.81), coordinates=coordinates)
+    mech.add_parameter("R", 0.1)
+    mech.add_body("ball", mass=1.0, inertia=[0.004] * 3, position=(0.0, 0.0, 0.1),
+                  velocity=(0.2, 0.1, 0.0), angular_velocity=(-1.0, 2.0, 0.5))
+    if generic:
+        mech.add("velocity", "roll", "ground", "ball",
+                 rows=["vz('ball')", "vx('ball') - R*wy('ball')", "vy('ball') + R*wx('ball')"],
+                 labels=["height", "slip_x", "slip_y"])
+    else:
+        mech.add("rolling_sphere", "roll", "ground", "ball", point=(0.0, 0.0, 0.1), radius=0.1)
+    mech.add_spring_damper("x_spring", "ground", "ball", (-0.5, 0.0, 0.1), (0.0, 0.0, 0.1),
+                           stiffness=20.0, free_length=0.4)
+    mech.add_spring_damper("y_spring", "ground", "ball", (0.0, -0.5, 0.1), (0.0, 0.0, 0.1),
+                           stiffness=20.0, free_length=0.2)
+    return mech
+
+
+@pytest.mark.parametrize("coordinates", COORDINATES)
+def test_generic_rows_with_angular_velocities_reproduce_the_rolling_sphere(coordinates):
+    """Over 2 s (the ball oscillates on its springs while it spins): body positions and
+    angular velocities to 1e-8 (the generic kind holds the height at velocity level only);
+    the contact reactions (force, moment about the centre) to 1e-8."""
+    res = [casmbd.simulate(ball(generic, coordinates), 2.0, 20, rtol=1e-11, atol=1e-12,
+                           mode="vm") for generic in (False, True)]
+    runs = [r.body("ball") for r in res]
+    for key in ("position", "velocity", "angular_velocity"):
+        assert np.max(np.abs(runs[0][key] - runs[1][key])) < 1e-8, key
+    assert np.ptp(runs[0]["position"][:, 0]) > 0.05  # it moves
+    reactions = [r.arrays["joint_reactions"][:, 0, :] for r in res]
+    assert np.max(np.abs(reactions[0] - reactions[1])) < 1e-8
+
+
+def test_angular_velocity_measures_are_spatial():
+    mech = planar_mech()
+    with pytest.raises(ExpressionError, match=r"wx\(...\) needs a spatial mechanism"):
+        mech.add("velocity", "v", "ground", "sleigh", rows=["wx('sleigh')"])
+    joint = mech.add("velocity", "v", "ground", "sleigh", rows=["wz('P') - 0.1"])
+    assert joint.rows == ("wz('P') - 0.1",)

@@ -86,6 +86,12 @@ def check_rank(model: NumericModel, q: np.ndarray, t: float):
 def info(mechanism_or_model, mode: str = "auto", *, data: Workspace | None = None) -> dict:
     """Coordinates, constraints, degrees of freedom and dependent equations of a mechanism.
 
+    ``degrees_of_freedom`` is n_q − rank C_q over every row: the free velocities.  With rows
+    written at the velocity level (rolling without slipping) ``velocity_rows`` names them and
+    ``configuration_degrees_of_freedom`` = n_q − rank of the position rows counts the
+    configuration's freedoms, more than the velocities' (a wheel at rest on a plane can be
+    put anywhere, but rolls only where it points).
+
     The rank is evaluated at the assembled initial configuration.  If the mechanism cannot
     be assembled, ``"assembled"`` is False, ``"assembly_error"`` says why (most likely culprit
     first) and ``"assembly_culprits"`` ranks the elements (dicts of
@@ -131,6 +137,13 @@ def info(mechanism_or_model, mode: str = "auto", *, data: Workspace | None = Non
         "stats": model.report_dict,
         **default_path(model.system),
     })
+    if model.velocity_rows:  # non-holonomic: fewer velocities than configuration freedoms
+        hol = model.holonomic_rows
+        jac = model.constraint_jacobian(q, 0.0)
+        out["velocity_rows"] = [f"{labels[i].element}.{labels[i].label}"
+                                for i in model.velocity_rows]
+        out["configuration_degrees_of_freedom"] = \
+            model.nq - (rank_report(jac[hol, :]).rank if hol else 0)
     return out
 
 

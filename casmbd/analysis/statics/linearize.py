@@ -424,19 +424,24 @@ CLOSED_GAP = 1e-9
 #: what linearization handles (casmbd.model.needs): no switching friction, no friction that
 #: follows the reactions; impact-model contacts and stops only where their gaps are open
 HANDLING = Handling(
-    "linearize", ALL_NEEDS - {"stick_slip", "contact_friction", "reaction_forces"},
-    why={"stick_slip": "the exact Coulomb law is not differentiable at the stick-slip switch",
+    "linearize", ALL_NEEDS - {"stick_slip", "contact_friction", "reaction_forces",
+                              "velocity_constraints"},
+    why={"velocity_constraints": "its model M̄ z̈ + C̄ ż + K̄ z = B̄ u takes δq and δv in one "
+                                 "tangent space (ker C_q), while rows A(q) v + b = 0 restrict "
+                                 "the velocities more than the positions (δq in ker C_hq, "
+                                 "δv in ker C_q): that first-order model is not built",
+         "stick_slip": "the exact Coulomb law is not differentiable at the stick-slip switch",
          "contact_friction": "Coulomb friction at a closed contact is not differentiable",
          "reaction_forces": "it does not solve for the multipliers the friction level needs"},
-    instead={"stick_slip": "the regularised law (stick_slip = false)",
+    instead={"velocity_constraints": "linearize about a steady motion (steady_motion=True, "
+                                     "--steady-motion: the cyclic coordinates removed), or "
+                                     "simulate",
+             "stick_slip": "the regularised law (stick_slip = false)",
              "contact_friction": "model = 'compliant' with friction",
              "reaction_forces": "simulate with the formulation 'index1', or inverse dynamics"},
     notes={"events": "gaps open at the operating point do not act on small motions; a gap "
                      "closed there is refused by name",
-           "inputs": "B̄ maps the inputs",
-           "velocity_constraints": "about a steady motion only (steady_motion=True, "
-                                   "--steady-motion: cyclic coordinates removed); refused "
-                                   "by name otherwise"})
+           "inputs": "B̄ maps the inputs"})
 
 
 def _refuse_velocity_rows(system: System) -> None:

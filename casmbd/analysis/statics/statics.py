@@ -141,9 +141,23 @@ def statics_functions(system) -> list[ca.Function]:
                         [ca.jacobian(joints, system.q)], ["q", "t", "p"], ["Jj"])]
 
 
-#: what statics handles (casmbd.model.needs): every need; contacts and stops by an active set
+#: why statics refuses rows written at the velocity level (an expert's choice, docs/rolling.md)
+NONHOLONOMIC_WHY = (
+    "their multipliers act as forces but remove no configuration freedom: the equilibria of a "
+    "non-holonomic system are not isolated (a family with one dimension per velocity row "
+    "passes through each, every heading of a wheel at rest on level ground), so Newton on "
+    "(q, λ) has no unique answer, and the stability of rolling motion is not decided by the "
+    "potential (a rolling system can be asymptotically stable without damping)")
+
+#: what statics handles (casmbd.model.needs): every need but velocity-level rows; contacts and
+#: stops by an active set
 HANDLING = Handling(
-    "statics", ALL_NEEDS,
+    "statics", ALL_NEEDS - {"velocity_constraints"},
+    why={"velocity_constraints": NONHOLONOMIC_WHY},
+    instead={"velocity_constraints": "simulate with damping to rest (the rolling rows hold "
+                                     "while the forces balance), linearize --steady-motion "
+                                     "about a rolling state, or a holonomic stand-in for the "
+                                     "resting pose (a revolute or fixed joint at the contact)"},
     notes={"events": "closed gaps by an active set (no penetration, no pull)",
            "stick_slip": "at rest the friction is not needed: the equilibrium found is "
                          "frictionless, one of those the friction admits",

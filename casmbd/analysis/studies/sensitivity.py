@@ -193,7 +193,10 @@ HANDLING = Handling(
     notes={"events": "the sensitivity jumps at each impact (saltation matrix); a gap that "
                      "closes after accumulated bounces, simultaneous or grazing impacts and "
                      "friction at impacts are refused by name",
-           "reaction_forces": "the index-1 DAE solves λ with the accelerations"})
+           "reaction_forces": "the index-1 DAE solves λ with the accelerations",
+           "velocity_constraints": "the index-1 DAE holds them at the acceleration level; "
+                                   "the start's q₀(p) corrects the holonomic rows only and "
+                                   "v₀(p) is projected onto every row"})
 
 
 def sensitivity(mechanism, outputs: Sequence[str] | str, parameters: Sequence[str] | None = None,
@@ -326,7 +329,11 @@ def sensitivity(mechanism, outputs: Sequence[str] | str, parameters: Sequence[st
     cons = ca.Function("c", [q, t, p], [dsys.constraints, dsys.constraint_jacobian,
                                         dsys.constraint_time_derivative, dsys.mass_matrix])
     c_s, cq_s, _, _ = cons(st.q, t_start, ps)
-    q0 = st.q - ca.mtimes(cq_s.T, ca.solve(ca.mtimes(cq_s, cq_s.T), c_s)) if nc else \
+    hol = list(getattr(dsys, "holonomic_rows", range(nc)))
+    if len(hol) < nc:  # rows written at the velocity level correct no position (C ≡ 0)
+        c_s, cq_s = c_s[hol], ca.Function("ch", [q, t, p], [dsys.position_jacobian[hol, :]])(
+            st.q, t_start, ps)
+    q0 = st.q - ca.mtimes(cq_s.T, ca.solve(ca.mtimes(cq_s, cq_s.T), c_s)) if hol else \
         ca.SX(st.q)
     _, cq0, ct0, m0 = cons(q0, t_start, ps)
     if nc:
