@@ -273,9 +273,7 @@ def actuator(m, dim):
 # --------------------------------------------------------------------- rolling (issue 37)
 def rolling_disc(dim, driven=False, coordinates="auto"):
     """A disc (R = 0.1) rolling on the ground line, held by a horizontal spring (in space: a
-    thin wheel rolling upright on the floor, :func:`_rolling_wheel`; not in the matrix yet:
-    its statics cell finds a different one of the continuum of equilibria per coordinate
-    choice, and the plain linearization refuses velocity rows at run time)."""
+    thin wheel rolling upright on the floor, :func:`_rolling_wheel`)."""
     if dim == 3:
         return _rolling_wheel(driven, coordinates)
     m = casmbd.Mechanism("rolling_disc", gravity=G2, coordinates=coordinates)
@@ -394,7 +392,7 @@ VARIANTS = {
     "contact_compliant": (contact_compliant, (2, 3), False),
     "flexible": (flexible, (2, 3), False), "rigid_body": (revolute, (2, 3), True),
     "driver": (driver, (2, 3), True), "actuator": (actuator, (2, 3), True),
-    "rolling_disc": (rolling_disc, (2,), True), "knife_edge": (knife_edge, (2, 3), False),
+    "rolling_disc": (rolling_disc, (2, 3), True), "knife_edge": (knife_edge, (2, 3), False),
     "knife_edge_driven": (knife_edge_driven, (2, 3), True),
     "rolling_sphere": (rolling_sphere, (3,), False), "velocity": (velocity, (2, 3), False),
 }
