@@ -211,6 +211,12 @@ class RollingDisc(Joint):
         local = ca.mtimes(ctx.resolve(rot).T, frozen_point - ctx.resolve(g))
         return g + ca.mtimes(rot, local)
 
+    def energy_exchange(self) -> str | None:
+        """None: the rows are workless.  The contact force pair acts at material points of
+        body1 and body2 that have the same velocity (no slip, no normal separation: W has no
+        term b(q, t)), so its power (v₂(P) − v₁(P))·F is zero, on a moving plane too."""
+        return None
+
     def reaction_point(self) -> np.ndarray:
         """The wheel centre (the reaction's moment is about it)."""
         return self.point
