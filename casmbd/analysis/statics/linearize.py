@@ -92,7 +92,7 @@ from casmbd.analysis.instant.redundancy import RANK_RTOL, null_space_basis
 from casmbd.analysis.statics.report import state_reports, state_summary
 from casmbd.analysis.statics.stability import STABILITY_RTOL, Stability, classify_stability
 from casmbd.analysis.statics.statics import STATICS_NEEDS, static_equilibrium, statics_functions
-from casmbd.analysis.statics.steady_motion import linearize_steady_motion, velocity_row_mask
+from casmbd.analysis.statics.steady_motion import SteadyMotionModel, linearize_steady_motion
 from casmbd.compiled.build import compile_model
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, CompositionError, ModelError, SingularConfigurationError
@@ -424,36 +424,23 @@ CLOSED_GAP = 1e-9
 #: what linearization handles (casmbd.model.needs): no switching friction, no friction that
 #: follows the reactions; impact-model contacts and stops only where their gaps are open
 HANDLING = Handling(
-    "linearize", ALL_NEEDS - {"stick_slip", "contact_friction", "reaction_forces"},
-    why={"stick_slip": "the exact Coulomb law is not differentiable at the stick-slip switch",
+    "linearize", ALL_NEEDS - {"stick_slip", "contact_friction", "reaction_forces",
+                              "velocity_constraints"},
+    why={"velocity_constraints": "its model M̄ z̈ + C̄ ż + K̄ z = B̄ u takes δq and δv in one "
+                                 "tangent space (ker C_q), while rows A(q) v + b = 0 restrict "
+                                 "the velocities more than the positions (δq in ker C_hq, "
+                                 "δv in ker C_q): that first-order model is not built",
+         "stick_slip": "the exact Coulomb law is not differentiable at the stick-slip switch",
          "contact_friction": "Coulomb friction at a closed contact is not differentiable",
          "reaction_forces": "it does not solve for the multipliers the friction level needs"},
-    instead={"stick_slip": "the regularised law (stick_slip = false)",
+    instead={"velocity_constraints": "linearize about a steady motion (--steady-motion: the "
+                                     "cyclic coordinates removed), or simulate",
+             "stick_slip": "the regularised law (stick_slip = false)",
              "contact_friction": "model = 'compliant' with friction",
              "reaction_forces": "simulate with the formulation 'index1', or inverse dynamics"},
     notes={"events": "gaps open at the operating point do not act on small motions; a gap "
                      "closed there is refused by name",
-           "inputs": "B̄ maps the inputs",
-           "velocity_constraints": "about a steady motion only (steady_motion=True, "
-                                   "--steady-motion: cyclic coordinates removed); refused "
-                                   "by name otherwise"})
-
-
-def _refuse_velocity_rows(system: System) -> None:
-    """Refuse non-holonomic rows: the small-oscillation form lives on the independent
-    positions (the null space of C_q), which a velocity constraint does not restrict (a rolling
-    disc about a rolling state described with Euler parameters gave ±12.47i, ±4.00i, ±2.77
-    where the closed form is ±11.05i: issue 37)."""
-    mask = velocity_row_mask(system)
-    if not mask.any():
-        return
-    joints = sorted({system.constraint_labels[i].element for i in np.flatnonzero(mask)})
-    raise CompositionError(
-        f"linearize: {', '.join(repr(j) for j in joints)} constrain the velocities "
-        "(non-holonomic rows): the linearization in independent positions does not apply; "
-        "instead: linearize about a steady motion (steady_motion=True, casmbd linearize "
-        "--steady-motion), with joint coordinates in which the rolling motion is cyclic",
-        "linearize", [(j, "velocity_constraints") for j in joints])
+           "inputs": "B̄ maps the inputs"})
 
 
 def _closed_gaps(system: System, q: np.ndarray, v: np.ndarray, t: float, p) -> None:
@@ -493,7 +480,8 @@ def _at_equilibrium(mechanism, system: System, t: float, mode: str, stable: bool
 
 def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "auto",
               rtol: float = RANK_RTOL, *, at=None, at_time: float | None = None,
-              redundancy: str = "auto", stable: bool = False, steady_motion: bool = False):
+              redundancy: str = "auto", stable: bool = False, steady_motion: bool = False
+              ) -> LinearModel | SteadyMotionModel:
     """Linearize the constrained dynamics of ``mechanism`` about the state (q, v, t, u).
 
     Parameters
@@ -572,7 +560,6 @@ def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "au
                              "initial state; not with at=, at_time= or stable=")
         return linearize_steady_motion(mechanism, q=q, v=v, t=t, u=u, mode=mode, rtol=rtol)
     check(system.mechanism, HANDLING)
-    _refuse_velocity_rows(system)
     about = {"about": "initial" if q is None and v is None else "state"}
     if at is not None:
         if q is not None or v is not None:

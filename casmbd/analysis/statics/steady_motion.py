@@ -103,7 +103,14 @@ HANDLING = Handling(
 
 
 def velocity_row_mask(system: System) -> np.ndarray:
-    """True for the rows of C that are velocity (non-holonomic) rows, False for position rows."""
+    """True for the rows of C that are velocity (non-holonomic) rows, False for position rows
+    (``System.velocity_rows`` where the system lists them, else the rows on which the
+    velocity-level expression W is not structurally zero)."""
+    listed = getattr(system, "velocity_rows", None)
+    if isinstance(listed, (list, tuple)):
+        mask = np.zeros(system.nc, dtype=bool)
+        mask[list(listed)] = True
+        return mask
     rows = system._velocity_rows
     if rows is None:
         return np.zeros(system.nc, dtype=bool)

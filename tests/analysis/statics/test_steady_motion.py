@@ -127,5 +127,5 @@ def test_small_oscillation_form_refuses_rolling(tmp_path):
     """The equilibrium linearization refuses non-holonomic rows by name (it returned wrong
     eigenvalues about a rolling Euler-parameter disc with only a warning, issue 37)."""
     mech = _scene(tmp_path, "absolute", False)
-    with pytest.raises(CompositionError, match=r"'contact'.*--steady-motion"):
+    with pytest.raises(CompositionError, match=r"joint 'contact'.*--steady-motion"):
         linearize(mech, mode="vm")
