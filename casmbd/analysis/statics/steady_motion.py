@@ -319,20 +319,22 @@ def _euler_hint(names: list[str], moving: list[str]) -> str:
     if not bodies:
         return ""
     return (f"; the Euler parameters of {', '.join(repr(b) for b in bodies)} change with the "
-            "rotation and the mass matrix depends on them, so no rotation can be a cyclic "
-            "coordinate in absolute coordinates: describe the mechanism with joint "
-            "coordinates (coordinates = \"joint\"), the body hung on prismatic x, y, z and "
-            "revolute yaw, lean and spin (or pitch) joints on massless links, as "
+            "rotation and the mass matrix depends on them, so no rotation they describe can "
+            "be a cyclic coordinate: describe the rotations with revolute joints in joint "
+            "coordinates (coordinates = \"joint\"), a free body hung on prismatic x, y, z "
+            "and revolute yaw, lean and spin (or pitch) joints on massless links, as "
             "examples/bicycle.toml does")
 
 
 class SteadyMotion:
     """The steady-motion linearization of one mechanism, compiled once and evaluated at many
-    parameter values (a sweep over the forward speed: root loci, critical speeds).
+    states or parameter values (a sweep over the forward speed: root loci, critical speeds).
 
-    ``SteadyMotion(m)({"v": 4.0})`` sets the parameter ``v`` and linearizes about the scene's
-    initial state at that value (its velocities are expressions of the parameters);
-    ``linearize_steady_motion(m)`` is ``SteadyMotion(m)()``.
+    ``SteadyMotion(m)(v=s * v1)`` linearizes about the steady motion with the velocities
+    ``s * v1`` (straight rolling at speed s, v1 the velocities at 1 m/s);
+    ``SteadyMotion(m)({"k": 2.0})`` sets the parameter ``k`` (masses, forces: the scene's
+    initial velocities are numbers fixed when it is read); ``linearize_steady_motion(m)`` is
+    ``SteadyMotion(m)()``.
     """
 
     def __init__(self, mechanism, mode: str = "auto", rtol: float = RANK_RTOL):
@@ -349,8 +351,8 @@ class SteadyMotion:
 
     def __call__(self, parameters: dict | None = None, *, q=None, v=None, t: float = 0.0,
                  u=None) -> SteadyMotionModel:
-        """Linearize about the steady motion from (q, v) (default: the initial state at the
-        given parameter values, name -> value); see :func:`linearize_steady_motion`."""
+        """Linearize about the steady motion from (q, v) (default: the initial state) at the
+        given parameter values (name -> value); see :func:`linearize_steady_motion`."""
         self.model.set_parameters(**(parameters or {}))
         return _linearize(self, q, v, float(t), u)
 
