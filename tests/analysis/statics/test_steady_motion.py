@@ -7,6 +7,7 @@ and one zero (the steady turns: ψ̇ − I_a v φ / (I_d R) is conserved); uprig
 above v² = g R / 3."""
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -135,8 +136,6 @@ def test_equilibrium_is_a_steady_motion():
     """At rest (no cyclic coordinate, no velocity constraint) the steady-motion eigenvalues
     are those of the small-oscillation linearization (an independent formulation: the
     reduced M̄, K̄ on ker C_q) — the double pendulum at its equilibrium, to 1e-10."""
-    from pathlib import Path
-
     mech = load_scene(Path(__file__).resolve().parents[3] / "examples" / "double_pendulum.toml")
     small = linearize(mech, mode="vm", at="equilibrium")
     steady = linearize(mech, mode="vm", q=small.q, steady_motion=True)
