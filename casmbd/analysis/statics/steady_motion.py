@@ -247,6 +247,24 @@ class _Jacobians:
         self.G = np.vstack(rows) if rows else np.zeros((0, 2 * nq))
 
 
+def _second_state(model: NumericModel, holonomic, qs, vs, t: float, u) -> _Jacobians:
+    """J and G at a randomly perturbed state (fixed seed: the verdict is reproducible), where
+    the cyclic columns are verified; a smaller perturbation where the KKT matrix is singular
+    at the first one."""
+    rng = np.random.default_rng(20070908)
+    dq, dv = rng.standard_normal(qs.size), rng.standard_normal(vs.size)
+    vscale = max(1.0, float(np.max(np.abs(vs), initial=0.0)))
+    for size in (VERIFY_PERTURBATION, VERIFY_PERTURBATION / 10, VERIFY_PERTURBATION / 100):
+        try:
+            return _Jacobians(model, holonomic, qs + size * dq, vs + size * vscale * dv, t, u)
+        except (SingularConfigurationError, np.linalg.LinAlgError):
+            continue
+    raise SingularConfigurationError(
+        "steady-motion linearization: the KKT matrix is singular at every perturbed state "
+        "tried for the verification of the cyclic coordinates (perturbations "
+        f"{VERIFY_PERTURBATION:g}, {VERIFY_PERTURBATION / 10:g}, {VERIFY_PERTURBATION / 100:g})")
+
+
 def _zero(column: np.ndarray, scale: float) -> bool:
     return float(np.max(np.abs(column), initial=0.0)) <= CYCLIC_RTOL * scale
 
@@ -407,11 +425,7 @@ def _linearize(lin: SteadyMotion, q, v, t: float, u) -> SteadyMotionModel:
     state = consistent_state(model, q0, v0, t, u)
     qs, vs = state.q, state.v
     jac = _Jacobians(model, holonomic, qs, vs, t, u)
-    rng = np.random.default_rng(20070908)  # fixed: the verdict is reproducible
-    q1 = qs + VERIFY_PERTURBATION * rng.standard_normal(nq)
-    v1 = vs + VERIFY_PERTURBATION * max(1.0, float(np.max(np.abs(vs)))) * \
-        rng.standard_normal(nq)
-    jac2 = _Jacobians(model, holonomic, q1, v1, t, u)
+    jac2 = _second_state(model, holonomic, qs, vs, t, u)
 
     cyclic = _abelian_cyclic(jac, jac2, nq)
     basis_s = [np.eye(2 * nq)[:, k] for k in cyclic]
