@@ -99,7 +99,9 @@ HANDLING = Handling(
              "contact_friction": "model = 'compliant' with friction",
              "reaction_forces": "simulate with the formulation 'index1'",
              "events": "a compliant contact model, or linearize about an equilibrium"},
-    notes={"velocity_constraints": "non-holonomic rows restrict the velocities only"})
+    notes={"velocity_constraints": "non-holonomic rows restrict the velocities only",
+           "drivers": "a driven coordinate is not cyclic (its driver row depends on it): a "
+                      "driver moving it makes the state not steady, refused by name"})
 
 
 def velocity_row_mask(system: System) -> np.ndarray:
