@@ -9,7 +9,7 @@ docs/rolling.md.
   fast, printing the largest lean, heading and spin deviations;
 * linearises the upright disc about its steady motion at speeds 0.1–3 m/s
   (:mod:`casmbd.analysis.statics.steady_motion`, the disc on the joint-coordinate chain of
-  ``tests/analysis/statics/test_rolling_disc_critical_speed.py``) and prints the largest
+  ``tests/rolling_disc_scenes.py``) and prints the largest
   distance of the lean eigenvalues from ±√(4 g/(5 R) − 12 v²/(5 R²));
 * draws ``docs/figures/rolling_disc.png``: the centre's and the contact point's paths of both
   turns, and the eigenvalues against speed with the closed form and v_c = √(g R / 3).
@@ -25,13 +25,16 @@ import numpy as np
 import casmbd
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT / "tests" / "model"))
-sys.path.insert(0, str(ROOT / "tests" / "analysis" / "statics"))
-from test_rolling_disc import OMEGA, THETA, disc, motion, steady_speed  # noqa: E402
-from test_rolling_disc_critical_speed import (  # noqa: E402
+sys.path.insert(0, str(ROOT / "tests"))
+from rolling_disc_scenes import (  # noqa: E402
+    OMEGA,
+    THETA,
     V_CRIT,
     chain_disc,
+    disc,
     lean_rate_squared,
+    motion,
+    steady_speed,
 )
 
 from casmbd.analysis.statics.steady_motion import SteadyMotion  # noqa: E402

@@ -272,7 +272,10 @@ def actuator(m, dim):
 
 # --------------------------------------------------------------------- rolling (issue 37)
 def rolling_disc(dim, driven=False, coordinates="auto"):
-    """A disc (R = 0.1) rolling on the ground line, held by a horizontal spring."""
+    """A disc (R = 0.1) rolling on the ground line, held by a horizontal spring (in space: a
+    thin wheel rolling upright on the floor, :func:`_rolling_wheel`)."""
+    if dim == 3:
+        return _rolling_wheel(driven, coordinates)
     m = casmbd.Mechanism("rolling_disc", gravity=G2, coordinates=coordinates)
     m.add_body("disc", mass=1.0, inertia=0.005, position=(0.0, 0.1), velocity=(0.3, 0.0),
                angular_velocity=-3.0)
@@ -281,6 +284,27 @@ def rolling_disc(dim, driven=False, coordinates="auto"):
                         free_length=0.4)
     if driven:
         m.add_driver("push", joint="roll", coordinate="translation", position="0.1*sin(2*t)")
+    return m
+
+
+def _rolling_wheel(driven, coordinates):
+    """A thin wheel (R = 0.1, axle y) rolling upright along x on the floor, held by a
+    horizontal spring at its centre and kept upright by a short tether from a point 0.1 above
+    its top (8 N at rest, less than its weight: its stable equilibrium is upright); driven: its
+    orientation prescribed (roll-pitch-yaw: the spin as pitch, a slow yaw), the rolling then
+    carrying the centre."""
+    m = casmbd.Mechanism("rolling_disc", gravity=(0.0, 0.0, -9.81), coordinates=coordinates)
+    m.add_body("wheel", mass=1.0, inertia=[0.0025, 0.005, 0.0025], position=(0.0, 0.0, 0.1),
+               velocity=(0.3, 0.0, 0.0), angular_velocity=(0.0, 3.0, 0.0))
+    m.add("rolling_disc", "roll", "ground", "wheel", point=(0.0, 0.0, 0.1), radius=0.1,
+          axis=(0.0, 1.0, 0.0), normal=(0.0, 0.0, 1.0))
+    m.add_spring_damper("spring", "ground", "wheel", (-0.5, 0.0, 0.1), (0.0, 0.0, 0.1),
+                        stiffness=20.0, free_length=0.4)
+    m.add_spring_damper("tether", "ground", "wheel", (0.0, 0.0, 0.3), (0.0, 0.0, 0.2),
+                        stiffness=80.0, free_length=0.0)
+    if driven:
+        m.add_driver("turn", body="wheel", coordinate="orientation",
+                     rpy=["0", "3*t", "0.2*sin(2*t)"])
     return m
 
 
@@ -354,7 +378,7 @@ VARIANTS = {
     "contact_compliant": (contact_compliant, (2, 3), False),
     "flexible": (flexible, (2, 3), False), "rigid_body": (revolute, (2, 3), True),
     "driver": (driver, (2, 3), True), "actuator": (actuator, (2, 3), True),
-    "rolling_disc": (rolling_disc, (2,), True), "knife_edge": (knife_edge, (2, 3), False),
+    "rolling_disc": (rolling_disc, (2, 3), True), "knife_edge": (knife_edge, (2, 3), False),
     "rolling_sphere": (rolling_sphere, (3,), False), "velocity": (velocity, (2, 3), False),
 }
 

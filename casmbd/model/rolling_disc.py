@@ -9,8 +9,8 @@ disc and its lowest point are
     w = n − (n·a) a,   u = w / |w|,   P = c − R u,
 
 |w| = √(1 − (n·a)²) = cos φ, φ the lean of the disc from the upright (Neimark & Fufaev,
-*Dynamics of Nonholonomic Systems*, AMS 1972, ch. II §4; O'Reilly, Nonlinear Dynamics 10
-(1996) 287–305, §2).  The joint has three rows:
+*Dynamics of Nonholonomic Systems*, AMS 1972; O'Reilly, "The dynamics of rolling disks and
+sliding disks", Nonlinear Dynamics 10 (1996) 287–305).  The joint has three rows:
 
 * ``contact`` (holonomic): the lowest point lies on the plane, n·(P − O) = n·(c − O) − R |w| = 0;
 * ``longitudinal`` and ``lateral`` (non-holonomic, :meth:`RollingDisc.velocity_equations`):
@@ -21,8 +21,8 @@ disc and its lowest point are
   with the tangent basis t₁ = (a × n)/|a × n| (the direction of rolling: +x for an axle along
   +y on a plane of normal +z) and t₂ = n × t₁ (lateral, the axle's projection on the plane).
 
-The velocity rows are affine in the velocities and not integrable; their position rows are 0
-and the system takes C_q = ∂W/∂v, C_t = W(v = 0) on them
+The velocity rows (named by ``velocity_labels``) are affine in the velocities and not
+integrable; their position rows are 0 and the system takes C_q = ∂W/∂v, C_t = W(v = 0) on them
 (:meth:`casmbd.system.equations.System._velocity_rows`); the velocity of the contact row is
 n·(v₂(P) − v₁(P)) as well (the gap rate of the lowest point equals the normal velocity of the
 material point there), so the three multipliers are the components of one contact force at P:
@@ -42,7 +42,8 @@ the loop, as in absolute coordinates.
 Scene keys (``[[joints]] type = "rolling_disc"``): ``body1`` (``"ground"`` or the body carrying
 the plane), ``body2`` (the wheel), ``point`` (wheel centre, global at the initial pose),
 ``axis`` (axle direction, global at the initial pose), ``radius``, ``origin`` (a point of the
-plane, default [0, 0, 0]) and ``normal`` (the plane's normal, pointing to the wheel's side).
+plane, default [0, 0, 0]) and ``normal`` (the plane's normal, pointing to the wheel's side;
+default [0, 0, 1], as the rolling sphere's).
 Directions are normalised; the zero vector, an axle along the normal (a disc lying flat on
 the plane: the lowest point is undefined), a radius ≤ 0 and a centre that is not at the
 height R cos φ above the plane (the gap is stated) are refused by name.
@@ -118,7 +119,7 @@ class RollingDisc(Joint):
                         point=e.vector("point", 3), axis=e.vector("axis", 3),
                         radius=e.number("radius"),
                         origin=e.vector("origin", 3, default=[0.0, 0.0, 0.0]),
-                        normal=e.vector("normal", 3))
+                        normal=e.vector("normal", 3, default=[0.0, 0.0, 1.0]))
 
     def __post_init__(self):
         where = f"joint '{self.name}' field"

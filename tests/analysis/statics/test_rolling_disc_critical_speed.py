@@ -4,7 +4,7 @@
 A uniform thin disc (mass m, radius R, A = m R²/4 about a diameter, C = m R²/2 about the
 axle) rolling upright at speed v on a horizontal plane: linearised in the lean θ, Newton–Euler
 about the centre gives (A + m R²) θ̈ = (m g R − C (C + m R²) v² / (A R²)) θ (Neimark & Fufaev,
-*Dynamics of Nonholonomic Systems*, AMS 1972, ch. V; O'Reilly, Nonlinear Dynamics 10 (1996)
+*Dynamics of Nonholonomic Systems*, AMS 1972; O'Reilly, Nonlinear Dynamics 10 (1996)
 287–305), i.e. θ̈ = λ² θ with
 
     λ² = 4 g / (5 R) − 12 v² / (5 R²),
@@ -21,38 +21,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from rolling_disc_scenes import V_CRIT, chain_disc, lean_rate_squared
 
-import casmbd
 from casmbd.analysis.statics.steady_motion import SteadyMotion, parameter_root
-
-R, MASS, G = 0.3, 1.0, 9.81
-A_DIA, C_AX = MASS * R * R / 4, MASS * R * R / 2
-V_CRIT = np.sqrt(G * R / 3)
-
-
-def lean_rate_squared(v: float) -> float:
-    """λ² of the upright disc at speed v (module docstring)."""
-    return 4 * G / (5 * R) - 12 * v * v / (5 * R * R)
-
-
-def chain_disc() -> casmbd.Mechanism:
-    """The upright disc rolling along +x at 1 m/s on a chain of joint coordinates."""
-    mech = casmbd.Mechanism("disc", gravity=(0.0, 0.0, -G), coordinates="joint")
-    centre, v = (0.0, 0.0, R), 1.0
-    for name in ("link_x", "link_y", "link_z", "link_yaw", "link_lean"):
-        mech.add_body(name, mass=0.0, inertia=[0.0, 0.0, 0.0], position=centre,
-                      velocity=(v, 0.0, 0.0))
-    mech.add_body("wheel", mass=MASS, inertia=[A_DIA, C_AX, A_DIA], position=centre,
-                  velocity=(v, 0.0, 0.0), angular_velocity=(0.0, v / R, 0.0))
-    mech.add_prismatic("x", "ground", "link_x", centre, (1.0, 0.0, 0.0))
-    mech.add_prismatic("y", "link_x", "link_y", centre, (0.0, 1.0, 0.0))
-    mech.add_prismatic("z", "link_y", "link_z", centre, (0.0, 0.0, 1.0))
-    mech.add_revolute("yaw", "link_z", "link_yaw", centre, axis=(0.0, 0.0, 1.0))
-    mech.add_revolute("lean", "link_yaw", "link_lean", centre, axis=(1.0, 0.0, 0.0))
-    mech.add_revolute("spin", "link_lean", "wheel", centre, axis=(0.0, 1.0, 0.0))
-    mech.add_rolling_disc("roll", "ground", "wheel", point=centre, radius=R,
-                          axis=(0.0, 1.0, 0.0), normal=(0.0, 0.0, 1.0))
-    return mech
 
 
 @pytest.fixture(scope="module")
