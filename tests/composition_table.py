@@ -14,7 +14,7 @@ from casmbd.analysis.driven import inverse, kinematics
 from casmbd.analysis.dynamics import simulate
 from casmbd.analysis.formulations import FORMULATIONS
 from casmbd.analysis.integrators.kinds import INTEGRATORS
-from casmbd.analysis.statics import linearize, statics
+from casmbd.analysis.statics import linearize, statics, steady_motion
 from casmbd.analysis.studies import sensitivity
 from casmbd.compiled import robot
 from casmbd.model.needs import ALL_NEEDS, NEEDS, Handling, requirements
@@ -27,6 +27,7 @@ ANALYSES: dict[str, Handling] = {
     "inverse": inverse.HANDLING,
     "statics": statics.HANDLING,
     "linearize": linearize.HANDLING,
+    "linearize --steady-motion": steady_motion.HANDLING,
     "sensitivity": sensitivity.HANDLING,
     "ocp": problem.HANDLING,
     "compile": robot.HANDLING,

@@ -92,7 +92,7 @@ from casmbd.analysis.instant.redundancy import RANK_RTOL, null_space_basis
 from casmbd.analysis.statics.report import state_reports, state_summary
 from casmbd.analysis.statics.stability import STABILITY_RTOL, Stability, classify_stability
 from casmbd.analysis.statics.statics import STATICS_NEEDS, static_equilibrium, statics_functions
-from casmbd.analysis.statics.steady_motion import linearize_steady_motion, velocity_row_mask
+from casmbd.analysis.statics.steady_motion import SteadyMotionModel, linearize_steady_motion
 from casmbd.compiled.build import compile_model
 from casmbd.compiled.model import NumericModel
 from casmbd.errors import AnalysisError, CompositionError, ModelError, SingularConfigurationError
@@ -444,23 +444,6 @@ HANDLING = Handling(
            "inputs": "B̄ maps the inputs"})
 
 
-def _refuse_velocity_rows(system: System) -> None:
-    """Refuse non-holonomic rows: the small-oscillation form lives on the independent
-    positions (the null space of C_q), which a velocity constraint does not restrict (a rolling
-    disc about a rolling state described with Euler parameters gave ±12.47i, ±4.00i, ±2.77
-    where the closed form is ±11.05i: issue 37)."""
-    mask = velocity_row_mask(system)
-    if not mask.any():
-        return
-    joints = sorted({system.constraint_labels[i].element for i in np.flatnonzero(mask)})
-    raise CompositionError(
-        f"linearize: {', '.join(repr(j) for j in joints)} constrain the velocities "
-        "(non-holonomic rows): the linearization in independent positions does not apply; "
-        "instead: linearize about a steady motion (steady_motion=True, casmbd linearize "
-        "--steady-motion), with joint coordinates in which the rolling motion is cyclic",
-        "linearize", [(j, "velocity_constraints") for j in joints])
-
-
 def _closed_gaps(system: System, q: np.ndarray, v: np.ndarray, t: float, p) -> None:
     """Refuse an operating point at which a gap of an impact-model element is closed (a
     resting contact acts on small motions one-sidedly: no linear model exists)."""
@@ -498,7 +481,8 @@ def _at_equilibrium(mechanism, system: System, t: float, mode: str, stable: bool
 
 def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "auto",
               rtol: float = RANK_RTOL, *, at=None, at_time: float | None = None,
-              redundancy: str = "auto", stable: bool = False, steady_motion: bool = False):
+              redundancy: str = "auto", stable: bool = False, steady_motion: bool = False
+              ) -> LinearModel | SteadyMotionModel:
     """Linearize the constrained dynamics of ``mechanism`` about the state (q, v, t, u).
 
     Parameters
@@ -577,7 +561,6 @@ def linearize(mechanism, q=None, v=None, t: float = 0.0, u=None, mode: str = "au
                              "initial state; not with at=, at_time= or stable=")
         return linearize_steady_motion(mechanism, q=q, v=v, t=t, u=u, mode=mode, rtol=rtol)
     check(system.mechanism, HANDLING)
-    _refuse_velocity_rows(system)
     about = {"about": "initial" if q is None and v is None else "state"}
     if at is not None:
         if q is not None or v is not None:

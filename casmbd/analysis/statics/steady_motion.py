@@ -99,11 +99,20 @@ HANDLING = Handling(
              "contact_friction": "model = 'compliant' with friction",
              "reaction_forces": "simulate with the formulation 'index1'",
              "events": "a compliant contact model, or linearize about an equilibrium"},
-    notes={"velocity_constraints": "non-holonomic rows restrict the velocities only"})
+    notes={"velocity_constraints": "non-holonomic rows restrict the velocities only",
+           "drivers": "a driven coordinate is not cyclic (its driver row depends on it): a "
+                      "driver moving it makes the state not steady, refused by name"})
 
 
 def velocity_row_mask(system: System) -> np.ndarray:
-    """True for the rows of C that are velocity (non-holonomic) rows, False for position rows."""
+    """True for the rows of C that are velocity (non-holonomic) rows, False for position rows
+    (``System.velocity_rows`` where the system lists them, else the rows on which the
+    velocity-level expression W is not structurally zero)."""
+    listed = getattr(system, "velocity_rows", None)
+    if isinstance(listed, (list, tuple)):
+        mask = np.zeros(system.nc, dtype=bool)
+        mask[list(listed)] = True
+        return mask
     rows = system._velocity_rows
     if rows is None:
         return np.zeros(system.nc, dtype=bool)
@@ -240,6 +249,24 @@ class _Jacobians:
         self.G = np.vstack(rows) if rows else np.zeros((0, 2 * nq))
 
 
+def _second_state(model: NumericModel, holonomic, qs, vs, t: float, u) -> _Jacobians:
+    """J and G at a randomly perturbed state (fixed seed: the verdict is reproducible), where
+    the cyclic columns are verified; a smaller perturbation where the KKT matrix is singular
+    at the first one."""
+    rng = np.random.default_rng(20070908)
+    dq, dv = rng.standard_normal(qs.size), rng.standard_normal(vs.size)
+    vscale = max(1.0, float(np.max(np.abs(vs), initial=0.0)))
+    for size in (VERIFY_PERTURBATION, VERIFY_PERTURBATION / 10, VERIFY_PERTURBATION / 100):
+        try:
+            return _Jacobians(model, holonomic, qs + size * dq, vs + size * vscale * dv, t, u)
+        except (SingularConfigurationError, np.linalg.LinAlgError):
+            continue
+    raise SingularConfigurationError(
+        "steady-motion linearization: the KKT matrix is singular at every perturbed state "
+        "tried for the verification of the cyclic coordinates (perturbations "
+        f"{VERIFY_PERTURBATION:g}, {VERIFY_PERTURBATION / 10:g}, {VERIFY_PERTURBATION / 100:g})")
+
+
 def _zero(column: np.ndarray, scale: float) -> bool:
     return float(np.max(np.abs(column), initial=0.0)) <= CYCLIC_RTOL * scale
 
@@ -312,20 +339,22 @@ def _euler_hint(names: list[str], moving: list[str]) -> str:
     if not bodies:
         return ""
     return (f"; the Euler parameters of {', '.join(repr(b) for b in bodies)} change with the "
-            "rotation and the mass matrix depends on them, so no rotation can be a cyclic "
-            "coordinate in absolute coordinates: describe the mechanism with joint "
-            "coordinates (coordinates = \"joint\"), the body hung on prismatic x, y, z and "
-            "revolute yaw, lean and spin (or pitch) joints on massless links, as "
+            "rotation and the mass matrix depends on them, so no rotation they describe can "
+            "be a cyclic coordinate: describe the rotations with revolute joints in joint "
+            "coordinates (coordinates = \"joint\"), a free body hung on prismatic x, y, z "
+            "and revolute yaw, lean and spin (or pitch) joints on massless links, as "
             "examples/bicycle.toml does")
 
 
 class SteadyMotion:
     """The steady-motion linearization of one mechanism, compiled once and evaluated at many
-    parameter values (a sweep over the forward speed: root loci, critical speeds).
+    states or parameter values (a sweep over the forward speed: root loci, critical speeds).
 
-    ``SteadyMotion(m)({"v": 4.0})`` sets the parameter ``v`` and linearizes about the scene's
-    initial state at that value (its velocities are expressions of the parameters);
-    ``linearize_steady_motion(m)`` is ``SteadyMotion(m)()``.
+    ``SteadyMotion(m)(v=s * v1)`` linearizes about the steady motion with the velocities
+    ``s * v1`` (straight rolling at speed s, v1 the velocities at 1 m/s);
+    ``SteadyMotion(m)({"k": 2.0})`` sets the parameter ``k`` (masses, forces: the scene's
+    initial velocities are numbers fixed when it is read); ``linearize_steady_motion(m)`` is
+    ``SteadyMotion(m)()``.
     """
 
     def __init__(self, mechanism, mode: str = "auto", rtol: float = RANK_RTOL):
@@ -342,8 +371,8 @@ class SteadyMotion:
 
     def __call__(self, parameters: dict | None = None, *, q=None, v=None, t: float = 0.0,
                  u=None) -> SteadyMotionModel:
-        """Linearize about the steady motion from (q, v) (default: the initial state at the
-        given parameter values, name -> value); see :func:`linearize_steady_motion`."""
+        """Linearize about the steady motion from (q, v) (default: the initial state) at the
+        given parameter values (name -> value); see :func:`linearize_steady_motion`."""
         self.model.set_parameters(**(parameters or {}))
         return _linearize(self, q, v, float(t), u)
 
@@ -398,11 +427,7 @@ def _linearize(lin: SteadyMotion, q, v, t: float, u) -> SteadyMotionModel:
     state = consistent_state(model, q0, v0, t, u)
     qs, vs = state.q, state.v
     jac = _Jacobians(model, holonomic, qs, vs, t, u)
-    rng = np.random.default_rng(20070908)  # fixed: the verdict is reproducible
-    q1 = qs + VERIFY_PERTURBATION * rng.standard_normal(nq)
-    v1 = vs + VERIFY_PERTURBATION * max(1.0, float(np.max(np.abs(vs)))) * \
-        rng.standard_normal(nq)
-    jac2 = _Jacobians(model, holonomic, q1, v1, t, u)
+    jac2 = _second_state(model, holonomic, qs, vs, t, u)
 
     cyclic = _abelian_cyclic(jac, jac2, nq)
     basis_s = [np.eye(2 * nq)[:, k] for k in cyclic]

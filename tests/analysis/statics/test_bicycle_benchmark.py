@@ -42,7 +42,9 @@ TABLE2 = {
     10: [0.16105338653172, -3.72016840437287 + 10.90681139476287j,
          -3.72016840437287 - 10.90681139476287j, -24.62459635017404],
 }
-#: Table 2 (a): the weave and capsize speeds
+#: Table 2 (a): the speed at which the weave pair leaves the real axis (there the double
+#: eigenvalue 3.78290405129320), the weave and capsize speeds
+BIFURCATION_SPEED, BIFURCATION_EIGENVALUE = 0.68428307889246, 3.78290405129320
 WEAVE_SPEED = 4.29238253634111
 CAPSIZE_SPEED = 6.02426201538837
 
@@ -124,6 +126,21 @@ def test_weave_and_capsize_speeds(bicycle):
 
     assert abs(parameter_root(evaluate, 3.0, 5.0, _weave) - WEAVE_SPEED) <= TOL
     assert abs(parameter_root(evaluate, 5.5, 6.5, _capsize) - CAPSIZE_SPEED) <= TOL
+
+
+def test_bifurcation_speed(bicycle):
+    """Table 2 (a): where the two largest real eigenvalues meet, (s₁ − s₂)² = 0 (analytic in
+    the matrix, so accurate at the double root, where each eigenvalue is not)."""
+    lin, _, v1 = bicycle
+
+    def discriminant(e):
+        top = e[np.argsort(-e.real)[:2]]
+        return float(((top[0] - top[1]) ** 2).real)
+
+    v_d = parameter_root(lambda s: lin(v=s * v1).eigenvalues, 0.3, 1.0, discriminant)
+    assert abs(v_d - BIFURCATION_SPEED) <= TOL
+    top = np.sort(lin(v=v_d * v1).eigenvalues.real)[-2:]
+    assert np.all(np.abs(top - BIFURCATION_EIGENVALUE) <= 1e-6)  # a double root: √eps
 
 
 def test_scene_speed_parameter(tmp_path):

@@ -7,6 +7,7 @@ and one zero (the steady turns: ψ̇ − I_a v φ / (I_d R) is conserved); uprig
 above v² = g R / 3."""
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -127,5 +128,20 @@ def test_small_oscillation_form_refuses_rolling(tmp_path):
     """The equilibrium linearization refuses non-holonomic rows by name (it returned wrong
     eigenvalues about a rolling Euler-parameter disc with only a warning, issue 37)."""
     mech = _scene(tmp_path, "absolute", False)
-    with pytest.raises(CompositionError, match=r"'contact'.*--steady-motion"):
+    with pytest.raises(CompositionError, match=r"joint 'contact'.*--steady-motion"):
         linearize(mech, mode="vm")
+
+
+def test_equilibrium_is_a_steady_motion():
+    """At rest (no cyclic coordinate, no velocity constraint) the steady-motion eigenvalues
+    are those of the small-oscillation linearization (an independent formulation: the
+    reduced M̄, K̄ on ker C_q) — the double pendulum at its equilibrium, to 1e-10."""
+    mech = load_scene(Path(__file__).resolve().parents[3] / "examples" / "double_pendulum.toml")
+    small = linearize(mech, mode="vm", at="equilibrium")
+    steady = linearize(mech, mode="vm", q=small.q, steady_motion=True)
+    assert steady.cyclic == [] and steady.symmetries == []
+    got = list(steady.eigenvalues)
+    assert len(got) == len(small.eigenvalues) == 4
+    for want in small.eigenvalues:
+        k = int(np.argmin([abs(g - want) for g in got]))
+        assert abs(got.pop(k) - want) <= 1e-10 * max(1.0, abs(want))
