@@ -20,8 +20,8 @@ import casmbd
 
 
 def test_driven_steady_turn_has_free_drivers_and_the_closed_form_tyre_forces():
-    """Driver efforts ≤ 1e-9 (observed 1e-15); tyre forces (−λ of the velocity rows, named
-    ``roll.longitudinal``, ``roll.lateral``) 0 and m v Ω, the reaction's force
+    """Driver efforts ≤ 1e-9 (observed 1e-15); tyre forces (−λ of the joint's rows, named
+    ``roll.contact``, ``roll.longitudinal``, ``roll.lateral``) m g, 0 and m v Ω, the reaction's force
     (0, m v Ω, m g) turning with the heading, its moment (P − c) × F, all to 1e-9."""
     v = steady_speed(THETA, OMEGA)
     mech = chain_disc()
@@ -30,9 +30,10 @@ def test_driven_steady_turn_has_free_drivers_and_the_closed_form_tyre_forces():
     mech.add_driver("spin", joint="spin", position=f"{float(v / R - OMEGA * np.sin(THETA))!r}*t")
     res = casmbd.inverse_dynamics(mech, 2.0, 20, mode="vm")
     assert np.max(np.abs(res["driver_efforts"])) < 1e-9
-    assert res.names["tyre_forces"] == ["roll.longitudinal", "roll.lateral"]
-    np.testing.assert_allclose(res["tyre_forces"][:, 0], 0.0, atol=1e-9)
-    np.testing.assert_allclose(res["tyre_forces"][:, 1], MASS * v * OMEGA, atol=1e-9)
+    assert res.names["tyre_forces"] == ["roll.contact", "roll.longitudinal", "roll.lateral"]
+    np.testing.assert_allclose(res["tyre_forces"][:, 0], MASS * G, atol=1e-9)
+    np.testing.assert_allclose(res["tyre_forces"][:, 1], 0.0, atol=1e-9)
+    np.testing.assert_allclose(res["tyre_forces"][:, 2], MASS * v * OMEGA, atol=1e-9)
     psi = OMEGA * res.t
     e_y = np.stack([-np.sin(psi), np.cos(psi), 0 * psi], axis=1)
     force = MASS * v * OMEGA * e_y + [0.0, 0.0, MASS * G]
