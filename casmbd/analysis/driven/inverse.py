@@ -102,8 +102,9 @@ HANDLING = Handling(
              "stick_slip": "the regularised law (stick_slip = false), or simulate"},
     notes={"modal_coordinates": "flexible bodies move rigidly (η = 0)",
            "reaction_forces": "λ and the friction levels by a fixed point at each time",
-           "velocity_constraints": "−λ of each rolling row reported as its tyre force "
-                                   "(``tyre_forces``, named joint.row)"})
+           "velocity_constraints": "−λ of each row of a rolling joint reported as its "
+                                   "tyre force (``tyre_forces``, named joint.row: normal "
+                                   "load, longitudinal, lateral)"})
 
 
 def inverse_dynamics(mechanism_or_model, t_end: float, steps: int, t_start: float = 0.0,

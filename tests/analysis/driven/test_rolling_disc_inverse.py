@@ -21,8 +21,8 @@ import casmbd
 
 def test_driven_steady_turn_has_free_drivers_and_the_closed_form_tyre_forces():
     """Driver efforts ≤ 1e-9 (observed 1e-15); tyre forces (−λ of the joint's rows, named
-    ``roll.contact``, ``roll.longitudinal``, ``roll.lateral``) m g, 0 and m v Ω, the reaction's force
-    (0, m v Ω, m g) turning with the heading, its moment (P − c) × F, all to 1e-9."""
+    ``roll.contact``, ``roll.longitudinal``, ``roll.lateral``) m g, 0 and m v Ω, the reaction's
+    force (0, m v Ω, m g) turning with the heading, its moment (P − c) × F, all to 1e-9."""
     v = steady_speed(THETA, OMEGA)
     mech = chain_disc()
     mech.add_driver("hold_lean", joint="lean", position=f"{float(THETA)!r}")
