@@ -35,6 +35,7 @@ from casmbd.analysis.formulations import (
 from casmbd.analysis.instant.assembly import assemble
 from casmbd.analysis.instant.checks import (
     check_consistent_start,
+    check_mass_invertible,
     check_mass_matrix,
     check_start,
     diagnose_failure,
@@ -335,6 +336,8 @@ class Simulator(Stepping, CachedBuild):
             check_mass_matrix(model, q_asm, t_start,
                               mass=evaluated.get("mass_matrix") if np.array_equal(q_asm, q0)
                               else None)
+        if self.kind.inverts_mass and not healthy:  # λ from C_q M⁻¹ C_qᵀ: M itself regular
+            check_mass_invertible(model, q0, t_start, self.formulation_name)
         start = consistent_state(model, q0, v0, t_start, u0, accelerations=ode_acc)
         check_consistent_start(model, start.q, start.v, start.a, t_start)
         x0 = np.concatenate([start.q, start.v])

@@ -80,6 +80,8 @@ class FormulationKind:
     kept_redundancy: str = "kept: independent coordinates chosen by rank"
     #: the integrator steps allowed per run when ``max_steps`` is not given
     max_steps: int = 500_000
+    #: factorises M alone (not only the KKT matrix): M must be regular on the whole space
+    inverts_mass: bool = False
     #: the needs of elements it meets (casmbd.model.needs; by default no events and no
     #: reaction-dependent forces); ``refuses``: need -> why not; ``instead``: need -> advice
     handles: frozenset = frozenset({"modal_coordinates", "drivers", "inputs"})

@@ -115,6 +115,7 @@ class KktOde(FormulationKind):
                             "formulation 'index1' (or 'ggl')")
     kind = "ode"
     default_integrator = "adams"
+    inverts_mass = True
 
     def equations(self, system: System, inputs: ca.SX | None = None,
                   **options) -> Formulation:

@@ -372,12 +372,46 @@ def check_mass_matrix(model, q, t: float, what: str = "simulation",
     _diagnose_mass(model, m, q, t, what)
 
 
-def _diagnose_mass(model, m: np.ndarray, q, t: float, what: str) -> None:
+def check_mass_invertible(model, q, t: float, formulation: str) -> None:
+    """Raise naming the bodies where M itself (not only on the constraint manifold) is
+    singular — for a formulation that factorises M alone (``kkt_ode``: λ from the Schur
+    complement C_q M⁻¹ C_qᵀ, seed 000 §6).  A thin disc or plate in natural coordinates is
+    the usual case: its second moment across its plane is zero, so its natural-coordinate mass
+    matrix (built from the second moments, seed 003) is singular although the KKT matrix is
+    regular.
+
+    Raises
+    ------
+    ModelError
+        Naming the formulation, the bodies and what to use instead.
+    """
+    if model.nq == 0 or model.nq > MASS_CHECK_MAX:
+        return
+    m = model.mass_matrix(q)
+    m = np.asarray(m.todense() if sp.issparse(m) else m, float)
+    m = 0.5 * (m + m.T)
+    if _pivots_positive(m):
+        return
+    try:
+        _diagnose_mass(model, m, q, t, "", on_manifold=False)
+    except ModelError as err:
+        detail = str(err).split("mass matrix is ", 1)[-1].replace(" on the whole space", "")
+        detail = detail.split("; give the body", 1)[0].split(". Not a massless", 1)[0]
+        raise ModelError(
+            f"simulation at t = {t:g}: formulation '{formulation}' factorises the mass matrix "
+            f"alone, which is {detail} (a massless body, or a thin disc or plate in natural "
+            "coordinates: no second moment across its plane); instead: formulation 'index1' or "
+            "'augmented_lagrangian' (they need M regular on the constraint manifold only), "
+            "or other coordinates") from None
+
+
+def _diagnose_mass(model, m: np.ndarray, q, t: float, what: str,
+                   on_manifold: bool = True) -> None:
     """The full test of :func:`check_mass_matrix` on the null space of C_q (SVD of C_q,
     projected pivots, then the eigen-decomposition naming the bodies); run only when M itself
-    fails the cheap test."""
+    fails the cheap test.  ``on_manifold=False``: on the whole space (M itself)."""
     basis = np.eye(model.nq)
-    if model.nc:
+    if model.nc and on_manifold:
         cq = model.constraint_jacobian(q, t)
         cq = np.asarray(cq.todense() if sp.issparse(cq) else cq, float)
         _, s, vt = np.linalg.svd(cq)
@@ -385,7 +419,7 @@ def _diagnose_mass(model, m: np.ndarray, q, t: float, what: str) -> None:
         basis = vt[int(np.sum(s > tol)):].T
     if basis.shape[1] == 0:
         return
-    projected = basis.T @ m @ basis if model.nc else m
+    projected = basis.T @ m @ basis if model.nc and on_manifold else m
     if _pivots_positive(projected):
         return
     eig, vec = np.linalg.eigh(projected)
@@ -409,16 +443,17 @@ def _diagnose_mass(model, m: np.ndarray, q, t: float, what: str) -> None:
             return f"'{name}'"
         return f"'{name}' (mass {body.mass}, inertia {body.inertia})"
 
+    space = "on the constraint manifold" if on_manifold else "on the whole space"
     if indefinite:
         raise ModelError(
-            f"{what} at t = {t:g}: the mass matrix is indefinite on the constraint manifold "
+            f"{what} at t = {t:g}: the mass matrix is indefinite {space} "
             f"(smallest eigenvalue {eig[0]:.3g} of {float(eig[-1]):.3g}): a motion of "
             + ", ".join(f"body {about(b)}" for b in named[:4])
             + " has negative kinetic energy. Not a massless body: an inertia that is not "
             "physical (a negative mass or moment of inertia from a parameter), or a flexible "
             "body whose mass invariants do not come from one mass matrix (hand-made modal data)")
     raise ModelError(
-        f"{what} at t = {t:g}: the mass matrix is singular on the constraint manifold "
+        f"{what} at t = {t:g}: the mass matrix is singular {space} "
         f"(smallest eigenvalue {eig[0]:.3g} of {float(eig[-1]):.3g}): a motion of "
         + ", ".join(f"body {about(b)}" for b in named[:4])
         + " has no inertia; give the body mass and inertia, or attach it to bodies that have "
