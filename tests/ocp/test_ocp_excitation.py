@@ -1,6 +1,5 @@
 """The excitation-trajectory design (casmbd.ocp.excitation): periodic Fourier series that
-minimise the
-conditioning of the stacked base regressor under joint limits.
+minimise the conditioning of the stacked base regressor under joint limits.
 
 Numbers checked: the series' velocity and acceleration are the time derivatives of its position
 (central differences, 1e-7); periodicity q, q̇, q̈ (T) = (0) to 1e-12; the optimised trajectory's
