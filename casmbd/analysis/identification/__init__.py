@@ -1,0 +1,1 @@
+"""Dynamic parameter identification: the regressor, base parameters, estimation."""
