@@ -45,10 +45,12 @@ import casadi as ca
 import numpy as np
 import scipy.linalg
 
+from casmbd.analysis.identification.base_parameters import BaseParameters, base_parameters
+from casmbd.analysis.identification.regressor import joint_torque_regressor
 from casmbd.errors import ModelError, OptimizationError
 
 __all__ = ["ExcitationDesign", "FourierTrajectory", "base_columns", "condition_number",
-           "design_excitation", "joint_limits", "random_feasible"]
+           "design_excitation", "excitation_for", "joint_limits", "random_feasible"]
 
 #: relative pivot threshold of the column-pivoted QR that selects independent regressor columns
 BASE_TOLERANCE = 1e-8
@@ -221,6 +223,18 @@ def condition_number(regressor: ca.Function, trajectory: FourierTrajectory, samp
     return float(np.linalg.cond(w))
 
 
+def _scalar_form(regressor: ca.Function) -> ca.Function:
+    """The regressor on scalar expressions (SX) when it can be expanded (an MX Function of
+    elementary operations, as h-regressor's ``symbolic``): faster to evaluate and
+    differentiate; else as given (a linear solve inside, a closed chain's efforts)."""
+    if regressor.is_a("SXFunction"):
+        return regressor
+    try:
+        return regressor.expand()
+    except RuntimeError:
+        return regressor
+
+
 @dataclass
 class _Limits:
     lower: np.ndarray
@@ -277,8 +291,9 @@ def random_feasible(n: int, harmonics: int, period: float, *, lower=None, upper=
 def _centre(lim: _Limits, centre) -> np.ndarray:
     if centre is not None:
         return np.asarray(centre, float).ravel().copy()
-    mid = 0.5 * (lim.lower + lim.upper)
-    return np.where(np.isfinite(mid), mid, 0.0)
+    bounded = np.isfinite(lim.lower) & np.isfinite(lim.upper)
+    mid = 0.5 * (np.where(bounded, lim.lower, 0.0) + np.where(bounded, lim.upper, 0.0))
+    return np.where(bounded, mid, np.clip(0.0, lim.lower, lim.upper))
 
 
 def _default_constraint_samples(harmonics: int) -> int:
@@ -390,7 +405,9 @@ def design_excitation(regressor: ca.Function, *, period: float, harmonics: int =
     qm = ca.vertcat(*[ca.mtimes(ca.DM(m), x).T for m in _joint_maps(n, harmonics, pos)])
     vm = ca.vertcat(*[ca.mtimes(ca.DM(m), x).T for m in _joint_maps(n, harmonics, vel)])
     am = ca.vertcat(*[ca.mtimes(ca.DM(m), x).T for m in _joint_maps(n, harmonics, acc)])
-    qs, vs, as_ = [ca.SX.sym(s, n) for s in ("q", "v", "a")]
+    regressor = _scalar_form(regressor)
+    sym = ca.SX if regressor.is_a("SXFunction") else ca.MX
+    qs, vs, as_ = [sym.sym(s, n) for s in ("q", "v", "a")]
     yb = regressor(qs, vs, as_)[:, columns.tolist()]
     gram = ca.Function("gram", [qs, vs, as_], [ca.mtimes(yb.T, yb)])
     gram_sum = gram.map("gram_sum", "serial", samples, [], [0])  # Σ_k over the samples
@@ -464,3 +481,53 @@ def design_excitation(regressor: ca.Function, *, period: float, harmonics: int =
                             condition_number(regressor, initial, samples, columns), columns,
                             samples, ctimes, status, int(stats.get("iter_count", -1)),
                             float(sol["f"]), stats)
+
+
+def excitation_for(mechanism, *, period: float, acceleration, friction=("viscous", "coulomb"),
+                   harmonics: int = 5, samples: int = 60, lower=None, upper=None,
+                   velocity=None, torque_limits: bool = False, mode: str = "vm",
+                   **options) -> tuple[ExcitationDesign, BaseParameters]:
+    """:func:`design_excitation` for a mechanism: its base regressor and its joint limits.
+
+    The regressor is :func:`~casmbd.analysis.identification.regressor.joint_torque_regressor`
+    with the ``friction`` laws, reduced to the base parameters
+    (:func:`~casmbd.analysis.identification.base_parameters.base_parameters`, whose
+    ``symbolic`` Y_b the design differentiates).  Limits not given are read per coordinate
+    from the joints (:func:`joint_limits`: the URDF ``<limit>``); URDF gives no acceleration
+    limit, so ``acceleration`` is required.  ``torque_limits``: also |τ| ≤ effort at the
+    nominal parameters.  Other keywords go to :func:`design_excitation`.
+
+    Returns
+    -------
+    (ExcitationDesign, BaseParameters)
+    """
+    reg = joint_torque_regressor(mechanism, friction, mode=mode)
+    if reg.nq != reg.nv or len(reg.rows) != reg.nq:
+        raise ModelError(f"excitation design of '{mechanism.name}': a fixed-base tree with "
+                         "an effort on every coordinate is needed (the Fourier series moves "
+                         "every coordinate independently)")
+    base = base_parameters(reg)
+    limits = joint_limits(mechanism)
+    row = {name: k for k, name in enumerate(limits["names"])}
+    picked = []
+    for coordinate in reg.coordinate_names:
+        joint = coordinate.rsplit(".", 1)[0]
+        if joint not in row:
+            raise ModelError(f"excitation design: coordinate '{coordinate}' is not the "
+                             "coordinate of a revolute or prismatic joint")
+        picked.append(row[joint])
+    def given(value, key):
+        return limits[key][picked] if value is None else value
+    torque = None
+    if torque_limits:
+        effort = limits["effort"][picked]
+        if not np.all(np.isfinite(effort)):
+            missing = [reg.coordinate_names[k] for k in np.flatnonzero(~np.isfinite(effort))]
+            raise ModelError(f"excitation design: no effort limit for {', '.join(missing)}")
+        torque = (base.values(), effort)
+    design = design_excitation(base.symbolic, period=period, harmonics=harmonics,
+                               samples=samples, lower=given(lower, "lower"),
+                               upper=given(upper, "upper"),
+                               velocity=given(velocity, "velocity"), acceleration=acceleration,
+                               torque=torque, columns=np.arange(base.rank), **options)
+    return design, base
