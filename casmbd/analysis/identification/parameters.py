@@ -193,10 +193,10 @@ def body_origin(mech, name: str, frame: str) -> np.ndarray:
 
 def friction_coordinates(mech, laws: Sequence[str], joints: Sequence[str] | None,
                          regularization: float | None) -> list[FrictionCoordinate]:
-    """The joint coordinates that get friction parameters: ``joints`` (names), else every
-    joint with a ``joint_friction`` element and every joint with coordinates (revolute,
-    prismatic, …) that is not a loop closure … given by the caller (:func:`standard_parameters`).
-    """
+    """The joint coordinates of ``joints`` (names) that get the friction ``laws``: a joint's
+    single coordinate; of a joint with several (cylindrical, universal …) the first one and
+    every other one that has its own ``joint_friction`` element.  v_s is ``regularization``,
+    else the element's, else :data:`~casmbd.model.joint_friction.REGULARIZATION`."""
     if not laws:
         return []
     elements = {}

@@ -3,10 +3,10 @@
 Closed-form counts (derivation in docs/identification.md, "The regressor and base
 parameters"): the planar 2R arm, parameters about the joints, has 4 base inertial parameters
 in a horizontal plane (ZZ1 + l1² m2, MX2, MY2, ZZ2) and 6 in a vertical plane (with MX1 +
-l1 m2 and MY1); the four-bar 3 + 3 + 3 − 1 = 8; the UR-type 6R arm 60 − 6·3 − 6 = 36 (Gautier & Khalil's rules: M, MZ and YY of
-every link regrouped, link 1 on a vertical axis keeping only its ZZR), each with 2 friction
-parameters per joint more.  Y_b π_b = Y π at fresh random states to 1e-12 on the arm, the
-four-bar, the Delta robot and a floating body.
+l1 m2 and MY1); the four-bar 3 + 3 + 3 − 1 = 8; the UR-type 6R arm 60 − 6·3 − 6 = 36
+(Gautier & Khalil's rules: M, MZ and YY of every link regrouped, link 1 on a vertical axis
+keeping only its ZZR), each with 2 friction parameters per joint more.  Y_b π_b = Y π at
+fresh random states to 1e-12 on the arm, the four-bar, the Delta robot and a floating body.
 """
 
 from __future__ import annotations
