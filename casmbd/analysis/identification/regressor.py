@@ -54,6 +54,7 @@ linear in π and are refused, naming the element.
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -150,9 +151,18 @@ class JointTorqueRegressor:
 
     def __call__(self, q, v, a) -> np.ndarray:
         """Y at one state, shape (n_rows, n_π)."""
-        q = self._check(q, self.nq, "q")
-        v, a = self._check(v, self.nv, "v"), self._check(a, self.nv, "a")
-        y = self._finite(self._evaluate(self._call("function"), q, v, a), "this state")
+        call = self._call("function")
+        try:  # the buffers' shapes check the lengths; finiteness is checked on Y
+            if len(q) != self.nq or len(v) != self.nv or len(a) != self.nv:
+                raise ValueError
+            y = self._evaluate(call, q, v, a)
+        except (ValueError, TypeError):
+            y = None
+        if y is None or not math.isfinite(float(y.sum())):
+            self._check(q, self.nq, "q")  # name a bad argument, else the singular state
+            self._check(v, self.nv, "v")
+            self._check(a, self.nv, "a")
+            y = self._finite(self._evaluate(call, q, v, a), "this state")
         return y.reshape((len(self.rows), -1), order="F")
 
     def _evaluate(self, function: BufferedFunction, *args) -> np.ndarray:
