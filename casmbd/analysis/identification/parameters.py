@@ -314,7 +314,7 @@ def standard_parameters(mechanism, friction: Sequence[str] | str | None = (),
     for fc in coords:
         element = elements.get((fc.joint, fc.coordinate))
         if element is not None:
-            _check_linear(element)
+            check_linear_friction(element)
         for law in laws:
             names.append(f"{fc.prefix}.{law}")
             if element is None:
@@ -327,7 +327,7 @@ def standard_parameters(mechanism, friction: Sequence[str] | str | None = (),
                               frame, laws, coords, dim)
 
 
-def _check_linear(element: JointFriction) -> None:
+def check_linear_friction(element: JointFriction) -> None:
     """Refuse a friction element outside the linear law (module docstring)."""
     if element.stick_slip:
         raise ModelError(f"force '{element.name}': the exact stick-slip law switches at events; "

@@ -64,6 +64,7 @@ import numpy as np
 
 from casmbd.analysis.identification.parameters import (
     StandardParameters,
+    check_linear_friction,
     default_friction_joints,
     standard_parameters,
 )
@@ -222,6 +223,7 @@ def _refuse_nonlinear_forces(mech, params: StandardParameters) -> None:
                 f"force '{force.name}' ({force.kind}): the regressor covers gravity and joint "
                 "friction (viscous, Coulomb), whose forces are linear in the parameters; "
                 "remove this element (or subtract its known force from the measured efforts)")
+        check_linear_friction(force)  # no reaction-proportional level, no stick-slip
         pairs = {"viscous": force.damping, "coulomb": force.friction}
         missing = [law for law, val in pairs.items()
                    if not (isinstance(val, (int, float)) and val == 0.0)
