@@ -144,7 +144,7 @@ def least_squares(regressor: np.ndarray, tau: np.ndarray, names: list[str],
         raise IdentificationError(
             f"{source}: the samples do not excite every base parameter (stacked regressor of "
             f"rank {int(np.sum(sv > RANK_TOLERANCE * sv[0]))} < {n_b}, condition number "
-            f"{sv[0] / max(sv[-1], np.finfo(float).tiny):.3g}); undetermined combination"
+            f"{sv[0] / sv[-1] if sv[-1] > 0 else np.inf:.3g}); undetermined combination"
             f"{'s' if len(small) > 1 else ''}: {combos}; use a richer trajectory "
             "(an excitation design) or more samples")
     condition = float(sv[0] / sv[-1])
