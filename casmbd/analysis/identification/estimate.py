@@ -68,6 +68,9 @@ class BaseEstimate:
         N.
     weighted : bool
         Whether the rows were weighted (False: ordinary least squares).
+    weighted_norm2 : float
+        ‖G y‖², the squared norm of the weighted efforts (the scale of the consistent
+        solve's objective).
     """
 
     names: list[str]
@@ -80,6 +83,7 @@ class BaseEstimate:
     normal_matrix: np.ndarray
     samples: int
     weighted: bool
+    weighted_norm2: float = 1.0
 
     @property
     def relative_std(self) -> np.ndarray:
@@ -172,4 +176,4 @@ def least_squares(regressor: np.ndarray, tau: np.ndarray, names: list[str],
     residual = (y - w @ pi_b).reshape(n_s, n)
     return BaseEstimate(list(names), pi_b, np.sqrt(np.maximum(np.diag(cov), 0.0)), cov,
                         sigma_j, np.sqrt(np.mean(residual ** 2, axis=0)), condition,
-                        normal, n_s, bool(weighted))
+                        normal, n_s, bool(weighted), float(yg @ yg))

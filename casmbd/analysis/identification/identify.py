@@ -8,7 +8,8 @@ the caller's: :func:`casmbd.io.measurements.read_measurements`, the ``casmbd ide
 2. the regressor Y(q, q̇, q̈) at every sample with τ = Y π
    (:func:`~casmbd.analysis.identification.regressor.joint_torque_regressor`; π the bodies'
    standard inertial parameters about their body frames and the joints' friction
-   coefficients) and the base parameters π_b = K π, Y_b = Y P (the identifiable combinations,
+   coefficients) and the base parameters π_b = K π, Y_b = the base columns of Y (the
+   identifiable combinations,
    :func:`~casmbd.analysis.identification.base_parameters.base_parameters`);
 3. the weighted least-squares estimate of π_b with its standard deviations, the condition
    number of the stacked Y_b and the residual per joint
@@ -185,15 +186,15 @@ def identify(mechanism, measurements: Measurements, friction=("viscous", "coulom
     t, q, v, a, tau = prepare(measurements, cutoff=cutoff, decimate=decimate)
     n = len(names)
     y_full = reg.stacked(q, v, a).reshape(len(t), n, -1)
-    y_b = y_full @ base.projection
+    y_b = base.regressor(y_full)
     est = least_squares(y_b, tau, base.names, names, weighted=weighted,
                         source=measurements.source)
     params = reg.parameters
     cons, gap = None, None
     if consistent:
-        cons = consistent_parameters(params.names, base.basis, est, params.values)
+        cons = consistent_parameters(params.names, base.K, est, params.values)
         delta = y_b.reshape(len(t) * n, -1) @ (cons.base_values - est.values)
         gap = np.sqrt(np.mean(delta.reshape(len(t), n) ** 2, axis=0))
     return Identification(est, list(base.expressions), cons, gap, list(params.names),
-                          params.values.copy(), dict(params.origins), base.basis, names,
+                          params.values.copy(), dict(params.origins), base.K, names,
                           len(t), tuple(params.friction))
