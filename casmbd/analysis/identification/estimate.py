@@ -101,7 +101,8 @@ def _combination(vector: np.ndarray, names: list[str]) -> str:
 
 def least_squares(regressor: np.ndarray, tau: np.ndarray, names: list[str],
                   coordinates: list[str] | None = None, weighted: bool = True,
-                  source: str = "measurements") -> BaseEstimate:
+                  source: str = "measurements", mask: np.ndarray | None = None
+                  ) -> BaseEstimate:
     """Estimate the base parameters from stacked samples (module docstring).
 
     Parameters
@@ -117,6 +118,9 @@ def least_squares(regressor: np.ndarray, tau: np.ndarray, names: list[str],
     weighted : bool
         Gautier's weighting by the per-joint residual deviation (default); False: ordinary
         least squares.
+    mask : ndarray (N, n) of bool, optional
+        The equations (sample, joint) to use; default all.  Left-out rows count nowhere
+        (the residual RMS, σ_j and the degrees of freedom are over the used rows).
 
     Raises
     ------
@@ -131,12 +135,19 @@ def least_squares(regressor: np.ndarray, tau: np.ndarray, names: list[str],
     if tau.shape != (n_s, n):
         raise IdentificationError(f"{source}: τ has shape {tau.shape}, the regressor "
                                   f"{(n_s, n)} samples × joints")
+    use = np.ones((n_s, n), bool) if mask is None else np.asarray(mask, bool)
+    if use.shape != (n_s, n):
+        raise IdentificationError(f"{source}: the row mask has shape {use.shape}, expected "
+                                  f"{(n_s, n)}")
+    y_b = y_b * use[:, :, None]
+    tau = tau * use
+    rows_j = np.sum(use, axis=0)
     if n_b == 0:
         raise IdentificationError(f"{source}: the model has no identifiable parameter")
-    if n_s * n <= n_b:
+    if int(rows_j.sum()) <= n_b:
         raise IdentificationError(
-            f"{source}: {n_s} samples × {n} joints = {n_s * n} equations for {n_b} base "
-            f"parameters: at least {n_b // n + 1} samples are needed (many more for a "
+            f"{source}: {n_s} samples × {n} joints = {int(rows_j.sum())} equations for {n_b} "
+            f"base parameters: at least {n_b // n + 1} samples are needed (many more for a "
             "meaningful estimate)")
     w = y_b.reshape(n_s * n, n_b)
     y = tau.reshape(n_s * n)
@@ -158,7 +169,7 @@ def least_squares(regressor: np.ndarray, tau: np.ndarray, names: list[str],
     used = np.array([int(np.sum(np.max(np.abs(y_b[:, j, :]), axis=0)
                                 > 1e-12 * max(scale_w[j], np.finfo(float).tiny)))
                      for j in range(n)])
-    dof = np.maximum(n_s - used, 1)
+    dof = np.maximum(rows_j - used, 1)
     sigma_j = np.sqrt(np.sum(rho ** 2, axis=0) / dof)
     if weighted:
         floor = max(1e-6 * float(np.max(sigma_j)), np.finfo(float).tiny)
@@ -169,11 +180,12 @@ def least_squares(regressor: np.ndarray, tau: np.ndarray, names: list[str],
     yg = (tau * gain[None, :]).reshape(n_s * n)
     pi_b, *_ = np.linalg.lstsq(wg, yg, rcond=None)
     rho_g = yg - wg @ pi_b
-    sigma2 = float(rho_g @ rho_g) / (n_s * n - n_b)
+    sigma2 = float(rho_g @ rho_g) / (int(rows_j.sum()) - n_b)
     normal = wg.T @ wg
     cov = sigma2 * np.linalg.inv(normal)
     cov = 0.5 * (cov + cov.T)
     residual = (y - w @ pi_b).reshape(n_s, n)
     return BaseEstimate(list(names), pi_b, np.sqrt(np.maximum(np.diag(cov), 0.0)), cov,
-                        sigma_j, np.sqrt(np.mean(residual ** 2, axis=0)), condition,
+                        sigma_j, np.sqrt(np.sum(residual ** 2, axis=0)
+                                         / np.maximum(rows_j, 1)), condition,
                         normal, n_s, bool(weighted), float(yg @ yg))

@@ -12,7 +12,9 @@ the caller's: :func:`casmbd.io.measurements.read_measurements`, the ``casmbd ide
    identifiable combinations,
    :func:`~casmbd.analysis.identification.base_parameters.base_parameters`);
 3. the weighted least-squares estimate of π_b with its standard deviations, the condition
-   number of the stacked Y_b and the residual per joint
+   number of the stacked Y_b and the residual per joint (with a low-pass and Coulomb friction,
+   the rows near each joint's velocity reversals are left out:
+   :func:`~casmbd.analysis.identification.measurements.velocity_reversals`)
    (:func:`~casmbd.analysis.identification.estimate.least_squares`);
 4. physically consistent standard parameters π_c near the model's own values that fit the
    data best (:func:`~casmbd.analysis.identification.consistent.consistent_parameters`), and
@@ -38,7 +40,11 @@ from casmbd.analysis.identification.consistent import (
     consistent_parameters,
 )
 from casmbd.analysis.identification.estimate import BaseEstimate, least_squares
-from casmbd.analysis.identification.measurements import Measurements, prepare
+from casmbd.analysis.identification.measurements import (
+    Measurements,
+    prepare,
+    velocity_reversals,
+)
 from casmbd.analysis.identification.parameters import check_friction_laws
 from casmbd.analysis.identification.regressor import joint_torque_regressor
 from casmbd.errors import IdentificationError, ModelError
@@ -185,16 +191,21 @@ def identify(mechanism, measurements: Measurements, friction=("viscous", "coulom
             f"{', '.join(measurements.coordinates)}; the model's are {', '.join(names)}")
     t, q, v, a, tau = prepare(measurements, cutoff=cutoff, decimate=decimate)
     n = len(names)
+    mask = None
+    if cutoff is not None and "coulomb" in reg.parameters.friction:
+        mask = ~velocity_reversals(t, v, 1.0 / cutoff)
     y_full = reg.stacked(q, v, a).reshape(len(t), n, -1)
     y_b = base.regressor(y_full)
     est = least_squares(y_b, tau, base.names, names, weighted=weighted,
-                        source=measurements.source)
+                        source=measurements.source, mask=mask)
     params = reg.parameters
     cons, gap = None, None
     if consistent:
         cons = consistent_parameters(params.names, base.K, est, params.values)
         delta = y_b.reshape(len(t) * n, -1) @ (cons.base_values - est.values)
-        gap = np.sqrt(np.mean(delta.reshape(len(t), n) ** 2, axis=0))
+        delta = delta.reshape(len(t), n) * (1.0 if mask is None else mask)
+        used = np.maximum(len(t) if mask is None else np.sum(mask, axis=0), 1)
+        gap = np.sqrt(np.sum(delta ** 2, axis=0) / used)
     return Identification(est, list(base.expressions), cons, gap, list(params.names),
                           params.values.copy(), dict(params.origins), base.K, names,
                           len(t), tuple(params.friction))
