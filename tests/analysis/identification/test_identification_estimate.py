@@ -18,7 +18,7 @@ from casmbd.analysis.identification.consistent import (
 from casmbd.analysis.identification.estimate import least_squares
 from casmbd.errors import IdentificationError
 
-from . import planar_2r as arm
+import identification_models as arm
 
 K, P = arm.base_basis()
 NAMES_B = [f"b{k}" for k in range(K.shape[0])]

@@ -94,3 +94,77 @@ def base_basis(tol: float = 1e-9):
     p = np.zeros((12, rank))
     p[perm[:rank], np.arange(rank)] = 1.0
     return k, p
+
+
+# ------------------------------------------------------------------ the UR-type arm (URDF)
+UR5 = str(__import__("pathlib").Path(__file__).resolve().parent / "scenes" / "ur5_arm.urdf")
+#: friction (viscous, Coulomb) of the "true" arm, the URDF's own on shoulder_pan (0.5, 0.1)
+UR5_FRICTION = {"shoulder_lift_joint": (0.4, 0.6), "elbow_joint": (0.3, 0.5),
+                "wrist_1_joint": (0.1, 0.2), "wrist_2_joint": (0.08, 0.15),
+                "wrist_3_joint": (0.05, 0.1)}
+
+
+def ur5_truth():
+    """The "real" arm: the URDF's inertials and friction on every joint."""
+    from casmbd.io.urdf import load_urdf
+
+    mech = load_urdf(UR5, damping=True, friction=True)
+    for joint, (c, f) in UR5_FRICTION.items():
+        mech.add("joint_friction", f"{joint}_true", joint, damping=c, friction=f)
+    return mech
+
+
+def ur5_model():
+    """The model to identify: wrong masses of two links, no friction."""
+    from casmbd.io.urdf import load_urdf
+
+    return load_urdf(UR5, links={"upper_arm_link": {"mass": 7.0},
+                                 "forearm_link": {"mass": 3.0}})
+
+
+def arm_trajectory(t, n: int, seed: int, harmonics: int = 5, f0: float = 0.1,
+                   amplitude: float = 0.4):
+    """q, q̇, q̈ (N × n) of a finite Fourier series (Swevers et al. 1997), seeded."""
+    rng = np.random.default_rng(seed)
+    w = 2 * np.pi * f0 * np.arange(1, harmonics + 1)
+    q, v, a = (np.zeros((len(t), n)) for _ in range(3))
+    s, c = np.sin(np.outer(t, w)), np.cos(np.outer(t, w))
+    for j in range(n):
+        sa = rng.normal(0, amplitude, harmonics) / np.arange(1, harmonics + 1)
+        sb = rng.normal(0, amplitude, harmonics) / np.arange(1, harmonics + 1)
+        q[:, j] = s @ (sa / w) - c @ (sb / w) + rng.normal(0, 0.3)
+        v[:, j] = c @ sa + s @ sb
+        a[:, j] = -s @ (sa * w) + c @ (sb * w)
+    return q, v, a
+
+
+def inverse_dynamics(mech, q, v, a):
+    """τ at each sample by casmbd's compiled inverse dynamics (CasADi's VM)."""
+    import casmbd
+
+    robot = casmbd.compile(mech, mode="vm")
+    return np.array([robot.inverse_dynamics(q[k], v[k], a[k]) for k in range(len(q))])
+
+
+def true_parameters(truth, reg):
+    """π of ``truth`` in the order and frames of the regressor ``reg`` (of the model)."""
+    from casmbd.analysis.identification.parameters import standard_parameters
+
+    joints = [fc.joint for fc in reg.parameters.friction_coordinates]
+    sp = standard_parameters(truth, reg.parameters.friction, friction_joints=joints)
+    values = sp.as_dict()
+    return np.array([values[name] for name in reg.names])
+
+
+def to_csv(path, t, names, q, tau, v=None, a=None):
+    """A measurement CSV (casmbd.io.measurements) of the samples."""
+    cols = ["t"] + [f"q.{c}" for c in names]
+    data = [t[:, None], q]
+    if v is not None:
+        cols += [f"v.{c}" for c in names] + [f"a.{c}" for c in names]
+        data += [v, a]
+    cols += [f"tau.{c}" for c in names]
+    data.append(tau)
+    np.savetxt(path, np.hstack(data), delimiter=",", header=",".join(cols), comments="",
+               fmt="%.17g")
+    return path
