@@ -78,6 +78,11 @@ register_verb("linearize", _verb("analyses", "_cmd_linearize"),
               help="natural frequencies, linearized equations and stability about the initial "
                    "configuration, the static equilibrium or a stored state",
               add_arguments=verbs.linearize_arguments)
+register_verb("identify", _verb("identify", "_cmd_identify"),
+              help="identify masses, centres of mass, inertias and friction from measured "
+                   "joint data (base parameters by weighted least squares, then physically "
+                   "consistent ones)",
+              add_arguments=verbs.identify_arguments)
 register_verb("ocp", _verb("optimal", "_cmd_ocp"),
               help="trajectory optimisation: the scene's [ocp] table",
               add_arguments=verbs.ocp_arguments)

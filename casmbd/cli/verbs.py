@@ -243,3 +243,25 @@ def _port(text: str) -> int:
     if port > 65535:
         raise argparse.ArgumentTypeError(f"must be a TCP port 1 … 65535, got {text}")
     return port
+
+
+def identify_arguments(p) -> None:
+    """``identify``: the measurement file, friction laws, filter, estimator and ``--out``."""
+    p.add_argument("--data", required=True,
+                   help="measurement CSV: t, q.<coordinate>, tau.<coordinate> [, v.…, a.…] "
+                        "(docs/identification.md)")
+    p.add_argument("--friction", default="viscous,coulomb",
+                   help="friction laws identified on every joint: viscous, coulomb, both "
+                        "comma-separated (default) or none")
+    p.add_argument("--cutoff", type=positive_float, default=None,
+                   help="zero-phase Butterworth low-pass cut-off [Hz] applied to q and tau "
+                        "(required when the file has no v. and a. columns)")
+    p.add_argument("--decimate", type=positive_int, default=1,
+                   help="keep every K-th sample after filtering (default 1)")
+    p.add_argument("--ols", action="store_true",
+                   help="ordinary least squares (default: weighted by each joint's residual "
+                        "deviation, Gautier)")
+    p.add_argument("--no-consistent", action="store_true",
+                   help="skip the physically consistent standard parameters (IPOPT)")
+    p.add_argument("--out", help="write the identified model: a .urdf for a URDF, a .toml "
+                                 "for a scene (masses, centres of mass, inertias, friction)")

@@ -21,11 +21,19 @@ computes.
   linear in its samples only when the measured τ and the differentiated q have been filtered
   alike, so the fitted equation Y(q_f, q̇_f, q̈_f) π = τ_f holds to the filter's pass-band
   accuracy;
-* the first and last :data:`EDGE_SAMPLES`·decimation samples are dropped (the filter's
-  start-up transients at both ends of ``filtfilt`` and the one-sided differences), then the
-  samples are decimated: every ``decimate``-th sample is kept (after the low-pass, so no
-  aliasing when the cut-off is below the decimated Nyquist frequency f_s / (2 · decimate);
-  otherwise refused).
+* ``filtfilt`` pads each end with the odd reflection of 3 / f_c seconds of the signal
+  (``padlen``), and the first and last 2 / f_c seconds (at least :data:`EDGE_SAMPLES`
+  samples) are dropped after filtering and differentiating: the start-up transients of the
+  filter at both ends (an error of 3e-9 rad left on a 0.5 Hz arm trajectory at f_c = 10 Hz
+  against 2e-2 rad without padding) and the one-sided differences; then the samples are
+  decimated: every ``decimate``-th sample is kept (after the low-pass, so no aliasing when the
+  cut-off is below the decimated Nyquist frequency f_s / (2 · decimate); otherwise refused);
+* with Coulomb friction, :func:`velocity_reversals` marks, per joint, the samples within
+  1 / f_c seconds of a change of sign of the filtered velocity: there the filtered τ holds
+  the Coulomb step smeared over the filter's response while the regressor sees
+  tanh(q̇_f / v_s) of the filtered velocity, a mismatch of up to the Coulomb level (the
+  model of friction is the poorest at velocity reversals anyway); those rows are left out
+  of the least squares.
 
 Sampling must be uniform for the filter and the differences (the times may not deviate from
 the mean step by more than :data:`UNIFORM_TOLERANCE` of it).
@@ -33,13 +41,15 @@ the mean step by more than :data:`UNIFORM_TOLERANCE` of it).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from casmbd.errors import IdentificationError
 
-__all__ = ["EDGE_SAMPLES", "FILTER_ORDER", "UNIFORM_TOLERANCE", "Measurements", "prepare"]
+__all__ = ["EDGE_SAMPLES", "FILTER_ORDER", "UNIFORM_TOLERANCE", "Measurements", "prepare",
+           "velocity_reversals"]
 
 #: order of the Butterworth low-pass (applied forward and backward: order 8 in magnitude)
 FILTER_ORDER = 4
@@ -135,11 +145,24 @@ def lowpass(x: np.ndarray, h: float, cutoff: float, source: str) -> np.ndarray:
         raise IdentificationError(f"{source}: the filter cut-off {cutoff:.6g} Hz must lie "
                                   f"between 0 and the Nyquist frequency {nyquist:.6g} Hz")
     b, a = butter(FILTER_ORDER, cutoff / nyquist)
-    pad = 3 * max(len(a), len(b))
-    if x.shape[0] <= pad:
+    least = 3 * max(len(a), len(b))
+    if x.shape[0] <= least:
         raise IdentificationError(f"{source}: {x.shape[0]} samples are too few for the "
-                                  f"filter (more than {pad} needed)")
-    return filtfilt(b, a, x, axis=0)
+                                  f"filter (more than {least} needed)")
+    pad = min(x.shape[0] - 1, max(least, math.ceil(3.0 / (cutoff * h))))
+    return filtfilt(b, a, x, axis=0, padlen=pad)
+
+
+def velocity_reversals(t: np.ndarray, v: np.ndarray, window: float) -> np.ndarray:
+    """(N, n) booleans: True where sample k of joint j lies within ``window`` seconds of a
+    change of sign of v_j (module docstring)."""
+    near = np.zeros(v.shape, dtype=bool)
+    for j in range(v.shape[1]):
+        flips = np.nonzero(np.signbit(v[1:, j]) != np.signbit(v[:-1, j]))[0]
+        for k in flips:
+            mid = 0.5 * (t[k] + t[k + 1])
+            near[:, j] |= np.abs(t - mid) <= window
+    return near
 
 
 def central_difference(x: np.ndarray, h: float) -> np.ndarray:
@@ -194,7 +217,7 @@ def prepare(meas: Measurements, cutoff: float | None = None, decimate: int = 1,
         else:
             v = lowpass(v, h, cutoff, meas.source)
             a = lowpass(a, h, cutoff, meas.source)
-        drop = edge * decimate
+        drop = max(edge * decimate, math.ceil(2.0 / (cutoff * h)))
         if t.size <= 2 * drop:
             raise IdentificationError(f"{meas.source}: {t.size} samples leave none after "
                                       f"dropping {drop} at each end")
