@@ -186,10 +186,11 @@ def header(s: Spec) -> str:
         " *   the base's own axes).  Joint coordinates as casmbd.compile: a revolute joint's",
         " *   angle and a prismatic joint's displacement are zero at the design pose.",
         " *   Equations of motion M(q) a + b(q, v) = tau"
-        + (" + S tau_a - C_q^T lambda with the constraint" if s.nc else "."),
+        + (" - C_q^T lambda with the constraint" if s.nc else "."),
     ]
     if s.nc:
-        lines += [" *   equations C(q) = 0 (closed loops, drivers at t = 0): C_q a = gamma(q, v)."]
+        lines += [" *   equations C(q) = 0 (closed loops; drivers at t = 0) at the acceleration",
+                  " *   level C_q a = gamma(q, v); q and v must satisfy them (no assembly here)."]
     lines += [
         " *   Matrices are dense and row-major (C order): X[i * ncols + j].",
         " *",
