@@ -236,6 +236,9 @@ def export_arguments(p) -> None:
     p.add_argument("--actuated", default=None,
                    help="closed chains: comma-separated coordinates carrying the efforts of "
                         "the inverse dynamics (default: every one, least-norm efforts)")
+    p.add_argument("--friction", default="",
+                   help="regressor: comma-separated friction laws whose coefficients join "
+                        "its parameters (viscous, coulomb; default none)")
     p.add_argument("--cmake", action="store_true", help="also write a CMakeLists.txt")
     p.add_argument("--force", action="store_true",
                    help="overwrite the files of a non-empty directory")

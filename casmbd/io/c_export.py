@@ -36,6 +36,10 @@ from pathlib import Path
 import casadi as ca
 import numpy as np
 
+from casmbd.analysis.identification.regressor import (
+    JointTorqueRegressor,
+    joint_torque_regressor,
+)
 from casmbd.atomic import atomic_write
 from casmbd.compiled.robot import compile as compile_robot
 from casmbd.compiled.robot import ldl_solve
@@ -49,7 +53,7 @@ __all__ = ["EXPORT_FUNCTIONS", "ExportReport", "export_c"]
 EXPORT_FUNCTIONS: tuple[str, ...] = ("inverse_dynamics", "forward_dynamics", "mass_matrix",
                                      "bias_forces", "forward_kinematics", "jacobian",
                                      "regressor")
-#: the default set (every function that needs nothing beyond casmbd.compile)
+#: the default set (the regressor only on request: its parameters are a choice, friction)
 DEFAULT_FUNCTIONS: tuple[str, ...] = EXPORT_FUNCTIONS[:6]
 
 #: options of the code generator: self-contained C99, double precision, a fixed integer type
@@ -98,6 +102,7 @@ class ExportReport:
     actuated: list[str]
     sizes: dict = field(default_factory=dict)
     regressor_parameters: list[str] = field(default_factory=list)
+    regressor_rows: list[str] = field(default_factory=list)
 
     def to_json(self) -> dict:
         """A JSON-ready summary (the object ``casmbd export --json`` prints)."""
@@ -106,7 +111,8 @@ class ExportReport:
                 "nv": self.nv, "nc": self.nc, "coordinate_names": self.coordinate_names,
                 "velocity_names": self.velocity_names, "frame_names": self.frame_names,
                 "actuated": self.actuated, "work_sizes": self.sizes,
-                "regressor_parameters": self.regressor_parameters}
+                "regressor_parameters": self.regressor_parameters,
+                "regressor_rows": self.regressor_rows}
 
 
 def parse_functions(functions: str | Sequence[str] | None) -> list[str]:
@@ -226,7 +232,7 @@ def _build(model, functions: list[str], regressor, prefix: str) -> list[ca.Funct
             (q,), (jac,) = _folded(get(f"robot_jacobian_{k}"), p)  # Jᵀ column-major
             out.append(_function(f"{cg}jacobian_{k}", [q], [jac], ["q"], ["J"]))
     if "regressor" in functions:
-        out.append(_regressor_function(regressor, cg + "regressor", p))
+        out.append(_regressor_function(regressor, cg + "regressor"))
     return out
 
 
@@ -261,12 +267,13 @@ def _constrained_inverse(model, terms: ca.Function, p: np.ndarray, name: str) ->
                      ["q", "v", "a"], ["tau", "lambda", "violation"])
 
 
-def _regressor_function(regressor, name: str, p: np.ndarray) -> ca.Function:
-    f = regressor["function"]
-    syms = [ca.SX.sym(f.name_in(k), f.sparsity_in(k)) for k in range(3)]
-    rest = [ca.DM(p.reshape(-1, 1)) for _ in range(f.n_in() - 3)]
-    (y,) = f.call([*syms, *rest])[:1]
-    return _function(name, syms, [ca.vec(y.T)], ["q", "v", "a"], ["Y"])
+def _regressor_function(regressor: JointTorqueRegressor, name: str) -> ca.Function:
+    """Y(q, v, a) of the regressor's symbolic Function, row-major."""
+    f = regressor.symbolic
+    syms = f.sx_in() if f.is_a("SXFunction") else f.mx_in()
+    (y,) = f.call(syms)
+    return ca.Function(name, syms, [ca.vec(ca.densify(y).T)], ["q", "v", "a"], ["Y"],
+                       dict(FUNCTION_OPTIONS))
 
 
 #: the start of a function definition in CasADi's C (parameters on one line, brace at the end)
@@ -300,16 +307,16 @@ def _generate(functions: list[ca.Function], prefix: str) -> tuple[str, str]:
     return source.rstrip() + "\n", header.rstrip() + "\n"
 
 
-def _regressor(mechanism, model):
-    """The joint-torque regressor as an SX Function Y(q, v, a) and its parameter names."""
-    raise ModelError("export: the function 'regressor' is not available yet in this casmbd "
-                     "(the regressor module of issue 38 item 1 has not landed); export the "
-                     f"others ({', '.join(DEFAULT_FUNCTIONS)})")
+def _regressor(mechanism, actuated, friction) -> JointTorqueRegressor:
+    """The joint-torque regressor of :func:`~casmbd.analysis.identification.regressor.
+    joint_torque_regressor` (built in CasADi's VM; its ``symbolic`` Function is exported)."""
+    return joint_torque_regressor(mechanism, friction=friction, actuated=actuated, mode="vm")
 
 
 def export_c(mechanism, directory, functions: str | Sequence[str] | None = None, *,
              prefix: str | None = None, actuated: Sequence[str] | None = None,
-             cmake: bool = False, force: bool = False) -> ExportReport:
+             friction: Sequence[str] | str = (), cmake: bool = False,
+             force: bool = False) -> ExportReport:
     """Write the dynamics of ``mechanism`` as a standalone C99 library into ``directory``.
 
     Parameters
@@ -329,6 +336,9 @@ def export_c(mechanism, directory, functions: str | Sequence[str] | None = None,
         With constraint equations: the coordinates carrying the efforts of the inverse
         dynamics (as many as the degrees of freedom); default every one (least-norm
         efforts), as :func:`casmbd.compile`.
+    friction : sequence of {"viscous", "coulomb"} or str
+        Friction laws whose coefficients join the regressor's parameters π (default none;
+        :func:`~casmbd.analysis.identification.regressor.joint_torque_regressor`).
     cmake : bool
         Also write a ``CMakeLists.txt`` (a static library and the example).
     force : bool
@@ -352,7 +362,7 @@ def export_c(mechanism, directory, functions: str | Sequence[str] | None = None,
     directory = Path(directory)
     _check_directory(directory, force)
     model = compile_robot(mechanism, mode="vm", actuated=actuated)
-    regressor = _regressor(mechanism, model) if "regressor" in names else None
+    regressor = (_regressor(mechanism, actuated, friction) if "regressor" in names else None)
     fns = _build(model, names, regressor, prefix)
     source, cg_header = _generate(fns, prefix)
     sizes = {"arg": max(f.sz_arg() for f in fns), "res": max(f.sz_res() for f in fns),
@@ -373,7 +383,8 @@ def export_c(mechanism, directory, functions: str | Sequence[str] | None = None,
         sizes=sizes, parameter_names=list(model.numeric.parameter_names),
         parameter_values=[float(x) for x in np.asarray(model.p).ravel()],
         tolerance=ACCELERATION_TOLERANCE, casadi_version=ca.__version__,
-        regressor_parameters=list(regressor["names"]) if regressor else [], cmake=cmake)
+        regressor_parameters=list(regressor.names) if regressor else [],
+        regressor_rows=list(regressor.rows) if regressor else [], cmake=cmake)
     files = {f"{prefix}_model.c": source, f"{prefix}_model.h": cg_header,
              f"{prefix}.h": text.header(spec), f"{prefix}.c": text.wrapper(spec),
              "main.c": text.example(spec), "README.md": text.readme(spec)}
@@ -391,4 +402,5 @@ def export_c(mechanism, directory, functions: str | Sequence[str] | None = None,
                         coordinate_names=spec.coordinate_names,
                         velocity_names=spec.velocity_names, frame_names=spec.frame_names,
                         actuated=spec.actuated, sizes=sizes,
-                        regressor_parameters=spec.regressor_parameters)
+                        regressor_parameters=spec.regressor_parameters,
+                        regressor_rows=spec.regressor_rows)

@@ -38,6 +38,7 @@ class Spec:
     tolerance: float
     casadi_version: str
     regressor_parameters: list[str]
+    regressor_rows: list[str]
     cmake: bool = False
 
     @property
@@ -138,8 +139,11 @@ def _signatures(s: Spec) -> dict[str, tuple[str, str]]:
             "LOCAL_WORLD_ALIGNED)."),
         "regressor": (
             "const double *q, const double *v, const double *a, double *Y",
-            f"Y[NV * {P}_NPI], row-major: tau = Y(q, v, a) pi with pi the standard inertial "
-            f"and friction parameters named in {P}_regressor_parameters."),
+            f"Y[{P}_NY * {P}_NPI], row-major (Y[i * {P}_NPI + j]): the efforts of the rows "
+            f"{P}_regressor_rows are Y(q, v, a) pi, linear in the standard parameters pi "
+            f"named in {P}_regressor_parameters (per body m, m c, inertia about the body "
+            "origin; joint friction coefficients).  Independent of the model's own "
+            "parameter values."),
     }
 
 
@@ -153,7 +157,7 @@ def _outputs(s: Spec) -> dict[str, list[tuple[str, str]]]:
             "forward_kinematics": [("positions", f"{P}_NFRAMES * {d}"),
                                    ("rotations", f"{P}_NFRAMES * {d * d}")],
             "jacobian": [("J", f"{(d + s.nw)} * {P}_NV")],
-            "regressor": [("Y", f"{P}_NV * {P}_NPI")]}
+            "regressor": [("Y", f"{P}_NY * {P}_NPI")]}
 
 
 def _inputs(fname: str) -> list[str]:
@@ -242,7 +246,9 @@ def header(s: Spec) -> str:
     ]
     if "regressor" in s.functions:
         lines.append(f"#define {P}_NPI {len(s.regressor_parameters)}  "
-                     "/* regressor parameters pi */")
+                     "/* regressor parameters pi (columns of Y) */")
+        lines.append(f"#define {P}_NY {len(s.regressor_rows)}  "
+                     "/* regressor rows (efforts) */")
     if s.nc:
         lines.append(f"#define {P}_ACCELERATION_TOLERANCE {_number(s.tolerance)}  "
                      "/* relative violation of C_q a = gamma */")
@@ -287,6 +293,7 @@ def header(s: Spec) -> str:
                      "/* 1: the coordinate carries an effort */")
     if "regressor" in s.functions:
         lines.append(f"extern const char *const {P}_regressor_parameters[{P}_NPI];")
+        lines.append(f"extern const char *const {P}_regressor_rows[{P}_NY];")
     lines += [
         "",
         f"/* sizeof({P}_work), for a caller that allocates it dynamically */",
@@ -351,6 +358,8 @@ def wrapper(s: Spec) -> str:
     if "regressor" in s.functions:
         lines.append(f"const char *const {P}_regressor_parameters[{P}_NPI] = "
                      + _array([c_string(n) for n in s.regressor_parameters], 4) + ";")
+        lines.append(f"const char *const {P}_regressor_rows[{P}_NY] = "
+                     + _array([c_string(n) for n in s.regressor_rows], 3) + ";")
     lines += [
         "",
         f"size_t {P}_work_bytes(void) {{ return sizeof({P}_work); }}",
