@@ -236,6 +236,9 @@ def export_arguments(p) -> None:
     p.add_argument("--actuated", default=None,
                    help="closed chains: comma-separated coordinates carrying the efforts of "
                         "the inverse dynamics (default: every one, least-norm efforts)")
+    p.add_argument("--frames", default=None,
+                   help="jacobian: comma-separated bodies or markers whose Jacobian is "
+                        "exported (default every frame)")
     p.add_argument("--friction", default="",
                    help="regressor: comma-separated friction laws whose coefficients join "
                         "its parameters (viscous, coulomb; default none)")

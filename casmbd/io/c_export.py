@@ -193,7 +193,20 @@ def _rate_unit(name: str, coordinate_units: dict[str, str]) -> str:
     return "m/s" if name.endswith((".vx", ".vy", ".vz")) else "rad/s"
 
 
-def _build(model, functions: list[str], regressor, prefix: str) -> list[ca.Function]:
+def _jacobian_frames(model, frames: Sequence[str] | str | None) -> list[int]:
+    """Indices (in ``model.frame_names``) of the frames whose Jacobian is exported."""
+    if frames is None:
+        return list(range(len(model.frame_names)))
+    names = [frames] if isinstance(frames, str) else list(frames)
+    for name in names:
+        if name not in model.frame_names:
+            raise ModelError(f"export: unknown frame '{name}' for the Jacobian (bodies and "
+                             f"markers: {', '.join(model.frame_names)})")
+    return sorted({model.frame_names.index(n) for n in names})
+
+
+def _build(model, functions: list[str], regressor, prefix: str,
+           jacobian_frames: list[int]) -> list[ca.Function]:
     """The export Functions ``PREFIX_cg_*`` (one per frame for the Jacobians)."""
     num, p = model.numeric, np.asarray(model.p, dtype=float)
     get = num.function
@@ -228,7 +241,7 @@ def _build(model, functions: list[str], regressor, prefix: str) -> list[ca.Funct
         out.append(_function(cg + "forward_kinematics", [q], [pos, rot], ["q"],
                              ["positions", "rotations"]))
     if "jacobian" in functions:
-        for k in range(len(model.frame_names)):
+        for k in jacobian_frames:
             (q,), (jac,) = _folded(get(f"robot_jacobian_{k}"), p)  # Jᵀ column-major
             out.append(_function(f"{cg}jacobian_{k}", [q], [jac], ["q"], ["J"]))
     if "regressor" in functions:
@@ -315,8 +328,8 @@ def _regressor(mechanism, actuated, friction) -> JointTorqueRegressor:
 
 def export_c(mechanism, directory, functions: str | Sequence[str] | None = None, *,
              prefix: str | None = None, actuated: Sequence[str] | None = None,
-             friction: Sequence[str] | str = (), cmake: bool = False,
-             force: bool = False) -> ExportReport:
+             friction: Sequence[str] | str = (), frames: Sequence[str] | None = None,
+             cmake: bool = False, force: bool = False) -> ExportReport:
     """Write the dynamics of ``mechanism`` as a standalone C99 library into ``directory``.
 
     Parameters
@@ -339,6 +352,9 @@ def export_c(mechanism, directory, functions: str | Sequence[str] | None = None,
     friction : sequence of {"viscous", "coulomb"} or str
         Friction laws whose coefficients join the regressor's parameters π (default none;
         :func:`~casmbd.analysis.identification.regressor.joint_torque_regressor`).
+    frames : sequence of str, optional
+        The frames (bodies, markers) whose Jacobian is exported (default every one); the
+        others' index gives ``PREFIX_ERR_ARGUMENT``.
     cmake : bool
         Also write a ``CMakeLists.txt`` (a static library and the example).
     force : bool
@@ -362,8 +378,9 @@ def export_c(mechanism, directory, functions: str | Sequence[str] | None = None,
     directory = Path(directory)
     _check_directory(directory, force)
     model = compile_robot(mechanism, mode="vm", actuated=actuated)
+    jac_frames = _jacobian_frames(model, frames)
     regressor = (_regressor(mechanism, actuated, friction) if "regressor" in names else None)
-    fns = _build(model, names, regressor, prefix)
+    fns = _build(model, names, regressor, prefix, jac_frames)
     source, cg_header = _generate(fns, prefix)
     sizes = {"arg": max(f.sz_arg() for f in fns), "res": max(f.sz_res() for f in fns),
              "iw": max(f.sz_iw() for f in fns), "w": max(f.sz_w() for f in fns)}
@@ -384,7 +401,8 @@ def export_c(mechanism, directory, functions: str | Sequence[str] | None = None,
         parameter_values=[float(x) for x in np.asarray(model.p).ravel()],
         tolerance=ACCELERATION_TOLERANCE, casadi_version=ca.__version__,
         regressor_parameters=list(regressor.names) if regressor else [],
-        regressor_rows=list(regressor.rows) if regressor else [], cmake=cmake)
+        regressor_rows=list(regressor.rows) if regressor else [],
+        jacobian_frames=jac_frames, cmake=cmake)
     files = {f"{prefix}_model.c": source, f"{prefix}_model.h": cg_header,
              f"{prefix}.h": text.header(spec), f"{prefix}.c": text.wrapper(spec),
              "main.c": text.example(spec), "README.md": text.readme(spec)}

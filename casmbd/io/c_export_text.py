@@ -39,6 +39,7 @@ class Spec:
     casadi_version: str
     regressor_parameters: list[str]
     regressor_rows: list[str]
+    jacobian_frames: list[int]
     cmake: bool = False
 
     @property
@@ -134,7 +135,12 @@ def _signatures(s: Spec) -> dict[str, tuple[str, str]]:
         "jacobian": (
             "const double *q, int frame, double *J",
             f"J[{s.dimension + s.nw} * NV] of frame `frame` (0 <= frame < NFRAMES, "
-            f"{P}_frame_index), row-major: (rdot, omega) = J v, rows the linear velocity of "
+            f"{P}_frame_index"
+            + ("" if len(s.jacobian_frames) == len(s.frame_names) else
+               "; exported for " + ", ".join(comment(s.frame_names[k])
+                                             for k in s.jacobian_frames)
+               + " only, another frame returns ERR_ARGUMENT")
+            + "), row-major: (rdot, omega) = J v, rows the linear velocity of "
             "the frame's origin then the angular velocity, global components (Pinocchio's "
             "LOCAL_WORLD_ALIGNED)."),
         "regressor": (
@@ -394,7 +400,8 @@ def wrapper(s: Spec) -> str:
         "}",
     ]
     if "jacobian" in s.functions:
-        kernels = [f"{P}_cg_jacobian_{k}" for k in range(len(s.frame_names))]
+        kernels = [f"{P}_cg_jacobian_{k}" if k in s.jacobian_frames else "NULL"
+                   for k in range(len(s.frame_names))]
         lines += [
             "",
             f"typedef int (*{P}_kernel)(const double **, double **, long long *, double *, "
@@ -414,7 +421,8 @@ def wrapper(s: Spec) -> str:
             f"    return {P}_ERR_ARGUMENT;",
         ]
         if fname == "jacobian":
-            body += [f"  if (frame < 0 || frame >= {P}_NFRAMES) return {P}_ERR_ARGUMENT;"]
+            body += [f"  if (frame < 0 || frame >= {P}_NFRAMES || {P}_jacobians[frame] == NULL)",
+                     f"    return {P}_ERR_ARGUMENT;"]
         body += [f"  w->arg[{k}] = {x};" for k, x in enumerate(ins)]
         body += [f"  w->res[{k}] = {r};" for k, (r, _) in enumerate(res)]
         constrained = fname == "inverse_dynamics" and s.nc > 0
@@ -461,7 +469,8 @@ def example(s: Spec) -> str:
         lines.append(f"  double {x}[{P}_NV] = {{0.0}};")
     for r, n in outs:
         lines.append(f"  static double {r}[{n}];")
-    call_args = [f"{P}_initial_q"] + ins[1:] + (["0"] if fname == "jacobian" else []) \
+    frame = [str(s.jacobian_frames[0])] if fname == "jacobian" else []
+    call_args = [f"{P}_initial_q"] + ins[1:] + frame \
         + [r for r, _ in outs] + ["&work"]
     lines += [
         "  int k, rc;",

@@ -271,6 +271,33 @@ def test_generated_code_is_self_contained_and_has_no_writable_globals(ur):
     assert not kinds & set("BbDdCGgSs"), [s for s in symbols if s.split()[-2] in "BbDdCGgSs"]
 
 
+@needs_cc
+def test_jacobian_of_named_frames(ur, tmp_path):
+    """``frames=``: the Jacobians of the named frames only, equal to the Python API's
+    (1e-13); another frame's index returns ERR_ARGUMENT; main.c
+    of a Jacobian-only export prints the first exported frame's J."""
+    mech, _, model, _ = ur
+    report = export_c(mech, tmp_path / "j", functions="jacobian", prefix="arm",
+                      frames=["wrist_3", "upper_arm"])
+    lib = Library(tmp_path / "j", "arm", 6, 3)
+    q = np.random.default_rng(3).uniform(-2.0, 2.0, 6)
+    for k, frame in enumerate(report.frame_names):
+        rc, (jac,) = lib.call("jacobian", q, outs=[36], extra=[ctypes.c_int(k)])
+        if frame in ("wrist_3", "upper_arm"):
+            assert rc == 0 and _rel(jac.reshape(6, 6), model.jacobian(q, frame)) <= TOL
+        else:
+            assert rc == 1
+    subprocess.run([CC, *CFLAGS, "main.c", "arm.c", "arm_model.c", "-lm", "-o", "example"],
+                   cwd=tmp_path / "j", check=True, capture_output=True, text=True)
+    out = subprocess.run([str(tmp_path / "j" / "example")], check=True, capture_output=True,
+                         text=True).stdout.split()
+    jac0 = np.array([float(x) for x in out[2::3]])
+    q0 = np.zeros(6)
+    assert _rel(jac0.reshape(6, 6), model.jacobian(q0, "upper_arm")) <= TOL
+    with pytest.raises(ModelError, match="unknown frame 'tool0'"):
+        export_c(mech, tmp_path / "k", functions="jacobian", frames=["tool0"])
+
+
 def test_export_is_byte_identical_and_order_free(tmp_path):
     """Two exports of the same scene (the functions listed in another order) give the same
     bytes in every file."""
