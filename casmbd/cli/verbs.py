@@ -218,6 +218,36 @@ def bench_arguments(p) -> None:
     add_output_flags(p)
 
 
+def export_arguments(p) -> None:
+    """``export``: the dynamics as standalone C99 (casmbd.cli.export, docs/export.md)."""
+    p.add_argument("scene", help="scene file (TOML) or robot (.urdf, .xml)")
+    p.add_argument("--floating-base", action="store_true",
+                   help="a bare .urdf: its root link floats free (as [scene] "
+                        "floating_base = true)")
+    p.add_argument("--c", required=True, metavar="DIR",
+                   help="output directory of the C files (created; must be empty unless "
+                        "--force)")
+    p.add_argument("--functions", default=None,
+                   help="comma-separated: inverse_dynamics, forward_dynamics, mass_matrix, "
+                        "bias_forces, forward_kinematics, jacobian, regressor (default: all "
+                        "but regressor)")
+    p.add_argument("--prefix", default=None,
+                   help="C prefix of the public symbols and files (default: the scene's name)")
+    p.add_argument("--actuated", default=None,
+                   help="closed chains: comma-separated coordinates carrying the efforts of "
+                        "the inverse dynamics (default: every one, least-norm efforts)")
+    p.add_argument("--frames", default=None,
+                   help="jacobian: comma-separated bodies or markers whose Jacobian is "
+                        "exported (default every frame)")
+    p.add_argument("--friction", default="",
+                   help="regressor: comma-separated friction laws whose coefficients join "
+                        "its parameters (viscous, coulomb; default none)")
+    p.add_argument("--cmake", action="store_true", help="also write a CMakeLists.txt")
+    p.add_argument("--force", action="store_true",
+                   help="overwrite the files of a non-empty directory")
+    add_output_flags(p)
+
+
 def view_arguments(p) -> None:
     """``view``: 3-D view in the browser (casmbd.cli.view; needs casmbd[view])."""
     p.add_argument("source", help="scene file (TOML/URDF: the initial pose), result file or "

@@ -33,6 +33,7 @@ def test_every_verb_is_covered():
     """A new verb must be added to this file."""
     covered = {"info", "kinematics", "inverse", "statics", "linearize", "simulate", "ocp",
                "plot", "animate", "sweep", "sensitivity", "bench",
+               "export",  # export: tests/io/test_c_export.py
                "view"}  # view: tests/viz/test_view_cli.py and tests/viz/test_view_browser.py
     assert set(cli.VERBS) == covered
 
