@@ -13,12 +13,14 @@ identified feedforward in a 1 kHz C control loop (issue 38, item 5).
    estimated from motor currents); only q and τ are written to ``MEASURED.csv`` (columns
    ``t, q.<coordinate>, tau.<coordinate>``).
 3. **Identification.**  ``casmbd identify examples/ur5_arm.urdf --data MEASURED.csv --friction
-   viscous,coulomb --cutoff 20 --decimate 10`` (the Python API when the verb is absent): q and τ
-   are low-passed alike (zero-phase Butterworth, 20 Hz), q is differentiated twice, and every
+   viscous,coulomb --cutoff 20 --decimate 10 --out ur5_identified.urdf``: q and τ are
+   low-passed alike (zero-phase Butterworth, 20 Hz), q is differentiated twice, samples near
+   velocity reversals are left out (the regularised Coulomb law is steep there), and every
    10th sample is kept (50 Hz: the residuals of neighbouring samples are then nearly
    uncorrelated, which the reported σ assumes); weighted least squares of the base parameters
-   with their standard deviations.  The identified base parameters are compared
-   with the truth π_b = K π_true, in units of the reported σ.
+   with their standard deviations, then physically consistent standard parameters written
+   into the identified URDF.  The identified base parameters are compared with the truth
+   π_b = K π_true, in units of the reported σ.
 4. **Validation.**  A different (random, feasible) Fourier trajectory: the torques predicted by
    the identified base parameters, Y_b(q, q̇, q̈) π̂_b, against the true ones.
 5. **C feedforward.**  The identified model (physically consistent standard parameters and
@@ -44,10 +46,10 @@ import numpy as np
 
 import casmbd
 from casmbd.analysis.identification.parameters import parameter_vector, standard_parameters
+from casmbd.io.scene import load_scene
 from casmbd.io.urdf import load_urdf
 from casmbd.ocp.excitation import (
     FourierTrajectory,
-    condition_number,
     excitation_for,
     random_feasible,
 )
@@ -111,50 +113,16 @@ def measure(traj: FourierTrajectory, coordinates: list[str], out: pathlib.Path,
 
 
 def identify(path: pathlib.Path, out: pathlib.Path) -> dict:
-    """Step 3: ``casmbd identify`` (its JSON summary), or the Python API without the verb."""
-    from casmbd.cli.registry import VERBS  # noqa: F401  (the registry completes on import)
-    import casmbd.cli as cli
-    scene_out = out / "ur5_identified.urdf"
-    if "identify" in cli.VERBS:
-        cmd = [sys.executable, "-m", "casmbd", "identify", str(URDF), "--data", str(path),
-               "--friction", ",".join(FRICTION), "--cutoff", str(CUTOFF), "--decimate", str(DECIMATE), "--out",
-               str(scene_out), "--json"]
-        done = subprocess.run(cmd, capture_output=True, text=True, check=False)
-        if done.returncode != 0:
-            raise RuntimeError(f"casmbd identify failed ({done.returncode}): {done.stderr}")
-        summary = json.loads(done.stdout)
-        summary["how"] = " ".join(["casmbd"] + cmd[3:])
-        return summary
-    from casmbd.io.measurements import read_measurements
-    mech = load_urdf(URDF)
-    coords = casmbd.compile(mech, mode="vm").coordinate_names
-    meas = read_measurements(path, coords)
-    try:
-        from casmbd.analysis.identification.identify import identify as identify_api
-    except ImportError:  # before h-identify's verb: the same chain from its pieces
-        return _identify_pieces(mech, meas)
-    result = identify_api(mech, meas, FRICTION, cutoff=CUTOFF, decimate=DECIMATE)
-    summary = result.summary()
-    summary["how"] = "casmbd.analysis.identification.identify.identify (Python API)"
+    """Step 3: ``casmbd identify`` (its JSON summary); it also writes the identified URDF."""
+    cmd = [sys.executable, "-m", "casmbd", "identify", str(URDF), "--data", str(path),
+           "--friction", ",".join(FRICTION), "--cutoff", str(CUTOFF), "--decimate",
+           str(DECIMATE), "--out", str(out / "ur5_identified.urdf"), "--json"]
+    done = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    if done.returncode != 0:
+        raise RuntimeError(f"casmbd identify failed ({done.returncode}): {done.stderr}")
+    summary = json.loads(done.stdout)
+    summary["how"] = " ".join(["casmbd", *cmd[3:]])
     return summary
-
-
-def _identify_pieces(mech, meas) -> dict:
-    """Filter and differentiate, base regressor, weighted least squares (no consistent
-    parameters)."""
-    from casmbd.analysis.identification.base_parameters import base_parameters
-    from casmbd.analysis.identification.estimate import least_squares
-    from casmbd.analysis.identification.measurements import prepare
-    from casmbd.analysis.identification.regressor import joint_torque_regressor
-    reg = joint_torque_regressor(mech, FRICTION)
-    base = base_parameters(reg)
-    t, q, v, a, tau = prepare(meas, cutoff=CUTOFF, decimate=DECIMATE)
-    y_b = base.regressor(reg.stacked(q, v, a).reshape(len(t), reg.nq, -1))
-    est = least_squares(y_b, tau, base.names, list(reg.rows))
-    return {"how": "prepare + base_parameters + least_squares (Python pieces)",
-            "condition_number": est.condition_number,
-            "base_parameters": [{"name": n, "value": float(x), "std": float(s)}
-                                for n, x, s in zip(est.names, est.values, est.std, strict=True)]}
 
 
 def run(out: str | os.PathLike | None = None, quick: bool = False,
@@ -184,6 +152,7 @@ def run(out: str | os.PathLike | None = None, quick: bool = False,
     t_val = np.arange(int(PERIOD * LOOP_RATE)) / LOOP_RATE
     qv, vv, av = other.evaluate(t_val)
     tau_true = casmbd.compile(true_arm()).inverse_dynamics_batch(qv, vv, av)
+    tau_measured = tau_true + NOISE_TAU * rng.standard_normal(tau_true.shape)
     yb = np.array(base.symbolic.map(len(t_val))(qv.T, vv.T, av.T)).reshape(6, len(t_val), -1)
     tau_pred = np.einsum("jkp,p->kj", yb, estimate)
     err = tau_pred - tau_true
@@ -198,10 +167,14 @@ def run(out: str | os.PathLike | None = None, quick: bool = False,
         "validation_rms_torque": rms_true,
         "validation_relative": float(np.sqrt(np.mean(err ** 2)) / np.sqrt(np.mean(tau_true ** 2))),
         "excitation": traj, "validation": other, "t_val": t_val, "tau_true": tau_true,
-        "tau_pred": tau_pred, "clean": clean, "summary": summary,
+        "tau_measured": tau_measured, "tau_pred": tau_pred, "clean": clean, "summary": summary,
     }
     if control_loop:
-        result.update(c_feedforward(out, summary, qv, vv, av))
+        result.update(c_feedforward(out, other, t_val))
+        if "tau_consistent" in result:
+            gap = result["tau_consistent"] - tau_true
+            result["validation_consistent_relative"] = float(
+                np.sqrt(np.mean(gap ** 2)) / np.sqrt(np.mean(tau_true ** 2)))
     if figures:
         plot(result, pathlib.Path(figures))
     return result
@@ -216,43 +189,53 @@ def design_limits() -> dict:
             "acceleration": ACCELERATION}
 
 
-def c_feedforward(out: pathlib.Path, summary: dict, q, v, a) -> dict:
-    """Step 5: export the identified model's inverse dynamics as C, compile control_loop.c
-    with it and run the 1 kHz loop over the validation trajectory."""
+def c_feedforward(out: pathlib.Path, traj: FourierTrajectory, t: np.ndarray) -> dict:
+    """Step 5: export the identified model's inverse dynamics as C (``casmbd export``),
+    compile control_loop.c with it and run the 1 kHz loop over the validation trajectory
+    ``traj`` at the instants ``t``, against the Python API's torques."""
     urdf = out / "ur5_identified.urdf"
     if not urdf.exists():
         return {"c_loop": "skipped: no identified URDF was written"}
-    mech = load_urdf(urdf, damping=True, friction=True)
-    model = casmbd.compile(mech)
-    tau_py = model.inverse_dynamics_batch(q, v, a)
+    scene = out / "identified.toml"  # the URDF with its <dynamics> applied as joint friction
+    scene.write_text('[scene]\nname = "ur5_identified"\nurdf = "ur5_identified.urdf"\n'
+                     "damping = true\nfriction = true\n")
     cdir = out / "c"
     if cdir.exists():
         shutil.rmtree(cdir)
-    cmd = [sys.executable, "-m", "casmbd", "export", str(urdf), "--c", str(cdir),
-           "--functions", "inverse_dynamics", "--json"]
+    cmd = [sys.executable, "-m", "casmbd", "export", str(scene), "--c", str(cdir),
+           "--functions", "inverse_dynamics", "--prefix", "ur5", "--json"]
     done = subprocess.run(cmd, capture_output=True, text=True, check=False)
     if done.returncode != 0:
-        return {"c_loop": f"skipped: casmbd export failed: {done.stderr.strip()[-300:]}"}
-    report = json.loads(done.stdout)
-    prefix = report.get("prefix", "model")
-    traj = out / "trajectory.csv"
-    np.savetxt(traj, np.column_stack([q, v, a, tau_py]), delimiter=",", fmt="%.17g")
+        raise RuntimeError(f"casmbd export failed: {done.stderr.strip()[-500:]}")
+    q, v, a = traj.evaluate(t)
+    tau_py = casmbd.compile(load_scene(scene)).inverse_dynamics_batch(q, v, a)
+    coefficients = out / "trajectory.txt"
+    with open(coefficients, "w") as f:
+        f.write(f"{traj.period!r} {traj.a.shape[0]} {traj.harmonics}\n")
+        for block in (traj.q0, traj.a.ravel(), traj.b.ravel()):
+            f.write(" ".join(repr(float(x)) for x in block) + "\n")
+    reference = out / "reference.csv"
+    np.savetxt(reference, tau_py, delimiter=" ", fmt="%.17g")
     exe = out / "control_loop"
-    sources = [str(HERE / "control_loop.c")] + sorted(
-        str(p) for p in cdir.glob("*.c") if p.name != "main.c")
-    cc = shutil.which("cc") or "cc"
-    build = subprocess.run([cc, "-std=c99", "-O2", f"-I{cdir}", f"-DMODEL_HEADER=\"{prefix}.h\"",
-                            f"-DPREFIX={prefix}", *sources, "-o", str(exe), "-lm"],
+    cc = shutil.which("cc")
+    if cc is None:
+        return {"c_loop": "skipped: no C compiler 'cc' on PATH"}
+    build = subprocess.run([cc, "-std=c99", "-O2", "-Wall", "-Wextra", "-pedantic",
+                            f"-I{cdir}", str(HERE / "control_loop.c"), str(cdir / "ur5.c"),
+                            str(cdir / "ur5_model.c"), "-o", str(exe), "-lm"],
                            capture_output=True, text=True, check=False)
     if build.returncode != 0:
-        return {"c_loop": f"skipped: cc failed: {build.stderr.strip()[-500:]}"}
-    ran = subprocess.run([str(exe), str(traj)], capture_output=True, text=True, check=False)
+        raise RuntimeError(f"cc failed: {build.stderr.strip()[-800:]}")
+    ran = subprocess.run([str(exe), str(coefficients), str(reference)], capture_output=True,
+                         text=True, check=False)
     if ran.returncode != 0:
         raise RuntimeError(f"control_loop failed ({ran.returncode}): {ran.stderr}")
-    found = dict(line.split("=", 1) for line in ran.stdout.split() if "=" in line)
+    found = dict(item.split("=", 1) for item in ran.stdout.split() if "=" in item)
     return {"c_loop": "ran", "c_steps": int(found["steps"]),
             "c_max_torque_difference": float(found["max_torque_difference"]),
-            "c_stdout": ran.stdout}
+            "c_max_torque": float(found["max_torque"]), "c_stdout": ran.stdout.strip(),
+            "tau_consistent": tau_py,
+            "c_build_warnings": build.stderr.strip()}
 
 
 def plot(result: dict, figures: pathlib.Path) -> None:
@@ -272,10 +255,10 @@ def plot(result: dict, figures: pathlib.Path) -> None:
     ax[0].set_ylabel("q [rad]")
     ax[1].set_ylabel("q̇ [rad/s]")
     ax[1].set_xlabel("t [s]")
-    ax[0].legend(ncol=6, fontsize=8, loc="upper center")
-    ax[0].set_title(f"Optimised excitation (T = {traj.period:g} s, {traj.harmonics} harmonics): "
+    ax[0].legend(ncol=6, fontsize=8, loc="lower center", bbox_to_anchor=(0.5, 1.08))
+    fig.suptitle(f"Optimised excitation (T = {traj.period:g} s, {traj.harmonics} harmonics): "
                     f"κ = {result['condition']:.0f} (random feasible: "
-                    f"{result['condition_random']:.0f})", fontsize=10)
+                 f"{result['condition_random']:.0f})", fontsize=10)
     fig.tight_layout()
     fig.savefig(figures / "identification_excitation.png", dpi=110)
     plt.close(fig)
@@ -283,13 +266,14 @@ def plot(result: dict, figures: pathlib.Path) -> None:
     fig, ax = plt.subplots(3, 2, figsize=(9, 6.5), sharex=True)
     for j in range(6):
         axis = ax[j % 3, j // 3]
-        axis.plot(tv, tau_true[:, j], "k-", lw=1.0, label="true")
+        axis.plot(tv, result["tau_measured"][:, j], color="0.7", lw=0.6, label="measured")
+        axis.plot(tv, tau_true[:, j], "k-", lw=0.8, label="true")
         axis.plot(tv, tau_pred[:, j], "r--", lw=1.0, label="identified")
         axis.set_ylabel(f"τ {labels[j]} [N m]", fontsize=8)
     ax[0, 0].legend(fontsize=8)
     ax[2, 0].set_xlabel("t [s]")
     ax[2, 1].set_xlabel("t [s]")
-    fig.suptitle(f"Validation trajectory: true vs predicted torques (relative RMS error "
+    fig.suptitle(f"Validation trajectory: measured, true and predicted torques (relative RMS error "
                  f"{100 * result['validation_relative']:.2f} %)", fontsize=10)
     fig.tight_layout()
     fig.savefig(figures / "identification_validation.png", dpi=110)
@@ -298,14 +282,17 @@ def plot(result: dict, figures: pathlib.Path) -> None:
 
 def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", default=None, help="output directory (default: a temporary one)")
+    parser.add_argument("--out", default=None,
+                        help="output directory (default: a temporary one)")
     parser.add_argument("--quick", action="store_true", help="fewer design iterations")
     parser.add_argument("--figures", default=None, help="write the figures into this folder")
     args = parser.parse_args(argv)
     r = run(args.out, args.quick, args.figures)
     print(f"output: {r['out']}")
-    print(f"excitation: κ = {r['condition']:.1f} (random feasible start {r['condition_random']:.1f})")
-    print(f"identified with: {r['how']}; κ of the measured regressor {r['identification_condition']:.1f}")
+    print(f"excitation: κ = {r['condition']:.1f} (random feasible start "
+          f"{r['condition_random']:.1f})")
+    print(f"identified with: {r['how']}")
+    print(f"κ of the measured base regressor {r['identification_condition']:.1f}")
     print(f"{'base parameter':28s} {'true':>12s} {'identified':>12s} {'σ':>10s} {'z':>6s}")
     for n, tr, est, s, z in zip(r["base_names"], r["truth"], r["estimate"], r["std"], r["z"],
                                 strict=True):
@@ -317,7 +304,9 @@ def main(argv=None) -> None:
     print(f"C control loop: {r['c_loop']}")
     if r.get("c_loop") == "ran":
         print(f"  {r['c_steps']} steps at {LOOP_RATE:g} Hz, max |τ_C − τ_Python| = "
-              f"{r['c_max_torque_difference']:.3g} N m")
+              f"{r['c_max_torque_difference']:.3g} N m (max |τ| {r['c_max_torque']:.4g} N m)")
+        print(f"  the exported (physically consistent) model against the true torques: "
+              f"{100 * r['validation_consistent_relative']:.3f} % relative RMS")
 
 
 if __name__ == "__main__":
