@@ -83,6 +83,10 @@ register_verb("identify", _verb("identify", "_cmd_identify"),
                    "joint data (base parameters by weighted least squares, then physically "
                    "consistent ones)",
               add_arguments=verbs.identify_arguments)
+register_verb("excite", _verb("excite", "_cmd_excite"),
+              help="excitation trajectory for identification: periodic Fourier series "
+                   "minimising the condition number of the base regressor under joint limits",
+              add_arguments=verbs.excite_arguments)
 register_verb("ocp", _verb("optimal", "_cmd_ocp"),
               help="trajectory optimisation: the scene's [ocp] table",
               add_arguments=verbs.ocp_arguments)

@@ -275,6 +275,30 @@ def _port(text: str) -> int:
     return port
 
 
+def excite_arguments(p) -> None:
+    """``excite``: the excitation design's period, limits, size and ``--out``."""
+    p.add_argument("--period", type=positive_float, required=True,
+                   help="period T of the Fourier series [s]")
+    p.add_argument("--acceleration", type=positive_float, required=True,
+                   help="joint acceleration limit [rad/s² or m/s²] (URDF has none)")
+    p.add_argument("--harmonics", type=positive_int, default=5,
+                   help="harmonics per joint (default 5)")
+    p.add_argument("--samples", type=positive_int, default=60,
+                   help="regressor samples per period in the objective (default 60)")
+    p.add_argument("--friction", default="viscous,coulomb",
+                   help="friction laws whose coefficients join the regressor: viscous, "
+                        "coulomb, both comma-separated (default) or none")
+    p.add_argument("--torque-limits", action="store_true",
+                   help="also |tau| <= the URDF effort limits at the model's parameters")
+    p.add_argument("--max-iter", type=positive_int, default=300,
+                   help="IPOPT iterations (default 300)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the random feasible start (default 0)")
+    p.add_argument("--rate", type=positive_float, default=100.0,
+                   help="sampling rate of --out [Hz] (default 100)")
+    p.add_argument("--out", help="write one period as CSV: t, q.<coordinate>, v.…, a.…")
+
+
 def identify_arguments(p) -> None:
     """``identify``: the measurement file, friction laws, filter, estimator and ``--out``."""
     p.add_argument("--data", required=True,

@@ -335,6 +335,8 @@ class ExcitationDesign:
     iterations: int
     objective: float
     stats: dict = field(default_factory=dict, repr=False)
+    #: the coordinate names of the joints, in order (set by :func:`excitation_for`)
+    coordinates: list[str] = field(default_factory=list)
 
 
 def design_excitation(regressor: ca.Function, *, period: float, harmonics: int = 5,
@@ -530,4 +532,5 @@ def excitation_for(mechanism, *, period: float, acceleration, friction=("viscous
                                upper=given(upper, "upper"),
                                velocity=given(velocity, "velocity"), acceleration=acceleration,
                                torque=torque, columns=np.arange(base.rank), **options)
+    design.coordinates = list(reg.coordinate_names)
     return design, base
