@@ -32,7 +32,7 @@ def run_json(capsys, *argv: str) -> dict:
 def test_every_verb_is_covered():
     """A new verb must be added to this file."""
     covered = {"info", "kinematics", "inverse", "statics", "linearize", "simulate", "ocp",
-               "plot", "animate", "sweep", "sensitivity", "bench",
+               "plot", "animate", "sweep", "sensitivity", "bench", "identify",
                "view"}  # view: tests/viz/test_view_cli.py and tests/viz/test_view_browser.py
     assert set(cli.VERBS) == covered
 
