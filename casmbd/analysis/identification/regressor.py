@@ -35,8 +35,10 @@ wrench on it (force, moment about its reference point, in its own axes), as Pino
 the inverse dynamics with multipliers, as :func:`casmbd.analysis.driven.inverse.
 inverse_dynamics` and :meth:`casmbd.compiled.robot.CompiledModel.inverse_dynamics`.  With
 the efforts τ_a along the actuation directions B (a driver's row of C_q: the driver efforts
-−λ_d of ``inverse_dynamics``; or unit columns of the *actuated* coordinates of the per-call
-API) and the multipliers λ of the other rows,
+−λ_d of ``inverse_dynamics``; with drivers *and* actuators the actuators' B = ∂Q_e/∂u, the
+actuator efforts of ``inverse_dynamics``' mixed case, the drivers only describing the motion;
+or unit columns of the *actuated* coordinates of the per-call API) and the multipliers λ of
+the other rows,
 
     [B  −C_qᵀ] [τ_a; λ] = f(q, v, a; π),
 
@@ -52,28 +54,32 @@ linear in π and are refused, naming the element.
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
 
 from casmbd.analysis.identification.parameters import (
     StandardParameters,
+    check_linear_friction,
     default_friction_joints,
     standard_parameters,
 )
+from casmbd.compiled.buffered import BufferedFunction
 from casmbd.compiled.build import compile_blocks
 from casmbd.compiled.free_flyer import VelocityMap, is_normalization
-from casmbd.errors import ModelError
+from casmbd.errors import ModelError, SingularConfigurationError
+from casmbd.interrupts import reraise_interrupt
 from casmbd.model.joint_friction import JointFriction
 from casmbd.system.equations import System
 
 __all__ = ["BATCH_CHUNK", "JointTorqueRegressor", "joint_torque_regressor"]
 
 #: samples per call of the compiled batch Function (``Function.map`` over a fixed number of
-#: columns); N samples make ⌈N / BATCH_CHUNK⌉ calls, the last one padded with zeros
+#: columns); N samples make ⌈N / BATCH_CHUNK⌉ calls, the last one padded with its last state
 BATCH_CHUNK = 32
 
 
@@ -86,13 +92,16 @@ class JointTorqueRegressor:
     parameters : StandardParameters
         π: names, nominal values, frames, friction coordinates.
     rows : list of str
-        What each row of Y is: the driver names (efforts −λ_d) when the mechanism has
-        drivers, else the actuated coordinates (velocity names of the per-call API).
+        What each row of Y is: with drivers, the actuator names when the mechanism has
+        actuators (their efforts u, the mixed case of ``inverse_dynamics``), else the driver
+        names (efforts −λ_d); without drivers, the actuated coordinates (velocity names of
+        the per-call API; actuators are then ignored, u = 0, as :func:`casmbd.compile`).
     function : casadi.Function
         ``regressor(q, v, a) -> Y`` (n_rows × n_π), compiled (or CasADi's VM).
     batch : casadi.Function
         ``regressor_batch``: ``function`` mapped over :data:`BATCH_CHUNK` columns (q, v, a
-        of shape n × BATCH_CHUNK, Y horizontally stacked).
+        of shape n × BATCH_CHUNK, Y horizontally stacked; :meth:`stacked` pads the last
+        chunk with its last state, since q = 0 is no pose of a body with Euler parameters).
     symbolic : casadi.Function
         The same Y before compilation, for embedding in other expressions (an OCP, the C
         export).
@@ -121,6 +130,13 @@ class JointTorqueRegressor:
     kinematics: ca.Function | None = None
     initial_coordinates: np.ndarray | None = None
     floating_blocks: list[int] | None = None
+    _calls: dict = field(default_factory=dict, init=False, repr=False)
+
+    def _call(self, which: str) -> BufferedFunction:
+        """The compiled Function bound to NumPy buffers (no CasADi conversion per call)."""
+        if which not in self._calls:
+            self._calls[which] = BufferedFunction(getattr(self, which))
+        return self._calls[which]
 
     @property
     def names(self) -> list[str]:
@@ -136,9 +152,35 @@ class JointTorqueRegressor:
 
     def __call__(self, q, v, a) -> np.ndarray:
         """Y at one state, shape (n_rows, n_π)."""
-        q = self._check(q, self.nq, "q")
-        v, a = self._check(v, self.nv, "v"), self._check(a, self.nv, "a")
-        return np.asarray(self.function(q, v, a), float).reshape(len(self.rows), -1)
+        call = self._call("function")
+        try:  # the buffers' shapes check the lengths; finiteness is checked on Y
+            if len(q) != self.nq or len(v) != self.nv or len(a) != self.nv:
+                raise ValueError
+            y = self._evaluate(call, q, v, a)
+        except (ValueError, TypeError):
+            y = None
+        if y is None or not math.isfinite(float(y.sum())):
+            self._check(q, self.nq, "q")  # name a bad argument, else the singular state
+            self._check(v, self.nv, "v")
+            self._check(a, self.nv, "a")
+            y = self._finite(self._evaluate(call, q, v, a), "this state")
+        return y.reshape((len(self.rows), -1), order="F")
+
+    def _evaluate(self, function: BufferedFunction, *args) -> np.ndarray:
+        try:
+            return function(*args)
+        except RuntimeError as exc:  # CasADi's linear solver at a singular configuration
+            reraise_interrupt(exc)
+            raise SingularConfigurationError(
+                "regressor: the effort system [B −C_qᵀ] is singular at this configuration "
+                f"(efforts {', '.join(self.rows)})") from None
+
+    def _finite(self, y: np.ndarray, where: str) -> np.ndarray:
+        if not np.all(np.isfinite(y)):
+            raise SingularConfigurationError(
+                f"regressor: Y is not finite at {where}: the effort system [B −C_qᵀ] is "
+                f"singular there (efforts {', '.join(self.rows)})")
+        return y
 
     def torques(self, q, v, a, pi=None) -> np.ndarray:
         """τ = Y(q, v, a) π (default the nominal π)."""
@@ -147,7 +189,8 @@ class JointTorqueRegressor:
 
     def stacked(self, Q, V, A) -> np.ndarray:
         """Y at N states stacked by rows, shape (N · n_rows, n_π): rows k n_rows … (k + 1)
-        n_rows − 1 are state k (the compiled batch, no Python loop per sample)."""
+        n_rows − 1 are state k (the compiled batch, no Python loop per sample; a failed
+        evaluation — a singular constraint system at some state — is a CasADi error)."""
         mats = [np.asarray(x, dtype=float) for x in (Q, V, A)]
         n = mats[0].shape[0] if mats[0].ndim == 2 else -1
         widths = (self.nq, self.nv, self.nv)
@@ -163,7 +206,10 @@ class JointTorqueRegressor:
             args = [np.zeros((w, c)) for w in widths]
             for arg, x in zip(args, mats, strict=True):
                 arg[:, :m] = x[start:start + m].T
-            y = np.asarray(self.batch(*args), float)  # nr × (c · npi), state blocks
+                arg[:, m:] = x[start + m - 1][:, None]  # padded with a valid state
+            y = self._finite(self._evaluate(self._call("batch"), *args),
+                             f"a state of {start} … {start + m - 1}")
+            y = y.reshape((nr, c * npi), order="F")  # state blocks of npi columns
             out[start:start + m] = y.reshape(nr, c, npi).transpose(1, 0, 2)[:m]
         return out.reshape(n * nr, npi)
 
@@ -177,6 +223,7 @@ def _refuse_nonlinear_forces(mech, params: StandardParameters) -> None:
                 f"force '{force.name}' ({force.kind}): the regressor covers gravity and joint "
                 "friction (viscous, Coulomb), whose forces are linear in the parameters; "
                 "remove this element (or subtract its known force from the measured efforts)")
+        check_linear_friction(force)  # no reaction-proportional level, no stick-slip
         pairs = {"viscous": force.damping, "coulomb": force.friction}
         missing = [law for law, val in pairs.items()
                    if not (isinstance(val, (int, float)) and val == 0.0)
@@ -307,7 +354,11 @@ def joint_torque_regressor(mechanism, friction: Sequence[str] | str | None = (),
     if drivers and actuated is not None:
         raise ModelError("regressor: the mechanism has drivers, whose efforts are the rows; "
                          "'actuated' applies to a mechanism without drivers")
-    if drivers:
+    actuators = list(mech.actuators) if drivers else []
+    if actuators:  # the mixed case of inverse_dynamics: the actuators produce the motion
+        rows = actuators
+        effort_joints = [mech.actuators[name].joint for name in rows]
+    elif drivers:
         rows = [labels[i].element for i in drivers]
         effort_joints = [mech.drivers[d].joint for d in rows if mech.drivers[d].joint]
     else:
@@ -348,7 +399,11 @@ def joint_torque_regressor(mechanism, friction: Sequence[str] | str | None = (),
     else:
         y_fun = ca.Function("regressor_free", [q, vel, acc], [y_v])
         c_rows = ca.densify(jac[kept, :]) if kept else ca.SX(0, nv)
-        if drivers:
+        if actuators:  # B = ∂Q_e/∂u: each actuator's coordinate gradient (on v)
+            grads = [ca.jacobian(mech.joints[act.joint].coordinate(system.ctx, act.coordinate),
+                                 q).T for act in mech.actuators.values()]
+            b_mat = ca.densify(ca.mtimes(g_mat.T, ca.horzcat(*grads)))
+        elif drivers:
             b_mat = ca.densify(jac[drivers, :]).T
         elif len(rows) < nv:
             b_mat = ca.SX(ca.DM.eye(nv)[:, [velocity_names.index(n) for n in rows]])
@@ -375,7 +430,8 @@ def joint_torque_regressor(mechanism, friction: Sequence[str] | str | None = (),
             else:
                 sol = ca.solve(ca.mtimes(k_mx.T, k_mx), ca.mtimes(k_mx.T, y_free), "qr")
             y_out = sol[:len(rows), :]
-        symbolic = ca.Function("regressor", [qm, vm, am], [y_out], ["q", "v", "a"], ["Y"])
+        symbolic = ca.Function("regressor", [qm, vm, am], [ca.densify(y_out)],
+                               ["q", "v", "a"], ["Y"])
     kinematics = None
     if kept:
         cons = ca.substitute([system.constraints[kept]], at_rest, zeros)[0]
