@@ -146,13 +146,38 @@ def inverse_dynamics(mech, q, v, a):
     return np.array([robot.inverse_dynamics(q[k], v[k], a[k]) for k in range(len(q))])
 
 
-def true_parameters(truth, reg):
-    """π of ``truth`` in the order and frames of the regressor ``reg`` (of the model)."""
-    from casmbd.analysis.identification.parameters import standard_parameters
+def true_parameters(truth, reg, model=None):
+    """π of ``truth`` in the order and frames of the regressor ``reg`` of ``model`` (each
+    body's origin O at the model's reference point: the truth's centre of mass is written
+    relative to it, c = A₀ᵀ (r_G,truth − r_G,model) − o, by the parallel-axis theorem)."""
+    from casmbd.analysis.identification.parameters import (
+        inertial_parameters,
+        standard_parameters,
+    )
 
     joints = [fc.joint for fc in reg.parameters.friction_coordinates]
     sp = standard_parameters(truth, reg.parameters.friction, friction_joints=joints)
     values = sp.as_dict()
+    if model is not None:
+        dim = truth.dimension
+        for name, body in truth.bodies.items():
+            ref = model.bodies[name]
+            rot = np.asarray(ref.initial_rotation, float)
+            c = rot.T @ (np.asarray(body.position, float) - np.asarray(ref.position, float)) \
+                - reg.parameters.origins[name]
+            block = sp.values[sp.body_block(name)]
+            mass = block[0]
+            c_own = block[1:dim + 1] / mass  # the truth's own offset (zero: centroidal)
+            if dim == 2:
+                i_c = block[3] - mass * (c_own @ c_own)
+            else:
+                i_o = np.array([[block[4], block[5], block[6]], [block[5], block[7], block[8]],
+                                [block[6], block[8], block[9]]])
+                i_c = i_o - mass * ((c_own @ c_own) * np.eye(3) - np.outer(c_own, c_own))
+            new = inertial_parameters(mass, c, i_c, dim)
+            for key, val in zip(reg.parameters.names[reg.parameters.body_block(name)], new,
+                                strict=True):
+                values[key] = float(val)
     return np.array([values[name] for name in reg.names])
 
 

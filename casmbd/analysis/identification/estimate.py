@@ -45,6 +45,8 @@ __all__ = ["RANK_TOLERANCE", "BaseEstimate", "least_squares"]
 #: most passes of the weighting (each: σ_j from the residuals of the previous fit, then the
 #: weighted fit); they stop when the weights change by less than 0.1 %
 WEIGHT_PASSES = 10
+#: smallest σ_j relative to the joint's RMS effort (below: rounding, not noise)
+SIGMA_FLOOR = 1e-9
 #: smallest singular value of the stacked base regressor, relative to the largest, below which
 #: the data do not determine the base parameters
 RANK_TOLERANCE = 1e-10
@@ -159,7 +161,7 @@ def least_squares(regressor: np.ndarray, tau: np.ndarray, names: list[str],
             "meaningful estimate)")
     w = y_b.reshape(n_s * n, n_b)
     y = tau.reshape(n_s * n)
-    sv = np.linalg.svd(w, compute_uv=False)
+    pi0, _, _, sv = np.linalg.lstsq(w, y, rcond=None)
     if sv[-1] <= RANK_TOLERANCE * sv[0]:
         _, sv, vt = np.linalg.svd(w, full_matrices=False)
         small = [vt[k] for k in range(n_b) if sv[k] <= RANK_TOLERANCE * sv[0]]
@@ -171,7 +173,6 @@ def least_squares(regressor: np.ndarray, tau: np.ndarray, names: list[str],
             f"{'s' if len(small) > 1 else ''}: {combos}; use a richer trajectory "
             "(an excitation design) or more samples")
     condition = float(sv[0] / sv[-1])
-    pi0 = np.linalg.lstsq(w, y, rcond=None)[0]
     rho = (y - w @ pi0).reshape(n_s, n)
     scale_w = np.max(np.abs(y_b), axis=(0, 2))
     used = np.array([int(np.sum(np.max(np.abs(y_b[:, j, :]), axis=0)
@@ -180,20 +181,33 @@ def least_squares(regressor: np.ndarray, tau: np.ndarray, names: list[str],
     dof = np.maximum(rows_j - used, 1)
     sigma_j = np.sqrt(np.sum(rho ** 2, axis=0) / dof)
     gain = np.ones(n)
-    wg, yg = w, y
-    pi_b = pi0
-    for _ in range(WEIGHT_PASSES if weighted else 0):
-        floor = max(1e-6 * float(np.max(sigma_j)), np.finfo(float).tiny)
-        new_gain = 1.0 / np.maximum(sigma_j, floor)
-        settled = np.max(np.abs(new_gain / gain - 1.0)) < 1e-3
-        gain = new_gain
+    wg, yg, pi_b = w, y, pi0
+    if weighted:
+        # the passes on each joint's normal equations (n_b × n_b blocks, cheap); the last
+        # weighted fit by an orthogonal factorisation of the weighted rows (accurate)
+        blocks = np.einsum("kji,kjl->jil", y_b, y_b)
+        rhs = np.einsum("kji,kj->ji", y_b, tau)
+        # σ_j floored at 1e-9 of the joint's RMS effort: noise-free data (residuals at
+        # rounding) weigh each joint's relative error alike
+        floor = np.maximum(SIGMA_FLOOR * np.sqrt(np.sum(tau ** 2, axis=0)
+                                                 / np.maximum(rows_j, 1)),
+                           np.finfo(float).tiny)
+        for _ in range(WEIGHT_PASSES):
+            new_gain = 1.0 / np.maximum(sigma_j, floor)
+            settled = np.max(np.abs(new_gain / gain - 1.0)) < 1e-3
+            gain = new_gain
+            if settled:
+                break
+            try:
+                pi_b = np.linalg.solve(np.einsum("j,jil->il", gain ** 2, blocks),
+                                       np.einsum("j,ji->i", gain ** 2, rhs))
+            except np.linalg.LinAlgError:
+                break
+            rho = (y - w @ pi_b).reshape(n_s, n)
+            sigma_j = np.sqrt(np.sum(rho ** 2, axis=0) / dof)
         wg = (y_b * gain[None, :, None]).reshape(n_s * n, n_b)
         yg = (tau * gain[None, :]).reshape(n_s * n)
-        pi_b, *_ = np.linalg.lstsq(wg, yg, rcond=None)
-        if settled:
-            break
-        rho = (y - w @ pi_b).reshape(n_s, n)
-        sigma_j = np.sqrt(np.sum(rho ** 2, axis=0) / dof)
+        pi_b = np.linalg.lstsq(wg, yg, rcond=None)[0]
     rho_g = yg - wg @ pi_b
     sigma2 = float(rho_g @ rho_g) / (int(rows_j.sum()) - n_b)
     normal = wg.T @ wg
