@@ -165,7 +165,7 @@ def _check_directory(directory: Path, force: bool) -> None:
                             f"{exc.strerror or exc}") from None
 
 
-def _folded(f: ca.Function, p: np.ndarray) -> list[ca.SX]:
+def _folded(f: ca.Function, p: np.ndarray) -> tuple[list[ca.SX], list[ca.SX]]:
     """The outputs of ``f(..., p)`` as expressions of fresh symbols of its other inputs, the
     parameter values folded in as constants, and those symbols."""
     syms = [ca.SX.sym(f.name_in(k), f.sparsity_in(k)) for k in range(f.n_in() - 1)]
