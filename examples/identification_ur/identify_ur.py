@@ -34,17 +34,19 @@ Run: ``python examples/identification_ur/identify_ur.py [--out DIR] [--quick] [-
 from __future__ import annotations
 
 import argparse
+import contextlib
+import io
 import json
 import os
 import pathlib
 import shutil
 import subprocess
-import sys
 import tempfile
 
 import numpy as np
 
 import casmbd
+from casmbd import cli
 from casmbd.analysis.identification.parameters import parameter_vector, standard_parameters
 from casmbd.io.scene import load_scene
 from casmbd.io.urdf import load_urdf
@@ -112,16 +114,24 @@ def measure(traj: FourierTrajectory, coordinates: list[str], out: pathlib.Path,
     return path, (t, q, v, a, tau)
 
 
+def casmbd_cli(*argv: str) -> dict:
+    """Run ``casmbd ARGV --json`` in this process (as the command line does) and return its
+    JSON object."""
+    buf, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(buf), contextlib.redirect_stderr(err):
+        status = cli.main([*argv, "--json"])
+    if status != 0:
+        raise RuntimeError(f"casmbd {argv[0]} failed ({status}): {err.getvalue().strip()}")
+    return json.loads(buf.getvalue())
+
+
 def identify(path: pathlib.Path, out: pathlib.Path) -> dict:
     """Step 3: ``casmbd identify`` (its JSON summary); it also writes the identified URDF."""
-    cmd = [sys.executable, "-m", "casmbd", "identify", str(URDF), "--data", str(path),
-           "--friction", ",".join(FRICTION), "--cutoff", str(CUTOFF), "--decimate",
-           str(DECIMATE), "--out", str(out / "ur5_identified.urdf"), "--json"]
-    done = subprocess.run(cmd, capture_output=True, text=True, check=False)
-    if done.returncode != 0:
-        raise RuntimeError(f"casmbd identify failed ({done.returncode}): {done.stderr}")
-    summary = json.loads(done.stdout)
-    summary["how"] = " ".join(["casmbd", *cmd[3:]])
+    argv = ["identify", str(URDF), "--data", str(path), "--friction", ",".join(FRICTION),
+            "--cutoff", str(CUTOFF), "--decimate", str(DECIMATE), "--out",
+            str(out / "ur5_identified.urdf")]
+    summary = casmbd_cli(*argv)
+    summary["how"] = " ".join(["casmbd", *argv])
     return summary
 
 
@@ -202,11 +212,8 @@ def c_feedforward(out: pathlib.Path, traj: FourierTrajectory, t: np.ndarray) -> 
     cdir = out / "c"
     if cdir.exists():
         shutil.rmtree(cdir)
-    cmd = [sys.executable, "-m", "casmbd", "export", str(scene), "--c", str(cdir),
-           "--functions", "inverse_dynamics", "--prefix", "ur5", "--json"]
-    done = subprocess.run(cmd, capture_output=True, text=True, check=False)
-    if done.returncode != 0:
-        raise RuntimeError(f"casmbd export failed: {done.stderr.strip()[-500:]}")
+    casmbd_cli("export", str(scene), "--c", str(cdir), "--functions", "inverse_dynamics",
+               "--prefix", "ur5")
     q, v, a = traj.evaluate(t)
     tau_py = casmbd.compile(load_scene(scene)).inverse_dynamics_batch(q, v, a)
     coefficients = out / "trajectory.txt"
