@@ -54,6 +54,11 @@ __all__ = ["ExcitationDesign", "FourierTrajectory", "base_columns", "condition_n
 
 #: relative pivot threshold of the column-pivoted QR that selects independent regressor columns
 BASE_TOLERANCE = 1e-8
+#: largest κ of the stacked base regressor at the random start (beyond: a base parameter is
+#: not excited, A is numerically singular and log tr A⁻¹ meaningless)
+START_CONDITION_LIMIT = 1e10
+#: largest violation of a limit by the returned series, relative to the limit's range
+FEASIBILITY_TOLERANCE = 1e-10
 
 
 @dataclass
@@ -235,6 +240,35 @@ def _scalar_form(regressor: ca.Function) -> ca.Function:
         return regressor
 
 
+def _check_feasible(traj: FourierTrajectory, times: np.ndarray, lim: _Limits, sol, lbg, ubg,
+                    status: str) -> None:
+    """The returned series must hold every limit at the constraint samples (to
+    :data:`FEASIBILITY_TOLERANCE` relative to the limit) and the other constraints to the
+    same tolerance: IPOPT stopped at its iteration limit may not be feasible."""
+    q, v, acc = traj.evaluate(times)
+    for values, low, high, what in ((q, lim.lower, lim.upper, "position"),
+                                    (v, -lim.velocity, lim.velocity, "velocity"),
+                                    (acc, -lim.acceleration, lim.acceleration,
+                                     "acceleration")):
+        scale = np.where(np.isfinite(high - low), np.abs(high - low), 1.0)
+        excess = np.maximum(values - high, low - values) / scale
+        if np.max(excess) > FEASIBILITY_TOLERANCE:
+            joint = int(np.argmax(np.max(excess, axis=0)))
+            raise OptimizationError(f"excitation design: IPOPT ('{status}') returned a series "
+                                    f"that violates the {what} limit of joint {joint} by "
+                                    f"{np.max(excess):.3g} (relative); raise 'max_iter'")
+    g = np.array(sol["g"]).ravel()
+    lo = np.concatenate([np.ravel(b) for b in lbg])
+    hi = np.concatenate([np.ravel(b) for b in ubg])
+    scale = np.maximum(np.abs(lo), np.abs(hi))
+    scale = np.where(np.isfinite(scale) & (scale > 0.0), scale, 1.0)
+    worst = np.max(np.maximum(g - hi, lo - g) / scale) if g.size else 0.0
+    if worst > FEASIBILITY_TOLERANCE:
+        raise OptimizationError(f"excitation design: IPOPT ('{status}') returned a series that "
+                                f"violates a constraint (start or torque limit) by {worst:.3g} "
+                                "(relative); raise 'max_iter'")
+
+
 @dataclass
 class _Limits:
     lower: np.ndarray
@@ -398,6 +432,11 @@ def design_excitation(regressor: ca.Function, *, period: float, harmonics: int =
     initial = random_feasible(n, harmonics, period, lower=lim.lower, upper=lim.upper,
                               velocity=lim.velocity, acceleration=lim.acceleration,
                               centre=centre, constraint_samples=constraint_samples, seed=seed)
+    start_condition = condition_number(regressor, initial, samples, columns)
+    if not start_condition < START_CONDITION_LIMIT:
+        raise ModelError(f"excitation design: the random start (seed {seed}) does not excite "
+                         f"every one of the {nb} base parameters (κ = {start_condition:.3g}); "
+                         "raise 'harmonics' or 'samples', or check the limits and columns")
     nx = n * (1 + 2 * harmonics)
     x = ca.MX.sym("x", nx)
 
@@ -479,8 +518,9 @@ def design_excitation(regressor: ca.Function, *, period: float, harmonics: int =
                       "Maximum_Iterations_Exceeded"):
         raise OptimizationError(f"excitation design: IPOPT stopped with '{status}' after "
                                 f"{stats.get('iter_count')} iterations")
+    _check_feasible(traj, ctimes, lim, sol, lbg, ubg, status)
     return ExcitationDesign(traj, initial, condition_number(regressor, traj, samples, columns),
-                            condition_number(regressor, initial, samples, columns), columns,
+                            start_condition, columns,
                             samples, ctimes, status, int(stats.get("iter_count", -1)),
                             float(sol["f"]), stats)
 

@@ -5,10 +5,11 @@ Numbers checked: the series' velocity and acceleration are the time derivatives 
 (central differences, 1e-7); periodicity q, q̇, q̈ (T) = (0) to 1e-12; the optimised trajectory's
 κ(W) at least 1.5× below two random feasible ones' on a planar 2R arm (observed 1.9×) and 3× below
 on the UR-type arm (observed 7×), and every limit held at the constraint samples to 1e-8; torque
-limits held at the regressor samples to 1e-8; the start-at-rest conditions to 1e-10. The regressor
-is the Lagrangian one of tests/excitation_regressor.py, itself checked against casmbd's inverse
-dynamics (Y π = τ, 1e-12 relative) and against the Newton–Euler
-``joint_torque_regressor`` (the same columns by name, 1e-12 relative; observed 7e-15).
+limits held at the regressor samples to 1e-8; the start-at-rest conditions to 1e-10; a start that
+cannot excite every column is refused by name. The regressor is the Lagrangian one of
+tests/excitation_regressor.py, itself checked against casmbd's inverse dynamics (Y π = τ, 1e-12
+relative) and against the Newton–Euler ``joint_torque_regressor`` (the same columns by name, 1e-12
+relative; observed 7e-15).
 """
 
 from __future__ import annotations
@@ -167,5 +168,8 @@ def test_bad_limits_are_refused(planar):
         design_excitation(y, period=1.0, lower=[-1.0, 2.0], upper=[1.0, 1.0])
     with pytest.raises(ModelError, match="joint 0 has no finite limit"):
         design_excitation(y, period=1.0)
+    # every column of Y, the dependent ones included: A is singular at any trajectory
+    with pytest.raises(ModelError, match=r"does not excite every one of the 12 base"):
+        design_excitation(y, period=1.0, lower=-1.0, upper=1.0, columns=np.arange(12))
     with pytest.raises(ModelError, match="'period': must be > 0"):
         FourierTrajectory(0.0, [0.0], [[1.0]], [[1.0]])
