@@ -317,7 +317,8 @@ def consistent_parameters(names: list[str], basis: np.ndarray, estimate,
     solver = ca.nlpsol("identify_consistent", "ipopt", {"x": x, "f": objective},
                        {"print_time": False, "ipopt": {
                            "print_level": 0, "sb": "yes", "tol": 1e-12,
-                           "acceptable_tol": 1e-9, "max_iter": int(max_iter)}})
+                           "acceptable_tol": 1e-9, "bound_push": 1e-10,
+                           "bound_frac": 1e-10, "max_iter": int(max_iter)}})
     try:
         sol = solver(x0=np.concatenate(x0), lbx=np.concatenate(lbx))
     except RuntimeError as exc:
