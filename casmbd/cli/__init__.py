@@ -78,15 +78,6 @@ register_verb("linearize", _verb("analyses", "_cmd_linearize"),
               help="natural frequencies, linearized equations and stability about the initial "
                    "configuration, the static equilibrium or a stored state",
               add_arguments=verbs.linearize_arguments)
-register_verb("identify", _verb("identify", "_cmd_identify"),
-              help="identify masses, centres of mass, inertias and friction from measured "
-                   "joint data (base parameters by weighted least squares, then physically "
-                   "consistent ones)",
-              add_arguments=verbs.identify_arguments)
-register_verb("excite", _verb("excite", "_cmd_excite"),
-              help="excitation trajectory for identification: periodic Fourier series "
-                   "minimising the condition number of the base regressor under joint limits",
-              add_arguments=verbs.excite_arguments)
 register_verb("ocp", _verb("optimal", "_cmd_ocp"),
               help="trajectory optimisation: the scene's [ocp] table",
               add_arguments=verbs.ocp_arguments)
@@ -115,6 +106,15 @@ register_verb("view", _verb("view", "_cmd_view"),
               help="3-D view of a scene, result or OCP solution in the browser (live server "
                    "on 127.0.0.1, or --html FILE)",
               add_arguments=verbs.view_arguments, shared=False)
+register_verb("identify", _verb("identify", "_cmd_identify"),
+              help="identify masses, centres of mass, inertias and friction from measured "
+                   "joint data (base parameters by weighted least squares, then physically "
+                   "consistent ones)",
+              add_arguments=verbs.identify_arguments)
+register_verb("excite", _verb("excite", "_cmd_excite"),
+              help="excitation trajectory for identification: periodic Fourier series "
+                   "minimising the condition number of the base regressor under joint limits",
+              add_arguments=verbs.excite_arguments)
 
 
 def build_parser() -> argparse.ArgumentParser:

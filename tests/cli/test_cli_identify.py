@@ -106,3 +106,68 @@ def test_identify_bad_input_named(capsys, data):
     code, out, err = _run(capsys, "identify", arm.UR5, "--data", str(data["full"]),
                           "--out", str(folder / "x.toml"))
     assert code != 0 and out == "" and "a .urdf file" in err
+
+
+PLANAR = """# planar two-link arm
+[scene]
+name = "planar_2r"
+dimension = 2
+gravity = [0.0, -9.81]
+
+[[bodies]]
+name = "link1"
+mass = {m1}
+inertia = 0.05
+position = [0.3, 0.02]
+
+[[bodies]]
+name = "link2"
+mass = 1.2
+inertia = 0.02
+position = [0.95, -0.01]
+
+[[joints]]
+name = "shoulder"
+type = "revolute"
+body1 = "ground"
+body2 = "link1"
+point = [0.0, 0.0]
+friction = {{ viscous = {c1} }}
+
+[[joints]]
+name = "elbow"
+type = "revolute"
+body1 = "link1"
+body2 = "link2"
+point = [0.7, 0.0]
+"""
+
+
+def test_identify_scene_viscous_only(capsys, tmp_path):
+    """A planar scene, --friction viscous: the written scene reloads to the true scene's
+    inverse dynamics (1e-9 of the largest torque: noise-free, the consistent set is polished
+    to the exact fit) and its shoulder friction is the true 0.3 N m s (1e-9)."""
+    from casmbd.io.scene import load_scene, loads_scene
+
+    truth = loads_scene(PLANAR.format(m1=2.0, c1=0.3))
+    source = tmp_path / "model.toml"
+    source.write_text(PLANAR.format(m1=2.5, c1=0.0))
+    t = np.arange(0.0, 10.0, 0.01)
+    q, v, a = arm.arm_trajectory(t, 2, seed=4)
+    tau = arm.inverse_dynamics(truth, q, v, a)
+    csv = arm.to_csv(tmp_path / "m.csv", t, ["shoulder.angle", "elbow.angle"], q, tau, v, a)
+    out_file = tmp_path / "identified.toml"
+    code, out, err = _run(capsys, "identify", str(source), "--data", str(csv),
+                          "--friction", "viscous", "--out", str(out_file))
+    assert code == 0, err
+    obj = json.loads(out)
+    assert obj["friction"] == ["viscous"] and len(obj["base_parameters"]) == 8
+    assert obj["consistent"]["parameters"]["shoulder.viscous"] == pytest.approx(0.3, abs=1e-9)
+    reloaded = casmbd.compile(load_scene(out_file), mode="vm")
+    true_robot = casmbd.compile(truth, mode="vm")
+    rng = np.random.default_rng(1)
+    for _ in range(10):
+        x = [rng.uniform(-2, 2, 2) for _ in range(3)]
+        tau_true = true_robot.inverse_dynamics(*x)
+        assert np.max(np.abs(reloaded.inverse_dynamics(*x) - tau_true)) < 1e-9 * np.max(
+            np.abs(tau_true))

@@ -37,15 +37,24 @@ the first term the squared relative change of the (weighted) torques from the le
 fit, the second a small pull (μ = :data:`REGULARIZATION` = 1e-8) towards the prior — the
 model file's own values, in the log-Cholesky coordinates (dimensionless logarithms, offsets in
 m) and the friction coefficients — that fixes the directions the data cannot see (the null
-space of K) and costs about √μ = 1e-4 of relative torque per unit change of θ (on the UR5
-test arm: the consistent set's torques within 3e-4 of each joint's RMS torque of the exact
-least-squares fit on noise-free data; with 1 % noise its residual equals the least-squares
-one to 0.1 %).  The pull also keeps a solution whose best fit lies on the boundary of the
-consistent set (a singular pseudo-inertia: a point mass, a thin rod — at infinity in θ) at a
-finite θ: with μ = 1e-10 IPOPT crawled towards it for thousands of iterations on a noisy
-data set.  Solved by IPOPT (``casadi.nlpsol``, exact Hessian, tolerance 1e-12), started from the
-standard set nearest the prior that reproduces π̂_b (π_prior + K⁺ (π̂_b − K π_prior)),
-projected onto the consistent set (eigenvalues of J clipped) where it is not.
+space of K) and costs about √μ of relative torque per unit change of θ.  The pull also
+keeps a solution whose best fit lies on the boundary of the consistent set (a singular
+pseudo-inertia: a point mass, a thin rod — at infinity in θ) at a finite θ: with μ = 1e-10
+IPOPT crawled towards it for thousands of iterations on a noisy data set.  So the solve
+starts with μ = 1e-8, then repeats it from the solution with μ weakened 100-fold,
+:data:`REFINEMENTS` times (μ = 1e-12 at the end): a refinement whose IPOPT does not converge
+(the boundary case) is dropped, the previous solution kept.  The μ of the returned set is
+reported (``regularization``).  Solved by IPOPT (``casadi.nlpsol``, exact Hessian, tolerance
+1e-12), started from the standard set nearest the prior that reproduces π̂_b
+(π_prior + K⁺ (π̂_b − K π_prior)), projected onto the consistent set (eigenvalues of J
+clipped) where it is not.
+
+**Polish.**  IPOPT stops at a relative torque error of ~1e-7 (its tolerance on the tiny,
+badly scaled objective near an exact fit).  When the least-squares estimate itself is
+realisable, the step π_c + K⁺ (π̂_b − K π_c) — a change in the row space of K only, the
+unidentifiable part chosen by the pull untouched — fits it exactly; it is taken when the
+result is still consistent (friction coefficients within 1e-12 below zero set to zero), and
+``polished`` says so.
 """
 
 from __future__ import annotations
@@ -65,6 +74,8 @@ __all__ = ["REGULARIZATION", "ConsistentEstimate", "body_inertials", "consistent
 #: weight μ of the pull towards the prior in the log-Cholesky coordinates, against the squared
 #: relative torque change (module docstring)
 REGULARIZATION = 1e-8
+#: solves with the pull weakened 100-fold each, from the previous solution (module docstring)
+REFINEMENTS = 2
 
 SPATIAL = ("m", "mcx", "mcy", "mcz", "Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz")
 PLANAR = ("m", "mcx", "mcy", "Izz")
@@ -88,6 +99,10 @@ class ConsistentEstimate:
     checks : dict
         Per body: mass, centre of mass (body frame), principal moments about it and the
         smallest triangle-inequality margin min(I₁ + I₂ − I₃, …); per joint friction.
+    regularization : float
+        The weight μ of the pull towards the prior of the solution returned.
+    polished : bool
+        Whether the exact-fit step was taken (module docstring).
     """
 
     names: list[str]
@@ -96,6 +111,8 @@ class ConsistentEstimate:
     status: str
     objective: float
     checks: dict
+    regularization: float = REGULARIZATION
+    polished: bool = False
 
 
 def parameter_layout(names: list[str]) -> tuple[dict[str, dict[str, int]],
@@ -313,18 +330,27 @@ def consistent_parameters(names: list[str], basis: np.ndarray, estimate,
     pi_x = ca.vertcat(*pi)
     r = ca.mtimes(ca.DM(basis), pi_x) - ca.DM(estimate.values)
     d = x - ca.DM(np.concatenate(target))
-    objective = ca.mtimes([r.T, ca.DM(n_hat), r]) + mu * ca.sumsqr(d)
-    solver = ca.nlpsol("identify_consistent", "ipopt", {"x": x, "f": objective},
+    weight = ca.SX.sym("mu")
+    objective = ca.mtimes([r.T, ca.DM(n_hat), r]) + weight * ca.sumsqr(d)
+    solver = ca.nlpsol("identify_consistent", "ipopt",
+                       {"x": x, "p": weight, "f": objective},
                        {"print_time": False, "ipopt": {
                            "print_level": 0, "sb": "yes", "tol": 1e-12,
-                           "acceptable_tol": 1e-9, "max_iter": int(max_iter)}})
-    try:
-        sol = solver(x0=np.concatenate(x0), lbx=np.concatenate(lbx))
-    except RuntimeError as exc:
-        interrupts.reraise_interrupt(exc)
-        raise IdentificationError(f"consistent parameters: IPOPT failed: {exc}") from None
-    interrupts.check()
-    status = solver.stats().get("return_status", "?")
+                           "acceptable_tol": 1e-9, "bound_push": 1e-10,
+                           "bound_frac": 1e-10, "max_iter": int(max_iter)}})
+    lower = np.concatenate(lbx)
+
+    def solve(start, mu_k):
+        try:
+            out = solver(x0=start, lbx=lower, p=mu_k)
+        except RuntimeError as exc:
+            interrupts.reraise_interrupt(exc)
+            raise IdentificationError(f"consistent parameters: IPOPT failed: {exc}") \
+                from None
+        interrupts.check()
+        return out, solver.stats().get("return_status", "?")
+
+    sol, status = solve(np.concatenate(x0), mu)
     if status == "Maximum_Iterations_Exceeded":  # every iterate is consistent: say so
         warnings.warn(f"consistent parameters: IPOPT stopped after {max_iter} iterations; "
                       "the set returned is physically consistent but may not fit best",
@@ -332,6 +358,25 @@ def consistent_parameters(names: list[str], basis: np.ndarray, estimate,
     elif status not in ("Solve_Succeeded", "Solved_To_Acceptable_Level"):
         raise IdentificationError(f"consistent parameters: IPOPT stopped with status "
                                   f"'{status}'")
+    else:
+        first = mu
+        for k in range(1, REFINEMENTS + 1):  # a weaker pull, from the last solution
+            refined, how = solve(np.asarray(sol["x"]).reshape(-1), first * 1e-2 ** k)
+            if how not in ("Solve_Succeeded", "Solved_To_Acceptable_Level"):
+                break  # the best fit lies on the boundary: keep the stronger pull's
+            sol, status, mu = refined, how, first * 1e-2 ** k
     values = np.array(ca.Function("pi_of_x", [x], [pi_x])(sol["x"])).reshape(-1)
+    polished = values + np.linalg.pinv(basis) @ (estimate.values - basis @ values)
+    friction = [k for f in joints.values() for k in f.values()]
+    if friction:
+        level = 1e-12 * max(1.0, float(np.max(np.abs(polished[friction]))))
+        near = [k for k in friction if -level <= polished[k] < 0.0]
+        polished[near] = 0.0
+    try:
+        good = physical_checks(names, polished)["consistent"]
+    except IdentificationError:
+        good = False
+    if good:
+        values = polished
     return ConsistentEstimate(list(names), values, basis @ values, status,
-                              float(sol["f"]), physical_checks(names, values))
+                              float(sol["f"]), physical_checks(names, values), mu, bool(good))

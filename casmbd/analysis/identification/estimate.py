@@ -14,7 +14,8 @@ robots with power model", ICRA)
 2. Each joint's rows are divided by σ_j (the rows of noisier joints count less) and the
    weighted system is solved again: π̂_b = argmin ‖G (y − W π_b)‖², G = diag(1/σ_j); σ_j is
    then re-estimated from the weighted fit's residuals and the fit repeated until the weights
-   change by less than 0.1 % (at most :data:`WEIGHT_PASSES` passes): the first, ordinary fit
+   change by less than 0.1 % (at most :data:`WEIGHT_PASSES` passes; σ_j floored at
+   :data:`SIGMA_FLOOR` of the largest joint's RMS effort: rounding); the first, ordinary fit
    leaks the noise of heavily loaded joints into the residuals of lightly loaded ones (a
    wrist's σ_j came out 2-3 × too large on a 6-axis arm whose joint noises differ 500-fold),
    and wrong weights make the covariance below wrong by as much.
@@ -45,7 +46,7 @@ __all__ = ["RANK_TOLERANCE", "BaseEstimate", "least_squares"]
 #: most passes of the weighting (each: σ_j from the residuals of the previous fit, then the
 #: weighted fit); they stop when the weights change by less than 0.1 %
 WEIGHT_PASSES = 10
-#: smallest σ_j relative to the joint's RMS effort (below: rounding, not noise)
+#: smallest σ_j relative to the largest joint's RMS effort (below: rounding, not noise)
 SIGMA_FLOOR = 1e-9
 #: smallest singular value of the stacked base regressor, relative to the largest, below which
 #: the data do not determine the base parameters
@@ -187,11 +188,11 @@ def least_squares(regressor: np.ndarray, tau: np.ndarray, names: list[str],
         # weighted fit by an orthogonal factorisation of the weighted rows (accurate)
         blocks = np.einsum("kji,kjl->jil", y_b, y_b)
         rhs = np.einsum("kji,kj->ji", y_b, tau)
-        # σ_j floored at 1e-9 of the joint's RMS effort: noise-free data (residuals at
-        # rounding) weigh each joint's relative error alike
-        floor = np.maximum(SIGMA_FLOOR * np.sqrt(np.sum(tau ** 2, axis=0)
-                                                 / np.maximum(rows_j, 1)),
-                           np.finfo(float).tiny)
+        # σ_j floored at 1e-9 of the largest joint's RMS effort: the rounding of noise-free
+        # data, which scales with the largest efforts, is not noise
+        floor = max(SIGMA_FLOOR * float(np.max(np.sqrt(np.sum(tau ** 2, axis=0)
+                                                         / np.maximum(rows_j, 1)))),
+                    np.finfo(float).tiny)
         for _ in range(WEIGHT_PASSES):
             new_gain = 1.0 / np.maximum(sigma_j, floor)
             settled = np.max(np.abs(new_gain / gain - 1.0)) < 1e-3

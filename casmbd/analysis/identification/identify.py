@@ -120,6 +120,8 @@ class Identification:
             c = self.consistent
             out["consistent"] = {
                 "status": c.status,
+                "regularization": float(c.regularization),
+                "polished": bool(c.polished),
                 "parameters": dict(zip(c.names, map(float, c.values), strict=True)),
                 "torque_rms_from_least_squares": dict(zip(
                     self.coordinates, map(float, self.consistent_torque_rms), strict=True)),

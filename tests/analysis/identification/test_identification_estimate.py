@@ -87,15 +87,15 @@ def test_weighting_with_unequal_noise():
 
 def test_consistent_parameters_noise_free_and_noisy():
     """Noise-free: the consistent standard set is physical and its torques equal the data to
-    1e-4 of their RMS (the pull μ = 1e-8 towards the prior costs √μ per unit change of the
-    log-Cholesky coordinates; 3e-6 measured); with noise: physical, and its
+    1e-9 of their RMS (refined pull and the exact-fit polish); with noise: physical, and its
     residual per joint within 2 % of the least-squares residual (both ≈ the noise)."""
     prior = arm.TRUE * np.r_[1.3 * np.ones(8), 0.0 * np.ones(4)]  # a wrong model, no friction
     est = least_squares(YB, TAU, NAMES_B)
     cons = consistent_parameters(arm.NAMES, K, est, prior)
     assert cons.checks["consistent"] and cons.status == "Solve_Succeeded"
     rms = np.sqrt(np.mean(TAU ** 2, axis=0))
-    assert np.all(np.sqrt(np.mean((Y @ cons.values - TAU) ** 2, axis=0)) < 1e-4 * rms)
+    assert cons.polished
+    assert np.all(np.sqrt(np.mean((Y @ cons.values - TAU) ** 2, axis=0)) < 1e-9 * rms)
     noise = np.random.default_rng(9).normal(0.0, 1.0, TAU.shape) * SIGMA
     est = least_squares(YB, TAU + noise, NAMES_B)
     cons = consistent_parameters(arm.NAMES, K, est, prior)

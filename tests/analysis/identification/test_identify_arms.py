@@ -44,9 +44,10 @@ def test_ur5_noise_free_recovery_and_prediction(ur5):
     tau2 = arm.inverse_dynamics(ur5["truth"], q2, v2, a2)
     pred = base.regressor(reg.stacked(q2, v2, a2).reshape(len(t2), 6, -1)) @ res.base.values
     assert np.max(np.abs(pred - tau2)) < 1e-9 * np.max(np.abs(tau2))
-    assert res.consistent.checks["consistent"]
+    assert res.consistent.checks["consistent"] and res.consistent.polished
+    assert res.consistent.regularization == pytest.approx(1e-12)
     rms = np.sqrt(np.mean(ur5["tau"] ** 2, axis=0))
-    assert np.all(res.consistent_torque_rms < 1e-3 * rms), res.consistent_torque_rms / rms
+    assert np.all(res.consistent_torque_rms < 1e-9 * rms), res.consistent_torque_rms / rms
     summary = res.summary()
     assert len(summary["base_parameters"]) == base.rank == 48
     assert summary["condition_number"] == pytest.approx(res.base.condition_number)
