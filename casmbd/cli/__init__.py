@@ -98,14 +98,14 @@ register_verb("sensitivity", _verb("workbench", "_cmd_sensitivity"),
 register_verb("bench", _verb("optimal", "_cmd_bench"),
               help="run the benchmark suite of a casmbd checkout (python -m benchmarks)",
               add_arguments=verbs.bench_arguments, shared=False)
-register_verb("export", _verb("export", "_cmd_export"),
-              help="the dynamics as a standalone C99 library (sources, header, README, "
-                   "example)",
-              add_arguments=verbs.export_arguments, shared=False)
 register_verb("view", _verb("view", "_cmd_view"),
               help="3-D view of a scene, result or OCP solution in the browser (live server "
                    "on 127.0.0.1, or --html FILE)",
               add_arguments=verbs.view_arguments, shared=False)
+register_verb("export", _verb("export", "_cmd_export"),
+              help="the dynamics as a standalone C99 library (sources, header, README, "
+                   "example)",
+              add_arguments=verbs.export_arguments, shared=False)
 
 
 def build_parser() -> argparse.ArgumentParser:
