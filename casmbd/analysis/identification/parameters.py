@@ -30,7 +30,9 @@ The body frame (where O is and which axes the components refer to):
   :func:`casmbd.io.urdf.load_urdf` the body axes are the link frame's, and the joint's point is
   the link frame's origin: π is then the URDF link's inertial parameters about its own frame
   — Pinocchio's ``dynamicParameters`` (in another order: Pinocchio lists I_xx, I_xy, I_yy,
-  I_xz, I_yz, I_zz).
+  I_xz, I_yz, I_zz).  A free body (no joint carries it: a floating base) takes its
+  reference point, which for a URDF floating base is the root link frame's origin — the
+  free-flyer joint frame of Pinocchio.
 """
 
 from __future__ import annotations
@@ -41,6 +43,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from casmbd.errors import ModelError
+from casmbd.model.bodies import GROUND
 from casmbd.model.joint_friction import REGULARIZATION, JointFriction
 from casmbd.model.values import numeric
 
@@ -178,6 +181,9 @@ def body_origin(mech, name: str, frame: str) -> np.ndarray:
     if frame == "body":
         return np.asarray(getattr(body, "reference_point", np.zeros(mech.dimension)), float)
     carriers = [j for j in mech.joints.values() if j.body2 == name]
+    if not carriers and not any(j.body1 == name and j.body2 == GROUND
+                                for j in mech.joints.values()):  # free: its reference point
+        return body_origin(mech, name, "body")
     if len(carriers) != 1 or getattr(carriers[0], "point", None) is None:
         found = ", ".join(f"'{j.name}'" for j in carriers) or "none"
         raise ModelError(f"body '{name}': frame='joint' needs exactly one joint with a point "
@@ -187,10 +193,10 @@ def body_origin(mech, name: str, frame: str) -> np.ndarray:
 
 def friction_coordinates(mech, laws: Sequence[str], joints: Sequence[str] | None,
                          regularization: float | None) -> list[FrictionCoordinate]:
-    """The joint coordinates that get friction parameters: ``joints`` (names), else every
-    joint with a ``joint_friction`` element and every joint with coordinates (revolute,
-    prismatic, …) that is not a loop closure … given by the caller (:func:`standard_parameters`).
-    """
+    """The joint coordinates of ``joints`` (names) that get the friction ``laws``: a joint's
+    single coordinate; of a joint with several (cylindrical, universal …) the first one and
+    every other one that has its own ``joint_friction`` element.  v_s is ``regularization``,
+    else the element's, else :data:`~casmbd.model.joint_friction.REGULARIZATION`."""
     if not laws:
         return []
     elements = {}
@@ -308,7 +314,7 @@ def standard_parameters(mechanism, friction: Sequence[str] | str | None = (),
     for fc in coords:
         element = elements.get((fc.joint, fc.coordinate))
         if element is not None:
-            _check_linear(element)
+            check_linear_friction(element)
         for law in laws:
             names.append(f"{fc.prefix}.{law}")
             if element is None:
@@ -321,7 +327,7 @@ def standard_parameters(mechanism, friction: Sequence[str] | str | None = (),
                               frame, laws, coords, dim)
 
 
-def _check_linear(element: JointFriction) -> None:
+def check_linear_friction(element: JointFriction) -> None:
     """Refuse a friction element outside the linear law (module docstring)."""
     if element.stick_slip:
         raise ModelError(f"force '{element.name}': the exact stick-slip law switches at events; "

@@ -54,18 +54,21 @@ linear in π and are refused, naming the element.
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import casadi as ca
 import numpy as np
 
 from casmbd.analysis.identification.parameters import (
     StandardParameters,
+    check_linear_friction,
     default_friction_joints,
     standard_parameters,
 )
+from casmbd.compiled.buffered import BufferedFunction
 from casmbd.compiled.build import compile_blocks
 from casmbd.compiled.free_flyer import VelocityMap, is_normalization
 from casmbd.errors import ModelError, SingularConfigurationError
@@ -127,6 +130,13 @@ class JointTorqueRegressor:
     kinematics: ca.Function | None = None
     initial_coordinates: np.ndarray | None = None
     floating_blocks: list[int] | None = None
+    _calls: dict = field(default_factory=dict, init=False, repr=False)
+
+    def _call(self, which: str) -> BufferedFunction:
+        """The compiled Function bound to NumPy buffers (no CasADi conversion per call)."""
+        if which not in self._calls:
+            self._calls[which] = BufferedFunction(getattr(self, which))
+        return self._calls[which]
 
     @property
     def names(self) -> list[str]:
@@ -142,14 +152,23 @@ class JointTorqueRegressor:
 
     def __call__(self, q, v, a) -> np.ndarray:
         """Y at one state, shape (n_rows, n_π)."""
-        q = self._check(q, self.nq, "q")
-        v, a = self._check(v, self.nv, "v"), self._check(a, self.nv, "a")
-        y = self._finite(self._evaluate(self.function, q, v, a), "this state")
-        return y.reshape(len(self.rows), -1)
+        call = self._call("function")
+        try:  # the buffers' shapes check the lengths; finiteness is checked on Y
+            if len(q) != self.nq or len(v) != self.nv or len(a) != self.nv:
+                raise ValueError
+            y = self._evaluate(call, q, v, a)
+        except (ValueError, TypeError):
+            y = None
+        if y is None or not math.isfinite(float(y.sum())):
+            self._check(q, self.nq, "q")  # name a bad argument, else the singular state
+            self._check(v, self.nv, "v")
+            self._check(a, self.nv, "a")
+            y = self._finite(self._evaluate(call, q, v, a), "this state")
+        return y.reshape((len(self.rows), -1), order="F")
 
-    def _evaluate(self, function: ca.Function, *args) -> np.ndarray:
+    def _evaluate(self, function: BufferedFunction, *args) -> np.ndarray:
         try:
-            return np.asarray(function(*args), float)
+            return function(*args)
         except RuntimeError as exc:  # CasADi's linear solver at a singular configuration
             reraise_interrupt(exc)
             raise SingularConfigurationError(
@@ -188,8 +207,9 @@ class JointTorqueRegressor:
             for arg, x in zip(args, mats, strict=True):
                 arg[:, :m] = x[start:start + m].T
                 arg[:, m:] = x[start + m - 1][:, None]  # padded with a valid state
-            y = self._finite(self._evaluate(self.batch, *args),  # nr × (c · npi)
+            y = self._finite(self._evaluate(self._call("batch"), *args),
                              f"a state of {start} … {start + m - 1}")
+            y = y.reshape((nr, c * npi), order="F")  # state blocks of npi columns
             out[start:start + m] = y.reshape(nr, c, npi).transpose(1, 0, 2)[:m]
         return out.reshape(n * nr, npi)
 
@@ -203,6 +223,7 @@ def _refuse_nonlinear_forces(mech, params: StandardParameters) -> None:
                 f"force '{force.name}' ({force.kind}): the regressor covers gravity and joint "
                 "friction (viscous, Coulomb), whose forces are linear in the parameters; "
                 "remove this element (or subtract its known force from the measured efforts)")
+        check_linear_friction(force)  # no reaction-proportional level, no stick-slip
         pairs = {"viscous": force.damping, "coulomb": force.friction}
         missing = [law for law, val in pairs.items()
                    if not (isinstance(val, (int, float)) and val == 0.0)
@@ -409,7 +430,8 @@ def joint_torque_regressor(mechanism, friction: Sequence[str] | str | None = (),
             else:
                 sol = ca.solve(ca.mtimes(k_mx.T, k_mx), ca.mtimes(k_mx.T, y_free), "qr")
             y_out = sol[:len(rows), :]
-        symbolic = ca.Function("regressor", [qm, vm, am], [y_out], ["q", "v", "a"], ["Y"])
+        symbolic = ca.Function("regressor", [qm, vm, am], [ca.densify(y_out)],
+                               ["q", "v", "a"], ["Y"])
     kinematics = None
     if kept:
         cons = ca.substitute([system.constraints[kept]], at_rest, zeros)[0]

@@ -179,10 +179,13 @@ def test_four_bar_actuated_crank():
     assert err <= RTOL
 
 
-def test_four_bar_driver_effort_along_the_motion():
+@pytest.mark.parametrize("coordinates", ["joint", "absolute", "natural"])
+def test_four_bar_driver_effort_along_the_motion(coordinates):
     """The driven four-bar: the row is the driver 'crank_drive', Y π equals the driver effort
-    −λ_d of casmbd.inverse_dynamics on its whole grid (the mechanism's own coordinates)."""
+    −λ_d of casmbd.inverse_dynamics on its whole grid, in each coordinate choice (3, 9 and
+    12 coordinates: the body origins, rotations and twists come from the descriptions)."""
     mech = casmbd.load_scene(FOUR_BAR)
+    mech.coordinates = coordinates
     res = casmbd.inverse_dynamics(mech, 0.5, 10, mode="vm")
     reg = joint_torque_regressor(mech, coordinates=None, mode="vm")
     assert reg.rows == ["crank_drive"]
@@ -230,6 +233,10 @@ def test_refusals_name_the_element():
     mech = casmbd.load_scene(FOUR_BAR)
     mech.add_spring_damper("spring", "crank", "ground", [0.0, 0.2], [0.4, 0.0], 10.0, 0.3)
     with pytest.raises(ModelError, match="force 'spring'"):
+        joint_torque_regressor(mech, mode="vm")
+    mech = casmbd.load_scene(FOUR_BAR)
+    mech.add("joint_friction", "pin", "B", mu=0.1, radius=0.01)
+    with pytest.raises(ModelError, match="force 'pin' field 'mu'"):
         joint_torque_regressor(mech, mode="vm")
     arm = load_urdf(UR5)
     with pytest.raises(ModelError, match=r"unknown law.*stiction"):
