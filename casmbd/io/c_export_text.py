@@ -511,7 +511,8 @@ def readme(s: Spec) -> str:
             f"`{P}_ERR_INCONSISTENT` otherwise (relative tolerance "
             f"`{P}_ACCELERATION_TOLERANCE` = {s.tolerance:g}).  Its τ acts on the actuated "
             f"coordinates (`{P}_actuated`: {', '.join(s.actuated)}); the multipliers λ are "
-            "left in `w->lambda`.\n")
+            "left in `w->lambda`.  Drivers are constraint rows at t = 0 like the loop "
+            "closures: their efforts are among the multipliers.\n")
     params = ""
     if s.parameter_names:
         params = ("\nThe scene's parameters are folded in as constants: "
@@ -570,21 +571,10 @@ different work structs may run concurrently) and returns `{P}_OK` (0) or an erro
 
 {funcs}
 
-## Example
+## Example (`main.c`)
 
 ```c
-#include <stdio.h>
-#include "{P}.h"
-
-static {P}_work work;
-
-int main(void) {{
-  double v[{P}_NV] = {{0.0}}, a[{P}_NV] = {{0.0}}, tau[{P}_NV];
-  int k, rc = {P}_inverse_dynamics({P}_initial_q, v, a, tau, &work);
-  if (rc != {P}_OK) return 1;
-  for (k = 0; k < {P}_NV; ++k) printf("%s %g\\n", {P}_velocity_names[k], tau[k]);
-  return 0;
-}}
+{example(s).rstrip()}
 ```
 """
 

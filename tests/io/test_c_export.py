@@ -14,6 +14,7 @@ import ctypes
 import json
 import shutil
 import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -299,16 +300,23 @@ def test_jacobian_of_named_frames(ur, tmp_path):
 
 
 def test_export_is_byte_identical_and_order_free(tmp_path):
-    """Two exports of the same scene (the functions listed in another order) give the same
-    bytes in every file."""
+    """Two exports of the same scene (the functions listed in another order), and a third by
+    ``python -m casmbd export`` in another process, give the same bytes in every file."""
     mech = casmbd.load_scene(UR)
     a = export_c(mech, tmp_path / "a", functions="inverse_dynamics,mass_matrix,jacobian",
                  cmake=True)
     b = export_c(casmbd.load_scene(UR), tmp_path / "b",
                  functions=["jacobian", "mass_matrix", "inverse_dynamics"], cmake=True)
-    assert a.files == b.files
+    # and from another process, through the command line
+    subprocess.run([sys.executable, "-m", "casmbd", "export", str(UR), "--c",
+                    str(tmp_path / "c"), "--functions", "mass_matrix,jacobian,inverse_dynamics",
+                    "--cmake"], check=True, capture_output=True, text=True, cwd=ROOT,
+                   timeout=300)
+    assert a.files == b.files == sorted(p.name for p in (tmp_path / "c").iterdir())
     for name in a.files:
-        assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes(), name
+        first = (tmp_path / "a" / name).read_bytes()
+        assert first == (tmp_path / "b" / name).read_bytes(), name
+        assert first == (tmp_path / "c" / name).read_bytes(), name
 
 
 def test_bad_input_is_named(tmp_path):
