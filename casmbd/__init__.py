@@ -40,6 +40,7 @@ _LAZY = {
     "load_scene": "casmbd.io.scene", "loads_scene": "casmbd.io.scene",
     "load_urdf": "casmbd.io.urdf", "loads_urdf": "casmbd.io.urdf",
     "load_mjcf": "casmbd.io.mjcf",
+    "export_c": "casmbd.io.c_export",
     "Mechanism": "casmbd.model",
     "Result": "casmbd.results", "load": "casmbd.io.scene", "load_result": "casmbd.io.scene",
     "System": "casmbd.system",

@@ -188,3 +188,10 @@ class OptimizationError(AnalysisError):
     def __init__(self, message: str, solution=None):
         super().__init__(message)
         self.solution = solution
+
+
+class IdentificationError(AnalysisError):
+    """Dynamic parameter identification cannot proceed: measurements that do not fit the
+    model (a missing column, NaN, too few samples for the base parameters) or a regressor
+    that does not determine the parameters asked for; the message names the file, row,
+    column, joint or parameter combination at fault."""

@@ -50,6 +50,7 @@ __all__ = [
     "MAX_FIXED_STEPS",
     "MAX_FPS",
     "MAX_FRAMES",
+    "MAX_MEASUREMENT_BYTES",
     "MAX_MESH_BYTES",
     "MAX_MESH_FACES",
     "MAX_MODES",
@@ -78,6 +79,9 @@ __all__ = [
 
 #: Largest scene file (or TOML text) read, in bytes; a 5000-body chain takes 0.6 MB.
 MAX_SCENE_BYTES = 64 * 2**20
+#: Largest measurement file (a CSV of sampled joint data for ``casmbd identify``) read, in
+#: bytes: 10⁶ samples of a 6-axis arm's q and τ at 17 digits a value take ~ 0.25 GB.
+MAX_MEASUREMENT_BYTES = 256 * 2**20
 #: Largest mesh file (STL, OBJ, DAE of a URDF ``<visual>``) read by the 3-D view, in bytes; a
 #: robot's visual meshes take 0.1-5 MB each.
 MAX_MESH_BYTES = 64 * 2**20

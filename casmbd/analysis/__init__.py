@@ -43,6 +43,7 @@ VERBS = {
     "sweep": "casmbd.analysis.studies.sweep",
     "SweepResult": "casmbd.analysis.studies.sweep",
     "sensitivity": "casmbd.analysis.studies.sensitivity",
+    "identify": "casmbd.analysis.identification.identify",
     "SensitivityResult": "casmbd.analysis.studies.sensitivity",
 }
 

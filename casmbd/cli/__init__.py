@@ -102,6 +102,19 @@ register_verb("view", _verb("view", "_cmd_view"),
               help="3-D view of a scene, result or OCP solution in the browser (live server "
                    "on 127.0.0.1, or --html FILE)",
               add_arguments=verbs.view_arguments, shared=False)
+register_verb("identify", _verb("identify", "_cmd_identify"),
+              help="identify masses, centres of mass, inertias and friction from measured "
+                   "joint data (base parameters by weighted least squares, then physically "
+                   "consistent ones)",
+              add_arguments=verbs.identify_arguments)
+register_verb("export", _verb("export", "_cmd_export"),
+              help="the dynamics as a standalone C99 library (sources, header, README, "
+                   "example)",
+              add_arguments=verbs.export_arguments, shared=False)
+register_verb("excite", _verb("excite", "_cmd_excite"),
+              help="excitation trajectory for identification: periodic Fourier series "
+                   "minimising the condition number of the base regressor under joint limits",
+              add_arguments=verbs.excite_arguments)
 
 
 def build_parser() -> argparse.ArgumentParser:

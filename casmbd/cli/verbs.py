@@ -218,6 +218,36 @@ def bench_arguments(p) -> None:
     add_output_flags(p)
 
 
+def export_arguments(p) -> None:
+    """``export``: the dynamics as standalone C99 (casmbd.cli.export, docs/export.md)."""
+    p.add_argument("scene", help="scene file (TOML) or robot (.urdf, .xml)")
+    p.add_argument("--floating-base", action="store_true",
+                   help="a bare .urdf: its root link floats free (as [scene] "
+                        "floating_base = true)")
+    p.add_argument("--c", required=True, metavar="DIR",
+                   help="output directory of the C files (created; must be empty unless "
+                        "--force)")
+    p.add_argument("--functions", default=None,
+                   help="comma-separated: inverse_dynamics, forward_dynamics, mass_matrix, "
+                        "bias_forces, forward_kinematics, jacobian, regressor (default: all "
+                        "but regressor)")
+    p.add_argument("--prefix", default=None,
+                   help="C prefix of the public symbols and files (default: the scene's name)")
+    p.add_argument("--actuated", default=None,
+                   help="closed chains: comma-separated coordinates carrying the efforts of "
+                        "the inverse dynamics (default: every one, least-norm efforts)")
+    p.add_argument("--frames", default=None,
+                   help="jacobian: comma-separated bodies or markers whose Jacobian is "
+                        "exported (default every frame)")
+    p.add_argument("--friction", default="",
+                   help="regressor: comma-separated friction laws whose coefficients join "
+                        "its parameters (viscous, coulomb; default none)")
+    p.add_argument("--cmake", action="store_true", help="also write a CMakeLists.txt")
+    p.add_argument("--force", action="store_true",
+                   help="overwrite the files of a non-empty directory")
+    add_output_flags(p)
+
+
 def view_arguments(p) -> None:
     """``view``: 3-D view in the browser (casmbd.cli.view; needs casmbd[view])."""
     p.add_argument("source", help="scene file (TOML/URDF: the initial pose), result file or "
@@ -243,3 +273,49 @@ def _port(text: str) -> int:
     if port > 65535:
         raise argparse.ArgumentTypeError(f"must be a TCP port 1 … 65535, got {text}")
     return port
+
+
+def excite_arguments(p) -> None:
+    """``excite``: the excitation design's period, limits, size and ``--out``."""
+    p.add_argument("--period", type=positive_float, required=True,
+                   help="period T of the Fourier series [s]")
+    p.add_argument("--acceleration", type=positive_float, required=True,
+                   help="joint acceleration limit [rad/s² or m/s²] (URDF has none)")
+    p.add_argument("--harmonics", type=positive_int, default=5,
+                   help="harmonics per joint (default 5)")
+    p.add_argument("--samples", type=positive_int, default=60,
+                   help="regressor samples per period in the objective (default 60)")
+    p.add_argument("--friction", default="viscous,coulomb",
+                   help="friction laws whose coefficients join the regressor: viscous, "
+                        "coulomb, both comma-separated (default) or none")
+    p.add_argument("--torque-limits", action="store_true",
+                   help="also |tau| <= the URDF effort limits at the model's parameters")
+    p.add_argument("--max-iter", type=positive_int, default=300,
+                   help="IPOPT iterations (default 300)")
+    p.add_argument("--seed", type=int, default=0,
+                   help="seed of the random feasible start (default 0)")
+    p.add_argument("--rate", type=positive_float, default=100.0,
+                   help="sampling rate of --out [Hz] (default 100)")
+    p.add_argument("--out", help="write one period as CSV: t, q.<coordinate>, v.…, a.…")
+
+
+def identify_arguments(p) -> None:
+    """``identify``: the measurement file, friction laws, filter, estimator and ``--out``."""
+    p.add_argument("--data", required=True,
+                   help="measurement CSV: t, q.<coordinate>, tau.<coordinate> [, v.…, a.…] "
+                        "(docs/identification.md)")
+    p.add_argument("--friction", default="viscous,coulomb",
+                   help="friction laws identified on every joint: viscous, coulomb, both "
+                        "comma-separated (default) or none")
+    p.add_argument("--cutoff", type=positive_float, default=None,
+                   help="zero-phase Butterworth low-pass cut-off [Hz] applied to q and tau "
+                        "(required when the file has no v. and a. columns)")
+    p.add_argument("--decimate", type=positive_int, default=1,
+                   help="keep every K-th sample after filtering (default 1)")
+    p.add_argument("--ols", action="store_true",
+                   help="ordinary least squares (default: weighted by each joint's residual "
+                        "deviation, Gautier)")
+    p.add_argument("--no-consistent", action="store_true",
+                   help="skip the physically consistent standard parameters (IPOPT)")
+    p.add_argument("--out", help="write the identified model: a .urdf for a URDF, a .toml "
+                                 "for a scene (masses, centres of mass, inertias, friction)")

@@ -62,6 +62,7 @@ ROOMS = {
     "casmbd.analysis.dynamics": 3,      # the simulator, its stepping and post-processing
     "casmbd.analysis.statics": 3,       # statics, resting contacts, stability, linearize
     "casmbd.analysis.studies": 4,       # sweeps and sensitivities
+    "casmbd.analysis.identification": 4,  # regressor, base parameters, identification
     "casmbd.analysis": 5,               # the face: the verbs, loaded on first use
 }
 #: the most modules (besides __init__) in one room

@@ -78,7 +78,7 @@ def test_every_verb_names_an_existing_handler():
 
     import casmbd.cli as cli
 
-    assert len(cli.VERBS) == 13
+    assert len(cli.VERBS) == 16  # + identify, export, excite (issue 38)
     for verb, run in cli.VERBS.items():
         module, name = run.handler
         handler = getattr(importlib.import_module(module), name)
@@ -91,7 +91,7 @@ def test_every_public_name_resolves_to_its_module_object():
     then cached in the package namespace."""
     import casmbd.analysis as face
 
-    assert len(casmbd.__all__) == 38  # 37 + load_mjcf (issue 34)
+    assert len(casmbd.__all__) == 40  # 37 + load_mjcf (issue 34) + identify, export_c (issue 38)
     for name in casmbd.__all__:
         value = getattr(casmbd, name)
         module = (sys.modules[casmbd._LAZY[name]] if name in casmbd._LAZY

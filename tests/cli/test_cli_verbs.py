@@ -32,7 +32,9 @@ def run_json(capsys, *argv: str) -> dict:
 def test_every_verb_is_covered():
     """A new verb must be added to this file."""
     covered = {"info", "kinematics", "inverse", "statics", "linearize", "simulate", "ocp",
-               "plot", "animate", "sweep", "sensitivity", "bench",
+               "plot", "animate", "sweep", "sensitivity", "bench", "identify",
+               "export",  # export: tests/io/test_c_export.py
+               "excite",  # excite: tests/cli/test_cli_excite.py
                "view"}  # view: tests/viz/test_view_cli.py and tests/viz/test_view_browser.py
     assert set(cli.VERBS) == covered
 
