@@ -73,3 +73,15 @@ def test_missing_empty_and_too_large(tmp_path, monkeypatch):
     (tmp_path / "big.csv").write_text("t,q.shoulder.angle\n" + "0,0\n" * 10)
     with pytest.raises(LimitError, match=r"big\.csv"):
         mio.read_measurements(tmp_path / "big.csv", COORDS)
+
+
+def test_fifo_and_folder_are_refused_unread(tmp_path):
+    """A named pipe is refused before it is opened (no hang), a folder by name."""
+    import os
+
+    fifo = tmp_path / "pipe.csv"
+    os.mkfifo(fifo)
+    with pytest.raises(IdentificationError, match="is a FIFO"):
+        mio.read_measurements(fifo, COORDS)
+    with pytest.raises(IdentificationError, match="measurement file"):
+        mio.read_measurements(tmp_path, COORDS)

@@ -48,6 +48,7 @@ from casmbd.analysis.identification.measurements import (
 from casmbd.analysis.identification.parameters import check_friction_laws
 from casmbd.analysis.identification.regressor import joint_torque_regressor
 from casmbd.errors import IdentificationError, ModelError
+from casmbd.system.equations import System
 
 __all__ = ["Identification", "identification_model", "identify"]
 
@@ -146,10 +147,13 @@ def identification_model(mechanism, friction=("viscous", "coulomb"), mode: str =
         reg = joint_torque_regressor(mechanism, laws, mode=mode)
     except ModelError as exc:
         raise IdentificationError(f"identification of '{mechanism.name}': {exc}") from None
-    if reg.nq != reg.nv or list(reg.rows) != list(reg.coordinate_names):
+    loops = System(mechanism, coordinates="joint").nc if reg.nq == reg.nv else 0
+    if reg.nq != reg.nv or list(reg.rows) != list(reg.coordinate_names) or loops:
         why = ("a floating base" if reg.nq != reg.nv else
-               f"efforts on {', '.join(reg.rows)} rather than every coordinate "
-               "(drivers or a closed chain)")
+               f"efforts on {', '.join(reg.rows)} rather than every coordinate (drivers)"
+               if list(reg.rows) != list(reg.coordinate_names) else
+               f"{loops} loop-closure equations (a closed chain: its efforts would be the "
+               "least-norm ones, not the motors')")
         raise IdentificationError(
             f"identification of '{mechanism.name}': {why}; measurement files hold q and τ "
             "of every coordinate of a fixed-base tree (identify the open-chain robot)")

@@ -189,3 +189,19 @@ def test_planar_two_link_scene():
     pred = base.regressor(reg.stacked(q2, v2, a2).reshape(300, 2, -1)) @ res.base.values
     assert np.max(np.abs(pred - tau2)) < 1e-9 * np.max(np.abs(tau2))
     assert res.consistent.checks["consistent"]
+
+
+def test_refused_mechanisms_are_named():
+    """A closed chain (an undriven four-bar: the regressor's least-norm efforts are not what
+    motors measure) and a driven one (efforts on the driver) are refused by name."""
+    import pathlib
+
+    from casmbd.errors import IdentificationError
+
+    text = (pathlib.Path(__file__).resolve().parents[3] / "examples" / "four_bar.toml"
+            ).read_text()
+    undriven = loads_scene(text[:text.index("[[drivers]]")])
+    with pytest.raises(IdentificationError, match="2 loop-closure equations"):
+        identification_model(undriven, (), mode="vm")
+    with pytest.raises(IdentificationError, match="efforts on crank_drive"):
+        identification_model(loads_scene(text), (), mode="vm")
