@@ -239,6 +239,45 @@ def test_regressor_agrees_with_the_python_api_and_closes_on_the_inverse_dynamics
         q = casmbd.assemble(numeric, q + rng.uniform(-0.3, 0.3, 3), 0.0).q
 
 
+@needs_cc
+def test_scene_parameters_as_an_input(tmp_path):
+    """``parameters="input"`` (examples/double_pendulum.toml: L and m): after
+    ``PREFIX_work_init`` the work struct's p holds the scene's values and the functions equal
+    the Python API; with p changed to (L, m) = (1.5, 2.0) they equal the Python API after
+    ``set_parameters`` (1e-13): M, τ, q̈ and the frame positions.  A mechanism without
+    [parameters] is refused by name."""
+    mech = casmbd.load_scene(ROOT / "examples" / "double_pendulum.toml")
+    report = export_c(mech, tmp_path / "dp", prefix="dp", parameters="input")
+    lib = Library(tmp_path / "dp", "dp", 2, 2)
+    model = casmbd.compile(mech, mode="vm")
+    names = list(model.numeric.parameter_names)
+    assert sorted(names) == ["L", "m"]
+    lib.fn("work_init")(lib.work)
+    sz = report.sizes
+    offset = 8 * (sz["arg"] + sz["res"] + max(1, sz["iw"]) + max(1, sz["w"]))
+    p = np.frombuffer(lib.work, dtype=float, count=2, offset=offset)
+    assert np.array_equal(p, model.p)
+    q, v, x = (np.random.default_rng(5).uniform(-2.0, 2.0, 2) for _ in range(3))
+    masses = []
+    for values in ({}, {"L": 1.5, "m": 2.0}):
+        if values:
+            model.numeric.set_parameters(**values)
+            p[:] = [values[n] for n in names]
+        rc, (m,) = lib.call("mass_matrix", q, outs=[4])
+        masses.append(m)
+        assert rc == 0 and _rel(m.reshape(2, 2), model.mass_matrix(q)) <= TOL
+        rc, (tau,) = lib.call("inverse_dynamics", q, v, x, outs=[2])
+        assert rc == 0 and _rel(tau, model.inverse_dynamics(q, v, x)) <= TOL
+        rc, (acc,) = lib.call("forward_dynamics", q, v, x, outs=[2])
+        assert rc == 0 and _rel(acc, model.forward_dynamics(q, v, x)) <= TOL
+        nf = len(report.frame_names)
+        rc, (pos, _) = lib.call("forward_kinematics", q, outs=[2 * nf, 4 * nf])
+        assert rc == 0 and _rel(pos.reshape(nf, 2), model.forward_kinematics(q)[0]) <= TOL
+    assert _rel(masses[1], masses[0]) > 1.0  # m L² scales by 4.5: p is used
+    with pytest.raises(ModelError, match="has no \\[parameters\\]"):
+        export_c(casmbd.load_scene(UR), tmp_path / "ur", parameters="input")
+
+
 def _multipliers(lib, report) -> np.ndarray:
     """``w->lambda`` of the work struct: after the 8-byte members arg, res, iw and w."""
     sz = report.sizes
