@@ -89,6 +89,10 @@ class ExportReport:
         The names in the order of the C arrays.
     sizes : dict
         Work sizes: ``arg``, ``res``, ``iw``, ``w`` (entries of :c:type:`PREFIX_work`).
+    regressor_parameters, regressor_rows : list of str
+        With ``regressor``: the names of π (columns of Y) and of the efforts (rows).
+    parameters : {"constant", "input"}
+        How the scene's ``[parameters]`` were exported; ``parameter_names`` their names.
     """
 
     directory: Path
