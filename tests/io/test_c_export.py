@@ -168,7 +168,8 @@ def test_main_c_builds_and_prints_the_gravity_torques(ur, tmp_path):
 @needs_cc
 def test_four_bar_closed_chain_agrees_with_the_python_api(four_bar, tmp_path):
     """Four-bar at 4 assembled states with consistent velocities: the KKT forward dynamics
-    and the least-norm inverse dynamics (and its multipliers) against ``casmbd.compile``
+    and the least-norm inverse dynamics (and its multipliers), and the planar M, b, frame
+    placements and Jacobians (a marker among the frames) against ``casmbd.compile``
     (1e-13 relative; measured ≤ 1.1e-14), inconsistent accelerations give
     ERR_INCONSISTENT (3); with the crank actuated (an export of its own) τ is the crank
     torque that drives the forward dynamics."""
@@ -187,6 +188,18 @@ def test_four_bar_closed_chain_agrees_with_the_python_api(four_bar, tmp_path):
         assert rc == 0 and _rel(eff, ref_tau) <= TOL
         assert _rel(_multipliers(lib, report), ref_lam) <= TOL
         assert lib.call("inverse_dynamics", q, v, ref + np.array([1.0, 0.0, 0.0]), outs=[3])[0] == 3
+        rc, (m,) = lib.call("mass_matrix", q, outs=[9])
+        assert rc == 0 and _rel(m.reshape(3, 3), model.mass_matrix(q)) <= TOL
+        rc, (b,) = lib.call("bias_forces", q, v, outs=[3])
+        assert rc == 0 and _rel(b, model.bias_forces(q, v)) <= TOL
+        nf = len(report.frame_names)  # planar: 2-vectors, 2×2 rotations, 3×n_v Jacobians
+        rc, (pos, rot) = lib.call("forward_kinematics", q, outs=[2 * nf, 4 * nf])
+        ref_pos, ref_rot = model.forward_kinematics(q)
+        assert rc == 0 and _rel(pos.reshape(nf, 2), ref_pos) <= TOL
+        assert _rel(rot.reshape(nf, 2, 2), ref_rot) <= TOL
+        for k, frame in enumerate(report.frame_names):
+            rc, (jac,) = lib.call("jacobian", q, outs=[9], extra=[ctypes.c_int(k)])
+            assert rc == 0 and _rel(jac.reshape(3, 3), model.jacobian(q, frame)) <= TOL
         q = casmbd.assemble(numeric, q + rng.uniform(-0.3, 0.3, 3), 0.0).q
     crank = tmp_path / "crank"
     export_c(mech, crank, prefix="fbc", actuated=["A.angle"])
