@@ -15,7 +15,8 @@ def _cmd_export(args) -> tuple[dict, str]:
     mech = load_scene_for(args)
     report = export_c(mech, args.c, functions=args.functions, prefix=args.prefix,
                       actuated=_names(args.actuated), friction=_names(args.friction) or (),
-                      frames=_names(args.frames), cmake=args.cmake, force=args.force)
+                      frames=_names(args.frames), parameters=args.parameters,
+                      cmake=args.cmake, force=args.force)
     data = report.to_json()
     lines = [f"exported '{mech.name}' as C99 to {report.directory} (prefix {report.prefix}): "
              f"n_q = {report.nq}, n_v = {report.nv}, n_c = {report.nc}, "

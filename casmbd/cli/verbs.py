@@ -242,6 +242,9 @@ def export_arguments(p) -> None:
     p.add_argument("--friction", default="",
                    help="regressor: comma-separated friction laws whose coefficients join "
                         "its parameters (viscous, coulomb; default none)")
+    p.add_argument("--parameters", choices=("constant", "input"), default="constant",
+                   help="the scene's [parameters]: folded in as constants (default) or an "
+                        "input (the work struct's p)")
     p.add_argument("--cmake", action="store_true", help="also write a CMakeLists.txt")
     p.add_argument("--force", action="store_true",
                    help="overwrite the files of a non-empty directory")

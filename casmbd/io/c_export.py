@@ -3,10 +3,12 @@
 The exported functions are the per-call Functions of :func:`casmbd.compile`
 (:class:`~casmbd.compiled.robot.CompiledModel`, built in CasADi's virtual machine: the same
 expression graphs the Python API compiles), with the mechanism's parameter values folded in
-as constants, written by CasADi's :class:`casadi.CodeGenerator` as plain C99 (``casadi_real``
-= ``double``, ``casadi_int`` = ``long long int``, no CasADi runtime: only ``<math.h>``), plus a
-hand-written wrapper (``NAME.h``/``NAME.c``: one C function per quantity, sizes, names and
-return codes), a ``README.md``, an example ``main.c`` and optionally a ``CMakeLists.txt``.
+as constants (or, ``parameters="input"``, the scene's ``[parameters]`` left an input: the
+work struct's ``p``), written by CasADi's :class:`casadi.CodeGenerator` as plain C99
+(``casadi_real`` = ``double``, ``casadi_int`` = ``long long int``, no CasADi runtime: only
+``<math.h>``), plus a hand-written wrapper (``NAME.h``/``NAME.c``: one C function per
+quantity, sizes, names and return codes), a ``README.md``, an example ``main.c`` and
+optionally a ``CMakeLists.txt``.
 Constraint equations (closed chains, drivers) are solved in the generated code as
 :class:`~casmbd.compiled.robot.CompiledModel` solves them in numpy:
 
@@ -87,6 +89,10 @@ class ExportReport:
         The names in the order of the C arrays.
     sizes : dict
         Work sizes: ``arg``, ``res``, ``iw``, ``w`` (entries of :c:type:`PREFIX_work`).
+    regressor_parameters, regressor_rows : list of str
+        With ``regressor``: the names of π (columns of Y) and of the efforts (rows).
+    parameters : {"constant", "input"}
+        How the scene's ``[parameters]`` were exported; ``parameter_names`` their names.
     """
 
     directory: Path
@@ -103,6 +109,8 @@ class ExportReport:
     sizes: dict = field(default_factory=dict)
     regressor_parameters: list[str] = field(default_factory=list)
     regressor_rows: list[str] = field(default_factory=list)
+    parameters: str = "constant"
+    parameter_names: list[str] = field(default_factory=list)
 
     def to_json(self) -> dict:
         """A JSON-ready summary (the object ``casmbd export --json`` prints)."""
@@ -112,7 +120,8 @@ class ExportReport:
                 "velocity_names": self.velocity_names, "frame_names": self.frame_names,
                 "actuated": self.actuated, "work_sizes": self.sizes,
                 "regressor_parameters": self.regressor_parameters,
-                "regressor_rows": self.regressor_rows}
+                "regressor_rows": self.regressor_rows, "parameters": self.parameters,
+                "parameter_names": self.parameter_names}
 
 
 def parse_functions(functions: str | Sequence[str] | None) -> list[str]:
@@ -165,15 +174,22 @@ def _check_directory(directory: Path, force: bool) -> None:
                             f"{exc.strerror or exc}") from None
 
 
-def _folded(f: ca.Function, p: np.ndarray) -> tuple[list[ca.SX], list[ca.SX]]:
-    """The outputs of ``f(..., p)`` as expressions of fresh symbols of its other inputs, the
-    parameter values folded in as constants, and those symbols."""
+def _folded(f: ca.Function, p: np.ndarray | ca.SX) -> tuple[list[ca.SX], list[ca.SX]]:
+    """Fresh symbols of the inputs of ``f`` but its last (the parameters) and its outputs at
+    them: with ``p`` an array its values folded in as constants, with ``p`` a symbol left an
+    input (``parameters="input"``)."""
     syms = [ca.SX.sym(f.name_in(k), f.sparsity_in(k)) for k in range(f.n_in() - 1)]
-    outs = f.call([*syms, ca.DM(p.reshape(-1, 1)) if p.size else ca.DM(0, 1)])
-    return syms, outs
+    if not isinstance(p, ca.SX):
+        p = ca.DM(p.reshape(-1, 1)) if p.size else ca.DM(0, 1)
+    return syms, f.call([*syms, p])
 
 
-def _function(name: str, inputs, outputs, in_names, out_names) -> ca.Function:
+def _function(name: str, inputs, outputs, in_names, out_names,
+              p: np.ndarray | ca.SX | None = None) -> ca.Function:
+    """An export Function (dense outputs, shared subexpressions), with the parameter vector
+    as its last input when ``p`` is a symbol."""
+    if isinstance(p, ca.SX):
+        inputs, in_names = [*inputs, p], [*in_names, "p"]
     return ca.Function(name, inputs, [ca.densify(o) for o in outputs], in_names, out_names,
                        dict(FUNCTION_OPTIONS))
 
@@ -206,9 +222,12 @@ def _jacobian_frames(model, frames: Sequence[str] | str | None) -> list[int]:
 
 
 def _build(model, functions: list[str], regressor, prefix: str,
-           jacobian_frames: list[int]) -> list[ca.Function]:
-    """The export Functions ``PREFIX_cg_*`` (one per frame for the Jacobians)."""
-    num, p = model.numeric, np.asarray(model.p, dtype=float)
+           jacobian_frames: list[int], parameters: str = "constant") -> list[ca.Function]:
+    """The export Functions ``PREFIX_cg_*`` (one per frame for the Jacobians); with
+    ``parameters="input"`` each but the regressor takes the parameter vector p last."""
+    num = model.numeric
+    p = (ca.SX.sym("p", len(model.p)) if parameters == "input"
+         else np.asarray(model.p, dtype=float))
     get = num.function
     nv, nc, cg = model.nv, model.nc, f"{prefix}_cg_"
     out = []
@@ -216,7 +235,7 @@ def _build(model, functions: list[str], regressor, prefix: str,
         if not nc and len(model.actuated) == nv:
             (q, v, a), (tau,) = _folded(get("robot_id"), p)
             out.append(_function(cg + "inverse_dynamics", [q, v, a], [tau],
-                                 ["q", "v", "a"], ["tau"]))
+                                 ["q", "v", "a"], ["tau"], p))
         else:
             out.append(_constrained_inverse(model, get("robot_id_terms"), p,
                                             cg + "inverse_dynamics"))
@@ -228,28 +247,29 @@ def _build(model, functions: list[str], regressor, prefix: str,
             kkt = ca.blockcat([[m.reshape((nv, nv)), cq.T], [cq, ca.SX.zeros(nc, nc)]])
             acc = ldl_solve(kkt, ca.vertcat(r, gamma))[:nv]
         out.append(_function(cg + "forward_dynamics", [q, v, tau], [acc],
-                             ["q", "v", "tau"], ["a"]))
+                             ["q", "v", "tau"], ["a"], p))
     if "mass_matrix" in functions:
         (q,), (m,) = _folded(get("robot_mass_matrix"), p)
         out.append(_function(cg + "mass_matrix", [q], [ca.vec(m.reshape((nv, nv)).T)],
-                             ["q"], ["M"]))
+                             ["q"], ["M"], p))
     if "bias_forces" in functions:
         (q, v), (b,) = _folded(get("robot_bias"), p)
-        out.append(_function(cg + "bias_forces", [q, v], [b], ["q", "v"], ["b"]))
+        out.append(_function(cg + "bias_forces", [q, v], [b], ["q", "v"], ["b"], p))
     if "forward_kinematics" in functions:
         (q,), (pos, rot) = _folded(get("robot_fk"), p)
         out.append(_function(cg + "forward_kinematics", [q], [pos, rot], ["q"],
-                             ["positions", "rotations"]))
+                             ["positions", "rotations"], p))
     if "jacobian" in functions:
         for k in jacobian_frames:
             (q,), (jac,) = _folded(get(f"robot_jacobian_{k}"), p)  # Jᵀ column-major
-            out.append(_function(f"{cg}jacobian_{k}", [q], [jac], ["q"], ["J"]))
+            out.append(_function(f"{cg}jacobian_{k}", [q], [jac], ["q"], ["J"], p))
     if "regressor" in functions:
         out.append(_regressor_function(regressor, cg + "regressor"))
     return out
 
 
-def _constrained_inverse(model, terms: ca.Function, p: np.ndarray, name: str) -> ca.Function:
+def _constrained_inverse(model, terms: ca.Function, p: np.ndarray | ca.SX,
+                         name: str) -> ca.Function:
     """τ, λ and the relative violation of C_q a = γ (module docstring)."""
     nv, nc = model.nv, model.nc
     (q, v, a), (f, cq, gamma) = _folded(terms, p)
@@ -277,7 +297,7 @@ def _constrained_inverse(model, terms: ca.Function, p: np.ndarray, name: str) ->
         full = f + ca.mtimes(cq.T, lam)
         tau = ca.vertcat(*[full[k] if k in sel else ca.SX(0.0) for k in range(nv)])
     return _function(name, [q, v, a], [tau, lam if nc else ca.SX(0, 1), violation],
-                     ["q", "v", "a"], ["tau", "lambda", "violation"])
+                     ["q", "v", "a"], ["tau", "lambda", "violation"], p)
 
 
 def _regressor_function(regressor: JointTorqueRegressor, name: str) -> ca.Function:
@@ -329,7 +349,8 @@ def _regressor(mechanism, actuated, friction) -> JointTorqueRegressor:
 def export_c(mechanism, directory, functions: str | Sequence[str] | None = None, *,
              prefix: str | None = None, actuated: Sequence[str] | None = None,
              friction: Sequence[str] | str = (), frames: Sequence[str] | None = None,
-             cmake: bool = False, force: bool = False) -> ExportReport:
+             parameters: str = "constant", cmake: bool = False,
+             force: bool = False) -> ExportReport:
     """Write the dynamics of ``mechanism`` as a standalone C99 library into ``directory``.
 
     Parameters
@@ -355,6 +376,11 @@ def export_c(mechanism, directory, functions: str | Sequence[str] | None = None,
     frames : sequence of str, optional
         The frames (bodies, markers) whose Jacobian is exported (default every one); the
         others' index gives ``PREFIX_ERR_ARGUMENT``.
+    parameters : {"constant", "input"}
+        The scene's ``[parameters]`` folded in as constants (default), or an input: the
+        work struct's ``p`` (``PREFIX_NP`` values, set to the scene's by
+        ``PREFIX_work_init``).  Masses, inertias and geometry given as numbers are constants
+        either way (the regressor takes them as π).
     cmake : bool
         Also write a ``CMakeLists.txt`` (a static library and the example).
     force : bool
@@ -380,7 +406,14 @@ def export_c(mechanism, directory, functions: str | Sequence[str] | None = None,
     model = compile_robot(mechanism, mode="vm", actuated=actuated)
     jac_frames = _jacobian_frames(model, frames)
     regressor = (_regressor(mechanism, actuated, friction) if "regressor" in names else None)
-    fns = _build(model, names, regressor, prefix, jac_frames)
+    if parameters not in ("constant", "input"):
+        raise ModelError(f"export: parameters must be 'constant' or 'input', got "
+                         f"{parameters!r}")
+    if parameters == "input" and not len(model.p):
+        raise ModelError(f"export: parameters='input' but '{mechanism.name}' has no "
+                         "[parameters] (masses, inertias and geometry given as numbers are "
+                         "constants; the regressor takes them as an input)")
+    fns = _build(model, names, regressor, prefix, jac_frames, parameters)
     source, cg_header = _generate(fns, prefix)
     sizes = {"arg": max(f.sz_arg() for f in fns), "res": max(f.sz_res() for f in fns),
              "iw": max(f.sz_iw() for f in fns), "w": max(f.sz_w() for f in fns)}
@@ -402,7 +435,7 @@ def export_c(mechanism, directory, functions: str | Sequence[str] | None = None,
         tolerance=ACCELERATION_TOLERANCE, casadi_version=ca.__version__,
         regressor_parameters=list(regressor.names) if regressor else [],
         regressor_rows=list(regressor.rows) if regressor else [],
-        jacobian_frames=jac_frames, cmake=cmake)
+        jacobian_frames=jac_frames, parameter_input=parameters == "input", cmake=cmake)
     files = {f"{prefix}_model.c": source, f"{prefix}_model.h": cg_header,
              f"{prefix}.h": text.header(spec), f"{prefix}.c": text.wrapper(spec),
              "main.c": text.example(spec), "README.md": text.readme(spec)}
@@ -421,4 +454,5 @@ def export_c(mechanism, directory, functions: str | Sequence[str] | None = None,
                         velocity_names=spec.velocity_names, frame_names=spec.frame_names,
                         actuated=spec.actuated, sizes=sizes,
                         regressor_parameters=spec.regressor_parameters,
-                        regressor_rows=spec.regressor_rows)
+                        regressor_rows=spec.regressor_rows, parameters=parameters,
+                        parameter_names=spec.parameter_names)

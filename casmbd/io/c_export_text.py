@@ -40,6 +40,7 @@ class Spec:
     regressor_parameters: list[str]
     regressor_rows: list[str]
     jacobian_frames: list[int]
+    parameter_input: bool = False
     cmake: bool = False
 
     @property
@@ -207,7 +208,8 @@ def header(s: Spec) -> str:
         " * Thread safety",
         " *   No function writes a global or static variable: calls with distinct work",
         f" *   structs ({P}_work) may run concurrently; one work struct serves one call at a",
-        " *   time.  The work struct needs no initialisation.",
+        (" *   time.  The work struct needs no initialisation." if not s.parameter_input else
+         f" *   time.  {P}_work_init sets the work struct's parameters p (once per struct)."),
         " *",
         " * Errors",
         f" *   Every function returns {P}_OK (0) or a positive code ({P}_strerror gives its",
@@ -229,7 +231,11 @@ def header(s: Spec) -> str:
     if s.nc:
         lines += [f" * Constraint equations ({P}_constraint_labels):",
                   _name_table(s.constraint_labels)]
-    if s.parameter_names:
+    if s.parameter_names and s.parameter_input:
+        lines += [f" * Scene parameters, an input: w->p ({P}_parameter_names, defaults):",
+                  "\n".join(f" *   {k:3d}  {comment(n)} = {_number(v)}" for k, (n, v)
+                            in enumerate(zip(s.parameter_names, s.parameter_values)))]
+    elif s.parameter_names:
         lines += [" * Scene parameters folded in as constants:",
                   "\n".join(f" *   {comment(n)} = {_number(v)}"
                             for n, v in zip(s.parameter_names, s.parameter_values))]
@@ -255,6 +261,8 @@ def header(s: Spec) -> str:
                      "/* regressor parameters pi (columns of Y) */")
         lines.append(f"#define {P}_NY {len(s.regressor_rows)}  "
                      "/* regressor rows (efforts) */")
+    if s.parameter_input:
+        lines.append(f"#define {P}_NP {len(s.parameter_names)}  /* scene parameters p */")
     if s.nc:
         lines.append(f"#define {P}_ACCELERATION_TOLERANCE {_number(s.tolerance)}  "
                      "/* relative violation of C_q a = gamma */")
@@ -273,7 +281,10 @@ def header(s: Spec) -> str:
         f"#define {P}_SZ_IW {sz['iw']}",
         f"#define {P}_SZ_W {sz['w']}",
         "",
-        "/* The caller-owned work of a call: no initialisation needed; one per thread.",
+        ("/* The caller-owned work of a call: no initialisation needed; one per thread."
+         if not s.parameter_input else
+         f"/* The caller-owned work of a call: {P}_work_init once, then set p freely; one "
+         "per thread."),
         "   Allocate it statically, on the heap or (small models) on the stack. */",
         f"typedef struct {P}_work {{",
         f"  const double *arg[{P}_SZ_ARG];",
@@ -284,6 +295,8 @@ def header(s: Spec) -> str:
     if s.nc:
         lines += [f"  double lambda[{P}_NC];  /* multipliers of the last inverse_dynamics */",
                   "  double violation;  /* its relative violation of C_q a = gamma */"]
+    if s.parameter_input:
+        lines += [f"  double p[{P}_NP];  /* the scene's parameters ({P}_parameter_names) */"]
     lines += [
         f"}} {P}_work;",
         "",
@@ -297,6 +310,10 @@ def header(s: Spec) -> str:
         lines.append(f"extern const char *const {P}_constraint_labels[{P}_NC];")
         lines.append(f"extern const int {P}_actuated[{P}_NV];  "
                      "/* 1: the coordinate carries an effort */")
+    if s.parameter_input:
+        lines.append(f"extern const char *const {P}_parameter_names[{P}_NP];")
+        lines.append(f"extern const double {P}_parameter_defaults[{P}_NP];  "
+                     "/* the scene's values */")
     if "regressor" in s.functions:
         lines.append(f"extern const char *const {P}_regressor_parameters[{P}_NPI];")
         lines.append(f"extern const char *const {P}_regressor_rows[{P}_NY];")
@@ -309,6 +326,9 @@ def header(s: Spec) -> str:
         "/* the text of a return code */",
         f"const char *{P}_strerror(int code);",
     ]
+    if s.parameter_input:
+        lines += [f"/* w->p = {P}_parameter_defaults: call once per work struct before the "
+                  "first call */", f"void {P}_work_init({P}_work *w);"]
     for fname in s.functions:
         params, doc = sig[fname]
         lines += ["", _wrap_comment(doc), f"int {P}_{fname}({params}, {P}_work *w);"]
@@ -361,6 +381,11 @@ def wrapper(s: Spec) -> str:
         lines.append(f"const int {P}_actuated[{P}_NV] = "
                      + _array(["1" if n in s.actuated else "0" for n in s.velocity_names], 12)
                      + ";")
+    if s.parameter_input:
+        lines.append(f"const char *const {P}_parameter_names[{P}_NP] = "
+                     + _array([c_string(n) for n in s.parameter_names], 4) + ";")
+        lines.append(f"const double {P}_parameter_defaults[{P}_NP] = "
+                     + _array([_number(x) for x in s.parameter_values], 4) + ";")
     if "regressor" in s.functions:
         lines.append(f"const char *const {P}_regressor_parameters[{P}_NPI] = "
                      + _array([c_string(n) for n in s.regressor_parameters], 4) + ";")
@@ -369,6 +394,11 @@ def wrapper(s: Spec) -> str:
     lines += [
         "",
         f"size_t {P}_work_bytes(void) {{ return sizeof({P}_work); }}",
+        *([f"void {P}_work_init({P}_work *w) {{",
+           "  int k;",
+           "  if (w == NULL) return;",
+           f"  for (k = 0; k < {P}_NP; ++k) w->p[k] = {P}_parameter_defaults[k];",
+           "}"] if s.parameter_input else []),
         "",
         f"int {P}_frame_index(const char *name) {{",
         "  int k;",
@@ -424,6 +454,8 @@ def wrapper(s: Spec) -> str:
             body += [f"  if (frame < 0 || frame >= {P}_NFRAMES || {P}_jacobians[frame] == NULL)",
                      f"    return {P}_ERR_ARGUMENT;"]
         body += [f"  w->arg[{k}] = {x};" for k, x in enumerate(ins)]
+        if s.parameter_input and fname != "regressor":
+            body += [f"  w->arg[{len(ins)}] = w->p;"]
         body += [f"  w->res[{k}] = {r};" for k, (r, _) in enumerate(res)]
         constrained = fname == "inverse_dynamics" and s.nc > 0
         if constrained:
@@ -474,6 +506,8 @@ def example(s: Spec) -> str:
         + [r for r, _ in outs] + ["&work"]
     lines += [
         "  int k, rc;",
+        *([f"  {P}_work_init(&work);  /* the scene's parameter values */"]
+          if s.parameter_input else []),
         f"  rc = {P}_{fname}({', '.join(call_args)});",
         f"  if (rc != {P}_OK) {{",
         f'    fprintf(stderr, "{P}_{fname}: %s\\n", {P}_strerror(rc));',
@@ -514,11 +548,19 @@ def readme(s: Spec) -> str:
             "left in `w->lambda`.  Drivers are constraint rows at t = 0 like the loop "
             "closures: their efforts are among the multipliers.\n")
     params = ""
-    if s.parameter_names:
+    if s.parameter_names and s.parameter_input:
+        params = (f"\nThe scene's parameters are an input: `w->p` ({P}_NP values, "
+                  f"`{P}_parameter_names`), set to the scene's values by `{P}_work_init(w)` "
+                  "(call it once per work struct), then free to change between calls: "
+                  + ", ".join(f"`{comment(n)}` = {_number(v)}"
+                              for n, v in zip(s.parameter_names, s.parameter_values))
+                  + ".\n")
+    elif s.parameter_names:
         params = ("\nThe scene's parameters are folded in as constants: "
                   + ", ".join(f"`{comment(n)}` = {_number(v)}"
                               for n, v in zip(s.parameter_names, s.parameter_values))
                   + ".  Export again to change them.\n")
+    init = f"`{P}_work_init` once" if s.parameter_input else "no initialisation"
     return f"""# {comment(s.name)}: standalone C dynamics
 
 Written by `casmbd export` from the mechanism `{comment(s.name)}`.  The numbers equal those of
@@ -563,7 +605,7 @@ row-major: `X[i * ncols + j]`.
 {params}{closed}
 ## Functions
 
-Every function takes a caller-owned `{P}_work` (no initialisation; one per thread; calls with
+Every function takes a caller-owned `{P}_work` ({init}; one per thread; calls with
 different work structs may run concurrently) and returns `{P}_OK` (0) or an error code
 (`{P}_strerror`): `{P}_ERR_ARGUMENT` (NULL pointer, frame out of range),
 `{P}_ERR_NOT_FINITE` (a NaN or infinite output: a non-finite input or a singular mass matrix),

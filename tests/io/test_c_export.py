@@ -168,7 +168,8 @@ def test_main_c_builds_and_prints_the_gravity_torques(ur, tmp_path):
 @needs_cc
 def test_four_bar_closed_chain_agrees_with_the_python_api(four_bar, tmp_path):
     """Four-bar at 4 assembled states with consistent velocities: the KKT forward dynamics
-    and the least-norm inverse dynamics (and its multipliers) against ``casmbd.compile``
+    and the least-norm inverse dynamics (and its multipliers), and the planar M, b, frame
+    placements and Jacobians (a marker among the frames) against ``casmbd.compile``
     (1e-13 relative; measured ≤ 1.1e-14), inconsistent accelerations give
     ERR_INCONSISTENT (3); with the crank actuated (an export of its own) τ is the crank
     torque that drives the forward dynamics."""
@@ -187,6 +188,18 @@ def test_four_bar_closed_chain_agrees_with_the_python_api(four_bar, tmp_path):
         assert rc == 0 and _rel(eff, ref_tau) <= TOL
         assert _rel(_multipliers(lib, report), ref_lam) <= TOL
         assert lib.call("inverse_dynamics", q, v, ref + np.array([1.0, 0.0, 0.0]), outs=[3])[0] == 3
+        rc, (m,) = lib.call("mass_matrix", q, outs=[9])
+        assert rc == 0 and _rel(m.reshape(3, 3), model.mass_matrix(q)) <= TOL
+        rc, (b,) = lib.call("bias_forces", q, v, outs=[3])
+        assert rc == 0 and _rel(b, model.bias_forces(q, v)) <= TOL
+        nf = len(report.frame_names)  # planar: 2-vectors, 2×2 rotations, 3×n_v Jacobians
+        rc, (pos, rot) = lib.call("forward_kinematics", q, outs=[2 * nf, 4 * nf])
+        ref_pos, ref_rot = model.forward_kinematics(q)
+        assert rc == 0 and _rel(pos.reshape(nf, 2), ref_pos) <= TOL
+        assert _rel(rot.reshape(nf, 2, 2), ref_rot) <= TOL
+        for k, frame in enumerate(report.frame_names):
+            rc, (jac,) = lib.call("jacobian", q, outs=[9], extra=[ctypes.c_int(k)])
+            assert rc == 0 and _rel(jac.reshape(3, 3), model.jacobian(q, frame)) <= TOL
         q = casmbd.assemble(numeric, q + rng.uniform(-0.3, 0.3, 3), 0.0).q
     crank = tmp_path / "crank"
     export_c(mech, crank, prefix="fbc", actuated=["A.angle"])
@@ -237,6 +250,45 @@ def test_regressor_agrees_with_the_python_api_and_closes_on_the_inverse_dynamics
         rc, (y,) = lib.call("regressor", q, v, a, outs=[3 * len(reg.names)])
         assert rc == 0 and _rel(y.reshape(3, -1), reg(q, v, a)) <= TOL
         q = casmbd.assemble(numeric, q + rng.uniform(-0.3, 0.3, 3), 0.0).q
+
+
+@needs_cc
+def test_scene_parameters_as_an_input(tmp_path):
+    """``parameters="input"`` (examples/double_pendulum.toml: L and m): after
+    ``PREFIX_work_init`` the work struct's p holds the scene's values and the functions equal
+    the Python API; with p changed to (L, m) = (1.5, 2.0) they equal the Python API after
+    ``set_parameters`` (1e-13): M, τ, q̈ and the frame positions.  A mechanism without
+    [parameters] is refused by name."""
+    mech = casmbd.load_scene(ROOT / "examples" / "double_pendulum.toml")
+    report = export_c(mech, tmp_path / "dp", prefix="dp", parameters="input")
+    lib = Library(tmp_path / "dp", "dp", 2, 2)
+    model = casmbd.compile(mech, mode="vm")
+    names = list(model.numeric.parameter_names)
+    assert sorted(names) == ["L", "m"]
+    lib.fn("work_init")(lib.work)
+    sz = report.sizes
+    offset = 8 * (sz["arg"] + sz["res"] + max(1, sz["iw"]) + max(1, sz["w"]))
+    p = np.frombuffer(lib.work, dtype=float, count=2, offset=offset)
+    assert np.array_equal(p, model.p)
+    q, v, x = (np.random.default_rng(5).uniform(-2.0, 2.0, 2) for _ in range(3))
+    masses = []
+    for values in ({}, {"L": 1.5, "m": 2.0}):
+        if values:
+            model.numeric.set_parameters(**values)
+            p[:] = [values[n] for n in names]
+        rc, (m,) = lib.call("mass_matrix", q, outs=[4])
+        masses.append(m)
+        assert rc == 0 and _rel(m.reshape(2, 2), model.mass_matrix(q)) <= TOL
+        rc, (tau,) = lib.call("inverse_dynamics", q, v, x, outs=[2])
+        assert rc == 0 and _rel(tau, model.inverse_dynamics(q, v, x)) <= TOL
+        rc, (acc,) = lib.call("forward_dynamics", q, v, x, outs=[2])
+        assert rc == 0 and _rel(acc, model.forward_dynamics(q, v, x)) <= TOL
+        nf = len(report.frame_names)
+        rc, (pos, _) = lib.call("forward_kinematics", q, outs=[2 * nf, 4 * nf])
+        assert rc == 0 and _rel(pos.reshape(nf, 2), model.forward_kinematics(q)[0]) <= TOL
+    assert _rel(masses[1], masses[0]) > 1.0  # m L² scales by 4.5: p is used
+    with pytest.raises(ModelError, match="has no \\[parameters\\]"):
+        export_c(casmbd.load_scene(UR), tmp_path / "ur", parameters="input")
 
 
 def _multipliers(lib, report) -> np.ndarray:
