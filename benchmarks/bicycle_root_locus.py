@@ -16,6 +16,7 @@ Schwab, Proc. R. Soc. A 463 (2007), Fig. 3 and Table 2): the figure of docs/roll
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
@@ -61,6 +62,10 @@ def main(figure: Path = ROOT / "docs" / "figures" / "bicycle_root_locus.png") ->
     for key, val in out.items():
         print(f"{key:26s} {val:.16g}")
     _draw(locus, v_w, v_c, figure)
+    results = ROOT / "benchmarks" / "results" / "bicycle_root_locus.json"
+    results.write_text(json.dumps({**out, "command": "python -m benchmarks.bicycle_root_locus",
+                                   "speeds": len(SPEEDS)}, indent=1) + "\n")
+    print(f"wrote {results}")
     return out
 
 

@@ -103,6 +103,25 @@ def chain100_cache(data: dict) -> str:
     return f"{row['build_wall_s']:.1f} s, then {row['second_run_s']:.2f} s"
 
 
+def c_export_ratio(data: dict) -> str:
+    """The range over robots of the exported C's time per call over Pinocchio C++'s
+    (inverse dynamics / ``rnea``, forward dynamics / ``aba``)."""
+    ratios = [r["casmbd_ns"][ours] / r["pinocchio_cpp_ns"][theirs] for r in data["robots"]
+              for ours, theirs in (("inverse_dynamics", "rnea"), ("forward_dynamics", "aba"))
+              if r.get("pinocchio_cpp_ns")]
+    return f"{min(ratios):.2f}–{max(ratios):.2f}×"
+
+
+def bicycle_table2(data: dict) -> str:
+    """Largest distance of the bicycle's eigenvalues from Meijaard et al.'s Table 2."""
+    return _sci(data["table2_max_deviation"])
+
+
+def bicycle_speeds(data: dict) -> str:
+    """Largest distance of the weave and capsize speeds from the paper's."""
+    return _sci(max(data["weave_speed_deviation"], data["capsize_speed_deviation"]))
+
+
 #: name -> (results file, command that writes it, renderer)
 FIGURES: dict[str, tuple[str, str, Callable[[dict], str]]] = {
     "pinocchio_per_call": ("numeric_api.json", "python -m benchmarks.numeric_api "
@@ -117,6 +136,12 @@ FIGURES: dict[str, tuple[str, str, Callable[[dict], str]]] = {
                              "--update-docs", flexible_convergence),
     "chain100_cache": ("scaling.json", "python -m benchmarks.scaling --update-docs",
                        chain100_cache),
+    "c_export_ratio": ("c_export_speed.json", "python -m benchmarks.c_export_speed "
+                       "--update-docs", c_export_ratio),
+    "bicycle_table2": ("bicycle_root_locus.json", "python -m benchmarks.bicycle_root_locus",
+                       bicycle_table2),
+    "bicycle_speeds": ("bicycle_root_locus.json", "python -m benchmarks.bicycle_root_locus",
+                       bicycle_speeds),
 }
 
 
