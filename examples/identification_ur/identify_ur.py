@@ -95,7 +95,7 @@ def design(quick: bool):
     mech = load_urdf(URDF)
     return excitation_for(mech, period=PERIOD, acceleration=ACCELERATION,
                           friction=FRICTION, harmonics=HARMONICS, samples=40,
-                          max_iter=15 if quick else 80, seed=SEED)
+                          max_iter=40 if quick else 80, seed=SEED)
 
 
 def measure(traj: FourierTrajectory, coordinates: list[str], out: pathlib.Path,
