@@ -233,3 +233,33 @@ def time_per_call(call: Callable[[], object], repeat: int = 7,
             break
         number = max(2 * number, int(number * min_seconds / max(elapsed, 1e-9) * 1.2))
     return 1e6 * min(timer.repeat(repeat, number)) / number
+
+
+def best_per_call(fn: Callable, states: Sequence[tuple], repeats: int) -> float:
+    """µs per call under the fair rule: three warm-up calls, then the best of ``repeats``
+    loops of ``fn(*s)`` over ``states`` (the same loop for casmbd and the peer)."""
+    import time
+
+    for s in states[:3]:
+        fn(*s)
+    best = math.inf
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        for s in states:
+            fn(*s)
+        best = min(best, time.perf_counter() - t0)
+    return 1e6 * best / len(states)
+
+
+def best_per_sample(fn: Callable, arrays: Sequence, repeats: int) -> float:
+    """µs per sample of a batch call: one warm-up, then the best of ``repeats`` calls of
+    ``fn(*arrays)`` over all samples (``len(arrays[0])`` of them)."""
+    import time
+
+    fn(*arrays)
+    best = math.inf
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn(*arrays)
+        best = min(best, time.perf_counter() - t0)
+    return 1e6 * best / len(arrays[0])

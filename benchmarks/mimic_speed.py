@@ -37,6 +37,7 @@ import numpy as np
 
 import casmbd
 from benchmarks.docs import run_study, study_parser
+from benchmarks.fair import best_per_call, best_per_sample
 from benchmarks.robots_vs_pinocchio import robots_dir
 
 ROOT = pathlib.Path(__file__).resolve().parent.parent
@@ -46,30 +47,6 @@ HEAD = "## Mimic joints on the fast path"
 PANDA = "panda_description/urdf/panda.urdf"
 #: issue 34's targets: per call ≤ 1.2× aba / rnea, batch ≤ 0.5× a Pinocchio loop
 TARGET_CALL, TARGET_BATCH = 1.2, 0.5
-
-
-def best_per_call(fn, states, repeats: int) -> float:
-    """µs per call: best of ``repeats`` warm loops of ``fn(*s)`` over ``states``."""
-    for s in states[:3]:
-        fn(*s)
-    best = np.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        for s in states:
-            fn(*s)
-        best = min(best, time.perf_counter() - t0)
-    return 1e6 * best / len(states)
-
-
-def best_per_sample(fn, arrays, repeats: int) -> float:
-    """µs per sample: best of ``repeats`` calls of ``fn(*arrays)`` (one call for all)."""
-    fn(*arrays)
-    best = np.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn(*arrays)
-        best = min(best, time.perf_counter() - t0)
-    return 1e6 * best / len(arrays[0])
 
 
 def fd_instructions(path) -> dict:

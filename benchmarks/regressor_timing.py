@@ -26,12 +26,12 @@ import importlib.util
 import os
 import platform
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 
 from benchmarks.docs import run_study, study_parser
+from benchmarks.fair import best_per_call, best_per_sample
 from casmbd.analysis.identification.base_parameters import random_states
 from casmbd.analysis.identification.regressor import joint_torque_regressor
 from casmbd.io.urdf import load_urdf
@@ -43,30 +43,6 @@ DOC = ROOT / "docs" / "identification.md"
 HEAD = "## Regressor timing"
 #: Pinocchio's place of casmbd's (…, Ixx, Ixy, Ixz, Iyy, Iyz, Izz) in its (…, Iyy, Ixz, …)
 ORDER = np.array([0, 1, 2, 3, 4, 5, 7, 6, 8, 9])
-
-
-def best_per_call(fn, states, repeats: int) -> float:
-    """µs per call: best of ``repeats`` warm loops of ``fn(*s)`` over ``states``."""
-    for s in states[:3]:
-        fn(*s)
-    best = np.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        for s in states:
-            fn(*s)
-        best = min(best, time.perf_counter() - t0)
-    return 1e6 * best / len(states)
-
-
-def best_batch(fn, arrays, repeats: int) -> float:
-    """µs per sample: best of ``repeats`` calls of ``fn(*arrays)`` over all samples."""
-    fn(*arrays)
-    best = np.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn(*arrays)
-        best = min(best, time.perf_counter() - t0)
-    return 1e6 * best / len(arrays[0])
 
 
 def _instructions(reg) -> int | None:
@@ -133,7 +109,7 @@ def measure(states: int = 200, repeats: int = 20) -> dict:
             "shape": [len(reg.rows), len(reg.names)],
             "instructions": _instructions(reg),
             "per_call_us": best_per_call(reg, sample, repeats),
-            "batch_us": best_batch(reg.stacked, (qs, vs, accs), repeats)}
+            "batch_us": best_per_sample(reg.stacked, (qs, vs, accs), repeats)}
         if not friction:
             peer = _pinocchio(reg, sample)
             if peer is not None:
@@ -148,7 +124,7 @@ def measure(states: int = 200, repeats: int = 20) -> dict:
         "shape": [len(reg.rows), len(reg.names)],
         "instructions": _instructions(reg),
         "per_call_us": best_per_call(reg, list(zip(qs, vs, accs, strict=True)), repeats),
-        "batch_us": best_batch(reg.stacked, (qs, vs, accs), repeats)}
+        "batch_us": best_per_sample(reg.stacked, (qs, vs, accs), repeats)}
     return {"date": datetime.date.today().isoformat(), "machine": platform.machine(),
             "cpus": os.cpu_count(), "python": platform.python_version(),
             "states": states, "repeats": repeats, "cases": cases}
