@@ -182,7 +182,7 @@ def true_parameters(truth, reg, model=None):
 
 
 def to_csv(path, t, names, q, tau, v=None, a=None):
-    """A measurement CSV (casmbd.io.measurements) of the samples."""
+    """A measurement CSV (casmbd.io.measurement_csv) of the samples."""
     cols = ["t"] + [f"q.{c}" for c in names]
     data = [t[:, None], q]
     if v is not None:

@@ -2,7 +2,7 @@
 
 ``casmbd identify SCENE|URDF --data MEASURED.csv [--friction viscous,coulomb] [--cutoff HZ]
 [--decimate K] [--ols] [--no-consistent] [--out FILE] [--json]``: reads the samples
-(:mod:`casmbd.io.measurements`), identifies the base parameters by weighted least squares and
+(:mod:`casmbd.io.measurement_csv`), identifies the base parameters by weighted least squares and
 physically consistent standard parameters
 (:func:`casmbd.analysis.identification.identify.identify`), prints them with their standard
 deviations, the condition number and the residuals, and with ``--out`` writes the model file
@@ -20,7 +20,7 @@ from casmbd.analysis.identification.identify import identification_model, identi
 from casmbd.cli.common import check_not_input, load_scene_for
 from casmbd.errors import AnalysisError
 from casmbd.io.identified import write_scene, write_urdf
-from casmbd.io.measurements import read_measurements
+from casmbd.io.measurement_csv import read_measurements
 from casmbd.io.urdf import load_urdf
 
 

@@ -1,4 +1,4 @@
-"""Measurement CSV files (casmbd.io.measurements): the columns by casmbd's coordinate names,
+"""Measurement CSV files (casmbd.io.measurement_csv): the columns by casmbd's coordinate names,
 both spellings, and every bad input named by file, line and column."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from casmbd.errors import IdentificationError, LimitError
-from casmbd.io import measurements as mio
+from casmbd.io import measurement_csv as mio
 
 COORDS = ["shoulder.angle", "elbow.angle"]
 

@@ -1,7 +1,7 @@
 """Identification of a mechanism's dynamic parameters from measured joint data.
 
 :func:`identify` runs the whole chain on a :class:`~casmbd.model.Mechanism` (loading files is
-the caller's: :func:`casmbd.io.measurements.read_measurements`, the ``casmbd identify`` verb):
+the caller's: :func:`casmbd.io.measurement_csv.read_measurements`, the ``casmbd identify`` verb):
 
 1. the samples (t, q, q̇, q̈, τ), filtered and differentiated when asked
    (:func:`~casmbd.analysis.identification.measurements.prepare`);

@@ -3,7 +3,7 @@
 A :class:`Measurements` holds the samples of one experiment on the model's coordinates:
 times t (N), positions q (N × n), and optionally velocities v, accelerations a and the
 measured generalized efforts τ (joint torques and forces, N × n each).  Reading them from a
-CSV file is :func:`casmbd.io.measurements.read_measurements` (the io layer); this module only
+CSV file is :func:`casmbd.io.measurement_csv.read_measurements` (the io layer); this module only
 computes.
 
 :func:`prepare` turns them into the (q, q̇, q̈, τ) samples the regressor needs:
